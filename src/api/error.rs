@@ -1,0 +1,256 @@
+//! The one error type of the HTTP layer, rendered as RFC 9457 `application/problem+json`.
+
+use std::collections::BTreeMap;
+
+use axum::{
+    http::{HeaderValue, StatusCode, header},
+    response::{IntoResponse, Response},
+};
+use serde::{Deserialize, Serialize};
+use utoipa::{
+    ToSchema,
+    openapi::{ContentBuilder, RefOr, ResponseBuilder, response::Response as OpenApiResponse},
+};
+
+use crate::physics::PhysicsError;
+
+/// The media type of every error body.
+pub const PROBLEM_JSON: &str = "application/problem+json";
+
+/// One offending input and what is wrong with it.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
+pub struct FieldError {
+    /// The request field (JSON member or query parameter) at fault, such as `baseline`; `body`,
+    /// `query`, `content-type`, `path` or `method` when the fault is not in one field.
+    pub field: String,
+    /// What is wrong and how to fix it.
+    pub message: String,
+}
+
+impl FieldError {
+    pub fn new(field: impl Into<String>, message: impl Into<String>) -> Self {
+        Self {
+            field: field.into(),
+            message: message.into(),
+        }
+    }
+}
+
+/// An RFC 9457 problem details object with the list of every offending field.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+#[schema(example = json!({
+    "type": "urn:stereo-distance:problem:invalid-input",
+    "title": "Invalid input",
+    "status": 422,
+    "detail": "2 fields are invalid: baseline, x_left",
+    "errors": [
+        {"field": "baseline", "message": "must be greater than 0, got 0"},
+        {"field": "x_left", "message": "must lie in [0, 800] (the image width), got 900"}
+    ]
+}))]
+pub struct Problem {
+    /// A URI reference naming the kind of problem (`about:blank` for plain HTTP errors).
+    #[serde(rename = "type")]
+    pub problem_type: String,
+    /// A short summary of the kind of problem.
+    pub title: String,
+    /// The HTTP status code.
+    pub status: u16,
+    /// A human-readable explanation of this occurrence.
+    pub detail: String,
+    /// Every offending field, each with its own message; never empty.
+    pub errors: Vec<FieldError>,
+}
+
+/// Everything that can go wrong with a request.
+#[derive(Debug, Clone, PartialEq)]
+pub enum ApiError {
+    /// 400: the body is not JSON, or the query string cannot be decoded.
+    Malformed(FieldError),
+    /// 413: the body is larger than the limit, in bytes.
+    PayloadTooLarge(usize),
+    /// 415: the body is not declared as JSON.
+    UnsupportedMediaType(String),
+    /// 422: one or more fields are missing, of the wrong type, unknown or out of range.
+    Invalid(Vec<FieldError>),
+    /// 404: no such route.
+    NotFound(String),
+    /// 405: the route exists but not with this method.
+    MethodNotAllowed(String),
+    /// 500: a bug; never expected, but answered in the same format.
+    Internal(String),
+}
+
+impl ApiError {
+    pub fn invalid(field: impl Into<String>, message: impl Into<String>) -> Self {
+        ApiError::Invalid(vec![FieldError::new(field, message)])
+    }
+
+    pub fn status(&self) -> StatusCode {
+        match self {
+            ApiError::Malformed(_) => StatusCode::BAD_REQUEST,
+            ApiError::PayloadTooLarge(_) => StatusCode::PAYLOAD_TOO_LARGE,
+            ApiError::UnsupportedMediaType(_) => StatusCode::UNSUPPORTED_MEDIA_TYPE,
+            ApiError::Invalid(_) => StatusCode::UNPROCESSABLE_ENTITY,
+            ApiError::NotFound(_) => StatusCode::NOT_FOUND,
+            ApiError::MethodNotAllowed(_) => StatusCode::METHOD_NOT_ALLOWED,
+            ApiError::Internal(_) => StatusCode::INTERNAL_SERVER_ERROR,
+        }
+    }
+
+    /// The problem details body for this error.
+    pub fn problem(&self) -> Problem {
+        let status = self.status();
+        let plain = |detail: String, errors: Vec<FieldError>| Problem {
+            problem_type: "about:blank".to_owned(),
+            title: status.canonical_reason().unwrap_or("Error").to_owned(),
+            status: status.as_u16(),
+            detail,
+            errors,
+        };
+        match self {
+            ApiError::Malformed(error) => Problem {
+                problem_type: "urn:stereo-distance:problem:malformed-request".to_owned(),
+                title: "Malformed request".to_owned(),
+                status: status.as_u16(),
+                detail: format!(
+                    "the {} could not be decoded: {}",
+                    error.field, error.message
+                ),
+                errors: vec![error.clone()],
+            },
+            ApiError::PayloadTooLarge(limit) => plain(
+                format!("the request body is larger than the limit of {limit} bytes"),
+                vec![FieldError::new(
+                    "body",
+                    format!("must be at most {limit} bytes"),
+                )],
+            ),
+            ApiError::UnsupportedMediaType(got) => plain(
+                format!("the request body must be sent as application/json, not {got}"),
+                vec![FieldError::new(
+                    "content-type",
+                    format!("must be application/json, got {got}"),
+                )],
+            ),
+            ApiError::Invalid(errors) => {
+                let names: Vec<&str> = errors.iter().map(|e| e.field.as_str()).collect();
+                let detail = match errors.as_slice() {
+                    [one] => format!("{}: {}", one.field, one.message),
+                    _ => format!("{} fields are invalid: {}", errors.len(), names.join(", ")),
+                };
+                Problem {
+                    problem_type: "urn:stereo-distance:problem:invalid-input".to_owned(),
+                    title: "Invalid input".to_owned(),
+                    status: status.as_u16(),
+                    detail,
+                    errors: errors.clone(),
+                }
+            }
+            ApiError::NotFound(path) => plain(
+                format!("there is no resource at {path}; see /openapi.json for the API"),
+                vec![FieldError::new("path", format!("no route for {path}"))],
+            ),
+            ApiError::MethodNotAllowed(method) => plain(
+                format!("{method} is not supported here; the Allow header lists what is"),
+                vec![FieldError::new(
+                    "method",
+                    format!("{method} is not allowed"),
+                )],
+            ),
+            ApiError::Internal(what) => plain(
+                "the server failed to answer this request; it has been logged".to_owned(),
+                vec![FieldError::new("request", what.clone())],
+            ),
+        }
+    }
+}
+
+impl From<(PhysicsError, &[&str])> for ApiError {
+    /// A physics failure, blamed on the request fields that produced it.
+    fn from((error, fields): (PhysicsError, &[&str])) -> Self {
+        ApiError::Invalid(
+            fields
+                .iter()
+                .map(|field| FieldError::new(*field, error.to_string()))
+                .collect(),
+        )
+    }
+}
+
+impl IntoResponse for ApiError {
+    fn into_response(self) -> Response {
+        if let ApiError::Internal(what) = &self {
+            tracing::error!(%what, "internal error");
+        }
+        let status = self.status();
+        let body = serde_json::to_vec(&self.problem()).unwrap_or_default();
+        let mut response = (status, body).into_response();
+        response
+            .headers_mut()
+            .insert(header::CONTENT_TYPE, HeaderValue::from_static(PROBLEM_JSON));
+        response
+    }
+}
+
+/// The error responses an operation documents, for `#[utoipa::path(responses(...))]`.
+fn problem_responses(statuses: &[(StatusCode, &str)]) -> BTreeMap<String, RefOr<OpenApiResponse>> {
+    statuses
+        .iter()
+        .map(|(status, description)| {
+            let response = ResponseBuilder::new()
+                .description(*description)
+                .content(
+                    PROBLEM_JSON,
+                    ContentBuilder::new()
+                        .schema(Some(RefOr::Ref(utoipa::openapi::Ref::from_schema_name(
+                            "Problem",
+                        ))))
+                        .build(),
+                )
+                .build();
+            (status.as_u16().to_string(), RefOr::T(response))
+        })
+        .collect()
+}
+
+const BAD_QUERY: (StatusCode, &str) = (
+    StatusCode::BAD_REQUEST,
+    "The query string cannot be decoded (for example invalid percent-encoding).",
+);
+const BAD_JSON: (StatusCode, &str) = (StatusCode::BAD_REQUEST, "The body is not valid JSON.");
+const TOO_LARGE: (StatusCode, &str) = (
+    StatusCode::PAYLOAD_TOO_LARGE,
+    "The body is larger than the configured limit (64 KiB by default).",
+);
+const NOT_JSON: (StatusCode, &str) = (
+    StatusCode::UNSUPPORTED_MEDIA_TYPE,
+    "The body is not declared as application/json.",
+);
+const INVALID: (StatusCode, &str) = (
+    StatusCode::UNPROCESSABLE_ENTITY,
+    "One or more fields are missing, of the wrong type, unknown or out of range, or the point \
+     is at infinity; `errors` names every one.",
+);
+const METHOD: (StatusCode, &str) = (
+    StatusCode::METHOD_NOT_ALLOWED,
+    "The path does not support this method.",
+);
+
+/// Error responses of an operation that reads a JSON body.
+pub struct BodyErrors;
+
+impl utoipa::IntoResponses for BodyErrors {
+    fn responses() -> BTreeMap<String, RefOr<OpenApiResponse>> {
+        problem_responses(&[BAD_JSON, METHOD, TOO_LARGE, NOT_JSON, INVALID])
+    }
+}
+
+/// Error responses of an operation that reads the query string.
+pub struct QueryErrors;
+
+impl utoipa::IntoResponses for QueryErrors {
+    fn responses() -> BTreeMap<String, RefOr<OpenApiResponse>> {
+        problem_responses(&[BAD_QUERY, METHOD, INVALID])
+    }
+}

@@ -1,0 +1,337 @@
+//! Route handlers: each is extract → validate → physics → response, and nothing else.
+
+use axum::{
+    Json,
+    extract::State,
+    http::{Method, Uri},
+};
+
+use super::{
+    AppState,
+    error::{ApiError, BodyErrors, QueryErrors},
+    extract::{JsonBody, QueryParams},
+    types::{
+        Axis, ChartPoint, ChartRequest, ChartResponse, DistanceRequest, DistanceResponse, Point,
+        Series, TableRequest, TableResponse, TableRow, Warning,
+    },
+    validate::{self, Bounds, Problems},
+};
+use crate::physics::{self, Rig};
+
+#[utoipa::path(
+    post,
+    path = "/distance",
+    tag = "distance",
+    summary = "Distance to one feature from its stereo correspondence",
+    description = "Z = B·f_px / |d + doffs| with d = x_left − x_right, in the unit of the \
+                   baseline, with its expected error ΔZ = Z²·Δd/(f_px·B), the intermediate values \
+                   and the feature's 3D point.",
+    request_body = DistanceRequest,
+    responses(
+        (status = 200, description = "The distance and its error.", body = DistanceResponse),
+        BodyErrors
+    )
+)]
+pub async fn post_distance(
+    JsonBody(request): JsonBody<DistanceRequest>,
+) -> Result<Json<DistanceResponse>, ApiError> {
+    distance(&request).map(Json)
+}
+
+#[utoipa::path(
+    get,
+    path = "/distance",
+    tag = "distance",
+    summary = "Distance to one feature (query-string form of POST /distance)",
+    params(DistanceRequest),
+    responses(
+        (status = 200, description = "The distance and its error.", body = DistanceResponse),
+        QueryErrors
+    )
+)]
+pub async fn get_distance(
+    QueryParams(request): QueryParams<DistanceRequest>,
+) -> Result<Json<DistanceResponse>, ApiError> {
+    distance(&request).map(Json)
+}
+
+#[utoipa::path(
+    post,
+    path = "/table",
+    tag = "table",
+    summary = "Sample table of distance against disparity for a rig",
+    request_body = TableRequest,
+    responses(
+        (status = 200, description = "The sample table.", body = TableResponse),
+        BodyErrors
+    )
+)]
+pub async fn post_table(
+    State(state): State<AppState>,
+    JsonBody(request): JsonBody<TableRequest>,
+) -> Result<Json<TableResponse>, ApiError> {
+    table(&state, &request).map(Json)
+}
+
+#[utoipa::path(
+    get,
+    path = "/table",
+    tag = "table",
+    summary = "Sample table (query-string form of POST /table)",
+    params(TableRequest),
+    responses(
+        (status = 200, description = "The sample table.", body = TableResponse),
+        QueryErrors
+    )
+)]
+pub async fn get_table(
+    State(state): State<AppState>,
+    QueryParams(request): QueryParams<TableRequest>,
+) -> Result<Json<TableResponse>, ApiError> {
+    table(&state, &request).map(Json)
+}
+
+#[utoipa::path(
+    post,
+    path = "/chart-data",
+    tag = "chart",
+    summary = "Chart series of distance and depth error against disparity",
+    request_body = ChartRequest,
+    responses(
+        (status = 200, description = "The chart series.", body = ChartResponse),
+        BodyErrors
+    )
+)]
+pub async fn post_chart_data(
+    State(state): State<AppState>,
+    JsonBody(request): JsonBody<ChartRequest>,
+) -> Result<Json<ChartResponse>, ApiError> {
+    chart(&state, &request).map(Json)
+}
+
+#[utoipa::path(
+    get,
+    path = "/chart-data",
+    tag = "chart",
+    summary = "Chart series (query-string form of POST /chart-data)",
+    params(ChartRequest),
+    responses(
+        (status = 200, description = "The chart series.", body = ChartResponse),
+        QueryErrors
+    )
+)]
+pub async fn get_chart_data(
+    State(state): State<AppState>,
+    QueryParams(request): QueryParams<ChartRequest>,
+) -> Result<Json<ChartResponse>, ApiError> {
+    chart(&state, &request).map(Json)
+}
+
+/// Answers any path the API does not have.
+pub async fn not_found(uri: Uri) -> ApiError {
+    ApiError::NotFound(uri.path().to_owned())
+}
+
+/// Answers a known path asked with the wrong method (axum adds the `Allow` header).
+pub async fn method_not_allowed(method: Method) -> ApiError {
+    ApiError::MethodNotAllowed(method.to_string())
+}
+
+/// The fields to blame when a correspondence has no finite distance.
+fn disparity_fields(rig: &Rig) -> &'static [&'static str] {
+    if rig.doffs == 0.0 {
+        &["x_left", "x_right"]
+    } else {
+        &["x_left", "x_right", "doffs"]
+    }
+}
+
+fn distance(request: &DistanceRequest) -> Result<DistanceResponse, ApiError> {
+    let mut problems = Problems::default();
+    let params = request.rig_params();
+    let rig = validate::rig(&params, &mut problems);
+    let correspondence = validate::correspondence(
+        (request.x_left, request.x_right, request.y),
+        Bounds::of(&params),
+        rig.map(|r| r.cy),
+        &mut problems,
+    );
+    let (rig, correspondence) = problems.finish(rig.zip(correspondence))?;
+    let m = physics::measure(&rig, correspondence)
+        .map_err(|e| ApiError::from((e, disparity_fields(&rig))))?;
+    let unit = rig.unit.symbol();
+    Ok(DistanceResponse {
+        formula: format!(
+            "Z = B·f / |d + doffs| = {} {unit} × {} px / |{} px + {} px| = {} {unit}",
+            short(rig.baseline),
+            short(rig.focal_px),
+            short(m.disparity_px),
+            short(rig.doffs),
+            short(m.distance),
+        ),
+        distance: m.distance,
+        unit: request.unit.unwrap_or_default(),
+        distance_m: m.distance_m,
+        depth_error: m.depth_error,
+        relative_error: m.relative_error,
+        disparity_error_px: rig.disparity_error_px,
+        disparity_px: m.disparity_px,
+        effective_disparity_px: m.effective_disparity_px,
+        focal_length_px: rig.focal_px,
+        baseline: rig.baseline,
+        normalized_x: m.normalized_x,
+        projection_factor: m.projection_factor,
+        point: Point {
+            x: m.point.x,
+            y: m.point.y,
+            z: m.point.z,
+        },
+        warnings: m
+            .warnings
+            .iter()
+            .map(|w| Warning {
+                code: w.code().to_owned(),
+                message: w.to_string(),
+            })
+            .collect(),
+    })
+}
+
+/// A number for reading: at most four decimals, no trailing zeros.
+fn short(value: f64) -> String {
+    if value != 0.0 && !(1e-3..1e12).contains(&value.abs()) {
+        return format!("{value:e}");
+    }
+    let text = format!("{value:.4}");
+    let text = text.trim_end_matches('0').trim_end_matches('.');
+    if text == "-0" { "0" } else { text }.to_owned()
+}
+
+fn table(state: &AppState, request: &TableRequest) -> Result<TableResponse, ApiError> {
+    let mut problems = Problems::default();
+    let params = request.rig_params();
+    let rig = validate::rig(&params, &mut problems);
+    let range = validate::range(&request.range_params(), rig.as_ref(), None, &mut problems);
+    let steps = problems.count("steps", request.steps, 10, 1, state.limits.table_rows);
+    let x_left = match request.x_left {
+        Some(x) => validate::x_coordinate("x_left", x, Bounds::of(&params), &mut problems),
+        None => rig.map(|r| r.image_width / 2.0),
+    };
+    let (rig, ((range, spacing), (steps, x_left))) =
+        problems.finish(rig.zip(range.zip(steps.zip(x_left))))?;
+    let rows = physics::table(&rig, range, steps, spacing, x_left)
+        .map_err(|e| ApiError::from((e, range_fields(request.range_params()))))?;
+    Ok(TableResponse {
+        unit: request.unit.unwrap_or_default(),
+        focal_length_px: rig.focal_px,
+        baseline: rig.baseline,
+        disparity_error_px: rig.disparity_error_px,
+        x_left,
+        rows: rows
+            .into_iter()
+            .map(|r| TableRow {
+                distance: r.distance,
+                disparity_px: r.disparity_px,
+                normalized_x: r.normalized_x,
+                projection_factor: r.projection_factor,
+                depth_error: r.depth_error,
+            })
+            .collect(),
+    })
+}
+
+/// The range fields to blame when a sweep overflows.
+fn range_fields(range: super::types::RangeParams) -> &'static [&'static str] {
+    if range.distance_min.is_some() {
+        &["distance_min", "distance_max"]
+    } else if range.disparity_min.is_some() {
+        &["disparity_min", "disparity_max"]
+    } else {
+        &["baseline"]
+    }
+}
+
+fn chart(state: &AppState, request: &ChartRequest) -> Result<ChartResponse, ApiError> {
+    let mut problems = Problems::default();
+    let params = request.rig_params();
+    let rig = validate::rig(&params, &mut problems);
+    let measured = match (request.x_left, request.x_right) {
+        (None, None) => None,
+        (x_left, x_right) => validate::correspondence(
+            (x_left, x_right, None),
+            Bounds::of(&params),
+            Some(0.0),
+            &mut problems,
+        )
+        .map(|c| c.x_left - c.x_right),
+    };
+    let range = validate::range(
+        &request.range_params(),
+        rig.as_ref(),
+        measured,
+        &mut problems,
+    );
+    let points = problems.count("points", request.points, 100, 2, state.limits.chart_points);
+    let (rig, ((range, spacing), points)) = problems.finish(rig.zip(range.zip(points)))?;
+    let marker = measured
+        .map(|d| {
+            rig.distance_at(d)
+                .map(|z| ChartPoint { x: d, y: z })
+                .map_err(|e| ApiError::from((e, disparity_fields(&rig))))
+        })
+        .transpose()?;
+    let mut samples = physics::sweep(&rig, range, points, spacing)
+        .map_err(|e| ApiError::from((e, range_fields(request.range_params()))))?;
+    samples.sort_by(|a, b| a.disparity_px.total_cmp(&b.disparity_px));
+    let unit = rig.unit.symbol();
+    let series = |name: &str, label: String, y: fn(&physics::Sample) -> f64| Series {
+        name: name.to_owned(),
+        label,
+        unit: unit.to_owned(),
+        points: samples
+            .iter()
+            .map(|s| ChartPoint {
+                x: s.disparity_px,
+                y: y(s),
+            })
+            .collect(),
+    };
+    Ok(ChartResponse {
+        unit: request.unit.unwrap_or_default(),
+        x_axis: Axis {
+            label: "Disparity d (px)".to_owned(),
+            unit: "px".to_owned(),
+        },
+        y_axis: Axis {
+            label: format!("Distance Z ({unit})"),
+            unit: unit.to_owned(),
+        },
+        series: vec![
+            series("distance", format!("Distance Z ({unit})"), |s| s.distance),
+            series(
+                "depth_error",
+                format!(
+                    "Depth error ΔZ ({unit}, Δd = {} px)",
+                    short(rig.disparity_error_px)
+                ),
+                |s| s.depth_error,
+            ),
+        ],
+        marker,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::short;
+
+    /// Formula numbers are short and readable.
+    #[test]
+    fn short_numbers() {
+        assert_eq!(short(105.0), "105");
+        assert_eq!(short(0.23333333), "0.2333");
+        assert_eq!(short(-15.0), "-15");
+        assert_eq!(short(0.0), "0");
+        assert_eq!(short(1e-7), "1e-7");
+    }
+}

@@ -1,0 +1,648 @@
+//! Stereo triangulation for a rectified camera pair: pure functions on plain numbers, with no HTTP
+//! or serialisation anywhere in their signatures.
+//!
+//! Conventions used throughout:
+//! - disparity `d = x_left − x_right` in pixels (signed);
+//! - the *effective* disparity is `d + doffs`, where `doffs` is the principal-point offset between
+//!   the two cameras (Middlebury's `doffs`, zero for most rigs);
+//! - depth `Z = B·f_px / |d + doffs|`, in the unit of the baseline `B`;
+//! - focal length `f_px` is always in pixels: a focal length in millimetres times a disparity in
+//!   pixels is not a length, so millimetres must be converted first ([`FocalLength::to_pixels`]);
+//! - depth error `ΔZ = Z²·Δd / (f_px·B)`, the first-order propagation of a disparity error `Δd`.
+
+use std::fmt;
+
+/// Default disparity uncertainty Δd, in pixels: the ±0.5 px quantisation of integer-pixel
+/// matching. Subpixel matchers reach about 0.1 px and should pass their own figure.
+pub const DEFAULT_DISPARITY_ERROR_PX: f64 = 0.5;
+
+/// Relative depth error above which a measurement carries a [`Warning::LargeRelativeError`].
+pub const LARGE_RELATIVE_ERROR: f64 = 0.1;
+
+/// A unit of length for the baseline and every length derived from it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum LengthUnit {
+    Millimetre,
+    Centimetre,
+    Metre,
+    Inch,
+    Foot,
+}
+
+impl LengthUnit {
+    /// Every unit the service knows.
+    pub const ALL: [LengthUnit; 5] = [
+        LengthUnit::Millimetre,
+        LengthUnit::Centimetre,
+        LengthUnit::Metre,
+        LengthUnit::Inch,
+        LengthUnit::Foot,
+    ];
+
+    /// The symbol users type and read: `mm`, `cm`, `m`, `in`, `ft`.
+    pub fn symbol(self) -> &'static str {
+        match self {
+            LengthUnit::Millimetre => "mm",
+            LengthUnit::Centimetre => "cm",
+            LengthUnit::Metre => "m",
+            LengthUnit::Inch => "in",
+            LengthUnit::Foot => "ft",
+        }
+    }
+
+    /// How many metres one of this unit is (exact by definition for in and ft).
+    pub fn metres(self) -> f64 {
+        match self {
+            LengthUnit::Millimetre => 0.001,
+            LengthUnit::Centimetre => 0.01,
+            LengthUnit::Metre => 1.0,
+            LengthUnit::Inch => 0.0254,
+            LengthUnit::Foot => 0.3048,
+        }
+    }
+
+    /// Converts `value` from this unit into `to`.
+    pub fn convert(self, value: f64, to: LengthUnit) -> f64 {
+        value * (self.metres() / to.metres())
+    }
+}
+
+/// The ways a user can state the focal length; all of them end up in pixels.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum FocalLength {
+    /// Already in pixels (`fx` from a calibration).
+    Pixels(f64),
+    /// Millimetres plus the sensor's active width in millimetres.
+    MillimetresWithSensorWidth { focal_mm: f64, sensor_width_mm: f64 },
+    /// Millimetres plus the pixel pitch in micrometres.
+    MillimetresWithPixelPitch { focal_mm: f64, pixel_pitch_um: f64 },
+    /// Horizontal field of view in degrees, over the full image width.
+    HorizontalFov { degrees: f64 },
+}
+
+impl FocalLength {
+    /// The focal length in pixels for an image `image_width_px` pixels wide.
+    pub fn to_pixels(self, image_width_px: f64) -> f64 {
+        match self {
+            FocalLength::Pixels(px) => px,
+            FocalLength::MillimetresWithSensorWidth {
+                focal_mm,
+                sensor_width_mm,
+            } => focal_mm * image_width_px / sensor_width_mm,
+            FocalLength::MillimetresWithPixelPitch {
+                focal_mm,
+                pixel_pitch_um,
+            } => focal_mm * 1000.0 / pixel_pitch_um,
+            FocalLength::HorizontalFov { degrees } => {
+                (image_width_px / 2.0) / (degrees.to_radians() / 2.0).tan()
+            }
+        }
+    }
+}
+
+/// The field of view in degrees that a focal length of `focal_px` gives over `extent_px` pixels.
+pub fn field_of_view_deg(focal_px: f64, extent_px: f64) -> f64 {
+    (2.0 * (extent_px / 2.0 / focal_px).atan()).to_degrees()
+}
+
+/// A calibrated, rectified stereo rig. Lengths are in `unit`; pixel quantities in pixels.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Rig {
+    pub focal_px: f64,
+    pub baseline: f64,
+    pub unit: LengthUnit,
+    pub image_width: f64,
+    pub image_height: f64,
+    /// Principal point of the left camera, in pixels.
+    pub cx: f64,
+    pub cy: f64,
+    /// Principal-point offset between the cameras, added to every disparity.
+    pub doffs: f64,
+    /// Disparity uncertainty Δd in pixels, for the depth error.
+    pub disparity_error_px: f64,
+}
+
+impl Rig {
+    /// `f_px·B`, the constant that turns an effective disparity into a depth.
+    pub fn fb(&self) -> f64 {
+        self.focal_px * self.baseline
+    }
+
+    /// The seed calculator's "projection factor", `f_px / B`, in pixels per unit of length.
+    pub fn projection_factor(&self) -> f64 {
+        self.focal_px / self.baseline
+    }
+
+    /// Depth for a raw disparity `d`: `Z = B·f_px / |d + doffs|`.
+    pub fn distance_at(&self, disparity_px: f64) -> Result<f64, PhysicsError> {
+        let effective = disparity_px + self.doffs;
+        if effective == 0.0 {
+            return Err(PhysicsError::AtInfinity);
+        }
+        finite(self.fb() / effective.abs())
+    }
+
+    /// The raw disparity `d` (positive effective disparity) at which a point lies at `distance`.
+    pub fn disparity_at(&self, distance: f64) -> f64 {
+        self.fb() / distance - self.doffs
+    }
+
+    /// Depth error at `distance`: `ΔZ = Z²·Δd / (f_px·B)`.
+    pub fn depth_error_at(&self, distance: f64) -> f64 {
+        distance * distance * self.disparity_error_px / self.fb()
+    }
+
+    /// The seed's normalised coordinate: `(x − W/2) / (W/2)`, −1 at the left edge, +1 at the right.
+    pub fn normalized_x(&self, x_px: f64) -> f64 {
+        let half = self.image_width / 2.0;
+        (x_px - half) / half
+    }
+}
+
+/// One feature seen in both images: its x in each, and its row y in the left image.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Correspondence {
+    pub x_left: f64,
+    pub x_right: f64,
+    pub y: f64,
+}
+
+/// A point in the left camera's frame: x right, y down, z forward, in the rig's unit.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Point3 {
+    pub x: f64,
+    pub y: f64,
+    pub z: f64,
+}
+
+/// Something a caller should know about a result that is still computed.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Warning {
+    /// `d + doffs < 0`: the feature is to the left in the right image. The distance uses |d + doffs|.
+    NegativeDisparity { effective_disparity_px: f64 },
+    /// The depth error is a large fraction of the distance.
+    LargeRelativeError { relative_error: f64 },
+}
+
+impl Warning {
+    /// A stable machine-readable code.
+    pub fn code(&self) -> &'static str {
+        match self {
+            Warning::NegativeDisparity { .. } => "negative_disparity",
+            Warning::LargeRelativeError { .. } => "large_relative_error",
+        }
+    }
+}
+
+impl fmt::Display for Warning {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Warning::NegativeDisparity {
+                effective_disparity_px,
+            } => write!(
+                f,
+                "the effective disparity d + doffs = {effective_disparity_px} px is negative: \
+                 the distance uses its absolute value, but check that the left and right images \
+                 (or x_left and x_right) are not swapped"
+            ),
+            Warning::LargeRelativeError { relative_error } => write!(
+                f,
+                "the depth error is {:.1} % of the distance: the disparity is only a few times \
+                 the matching error, so treat this distance as a rough estimate",
+                relative_error * 100.0
+            ),
+        }
+    }
+}
+
+/// Why a computation has no finite answer.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum PhysicsError {
+    /// The effective disparity is zero: the point is at infinity.
+    AtInfinity,
+    /// A result overflowed (or an input was so small that it did).
+    NotFinite,
+}
+
+impl fmt::Display for PhysicsError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            PhysicsError::AtInfinity => {
+                f.write_str("the effective disparity d + doffs is zero: the point is at infinity")
+            }
+            PhysicsError::NotFinite => {
+                f.write_str("the effective disparity d + doffs is too small for a finite distance")
+            }
+        }
+    }
+}
+
+impl std::error::Error for PhysicsError {}
+
+fn finite(value: f64) -> Result<f64, PhysicsError> {
+    if value.is_finite() {
+        Ok(value)
+    } else {
+        Err(PhysicsError::NotFinite)
+    }
+}
+
+/// Everything the service reports about one correspondence.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Measurement {
+    pub disparity_px: f64,
+    pub effective_disparity_px: f64,
+    pub distance: f64,
+    pub distance_m: f64,
+    pub depth_error: f64,
+    pub relative_error: f64,
+    pub normalized_x: f64,
+    pub projection_factor: f64,
+    pub point: Point3,
+    pub warnings: Vec<Warning>,
+}
+
+/// Triangulates one correspondence. Every number in an `Ok` result is finite.
+pub fn measure(rig: &Rig, c: Correspondence) -> Result<Measurement, PhysicsError> {
+    let disparity_px = c.x_left - c.x_right;
+    let effective_disparity_px = disparity_px + rig.doffs;
+    let distance = rig.distance_at(disparity_px)?;
+    let depth_error = finite(rig.depth_error_at(distance))?;
+    let relative_error = finite(depth_error / distance)?;
+    let scale = distance / rig.focal_px;
+    let point = Point3 {
+        x: finite((c.x_left - rig.cx) * scale)?,
+        y: finite((c.y - rig.cy) * scale)?,
+        z: distance,
+    };
+    let mut warnings = Vec::new();
+    if effective_disparity_px < 0.0 {
+        warnings.push(Warning::NegativeDisparity {
+            effective_disparity_px,
+        });
+    }
+    if relative_error > LARGE_RELATIVE_ERROR {
+        warnings.push(Warning::LargeRelativeError { relative_error });
+    }
+    Ok(Measurement {
+        disparity_px,
+        effective_disparity_px,
+        distance,
+        distance_m: finite(distance * rig.unit.metres())?,
+        depth_error,
+        relative_error,
+        normalized_x: rig.normalized_x(c.x_left),
+        projection_factor: finite(rig.projection_factor())?,
+        point,
+        warnings,
+    })
+}
+
+/// How samples are spread between the ends of a range.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Spacing {
+    Linear,
+    /// Geometric: equal ratios between neighbours (denser where the curve bends).
+    Log,
+}
+
+/// The stretch of the disparity–distance curve to sample. Callers guarantee `0 < min < max` for
+/// distances and `0 < min + doffs`, `min < max` for disparities.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum SampleRange {
+    /// Distances in the rig's unit; samples are spaced in distance.
+    Distance { min: f64, max: f64 },
+    /// Raw disparities in pixels; samples are spaced in effective disparity.
+    Disparity { min: f64, max: f64 },
+}
+
+impl SampleRange {
+    /// The range used when a caller gives none: raw disparities from the first whole pixel of
+    /// positive effective disparity (at least 1 px) across a quarter of the image width, which is
+    /// the search range of a typical block matcher. It is widened to take in `measured`, the
+    /// caller's own disparity, when that lies beyond it.
+    pub fn default_for(rig: &Rig, measured_disparity_px: Option<f64>) -> SampleRange {
+        let min = 1.0_f64.max(1.0 - rig.doffs);
+        let mut max = min + (rig.image_width / 4.0 - 1.0).max(1.0);
+        if let Some(d) = measured_disparity_px
+            && d + rig.doffs > 0.0
+            && d * 1.25 > max
+        {
+            max = d * 1.25;
+        }
+        SampleRange::Disparity { min, max }
+    }
+}
+
+/// `count` values from `min` to `max`, both ends included (just `min` when `count` is 1).
+pub fn spaced(min: f64, max: f64, count: usize, spacing: Spacing) -> impl Iterator<Item = f64> {
+    let last = count.saturating_sub(1).max(1) as f64;
+    (0..count).map(move |i| {
+        let t = i as f64 / last;
+        let value = match spacing {
+            Spacing::Linear => min + (max - min) * t,
+            Spacing::Log => min * (max / min).powf(t),
+        };
+        // Land exactly on the ends despite rounding.
+        if i + 1 == count && count > 1 {
+            max
+        } else {
+            value
+        }
+    })
+}
+
+/// One point on the rig's disparity–distance curve.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Sample {
+    pub disparity_px: f64,
+    pub distance: f64,
+    pub depth_error: f64,
+}
+
+/// Samples the curve at `count` points across `range`, in the order of the ranged quantity
+/// (ascending). Every number in an `Ok` result is finite.
+pub fn sweep(
+    rig: &Rig,
+    range: SampleRange,
+    count: usize,
+    spacing: Spacing,
+) -> Result<Vec<Sample>, PhysicsError> {
+    let sample_at = |disparity_px: f64, distance: f64| -> Result<Sample, PhysicsError> {
+        Ok(Sample {
+            disparity_px: finite(disparity_px)?,
+            distance: finite(distance)?,
+            depth_error: finite(rig.depth_error_at(distance))?,
+        })
+    };
+    match range {
+        SampleRange::Distance { min, max } => spaced(min, max, count, spacing)
+            .map(|z| sample_at(rig.disparity_at(z), z))
+            .collect(),
+        SampleRange::Disparity { min, max } => {
+            spaced(min + rig.doffs, max + rig.doffs, count, spacing)
+                .map(|effective| {
+                    let d = effective - rig.doffs;
+                    sample_at(d, rig.distance_at(d)?)
+                })
+                .collect()
+        }
+    }
+}
+
+/// A row of the sample table: the seed's columns plus the depth error.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TableRow {
+    pub distance: f64,
+    pub disparity_px: f64,
+    /// Normalised x of the right-image feature, `x_right = x_left − d`.
+    pub normalized_x: f64,
+    pub projection_factor: f64,
+    pub depth_error: f64,
+}
+
+/// The sample table for `range`, with the left-image x held at `x_left`.
+pub fn table(
+    rig: &Rig,
+    range: SampleRange,
+    steps: usize,
+    spacing: Spacing,
+    x_left: f64,
+) -> Result<Vec<TableRow>, PhysicsError> {
+    let projection_factor = finite(rig.projection_factor())?;
+    sweep(rig, range, steps, spacing)?
+        .into_iter()
+        .map(|s| {
+            Ok(TableRow {
+                distance: s.distance,
+                disparity_px: s.disparity_px,
+                normalized_x: finite(rig.normalized_x(x_left - s.disparity_px))?,
+                projection_factor,
+                depth_error: s.depth_error,
+            })
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn rig(focal_px: f64, baseline: f64) -> Rig {
+        Rig {
+            focal_px,
+            baseline,
+            unit: LengthUnit::Millimetre,
+            image_width: 800.0,
+            image_height: 600.0,
+            cx: 400.0,
+            cy: 300.0,
+            doffs: 0.0,
+            disparity_error_px: DEFAULT_DISPARITY_ERROR_PX,
+        }
+    }
+
+    fn close(a: f64, b: f64) -> bool {
+        (a - b).abs() <= 1e-9 * a.abs().max(b.abs()).max(1.0)
+    }
+
+    fn at(x_left: f64, x_right: f64) -> Correspondence {
+        Correspondence {
+            x_left,
+            x_right,
+            y: 300.0,
+        }
+    }
+
+    /// The seed's first example, with f read as 35 px, is 105 mm away.
+    #[test]
+    fn seed_example_one_reproduces() {
+        let m = measure(&rig(35.0, 150.0), at(400.0, 350.0)).unwrap();
+        assert_eq!(m.disparity_px, 50.0);
+        assert!(close(m.distance, 105.0));
+        assert!(close(m.distance_m, 0.105));
+        assert_eq!(m.normalized_x, 0.0);
+        assert!(close(m.projection_factor, 35.0 / 150.0));
+        assert!(m.warnings.is_empty());
+    }
+
+    /// A negative disparity still gives a distance from |d|, with a warning.
+    #[test]
+    fn negative_disparity_uses_absolute_value_and_warns() {
+        let mut r = rig(12.0, 50.0);
+        r.image_width = 640.0;
+        let m = measure(&r, at(180.0, 195.0)).unwrap();
+        assert_eq!(m.disparity_px, -15.0);
+        assert!(close(m.distance, 40.0));
+        assert!(close(m.normalized_x, -0.4375));
+        assert_eq!(m.warnings[0].code(), "negative_disparity");
+    }
+
+    /// Zero effective disparity is a point at infinity, not a number.
+    #[test]
+    fn zero_disparity_is_at_infinity() {
+        assert_eq!(
+            measure(&rig(35.0, 150.0), at(400.0, 400.0)),
+            Err(PhysicsError::AtInfinity)
+        );
+        let mut r = rig(35.0, 150.0);
+        r.doffs = -50.0;
+        assert_eq!(measure(&r, at(400.0, 350.0)), Err(PhysicsError::AtInfinity));
+    }
+
+    /// A subnormal disparity overflows the distance; that is an error, never infinity.
+    #[test]
+    fn overflow_is_an_error() {
+        let mut r = rig(1e6, 1e3);
+        r.doffs = 1e-310;
+        assert_eq!(measure(&r, at(400.0, 400.0)), Err(PhysicsError::NotFinite));
+    }
+
+    /// The doffs offset is added to the disparity before dividing.
+    #[test]
+    fn doffs_is_added_to_disparity() {
+        let mut r = rig(1000.0, 200.0);
+        r.doffs = 50.0;
+        assert!(close(r.distance_at(50.0).unwrap(), 2000.0));
+        assert!(close(r.disparity_at(2000.0), 50.0));
+    }
+
+    /// The depth error follows Z²·Δd/(f·B): 10 m at f = 1000 px, B = 100 mm, Δd = 0.5 is ±500 mm.
+    #[test]
+    fn depth_error_formula() {
+        let r = rig(1000.0, 100.0);
+        let m = measure(&r, at(510.0, 500.0)).unwrap();
+        assert!(close(m.distance, 10_000.0));
+        assert!(close(m.depth_error, 500.0));
+        assert!(close(m.relative_error, 0.05));
+    }
+
+    /// The 3D point comes from the pinhole model around the principal point.
+    #[test]
+    fn point_in_left_camera_frame() {
+        let mut r = rig(1000.0, 100.0);
+        r.image_width = 1000.0;
+        r.image_height = 800.0;
+        r.cx = 500.0;
+        r.cy = 400.0;
+        let m = measure(
+            &r,
+            Correspondence {
+                x_left: 700.0,
+                x_right: 600.0,
+                y: 500.0,
+            },
+        )
+        .unwrap();
+        assert_eq!(
+            m.point,
+            Point3 {
+                x: 200.0,
+                y: 100.0,
+                z: 1000.0
+            }
+        );
+    }
+
+    /// The four focal options agree on the reference numbers, and the FOV inverts.
+    #[test]
+    fn focal_conversions() {
+        let sensor = FocalLength::MillimetresWithSensorWidth {
+            focal_mm: 4.0,
+            sensor_width_mm: 6.4,
+        };
+        assert!(close(sensor.to_pixels(1280.0), 800.0));
+        let pitch = FocalLength::MillimetresWithPixelPitch {
+            focal_mm: 6.0,
+            pixel_pitch_um: 3.0,
+        };
+        assert!(close(pitch.to_pixels(1920.0), 2000.0));
+        let fov = FocalLength::HorizontalFov { degrees: 90.0 };
+        assert!(close(fov.to_pixels(1280.0), 640.0));
+        assert!(close(field_of_view_deg(640.0, 1280.0), 90.0));
+        assert_eq!(FocalLength::Pixels(35.0).to_pixels(800.0), 35.0);
+    }
+
+    /// Units convert through metres exactly enough to compose.
+    #[test]
+    fn units_compose() {
+        assert!(close(
+            LengthUnit::Inch.convert(100.0, LengthUnit::Metre),
+            2.54
+        ));
+        assert!(close(LengthUnit::Foot.convert(1.0, LengthUnit::Inch), 12.0));
+        for a in LengthUnit::ALL {
+            for b in LengthUnit::ALL {
+                let there = a.convert(7.0, b);
+                assert!(close(b.convert(there, a), 7.0), "{a:?} -> {b:?}");
+            }
+        }
+    }
+
+    /// Spacing hits both ends and is geometric for Log.
+    #[test]
+    fn spacing_hits_the_ends() {
+        let lin: Vec<f64> = spaced(1.0, 3.0, 3, Spacing::Linear).collect();
+        assert_eq!(lin, vec![1.0, 2.0, 3.0]);
+        let log: Vec<f64> = spaced(1.0, 100.0, 3, Spacing::Log).collect();
+        assert!(close(log[1], 10.0));
+        assert_eq!(log[2], 100.0);
+        assert_eq!(
+            spaced(5.0, 9.0, 1, Spacing::Linear).collect::<Vec<_>>(),
+            vec![5.0]
+        );
+    }
+
+    /// Every table row satisfies Z·|d + doffs| = B·f, for both kinds of range.
+    #[test]
+    fn table_rows_lie_on_the_curve() {
+        let mut r = rig(700.0, 120.0);
+        r.doffs = 3.0;
+        for range in [
+            SampleRange::Distance {
+                min: 500.0,
+                max: 20_000.0,
+            },
+            SampleRange::Disparity {
+                min: 2.0,
+                max: 90.0,
+            },
+        ] {
+            for spacing in [Spacing::Linear, Spacing::Log] {
+                let rows = table(&r, range, 25, spacing, 400.0).unwrap();
+                assert_eq!(rows.len(), 25);
+                for row in rows {
+                    assert!(close(row.distance * (row.disparity_px + 3.0).abs(), r.fb()));
+                    assert!(close(row.depth_error, r.depth_error_at(row.distance)));
+                    let x_right = 400.0 - row.disparity_px;
+                    assert!(close(row.normalized_x, (x_right - 400.0) / 400.0));
+                }
+            }
+        }
+    }
+
+    /// The default range starts at one pixel of effective disparity and takes in the measurement.
+    #[test]
+    fn default_range_covers_measurement() {
+        let mut r = rig(35.0, 150.0);
+        assert_eq!(
+            SampleRange::default_for(&r, Some(50.0)),
+            SampleRange::Disparity {
+                min: 1.0,
+                max: 200.0
+            }
+        );
+        assert_eq!(
+            SampleRange::default_for(&r, Some(400.0)),
+            SampleRange::Disparity {
+                min: 1.0,
+                max: 500.0
+            }
+        );
+        r.doffs = -10.0;
+        let SampleRange::Disparity { min, .. } = SampleRange::default_for(&r, None) else {
+            panic!("default range is in disparity");
+        };
+        assert_eq!(min + r.doffs, 1.0);
+    }
+}

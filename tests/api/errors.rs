@@ -1,0 +1,207 @@
+//! Every error class answers application/problem+json naming what is wrong; nothing is a 500.
+
+use serde_json::json;
+
+use crate::helpers::{fields, message_for, problem, spawn_app};
+
+const GOOD: &str = r#"{"focal_length_px":35,"baseline":150,"x_left":400,"x_right":350,"image_width":800,"image_height":600}"#;
+
+/// A body that is not JSON is a 400 naming the body, with the parser's position.
+#[tokio::test]
+async fn malformed_json_is_400() {
+    let app = spawn_app().await;
+    for body in [
+        &b"{\"baseline\": 150,"[..],
+        b"not json",
+        b"{\"baseline\": NaN}",
+        b"{\"baseline\": 1e999}",
+        b"",
+    ] {
+        let problem = problem(
+            app.post_raw("/distance", Some("application/json"), body.to_vec())
+                .await,
+            400,
+        )
+        .await;
+        assert_eq!(fields(&problem), vec!["body"]);
+    }
+}
+
+/// JSON that is not an object is a 422 naming the body.
+#[tokio::test]
+async fn non_object_json_is_422() {
+    let app = spawn_app().await;
+    let body = problem(app.post("/table", &json!([1, 2, 3])).await, 422).await;
+    assert_eq!(fields(&body), vec!["body"]);
+}
+
+/// A missing or non-JSON content type is a 415 naming it.
+#[tokio::test]
+async fn wrong_content_type_is_415() {
+    let app = spawn_app().await;
+    for content_type in [
+        None,
+        Some("text/plain"),
+        Some("application/x-www-form-urlencoded"),
+    ] {
+        let body = problem(
+            app.post_raw("/distance", content_type, GOOD.into()).await,
+            415,
+        )
+        .await;
+        assert_eq!(fields(&body), vec!["content-type"]);
+    }
+    // A JSON content type with parameters is fine.
+    let ok = app
+        .post_raw(
+            "/distance",
+            Some("application/json; charset=utf-8"),
+            GOOD.into(),
+        )
+        .await;
+    assert_eq!(ok.status(), 200);
+}
+
+/// A body over the 64 KiB limit is a 413 naming the body.
+#[tokio::test]
+async fn oversized_body_is_413() {
+    let app = spawn_app().await;
+    let padding = " ".repeat(70 * 1024);
+    let body = format!("{{\"baseline\": 150{padding}}}");
+    let problem = problem(
+        app.post_raw("/distance", Some("application/json"), body.into())
+            .await,
+        413,
+    )
+    .await;
+    assert_eq!(fields(&problem), vec!["body"]);
+    assert!(message_for(&problem, "body").contains("65536"));
+}
+
+/// A string where a number belongs is a 422 naming it, in JSON and in a query alike; so are
+/// `abc`, `nan` and `inf` in a query.
+#[tokio::test]
+async fn wrong_types_are_422_naming_each_field() {
+    let app = spawn_app().await;
+    let body = problem(
+        app.post(
+            "/distance",
+            &json!({"focal_length_px": 35, "baseline": "150", "x_left": true, "x_right": 350,
+                    "image_width": 800, "image_height": -600}),
+        )
+        .await,
+        422,
+    )
+    .await;
+    assert_eq!(fields(&body), vec!["baseline", "x_left", "image_height"]);
+
+    let body = problem(
+        app.get("/distance?focal_length_px=abc&baseline=nan&x_left=inf&x_right=350&image_width=800&image_height=600")
+            .await,
+        422,
+    )
+    .await;
+    assert_eq!(fields(&body), vec!["focal_length_px", "baseline", "x_left"]);
+}
+
+/// Missing members are all named at once.
+#[tokio::test]
+async fn missing_fields_are_all_named() {
+    let app = spawn_app().await;
+    let body = problem(
+        app.post("/distance", &json!({"focal_length_px": 35})).await,
+        422,
+    )
+    .await;
+    assert_eq!(
+        fields(&body),
+        vec![
+            "image_width",
+            "image_height",
+            "baseline",
+            "x_left",
+            "x_right"
+        ]
+    );
+    assert_eq!(message_for(&body, "baseline"), "is required");
+}
+
+/// Out-of-range values are named: coordinates outside the image, FOV outside (0, 180), a zero
+/// image size, a negative Δd, and sensor and pitch together.
+#[tokio::test]
+async fn out_of_range_values_are_named() {
+    let app = spawn_app().await;
+    let body = problem(
+        app.post(
+            "/distance",
+            &json!({"horizontal_fov_deg": 180, "baseline": 150, "x_left": -1, "x_right": 801,
+                    "y": 601, "image_width": 800, "image_height": 600, "cx": 900, "cy": -5,
+                    "disparity_error_px": -0.1}),
+        )
+        .await,
+        422,
+    )
+    .await;
+    assert_eq!(
+        fields(&body),
+        vec![
+            "horizontal_fov_deg",
+            "cx",
+            "cy",
+            "disparity_error_px",
+            "x_left",
+            "x_right",
+            "y"
+        ]
+    );
+
+    let body = problem(
+        app.post(
+            "/distance",
+            &json!({"focal_length_mm": 4, "sensor_width_mm": 6.4, "pixel_size_um": 3,
+                    "baseline": 150, "x_left": 1, "x_right": 0, "image_width": 0,
+                    "image_height": 600}),
+        )
+        .await,
+        422,
+    )
+    .await;
+    assert_eq!(
+        fields(&body),
+        vec!["image_width", "sensor_width_mm", "pixel_size_um"]
+    );
+}
+
+/// A repeated query parameter, and one that does not percent-decode, are refused.
+#[tokio::test]
+async fn bad_query_strings() {
+    let app = spawn_app().await;
+    let body = problem(
+        app.get("/distance?focal_length_px=35&baseline=150&baseline=15&x_left=400&x_right=350&image_width=800&image_height=600")
+            .await,
+        422,
+    )
+    .await;
+    assert_eq!(fields(&body), vec!["baseline"]);
+
+    let body = problem(app.get("/distance?unit=%FF").await, 400).await;
+    assert_eq!(fields(&body), vec!["query"]);
+}
+
+/// Unknown paths are 404 and wrong methods 405 (with Allow), in the same format.
+#[tokio::test]
+async fn not_found_and_method_not_allowed() {
+    let app = spawn_app().await;
+    problem(app.get("/nowhere").await, 404).await;
+
+    let response = app
+        .client
+        .delete(format!("{}/distance", app.address))
+        .send()
+        .await
+        .unwrap();
+    let allow = response.headers()["allow"].to_str().unwrap().to_owned();
+    assert!(allow.contains("GET") && allow.contains("POST"), "{allow}");
+    let body = problem(response, 405).await;
+    assert_eq!(fields(&body), vec!["method"]);
+}

@@ -1,0 +1,172 @@
+//! `/table`: rows on the rig's curve, ranges, spacing and the row cap.
+
+use serde_json::{Value, json};
+
+use crate::helpers::{assert_close, fields, ok_json, problem, spawn_app};
+
+fn rig() -> Value {
+    json!({"focal_length_px": 700, "baseline": 120, "image_width": 800, "image_height": 600})
+}
+
+fn with(mut base: Value, extra: Value) -> Value {
+    for (key, value) in extra.as_object().unwrap() {
+        base[key] = value.clone();
+    }
+    base
+}
+
+/// Every row satisfies Z·|d + doffs| = B·f and ΔZ = Z²·Δd/(f·B), for each kind of range,
+/// each spacing, and a focal length given by FOV.
+#[tokio::test]
+async fn every_row_lies_on_the_curve() {
+    let app = spawn_app().await;
+    let fov_rig = json!({"horizontal_fov_deg": 60, "baseline": 0.12, "unit": "m",
+                         "image_width": 1280, "image_height": 720, "doffs": 2.5,
+                         "disparity_error_px": 0.1});
+    for request in [
+        with(
+            rig(),
+            json!({"distance_min": 500, "distance_max": 20000, "steps": 40}),
+        ),
+        with(
+            rig(),
+            json!({"disparity_min": 1, "disparity_max": 128, "steps": 40, "spacing": "log"}),
+        ),
+        with(
+            fov_rig.clone(),
+            json!({"distance_min": 0.5, "distance_max": 30, "spacing": "log"}),
+        ),
+        fov_rig,
+    ] {
+        let body = ok_json(app.post("/table", &request).await).await;
+        let f = body["focal_length_px"].as_f64().unwrap();
+        let b = body["baseline"].as_f64().unwrap();
+        let dd = body["disparity_error_px"].as_f64().unwrap();
+        let doffs = request["doffs"].as_f64().unwrap_or(0.0);
+        let rows = body["rows"].as_array().unwrap();
+        assert_eq!(rows.len() as u64, request["steps"].as_u64().unwrap_or(10));
+        for row in rows {
+            let z = row["distance"].as_f64().unwrap();
+            let d = row["disparity_px"].as_f64().unwrap();
+            assert_close(z * (d + doffs).abs(), f * b, "Z·|d+doffs| = B·f");
+            assert_close(
+                row["depth_error"].as_f64().unwrap(),
+                z * z * dd / (f * b),
+                "ΔZ",
+            );
+            assert_close(row["projection_factor"].as_f64().unwrap(), f / b, "f/B");
+        }
+    }
+}
+
+/// Rows come in ascending order of the ranged quantity and hit both ends.
+#[tokio::test]
+async fn rows_span_the_range_in_order() {
+    let app = spawn_app().await;
+    let body = ok_json(
+        app.post(
+            "/table",
+            &with(
+                rig(),
+                json!({"distance_min": 1000, "distance_max": 5000, "steps": 5}),
+            ),
+        )
+        .await,
+    )
+    .await;
+    let distances: Vec<f64> = body["rows"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|r| r["distance"].as_f64().unwrap())
+        .collect();
+    assert_eq!(distances, vec![1000.0, 2000.0, 3000.0, 4000.0, 5000.0]);
+}
+
+/// normalized_x is that of x_right = x_left − d, with x_left held at the request's value.
+#[tokio::test]
+async fn normalized_x_follows_the_right_image() {
+    let app = spawn_app().await;
+    let body = ok_json(
+        app.get("/table?focal_length_px=700&baseline=120&image_width=800&image_height=600&disparity_min=10&disparity_max=20&steps=2&x_left=600")
+            .await,
+    )
+    .await;
+    assert_eq!(body["x_left"], 600.0);
+    assert_close(
+        body["rows"][0]["normalized_x"].as_f64().unwrap(),
+        (590.0 - 400.0) / 400.0,
+        "row 0",
+    );
+    assert_close(
+        body["rows"][1]["normalized_x"].as_f64().unwrap(),
+        (580.0 - 400.0) / 400.0,
+        "row 1",
+    );
+}
+
+/// More rows than the cap, both kinds of range at once, or a reversed range: 422 naming each.
+#[tokio::test]
+async fn bad_ranges_and_row_counts_are_named() {
+    let app = spawn_app().await;
+    let too_many = problem(
+        app.post("/table", &with(rig(), json!({"steps": 10_001})))
+            .await,
+        422,
+    )
+    .await;
+    assert_eq!(fields(&too_many), vec!["steps"]);
+
+    let both = problem(
+        app.post(
+            "/table",
+            &with(rig(), json!({"distance_min": 1, "disparity_max": 9})),
+        )
+        .await,
+        422,
+    )
+    .await;
+    assert_eq!(fields(&both), vec!["distance_min", "disparity_max"]);
+
+    let reversed = problem(
+        app.get("/table?focal_length_px=700&baseline=120&image_width=800&image_height=600&distance_min=5000&distance_max=100")
+            .await,
+        422,
+    )
+    .await;
+    assert_eq!(fields(&reversed), vec!["distance_max"]);
+
+    let half = problem(
+        app.post("/table", &with(rig(), json!({"disparity_min": 5})))
+            .await,
+        422,
+    )
+    .await;
+    assert_eq!(fields(&half), vec!["disparity_max"]);
+
+    let infinite = problem(
+        app.post(
+            "/table",
+            &with(
+                rig(),
+                json!({"disparity_min": -3, "disparity_max": 10, "doffs": 2}),
+            ),
+        )
+        .await,
+        422,
+    )
+    .await;
+    assert_eq!(fields(&infinite), vec!["disparity_min"]);
+}
+
+/// `points` belongs to the chart, not the table: it is an unknown field here.
+#[tokio::test]
+async fn table_refuses_chart_members() {
+    let app = spawn_app().await;
+    let body = problem(
+        app.post("/table", &with(rig(), json!({"points": 5}))).await,
+        422,
+    )
+    .await;
+    assert_eq!(fields(&body), vec!["points"]);
+}
