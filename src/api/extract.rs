@@ -1,9 +1,10 @@
 //! Request extractors that decode a JSON body or a query string into a request type, and that
-//! name *every* field serde refused rather than stopping at the first.
+//! name *every* member serde refused rather than stopping at the first.
 //!
 //! Valid input takes one typed `serde_json` pass. Only when that fails is the input parsed again
-//! as a map and each member checked on its own, so each wrong type and each unknown field gets its
-//! own entry in the problem's `errors`.
+//! as a map and each member checked on its own: each wrong type and each unknown member is
+//! recorded in [`Problems`], and the rest is still decoded, so that validation can add its own
+//! findings and one answer names everything that is wrong.
 
 use axum::{
     body::Bytes,
@@ -15,16 +16,18 @@ use serde::de::DeserializeOwned;
 use serde_json::{Map, Value};
 
 use super::error::{ApiError, FieldError};
+use super::validate::Problems;
 
-/// A JSON request body, decoded and type-checked; the rejection is always an [`ApiError`].
-#[derive(Debug, Clone)]
-pub struct JsonBody<T>(pub T);
+/// A JSON request body, decoded as far as it could be, with the members it refused. The
+/// rejection (400, 413, 415, or 422 for a body that is not an object) is an [`ApiError`].
+#[derive(Debug)]
+pub struct JsonBody<T>(pub T, pub Problems);
 
 /// Query-string parameters decoded with the same rules as a JSON body, so that `?baseline=150`
 /// and `{"baseline": 150}` are one request. Numbers are recognised as JSON numbers; anything else
 /// stays a string, so `abc`, `nan` or `inf` where a number belongs is a 422 naming that field.
-#[derive(Debug, Clone)]
-pub struct QueryParams<T>(pub T);
+#[derive(Debug)]
+pub struct QueryParams<T>(pub T, pub Problems);
 
 impl<S, T> FromRequest<S> for JsonBody<T>
 where
@@ -51,7 +54,7 @@ where
                 ApiError::Malformed(FieldError::new("body", rejection.body_text()))
             }
         })?;
-        decode_json(&bytes).map(JsonBody)
+        decode_json(&bytes).map(|(value, problems)| JsonBody(value, problems))
     }
 }
 
@@ -63,7 +66,8 @@ where
     type Rejection = ApiError;
 
     async fn from_request_parts(parts: &mut Parts, _state: &S) -> Result<Self, Self::Rejection> {
-        decode_query(parts.uri.query().unwrap_or_default()).map(QueryParams)
+        decode_query(parts.uri.query().unwrap_or_default())
+            .map(|(value, problems)| QueryParams(value, problems))
     }
 }
 
@@ -89,12 +93,12 @@ fn is_json(content_type: &str) -> bool {
         || (essence.starts_with("application/") && essence.ends_with("+json"))
 }
 
-/// Decodes a JSON body into `T`, naming every offending member on failure.
-pub fn decode_json<T: DeserializeOwned>(bytes: &[u8]) -> Result<T, ApiError> {
+/// Decodes a JSON body into `T` and the members it refused.
+pub fn decode_json<T: DeserializeOwned>(bytes: &[u8]) -> Result<(T, Problems), ApiError> {
     match serde_json::from_slice::<T>(bytes) {
-        Ok(value) => Ok(value),
+        Ok(value) => Ok((value, Problems::default())),
         Err(error) if error.is_data() => match serde_json::from_slice::<Value>(bytes) {
-            Ok(Value::Object(map)) => Err(diagnose::<T>(&map, &error, Vec::new())),
+            Ok(Value::Object(map)) => diagnose(map, &error, Problems::default()),
             Ok(_) => Err(ApiError::invalid("body", "must be a JSON object")),
             Err(syntax) => Err(malformed_json(&syntax)),
         },
@@ -106,10 +110,10 @@ fn malformed_json(error: &serde_json::Error) -> ApiError {
     ApiError::Malformed(FieldError::new("body", format!("invalid JSON: {error}")))
 }
 
-/// Decodes a query string into `T` by way of a JSON object, naming every offending parameter.
-pub fn decode_query<T: DeserializeOwned>(query: &str) -> Result<T, ApiError> {
+/// Decodes a query string into `T` by way of a JSON object, with the parameters it refused.
+pub fn decode_query<T: DeserializeOwned>(query: &str) -> Result<(T, Problems), ApiError> {
     let mut map = Map::new();
-    let mut repeated = Vec::new();
+    let mut problems = Problems::default();
     for pair in query.split('&').filter(|p| !p.is_empty()) {
         let (key, value) = pair.split_once('=').unwrap_or((pair, ""));
         let key = decode_component(key)?;
@@ -118,18 +122,13 @@ pub fn decode_query<T: DeserializeOwned>(query: &str) -> Result<T, ApiError> {
             Ok(number) => Value::Number(number),
             Err(_) => Value::String(value),
         };
-        if map.insert(key.clone(), value).is_some() && !repeated.contains(&key) {
-            repeated.push(key);
+        if map.insert(key.clone(), value).is_some() {
+            problems.add(&key, "is given more than once; give it once");
         }
     }
-    let repeated: Vec<FieldError> = repeated
-        .into_iter()
-        .map(|key| FieldError::new(key, "is given more than once; give it once"))
-        .collect();
-    match T::deserialize(&Value::Object(map.clone())) {
-        Ok(value) if repeated.is_empty() => Ok(value),
-        Ok(_) => Err(ApiError::Invalid(repeated)),
-        Err(error) => Err(diagnose::<T>(&map, &error, repeated)),
+    match T::deserialize(&map) {
+        Ok(value) => Ok((value, problems)),
+        Err(error) => diagnose(map, &error, problems),
     }
 }
 
@@ -147,42 +146,85 @@ fn decode_component(raw: &str) -> Result<String, ApiError> {
         })
 }
 
-/// Finds every member of `map` that `T` refuses on its own. Request types have only optional
-/// members, so a one-member object fails exactly when that member is unknown or mistyped.
+/// Records every member of `map` that `T` refuses on its own, then decodes the rest. Request
+/// types have only optional members, so a one-member object fails exactly when that member is
+/// unknown or mistyped, and the rest decodes.
 fn diagnose<T: DeserializeOwned>(
-    map: &Map<String, Value>,
+    mut map: Map<String, Value>,
     whole: &serde_json::Error,
-    mut errors: Vec<FieldError>,
-) -> ApiError {
-    for (key, value) in map {
-        let single = Value::Object(Map::from_iter([(key.clone(), value.clone())]));
-        if let Err(error) = T::deserialize(&single) {
-            errors.push(FieldError::new(key.clone(), plain_message(&error)));
+    mut problems: Problems,
+) -> Result<(T, Problems), ApiError> {
+    let refused: Vec<(String, String)> = map
+        .iter()
+        .filter_map(|(key, value)| {
+            let single = Value::Object(Map::from_iter([(key.clone(), value.clone())]));
+            T::deserialize(&single)
+                .err()
+                .map(|error| (key.clone(), plain_message(&error)))
+        })
+        .collect();
+    for (key, message) in refused {
+        map.remove(&key);
+        problems.add(&key, message);
+    }
+    match T::deserialize(&map) {
+        Ok(value) if !problems.is_empty() => Ok((value, problems)),
+        // Not attributable to one member alone, such as a member given twice.
+        _ => {
+            let message = plain_message(whole);
+            let field = message
+                .strip_prefix("duplicate field `")
+                .and_then(|rest| rest.split('`').next())
+                .unwrap_or("body");
+            problems.add(field, message.clone());
+            Err(problems.into_error())
         }
     }
-    if errors.is_empty() {
-        // Not attributable to one member alone, such as a member given twice.
-        let message = plain_message(whole);
-        let field = message
-            .strip_prefix("duplicate field `")
-            .and_then(|rest| rest.split('`').next())
-            .unwrap_or("body")
-            .to_owned();
-        errors.push(FieldError::new(field, message));
-    }
-    ApiError::Invalid(errors)
 }
 
-/// serde's message without its position suffix, with Rust type names in words.
+/// serde's message without its position suffix, with Rust type names in words, and a
+/// suggestion for a misspelt member.
 fn plain_message(error: &serde_json::Error) -> String {
     let text = error.to_string();
-    let text = text
-        .split(" at line ")
-        .next()
-        .unwrap_or(text.as_str())
-        .to_owned();
+    let text = text.split(" at line ").next().unwrap_or(text.as_str());
+    if let Some(suggestion) = suggest_field(text) {
+        return suggestion;
+    }
     text.replace("expected f64", "expected a number")
         .replace("expected u32", "expected a whole number")
+}
+
+/// For serde's "unknown field `x`, expected one of `a`, `b`": the nearest known name, when it
+/// is near enough to be a misspelling.
+fn suggest_field(text: &str) -> Option<String> {
+    let rest = text.strip_prefix("unknown field `")?;
+    let (unknown, expected) = rest.split_once("`, expected ")?;
+    let (distance, nearest) = expected
+        .split('`')
+        .skip(1)
+        .step_by(2)
+        .map(|known| (edit_distance(unknown, known), known))
+        .min()?;
+    (distance <= unknown.chars().count() / 2)
+        .then(|| format!("unknown field `{unknown}`; did you mean `{nearest}`?"))
+}
+
+/// Levenshtein distance between two short strings.
+fn edit_distance(a: &str, b: &str) -> usize {
+    let b: Vec<char> = b.chars().collect();
+    let mut row: Vec<usize> = (0..=b.len()).collect();
+    for (i, ca) in a.chars().enumerate() {
+        let mut diagonal = row[0];
+        row[0] = i + 1;
+        for (j, cb) in b.iter().enumerate() {
+            let above = row[j + 1];
+            row[j + 1] = (above + 1)
+                .min(row[j] + 1)
+                .min(diagonal + usize::from(ca != *cb));
+            diagonal = above;
+        }
+    }
+    row[b.len()]
 }
 
 #[cfg(test)]
@@ -198,17 +240,23 @@ mod tests {
         s: Option<String>,
     }
 
-    fn fields(error: ApiError) -> Vec<String> {
+    /// The fields named, whether refused while still decoding the rest, or in a 422.
+    fn fields<T>(result: Result<(T, Problems), ApiError>) -> Vec<String> {
+        let error = match result {
+            Ok((_, problems)) => problems.into_error(),
+            Err(error) => error,
+        };
         match error {
             ApiError::Invalid(errors) => errors.into_iter().map(|e| e.field).collect(),
             other => panic!("expected 422, got {other:?}"),
         }
     }
 
-    /// A good body decodes in one pass.
+    /// A good body decodes in one pass, with nothing refused.
     #[test]
     fn valid_json_decodes() {
-        let p: Probe = decode_json(br#"{"a": 1.5, "n": 3}"#).unwrap();
+        let (p, problems): (Probe, _) = decode_json(br#"{"a": 1.5, "n": 3}"#).unwrap();
+        assert!(problems.is_empty());
         assert_eq!(
             p,
             Probe {
@@ -219,11 +267,12 @@ mod tests {
         );
     }
 
-    /// Every wrong member is named, not just the first.
+    /// Every wrong member is named, not just the first, and the rest still decodes.
     #[test]
     fn every_bad_member_is_named() {
-        let err = decode_json::<Probe>(br#"{"a": "1", "n": 2.5, "zz": 1, "s": "ok"}"#).unwrap_err();
-        assert_eq!(fields(err), vec!["a", "n", "zz"]);
+        let result = decode_json::<Probe>(br#"{"a": "1", "n": 2.5, "zz": 1, "s": "ok"}"#);
+        assert_eq!(result.as_ref().unwrap().0.s.as_deref(), Some("ok"));
+        assert_eq!(fields(result), vec!["a", "n", "zz"]);
     }
 
     /// Broken JSON is a 400, a non-object a 422, and a duplicate member is named.
@@ -237,12 +286,9 @@ mod tests {
             decode_json::<Probe>(b"{\"a\": 1e999}"),
             Err(ApiError::Malformed(_))
         ));
+        assert_eq!(fields(decode_json::<Probe>(b"[1]")), vec!["body"]);
         assert_eq!(
-            fields(decode_json::<Probe>(b"[1]").unwrap_err()),
-            vec!["body"]
-        );
-        assert_eq!(
-            fields(decode_json::<Probe>(br#"{"a": 1, "a": 2}"#).unwrap_err()),
+            fields(decode_json::<Probe>(br#"{"a": 1, "a": 2}"#)),
             vec!["a"]
         );
     }
@@ -250,7 +296,8 @@ mod tests {
     /// Query values become numbers when they are JSON numbers and strings otherwise.
     #[test]
     fn query_types() {
-        let p: Probe = decode_query("a=2.5&n=7&s=hello+world%21").unwrap();
+        let (p, problems): (Probe, _) = decode_query("a=2.5&n=7&s=hello+world%21").unwrap();
+        assert!(problems.is_empty());
         assert_eq!(
             p,
             Probe {
@@ -259,14 +306,27 @@ mod tests {
                 s: Some("hello world!".to_owned())
             }
         );
-        let err = decode_query::<Probe>("a=nan&n=inf&s=x&a=3").unwrap_err();
-        assert_eq!(fields(err), vec!["a", "n"]);
-        let err = decode_query::<Probe>("a=1&a=2").unwrap_err();
-        assert_eq!(fields(err), vec!["a"]);
+        assert_eq!(
+            fields(decode_query::<Probe>("a=nan&n=inf&s=x&a=3")),
+            vec!["a", "n"]
+        );
+        assert_eq!(fields(decode_query::<Probe>("a=1&a=2")), vec!["a"]);
         assert!(matches!(
             decode_query::<Probe>("s=%FF"),
             Err(ApiError::Malformed(_))
         ));
+    }
+
+    /// A misspelt member gets the nearest known name; a stranger one gets the full list.
+    #[test]
+    fn unknown_members_get_suggestions() {
+        assert_eq!(edit_distance("kitten", "sitting"), 3);
+        let (_, problems) = decode_json::<Probe>(br#"{"aa": 1, "zzzzzz": 2}"#).unwrap();
+        let ApiError::Invalid(errors) = problems.into_error() else {
+            panic!("a 422");
+        };
+        assert_eq!(errors[0].message, "unknown field `aa`; did you mean `a`?");
+        assert!(errors[1].message.contains("expected one of `a`, `n`, `s`"));
     }
 
     /// JSON media types are recognised with parameters and suffixes.

@@ -33,9 +33,9 @@ use crate::physics::{self, Rig};
     )
 )]
 pub async fn post_distance(
-    JsonBody(request): JsonBody<DistanceRequest>,
+    JsonBody(request, problems): JsonBody<DistanceRequest>,
 ) -> Result<Json<DistanceResponse>, ApiError> {
-    distance(&request).map(Json)
+    distance(&request, problems).map(Json)
 }
 
 #[utoipa::path(
@@ -50,9 +50,9 @@ pub async fn post_distance(
     )
 )]
 pub async fn get_distance(
-    QueryParams(request): QueryParams<DistanceRequest>,
+    QueryParams(request, problems): QueryParams<DistanceRequest>,
 ) -> Result<Json<DistanceResponse>, ApiError> {
-    distance(&request).map(Json)
+    distance(&request, problems).map(Json)
 }
 
 #[utoipa::path(
@@ -68,9 +68,9 @@ pub async fn get_distance(
 )]
 pub async fn post_table(
     State(state): State<AppState>,
-    JsonBody(request): JsonBody<TableRequest>,
+    JsonBody(request, problems): JsonBody<TableRequest>,
 ) -> Result<Json<TableResponse>, ApiError> {
-    table(&state, &request).map(Json)
+    table(&state, &request, problems).map(Json)
 }
 
 #[utoipa::path(
@@ -86,9 +86,9 @@ pub async fn post_table(
 )]
 pub async fn get_table(
     State(state): State<AppState>,
-    QueryParams(request): QueryParams<TableRequest>,
+    QueryParams(request, problems): QueryParams<TableRequest>,
 ) -> Result<Json<TableResponse>, ApiError> {
-    table(&state, &request).map(Json)
+    table(&state, &request, problems).map(Json)
 }
 
 #[utoipa::path(
@@ -104,9 +104,9 @@ pub async fn get_table(
 )]
 pub async fn post_chart_data(
     State(state): State<AppState>,
-    JsonBody(request): JsonBody<ChartRequest>,
+    JsonBody(request, problems): JsonBody<ChartRequest>,
 ) -> Result<Json<ChartResponse>, ApiError> {
-    chart(&state, &request).map(Json)
+    chart(&state, &request, problems).map(Json)
 }
 
 #[utoipa::path(
@@ -122,9 +122,9 @@ pub async fn post_chart_data(
 )]
 pub async fn get_chart_data(
     State(state): State<AppState>,
-    QueryParams(request): QueryParams<ChartRequest>,
+    QueryParams(request, problems): QueryParams<ChartRequest>,
 ) -> Result<Json<ChartResponse>, ApiError> {
-    chart(&state, &request).map(Json)
+    chart(&state, &request, problems).map(Json)
 }
 
 /// Answers any path the API does not have.
@@ -146,8 +146,10 @@ fn disparity_fields(rig: &Rig) -> &'static [&'static str] {
     }
 }
 
-fn distance(request: &DistanceRequest) -> Result<DistanceResponse, ApiError> {
-    let mut problems = Problems::default();
+fn distance(
+    request: &DistanceRequest,
+    mut problems: Problems,
+) -> Result<DistanceResponse, ApiError> {
     let params = request.rig_params();
     let rig = validate::rig(&params, &mut problems);
     let correspondence = validate::correspondence(
@@ -207,8 +209,11 @@ fn short(value: f64) -> String {
     if text == "-0" { "0" } else { text }.to_owned()
 }
 
-fn table(state: &AppState, request: &TableRequest) -> Result<TableResponse, ApiError> {
-    let mut problems = Problems::default();
+fn table(
+    state: &AppState,
+    request: &TableRequest,
+    mut problems: Problems,
+) -> Result<TableResponse, ApiError> {
     let params = request.rig_params();
     let rig = validate::rig(&params, &mut problems);
     let range = validate::range(&request.range_params(), rig.as_ref(), None, &mut problems);
@@ -251,8 +256,11 @@ fn range_fields(range: super::types::RangeParams) -> &'static [&'static str] {
     }
 }
 
-fn chart(state: &AppState, request: &ChartRequest) -> Result<ChartResponse, ApiError> {
-    let mut problems = Problems::default();
+fn chart(
+    state: &AppState,
+    request: &ChartRequest,
+    mut problems: Problems,
+) -> Result<ChartResponse, ApiError> {
     let params = request.rig_params();
     let rig = validate::rig(&params, &mut problems);
     let measured = match (request.x_left, request.x_right) {

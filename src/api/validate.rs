@@ -12,8 +12,21 @@ use crate::physics::{
 pub struct Problems(Vec<FieldError>);
 
 impl Problems {
+    /// Records a problem with `field`, unless one is recorded for it already (the first, such
+    /// as a wrong type found while decoding, explains the rest).
     pub fn add(&mut self, field: &str, message: impl Into<String>) {
-        self.0.push(FieldError::new(field, message));
+        if !self.0.iter().any(|e| e.field == field) {
+            self.0.push(FieldError::new(field, message));
+        }
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.0.is_empty()
+    }
+
+    /// Everything recorded, as a 422.
+    pub fn into_error(self) -> ApiError {
+        ApiError::Invalid(self.0)
     }
 
     /// The value, or an error saying it is required.
@@ -22,6 +35,11 @@ impl Problems {
             self.add(field, "is required");
         }
         value
+    }
+
+    /// Whether `field` already has a problem recorded.
+    pub fn has(&self, field: &str) -> bool {
+        self.0.iter().any(|e| e.field == field)
     }
 
     /// `value` if it is finite and greater than zero.
@@ -86,7 +104,7 @@ impl Problems {
         match value {
             Some(value) if self.0.is_empty() => Ok(value),
             _ if self.0.is_empty() => Err(ApiError::invalid("body", "is invalid")),
-            _ => Err(ApiError::Invalid(self.0)),
+            _ => Err(self.into_error()),
         }
     }
 }
@@ -164,10 +182,20 @@ fn focal_length(p: &RigParams, width: Option<f64>, problems: &mut Problems) -> O
         }
         FocalLength::HorizontalFov { degrees }
     } else {
-        problems.add(
+        // A focal member refused while decoding was already reported; do not add "required".
+        let refused = [
             "focal_length_px",
-            format!("a focal length is required: {FOCAL_OPTIONS}"),
-        );
+            "focal_length_mm",
+            "horizontal_fov_deg",
+            "sensor_width_mm",
+            "pixel_size_um",
+        ];
+        if !refused.iter().any(|field| problems.has(field)) {
+            problems.add(
+                "focal_length_px",
+                format!("a focal length is required: {FOCAL_OPTIONS}"),
+            );
+        }
         return None;
     };
     let focal_px = spec.to_pixels(width?);

@@ -205,3 +205,35 @@ async fn not_found_and_method_not_allowed() {
     let body = problem(response, 405).await;
     assert_eq!(fields(&body), vec!["method"]);
 }
+
+/// Decoding and validation findings come in one answer: an unknown member, a wrong type and an
+/// out-of-range value are all named, and a refused member is not also called missing.
+#[tokio::test]
+async fn decoding_and_validation_errors_are_named_together() {
+    let app = spawn_app().await;
+    let body = problem(
+        app.post(
+            "/distance",
+            &json!({"focal_length_px": 35, "baseline": 0, "x_left": "400", "x_right": 900,
+                    "image_width": 800, "image_height": 600, "focal_lenght": 3}),
+        )
+        .await,
+        422,
+    )
+    .await;
+    assert_eq!(
+        fields(&body),
+        vec!["x_left", "focal_lenght", "baseline", "x_right"]
+    );
+    assert!(message_for(&body, "x_left").contains("expected a number"));
+
+    let body = problem(
+        app.get(
+            "/table?horizontal_fov_deg=wide&baseline=150&image_width=800&image_height=600&steps=0",
+        )
+        .await,
+        422,
+    )
+    .await;
+    assert_eq!(fields(&body), vec!["horizontal_fov_deg", "steps"]);
+}
