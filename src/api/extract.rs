@@ -95,6 +95,13 @@ fn is_json(content_type: &str) -> bool {
 
 /// Decodes a JSON body into `T` and the members it refused.
 pub fn decode_json<T: DeserializeOwned>(bytes: &[u8]) -> Result<(T, Problems), ApiError> {
+    if bytes.trim_ascii_start().first() != Some(&b'{') {
+        // serde would read a JSON array into a struct by position; only objects are requests.
+        return match serde_json::from_slice::<serde::de::IgnoredAny>(bytes) {
+            Ok(_) => Err(ApiError::invalid("body", "must be a JSON object")),
+            Err(error) => Err(malformed_json(&error)),
+        };
+    }
     match serde_json::from_slice::<T>(bytes) {
         Ok(value) => Ok((value, Problems::default())),
         Err(error) if error.is_data() => match serde_json::from_slice::<Value>(bytes) {

@@ -88,6 +88,21 @@ pub struct RangeParams {
     pub spacing: Option<Spacing>,
 }
 
+/// Deserializes a member that is present: `null` is refused like any other wrong type, because
+/// optional members are optional, not nullable (omit a member to take its default).
+fn present<'de, D, T>(deserializer: D) -> Result<Option<T>, D::Error>
+where
+    D: serde::Deserializer<'de>,
+    T: Deserialize<'de>,
+{
+    match Option::<T>::deserialize(deserializer)? {
+        Some(value) => Ok(Some(value)),
+        None => Err(serde::de::Error::custom(
+            "must not be null; leave the member out to use its default",
+        )),
+    }
+}
+
 /// Declares a flat request type holding the rig members followed by its own, with
 /// `rig_params()` and query-parameter docs. (Flat, because `serde(flatten)` cannot be combined
 /// with `deny_unknown_fields`, and a misspelt field must be an error.)
@@ -104,52 +119,65 @@ macro_rules! rig_request {
             /// `focal_length_px`, `focal_length_mm` (with `sensor_width_mm` or `pixel_size_um`),
             /// or `horizontal_fov_deg`.
             #[schema(nullable = false, exclusive_minimum = 0.0, example = 700.0)]
+            #[serde(default, deserialize_with = "present")]
             pub focal_length_px: Option<f64>,
             /// Focal length in millimetres. Needs `sensor_width_mm` or `pixel_size_um` to convert
             /// it to pixels: millimetres times a disparity in pixels is not a length.
             #[schema(nullable = false, exclusive_minimum = 0.0, example = 4.0)]
+            #[serde(default, deserialize_with = "present")]
             pub focal_length_mm: Option<f64>,
             /// Sensor width in millimetres, with `focal_length_mm`:
             /// f_px = f_mm · image_width / sensor_width_mm.
             #[schema(nullable = false, exclusive_minimum = 0.0, example = 6.4)]
+            #[serde(default, deserialize_with = "present")]
             pub sensor_width_mm: Option<f64>,
             /// Pixel pitch in micrometres, with `focal_length_mm`:
             /// f_px = f_mm · 1000 / pixel_size_um.
             #[schema(nullable = false, exclusive_minimum = 0.0, example = 3.0)]
+            #[serde(default, deserialize_with = "present")]
             pub pixel_size_um: Option<f64>,
             /// Horizontal field of view in degrees, over the full image width:
             /// f_px = (image_width / 2) / tan(hfov / 2).
             #[schema(nullable = false, exclusive_minimum = 0.0, exclusive_maximum = 180.0,
                      example = 90.0)]
+            #[serde(default, deserialize_with = "present")]
             pub horizontal_fov_deg: Option<f64>,
             /// Distance between the two optical centres, in `unit`.
             #[schema(nullable = false, required = true, exclusive_minimum = 0.0,
                      example = 150.0)]
+            #[serde(default, deserialize_with = "present")]
             pub baseline: Option<f64>,
             /// Unit of `baseline` and of every length in the response (default `mm`).
             #[schema(nullable = false)]
+            #[serde(default, deserialize_with = "present")]
             pub unit: Option<Unit>,
             /// Image width in pixels.
             #[schema(nullable = false, required = true, minimum = 1, example = 800)]
+            #[serde(default, deserialize_with = "present")]
             pub image_width: Option<u32>,
             /// Image height in pixels.
             #[schema(nullable = false, required = true, minimum = 1, example = 600)]
+            #[serde(default, deserialize_with = "present")]
             pub image_height: Option<u32>,
             /// Principal-point offset between the cameras in pixels (Middlebury `doffs`), added
             /// to every disparity: Z = B·f / |d + doffs|. Default 0.
             #[schema(nullable = false, example = 0.0)]
+            #[serde(default, deserialize_with = "present")]
             pub doffs: Option<f64>,
             /// Principal point x of the left camera in pixels, in [0, image_width]. Default: the
             /// image centre.
             #[schema(nullable = false, minimum = 0.0)]
+            #[serde(default, deserialize_with = "present")]
             pub cx: Option<f64>,
             /// Principal point y of the left camera in pixels, in [0, image_height]. Default: the
             /// image centre.
             #[schema(nullable = false, minimum = 0.0)]
+            #[serde(default, deserialize_with = "present")]
             pub cy: Option<f64>,
             /// Disparity uncertainty Δd in pixels for the depth error ΔZ = Z²·Δd/(f·B).
             /// Default 0.5 (integer-pixel matching); subpixel matchers reach about 0.1.
             #[schema(nullable = false, minimum = 0.0, example = 0.5)]
+            #[serde(default, deserialize_with = "present")]
             pub disparity_error_px: Option<f64>,
             $($body)*
         }
@@ -196,18 +224,23 @@ macro_rules! range_request {
                 /// `distance_max`, or `disparity_min` and `disparity_max`, or neither (then the
                 /// disparities from 1 px across a quarter of the image width are used).
                 #[schema(nullable = false, exclusive_minimum = 0.0)]
+                #[serde(default, deserialize_with = "present")]
                 pub distance_min: Option<f64>,
                 /// Farthest distance to sample, in `unit`; greater than `distance_min`.
                 #[schema(nullable = false, exclusive_minimum = 0.0)]
+                #[serde(default, deserialize_with = "present")]
                 pub distance_max: Option<f64>,
                 /// Smallest disparity to sample, in pixels; `disparity_min + doffs` must be > 0.
                 #[schema(nullable = false)]
+                #[serde(default, deserialize_with = "present")]
                 pub disparity_min: Option<f64>,
                 /// Largest disparity to sample, in pixels; greater than `disparity_min`.
                 #[schema(nullable = false)]
+                #[serde(default, deserialize_with = "present")]
                 pub disparity_max: Option<f64>,
                 /// Spacing of the samples across the range (default `linear`).
                 #[schema(nullable = false)]
+                #[serde(default, deserialize_with = "present")]
                 pub spacing: Option<Spacing>,
                 $($body)*
             }
@@ -237,13 +270,16 @@ rig_request! {
     pub struct DistanceRequest {
         /// x of the feature in the left image, in pixels, in [0, image_width].
         #[schema(nullable = false, required = true, minimum = 0.0, example = 400.0)]
+        #[serde(default, deserialize_with = "present")]
         pub x_left: Option<f64>,
         /// x of the same feature in the right image, in pixels, in [0, image_width].
         #[schema(nullable = false, required = true, minimum = 0.0, example = 350.0)]
+        #[serde(default, deserialize_with = "present")]
         pub x_right: Option<f64>,
         /// y (row) of the feature in the left image, in pixels, in [0, image_height], for the
         /// 3D point. Default: `cy`.
         #[schema(nullable = false, minimum = 0.0)]
+        #[serde(default, deserialize_with = "present")]
         pub y: Option<f64>,
     }
 }
@@ -258,10 +294,12 @@ range_request! {
     pub struct TableRequest {
         /// Number of rows, from 1 to the server's cap (10 000 by default). Default 10.
         #[schema(nullable = false, minimum = 1, example = 10)]
+        #[serde(default, deserialize_with = "present")]
         pub steps: Option<u32>,
         /// Left-image x held fixed to compute each row's right-image `normalized_x`, in pixels.
         /// Default: the image centre.
         #[schema(nullable = false, minimum = 0.0)]
+        #[serde(default, deserialize_with = "present")]
         pub x_left: Option<f64>,
     }
 }
@@ -277,12 +315,15 @@ range_request! {
         /// Number of points per series, from 2 to the server's cap (10 000 by default).
         /// Default 100.
         #[schema(nullable = false, minimum = 2, example = 100)]
+        #[serde(default, deserialize_with = "present")]
         pub points: Option<u32>,
         /// x of a measured feature in the left image, to mark on the chart (with `x_right`).
         #[schema(nullable = false, minimum = 0.0)]
+        #[serde(default, deserialize_with = "present")]
         pub x_left: Option<f64>,
         /// x of the measured feature in the right image (with `x_left`).
         #[schema(nullable = false, minimum = 0.0)]
+        #[serde(default, deserialize_with = "present")]
         pub x_right: Option<f64>,
     }
 }

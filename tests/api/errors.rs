@@ -237,3 +237,20 @@ async fn decoding_and_validation_errors_are_named_together() {
     .await;
     assert_eq!(fields(&body), vec!["horizontal_fov_deg", "steps"]);
 }
+
+/// Optional members are optional, not nullable: an explicit null is a 422 naming the member.
+#[tokio::test]
+async fn null_is_not_a_value() {
+    let app = spawn_app().await;
+    let body = problem(
+        app.post(
+            "/distance",
+            &json!({"focal_length_px": 35, "baseline": 150, "x_left": 400, "x_right": 350,
+                    "image_width": 800, "image_height": 600, "unit": null, "doffs": null}),
+        )
+        .await,
+        422,
+    )
+    .await;
+    assert_eq!(fields(&body), vec!["unit", "doffs"]);
+}
