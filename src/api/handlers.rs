@@ -268,7 +268,7 @@ fn chart(
         (x_left, x_right) => validate::correspondence(
             (x_left, x_right, None),
             Bounds::of(&params),
-            Some(0.0),
+            Some(0.0), // y is not charted; any valid row will do
             &mut problems,
         )
         .map(|c| c.x_left - c.x_right),
