@@ -104,11 +104,12 @@ pub fn decode_json<T: DeserializeOwned>(bytes: &[u8]) -> Result<(T, Problems), A
     }
     match serde_json::from_slice::<T>(bytes) {
         Ok(value) => Ok((value, Problems::default())),
-        Err(error) if error.is_data() => match serde_json::from_slice::<Value>(bytes) {
-            Ok(Value::Object(map)) => diagnose(map, &error, Problems::default()),
-            Ok(_) => Err(ApiError::invalid("body", "must be a JSON object")),
-            Err(syntax) => Err(malformed_json(&syntax)),
-        },
+        Err(error) if error.is_data() => {
+            match serde_json::from_slice::<Map<String, Value>>(bytes) {
+                Ok(map) => diagnose(map, &error, Problems::default()),
+                Err(syntax) => Err(malformed_json(&syntax)),
+            }
+        }
         Err(error) => Err(malformed_json(&error)),
     }
 }

@@ -265,13 +265,8 @@ fn chart(
     let rig = validate::rig(&params, &mut problems);
     let measured = match (request.x_left, request.x_right) {
         (None, None) => None,
-        (x_left, x_right) => validate::correspondence(
-            (x_left, x_right, None),
-            Bounds::of(&params),
-            Some(0.0), // y is not charted; any valid row will do
-            &mut problems,
-        )
-        .map(|c| c.x_left - c.x_right),
+        pair => validate::x_pair(pair, Bounds::of(&params), &mut problems)
+            .map(|(x_left, x_right)| x_left - x_right),
     };
     let range = validate::range(
         &request.range_params(),

@@ -308,6 +308,21 @@ pub fn x_coordinate(field: &str, x: f64, bounds: Bounds, problems: &mut Problems
     }
 }
 
+/// The required pair `(x_left, x_right)`, each within the image width.
+pub fn x_pair(
+    (x_left, x_right): (Option<f64>, Option<f64>),
+    bounds: Bounds,
+    problems: &mut Problems,
+) -> Option<(f64, f64)> {
+    let x_left = problems
+        .required("x_left", x_left)
+        .and_then(|x| x_coordinate("x_left", x, bounds, problems));
+    let x_right = problems
+        .required("x_right", x_right)
+        .and_then(|x| x_coordinate("x_right", x, bounds, problems));
+    Some((x_left?, x_right?))
+}
+
 /// One correspondence; `y` defaults to the rig's `cy` (absent when the rig is invalid).
 pub fn correspondence(
     (x_left, x_right, y): (Option<f64>, Option<f64>, Option<f64>),
@@ -315,20 +330,16 @@ pub fn correspondence(
     cy: Option<f64>,
     problems: &mut Problems,
 ) -> Option<Correspondence> {
-    let x_left = problems
-        .required("x_left", x_left)
-        .and_then(|x| x_coordinate("x_left", x, bounds, problems));
-    let x_right = problems
-        .required("x_right", x_right)
-        .and_then(|x| x_coordinate("x_right", x, bounds, problems));
+    let xs = x_pair((x_left, x_right), bounds, problems);
     let y = match (y, bounds.height) {
         (Some(y), Some(height)) => problems.within("y", y, height, "the image height"),
         (Some(y), None) => Some(y),
         (None, _) => cy,
     };
+    let (x_left, x_right) = xs?;
     Some(Correspondence {
-        x_left: x_left?,
-        x_right: x_right?,
+        x_left,
+        x_right,
         y: y?,
     })
 }
