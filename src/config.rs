@@ -1,34 +1,148 @@
-//! Server settings: where to listen and the limits that protect it, read from the environment
-//! with defaults in code.
+//! Settings: the command line and environment (clap, every flag with an `env` twin), the
+//! defaults in code and the checks that refuse a bad value before the server starts.
+//!
+//! Every default is a constant below with the reason it was chosen; `--help` shows them all.
 
-use std::{fmt, net::IpAddr};
+use std::{net::IpAddr, str::FromStr, time::Duration};
 
-/// Default request body limit: 64 KiB, far more than any request of this API needs.
+use clap::{Args, Parser, Subcommand, ValueEnum};
+
+/// Default request body limit: 64 KiB. The largest legitimate body (a rig plus a range) is under
+/// 1 KiB; 64 KiB leaves room for growth while bounding what a client can make us buffer.
 pub const DEFAULT_BODY_LIMIT: usize = 64 * 1024;
-/// Default cap on `/table` rows (`steps`).
+/// Default cap on `/table` rows (`steps`): 10 000 rows is ~1.5 MB of JSON, a few ms of work.
 pub const DEFAULT_MAX_TABLE_ROWS: usize = 10_000;
-/// Default cap on `/chart-data` points per series.
+/// Default cap on `/chart-data` points per series: as for the table.
 pub const DEFAULT_MAX_CHART_POINTS: usize = 10_000;
+/// Default request timeout: 5 s. The slowest request (a 10 000-row table) takes milliseconds, so
+/// anything near this is a stalled client body or an overloaded host, not work worth waiting for.
+pub const DEFAULT_REQUEST_TIMEOUT: Duration = Duration::from_secs(5);
+/// Default header read timeout: 10 s. A real client sends its headers in one packet; this cuts
+/// off slow-header (slowloris) clients. hyper also applies it to idle keep-alive connections.
+pub const DEFAULT_HEADER_READ_TIMEOUT: Duration = Duration::from_secs(10);
+/// Default concurrency limit: 512 requests in flight. Each costs microseconds of CPU and at most
+/// one body (64 KiB), so 512 saturates two cores many times over while bounding memory to
+/// ~32 MiB; requests beyond it are shed at once with 503 rather than queued.
+pub const DEFAULT_CONCURRENCY_LIMIT: usize = 512;
+/// Default time to keep serving with readiness off after SIGTERM: 0 s for local use; set it to a
+/// few seconds behind a load balancer so that it stops routing here first.
+pub const DEFAULT_SHUTDOWN_DELAY: Duration = Duration::ZERO;
+/// Default bound on draining in-flight requests after the listener closes: 10 s, twice the
+/// request timeout and well inside Kubernetes' default 30 s grace period.
+pub const DEFAULT_SHUTDOWN_TIMEOUT: Duration = Duration::from_secs(10);
+/// Default log filter.
+pub const DEFAULT_LOG_LEVEL: &str = "info";
+
+/// The command line of the `stereo-distance` binary.
+#[derive(Debug, Parser)]
+#[command(
+    name = "stereo-distance",
+    version,
+    about = "HTTP JSON service that turns a stereo correspondence into a distance with its error",
+    long_about = "HTTP JSON service that turns a stereo correspondence into a distance with its \
+                  error.\n\nEvery option can also be set through the environment variable shown \
+                  with it; a flag wins over its variable. Durations take units: 500ms, 5s, 1m."
+)]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Option<Command>,
+    #[command(flatten)]
+    pub config: Config,
+}
+
+/// What the binary does; serving is the default.
+#[derive(Debug, Clone, PartialEq, Eq, Subcommand)]
+pub enum Command {
+    /// Serve the API (the default when no command is given).
+    Serve,
+    /// Ask the server at HOST:PORT for /healthz and exit 0 when it answers 200 (for container
+    /// HEALTHCHECKs: the runtime image has no curl). An unspecified HOST such as 0.0.0.0 is
+    /// probed on loopback.
+    Healthcheck {
+        /// How long to wait for the answer.
+        #[arg(long, default_value = "2s", value_parser = duration)]
+        timeout: Duration,
+    },
+}
+
+/// Log line format.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, ValueEnum)]
+pub enum LogFormat {
+    /// Human-readable lines, for a terminal.
+    #[default]
+    Pretty,
+    /// One JSON object per line, for a log collector.
+    Json,
+}
 
 /// Everything the server needs to start.
-#[derive(Debug, Clone, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq, Eq, Args)]
 pub struct Config {
-    /// Address to bind (`HOST`, default 127.0.0.1).
+    /// Address to listen on; 0.0.0.0 for every interface (as in the container image).
+    #[arg(long, env = "HOST", default_value = "127.0.0.1")]
     pub host: IpAddr,
-    /// Port to bind (`PORT`, default 8080; 0 picks a free one).
+
+    /// Port to listen on; 0 picks a free one.
+    #[arg(long, env = "PORT", default_value_t = 8080)]
     pub port: u16,
-    /// The limits the API enforces.
+
+    /// Log format: pretty (for a terminal) or json (one object per line).
+    #[arg(long, env = "LOG_FORMAT", value_enum, default_value_t = LogFormat::Pretty)]
+    pub log_format: LogFormat,
+
+    /// Log filter in tracing's EnvFilter syntax, e.g. `info` or `stereo_distance=debug,info`.
+    #[arg(long, env = "RUST_LOG", default_value = DEFAULT_LOG_LEVEL, value_parser = log_filter)]
+    pub log_level: String,
+
+    /// Origins allowed to call the API from a browser (CORS), comma-separated, such as
+    /// `https://app.example.com`. Empty (the default) allows none; `*` allows any.
+    #[arg(long, env = "CORS_ALLOWED_ORIGINS", value_delimiter = ',', value_parser = origin)]
+    pub cors_allowed_origins: Vec<String>,
+
+    /// Longest time one request may take, body upload included; past it the answer is 408 (body
+    /// still arriving) or 503 (server too slow).
+    #[arg(long, env = "REQUEST_TIMEOUT", default_value = "5s", value_parser = timeout)]
+    pub request_timeout: Duration,
+
+    /// Longest time a client may take to send its request headers (and to stay idle on a
+    /// keep-alive connection) before the connection is closed.
+    #[arg(long, env = "HEADER_READ_TIMEOUT", default_value = "10s", value_parser = timeout)]
+    pub header_read_timeout: Duration,
+
+    /// Most API requests served at once; more are refused at once with 503 and Retry-After.
+    #[arg(long, env = "CONCURRENCY_LIMIT", default_value_t = DEFAULT_CONCURRENCY_LIMIT,
+          value_parser = count::<1, 1_000_000>)]
+    pub concurrency_limit: usize,
+
+    /// After SIGTERM/SIGINT, how long to keep serving with /readyz answering 503, so that a load
+    /// balancer stops sending traffic before the listener closes.
+    #[arg(long, env = "SHUTDOWN_DELAY", default_value = "0s", value_parser = delay)]
+    pub shutdown_delay: Duration,
+
+    /// After the listener closes, the longest wait for in-flight requests to finish.
+    #[arg(long, env = "SHUTDOWN_TIMEOUT", default_value = "10s", value_parser = timeout)]
+    pub shutdown_timeout: Duration,
+
+    #[command(flatten)]
     pub limits: Limits,
 }
 
 /// Caps on what one request may ask for.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Args)]
 pub struct Limits {
-    /// Largest accepted request body, in bytes.
+    /// Largest accepted request body, in bytes; larger bodies get 413.
+    #[arg(long = "body-limit", env = "BODY_LIMIT", default_value_t = DEFAULT_BODY_LIMIT,
+          value_parser = count::<256, 67_108_864>)]
     pub body_bytes: usize,
-    /// Most rows one `/table` answer may have.
+
+    /// Most rows one /table answer may have (`steps`).
+    #[arg(long = "max-table-rows", env = "MAX_TABLE_ROWS",
+          default_value_t = DEFAULT_MAX_TABLE_ROWS, value_parser = count::<1, 1_000_000>)]
     pub table_rows: usize,
-    /// Most points one `/chart-data` series may have.
+
+    /// Most points one /chart-data series may have (`points`).
+    #[arg(long = "max-chart-points", env = "MAX_CHART_POINTS",
+          default_value_t = DEFAULT_MAX_CHART_POINTS, value_parser = count::<1, 1_000_000>)]
     pub chart_points: usize,
 }
 
@@ -47,87 +161,203 @@ impl Default for Config {
         Self {
             host: IpAddr::from([127, 0, 0, 1]),
             port: 8080,
+            log_format: LogFormat::Pretty,
+            log_level: DEFAULT_LOG_LEVEL.to_owned(),
+            cors_allowed_origins: Vec::new(),
+            request_timeout: DEFAULT_REQUEST_TIMEOUT,
+            header_read_timeout: DEFAULT_HEADER_READ_TIMEOUT,
+            concurrency_limit: DEFAULT_CONCURRENCY_LIMIT,
+            shutdown_delay: DEFAULT_SHUTDOWN_DELAY,
+            shutdown_timeout: DEFAULT_SHUTDOWN_TIMEOUT,
             limits: Limits::default(),
         }
     }
 }
 
-/// A setting that could not be used, with the variable it came from.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct ConfigError {
-    pub variable: &'static str,
-    pub value: String,
-    pub expected: &'static str,
-}
-
-impl fmt::Display for ConfigError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(
-            f,
-            "{}={:?} is not valid: expected {}",
-            self.variable, self.value, self.expected
-        )
+/// A whole number in `MIN..=MAX`.
+fn count<const MIN: usize, const MAX: usize>(text: &str) -> Result<usize, String> {
+    let value = usize::from_str(text.trim())
+        .map_err(|_| format!("expected a whole number from {MIN} to {MAX}"))?;
+    if (MIN..=MAX).contains(&value) {
+        Ok(value)
+    } else {
+        Err(format!("must be from {MIN} to {MAX}"))
     }
 }
 
-impl std::error::Error for ConfigError {}
+/// A duration with a unit, such as `500ms`, `5s` or `1m`.
+fn duration(text: &str) -> Result<Duration, String> {
+    humantime::parse_duration(text.trim())
+        .map_err(|error| format!("expected a duration such as 500ms, 5s or 1m ({error})"))
+}
+
+/// A timeout: a duration from 1 ms to 1 hour.
+fn timeout(text: &str) -> Result<Duration, String> {
+    let value = duration(text)?;
+    if value < Duration::from_millis(1) || value > Duration::from_secs(3600) {
+        return Err("must be from 1ms to 1h".to_owned());
+    }
+    Ok(value)
+}
+
+/// A delay: a duration from 0 to 5 minutes.
+fn delay(text: &str) -> Result<Duration, String> {
+    let value = duration(text)?;
+    if value > Duration::from_secs(300) {
+        return Err("must be at most 5m".to_owned());
+    }
+    Ok(value)
+}
+
+/// A log filter that tracing can use.
+fn log_filter(text: &str) -> Result<String, String> {
+    tracing_subscriber::EnvFilter::try_new(text)
+        .map(|_| text.to_owned())
+        .map_err(|error| format!("not a log filter such as `info` or `debug` ({error})"))
+}
+
+/// A browser origin, `scheme://host[:port]` with no path, or `*`.
+fn origin(text: &str) -> Result<String, String> {
+    let text = text.trim();
+    if text == "*" {
+        return Ok(text.to_owned());
+    }
+    let expected = "expected an origin such as https://app.example.com or http://localhost:3000 \
+                    (scheme, host and optional port; no path), or *";
+    let uri: axum::http::Uri = text.parse().map_err(|_| expected.to_owned())?;
+    let scheme_ok = matches!(uri.scheme_str(), Some("http" | "https"));
+    let path_ok = matches!(uri.path(), "" | "/") && uri.query().is_none();
+    match uri.authority() {
+        Some(authority) if scheme_ok && path_ok && !authority.as_str().contains('@') => {
+            Ok(format!("{}://{}", uri.scheme_str().unwrap_or("http"), authority).to_lowercase())
+        }
+        _ => Err(expected.to_owned()),
+    }
+}
+
+impl Cli {
+    /// Parses `args` (the program name first), looking up unset options in the environment.
+    pub fn try_parse_args<I, T>(args: I) -> Result<Self, clap::Error>
+    where
+        I: IntoIterator<Item = T>,
+        T: Into<std::ffi::OsString> + Clone,
+    {
+        let cli = <Self as Parser>::try_parse_from(args)?;
+        cli.config.check()?;
+        Ok(cli)
+    }
+}
 
 impl Config {
-    /// Reads `HOST` and `PORT`; unset variables keep their defaults.
-    pub fn from_env() -> Result<Self, ConfigError> {
-        Self::from_lookup(|name| std::env::var(name).ok())
-    }
-
-    /// Like [`Config::from_env`], with the variables looked up by `lookup`.
-    pub fn from_lookup(lookup: impl Fn(&str) -> Option<String>) -> Result<Self, ConfigError> {
-        let mut config = Config::default();
-        if let Some(value) = lookup("HOST") {
-            config.host = value.parse().map_err(|_| ConfigError {
-                variable: "HOST",
-                value,
-                expected: "an IP address such as 127.0.0.1 or 0.0.0.0",
-            })?;
+    /// Checks that span more than one option, reported like clap's own errors.
+    fn check(&self) -> Result<(), clap::Error> {
+        let origins = &self.cors_allowed_origins;
+        if origins.len() > 1 && origins.iter().any(|o| o == "*") {
+            return Err(clap::Error::raw(
+                clap::error::ErrorKind::ValueValidation,
+                "--cors-allowed-origins (CORS_ALLOWED_ORIGINS): `*` allows every origin and \
+                 cannot be combined with a list\n",
+            ));
         }
-        if let Some(value) = lookup("PORT") {
-            config.port = value.parse().map_err(|_| ConfigError {
-                variable: "PORT",
-                value,
-                expected: "a port number from 0 to 65535",
-            })?;
-        }
-        Ok(config)
+        Ok(())
     }
 }
 
 #[cfg(test)]
 mod tests {
+    use clap::{CommandFactory, FromArgMatches};
+
     use super::*;
 
-    /// Unset variables give the documented defaults.
-    #[test]
-    fn defaults() {
-        let config = Config::from_lookup(|_| None).unwrap();
-        assert_eq!(config.host.to_string(), "127.0.0.1");
-        assert_eq!(config.port, 8080);
-        assert_eq!(config.limits.body_bytes, 65_536);
+    /// Parses `args` with every environment lookup switched off, so the test sees only flags.
+    fn parse(args: &[&str]) -> Result<Cli, clap::Error> {
+        let command = Cli::command().mut_args(|arg| arg.env(None));
+        let matches = command
+            .try_get_matches_from(std::iter::once("stereo-distance").chain(args.iter().copied()))?;
+        let cli = Cli::from_arg_matches(&matches)?;
+        cli.config.check()?;
+        Ok(cli)
     }
 
-    /// HOST and PORT are read, and a bad value names its variable.
+    /// With no flags the parsed configuration is exactly `Config::default()`: the constants and
+    /// the `--help` defaults agree.
     #[test]
-    fn reads_and_rejects() {
-        let config = Config::from_lookup(|name| match name {
-            "HOST" => Some("0.0.0.0".into()),
-            "PORT" => Some("9000".into()),
-            _ => None,
-        })
+    fn flag_defaults_match_code_defaults() {
+        let cli = parse(&[]).unwrap();
+        assert_eq!(cli.config, Config::default());
+        assert_eq!(cli.command, None);
+    }
+
+    /// Flags are read, durations take units, origins are normalised.
+    #[test]
+    fn reads_flags() {
+        let cli = parse(&[
+            "--host",
+            "0.0.0.0",
+            "--port",
+            "9000",
+            "--log-format",
+            "json",
+            "--request-timeout",
+            "250ms",
+            "--cors-allowed-origins",
+            "https://App.example.com/,http://localhost:3000",
+            "--body-limit",
+            "1024",
+            "--concurrency-limit",
+            "3",
+        ])
         .unwrap();
+        let config = cli.config;
+        assert_eq!(config.host.to_string(), "0.0.0.0");
+        assert_eq!(config.port, 9000);
+        assert_eq!(config.log_format, LogFormat::Json);
+        assert_eq!(config.request_timeout, Duration::from_millis(250));
         assert_eq!(
-            (config.host.to_string().as_str(), config.port),
-            ("0.0.0.0", 9000)
+            config.cors_allowed_origins,
+            ["https://app.example.com", "http://localhost:3000"]
         );
-        let err =
-            Config::from_lookup(|name| (name == "PORT").then(|| "eighty".into())).unwrap_err();
-        assert_eq!(err.variable, "PORT");
-        assert!(err.to_string().contains("eighty"));
+        assert_eq!(config.limits.body_bytes, 1024);
+        assert_eq!(config.concurrency_limit, 3);
+    }
+
+    /// Bad values are refused with a message naming the option and what it accepts.
+    #[test]
+    fn refuses_bad_values() {
+        for (args, expected) in [
+            (&["--port", "eighty"][..], "--port"),
+            (&["--host", "localhost"][..], "--host"),
+            (&["--concurrency-limit", "0"][..], "from 1 to 1000000"),
+            (&["--body-limit", "10"][..], "from 256"),
+            (&["--request-timeout", "5"][..], "duration"),
+            (&["--request-timeout", "0s"][..], "from 1ms"),
+            (&["--log-format", "xml"][..], "pretty"),
+            (&["--log-level", "info,[["][..], "log filter"),
+            (
+                &["--cors-allowed-origins", "https://a.com/path"][..],
+                "origin",
+            ),
+            (
+                &["--cors-allowed-origins", "*,https://a.com"][..],
+                "cannot be combined",
+            ),
+        ] {
+            let error = parse(args).expect_err(&format!("{args:?} must be refused"));
+            let text = error.to_string();
+            assert!(text.contains(expected), "{args:?}: {text}");
+        }
+    }
+
+    /// `healthcheck` is a subcommand with its own timeout.
+    #[test]
+    fn healthcheck_subcommand() {
+        let cli = parse(&["--port", "9001", "healthcheck", "--timeout", "1s"]).unwrap();
+        assert_eq!(
+            cli.command,
+            Some(Command::Healthcheck {
+                timeout: Duration::from_secs(1)
+            })
+        );
+        assert_eq!(cli.config.port, 9001);
     }
 }

@@ -8,16 +8,25 @@
 //!   ([`api::validate`]) → physics → response ([`api::types`]); one error type
 //!   ([`api::error::ApiError`]) rendered as `application/problem+json`; the OpenAPI document
 //!   derived from the same types.
-//! - [`config`]: settings from the environment, with defaults in code.
-//! - [`startup`]: the middleware stack, [`startup::Application`] (binds, may use port 0) and
-//!   graceful shutdown.
+//!   [`api::ops`] holds the probes and `/metrics`.
+//! - [`config`]: flags and environment variables (clap), defaults in code, start-up checks.
+//! - [`telemetry`]: logging setup, `x-request-id`, one structured log line per request.
+//! - [`metrics`]: Prometheus request counts, latency histograms and in-flight gauge.
+//! - [`protect`]: request timeout, load shedding, CORS.
+//! - [`startup`]: the middleware stack, [`startup::Application`] (binds, may use port 0), the
+//!   accept loop with its header read timeout, and graceful shutdown with readiness drain.
+//! - [`healthcheck`]: the `healthcheck` subcommand's probe, for images without curl.
 //!
-//! `main.rs` only reads the configuration, sets up logging and runs the application.
+//! `main.rs` only parses the command line and runs the server or the probe.
 
 pub mod api;
 pub mod config;
+pub mod healthcheck;
+pub mod metrics;
 pub mod physics;
+pub mod protect;
 pub mod startup;
+pub mod telemetry;
 
 pub use config::Config;
 pub use startup::{Application, app};

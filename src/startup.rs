@@ -1,24 +1,80 @@
-//! Building and running the server: the middleware stack, binding, and graceful shutdown.
+//! Building and running the server: the middleware stack, the HTTP/1.1 accept loop with its
+//! header read timeout, and graceful shutdown (readiness off, optional delay, bounded drain).
 
-use std::{any::Any, future::Future, io, net::SocketAddr};
+use std::{any::Any, future::Future, io, net::SocketAddr, pin::pin, time::Duration};
 
-use axum::{Extension, Router, extract::DefaultBodyLimit, response::Response};
-use tokio::net::TcpListener;
-use tower_http::{catch_panic::CatchPanicLayer, trace::TraceLayer};
-
-use crate::{
-    api::{self, AppState, error::ApiError, extract::BodyLimit},
-    config::Config,
+use axum::{
+    Extension, Router,
+    error_handling::HandleErrorLayer,
+    extract::DefaultBodyLimit,
+    middleware::{from_fn, from_fn_with_state},
+    response::{IntoResponse, Response},
+};
+use hyper::server::conn::http1;
+use hyper_util::{
+    rt::{TokioIo, TokioTimer},
+    server::graceful::GracefulShutdown,
+    service::TowerToHyperService,
+};
+use tokio::net::{TcpListener, TcpStream};
+use tower::{ServiceBuilder, limit::GlobalConcurrencyLimitLayer};
+use tower_http::{
+    catch_panic::CatchPanicLayer,
+    compression::CompressionLayer,
+    request_id::{MakeRequestUuid, PropagateRequestIdLayer, SetRequestIdLayer},
 };
 
-/// The complete application router for `config`, middleware included.
-pub fn app(config: &Config) -> Router {
+use crate::{
+    api::{
+        self, AppState, Routers,
+        error::ApiError,
+        extract::BodyLimit,
+        handlers,
+        ops::{OpsState, Readiness},
+    },
+    config::Config,
+    metrics, protect,
+    telemetry::{self, X_REQUEST_ID},
+};
+
+/// The complete application router for `config`, every layer included. `ops` carries the
+/// readiness flag and the metrics registry, shared with whoever runs the server.
+///
+/// Layers, outermost first: request id → request log → id echo → metrics → CORS →
+/// compression → panic catcher; then, on the API routes only (not on the probes), load
+/// shedding at the concurrency limit → request timeout → body limit.
+pub fn app(config: &Config, ops: OpsState) -> Router {
     let limits = config.limits;
-    api::router(AppState { limits })
+    let Routers { api, ops: probes } = api::routers(AppState { limits }, ops.clone());
+    let api = api
         .layer(DefaultBodyLimit::max(limits.body_bytes))
         .layer(Extension(BodyLimit(limits.body_bytes)))
+        .layer(from_fn_with_state(config.request_timeout, protect::timeout))
+        .layer(
+            ServiceBuilder::new()
+                .layer(HandleErrorLayer::new(protect::shed))
+                .load_shed()
+                .layer(GlobalConcurrencyLimitLayer::new(config.concurrency_limit)),
+        );
+    let router = api
+        .merge(probes)
+        .fallback(handlers::not_found)
+        .method_not_allowed_fallback(handlers::method_not_allowed)
         .layer(CatchPanicLayer::custom(panic_response))
-        .layer(TraceLayer::new_for_http())
+        .layer(CompressionLayer::new());
+    let router = match protect::cors(&config.cors_allowed_origins) {
+        Some(cors) => router.layer(cors),
+        None => router,
+    };
+    router
+        .layer(from_fn_with_state(ops.metrics, metrics::track))
+        .layer(from_fn(telemetry::scope_request_id))
+        .layer(PropagateRequestIdLayer::new(X_REQUEST_ID.clone()))
+        .layer(telemetry::request_log())
+        .layer(SetRequestIdLayer::new(
+            X_REQUEST_ID.clone(),
+            MakeRequestUuid,
+        ))
 }
 
 /// A panic is a bug; answer it as a problem+json 500 rather than dropping the connection.
@@ -28,22 +84,39 @@ fn panic_response(panic: Box<dyn Any + Send + 'static>) -> Response {
         .map(|s| (*s).to_owned())
         .or_else(|| panic.downcast_ref::<String>().cloned())
         .unwrap_or_else(|| "panic".to_owned());
-    axum::response::IntoResponse::into_response(ApiError::Internal(what))
+    ApiError::Internal(what).into_response()
+}
+
+/// How connections are served and how the server stops.
+#[derive(Debug, Clone, Copy)]
+struct Serving {
+    header_read_timeout: Duration,
+    shutdown_delay: Duration,
+    shutdown_timeout: Duration,
 }
 
 /// A bound, not yet serving, server.
 pub struct Application {
     listener: TcpListener,
     router: Router,
+    readiness: Readiness,
+    serving: Serving,
 }
 
 impl Application {
     /// Binds `config.host:config.port` (port 0 picks a free port) and builds the router.
     pub async fn build(config: Config) -> io::Result<Self> {
         let listener = TcpListener::bind((config.host, config.port)).await?;
+        let ops = OpsState::default();
         Ok(Self {
             listener,
-            router: app(&config),
+            readiness: ops.readiness.clone(),
+            router: app(&config, ops),
+            serving: Serving {
+                header_read_timeout: config.header_read_timeout,
+                shutdown_delay: config.shutdown_delay,
+                shutdown_timeout: config.shutdown_timeout,
+            },
         })
     }
 
@@ -52,19 +125,104 @@ impl Application {
         self.listener.local_addr()
     }
 
-    /// Serves until `shutdown` completes, then lets in-flight requests finish.
+    /// Serves until `shutdown` completes, then stops gracefully: `/readyz` answers 503 at once;
+    /// connections are still accepted for the shutdown delay (so a load balancer can notice);
+    /// then the listener closes and in-flight requests get up to the shutdown timeout to finish.
     pub async fn run_until(
         self,
         shutdown: impl Future<Output = ()> + Send + 'static,
     ) -> io::Result<()> {
-        axum::serve(self.listener, self.router)
-            .with_graceful_shutdown(shutdown)
-            .await
+        let Self {
+            listener,
+            router,
+            readiness,
+            serving,
+        } = self;
+        let mut http = http1::Builder::new();
+        http.timer(TokioTimer::new())
+            .header_read_timeout(serving.header_read_timeout);
+        let server = Server {
+            listener,
+            router,
+            http,
+            graceful: GracefulShutdown::new(),
+        };
+
+        readiness.set(true);
+        server.accept_until(shutdown).await;
+        readiness.set(false);
+        if !serving.shutdown_delay.is_zero() {
+            tracing::info!(
+                delay_ms = serving.shutdown_delay.as_millis() as u64,
+                "shutting down: readiness off, still serving during the delay"
+            );
+            server
+                .accept_until(tokio::time::sleep(serving.shutdown_delay))
+                .await;
+        }
+        let Server {
+            listener, graceful, ..
+        } = server;
+        drop(listener);
+        tracing::info!("listener closed: draining in-flight requests");
+        match tokio::time::timeout(serving.shutdown_timeout, graceful.shutdown()).await {
+            Ok(()) => tracing::info!("drained: every in-flight request finished"),
+            Err(_) => tracing::warn!(
+                timeout_ms = serving.shutdown_timeout.as_millis() as u64,
+                "drain timed out: the remaining connections are cut off"
+            ),
+        }
+        Ok(())
     }
 
     /// Serves until SIGINT (Ctrl-C) or SIGTERM.
     pub async fn run_until_stopped(self) -> io::Result<()> {
         self.run_until(shutdown_signal()).await
+    }
+}
+
+/// The listening half of a running server.
+struct Server {
+    listener: TcpListener,
+    router: Router,
+    http: http1::Builder,
+    graceful: GracefulShutdown,
+}
+
+impl Server {
+    /// Accepts and serves connections until `stop` completes.
+    async fn accept_until(&self, stop: impl Future<Output = ()>) {
+        let mut stop = pin!(stop);
+        loop {
+            tokio::select! {
+                biased;
+                () = &mut stop => return,
+                accepted = self.listener.accept() => match accepted {
+                    Ok((stream, _)) => self.serve(stream),
+                    Err(error) => {
+                        // Out of file descriptors and the like: back off instead of spinning.
+                        tracing::warn!(%error, "accept failed");
+                        tokio::time::sleep(Duration::from_millis(50)).await;
+                    }
+                },
+            }
+        }
+    }
+
+    /// Serves one connection on its own task, watched for graceful shutdown.
+    fn serve(&self, stream: TcpStream) {
+        if let Err(error) = stream.set_nodelay(true) {
+            tracing::debug!(%error, "cannot set TCP_NODELAY");
+        }
+        let service = TowerToHyperService::new(self.router.clone());
+        let connection = self
+            .graceful
+            .watch(self.http.serve_connection(TokioIo::new(stream), service));
+        tokio::spawn(async move {
+            if let Err(error) = connection.await {
+                tracing::debug!(%error, "connection closed with an error");
+            }
+        });
     }
 }
 
@@ -90,5 +248,5 @@ pub async fn shutdown_signal() {
         () = ctrl_c => {},
         () = terminate => {},
     }
-    tracing::info!("shutting down: finishing in-flight requests");
+    tracing::info!("shutdown signal received");
 }

@@ -1,6 +1,6 @@
 //! The one error type of the HTTP layer, rendered as RFC 9457 `application/problem+json`.
 
-use std::collections::BTreeMap;
+use std::{collections::BTreeMap, time::Duration};
 
 use axum::{
     http::{HeaderValue, StatusCode, header},
@@ -12,7 +12,7 @@ use utoipa::{
     openapi::{ContentBuilder, RefOr, ResponseBuilder, response::Response as OpenApiResponse},
 };
 
-use crate::physics::PhysicsError;
+use crate::{physics::PhysicsError, telemetry};
 
 /// The media type of every error body.
 pub const PROBLEM_JSON: &str = "application/problem+json";
@@ -60,6 +60,11 @@ pub struct Problem {
     pub detail: String,
     /// Every offending field, each with its own message; never empty.
     pub errors: Vec<FieldError>,
+    /// The request's `x-request-id` (the caller's, or one the server made up), to quote when
+    /// reporting the problem.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub request_id: Option<String>,
 }
 
 /// Everything that can go wrong with a request.
@@ -77,6 +82,15 @@ pub enum ApiError {
     NotFound(String),
     /// 405: the route exists but not with this method.
     MethodNotAllowed(String),
+    /// 408 when the body was still arriving at the deadline, 503 when the answer was late.
+    Timeout {
+        after: Duration,
+        body_received: bool,
+    },
+    /// 503: more requests in flight than the concurrency limit; retry after the given seconds.
+    Overloaded { retry_after_secs: u64 },
+    /// 503 from `/readyz`: the server is shutting down and wants no new traffic.
+    Draining,
     /// 500: a bug; never expected, but answered in the same format.
     Internal(String),
 }
@@ -94,6 +108,13 @@ impl ApiError {
             ApiError::Invalid(_) => StatusCode::UNPROCESSABLE_ENTITY,
             ApiError::NotFound(_) => StatusCode::NOT_FOUND,
             ApiError::MethodNotAllowed(_) => StatusCode::METHOD_NOT_ALLOWED,
+            ApiError::Timeout {
+                body_received: false,
+                ..
+            } => StatusCode::REQUEST_TIMEOUT,
+            ApiError::Timeout { .. } | ApiError::Overloaded { .. } | ApiError::Draining => {
+                StatusCode::SERVICE_UNAVAILABLE
+            }
             ApiError::Internal(_) => StatusCode::INTERNAL_SERVER_ERROR,
         }
     }
@@ -107,6 +128,7 @@ impl ApiError {
             status: status.as_u16(),
             detail,
             errors,
+            request_id: None,
         };
         match self {
             ApiError::Malformed(error) => Problem {
@@ -118,6 +140,7 @@ impl ApiError {
                     error.field, error.message
                 ),
                 errors: vec![error.clone()],
+                request_id: None,
             },
             ApiError::PayloadTooLarge(limit) => plain(
                 format!("the request body is larger than the limit of {limit} bytes"),
@@ -145,6 +168,7 @@ impl ApiError {
                     status: status.as_u16(),
                     detail,
                     errors: errors.clone(),
+                    request_id: None,
                 }
             }
             ApiError::NotFound(path) => plain(
@@ -157,6 +181,37 @@ impl ApiError {
                     "method",
                     format!("{method} is not allowed"),
                 )],
+            ),
+            ApiError::Timeout {
+                after,
+                body_received: false,
+            } => plain(
+                format!(
+                    "the request body did not arrive within the {} ms the server waits",
+                    after.as_millis()
+                ),
+                vec![FieldError::new(
+                    "body",
+                    "arrived too slowly; send the whole request at once",
+                )],
+            ),
+            ApiError::Timeout { after, .. } => plain(
+                format!(
+                    "the server could not answer within {} ms; retry later",
+                    after.as_millis()
+                ),
+                vec![FieldError::new("request", "timed out in the server")],
+            ),
+            ApiError::Overloaded { retry_after_secs } => plain(
+                format!("the server is at its concurrency limit; retry after {retry_after_secs} s"),
+                vec![FieldError::new(
+                    "request",
+                    "refused to protect the requests already in progress",
+                )],
+            ),
+            ApiError::Draining => plain(
+                "the server is shutting down and takes no new traffic".to_owned(),
+                vec![FieldError::new("server", "draining")],
             ),
             ApiError::Internal(what) => plain(
                 "the server failed to answer this request; it has been logged".to_owned(),
@@ -184,17 +239,23 @@ impl IntoResponse for ApiError {
             tracing::error!(%what, "internal error");
         }
         let status = self.status();
-        let body = serde_json::to_vec(&self.problem()).unwrap_or_default();
+        let mut problem = self.problem();
+        problem.request_id = telemetry::current_request_id();
+        let body = serde_json::to_vec(&problem).unwrap_or_default();
         let mut response = (status, body).into_response();
-        response
-            .headers_mut()
-            .insert(header::CONTENT_TYPE, HeaderValue::from_static(PROBLEM_JSON));
+        let headers = response.headers_mut();
+        headers.insert(header::CONTENT_TYPE, HeaderValue::from_static(PROBLEM_JSON));
+        if let ApiError::Overloaded { retry_after_secs } = self {
+            headers.insert(header::RETRY_AFTER, HeaderValue::from(retry_after_secs));
+        }
         response
     }
 }
 
 /// The error responses an operation documents, for `#[utoipa::path(responses(...))]`.
-fn problem_responses(statuses: &[(StatusCode, &str)]) -> BTreeMap<String, RefOr<OpenApiResponse>> {
+pub(crate) fn problem_responses(
+    statuses: &[(StatusCode, &str)],
+) -> BTreeMap<String, RefOr<OpenApiResponse>> {
     statuses
         .iter()
         .map(|(status, description)| {
@@ -232,6 +293,15 @@ const INVALID: (StatusCode, &str) = (
     "One or more fields are missing, of the wrong type, unknown or out of range, or the point \
      is at infinity; `errors` names every one.",
 );
+const TIMEOUT: (StatusCode, &str) = (
+    StatusCode::REQUEST_TIMEOUT,
+    "The request body did not arrive within the request timeout (5 s by default).",
+);
+const UNAVAILABLE: (StatusCode, &str) = (
+    StatusCode::SERVICE_UNAVAILABLE,
+    "The server is at its concurrency limit (with a `Retry-After` header) or could not answer \
+     within the request timeout; retry later.",
+);
 const METHOD: (StatusCode, &str) = (
     StatusCode::METHOD_NOT_ALLOWED,
     "The path does not support this method.",
@@ -242,7 +312,15 @@ pub struct BodyErrors;
 
 impl utoipa::IntoResponses for BodyErrors {
     fn responses() -> BTreeMap<String, RefOr<OpenApiResponse>> {
-        problem_responses(&[BAD_JSON, METHOD, TOO_LARGE, NOT_JSON, INVALID])
+        problem_responses(&[
+            BAD_JSON,
+            METHOD,
+            TIMEOUT,
+            TOO_LARGE,
+            NOT_JSON,
+            INVALID,
+            UNAVAILABLE,
+        ])
     }
 }
 
@@ -251,6 +329,6 @@ pub struct QueryErrors;
 
 impl utoipa::IntoResponses for QueryErrors {
     fn responses() -> BTreeMap<String, RefOr<OpenApiResponse>> {
-        problem_responses(&[BAD_QUERY, METHOD, INVALID])
+        problem_responses(&[BAD_QUERY, METHOD, TIMEOUT, INVALID, UNAVAILABLE])
     }
 }

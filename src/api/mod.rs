@@ -3,6 +3,7 @@
 pub mod error;
 pub mod extract;
 pub mod handlers;
+pub mod ops;
 pub mod types;
 pub mod validate;
 
@@ -11,6 +12,7 @@ use utoipa::OpenApi;
 use utoipa_axum::{router::OpenApiRouter, routes};
 use utoipa_swagger_ui::SwaggerUi;
 
+use self::ops::OpsState;
 use crate::config::Limits;
 
 /// What every handler can see.
@@ -35,31 +37,51 @@ pub struct AppState {
     tags(
         (name = "distance", description = "Distance to one feature"),
         (name = "table", description = "Sample tables for a rig"),
-        (name = "chart", description = "Chart data for a rig")
+        (name = "chart", description = "Chart data for a rig"),
+        (name = "operations", description = "Liveness, readiness and metrics")
     )
 )]
 struct ApiDoc;
 
-/// The API routes with their OpenAPI document, built from the same handler annotations.
-fn routes(state: AppState) -> (Router, utoipa::openapi::OpenApi) {
-    OpenApiRouter::with_openapi(ApiDoc::openapi())
+/// The service's routers, split by how they are protected.
+pub struct Routers {
+    /// `/distance`, `/table`, `/chart-data`, `/openapi.json` and `/docs`: behind the
+    /// concurrency limit and the request timeout.
+    pub api: Router,
+    /// `/healthz`, `/readyz` and `/metrics`: never shed, so probes answer under load.
+    pub ops: Router,
+}
+
+/// Both routers and the OpenAPI document, built from the same handler annotations.
+fn routes(state: AppState, ops: OpsState) -> (Routers, utoipa::openapi::OpenApi) {
+    let (api, mut doc) = OpenApiRouter::with_openapi(ApiDoc::openapi())
         .routes(routes!(handlers::get_distance, handlers::post_distance))
         .routes(routes!(handlers::get_table, handlers::post_table))
         .routes(routes!(handlers::get_chart_data, handlers::post_chart_data))
         .with_state(state)
-        .split_for_parts()
+        .split_for_parts();
+    let (ops, ops_doc) = OpenApiRouter::new()
+        .routes(routes!(ops::healthz))
+        .routes(routes!(ops::readyz))
+        .routes(routes!(ops::metrics))
+        .with_state(ops)
+        .split_for_parts();
+    doc.merge(ops_doc);
+    (Routers { api, ops }, doc)
 }
 
 /// The OpenAPI document of the service, as served at `/openapi.json`.
 pub fn openapi() -> utoipa::openapi::OpenApi {
-    routes(AppState::default()).1
+    routes(AppState::default(), OpsState::default()).1
 }
 
-/// The API router: the routes, `/openapi.json`, Swagger UI at `/docs`, and problem+json
-/// answers for unknown paths and methods.
-pub fn router(state: AppState) -> Router {
-    let (api, doc) = routes(state);
-    api.merge(SwaggerUi::new("/docs").url("/openapi.json", doc))
-        .fallback(handlers::not_found)
-        .method_not_allowed_fallback(handlers::method_not_allowed)
+/// The routers, with `/openapi.json` and Swagger UI at `/docs` added to the API's.
+pub fn routers(state: AppState, ops: OpsState) -> Routers {
+    let (routers, doc) = routes(state, ops);
+    Routers {
+        api: routers
+            .api
+            .merge(SwaggerUi::new("/docs").url("/openapi.json", doc)),
+        ops: routers.ops,
+    }
 }

@@ -1,13 +1,24 @@
 //! Test support: spawning the application on a free port, and reading its answers.
 
+use std::{io, net::SocketAddr, time::Duration};
+
 use reqwest::{Client, Response, StatusCode, header::CONTENT_TYPE};
 use serde_json::Value;
 use stereo_distance::{Application, Config};
+use tokio::{
+    io::{AsyncReadExt, AsyncWriteExt},
+    net::TcpStream,
+    sync::oneshot,
+    task::JoinHandle,
+};
 
 /// A running server and a client for it.
 pub struct TestApp {
     pub address: String,
+    pub socket: SocketAddr,
     pub client: Client,
+    shutdown: Option<oneshot::Sender<()>>,
+    server: Option<JoinHandle<io::Result<()>>>,
 }
 
 /// Starts the application on 127.0.0.1 with a free port and the default limits.
@@ -24,15 +35,83 @@ pub async fn spawn_app_with(config: Config) -> TestApp {
     let application = Application::build(config)
         .await
         .expect("the test server binds");
-    let address = format!(
-        "http://{}",
-        application.local_addr().expect("bound address")
-    );
-    tokio::spawn(application.run_until(std::future::pending()));
+    let socket = application.local_addr().expect("bound address");
+    let (shutdown, stop) = oneshot::channel::<()>();
+    let server = tokio::spawn(application.run_until(async {
+        // A dropped sender (the test ended) is not a shutdown request.
+        if stop.await.is_err() {
+            std::future::pending::<()>().await;
+        }
+    }));
     TestApp {
-        address,
+        address: format!("http://{socket}"),
+        socket,
         client: Client::new(),
+        shutdown: Some(shutdown),
+        server: Some(server),
     }
+}
+
+/// A bound on how long a test waits for something that must happen, so that a bug fails the
+/// test instead of hanging it. It is never what a test asserts.
+pub const PATIENCE: Duration = Duration::from_secs(20);
+
+impl TestApp {
+    /// Starts a graceful shutdown, as SIGTERM does.
+    pub fn begin_shutdown(&mut self) {
+        if let Some(shutdown) = self.shutdown.take() {
+            shutdown.send(()).expect("the server is running");
+        }
+    }
+
+    /// Waits for the server task to finish and returns what `run_until` returned.
+    pub async fn stopped(&mut self) -> io::Result<()> {
+        let server = self.server.take().expect("the server was started");
+        tokio::time::timeout(PATIENCE, server)
+            .await
+            .expect("the server stops")
+            .expect("the server task did not panic")
+    }
+
+    /// The value of the metric line starting with `series` (name and labels), if present.
+    pub async fn metric(&self, series: &str) -> Option<f64> {
+        let text = self.get("/metrics").await.text().await.expect("metrics");
+        text.lines()
+            .find_map(|line| line.strip_prefix(series)?.trim().parse().ok())
+    }
+
+    /// Polls `/metrics` until `http_requests_in_flight` (which counts the poll itself) reaches
+    /// `count`.
+    pub async fn wait_in_flight(&self, count: f64) {
+        for _ in 0..2_000 {
+            if self.metric("http_requests_in_flight").await == Some(count) {
+                return;
+            }
+            tokio::time::sleep(Duration::from_millis(10)).await;
+        }
+        panic!("http_requests_in_flight never reached {count}");
+    }
+
+    /// Opens a raw connection and sends `head` (request line and headers, with the blank line
+    /// if wanted) and then `body_start`, leaving the rest of the request unsent.
+    pub async fn raw_partial(&self, head: &str, body_start: &[u8]) -> TcpStream {
+        let mut stream = TcpStream::connect(self.socket).await.expect("connects");
+        stream.write_all(head.as_bytes()).await.expect("head sent");
+        stream.write_all(body_start).await.expect("body start sent");
+        stream.flush().await.expect("flushed");
+        stream
+    }
+}
+
+/// Reads a raw HTTP/1.1 answer until the peer closes (the requests send `Connection: close`),
+/// within [`PATIENCE`].
+pub async fn read_to_close(stream: &mut TcpStream) -> String {
+    let mut answer = Vec::new();
+    tokio::time::timeout(PATIENCE, stream.read_to_end(&mut answer))
+        .await
+        .expect("the server answers or closes")
+        .ok();
+    String::from_utf8_lossy(&answer).into_owned()
 }
 
 impl TestApp {

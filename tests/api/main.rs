@@ -6,4 +6,6 @@ mod distance;
 mod errors;
 mod helpers;
 mod openapi;
+mod operations;
+mod protection;
 mod table;

@@ -1,0 +1,109 @@
+//! Operational endpoints for orchestrators and monitoring: liveness, readiness and metrics.
+//! They bypass the concurrency limit and the request timeout so that probes still answer
+//! under load.
+
+use std::sync::{
+    Arc,
+    atomic::{AtomicBool, Ordering},
+};
+
+use axum::{
+    Json,
+    extract::State,
+    http::{StatusCode, header},
+    response::{IntoResponse, Response},
+};
+use serde::Serialize;
+use utoipa::ToSchema;
+
+use super::error::{ApiError, problem_responses};
+use crate::metrics::{Metrics, TEXT_FORMAT};
+
+/// Whether the server wants traffic: false before it serves and while it drains.
+#[derive(Debug, Clone, Default)]
+pub struct Readiness(Arc<AtomicBool>);
+
+impl Readiness {
+    pub fn set(&self, ready: bool) {
+        self.0.store(ready, Ordering::Release);
+    }
+
+    pub fn get(&self) -> bool {
+        self.0.load(Ordering::Acquire)
+    }
+}
+
+/// What the operational endpoints see.
+#[derive(Debug, Clone, Default)]
+pub struct OpsState {
+    pub readiness: Readiness,
+    pub metrics: Metrics,
+}
+
+/// The body of a successful probe.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct Health {
+    /// `ok` for liveness, `ready` for readiness.
+    #[schema(example = "ok")]
+    pub status: &'static str,
+}
+
+struct NotReady;
+
+impl utoipa::IntoResponses for NotReady {
+    fn responses()
+    -> std::collections::BTreeMap<String, utoipa::openapi::RefOr<utoipa::openapi::Response>> {
+        problem_responses(&[(
+            StatusCode::SERVICE_UNAVAILABLE,
+            "The server is starting or draining before shutdown; send traffic elsewhere.",
+        )])
+    }
+}
+
+#[utoipa::path(
+    get,
+    path = "/healthz",
+    tag = "operations",
+    summary = "Liveness: the process is up and serving HTTP",
+    responses((status = 200, description = "The process is alive.", body = Health))
+)]
+pub async fn healthz() -> Json<Health> {
+    Json(Health { status: "ok" })
+}
+
+#[utoipa::path(
+    get,
+    path = "/readyz",
+    tag = "operations",
+    summary = "Readiness: the server wants traffic (503 while it drains for shutdown)",
+    responses(
+        (status = 200, description = "Ready for traffic.", body = Health),
+        NotReady
+    )
+)]
+pub async fn readyz(State(state): State<OpsState>) -> Result<Json<Health>, ApiError> {
+    if state.readiness.get() {
+        Ok(Json(Health { status: "ready" }))
+    } else {
+        Err(ApiError::Draining)
+    }
+}
+
+#[utoipa::path(
+    get,
+    path = "/metrics",
+    tag = "operations",
+    summary = "Prometheus metrics: requests, latency histograms and in-flight requests",
+    responses((
+        status = 200,
+        description = "Metrics in the Prometheus text format, by method, route and status.",
+        content_type = "text/plain; version=0.0.4; charset=utf-8",
+        body = String
+    ))
+)]
+pub async fn metrics(State(state): State<OpsState>) -> Response {
+    match state.metrics.render() {
+        Ok(text) => ([(header::CONTENT_TYPE, TEXT_FORMAT)], text).into_response(),
+        Err(error) => ApiError::Internal(error).into_response(),
+    }
+}
