@@ -131,17 +131,17 @@ pub struct Config {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Args)]
 pub struct Limits {
     /// Largest accepted request body, in bytes; larger bodies get 413.
-    #[arg(long = "body-limit", env = "BODY_LIMIT", default_value_t = DEFAULT_BODY_LIMIT,
+    #[arg(long = "body-limit", env = "BODY_LIMIT", value_name = "BYTES", default_value_t = DEFAULT_BODY_LIMIT,
           value_parser = count::<256, 67_108_864>)]
     pub body_bytes: usize,
 
     /// Most rows one /table answer may have (`steps`).
-    #[arg(long = "max-table-rows", env = "MAX_TABLE_ROWS",
+    #[arg(long = "max-table-rows", env = "MAX_TABLE_ROWS", value_name = "ROWS",
           default_value_t = DEFAULT_MAX_TABLE_ROWS, value_parser = count::<1, 1_000_000>)]
     pub table_rows: usize,
 
     /// Most points one /chart-data series may have (`points`).
-    #[arg(long = "max-chart-points", env = "MAX_CHART_POINTS",
+    #[arg(long = "max-chart-points", env = "MAX_CHART_POINTS", value_name = "POINTS",
           default_value_t = DEFAULT_MAX_CHART_POINTS, value_parser = count::<1, 1_000_000>)]
     pub chart_points: usize,
 }
@@ -219,7 +219,8 @@ fn log_filter(text: &str) -> Result<String, String> {
 /// A browser origin, `scheme://host[:port]` with no path, or `*`.
 fn origin(text: &str) -> Result<String, String> {
     let text = text.trim();
-    if text == "*" {
+    if text.is_empty() || text == "*" {
+        // An empty item (as in `CORS_ALLOWED_ORIGINS=`) means no origin; it is dropped later.
         return Ok(text.to_owned());
     }
     let expected = "expected an origin such as https://app.example.com or http://localhost:3000 \
@@ -242,9 +243,14 @@ impl Cli {
         I: IntoIterator<Item = T>,
         T: Into<std::ffi::OsString> + Clone,
     {
-        let cli = <Self as Parser>::try_parse_from(args)?;
-        cli.config.check()?;
-        Ok(cli)
+        <Self as Parser>::try_parse_from(args)?.finish()
+    }
+
+    /// Tidies what clap parsed and applies the checks that span more than one value.
+    fn finish(mut self) -> Result<Self, clap::Error> {
+        self.config.cors_allowed_origins.retain(|o| !o.is_empty());
+        self.config.check()?;
+        Ok(self)
     }
 }
 
@@ -274,9 +280,7 @@ mod tests {
         let command = Cli::command().mut_args(|arg| arg.env(None));
         let matches = command
             .try_get_matches_from(std::iter::once("stereo-distance").chain(args.iter().copied()))?;
-        let cli = Cli::from_arg_matches(&matches)?;
-        cli.config.check()?;
-        Ok(cli)
+        Cli::from_arg_matches(&matches)?.finish()
     }
 
     /// With no flags the parsed configuration is exactly `Config::default()`: the constants and
@@ -286,6 +290,13 @@ mod tests {
         let cli = parse(&[]).unwrap();
         assert_eq!(cli.config, Config::default());
         assert_eq!(cli.command, None);
+    }
+
+    /// An empty origin list (as `CORS_ALLOWED_ORIGINS=` gives) allows no origin.
+    #[test]
+    fn empty_origin_list_is_none() {
+        let cli = parse(&["--cors-allowed-origins", ""]).unwrap();
+        assert!(cli.config.cors_allowed_origins.is_empty());
     }
 
     /// Flags are read, durations take units, origins are normalised.
