@@ -332,3 +332,34 @@ impl utoipa::IntoResponses for QueryErrors {
         problem_responses(&[BAD_QUERY, METHOD, TIMEOUT, INVALID, UNAVAILABLE])
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A timeout is 408 while the body is still arriving and 503 once the answer is late;
+    /// shedding is 503 with `Retry-After`; each names what to fix in `errors`.
+    #[test]
+    fn protective_errors_map_to_statuses() {
+        let slow_body = ApiError::Timeout {
+            after: Duration::from_secs(5),
+            body_received: false,
+        };
+        let slow_answer = ApiError::Timeout {
+            after: Duration::from_secs(5),
+            body_received: true,
+        };
+        assert_eq!(slow_body.status(), StatusCode::REQUEST_TIMEOUT);
+        assert_eq!(slow_body.problem().errors[0].field, "body");
+        assert_eq!(slow_answer.status(), StatusCode::SERVICE_UNAVAILABLE);
+        assert!(slow_answer.problem().detail.contains("5000 ms"));
+
+        let shed = ApiError::Overloaded {
+            retry_after_secs: 1,
+        }
+        .into_response();
+        assert_eq!(shed.status(), StatusCode::SERVICE_UNAVAILABLE);
+        assert_eq!(shed.headers()[header::RETRY_AFTER], "1");
+        assert_eq!(shed.headers()[header::CONTENT_TYPE], PROBLEM_JSON);
+    }
+}

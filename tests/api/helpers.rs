@@ -151,6 +151,16 @@ impl TestApp {
             .expect("request is sent")
     }
 
+    /// GETs `path_and_query` with one extra request header.
+    pub async fn get_with_header(&self, path_and_query: &str, name: &str, value: &str) -> Response {
+        self.client
+            .get(format!("{}{path_and_query}", self.address))
+            .header(name, value)
+            .send()
+            .await
+            .expect("request is sent")
+    }
+
     /// GETs `path` with the members of the JSON object `fields` as query parameters.
     pub async fn get_with(&self, path: &str, fields: &Value) -> Response {
         self.get(&format!("{path}?{}", to_query(fields))).await

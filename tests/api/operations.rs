@@ -20,19 +20,11 @@ async fn request_id_is_echoed() {
 
     // Act
     let ok = app
-        .client
-        .get(format!("{}{EXAMPLE_QUERY}", app.address))
-        .header(X_REQUEST_ID, "trace-42")
-        .send()
-        .await
-        .unwrap();
+        .get_with_header(EXAMPLE_QUERY, X_REQUEST_ID, "trace-42")
+        .await;
     let bad = app
-        .client
-        .get(format!("{}/distance?baseline=-1", app.address))
-        .header(X_REQUEST_ID, "trace-43")
-        .send()
-        .await
-        .unwrap();
+        .get_with_header("/distance?baseline=-1", X_REQUEST_ID, "trace-43")
+        .await;
 
     // Assert
     assert_eq!(ok.headers()[X_REQUEST_ID], "trace-42");

@@ -172,12 +172,8 @@ async fn cors_preflight_allowed_and_refused() {
     let allowed = preflight("https://app.example.com").await.unwrap();
     let refused = preflight("https://evil.example.com").await.unwrap();
     let simple = app
-        .client
-        .get(format!("{}/healthz", app.address))
-        .header(ORIGIN, "https://app.example.com")
-        .send()
-        .await
-        .unwrap();
+        .get_with_header("/healthz", ORIGIN.as_str(), "https://app.example.com")
+        .await;
 
     // Assert
     assert_eq!(allowed.status(), 200);
@@ -223,27 +219,16 @@ async fn cors_is_off_by_default() {
 async fn compresses_when_asked() {
     // Arrange
     let app = spawn_app().await;
-    let url = format!(
-        "{}/table?focal_length_px=35&baseline=150&image_width=800&image_height=600&steps=1000",
-        app.address
-    );
+    let url = "/table?focal_length_px=35&baseline=150&image_width=800&image_height=600&steps=1000";
 
     // Act
     let gzip = app
-        .client
-        .get(&url)
-        .header(ACCEPT_ENCODING, "gzip")
-        .send()
-        .await
-        .unwrap();
+        .get_with_header(url, ACCEPT_ENCODING.as_str(), "gzip")
+        .await;
     let brotli = app
-        .client
-        .get(&url)
-        .header(ACCEPT_ENCODING, "br")
-        .send()
-        .await
-        .unwrap();
-    let plain = ok_json(app.client.get(&url).send().await.unwrap()).await;
+        .get_with_header(url, ACCEPT_ENCODING.as_str(), "br")
+        .await;
+    let plain = ok_json(app.get(url).await).await;
 
     // Assert
     assert_eq!(gzip.status(), 200);
