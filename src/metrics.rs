@@ -4,7 +4,7 @@
 use std::time::Instant;
 
 use axum::{
-    extract::{Request, State},
+    extract::{MatchedPath, Request, State},
     http::Method,
     middleware::Next,
     response::Response,
@@ -13,7 +13,7 @@ use prometheus::{
     Encoder, HistogramOpts, HistogramVec, IntCounterVec, IntGauge, Opts, Registry, TextEncoder,
 };
 
-use crate::telemetry::route_of;
+use crate::telemetry::UNMATCHED_ROUTE;
 
 /// Latency buckets in seconds: from 50 µs (a warm /distance) to 10 s (past any timeout).
 const LATENCY_BUCKETS: &[f64] = &[
@@ -133,12 +133,14 @@ fn method_label(method: &Method) -> &'static str {
 /// Middleware: counts and times every request by method, route template and status.
 pub async fn track(State(metrics): State<Metrics>, request: Request, next: Next) -> Response {
     let method = method_label(request.method());
-    let route = route_of(&request).to_owned();
+    // MatchedPath is an Arc<str>: cloning it costs no allocation.
+    let route = request.extensions().get::<MatchedPath>().cloned();
     let _in_flight = InFlight::enter(&metrics.in_flight);
     let started = Instant::now();
     let response = next.run(request).await;
     let seconds = started.elapsed().as_secs_f64();
-    metrics.observe(method, &route, response.status().as_str(), seconds);
+    let route = route.as_ref().map_or(UNMATCHED_ROUTE, MatchedPath::as_str);
+    metrics.observe(method, route, response.status().as_str(), seconds);
     response
 }
 

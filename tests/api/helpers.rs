@@ -101,20 +101,7 @@ impl TestApp {
         stream.flush().await.expect("flushed");
         stream
     }
-}
 
-/// Reads a raw HTTP/1.1 answer until the peer closes (the requests send `Connection: close`),
-/// within [`PATIENCE`].
-pub async fn read_to_close(stream: &mut TcpStream) -> String {
-    let mut answer = Vec::new();
-    tokio::time::timeout(PATIENCE, stream.read_to_end(&mut answer))
-        .await
-        .expect("the server answers or closes")
-        .ok();
-    String::from_utf8_lossy(&answer).into_owned()
-}
-
-impl TestApp {
     /// POSTs `body` as JSON to `path`.
     pub async fn post(&self, path: &str, body: &Value) -> Response {
         self.client
@@ -165,6 +152,17 @@ impl TestApp {
     pub async fn get_with(&self, path: &str, fields: &Value) -> Response {
         self.get(&format!("{path}?{}", to_query(fields))).await
     }
+}
+
+/// Reads a raw HTTP/1.1 answer until the peer closes (the requests send `Connection: close`),
+/// within [`PATIENCE`].
+pub async fn read_to_close(stream: &mut TcpStream) -> String {
+    let mut answer = Vec::new();
+    tokio::time::timeout(PATIENCE, stream.read_to_end(&mut answer))
+        .await
+        .expect("the server answers or closes")
+        .ok();
+    String::from_utf8_lossy(&answer).into_owned()
 }
 
 /// A JSON object's members as a query string (numbers and strings as they print).
