@@ -14,6 +14,13 @@ pub const DEFAULT_BODY_LIMIT: usize = 64 * 1024;
 pub const DEFAULT_MAX_TABLE_ROWS: usize = 10_000;
 /// Default cap on `/chart-data` points per series: as for the table.
 pub const DEFAULT_MAX_CHART_POINTS: usize = 10_000;
+/// Default cap on the correspondences in one batch `POST /distance`: 10 000 is a dense frame's
+/// worth of matches from a feature tracker, answered in a few ms as ~2 MB of JSON.
+pub const DEFAULT_MAX_BATCH_POINTS: usize = 10_000;
+/// Default body limit of `POST /distance`, the one route that takes batches: 2 MiB. A full batch
+/// of 10 000 points is ~0.5 MB compact and under 1 MB pretty-printed; the single-shot routes keep
+/// the smaller [`DEFAULT_BODY_LIMIT`].
+pub const DEFAULT_BATCH_BODY_LIMIT: usize = 2 * 1024 * 1024;
 /// Default request timeout: 5 s. The slowest request (a 10 000-row table) takes milliseconds, so
 /// anything near this is a stalled client body or an overloaded host, not work worth waiting for.
 pub const DEFAULT_REQUEST_TIMEOUT: Duration = Duration::from_secs(5);
@@ -21,8 +28,9 @@ pub const DEFAULT_REQUEST_TIMEOUT: Duration = Duration::from_secs(5);
 /// off slow-header (slowloris) clients. hyper also applies it to idle keep-alive connections.
 pub const DEFAULT_HEADER_READ_TIMEOUT: Duration = Duration::from_secs(10);
 /// Default concurrency limit: 512 requests in flight. Each costs microseconds of CPU and at most
-/// one body (64 KiB), so 512 saturates two cores many times over while bounding memory to
-/// ~32 MiB; requests beyond it are shed at once with 503 rather than queued.
+/// one body (64 KiB; a full batch is the exception, see [`DEFAULT_BATCH_BODY_LIMIT`]), so 512
+/// saturates two cores many times over while bounding memory; requests beyond it are shed at
+/// once with 503 rather than queued.
 pub const DEFAULT_CONCURRENCY_LIMIT: usize = 512;
 /// Default time to keep serving with readiness off after SIGTERM: 0 s for local use; set it to a
 /// few seconds behind a load balancer so that it stops routing here first.
@@ -144,6 +152,16 @@ pub struct Limits {
     #[arg(long = "max-chart-points", env = "MAX_CHART_POINTS", value_name = "POINTS",
           default_value_t = DEFAULT_MAX_CHART_POINTS, value_parser = count::<1, 1_000_000>)]
     pub chart_points: usize,
+
+    /// Most correspondences one batch POST /distance may hold (`points`).
+    #[arg(long = "max-batch-points", env = "MAX_BATCH_POINTS", value_name = "POINTS",
+          default_value_t = DEFAULT_MAX_BATCH_POINTS, value_parser = count::<1, 1_000_000>)]
+    pub batch_points: usize,
+
+    /// Largest accepted body for POST /distance, which takes batches, in bytes; 413 beyond.
+    #[arg(long = "batch-body-limit", env = "BATCH_BODY_LIMIT", value_name = "BYTES",
+          default_value_t = DEFAULT_BATCH_BODY_LIMIT, value_parser = count::<256, 268_435_456>)]
+    pub batch_body_bytes: usize,
 }
 
 impl Default for Limits {
@@ -152,6 +170,8 @@ impl Default for Limits {
             body_bytes: DEFAULT_BODY_LIMIT,
             table_rows: DEFAULT_MAX_TABLE_ROWS,
             chart_points: DEFAULT_MAX_CHART_POINTS,
+            batch_points: DEFAULT_MAX_BATCH_POINTS,
+            batch_body_bytes: DEFAULT_BATCH_BODY_LIMIT,
         }
     }
 }

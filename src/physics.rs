@@ -152,11 +152,59 @@ impl Rig {
         distance * distance * self.disparity_error_px / self.fb()
     }
 
+    /// Relative depth error `ΔZ / Z = Z·Δd / (f_px·B)` at `distance`.
+    pub fn relative_error_at(&self, distance: f64) -> f64 {
+        distance * self.disparity_error_px / self.fb()
+    }
+
+    /// The distance at which the relative error reaches `max_relative_error`:
+    /// `Z = r·f_px·B / Δd`. Closer points are better than `r`, farther ones worse. `None` when
+    /// `Δd` is zero (the error never grows) or the distance overflows.
+    pub fn distance_at_relative_error(&self, max_relative_error: f64) -> Option<f64> {
+        let distance = max_relative_error * self.fb() / self.disparity_error_px;
+        (distance.is_finite() && self.disparity_error_px > 0.0).then_some(distance)
+    }
+
+    /// The horizontal and vertical fields of view in degrees, for a principal point at the image
+    /// centre.
+    pub fn fields_of_view_deg(&self) -> (f64, f64) {
+        (
+            field_of_view_deg(self.focal_px, self.image_width),
+            field_of_view_deg(self.focal_px, self.image_height),
+        )
+    }
+
+    /// The depth range a disparity search from `min_disparity_px` to `max_disparity_px` (raw
+    /// disparities, `doffs` is added) can see: `(f·B / (max + doffs), f·B / (min + doffs))`.
+    /// Callers guarantee `0 < min + doffs < max + doffs`.
+    pub fn depth_range(
+        &self,
+        min_disparity_px: f64,
+        max_disparity_px: f64,
+    ) -> Result<(f64, f64), PhysicsError> {
+        Ok((
+            self.distance_at(max_disparity_px)?,
+            self.distance_at(min_disparity_px)?,
+        ))
+    }
+
     /// The seed's normalised coordinate: `(x − W/2) / (W/2)`, −1 at the left edge, +1 at the right.
     pub fn normalized_x(&self, x_px: f64) -> f64 {
         let half = self.image_width / 2.0;
         (x_px - half) / half
     }
+}
+
+/// The shortest baseline that keeps the depth error at `distance` within `max_depth_error`, for a
+/// focal length of `focal_px` and a disparity error `Δd`: `B = Z²·Δd / (f_px·ΔZ)`, the depth
+/// error formula solved for `B`. The result is in the unit of `distance` and `max_depth_error`.
+pub fn baseline_for(
+    focal_px: f64,
+    distance: f64,
+    max_depth_error: f64,
+    disparity_error_px: f64,
+) -> Result<f64, PhysicsError> {
+    finite(distance * distance * disparity_error_px / (focal_px * max_depth_error))
 }
 
 /// One feature seen in both images: its x in each, and its row y in the left image.
@@ -619,6 +667,53 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// The reference rig: f = 424 px, B = 50 mm and a search up to 126 px see from
+    /// 168.25 mm; with Δd = 0.08 px the RMS depth error at 2 m is 15.09 mm.
+    #[test]
+    fn reference_rig_range_and_error() {
+        let mut r = rig(424.0, 50.0);
+        r.disparity_error_px = 0.08;
+        let (near, far) = r.depth_range(0.08, 126.0).unwrap();
+        assert!(close(near, 168.253_968_253_968_25));
+        assert!((near - 168.25).abs() < 0.005);
+        assert!(close(far, 424.0 * 50.0 / 0.08));
+        assert!((r.depth_error_at(2000.0) - 15.09).abs() < 0.005);
+        assert!(close(
+            r.relative_error_at(2000.0),
+            15.094_339_622_641_51 / 2000.0
+        ));
+        let (h, v) = r.fields_of_view_deg();
+        assert!(close(h, field_of_view_deg(424.0, 800.0)));
+        assert!(v < h);
+    }
+
+    /// The distance where the relative error reaches a budget has exactly that error, and
+    /// there is no such distance when Δd is zero.
+    #[test]
+    fn distance_at_relative_error_inverts() {
+        let mut r = rig(1000.0, 100.0);
+        let z = r.distance_at_relative_error(0.02).unwrap();
+        assert!(close(r.relative_error_at(z), 0.02));
+        assert!(close(r.depth_error_at(z) / z, 0.02));
+        r.disparity_error_px = 0.0;
+        assert_eq!(r.distance_at_relative_error(0.02), None);
+    }
+
+    /// The baseline from `baseline_for` gives back the requested depth error at the distance.
+    #[test]
+    fn baseline_for_inverts_depth_error() {
+        // 0.5 % at 5 m with f = 1000 px and Δd = 0.25 px needs B = 250 mm.
+        let b = baseline_for(1000.0, 5000.0, 25.0, 0.25).unwrap();
+        assert!(close(b, 250.0));
+        let mut r = rig(1000.0, b);
+        r.disparity_error_px = 0.25;
+        assert!(close(r.depth_error_at(5000.0), 25.0));
+        assert_eq!(
+            baseline_for(1.0, 1e200, 1e-200, 1.0),
+            Err(PhysicsError::NotFinite)
+        );
     }
 
     /// The default range starts at one pixel of effective disparity and takes in the measurement.

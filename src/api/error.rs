@@ -282,7 +282,8 @@ const BAD_QUERY: (StatusCode, &str) = (
 const BAD_JSON: (StatusCode, &str) = (StatusCode::BAD_REQUEST, "The body is not valid JSON.");
 const TOO_LARGE: (StatusCode, &str) = (
     StatusCode::PAYLOAD_TOO_LARGE,
-    "The body is larger than the configured limit (64 KiB by default).",
+    "The body is larger than the configured limit (64 KiB by default; 2 MiB for POST /distance, \
+     which takes batches).",
 );
 const NOT_JSON: (StatusCode, &str) = (
     StatusCode::UNSUPPORTED_MEDIA_TYPE,

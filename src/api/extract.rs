@@ -37,31 +37,44 @@ where
     type Rejection = ApiError;
 
     async fn from_request(req: Request, state: &S) -> Result<Self, Self::Rejection> {
-        let content_type = req
-            .headers()
-            .get(header::CONTENT_TYPE)
-            .map(|v| String::from_utf8_lossy(v.as_bytes()).into_owned());
-        match content_type.as_deref() {
-            Some(ct) if is_json(ct) => {}
-            Some(ct) => return Err(ApiError::UnsupportedMediaType(ct.to_owned())),
-            None => return Err(ApiError::UnsupportedMediaType("no Content-Type".to_owned())),
-        }
-        let limit = body_limit(&req);
-        let bytes = Bytes::from_request(req, state).await.map_err(|rejection| {
-            if rejection.status() == StatusCode::PAYLOAD_TOO_LARGE {
-                ApiError::PayloadTooLarge(limit)
-            } else {
-                ApiError::Malformed(FieldError::new("body", rejection.body_text()))
-            }
-        })?;
+        let bytes = json_bytes(req, state).await?;
         decode_json(&bytes).map(|(value, problems)| JsonBody(value, problems))
     }
+}
+
+/// The body of a request declared as JSON, within the body limit: 415 for another content
+/// type, 413 beyond the limit.
+pub async fn json_bytes<S: Send + Sync>(req: Request, state: &S) -> Result<Bytes, ApiError> {
+    let content_type = req
+        .headers()
+        .get(header::CONTENT_TYPE)
+        .map(|v| String::from_utf8_lossy(v.as_bytes()).into_owned());
+    match content_type.as_deref() {
+        Some(ct) if is_json(ct) => {}
+        Some(ct) => return Err(ApiError::UnsupportedMediaType(ct.to_owned())),
+        None => return Err(ApiError::UnsupportedMediaType("no Content-Type".to_owned())),
+    }
+    let limit = body_limit(&req);
+    Bytes::from_request(req, state).await.map_err(|rejection| {
+        if rejection.status() == StatusCode::PAYLOAD_TOO_LARGE {
+            ApiError::PayloadTooLarge(limit)
+        } else {
+            ApiError::Malformed(FieldError::new("body", rejection.body_text()))
+        }
+    })
+}
+
+/// A request type that can come as a query string: which of its members are lists, given
+/// comma-separated (OpenAPI `style: form, explode: false`), such as `at_distances=500,1000`.
+pub trait QueryForm: DeserializeOwned {
+    /// The members that are lists.
+    const LISTS: &'static [&'static str] = &[];
 }
 
 impl<S, T> FromRequestParts<S> for QueryParams<T>
 where
     S: Send + Sync,
-    T: DeserializeOwned,
+    T: QueryForm,
 {
     type Rejection = ApiError;
 
@@ -93,15 +106,21 @@ fn is_json(content_type: &str) -> bool {
         || (essence.starts_with("application/") && essence.ends_with("+json"))
 }
 
+/// Checks that a body is a JSON object before serde sees it: serde would read an array into a
+/// struct by position, and only objects are requests.
+pub fn expect_object(bytes: &[u8]) -> Result<(), ApiError> {
+    if bytes.trim_ascii_start().first() == Some(&b'{') {
+        return Ok(());
+    }
+    match serde_json::from_slice::<serde::de::IgnoredAny>(bytes) {
+        Ok(_) => Err(ApiError::invalid("body", "must be a JSON object")),
+        Err(error) => Err(malformed_json(&error)),
+    }
+}
+
 /// Decodes a JSON body into `T` and the members it refused.
 pub fn decode_json<T: DeserializeOwned>(bytes: &[u8]) -> Result<(T, Problems), ApiError> {
-    if bytes.trim_ascii_start().first() != Some(&b'{') {
-        // serde would read a JSON array into a struct by position; only objects are requests.
-        return match serde_json::from_slice::<serde::de::IgnoredAny>(bytes) {
-            Ok(_) => Err(ApiError::invalid("body", "must be a JSON object")),
-            Err(error) => Err(malformed_json(&error)),
-        };
-    }
+    expect_object(bytes)?;
     match serde_json::from_slice::<T>(bytes) {
         Ok(value) => Ok((value, Problems::default())),
         Err(error) if error.is_data() => {
@@ -114,21 +133,41 @@ pub fn decode_json<T: DeserializeOwned>(bytes: &[u8]) -> Result<(T, Problems), A
     }
 }
 
-fn malformed_json(error: &serde_json::Error) -> ApiError {
+/// Decodes one JSON object (such as an element of a batch) into `T`, naming every member it
+/// refused; `T::default()` stands in for what could not be decoded at all.
+pub fn decode_object<T: DeserializeOwned + Default>(map: Map<String, Value>) -> (T, Problems) {
+    match T::deserialize(&map) {
+        Ok(value) => (value, Problems::default()),
+        Err(error) => match diagnose(map, &error, Problems::default()) {
+            Ok(decoded) => decoded,
+            Err(ApiError::Invalid(errors)) => (T::default(), Problems::from(errors)),
+            Err(other) => (T::default(), Problems::from(other.problem().errors)),
+        },
+    }
+}
+
+pub fn malformed_json(error: &serde_json::Error) -> ApiError {
     ApiError::Malformed(FieldError::new("body", format!("invalid JSON: {error}")))
 }
 
 /// Decodes a query string into `T` by way of a JSON object, with the parameters it refused.
-pub fn decode_query<T: DeserializeOwned>(query: &str) -> Result<(T, Problems), ApiError> {
+pub fn decode_query<T: QueryForm>(query: &str) -> Result<(T, Problems), ApiError> {
     let mut map = Map::new();
     let mut problems = Problems::default();
     for pair in query.split('&').filter(|p| !p.is_empty()) {
         let (key, value) = pair.split_once('=').unwrap_or((pair, ""));
         let key = decode_component(key)?;
         let value = decode_component(value)?;
-        let value = match serde_json::from_str::<serde_json::Number>(&value) {
-            Ok(number) => Value::Number(number),
-            Err(_) => Value::String(value),
+        let value = if T::LISTS.contains(&key.as_str()) {
+            Value::Array(
+                value
+                    .split(',')
+                    .filter(|item| !item.is_empty())
+                    .map(query_scalar)
+                    .collect(),
+            )
+        } else {
+            query_scalar(&value)
         };
         if map.insert(key.clone(), value).is_some() {
             problems.add(&key, "is given more than once; give it once");
@@ -137,6 +176,14 @@ pub fn decode_query<T: DeserializeOwned>(query: &str) -> Result<(T, Problems), A
     match T::deserialize(&map) {
         Ok(value) => Ok((value, problems)),
         Err(error) => diagnose(map, &error, problems),
+    }
+}
+
+/// A query value as JSON: a number when it reads as a JSON number, else a string.
+fn query_scalar(value: &str) -> Value {
+    match serde_json::from_str::<serde_json::Number>(value) {
+        Ok(number) => Value::Number(number),
+        Err(_) => Value::String(value.to_owned()),
     }
 }
 
@@ -240,12 +287,17 @@ mod tests {
     use super::*;
     use serde::Deserialize;
 
-    #[derive(Debug, Deserialize, PartialEq)]
+    #[derive(Debug, Default, Deserialize, PartialEq)]
     #[serde(deny_unknown_fields)]
     struct Probe {
         a: Option<f64>,
         n: Option<u32>,
         s: Option<String>,
+        list: Option<Vec<f64>>,
+    }
+
+    impl QueryForm for Probe {
+        const LISTS: &'static [&'static str] = &["list"];
     }
 
     /// The fields named, whether refused while still decoding the rest, or in a 422.
@@ -270,7 +322,7 @@ mod tests {
             Probe {
                 a: Some(1.5),
                 n: Some(3),
-                s: None
+                ..Probe::default()
             }
         );
     }
@@ -311,7 +363,8 @@ mod tests {
             Probe {
                 a: Some(2.5),
                 n: Some(7),
-                s: Some("hello world!".to_owned())
+                s: Some("hello world!".to_owned()),
+                list: None,
             }
         );
         assert_eq!(
@@ -325,6 +378,33 @@ mod tests {
         ));
     }
 
+    /// A list member is comma-separated in a query string; an empty value is an empty list,
+    /// and a bad item is named by its member.
+    #[test]
+    fn query_lists() {
+        let (p, _): (Probe, _) = decode_query("list=500,1000,2e3").unwrap();
+        assert_eq!(p.list, Some(vec![500.0, 1000.0, 2000.0]));
+        let (p, _): (Probe, _) = decode_query("list=").unwrap();
+        assert_eq!(p.list, Some(vec![]));
+        let (p, _): (Probe, _) = decode_query("list=7").unwrap();
+        assert_eq!(p.list, Some(vec![7.0]));
+        assert_eq!(fields(decode_query::<Probe>("list=1,x&s=ok")), vec!["list"]);
+        // A scalar member with a comma is one (wrong) value, not a list.
+        assert_eq!(fields(decode_query::<Probe>("a=1,2")), vec!["a"]);
+    }
+
+    /// One object decodes on its own with every refused member named, defaults standing in.
+    #[test]
+    fn objects_decode_alone() {
+        let map = |json: &str| serde_json::from_str::<Map<String, Value>>(json).unwrap();
+        let (p, problems): (Probe, _) = decode_object(map(r#"{"a": 2, "n": 3}"#));
+        assert!(problems.is_empty());
+        assert_eq!(p.n, Some(3));
+        let (p, problems): (Probe, _) = decode_object(map(r#"{"a": "x", "n": 3, "q": 1}"#));
+        assert_eq!(p.n, Some(3));
+        assert_eq!(fields(Ok::<_, ApiError>(((), problems))), vec!["a", "q"]);
+    }
+
     /// A misspelt member gets the nearest known name; a stranger one gets the full list.
     #[test]
     fn unknown_members_get_suggestions() {
@@ -334,7 +414,11 @@ mod tests {
             panic!("a 422");
         };
         assert_eq!(errors[0].message, "unknown field `aa`; did you mean `a`?");
-        assert!(errors[1].message.contains("expected one of `a`, `n`, `s`"));
+        assert!(
+            errors[1]
+                .message
+                .contains("expected one of `a`, `n`, `s`, `list`")
+        );
     }
 
     /// JSON media types are recognised with parameters and suffixes.

@@ -3,39 +3,62 @@
 use axum::{
     Json,
     extract::State,
-    http::{Method, Uri},
+    http::{HeaderMap, HeaderValue, Method, Uri, header},
+    response::{IntoResponse, Response},
 };
 
 use super::{
     AppState,
+    batch::{self, DistanceBody},
+    csv,
     error::{ApiError, BodyErrors, QueryErrors},
     extract::{JsonBody, QueryParams},
+    format::short,
+    svg,
     types::{
-        Axis, ChartPoint, ChartRequest, ChartResponse, DistanceRequest, DistanceResponse, Point,
-        Series, TableRequest, TableResponse, TableRow, Warning,
+        Axis, ChartPoint, ChartRequest, ChartResponse, DistanceInput, DistanceOutput,
+        DistanceRequest, DistanceResponse, FormatQuery, Point, Series, TableFormat, TableRequest,
+        TableResponse, TableRow, Warning,
     },
     validate::{self, Bounds, Problems},
 };
 use crate::physics::{self, Rig};
 
+/// The media type of `/chart.svg`.
+pub const IMAGE_SVG: &str = "image/svg+xml";
+
 #[utoipa::path(
     post,
     path = "/distance",
     tag = "distance",
-    summary = "Distance to one feature from its stereo correspondence",
+    summary = "Distance to one feature, or to a batch of features seen by one rig",
     description = "Z = B·f_px / |d + doffs| with d = x_left − x_right, in the unit of the \
                    baseline, with its expected error ΔZ = Z²·Δd/(f_px·B), the intermediate values \
-                   and the feature's 3D point.",
-    request_body = DistanceRequest,
+                   and the feature's 3D point.\n\n\
+                   A body with `rig` and `points` is a batch of up to 10 000 points (the \
+                   server's cap), answered in order. A batch is a 422 only when its rig or \
+                   envelope is wrong; otherwise it is a 200 in which each point has its \
+                   distance or its own `errors`, named like `points[17].x_left`, and `failed` \
+                   counts the latter.",
+    request_body = DistanceInput,
     responses(
-        (status = 200, description = "The distance and its error.", body = DistanceResponse),
+        (status = 200, description = "The distance and its error, or one result per point \
+                                      of a batch.", body = DistanceOutput),
         BodyErrors
     )
 )]
 pub async fn post_distance(
-    JsonBody(request, problems): JsonBody<DistanceRequest>,
-) -> Result<Json<DistanceResponse>, ApiError> {
-    distance(&request, problems).map(Json)
+    State(state): State<AppState>,
+    body: DistanceBody,
+) -> Result<Json<DistanceOutput>, ApiError> {
+    match body {
+        DistanceBody::One(request, problems) => {
+            distance(&request, problems).map(|r| Json(DistanceOutput::One(r)))
+        }
+        DistanceBody::Batch(batch) => {
+            batch::answer(batch, &state.limits).map(|r| Json(DistanceOutput::Batch(r)))
+        }
+    }
 }
 
 #[utoipa::path(
@@ -60,17 +83,27 @@ pub async fn get_distance(
     path = "/table",
     tag = "table",
     summary = "Sample table of distance against disparity for a rig",
+    description = "JSON by default; CSV with `format: csv` in the body, `?format=csv` in the \
+                   URL, or `Accept: text/csv`.",
+    params(FormatQuery),
     request_body = TableRequest,
     responses(
-        (status = 200, description = "The sample table.", body = TableResponse),
+        (status = 200, description = "The sample table.", content(
+            (TableResponse = "application/json"),
+            (String = "text/csv")
+        )),
         BodyErrors
     )
 )]
 pub async fn post_table(
     State(state): State<AppState>,
-    JsonBody(request, problems): JsonBody<TableRequest>,
-) -> Result<Json<TableResponse>, ApiError> {
-    table(&state, &request, problems).map(Json)
+    QueryParams(query, query_problems): QueryParams<FormatQuery>,
+    headers: HeaderMap,
+    JsonBody(request, mut problems): JsonBody<TableRequest>,
+) -> Result<Response, ApiError> {
+    problems.extend(query_problems);
+    let format = csv::negotiate(query.format.or(request.format), headers.get(header::ACCEPT));
+    table(&state, &request, problems).map(|t| table_response(t, format))
 }
 
 #[utoipa::path(
@@ -78,17 +111,46 @@ pub async fn post_table(
     path = "/table",
     tag = "table",
     summary = "Sample table (query-string form of POST /table)",
+    description = "JSON by default; CSV with `format=csv` or `Accept: text/csv`.",
     params(TableRequest),
     responses(
-        (status = 200, description = "The sample table.", body = TableResponse),
+        (status = 200, description = "The sample table.", content(
+            (TableResponse = "application/json"),
+            (String = "text/csv")
+        )),
         QueryErrors
     )
 )]
 pub async fn get_table(
     State(state): State<AppState>,
+    headers: HeaderMap,
     QueryParams(request, problems): QueryParams<TableRequest>,
-) -> Result<Json<TableResponse>, ApiError> {
-    table(&state, &request, problems).map(Json)
+) -> Result<Response, ApiError> {
+    let format = csv::negotiate(request.format, headers.get(header::ACCEPT));
+    table(&state, &request, problems).map(|t| table_response(t, format))
+}
+
+/// The table in the negotiated format. Both vary with `Accept`, which caches must know.
+fn table_response(table: TableResponse, format: TableFormat) -> Response {
+    let vary = (header::VARY, HeaderValue::from_static("accept"));
+    match format {
+        TableFormat::Json => ([vary], Json(table)).into_response(),
+        TableFormat::Csv => (
+            [
+                vary,
+                (
+                    header::CONTENT_TYPE,
+                    HeaderValue::from_static(csv::TEXT_CSV),
+                ),
+                (
+                    header::CONTENT_DISPOSITION,
+                    HeaderValue::from_static("attachment; filename=\"stereo-table.csv\""),
+                ),
+            ],
+            csv::table(&table),
+        )
+            .into_response(),
+    }
 }
 
 #[utoipa::path(
@@ -127,6 +189,32 @@ pub async fn get_chart_data(
     chart(&state, &request, problems).map(Json)
 }
 
+#[utoipa::path(
+    get,
+    path = "/chart.svg",
+    tag = "chart",
+    summary = "The chart as a self-contained SVG image",
+    description = "Takes the same query as GET /chart-data and draws it: distance (left axis) \
+                   and depth error (right axis) against disparity, with labelled axes in units \
+                   and the measured point marked. No scripts, fonts or links: ready to embed.",
+    params(ChartRequest),
+    responses(
+        (status = 200, description = "The chart.", content_type = "image/svg+xml", body = String),
+        QueryErrors
+    )
+)]
+pub async fn get_chart_svg(
+    State(state): State<AppState>,
+    QueryParams(request, problems): QueryParams<ChartRequest>,
+) -> Result<Response, ApiError> {
+    let chart = chart(&state, &request, problems)?;
+    Ok((
+        [(header::CONTENT_TYPE, HeaderValue::from_static(IMAGE_SVG))],
+        svg::chart(&chart),
+    )
+        .into_response())
+}
+
 /// Answers any path the API does not have.
 pub async fn not_found(uri: Uri) -> ApiError {
     ApiError::NotFound(uri.path().to_owned())
@@ -154,7 +242,7 @@ fn distance(
     let rig = validate::rig(&params, &mut problems);
     let correspondence = validate::correspondence(
         (request.x_left, request.x_right, request.y),
-        Bounds::of(&params),
+        Bounds::of(&params.camera),
         rig.map(|r| r.cy),
         &mut problems,
     );
@@ -188,25 +276,8 @@ fn distance(
             y: m.point.y,
             z: m.point.z,
         },
-        warnings: m
-            .warnings
-            .iter()
-            .map(|w| Warning {
-                code: w.code().to_owned(),
-                message: w.to_string(),
-            })
-            .collect(),
+        warnings: m.warnings.iter().map(Warning::from).collect(),
     })
-}
-
-/// A number for reading: at most four decimals, no trailing zeros.
-fn short(value: f64) -> String {
-    if value != 0.0 && !(1e-3..1e12).contains(&value.abs()) {
-        return format!("{value:e}");
-    }
-    let text = format!("{value:.4}");
-    let text = text.trim_end_matches('0').trim_end_matches('.');
-    if text == "-0" { "0" } else { text }.to_owned()
 }
 
 fn table(
@@ -219,7 +290,7 @@ fn table(
     let range = validate::range(&request.range_params(), rig.as_ref(), None, &mut problems);
     let steps = problems.count("steps", request.steps, 10, 1, state.limits.table_rows);
     let x_left = match request.x_left {
-        Some(x) => validate::x_coordinate("x_left", x, Bounds::of(&params), &mut problems),
+        Some(x) => validate::x_coordinate("x_left", x, Bounds::of(&params.camera), &mut problems),
         None => rig.map(|r| r.image_width / 2.0),
     };
     let (rig, ((range, spacing), (steps, x_left))) =
@@ -265,7 +336,7 @@ fn chart(
     let rig = validate::rig(&params, &mut problems);
     let measured = match (request.x_left, request.x_right) {
         (None, None) => None,
-        pair => validate::x_pair(pair, Bounds::of(&params), &mut problems)
+        pair => validate::x_pair(pair, Bounds::of(&params.camera), &mut problems)
             .map(|(x_left, x_right)| x_left - x_right),
     };
     let range = validate::range(
@@ -322,19 +393,4 @@ fn chart(
         ],
         marker,
     })
-}
-
-#[cfg(test)]
-mod tests {
-    use super::short;
-
-    /// Formula numbers are short and readable.
-    #[test]
-    fn short_numbers() {
-        assert_eq!(short(105.0), "105");
-        assert_eq!(short(0.23333333), "0.2333");
-        assert_eq!(short(-15.0), "-15");
-        assert_eq!(short(0.0), "0");
-        assert_eq!(short(1e-7), "1e-7");
-    }
 }

@@ -1,18 +1,23 @@
 //! The HTTP API: routes, the OpenAPI document derived from them, and shared state.
 
+pub mod batch;
+pub mod csv;
 pub mod error;
 pub mod extract;
+pub mod format;
 pub mod handlers;
 pub mod ops;
+pub mod planning;
+pub mod svg;
 pub mod types;
 pub mod validate;
 
-use axum::Router;
+use axum::{Extension, Router, extract::DefaultBodyLimit};
 use utoipa::OpenApi;
 use utoipa_axum::{router::OpenApiRouter, routes};
 use utoipa_swagger_ui::SwaggerUi;
 
-use self::ops::OpsState;
+use self::{extract::BodyLimit, ops::OpsState};
 use crate::config::Limits;
 
 /// What every handler can see.
@@ -37,7 +42,8 @@ pub struct AppState {
     tags(
         (name = "distance", description = "Distance to one feature"),
         (name = "table", description = "Sample tables for a rig"),
-        (name = "chart", description = "Chart data for a rig"),
+        (name = "chart", description = "Chart data and the chart as SVG for a rig"),
+        (name = "planning", description = "Rig planning: depth range, error budget, baseline"),
         (name = "operations", description = "Liveness, readiness and metrics")
     )
 )]
@@ -54,10 +60,20 @@ pub struct Routers {
 
 /// Both routers and the OpenAPI document, built from the same handler annotations.
 fn routes(state: AppState, ops: OpsState) -> (Routers, utoipa::openapi::OpenApi) {
-    let (api, mut doc) = OpenApiRouter::with_openapi(ApiDoc::openapi())
+    // `/distance` takes batches, so it has its own, larger body limit; being the inner layer,
+    // it overrides the limit the server sets for every other route.
+    let batch_limit = state.limits.batch_body_bytes;
+    let distance = OpenApiRouter::new()
         .routes(routes!(handlers::get_distance, handlers::post_distance))
+        .layer(DefaultBodyLimit::max(batch_limit))
+        .layer(Extension(BodyLimit(batch_limit)));
+    let (api, mut doc) = OpenApiRouter::with_openapi(ApiDoc::openapi())
+        .merge(distance)
         .routes(routes!(handlers::get_table, handlers::post_table))
         .routes(routes!(handlers::get_chart_data, handlers::post_chart_data))
+        .routes(routes!(handlers::get_chart_svg))
+        .routes(routes!(planning::get_rig, planning::post_rig))
+        .routes(routes!(planning::get_baseline, planning::post_baseline))
         .with_state(state)
         .split_for_parts();
     let (ops, ops_doc) = OpenApiRouter::new()

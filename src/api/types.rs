@@ -9,11 +9,12 @@ use utoipa::{
     IntoParams, PartialSchema, ToSchema,
     openapi::{
         RefOr, Required,
-        path::{Parameter, ParameterBuilder, ParameterIn},
+        path::{Parameter, ParameterBuilder, ParameterIn, ParameterStyle},
         schema::Schema,
     },
 };
 
+use super::{error::FieldError, extract::QueryForm};
 use crate::physics::{self, LengthUnit};
 
 /// Unit of the baseline and of every length in the response.
@@ -40,6 +41,28 @@ impl From<Unit> for LengthUnit {
     }
 }
 
+/// The representation of a `/table` answer.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize, Serialize, ToSchema)]
+#[serde(rename_all = "lowercase")]
+pub enum TableFormat {
+    /// `application/json`: a [`TableResponse`].
+    #[default]
+    Json,
+    /// `text/csv`: a header row, then one line per row, with the columns of [`TableRow`].
+    Csv,
+}
+
+/// The URL query of `POST /table`, which may choose the format there instead of in the body.
+#[derive(Debug, Clone, Default, PartialEq, Deserialize, IntoParams)]
+#[serde(deny_unknown_fields)]
+#[into_params(parameter_in = Query)]
+pub struct FormatQuery {
+    /// `json` or `csv`; overrides the body's `format` and the `Accept` header.
+    #[serde(default, deserialize_with = "present")]
+    #[param(nullable = false)]
+    pub format: Option<TableFormat>,
+}
+
 /// How table rows or chart points are spread across the range.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize, Serialize, ToSchema)]
 #[serde(rename_all = "lowercase")]
@@ -60,22 +83,30 @@ impl From<Spacing> for physics::Spacing {
     }
 }
 
-/// The rig as the caller stated it, before validation: the members every request shares.
+/// The camera as the caller stated it, before validation: focal length, image size, unit and
+/// disparity error, the members every request shares.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub struct RigParams {
+pub struct CameraParams {
     pub focal_length_px: Option<f64>,
     pub focal_length_mm: Option<f64>,
     pub sensor_width_mm: Option<f64>,
     pub pixel_size_um: Option<f64>,
     pub horizontal_fov_deg: Option<f64>,
-    pub baseline: Option<f64>,
     pub unit: Option<Unit>,
     pub image_width: Option<u32>,
     pub image_height: Option<u32>,
+    pub disparity_error_px: Option<f64>,
+}
+
+/// The rig as the caller stated it, before validation: the camera plus the baseline and the
+/// principal points.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct RigParams {
+    pub camera: CameraParams,
+    pub baseline: Option<f64>,
     pub doffs: Option<f64>,
     pub cx: Option<f64>,
     pub cy: Option<f64>,
-    pub disparity_error_px: Option<f64>,
 }
 
 /// The sample range as the caller stated it, before validation.
@@ -103,13 +134,14 @@ where
     }
 }
 
-/// Declares a flat request type holding the rig members followed by its own, with
-/// `rig_params()` and query-parameter docs. (Flat, because `serde(flatten)` cannot be combined
-/// with `deny_unknown_fields`, and a misspelt field must be an error.)
-macro_rules! rig_request {
+/// Declares a flat request type holding the camera members, with `$early` after the focal
+/// options and `$late` at the end, plus `camera_params()` and query-parameter docs. (Flat,
+/// because `serde(flatten)` cannot be combined with `deny_unknown_fields`, and a misspelt field
+/// must be an error.)
+macro_rules! camera_request {
     (
         $(#[$meta:meta])*
-        pub struct $name:ident { $($body:tt)* }
+        pub struct $name:ident { $($early:tt)* } then { $($late:tt)* }
     ) => {
         #[derive(Debug, Clone, Default, PartialEq, Deserialize, ToSchema)]
         #[serde(deny_unknown_fields)]
@@ -142,12 +174,8 @@ macro_rules! rig_request {
                      example = 90.0)]
             #[serde(default, deserialize_with = "present")]
             pub horizontal_fov_deg: Option<f64>,
-            /// Distance between the two optical centres, in `unit`.
-            #[schema(nullable = false, required = true, exclusive_minimum = 0.0,
-                     example = 150.0)]
-            #[serde(default, deserialize_with = "present")]
-            pub baseline: Option<f64>,
-            /// Unit of `baseline` and of every length in the response (default `mm`).
+            $($early)*
+            /// Unit of every length in the request and the response (default `mm`).
             #[schema(nullable = false)]
             #[serde(default, deserialize_with = "present")]
             pub unit: Option<Unit>,
@@ -159,45 +187,27 @@ macro_rules! rig_request {
             #[schema(nullable = false, required = true, minimum = 1, example = 600)]
             #[serde(default, deserialize_with = "present")]
             pub image_height: Option<u32>,
-            /// Principal-point offset between the cameras in pixels (Middlebury `doffs`), added
-            /// to every disparity: Z = B·f / |d + doffs|. Default 0.
-            #[schema(nullable = false, example = 0.0)]
-            #[serde(default, deserialize_with = "present")]
-            pub doffs: Option<f64>,
-            /// Principal point x of the left camera in pixels, in [0, image_width]. Default: the
-            /// image centre.
-            #[schema(nullable = false, minimum = 0.0)]
-            #[serde(default, deserialize_with = "present")]
-            pub cx: Option<f64>,
-            /// Principal point y of the left camera in pixels, in [0, image_height]. Default: the
-            /// image centre.
-            #[schema(nullable = false, minimum = 0.0)]
-            #[serde(default, deserialize_with = "present")]
-            pub cy: Option<f64>,
-            /// Disparity uncertainty Δd in pixels for the depth error ΔZ = Z²·Δd/(f·B).
-            /// Default 0.5 (integer-pixel matching); subpixel matchers reach about 0.1.
+            /// Disparity uncertainty Δd in pixels (RMS) for the depth error
+            /// ΔZ = Z²·Δd/(f·B). Default 0.5 (integer-pixel matching); subpixel matchers reach
+            /// about 0.1.
             #[schema(nullable = false, minimum = 0.0, example = 0.5)]
             #[serde(default, deserialize_with = "present")]
             pub disparity_error_px: Option<f64>,
-            $($body)*
+            $($late)*
         }
 
         impl $name {
-            /// The rig members of this request.
-            pub fn rig_params(&self) -> RigParams {
-                RigParams {
+            /// The camera members of this request.
+            pub fn camera_params(&self) -> CameraParams {
+                CameraParams {
                     focal_length_px: self.focal_length_px,
                     focal_length_mm: self.focal_length_mm,
                     sensor_width_mm: self.sensor_width_mm,
                     pixel_size_um: self.pixel_size_um,
                     horizontal_fov_deg: self.horizontal_fov_deg,
-                    baseline: self.baseline,
                     unit: self.unit,
                     image_width: self.image_width,
                     image_height: self.image_height,
-                    doffs: self.doffs,
-                    cx: self.cx,
-                    cy: self.cy,
                     disparity_error_px: self.disparity_error_px,
                 }
             }
@@ -206,6 +216,56 @@ macro_rules! rig_request {
         impl IntoParams for $name {
             fn into_params(_: impl Fn() -> Option<ParameterIn>) -> Vec<Parameter> {
                 query_parameters(<$name as PartialSchema>::schema())
+            }
+        }
+    };
+}
+
+/// Declares a flat request type holding the rig members (camera, baseline, principal points)
+/// followed by its own, with `rig_params()`.
+macro_rules! rig_request {
+    (
+        $(#[$meta:meta])*
+        pub struct $name:ident { $($body:tt)* }
+    ) => {
+        camera_request! {
+            $(#[$meta])*
+            pub struct $name {
+                /// Distance between the two optical centres, in `unit`.
+                #[schema(nullable = false, required = true, exclusive_minimum = 0.0,
+                         example = 150.0)]
+                #[serde(default, deserialize_with = "present")]
+                pub baseline: Option<f64>,
+            } then {
+                /// Principal-point offset between the cameras in pixels (Middlebury `doffs`),
+                /// added to every disparity: Z = B·f / |d + doffs|. Default 0.
+                #[schema(nullable = false, example = 0.0)]
+                #[serde(default, deserialize_with = "present")]
+                pub doffs: Option<f64>,
+                /// Principal point x of the left camera in pixels, in [0, image_width].
+                /// Default: the image centre.
+                #[schema(nullable = false, minimum = 0.0)]
+                #[serde(default, deserialize_with = "present")]
+                pub cx: Option<f64>,
+                /// Principal point y of the left camera in pixels, in [0, image_height].
+                /// Default: the image centre.
+                #[schema(nullable = false, minimum = 0.0)]
+                #[serde(default, deserialize_with = "present")]
+                pub cy: Option<f64>,
+                $($body)*
+            }
+        }
+
+        impl $name {
+            /// The rig members of this request.
+            pub fn rig_params(&self) -> RigParams {
+                RigParams {
+                    camera: self.camera_params(),
+                    baseline: self.baseline,
+                    doffs: self.doffs,
+                    cx: self.cx,
+                    cy: self.cy,
+                }
             }
         }
     };
@@ -301,6 +361,11 @@ range_request! {
         #[schema(nullable = false, minimum = 0.0)]
         #[serde(default, deserialize_with = "present")]
         pub x_left: Option<f64>,
+        /// `json` (the default) or `csv`. Without it, an `Accept: text/csv` header asks for
+        /// CSV. For POST it may also be given as `?format=csv` in the URL.
+        #[schema(nullable = false)]
+        #[serde(default, deserialize_with = "present")]
+        pub format: Option<TableFormat>,
     }
 }
 
@@ -328,6 +393,157 @@ range_request! {
     }
 }
 
+rig_request! {
+    /// A rig and its disparity search: the depth range it sees and the error it makes there.
+    #[schema(example = json!({
+        "focal_length_px": 424, "baseline": 50, "unit": "mm",
+        "image_width": 848, "image_height": 480, "disparity_error_px": 0.08,
+        "max_disparity_px": 126, "at_distances": [500, 1000, 2000, 4000],
+        "max_relative_error": 0.02
+    }))]
+    pub struct RigRequest {
+        /// Largest disparity the matcher searches, in pixels (64, 95, 126, 256…): it sets
+        /// the nearest distance the rig can see, `min_distance = f·B / (max + doffs)`.
+        #[schema(nullable = false, required = true, exclusive_minimum = 0.0, example = 126.0)]
+        #[serde(default, deserialize_with = "present")]
+        pub max_disparity_px: Option<f64>,
+        /// Smallest disparity told apart from infinity, in pixels: it sets the farthest
+        /// distance, `max_distance = f·B / (min + doffs)`. Default: `disparity_error_px`, one
+        /// subpixel step.
+        #[schema(nullable = false, exclusive_minimum = 0.0, example = 0.5)]
+        #[serde(default, deserialize_with = "present")]
+        pub min_disparity_px: Option<f64>,
+        /// Distances, in `unit`, at which to report the depth error (at most 1 000). In a
+        /// query string: comma-separated, `at_distances=500,1000,2000`.
+        #[schema(schema_with = at_distances_schema)]
+        #[serde(default, deserialize_with = "present")]
+        pub at_distances: Option<Vec<f64>>,
+        /// A relative-error budget as a fraction (0.02 is 2 %): the answer says up to which
+        /// distance the depth error stays within it.
+        #[schema(nullable = false, exclusive_minimum = 0.0, maximum = 1.0, example = 0.02)]
+        #[serde(default, deserialize_with = "present")]
+        pub max_relative_error: Option<f64>,
+    }
+}
+
+/// Most entries in `at_distances`.
+pub const MAX_AT_DISTANCES: usize = 1_000;
+
+fn at_distances_schema() -> utoipa::openapi::schema::Array {
+    use utoipa::openapi::schema::{ArrayBuilder, ObjectBuilder, Type};
+    ArrayBuilder::new()
+        .items(
+            ObjectBuilder::new()
+                .schema_type(Type::Number)
+                .format(Some(utoipa::openapi::SchemaFormat::KnownFormat(
+                    utoipa::openapi::KnownFormat::Double,
+                )))
+                .exclusive_minimum(Some(0.0)),
+        )
+        .max_items(Some(MAX_AT_DISTANCES))
+        .description(Some(
+            "Distances, in `unit`, at which to report the depth error (at most 1 000). In a \
+             query string: comma-separated, `at_distances=500,1000,2000`.",
+        ))
+        .examples([serde_json::json!([500, 1000, 2000])])
+        .build()
+}
+
+camera_request! {
+    /// The inverse problem: the shortest baseline that keeps the depth error within a budget
+    /// at a target distance. Give `max_depth_error` or `max_relative_error`.
+    #[schema(example = json!({
+        "focal_length_px": 1000, "image_width": 1280, "image_height": 720, "unit": "mm",
+        "disparity_error_px": 0.25, "target_distance": 5000, "max_relative_error": 0.005,
+        "max_disparity_px": 128
+    }))]
+    pub struct BaselineRequest {
+        /// Distance at which the error budget must hold, in `unit`.
+        #[schema(nullable = false, required = true, exclusive_minimum = 0.0, example = 5000.0)]
+        #[serde(default, deserialize_with = "present")]
+        pub target_distance: Option<f64>,
+    } then {
+        /// Largest acceptable depth error at `target_distance`, in `unit`. Give this or
+        /// `max_relative_error`.
+        #[schema(nullable = false, exclusive_minimum = 0.0, example = 25.0)]
+        #[serde(default, deserialize_with = "present")]
+        pub max_depth_error: Option<f64>,
+        /// Largest acceptable depth error at `target_distance` as a fraction of it (0.005 is
+        /// 0.5 %). Give this or `max_depth_error`.
+        #[schema(nullable = false, exclusive_minimum = 0.0, maximum = 1.0, example = 0.005)]
+        #[serde(default, deserialize_with = "present")]
+        pub max_relative_error: Option<f64>,
+        /// Largest disparity the matcher searches, in pixels: with it the answer also gives
+        /// the nearest distance the baseline lets the rig see.
+        #[schema(nullable = false, exclusive_minimum = 0.0, example = 128.0)]
+        #[serde(default, deserialize_with = "present")]
+        pub max_disparity_px: Option<f64>,
+    }
+}
+
+rig_request! {
+    /// The rig shared by every point of a batch.
+    #[schema(example = json!({
+        "focal_length_px": 35, "baseline": 150, "unit": "mm",
+        "image_width": 800, "image_height": 600
+    }))]
+    pub struct StereoRig {}
+}
+
+/// One correspondence of a batch.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct BatchPoint {
+    /// x of the feature in the left image, in pixels, in [0, image_width].
+    #[schema(nullable = false, required = true, minimum = 0.0, example = 400.0)]
+    #[serde(default, deserialize_with = "present")]
+    pub x_left: Option<f64>,
+    /// x of the same feature in the right image, in pixels, in [0, image_width].
+    #[schema(nullable = false, required = true, minimum = 0.0, example = 350.0)]
+    #[serde(default, deserialize_with = "present")]
+    pub x_right: Option<f64>,
+    /// y (row) of the feature in the left image, in pixels, in [0, image_height]. Default:
+    /// the rig's `cy`.
+    #[schema(nullable = false, minimum = 0.0)]
+    #[serde(default, deserialize_with = "present")]
+    pub y: Option<f64>,
+}
+
+/// Many correspondences sharing one rig, answered in one response in the same order.
+#[derive(Debug, Clone, Default, PartialEq, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+#[schema(example = json!({
+    "rig": {"focal_length_px": 35, "baseline": 150, "image_width": 800, "image_height": 600},
+    "points": [{"x_left": 400, "x_right": 350}, {"x_left": 420, "x_right": 390, "y": 310}]
+}))]
+pub struct BatchDistanceRequest {
+    /// The rig every point is seen by.
+    #[schema(nullable = false, required = true)]
+    #[serde(default, deserialize_with = "present")]
+    pub rig: Option<StereoRig>,
+    /// The correspondences: from 1 to the server's cap (10 000 by default).
+    #[schema(nullable = false, required = true, min_items = 1)]
+    #[serde(default, deserialize_with = "present")]
+    pub points: Option<Vec<BatchPoint>>,
+}
+
+/// The body of `POST /distance`: one correspondence with its rig, or a batch.
+#[derive(Debug, Clone, PartialEq, Deserialize, ToSchema)]
+#[serde(untagged)]
+pub enum DistanceInput {
+    One(DistanceRequest),
+    Batch(BatchDistanceRequest),
+}
+
+impl QueryForm for DistanceRequest {}
+impl QueryForm for TableRequest {}
+impl QueryForm for ChartRequest {}
+impl QueryForm for BaselineRequest {}
+impl QueryForm for FormatQuery {}
+impl QueryForm for RigRequest {
+    const LISTS: &'static [&'static str] = &["at_distances"];
+}
+
 /// Documents each member of a request body schema as a query parameter, so that the GET form of
 /// an operation is described by the very type its POST form takes.
 fn query_parameters(schema: RefOr<Schema>) -> Vec<Parameter> {
@@ -338,9 +554,10 @@ fn query_parameters(schema: RefOr<Schema>) -> Vec<Parameter> {
         .properties
         .into_iter()
         .map(|(name, property)| {
-            let description = match &property {
-                RefOr::T(Schema::Object(o)) => o.description.clone(),
-                _ => None,
+            let (description, list) = match &property {
+                RefOr::T(Schema::Object(o)) => (o.description.clone(), false),
+                RefOr::T(Schema::Array(a)) => (a.description.clone(), true),
+                _ => (None, false),
             };
             let required = if object.required.contains(&name) {
                 Required::True
@@ -353,6 +570,9 @@ fn query_parameters(schema: RefOr<Schema>) -> Vec<Parameter> {
                 .required(required)
                 .description(description)
                 .schema(Some(property))
+                // Lists are comma-separated in a query string: `at_distances=500,1000`.
+                .style(list.then_some(ParameterStyle::Form))
+                .explode(list.then_some(false))
                 .build()
         })
         .collect()
@@ -373,6 +593,15 @@ pub struct Warning {
     pub code: String,
     /// What it means and what to check.
     pub message: String,
+}
+
+impl From<&physics::Warning> for Warning {
+    fn from(warning: &physics::Warning) -> Self {
+        Self {
+            code: warning.code().to_owned(),
+            message: warning.to_string(),
+        }
+    }
 }
 
 /// The distance to one feature, its expected error and the intermediate values.
@@ -496,4 +725,182 @@ pub struct ChartResponse {
     #[serde(skip_serializing_if = "Option::is_none")]
     #[schema(nullable = false)]
     pub marker: Option<ChartPoint>,
+}
+
+/// The answer to a batch `POST /distance`: one result per point, in order.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct BatchDistanceResponse {
+    /// Unit of every length in this response.
+    pub unit: Unit,
+    /// Focal length in pixels, after any conversion.
+    pub focal_length_px: f64,
+    /// The baseline, in `unit`.
+    pub baseline: f64,
+    /// The Δd used for every `depth_error`, in pixels.
+    pub disparity_error_px: f64,
+    /// How many points the request held.
+    pub count: usize,
+    /// How many got a distance.
+    pub succeeded: usize,
+    /// How many got errors instead; check this before using `results`.
+    pub failed: usize,
+    /// One entry per point, in request order: a distance, or the errors that prevented one.
+    pub results: Vec<PointOutcome>,
+}
+
+/// The outcome for one point of a batch.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(untagged)]
+pub enum PointOutcome {
+    Measured(PointDistance),
+    Failed(PointFailure),
+}
+
+/// A point of a batch with its distance.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct PointDistance {
+    /// The point's position in `points`.
+    pub index: usize,
+    /// Distance Z along the optical axis, in `unit`.
+    pub distance: f64,
+    /// Expected depth error ΔZ = Z²·Δd/(f·B), in `unit`.
+    pub depth_error: f64,
+    /// depth_error / distance.
+    pub relative_error: f64,
+    /// Disparity d = x_left − x_right, in pixels (signed).
+    pub disparity_px: f64,
+    /// The feature's 3D position in the left camera's frame.
+    pub point: Point,
+    /// Caveats about this result; empty when there are none.
+    pub warnings: Vec<Warning>,
+}
+
+/// A point of a batch that has no distance, with every reason, named like
+/// `points[17].x_left`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct PointFailure {
+    /// The point's position in `points`.
+    pub index: usize,
+    /// What is wrong with this point; never empty.
+    pub errors: Vec<FieldError>,
+}
+
+/// The answer of `POST /distance`: a [`DistanceResponse`] for one correspondence, a
+/// [`BatchDistanceResponse`] for a batch.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(untagged)]
+pub enum DistanceOutput {
+    One(DistanceResponse),
+    Batch(BatchDistanceResponse),
+}
+
+/// The depth error at one of the requested distances.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct DepthErrorAt {
+    /// The distance, in `unit`.
+    pub distance: f64,
+    /// The disparity a point at this distance has, in pixels (raw, before `doffs`).
+    pub disparity_px: f64,
+    /// Expected (RMS) depth error ΔZ = Z²·Δd/(f·B), in `unit`.
+    pub depth_error: f64,
+    /// depth_error / distance.
+    pub relative_error: f64,
+    /// The relative error in percent.
+    pub relative_error_pct: f64,
+    /// Whether the distance lies within [min_distance, max_distance], the range the
+    /// disparity search can see.
+    pub in_range: bool,
+}
+
+/// Where the relative depth error passes the caller's budget.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct ErrorBudget {
+    /// The budget, as a fraction.
+    pub max_relative_error: f64,
+    /// The distance at which the relative error reaches the budget, Z = r·f·B/Δd, in `unit`;
+    /// nearer points do better.
+    pub distance: f64,
+    /// The answer in words, taking the disparity search's range into account.
+    pub summary: String,
+}
+
+/// What a rig and its disparity search can see, and how well.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+#[schema(example = json!({
+    "unit": "mm", "focal_length_px": 424.0, "horizontal_fov_deg": 90.0,
+    "vertical_fov_deg": 59.02299711418064, "baseline": 50.0, "fb": 21200.0, "doffs": 0.0,
+    "disparity_error_px": 0.08, "min_disparity_px": 0.08, "max_disparity_px": 126.0,
+    "min_distance": 168.25396825396825, "max_distance": 265000.0,
+    "at_distances": [{"distance": 2000.0, "disparity_px": 10.6, "depth_error": 15.09433962264151,
+                      "relative_error": 0.007547169811320755,
+                      "relative_error_pct": 0.7547169811320755, "in_range": true}],
+    "error_budget": {"max_relative_error": 0.02, "distance": 5300.0,
+                     "summary": "the relative depth error is below 2 % from 168.254 mm up to 5300 mm"}
+}))]
+pub struct RigResponse {
+    /// Unit of every length in this response.
+    pub unit: Unit,
+    /// Focal length in pixels, after any conversion.
+    pub focal_length_px: f64,
+    /// Horizontal field of view in degrees (principal point at the image centre).
+    pub horizontal_fov_deg: f64,
+    /// Vertical field of view in degrees (square pixels, principal point at the centre).
+    pub vertical_fov_deg: f64,
+    /// The baseline, in `unit`.
+    pub baseline: f64,
+    /// f_px·B in px·`unit`: the constant that turns a disparity into a depth, Z = fb / (d + doffs).
+    pub fb: f64,
+    /// The doffs added to every disparity, in pixels.
+    pub doffs: f64,
+    /// The Δd used for every depth error, in pixels.
+    pub disparity_error_px: f64,
+    /// The smallest disparity searched, in pixels.
+    pub min_disparity_px: f64,
+    /// The largest disparity searched, in pixels.
+    pub max_disparity_px: f64,
+    /// The nearest distance the search can see, f·B / (max_disparity_px + doffs), in `unit`.
+    pub min_distance: f64,
+    /// The farthest distance told apart from infinity, f·B / (min_disparity_px + doffs), in
+    /// `unit`.
+    pub max_distance: f64,
+    /// The depth error at each requested distance, in request order.
+    pub at_distances: Vec<DepthErrorAt>,
+    /// Where the relative error passes `max_relative_error`, when the request gave one.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub error_budget: Option<ErrorBudget>,
+}
+
+/// The shortest baseline that meets a depth-error budget at a distance.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct BaselineResponse {
+    /// Unit of every length in this response.
+    pub unit: Unit,
+    /// Focal length in pixels, after any conversion.
+    pub focal_length_px: f64,
+    /// Horizontal field of view in degrees.
+    pub horizontal_fov_deg: f64,
+    /// The Δd assumed, in pixels.
+    pub disparity_error_px: f64,
+    /// Where the budget must hold, in `unit`.
+    pub target_distance: f64,
+    /// The depth-error budget at `target_distance`, in `unit`.
+    pub max_depth_error: f64,
+    /// The same budget as a fraction of `target_distance`.
+    pub max_relative_error: f64,
+    /// The shortest baseline meeting the budget, B = Z²·Δd / (f·ΔZ), in `unit`.
+    pub baseline: f64,
+    /// The disparity of a point at `target_distance` with this baseline, in pixels.
+    pub disparity_at_target_px: f64,
+    /// The formula with this request's numbers in it.
+    pub formula: String,
+    /// The largest disparity searched, when the request gave one.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub max_disparity_px: Option<f64>,
+    /// The nearest distance this baseline lets the search see, f·B / max_disparity_px, in
+    /// `unit`; given with `max_disparity_px`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub min_distance: Option<f64>,
 }

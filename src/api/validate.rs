@@ -2,14 +2,20 @@
 //! collecting every problem (with the field it belongs to) before giving up.
 
 use super::error::{ApiError, FieldError};
-use super::types::{RangeParams, RigParams};
+use super::types::{CameraParams, RangeParams, RigParams};
 use crate::physics::{
-    Correspondence, DEFAULT_DISPARITY_ERROR_PX, FocalLength, Rig, SampleRange, Spacing,
+    Correspondence, DEFAULT_DISPARITY_ERROR_PX, FocalLength, LengthUnit, Rig, SampleRange, Spacing,
 };
 
 /// Collects field errors; each check records its own and returns the value only when it passed.
 #[derive(Debug, Default)]
 pub struct Problems(Vec<FieldError>);
+
+impl From<Vec<FieldError>> for Problems {
+    fn from(errors: Vec<FieldError>) -> Self {
+        Self(errors)
+    }
+}
 
 impl Problems {
     /// Records a problem with `field`, unless one is recorded for it already (the first, such
@@ -22,6 +28,21 @@ impl Problems {
 
     pub fn is_empty(&self) -> bool {
         self.0.is_empty()
+    }
+
+    /// Adds everything `other` recorded.
+    pub fn extend(&mut self, other: Problems) {
+        for error in other.0 {
+            self.add(&error.field, error.message);
+        }
+    }
+
+    /// Everything recorded, each field name behind `prefix` (such as `points[3].`).
+    pub fn prefixed(self, prefix: &str) -> Vec<FieldError> {
+        self.0
+            .into_iter()
+            .map(|e| FieldError::new(format!("{prefix}{}", e.field), e.message))
+            .collect()
     }
 
     /// Everything recorded, as a 422.
@@ -119,7 +140,7 @@ pub const MM_ALONE: &str = "a focal length in millimetres cannot be used on its 
     (f_px = f_mm · 1000 / pixel_size_um), or give focal_length_px or horizontal_fov_deg instead";
 
 /// Exactly one focal option, checked and converted to pixels.
-fn focal_length(p: &RigParams, width: Option<f64>, problems: &mut Problems) -> Option<f64> {
+fn focal_length(p: &CameraParams, width: Option<f64>, problems: &mut Problems) -> Option<f64> {
     let modes: Vec<&str> = [
         ("focal_length_px", p.focal_length_px.is_some()),
         ("focal_length_mm", p.focal_length_mm.is_some()),
@@ -211,7 +232,7 @@ fn focal_length(p: &RigParams, width: Option<f64>, problems: &mut Problems) -> O
 }
 
 /// The member the focal length was given in.
-fn focal_field(p: &RigParams) -> &'static str {
+pub fn focal_field(p: &CameraParams) -> &'static str {
     if p.focal_length_mm.is_some() {
         "focal_length_mm"
     } else if p.horizontal_fov_deg.is_some() {
@@ -232,54 +253,96 @@ fn image_extent(field: &str, value: Option<u32>, problems: &mut Problems) -> Opt
     }
 }
 
-/// Validates the rig members shared by every request.
-pub fn rig(p: &RigParams, problems: &mut Problems) -> Option<Rig> {
+/// A validated camera: the focal length in pixels and what goes with it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Camera {
+    pub focal_px: f64,
+    pub unit: LengthUnit,
+    pub image_width: f64,
+    pub image_height: f64,
+    pub disparity_error_px: f64,
+}
+
+impl Camera {
+    /// The rig this camera makes with a second one `baseline` away, principal points at the
+    /// image centre and no doffs.
+    pub fn with_baseline(self, baseline: f64) -> Rig {
+        Rig {
+            focal_px: self.focal_px,
+            baseline,
+            unit: self.unit,
+            image_width: self.image_width,
+            image_height: self.image_height,
+            cx: self.image_width / 2.0,
+            cy: self.image_height / 2.0,
+            doffs: 0.0,
+            disparity_error_px: self.disparity_error_px,
+        }
+    }
+}
+
+/// Validates the camera members shared by every request.
+pub fn camera(p: &CameraParams, problems: &mut Problems) -> Option<Camera> {
     let width = image_extent("image_width", p.image_width, problems);
     let height = image_extent("image_height", p.image_height, problems);
     let focal_px = focal_length(p, width, problems);
+    let disparity_error_px = problems.non_negative(
+        "disparity_error_px",
+        p.disparity_error_px.unwrap_or(DEFAULT_DISPARITY_ERROR_PX),
+    );
+    Some(Camera {
+        focal_px: focal_px?,
+        unit: p.unit.unwrap_or_default().into(),
+        image_width: width?,
+        image_height: height?,
+        disparity_error_px: disparity_error_px?,
+    })
+}
+
+/// Validates the rig members: the camera, the baseline and the principal points.
+pub fn rig(p: &RigParams, problems: &mut Problems) -> Option<Rig> {
+    let camera = camera(&p.camera, problems);
+    let bounds = Bounds::of(&p.camera);
     let baseline = problems
         .required("baseline", p.baseline)
         .and_then(|b| problems.positive("baseline", b));
-    let cx = match (p.cx, width) {
+    let cx = match (p.cx, bounds.width) {
         (Some(cx), Some(w)) => problems.within("cx", cx, w, "the image width"),
         (None, Some(w)) => Some(w / 2.0),
         _ => None,
     };
-    let cy = match (p.cy, height) {
+    let cy = match (p.cy, bounds.height) {
         (Some(cy), Some(h)) => problems.within("cy", cy, h, "the image height"),
         (None, Some(h)) => Some(h / 2.0),
         _ => None,
     };
     let doffs = p.doffs.unwrap_or(0.0);
-    let disparity_error_px = problems.non_negative(
-        "disparity_error_px",
-        p.disparity_error_px.unwrap_or(DEFAULT_DISPARITY_ERROR_PX),
-    );
-    if let (Some(f), Some(b)) = (focal_px, baseline)
-        && !((f * b).is_normal() && (f / b).is_normal())
-    {
-        for field in [focal_field(p), "baseline"] {
-            problems.add(
-                field,
-                format!(
-                    "focal length ({f} px) and baseline ({b}) are too far apart in magnitude: \
-                     their product or ratio leaves the range of a 64-bit float"
-                ),
-            );
-        }
-        return None;
-    }
+    let (camera, baseline) = (camera?, baseline?);
+    balanced(camera.focal_px, baseline, focal_field(&p.camera), problems)?;
     Some(Rig {
-        focal_px: focal_px?,
-        baseline: baseline?,
-        unit: p.unit.unwrap_or_default().into(),
-        image_width: width?,
-        image_height: height?,
         cx: cx?,
         cy: cy?,
         doffs,
-        disparity_error_px: disparity_error_px?,
+        ..camera.with_baseline(baseline)
     })
+}
+
+/// Refuses a focal length and baseline whose product or ratio leaves the range of an f64,
+/// blaming both.
+pub fn balanced(focal_px: f64, baseline: f64, focal: &str, problems: &mut Problems) -> Option<()> {
+    if (focal_px * baseline).is_normal() && (focal_px / baseline).is_normal() {
+        return Some(());
+    }
+    for field in [focal, "baseline"] {
+        problems.add(
+            field,
+            format!(
+                "focal length ({focal_px} px) and baseline ({baseline}) are too far apart in \
+                 magnitude: their product or ratio leaves the range of a 64-bit float"
+            ),
+        );
+    }
+    None
 }
 
 /// The image size as far as it is valid, so that coordinates are range-checked even when
@@ -291,7 +354,7 @@ pub struct Bounds {
 }
 
 impl Bounds {
-    pub fn of(p: &RigParams) -> Self {
+    pub fn of(p: &CameraParams) -> Self {
         let valid = |n: Option<u32>| n.filter(|&n| n > 0).map(f64::from);
         Self {
             width: valid(p.image_width),

@@ -62,20 +62,36 @@ async fn wrong_content_type_is_415() {
     assert_eq!(ok.status(), 200);
 }
 
-/// A body over the 64 KiB limit is a 413 naming the body.
+/// A body over the 64 KiB limit is a 413 naming the body; `/distance`, which takes batches,
+/// has its own 2 MiB limit.
 #[tokio::test]
 async fn oversized_body_is_413() {
     let app = spawn_app().await;
     let padding = " ".repeat(70 * 1024);
     let body = format!("{{\"baseline\": 150{padding}}}");
-    let problem = problem(
+    let table = problem(
+        app.post_raw("/table", Some("application/json"), body.clone().into())
+            .await,
+        413,
+    )
+    .await;
+    assert_eq!(fields(&table), vec!["body"]);
+    assert!(message_for(&table, "body").contains("65536"));
+    // The same body is within /distance's limit: it is decoded and found wanting.
+    let within = app
+        .post_raw("/distance", Some("application/json"), body.into())
+        .await;
+    assert_eq!(within.status(), 422);
+
+    let padding = " ".repeat(2 * 1024 * 1024);
+    let body = format!("{{\"baseline\": 150{padding}}}");
+    let batch = problem(
         app.post_raw("/distance", Some("application/json"), body.into())
             .await,
         413,
     )
     .await;
-    assert_eq!(fields(&problem), vec!["body"]);
-    assert!(message_for(&problem, "body").contains("65536"));
+    assert!(message_for(&batch, "body").contains("2097152"));
 }
 
 /// A string where a number belongs is a 422 naming it, in JSON and in a query alike; so are
@@ -146,9 +162,9 @@ async fn out_of_range_values_are_named() {
         fields(&body),
         vec![
             "horizontal_fov_deg",
+            "disparity_error_px",
             "cx",
             "cy",
-            "disparity_error_px",
             "x_left",
             "x_right",
             "y"

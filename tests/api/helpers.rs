@@ -138,6 +138,22 @@ impl TestApp {
             .expect("request is sent")
     }
 
+    /// POSTs `body` as JSON to `path_and_query` with one extra request header.
+    pub async fn post_with_header(
+        &self,
+        path_and_query: &str,
+        body: &Value,
+        (name, value): (&str, &str),
+    ) -> Response {
+        self.client
+            .post(format!("{}{path_and_query}", self.address))
+            .header(name, value)
+            .json(body)
+            .send()
+            .await
+            .expect("request is sent")
+    }
+
     /// GETs `path_and_query` with one extra request header.
     pub async fn get_with_header(&self, path_and_query: &str, name: &str, value: &str) -> Response {
         self.client

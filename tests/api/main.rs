@@ -1,11 +1,14 @@
 //! Integration tests: each starts the real server on 127.0.0.1:0 and talks to it over a real
 //! socket with reqwest.
 
+mod batch;
 mod chart;
 mod distance;
 mod errors;
 mod helpers;
 mod openapi;
 mod operations;
+mod planning;
 mod protection;
+mod svg;
 mod table;

@@ -1,6 +1,6 @@
 //! The OpenAPI document: served, committed, complete, and the Swagger UI is served offline.
 
-use serde_json::Value;
+use serde_json::{Value, json};
 
 use crate::helpers::{ok_json, spawn_app};
 
@@ -29,26 +29,51 @@ async fn committed_spec_matches_generated() {
     );
 }
 
-/// Every operation is documented: GET and POST on each path, a request example, query
-/// parameters on GET, and problem+json error responses.
+/// The schema a `$ref` points at.
+fn resolve<'a>(spec: &'a Value, schema: &'a Value) -> &'a Value {
+    match schema["$ref"].as_str() {
+        Some(reference) => &spec["components"]["schemas"][reference.rsplit('/').next().unwrap()],
+        None => schema,
+    }
+}
+
+/// Every operation is documented: GET and POST on each path, an example on every request
+/// schema (each alternative of a `oneOf`), query parameters on GET for every member, the
+/// success media types, and problem+json error responses.
 #[tokio::test]
 async fn every_operation_is_documented() {
     let app = spawn_app().await;
     let spec = ok_json(app.get("/openapi.json").await).await;
-    for path in ["/distance", "/table", "/chart-data"] {
+    let json = ["application/json"].as_slice();
+    for (path, media) in [
+        ("/distance", json),
+        ("/table", ["application/json", "text/csv"].as_slice()),
+        ("/chart-data", json),
+        ("/rig", json),
+        ("/baseline", json),
+    ] {
         let post = &spec["paths"][path]["post"];
         let get = &spec["paths"][path]["get"];
-        let body_ref = post["requestBody"]["content"]["application/json"]["schema"]["$ref"]
-            .as_str()
-            .unwrap_or_else(|| panic!("{path} POST has a body schema"));
-        let name = body_ref.rsplit('/').next().unwrap();
-        let schema = &spec["components"]["schemas"][name];
-        assert!(schema["example"].is_object(), "{name} has an example");
-        assert_eq!(
-            schema["additionalProperties"], false,
-            "{name} refuses unknown members"
+        let body = resolve(
+            &spec,
+            &post["requestBody"]["content"]["application/json"]["schema"],
         );
-        let properties = schema["properties"].as_object().unwrap();
+        let alternatives: Vec<&Value> = match body["oneOf"].as_array() {
+            Some(options) => options.iter().map(|o| resolve(&spec, o)).collect(),
+            None => vec![body],
+        };
+        for schema in &alternatives {
+            assert!(
+                schema["example"].is_object(),
+                "{path} request has an example"
+            );
+            assert_eq!(
+                schema["additionalProperties"], false,
+                "{path} request refuses unknown members"
+            );
+        }
+        // The flat (first) form is the one a query string carries.
+        let properties = alternatives[0]["properties"].as_object().unwrap();
         let params = get["parameters"].as_array().unwrap();
         assert_eq!(
             params.len(),
@@ -56,7 +81,9 @@ async fn every_operation_is_documented() {
             "GET {path} takes every member"
         );
         for op in [post, get] {
-            assert!(op["responses"]["200"]["content"]["application/json"]["schema"].is_object());
+            let content = op["responses"]["200"]["content"].as_object().unwrap();
+            let types: Vec<&str> = content.keys().map(String::as_str).collect();
+            assert_eq!(types, media, "{path} success media types");
             for status in ["400", "422"] {
                 assert_eq!(
                     op["responses"][status]["content"]["application/problem+json"]["schema"]["$ref"],
@@ -67,6 +94,25 @@ async fn every_operation_is_documented() {
         }
         assert!(post["responses"]["413"].is_object() && post["responses"]["415"].is_object());
     }
+    // The SVG chart takes the chart-data query and answers an image.
+    let svg = &spec["paths"]["/chart.svg"]["get"];
+    assert_eq!(
+        svg["parameters"], spec["paths"]["/chart-data"]["get"]["parameters"],
+        "/chart.svg takes the same query as /chart-data"
+    );
+    assert!(svg["responses"]["200"]["content"]["image/svg+xml"].is_object());
+    assert!(svg["responses"]["422"].is_object());
+    // Lists in a query string are comma-separated.
+    let at = spec["paths"]["/rig"]["get"]["parameters"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|p| p["name"] == "at_distances")
+        .expect("GET /rig takes at_distances");
+    assert_eq!(
+        (&at["style"], &at["explode"]),
+        (&json!("form"), &json!(false))
+    );
 }
 
 /// Optional request members are optional, not nullable.

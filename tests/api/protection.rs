@@ -42,18 +42,24 @@ async fn body_over_configured_limit_is_413() {
     // Arrange
     let mut config = config();
     config.limits.body_bytes = 1024;
+    config.limits.batch_body_bytes = 2048;
     let app = spawn_app_with(config).await;
-    let body = format!("{{\"baseline\": 150{}}}", " ".repeat(1500));
+    let body = |spaces: usize| format!("{{\"baseline\": 150{}}}", " ".repeat(spaces));
 
     // Act
-    let response = app
-        .post_raw("/distance", Some("application/json"), body.into())
+    let table = app
+        .post_raw("/table", Some("application/json"), body(1500).into())
+        .await;
+    let distance = app
+        .post_raw("/distance", Some("application/json"), body(2500).into())
         .await;
 
     // Assert
-    let problem = problem(response, 413).await;
-    assert_eq!(fields(&problem), vec!["body"]);
-    assert!(message_for(&problem, "body").contains("1024"));
+    let problem_body = problem(table, 413).await;
+    assert_eq!(fields(&problem_body), vec!["body"]);
+    assert!(message_for(&problem_body, "body").contains("1024"));
+    let problem_body = problem(distance, 413).await;
+    assert!(message_for(&problem_body, "body").contains("2048"));
 }
 
 /// Past the concurrency limit a request is refused at once with 503 problem+json and

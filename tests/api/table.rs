@@ -2,7 +2,7 @@
 
 use serde_json::{Value, json};
 
-use crate::helpers::{assert_close, fields, ok_json, problem, spawn_app};
+use crate::helpers::{assert_close, fields, message_for, ok_json, problem, spawn_app};
 
 fn rig() -> Value {
     json!({"focal_length_px": 700, "baseline": 120, "image_width": 800, "image_height": 600})
@@ -169,4 +169,104 @@ async fn table_refuses_chart_members() {
     )
     .await;
     assert_eq!(fields(&body), vec!["points"]);
+}
+
+/// Asserts a CSV answer and returns its lines split into cells.
+async fn csv(response: reqwest::Response) -> Vec<Vec<String>> {
+    assert_eq!(response.status(), 200);
+    let headers = response.headers();
+    assert_eq!(
+        headers["content-type"],
+        "text/csv; charset=utf-8; header=present"
+    );
+    assert!(
+        headers["content-disposition"]
+            .to_str()
+            .unwrap()
+            .starts_with("attachment")
+    );
+    let text = response.text().await.unwrap();
+    assert!(text.ends_with("\r\n"), "RFC 4180 line ends");
+    text.lines()
+        .map(|line| line.split(',').map(str::to_owned).collect())
+        .collect()
+}
+
+/// The CSV has a header row naming the JSON row members, in order, and one line per JSON row
+/// with the very same numbers.
+#[tokio::test]
+async fn csv_has_the_json_columns_and_numbers() {
+    // Arrange
+    let app = spawn_app().await;
+    let query = "/table?focal_length_px=700&baseline=120&image_width=800&image_height=600&disparity_min=3&disparity_max=90&steps=7&spacing=log";
+
+    // Act
+    let json = ok_json(app.get(query).await).await;
+    let lines = csv(app.get(&format!("{query}&format=csv")).await).await;
+
+    // Assert
+    let rows = json["rows"].as_array().unwrap();
+    let columns: Vec<&String> = rows[0].as_object().unwrap().keys().collect();
+    assert_eq!(lines[0].iter().collect::<Vec<_>>(), columns, "header row");
+    assert_eq!(lines.len(), rows.len() + 1, "one line per row");
+    for (line, row) in lines[1..].iter().zip(rows) {
+        for (cell, column) in line.iter().zip(&columns) {
+            assert_eq!(
+                cell.parse::<f64>().unwrap(),
+                row[column.as_str()].as_f64().unwrap(),
+                "{column}"
+            );
+        }
+    }
+}
+
+/// CSV is chosen by `Accept: text/csv` (GET and POST), by `?format=csv` on POST, or by
+/// `format` in the body; an explicit `format=json` beats the header, and a browser's Accept
+/// gets JSON.
+#[tokio::test]
+async fn csv_is_negotiated() {
+    let app = spawn_app().await;
+    let body = with(rig(), json!({"steps": 3}));
+    let query = "/table?focal_length_px=700&baseline=120&image_width=800&image_height=600&steps=3";
+    let by_accept = csv(app.get_with_header(query, "accept", "text/csv").await).await;
+    let by_post_accept = csv(app
+        .post_with_header("/table", &body, ("accept", "text/csv"))
+        .await)
+    .await;
+    let by_post_query = csv(app
+        .post_with_header("/table?format=csv", &body, ("accept", "*/*"))
+        .await)
+    .await;
+    let by_member = csv(app
+        .post("/table", &with(body.clone(), json!({"format": "csv"})))
+        .await)
+    .await;
+    assert_eq!(by_accept.len(), 4);
+    assert_eq!(by_accept, by_post_accept);
+    assert_eq!(by_accept, by_post_query);
+    assert_eq!(by_accept, by_member);
+
+    let explicit = app
+        .get_with_header(&format!("{query}&format=json"), "accept", "text/csv")
+        .await;
+    assert_eq!(ok_json(explicit).await["rows"].as_array().unwrap().len(), 3);
+    let browser = app
+        .get_with_header(query, "accept", "text/html,application/xhtml+xml,*/*;q=0.8")
+        .await;
+    assert_eq!(browser.headers()["content-type"], "application/json");
+    assert_eq!(browser.headers()["vary"], "accept");
+}
+
+/// An unknown format, in the body or the URL, is a 422 naming `format`.
+#[tokio::test]
+async fn bad_format_is_named() {
+    let app = spawn_app().await;
+    let body = problem(
+        app.post("/table?format=xml", &with(rig(), json!({"steps": 3})))
+            .await,
+        422,
+    )
+    .await;
+    assert_eq!(fields(&body), vec!["format"]);
+    assert!(message_for(&body, "format").contains("`json` or `csv`"));
 }

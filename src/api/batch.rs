@@ -1,0 +1,272 @@
+//! `POST /distance` with many points: telling a batch from a single correspondence, decoding
+//! each point on its own so that one bad point cannot hide the others, and answering per point.
+//!
+//! A batch is refused as a whole (422) only when nothing can be computed: the envelope or the
+//! rig is wrong, or there are no points or too many. Otherwise it is a 200 in which every point
+//! has either its distance or its own errors, named like `points[17].x_left`. Points come from
+//! feature matchers, where a few bad matches per frame are normal; failing the frame for them
+//! would make every client re-implement the checks this service exists to do.
+
+use axum::extract::{FromRequest, Request};
+use serde::Deserialize;
+use serde_json::{Map, Value};
+
+use super::{
+    error::{ApiError, FieldError},
+    extract::{self, decode_object, expect_object},
+    types::{
+        BatchDistanceResponse, BatchPoint, DistanceRequest, Point, PointDistance, PointFailure,
+        PointOutcome, StereoRig, Warning,
+    },
+    validate::{self, Bounds, Problems},
+};
+use crate::{config::Limits, physics};
+
+/// A `POST /distance` body: one correspondence or a batch, each with what decoding refused.
+#[derive(Debug)]
+pub enum DistanceBody {
+    One(DistanceRequest, Problems),
+    Batch(Batch),
+}
+
+/// A decoded batch. `problems` holds faults of the envelope and the rig (already named
+/// `rig.…`); each point carries its own, still unprefixed.
+#[derive(Debug, Default)]
+pub struct Batch {
+    pub rig: Option<StereoRig>,
+    pub rig_problems: Problems,
+    pub points: Option<Vec<(BatchPoint, Problems)>>,
+    pub problems: Problems,
+}
+
+/// Whether a body is a batch: it names `rig` or `points` at the top level (with any value,
+/// even `null`). Skims the body without allocating.
+#[derive(Deserialize)]
+struct Shape {
+    #[serde(default)]
+    rig: Seen,
+    #[serde(default)]
+    points: Seen,
+}
+
+/// Whether a member was present at all.
+#[derive(Default)]
+struct Seen(bool);
+
+impl<'de> Deserialize<'de> for Seen {
+    fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        serde::de::IgnoredAny::deserialize(deserializer).map(|_| Seen(true))
+    }
+}
+
+/// The batch as it is when everything is well-formed: one typed pass.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Wire {
+    rig: StereoRig,
+    points: Vec<BatchPoint>,
+}
+
+impl<S: Send + Sync> FromRequest<S> for DistanceBody {
+    type Rejection = ApiError;
+
+    async fn from_request(req: Request, state: &S) -> Result<Self, Self::Rejection> {
+        let bytes = extract::json_bytes(req, state).await?;
+        expect_object(&bytes)?;
+        let shape: Shape =
+            serde_json::from_slice(&bytes).map_err(|e| extract::malformed_json(&e))?;
+        if !(shape.rig.0 || shape.points.0) {
+            let (request, problems) = extract::decode_json(&bytes)?;
+            return Ok(DistanceBody::One(request, problems));
+        }
+        if let Ok(wire) = serde_json::from_slice::<Wire>(&bytes) {
+            return Ok(DistanceBody::Batch(Batch {
+                rig: Some(wire.rig),
+                points: Some(
+                    wire.points
+                        .into_iter()
+                        .map(|p| (p, Problems::default()))
+                        .collect(),
+                ),
+                ..Batch::default()
+            }));
+        }
+        let map: Map<String, Value> =
+            serde_json::from_slice(&bytes).map_err(|e| extract::malformed_json(&e))?;
+        Ok(DistanceBody::Batch(diagnose(map)))
+    }
+}
+
+/// Decodes a batch member by member, so that each fault is named where it is.
+fn diagnose(map: Map<String, Value>) -> Batch {
+    let mut batch = Batch::default();
+    for (key, value) in map {
+        match (key.as_str(), value) {
+            ("rig", Value::Object(rig)) => {
+                let (rig, problems) = decode_object::<StereoRig>(rig);
+                batch.rig = Some(rig);
+                batch.rig_problems = problems;
+            }
+            ("points", Value::Array(points)) => {
+                batch.points = Some(
+                    points
+                        .into_iter()
+                        .map(|point| match point {
+                            Value::Object(point) => decode_object::<BatchPoint>(point),
+                            other => {
+                                let mut problems = Problems::default();
+                                problems
+                                    .add("", format!("must be an object, got {}", kind(&other)));
+                                (BatchPoint::default(), problems)
+                            }
+                        })
+                        .collect(),
+                );
+            }
+            ("rig", other) => batch
+                .problems
+                .add("rig", format!("must be an object, got {}", kind(&other))),
+            ("points", other) => batch
+                .problems
+                .add("points", format!("must be an array, got {}", kind(&other))),
+            (other, _) => batch.problems.add(
+                other,
+                format!("unknown field `{other}`; a batch has only `rig` and `points`"),
+            ),
+        }
+    }
+    batch
+}
+
+/// A JSON value's kind, for messages.
+fn kind(value: &Value) -> &'static str {
+    match value {
+        Value::Null => "null",
+        Value::Bool(_) => "a boolean",
+        Value::Number(_) => "a number",
+        Value::String(_) => "a string",
+        Value::Array(_) => "an array",
+        Value::Object(_) => "an object",
+    }
+}
+
+/// Answers a batch: 422 when the envelope or rig is wrong, else one outcome per point.
+pub fn answer(batch: Batch, limits: &Limits) -> Result<BatchDistanceResponse, ApiError> {
+    let Batch {
+        rig: spec,
+        mut rig_problems,
+        points,
+        mut problems,
+    } = batch;
+    let rig = match &spec {
+        Some(spec) => validate::rig(&spec.rig_params(), &mut rig_problems),
+        None => {
+            if !problems.has("rig") {
+                problems.add("rig", "is required");
+            }
+            None
+        }
+    };
+    for error in rig_problems.prefixed("rig.") {
+        problems.add(&error.field, error.message);
+    }
+    match &points {
+        None if !problems.has("points") => problems.add("points", "is required"),
+        Some(points) if points.is_empty() => {
+            problems.add("points", "must hold at least one point");
+        }
+        Some(points) if points.len() > limits.batch_points => problems.add(
+            "points",
+            format!(
+                "holds {} points; at most {} (the server's cap) are allowed in one batch",
+                points.len(),
+                limits.batch_points
+            ),
+        ),
+        _ => {}
+    }
+    let (rig, points) = problems.finish(rig.zip(points))?;
+    let spec = spec.unwrap_or_default();
+    let bounds = Bounds::of(&spec.camera_params());
+    let results: Vec<PointOutcome> = points
+        .into_iter()
+        .enumerate()
+        .map(|(index, (point, problems))| measure(&rig, bounds, index, point, problems))
+        .collect();
+    let failed = results
+        .iter()
+        .filter(|r| matches!(r, PointOutcome::Failed(_)))
+        .count();
+    Ok(BatchDistanceResponse {
+        unit: spec.unit.unwrap_or_default(),
+        focal_length_px: rig.focal_px,
+        baseline: rig.baseline,
+        disparity_error_px: rig.disparity_error_px,
+        count: results.len(),
+        succeeded: results.len() - failed,
+        failed,
+        results,
+    })
+}
+
+/// One point's outcome: its distance, or every error, named `points[index].…`.
+fn measure(
+    rig: &physics::Rig,
+    bounds: Bounds,
+    index: usize,
+    point: BatchPoint,
+    mut problems: Problems,
+) -> PointOutcome {
+    // A point that is not an object has nothing more to check.
+    if problems.has("") {
+        return failure(index, problems);
+    }
+    let correspondence = validate::correspondence(
+        (point.x_left, point.x_right, point.y),
+        bounds,
+        Some(rig.cy),
+        &mut problems,
+    );
+    let measured = match correspondence {
+        Some(c) if problems.is_empty() => physics::measure(rig, c).map_err(|e| {
+            let mut problems = Problems::default();
+            for field in ["x_left", "x_right"] {
+                problems.add(field, e.to_string());
+            }
+            problems
+        }),
+        _ => Err(problems),
+    };
+    match measured {
+        Ok(m) => PointOutcome::Measured(PointDistance {
+            index,
+            distance: m.distance,
+            depth_error: m.depth_error,
+            relative_error: m.relative_error,
+            disparity_px: m.disparity_px,
+            point: Point {
+                x: m.point.x,
+                y: m.point.y,
+                z: m.point.z,
+            },
+            warnings: m.warnings.iter().map(Warning::from).collect(),
+        }),
+        Err(problems) => failure(index, problems),
+    }
+}
+
+/// A failed point, its errors named `points[index].field` (or `points[index]` for the point
+/// itself).
+fn failure(index: usize, problems: Problems) -> PointOutcome {
+    PointOutcome::Failed(PointFailure {
+        index,
+        errors: problems
+            .prefixed(&format!("points[{index}]."))
+            .into_iter()
+            .map(|e| FieldError {
+                field: e.field.trim_end_matches('.').to_owned(),
+                message: e.message,
+            })
+            .collect(),
+    })
+}

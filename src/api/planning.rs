@@ -1,0 +1,367 @@
+//! Rig planning: `/rig` (what a rig and its disparity search can see, and how well) and
+//! `/baseline` (the shortest baseline that meets a depth-error budget). Each is extract →
+//! validate → physics → response, like every other route.
+
+use axum::Json;
+
+use super::{
+    error::{ApiError, BodyErrors, QueryErrors},
+    extract::{JsonBody, QueryParams},
+    format::{percent, short},
+    types::{
+        BaselineRequest, BaselineResponse, DepthErrorAt, ErrorBudget, MAX_AT_DISTANCES, RigRequest,
+        RigResponse,
+    },
+    validate::{self, Problems},
+};
+use crate::physics::{self, Rig};
+
+#[utoipa::path(
+    post,
+    path = "/rig",
+    tag = "planning",
+    summary = "Depth range, field of view and depth error of a rig and its disparity search",
+    description = "min_distance = f·B / (max_disparity_px + doffs), max_distance = f·B / \
+                   (min_disparity_px + doffs), the depth error ΔZ = Z²·Δd/(f·B) at the \
+                   requested distances, and the distance up to which the relative error stays \
+                   within a budget, Z = r·f·B/Δd.",
+    request_body = RigRequest,
+    responses(
+        (status = 200, description = "What the rig can see, and how well.", body = RigResponse),
+        BodyErrors
+    )
+)]
+pub async fn post_rig(
+    JsonBody(request, problems): JsonBody<RigRequest>,
+) -> Result<Json<RigResponse>, ApiError> {
+    rig(&request, problems).map(Json)
+}
+
+#[utoipa::path(
+    get,
+    path = "/rig",
+    tag = "planning",
+    summary = "Rig planning (query-string form of POST /rig)",
+    params(RigRequest),
+    responses(
+        (status = 200, description = "What the rig can see, and how well.", body = RigResponse),
+        QueryErrors
+    )
+)]
+pub async fn get_rig(
+    QueryParams(request, problems): QueryParams<RigRequest>,
+) -> Result<Json<RigResponse>, ApiError> {
+    rig(&request, problems).map(Json)
+}
+
+#[utoipa::path(
+    post,
+    path = "/baseline",
+    tag = "planning",
+    summary = "The shortest baseline that meets a depth-error budget at a distance",
+    description = "B = Z²·Δd / (f·ΔZ): the depth error formula solved for the baseline. With \
+                   max_disparity_px, also the nearest distance that baseline lets the rig see.",
+    request_body = BaselineRequest,
+    responses(
+        (status = 200, description = "The baseline.", body = BaselineResponse),
+        BodyErrors
+    )
+)]
+pub async fn post_baseline(
+    JsonBody(request, problems): JsonBody<BaselineRequest>,
+) -> Result<Json<BaselineResponse>, ApiError> {
+    baseline(&request, problems).map(Json)
+}
+
+#[utoipa::path(
+    get,
+    path = "/baseline",
+    tag = "planning",
+    summary = "The shortest baseline (query-string form of POST /baseline)",
+    params(BaselineRequest),
+    responses(
+        (status = 200, description = "The baseline.", body = BaselineResponse),
+        QueryErrors
+    )
+)]
+pub async fn get_baseline(
+    QueryParams(request, problems): QueryParams<BaselineRequest>,
+) -> Result<Json<BaselineResponse>, ApiError> {
+    baseline(&request, problems).map(Json)
+}
+
+/// A relative-error budget: a fraction in (0, 1].
+fn budget(field: &str, value: f64, problems: &mut Problems) -> Option<f64> {
+    if value.is_finite() && value > 0.0 && value <= 1.0 {
+        Some(value)
+    } else {
+        problems.add(
+            field,
+            format!("must be a fraction in (0, 1] (0.02 means 2 %), got {value}"),
+        );
+        None
+    }
+}
+
+fn rig(request: &RigRequest, mut problems: Problems) -> Result<RigResponse, ApiError> {
+    let rig = validate::rig(&request.rig_params(), &mut problems);
+    let max_disparity = problems
+        .required("max_disparity_px", request.max_disparity_px)
+        .and_then(|d| problems.positive("max_disparity_px", d));
+    let min_disparity = match (request.min_disparity_px, rig) {
+        (Some(d), _) => problems.positive("min_disparity_px", d),
+        (None, Some(r)) if r.disparity_error_px > 0.0 => Some(r.disparity_error_px),
+        (None, Some(_)) => {
+            problems.add(
+                "min_disparity_px",
+                "is required when disparity_error_px is 0 (it defaults to disparity_error_px)",
+            );
+            None
+        }
+        (None, None) => None,
+    };
+    if let (Some(min), Some(max)) = (min_disparity, max_disparity)
+        && min >= max
+    {
+        problems.add(
+            "max_disparity_px",
+            format!("must be greater than min_disparity_px ({min}), got {max}"),
+        );
+    }
+    if let (Some(min), Some(r)) = (min_disparity, rig)
+        && min + r.doffs <= 0.0
+    {
+        problems.add(
+            "min_disparity_px",
+            format!(
+                "min_disparity_px + doffs must be greater than 0 (at d + doffs = 0 the point is \
+                 at infinity), got {min} + {}",
+                r.doffs
+            ),
+        );
+    }
+    let distances = at_distances(request.at_distances.as_deref(), &mut problems);
+    let max_relative_error = request
+        .max_relative_error
+        .map(|r| budget("max_relative_error", r, &mut problems));
+    if let (Some(Some(_)), Some(r)) = (max_relative_error, rig)
+        && r.disparity_error_px <= 0.0
+    {
+        problems.add(
+            "disparity_error_px",
+            "must be greater than 0 with max_relative_error: with no disparity error the \
+             relative error is 0 at every distance",
+        );
+    }
+    let (rig, ((min_disparity, max_disparity), distances)) =
+        problems.finish(rig.zip(min_disparity.zip(max_disparity).zip(distances)))?;
+    let max_relative_error = max_relative_error.flatten();
+    let (min_distance, max_distance) = rig
+        .depth_range(min_disparity, max_disparity)
+        .map_err(blame(&["min_disparity_px", "max_disparity_px"]))?;
+    let error_budget = max_relative_error
+        .map(|r| {
+            rig.distance_at_relative_error(r)
+                .map(|z| error_budget(&rig, r, z, (min_distance, max_distance)))
+                .ok_or(physics::PhysicsError::NotFinite)
+                .map_err(blame(&["max_relative_error", "disparity_error_px"]))
+        })
+        .transpose()?;
+    let (horizontal_fov_deg, vertical_fov_deg) = rig.fields_of_view_deg();
+    Ok(RigResponse {
+        unit: request.unit.unwrap_or_default(),
+        focal_length_px: rig.focal_px,
+        horizontal_fov_deg,
+        vertical_fov_deg,
+        baseline: rig.baseline,
+        fb: rig.fb(),
+        doffs: rig.doffs,
+        disparity_error_px: rig.disparity_error_px,
+        min_disparity_px: min_disparity,
+        max_disparity_px: max_disparity,
+        min_distance,
+        max_distance,
+        at_distances: distances
+            .into_iter()
+            .map(|z| depth_error_at(&rig, z, (min_distance, max_distance)))
+            .collect::<Result<_, _>>()
+            .map_err(blame(&["at_distances"]))?,
+        error_budget,
+    })
+}
+
+/// The requested distances: each finite and positive, at most [`MAX_AT_DISTANCES`].
+fn at_distances(values: Option<&[f64]>, problems: &mut Problems) -> Option<Vec<f64>> {
+    let values = values.unwrap_or_default();
+    if values.len() > MAX_AT_DISTANCES {
+        problems.add(
+            "at_distances",
+            format!(
+                "holds {} distances; at most {MAX_AT_DISTANCES} are allowed",
+                values.len()
+            ),
+        );
+        return None;
+    }
+    let checked: Vec<Option<f64>> = values
+        .iter()
+        .enumerate()
+        .map(|(i, &z)| problems.positive(&format!("at_distances[{i}]"), z))
+        .collect();
+    checked.into_iter().collect()
+}
+
+/// Turns a physics failure into a 422 naming `fields`.
+fn blame(fields: &'static [&'static str]) -> impl Fn(physics::PhysicsError) -> ApiError {
+    move |error| ApiError::from((error, fields))
+}
+
+/// `value` when it is finite, else a physics failure.
+fn finite(value: f64) -> Result<f64, physics::PhysicsError> {
+    if value.is_finite() {
+        Ok(value)
+    } else {
+        Err(physics::PhysicsError::NotFinite)
+    }
+}
+
+fn depth_error_at(
+    rig: &Rig,
+    distance: f64,
+    (near, far): (f64, f64),
+) -> Result<DepthErrorAt, physics::PhysicsError> {
+    let relative_error = finite(rig.relative_error_at(distance))?;
+    Ok(DepthErrorAt {
+        distance,
+        disparity_px: finite(rig.disparity_at(distance))?,
+        depth_error: finite(rig.depth_error_at(distance))?,
+        relative_error,
+        relative_error_pct: finite(relative_error * 100.0)?,
+        in_range: (near..=far).contains(&distance),
+    })
+}
+
+/// Where the budget is passed, said in words against the range the search can see.
+fn error_budget(rig: &Rig, budget: f64, at: f64, (near, far): (f64, f64)) -> ErrorBudget {
+    let unit = rig.unit.symbol();
+    let (r, z) = (percent(budget), |v: f64| format!("{} {unit}", short(v)));
+    let summary = if at >= far {
+        format!(
+            "the relative depth error stays below {r} across the whole range the search sees, \
+             {} to {} (it would reach {r} at {})",
+            z(near),
+            z(far),
+            z(at)
+        )
+    } else if at > near {
+        format!(
+            "the relative depth error is below {r} from {} up to {}",
+            z(near),
+            z(at)
+        )
+    } else {
+        format!(
+            "the relative depth error exceeds {r} everywhere the search sees: it is already {} \
+             at the nearest distance, {}",
+            percent(rig.relative_error_at(near)),
+            z(near)
+        )
+    };
+    ErrorBudget {
+        max_relative_error: budget,
+        distance: at,
+        summary,
+    }
+}
+
+fn baseline(
+    request: &BaselineRequest,
+    mut problems: Problems,
+) -> Result<BaselineResponse, ApiError> {
+    let params = request.camera_params();
+    let camera = validate::camera(&params, &mut problems);
+    let target = problems
+        .required("target_distance", request.target_distance)
+        .and_then(|z| problems.positive("target_distance", z));
+    let max_depth_error = match (request.max_depth_error, request.max_relative_error) {
+        (Some(_), Some(_)) => {
+            for field in ["max_depth_error", "max_relative_error"] {
+                problems.add(
+                    field,
+                    "give max_depth_error or max_relative_error, not both",
+                );
+            }
+            None
+        }
+        (Some(dz), None) => problems.positive("max_depth_error", dz),
+        (None, Some(r)) => {
+            budget("max_relative_error", r, &mut problems).and_then(|r| target.map(|z| r * z))
+        }
+        (None, None) => {
+            problems.add(
+                "max_depth_error",
+                "a depth-error budget is required: give max_depth_error (a length in `unit`) \
+                 or max_relative_error (a fraction of target_distance)",
+            );
+            None
+        }
+    };
+    let max_disparity = request
+        .max_disparity_px
+        .map(|d| problems.positive("max_disparity_px", d));
+    if let Some(c) = camera
+        && c.disparity_error_px <= 0.0
+    {
+        problems.add(
+            "disparity_error_px",
+            "must be greater than 0: with no disparity error any baseline meets the budget",
+        );
+    }
+    let (camera, (target, max_depth_error)) =
+        problems.finish(camera.zip(target.zip(max_depth_error)))?;
+    let max_disparity = max_disparity.flatten();
+    let baseline = physics::baseline_for(
+        camera.focal_px,
+        target,
+        max_depth_error,
+        camera.disparity_error_px,
+    )
+    .map_err(blame(&["target_distance", "max_depth_error"]))?;
+    let mut fields = validate::Problems::default();
+    validate::balanced(
+        camera.focal_px,
+        baseline,
+        validate::focal_field(&params),
+        &mut fields,
+    )
+    .ok_or_else(|| fields.into_error())?;
+    let rig = camera.with_baseline(baseline);
+    let min_distance = max_disparity
+        .map(|d| rig.distance_at(d))
+        .transpose()
+        .map_err(blame(&["max_disparity_px"]))?;
+    let disparity_at_target_px =
+        finite(rig.disparity_at(target)).map_err(blame(&["target_distance"]))?;
+    let unit = rig.unit.symbol();
+    Ok(BaselineResponse {
+        unit: request.unit.unwrap_or_default(),
+        focal_length_px: camera.focal_px,
+        horizontal_fov_deg: rig.fields_of_view_deg().0,
+        disparity_error_px: camera.disparity_error_px,
+        target_distance: target,
+        max_depth_error,
+        max_relative_error: max_depth_error / target,
+        baseline,
+        disparity_at_target_px,
+        formula: format!(
+            "B = Z²·Δd / (f·ΔZ) = ({} {unit})² × {} px / ({} px × {} {unit}) = {} {unit}",
+            short(target),
+            short(camera.disparity_error_px),
+            short(camera.focal_px),
+            short(max_depth_error),
+            short(baseline),
+        ),
+        max_disparity_px: max_disparity,
+        min_distance,
+    })
+}
