@@ -128,17 +128,8 @@ fn rig(request: &RigRequest, mut problems: Problems) -> Result<RigResponse, ApiE
             format!("must be greater than min_disparity_px ({min}), got {max}"),
         );
     }
-    if let (Some(min), Some(r)) = (min_disparity, rig)
-        && min + r.doffs <= 0.0
-    {
-        problems.add(
-            "min_disparity_px",
-            format!(
-                "min_disparity_px + doffs must be greater than 0 (at d + doffs = 0 the point is \
-                 at infinity), got {min} + {}",
-                r.doffs
-            ),
-        );
+    if let (Some(min), Some(r)) = (min_disparity, rig) {
+        validate::short_of_infinity("min_disparity_px", min, &r, &mut problems);
     }
     let distances = at_distances(request.at_distances.as_deref(), &mut problems);
     let max_relative_error = request

@@ -407,6 +407,22 @@ pub fn correspondence(
     })
 }
 
+/// `min` if `min + doffs > 0`: a disparity search must stop short of the point at infinity.
+pub fn short_of_infinity(field: &str, min: f64, rig: &Rig, problems: &mut Problems) -> Option<f64> {
+    if min + rig.doffs > 0.0 {
+        return Some(min);
+    }
+    problems.add(
+        field,
+        format!(
+            "{field} + doffs must be greater than 0 (at d + doffs = 0 the point is at \
+             infinity), got {min} + {}",
+            rig.doffs
+        ),
+    );
+    None
+}
+
 /// The sample range: distances, disparities, or the default around `measured`.
 pub fn range(
     p: &RangeParams,
@@ -459,17 +475,7 @@ pub fn range(
         SampleRange::Distance { min, max }
     } else if given(&disparity) {
         let (min, max) = ordered(problems, disparity)?;
-        if min + rig.doffs <= 0.0 {
-            problems.add(
-                "disparity_min",
-                format!(
-                    "disparity_min + doffs must be greater than 0 (at d + doffs = 0 the point is \
-                     at infinity), got {min} + {}",
-                    rig.doffs
-                ),
-            );
-            return None;
-        }
+        let min = short_of_infinity("disparity_min", min, rig, problems)?;
         SampleRange::Disparity { min, max }
     } else {
         SampleRange::default_for(rig, measured_disparity_px)

@@ -168,6 +168,13 @@ async fn bad_rig_requests_are_named() {
     let body = problem(app.post("/rig", &exact).await, 422).await;
     assert_eq!(fields(&body), vec!["min_disparity_px"]);
 
+    let mut past_infinity = reference_rig();
+    past_infinity["doffs"] = json!(-5);
+    past_infinity["min_disparity_px"] = json!(2);
+    let body = problem(app.post("/rig", &past_infinity).await, 422).await;
+    assert_eq!(fields(&body), vec!["min_disparity_px"]);
+    assert!(message_for(&body, "min_disparity_px").contains("at infinity"));
+
     let body = problem(
         app.get("/rig?focal_length_mm=4&baseline=50&image_width=848&image_height=480&max_disparity_px=64&at_distances=1,x")
             .await,
