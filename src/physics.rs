@@ -287,7 +287,8 @@ impl fmt::Display for PhysicsError {
 
 impl std::error::Error for PhysicsError {}
 
-fn finite(value: f64) -> Result<f64, PhysicsError> {
+/// `value` when it is finite, else [`PhysicsError::NotFinite`].
+pub fn finite(value: f64) -> Result<f64, PhysicsError> {
     if value.is_finite() {
         Ok(value)
     } else {

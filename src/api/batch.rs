@@ -15,7 +15,7 @@ use super::{
     error::{ApiError, FieldError},
     extract::{self, decode_object, expect_object},
     types::{
-        BatchDistanceResponse, BatchPoint, DistanceRequest, Point, PointDistance, PointFailure,
+        BatchDistanceResponse, BatchPoint, DistanceRequest, PointDistance, PointFailure,
         PointOutcome, StereoRig, Warning,
     },
     validate::{self, Bounds, Problems},
@@ -244,11 +244,7 @@ fn measure(
             depth_error: m.depth_error,
             relative_error: m.relative_error,
             disparity_px: m.disparity_px,
-            point: Point {
-                x: m.point.x,
-                y: m.point.y,
-                z: m.point.z,
-            },
+            point: m.point.into(),
             warnings: m.warnings.iter().map(Warning::from).collect(),
         }),
         Err(problems) => failure(index, problems),

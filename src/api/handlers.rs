@@ -17,7 +17,7 @@ use super::{
     svg,
     types::{
         Axis, ChartPoint, ChartRequest, ChartResponse, DistanceInput, DistanceOutput,
-        DistanceRequest, DistanceResponse, FormatQuery, Point, Series, TableFormat, TableRequest,
+        DistanceRequest, DistanceResponse, FormatQuery, Series, TableFormat, TableRequest,
         TableResponse, TableRow, Warning,
     },
     validate::{self, Bounds, Problems},
@@ -271,11 +271,7 @@ fn distance(
         baseline: rig.baseline,
         normalized_x: m.normalized_x,
         projection_factor: m.projection_factor,
-        point: Point {
-            x: m.point.x,
-            y: m.point.y,
-            z: m.point.z,
-        },
+        point: m.point.into(),
         warnings: m.warnings.iter().map(Warning::from).collect(),
     })
 }

@@ -14,7 +14,7 @@ use super::{
     },
     validate::{self, Problems},
 };
-use crate::physics::{self, Rig};
+use crate::physics::{self, Rig, finite};
 
 #[utoipa::path(
     post,
@@ -205,15 +205,6 @@ fn at_distances(values: Option<&[f64]>, problems: &mut Problems) -> Option<Vec<f
 /// Turns a physics failure into a 422 naming `fields`.
 fn blame(fields: &'static [&'static str]) -> impl Fn(physics::PhysicsError) -> ApiError {
     move |error| ApiError::from((error, fields))
-}
-
-/// `value` when it is finite, else a physics failure.
-fn finite(value: f64) -> Result<f64, physics::PhysicsError> {
-    if value.is_finite() {
-        Ok(value)
-    } else {
-        Err(physics::PhysicsError::NotFinite)
-    }
 }
 
 fn depth_error_at(

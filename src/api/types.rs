@@ -586,6 +586,16 @@ pub struct Point {
     pub z: f64,
 }
 
+impl From<physics::Point3> for Point {
+    fn from(p: physics::Point3) -> Self {
+        Self {
+            x: p.x,
+            y: p.y,
+            z: p.z,
+        }
+    }
+}
+
 /// Something worth knowing about a result that was still computed.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
 pub struct Warning {
