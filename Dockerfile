@@ -23,6 +23,8 @@ ENV CARGO_BUILD_TARGET=x86_64-unknown-linux-gnu \
     RUSTFLAGS="-C target-feature=+crt-static"
 # Build the dependencies alone first: this layer is reused until Cargo.toml or Cargo.lock change.
 COPY Cargo.toml Cargo.lock ./
+# The manifest names the bench targets, so their sources must exist for cargo to read it.
+COPY benches ./benches
 RUN mkdir src \
  && printf 'fn main() {}\n' > src/main.rs \
  && touch src/lib.rs \

@@ -83,6 +83,19 @@ pub enum LogFormat {
     Json,
 }
 
+/// Which requests get an access log line.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, ValueEnum)]
+pub enum AccessLog {
+    /// Every request: one line each, which at full load costs more CPU than the request.
+    All,
+    /// Requests answered 4xx or 5xx (the default): what a caller or an operator needs to
+    /// look into. Successful requests are counted in `/metrics`.
+    #[default]
+    Errors,
+    /// None.
+    Off,
+}
+
 /// Everything the server needs to start.
 #[derive(Debug, Clone, PartialEq, Eq, Args)]
 pub struct Config {
@@ -97,6 +110,11 @@ pub struct Config {
     /// Log format: pretty (for a terminal) or json (one object per line).
     #[arg(long, env = "LOG_FORMAT", value_enum, default_value_t = LogFormat::Pretty)]
     pub log_format: LogFormat,
+
+    /// Which requests get an access log line (target `access`): all, errors (4xx and 5xx) or
+    /// off. Every request is counted in /metrics either way.
+    #[arg(long, env = "ACCESS_LOG", value_enum, default_value_t = AccessLog::Errors)]
+    pub access_log: AccessLog,
 
     /// Log filter in tracing's EnvFilter syntax, e.g. `info` or `stereo_distance=debug,info`.
     #[arg(long, env = "RUST_LOG", default_value = DEFAULT_LOG_LEVEL, value_parser = log_filter)]
@@ -182,6 +200,7 @@ impl Default for Config {
             host: IpAddr::from([127, 0, 0, 1]),
             port: 8080,
             log_format: LogFormat::Pretty,
+            access_log: AccessLog::Errors,
             log_level: DEFAULT_LOG_LEVEL.to_owned(),
             cors_allowed_origins: Vec::new(),
             request_timeout: DEFAULT_REQUEST_TIMEOUT,
@@ -329,6 +348,8 @@ mod tests {
             "9000",
             "--log-format",
             "json",
+            "--access-log",
+            "all",
             "--request-timeout",
             "250ms",
             "--cors-allowed-origins",
@@ -343,6 +364,7 @@ mod tests {
         assert_eq!(config.host.to_string(), "0.0.0.0");
         assert_eq!(config.port, 9000);
         assert_eq!(config.log_format, LogFormat::Json);
+        assert_eq!(config.access_log, AccessLog::All);
         assert_eq!(config.request_timeout, Duration::from_millis(250));
         assert_eq!(
             config.cors_allowed_origins,

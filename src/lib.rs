@@ -10,9 +10,11 @@
 //!   derived from the same types.
 //!   [`api::ops`] holds the probes and `/metrics`.
 //! - [`config`]: flags and environment variables (clap), defaults in code, start-up checks.
-//! - [`telemetry`]: logging setup, `x-request-id`, one structured log line per request.
+//! - [`telemetry`]: logging setup, `x-request-id`, the access log line.
 //! - [`metrics`]: Prometheus request counts, latency histograms and in-flight gauge.
-//! - [`protect`]: request timeout, load shedding, CORS.
+//! - [`edge`]: the two hand-written layers every request passes through (request id, metrics,
+//!   access log, panic → 500; load shedding, request timeout, body limit).
+//! - [`protect`]: the pieces `edge` uses for timeouts and shedding, and CORS.
 //! - [`startup`]: the middleware stack, [`startup::Application`] (binds, may use port 0), the
 //!   accept loop with its header read timeout, and graceful shutdown with readiness drain.
 //! - [`healthcheck`]: the `healthcheck` subcommand's probe, for images without curl.
@@ -21,6 +23,7 @@
 
 pub mod api;
 pub mod config;
+pub mod edge;
 pub mod healthcheck;
 pub mod metrics;
 pub mod physics;

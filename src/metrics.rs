@@ -1,19 +1,11 @@
 //! Prometheus metrics: request counts and latency histograms by method, route and status, and
-//! the number of requests in flight, kept in a registry owned by each application instance.
+//! the number of requests in flight, kept in a registry owned by each application instance and
+//! fed by [`crate::edge`].
 
-use std::time::Instant;
-
-use axum::{
-    extract::{MatchedPath, Request, State},
-    http::Method,
-    middleware::Next,
-    response::Response,
-};
+use axum::http::Method;
 use prometheus::{
     Encoder, HistogramOpts, HistogramVec, IntCounterVec, IntGauge, Opts, Registry, TextEncoder,
 };
-
-use crate::telemetry::UNMATCHED_ROUTE;
 
 /// Latency buckets in seconds: from 50 µs (a warm /distance) to 10 s (past any timeout).
 const LATENCY_BUCKETS: &[f64] = &[
@@ -90,10 +82,16 @@ impl Metrics {
         String::from_utf8(buffer).map_err(|error| error.to_string())
     }
 
-    fn observe(&self, method: &str, route: &str, status: &str, seconds: f64) {
+    /// Counts one answered request and its latency.
+    pub fn observe(&self, method: &str, route: &str, status: &str, seconds: f64) {
         let labels = [method, route, status];
         self.requests.with_label_values(&labels).inc();
         self.latency.with_label_values(&labels).observe(seconds);
+    }
+
+    /// The gauge of requests being served.
+    pub fn in_flight(&self) -> &IntGauge {
+        &self.in_flight
     }
 }
 
@@ -101,10 +99,11 @@ impl Metrics {
 pub const TEXT_FORMAT: &str = "text/plain; version=0.0.4; charset=utf-8";
 
 /// Keeps the in-flight gauge right even when a request is cancelled mid-way.
-struct InFlight(IntGauge);
+pub struct InFlight(IntGauge);
 
 impl InFlight {
-    fn enter(gauge: &IntGauge) -> Self {
+    /// Counts a request in until the guard is dropped.
+    pub fn enter(gauge: &IntGauge) -> Self {
         gauge.inc();
         Self(gauge.clone())
     }
@@ -117,7 +116,7 @@ impl Drop for InFlight {
 }
 
 /// A method label from a bounded set, so that odd methods cannot blow up the label space.
-fn method_label(method: &Method) -> &'static str {
+pub fn method_label(method: &Method) -> &'static str {
     match *method {
         Method::GET => "GET",
         Method::POST => "POST",
@@ -128,20 +127,6 @@ fn method_label(method: &Method) -> &'static str {
         Method::PATCH => "PATCH",
         _ => "OTHER",
     }
-}
-
-/// Middleware: counts and times every request by method, route template and status.
-pub async fn track(State(metrics): State<Metrics>, request: Request, next: Next) -> Response {
-    let method = method_label(request.method());
-    // MatchedPath is an Arc<str>: cloning it costs no allocation.
-    let route = request.extensions().get::<MatchedPath>().cloned();
-    let _in_flight = InFlight::enter(&metrics.in_flight);
-    let started = Instant::now();
-    let response = next.run(request).await;
-    let seconds = started.elapsed().as_secs_f64();
-    let route = route.as_ref().map_or(UNMATCHED_ROUTE, MatchedPath::as_str);
-    metrics.observe(method, route, response.status().as_str(), seconds);
-    response
 }
 
 #[cfg(test)]

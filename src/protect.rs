@@ -1,5 +1,5 @@
-//! Protective layers: the request timeout (408/503), load shedding past the concurrency limit
-//! (503 with `Retry-After`), CORS and response compression. Each answers in problem+json.
+//! Protective pieces used by [`crate::edge`]: the body watcher behind the request timeout's
+//! 408/503 choice, the `Retry-After` of a shed request, and CORS.
 
 use std::{
     pin::Pin,
@@ -12,45 +12,29 @@ use std::{
 };
 
 use axum::{
-    BoxError,
     body::{Body, Bytes},
-    extract::{Request, State},
     http::{HeaderValue, Method, header},
-    middleware::Next,
-    response::{IntoResponse, Response},
 };
 use http_body::{Frame, SizeHint};
 use tower_http::cors::{AllowOrigin, CorsLayer};
 
-use crate::{api::error::ApiError, telemetry::X_REQUEST_ID};
+use crate::telemetry::X_REQUEST_ID;
 
 /// Seconds a shed client is asked to wait before retrying.
 pub const RETRY_AFTER_SECS: u64 = 1;
 
-/// Middleware: answers 408 when the request body is still arriving after `limit`, 503 when the
-/// body was in but the answer was not ready.
-pub async fn timeout(State(limit): State<Duration>, request: Request, next: Next) -> Response {
-    let received = Arc::new(AtomicBool::new(false));
-    let request = request.map(|body| {
-        Body::new(Watched {
-            received: Arc::clone(&received),
-            inner: body,
-        })
-    });
-    match tokio::time::timeout(limit, next.run(request)).await {
-        Ok(response) => response,
-        Err(_) => ApiError::Timeout {
-            after: limit,
-            body_received: received.load(Ordering::Acquire),
-        }
-        .into_response(),
-    }
-}
-
-/// A request body that records when it has been read to the end.
-struct Watched {
+/// A request body that records when it has been read to the end, so that a timeout can tell
+/// a slow client (408) from a slow server (503).
+pub struct Watched {
     received: Arc<AtomicBool>,
     inner: Body,
+}
+
+impl Watched {
+    /// Wraps `inner`, setting `received` once it has been read to the end.
+    pub fn new(received: Arc<AtomicBool>, inner: Body) -> Self {
+        Self { received, inner }
+    }
 }
 
 impl http_body::Body for Watched {
@@ -74,19 +58,6 @@ impl http_body::Body for Watched {
 
     fn size_hint(&self) -> SizeHint {
         self.inner.size_hint()
-    }
-}
-
-/// The answer when the load-shedding layer refuses a request (or, never expected, when another
-/// layer fails).
-pub async fn shed(error: BoxError) -> Response {
-    if error.is::<tower::load_shed::error::Overloaded>() {
-        ApiError::Overloaded {
-            retry_after_secs: RETRY_AFTER_SECS,
-        }
-        .into_response()
-    } else {
-        ApiError::Internal(error.to_string()).into_response()
     }
 }
 

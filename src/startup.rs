@@ -1,15 +1,9 @@
 //! Building and running the server: the middleware stack, the HTTP/1.1 accept loop with its
 //! header read timeout, and graceful shutdown (readiness off, optional delay, bounded drain).
 
-use std::{any::Any, future::Future, io, net::SocketAddr, pin::pin, time::Duration};
+use std::{future::Future, io, net::SocketAddr, pin::pin, time::Duration};
 
-use axum::{
-    Extension, Router,
-    error_handling::HandleErrorLayer,
-    extract::DefaultBodyLimit,
-    middleware::{from_fn, from_fn_with_state},
-    response::{IntoResponse, Response},
-};
+use axum::Router;
 use hyper::server::conn::http1;
 use hyper_util::{
     rt::{TokioIo, TokioTimer},
@@ -17,74 +11,42 @@ use hyper_util::{
     service::TowerToHyperService,
 };
 use tokio::net::{TcpListener, TcpStream};
-use tower::{ServiceBuilder, limit::GlobalConcurrencyLimitLayer};
-use tower_http::{
-    catch_panic::CatchPanicLayer,
-    compression::CompressionLayer,
-    request_id::{MakeRequestUuid, PropagateRequestIdLayer, SetRequestIdLayer},
-};
+use tower::ServiceBuilder;
+use tower_http::compression::CompressionLayer;
 
 use crate::{
     api::{
-        self, AppState, Routers,
-        error::ApiError,
-        extract::BodyLimit,
-        handlers,
+        self, AppState, Routers, handlers,
         ops::{OpsState, Readiness},
     },
     config::Config,
-    metrics, protect,
-    telemetry::{self, X_REQUEST_ID},
+    edge::{EdgeLayer, GuardLayer},
+    protect,
 };
 
 /// The complete application router for `config`, every layer included. `ops` carries the
 /// readiness flag and the metrics registry, shared with whoever runs the server.
 ///
-/// Layers, outermost first: request id → request log → id echo → metrics → CORS →
-/// compression → panic catcher; then, on the API routes only (not on the probes), load
-/// shedding at the concurrency limit → request timeout → body limit.
+/// Layers, outermost first: [`crate::edge::Edge`] (request id, in-flight gauge, panic → 500, metrics,
+/// access log) → CORS (when configured) → compression → [`crate::edge::Guard`] (on the API routes, not
+/// the probes: load shedding at the concurrency limit, request timeout, body limit). They are
+/// applied in one `Router::layer` call, so each route is wrapped (and cloned per request) once.
 pub fn app(config: &Config, ops: OpsState) -> Router {
     let limits = config.limits;
     let Routers { api, ops: probes } = api::routers(AppState { limits }, ops.clone());
-    let api = api
-        .layer(DefaultBodyLimit::max(limits.body_bytes))
-        .layer(Extension(BodyLimit(limits.body_bytes)))
-        .layer(from_fn_with_state(config.request_timeout, protect::timeout))
-        .layer(
-            ServiceBuilder::new()
-                .layer(HandleErrorLayer::new(protect::shed))
-                .load_shed()
-                .layer(GlobalConcurrencyLimitLayer::new(config.concurrency_limit)),
-        );
-    let router = api
-        .merge(probes)
+    let stack = ServiceBuilder::new()
+        .layer(EdgeLayer::new(ops.metrics, config.access_log))
+        .option_layer(protect::cors(&config.cors_allowed_origins))
+        .layer(CompressionLayer::new())
+        .layer(GuardLayer::new(
+            config.concurrency_limit,
+            config.request_timeout,
+            limits.body_bytes,
+        ));
+    api.merge(probes)
         .fallback(handlers::not_found)
         .method_not_allowed_fallback(handlers::method_not_allowed)
-        .layer(CatchPanicLayer::custom(panic_response))
-        .layer(CompressionLayer::new());
-    let router = match protect::cors(&config.cors_allowed_origins) {
-        Some(cors) => router.layer(cors),
-        None => router,
-    };
-    router
-        .layer(from_fn_with_state(ops.metrics, metrics::track))
-        .layer(from_fn(telemetry::scope_request_id))
-        .layer(PropagateRequestIdLayer::new(X_REQUEST_ID.clone()))
-        .layer(telemetry::request_log())
-        .layer(SetRequestIdLayer::new(
-            X_REQUEST_ID.clone(),
-            MakeRequestUuid,
-        ))
-}
-
-/// A panic is a bug; answer it as a problem+json 500 rather than dropping the connection.
-fn panic_response(panic: Box<dyn Any + Send + 'static>) -> Response {
-    let what = panic
-        .downcast_ref::<&str>()
-        .map(|s| (*s).to_owned())
-        .or_else(|| panic.downcast_ref::<String>().cloned())
-        .unwrap_or_else(|| "panic".to_owned());
-    ApiError::Internal(what).into_response()
+        .layer(stack)
 }
 
 /// How connections are served and how the server stops.

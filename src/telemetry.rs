@@ -1,23 +1,12 @@
-//! Logs and request ids: the tracing subscriber, the `x-request-id` that follows each request,
-//! and the one structured log line written per request.
+//! Logs and request ids: the tracing subscriber, the `x-request-id` that follows each request
+//! (the caller's, or a UUID v4 made here), and the access log line written per request.
 
-use std::time::Duration;
+use std::{cell::Cell, future::Future, hash::BuildHasher, io::IsTerminal};
 
-use axum::{
-    extract::{MatchedPath, Request},
-    http::{HeaderName, HeaderValue},
-    middleware::Next,
-    response::Response,
-};
-use tower_http::{
-    classify::{ServerErrorsAsFailures, SharedClassifier},
-    request_id::RequestId,
-    trace::{DefaultOnBodyChunk, DefaultOnEos, DefaultOnRequest, MakeSpan, OnResponse, TraceLayer},
-};
-use tracing::{Level, Span};
+use axum::http::{HeaderMap, HeaderName, HeaderValue, StatusCode};
 use tracing_subscriber::EnvFilter;
 
-use crate::config::LogFormat;
+use crate::config::{AccessLog, LogFormat};
 
 /// The header that carries the request id in and out.
 pub static X_REQUEST_ID: HeaderName = HeaderName::from_static("x-request-id");
@@ -33,7 +22,10 @@ tokio::task_local! {
 /// Installs the global subscriber: `filter` in EnvFilter syntax, lines in `format`.
 pub fn init(format: LogFormat, filter: &str) -> Result<(), String> {
     let filter = EnvFilter::try_new(filter).map_err(|error| error.to_string())?;
-    let builder = tracing_subscriber::fmt().with_env_filter(filter);
+    // Colours only on a terminal: escape codes in a file or a collector are noise.
+    let builder = tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_ansi(std::io::stdout().is_terminal());
     let result = match format {
         LogFormat::Pretty => builder.try_init(),
         LogFormat::Json => builder
@@ -54,77 +46,95 @@ pub fn current_request_id() -> Option<String> {
         .flatten()
 }
 
-/// Middleware: makes the request's id (set by `SetRequestIdLayer`) visible to
-/// [`current_request_id`] while the request is served.
-pub async fn scope_request_id(request: Request, next: Next) -> Response {
-    match request.extensions().get::<RequestId>() {
-        Some(id) => {
-            let id = id.header_value().clone();
-            REQUEST_ID.scope(id, next.run(request)).await
+/// Runs `future` as the request with id `id`: [`current_request_id`] sees it throughout.
+pub async fn with_request_id<F: Future>(id: HeaderValue, future: F) -> F::Output {
+    REQUEST_ID.scope(id, future).await
+}
+
+/// Runs `f` as the request with id `id`, synchronously.
+pub fn in_request<R>(id: HeaderValue, f: impl FnOnce() -> R) -> R {
+    REQUEST_ID.sync_scope(id, f)
+}
+
+/// The longest caller-supplied request id that is kept; a longer one is replaced.
+pub const MAX_REQUEST_ID_LEN: usize = 200;
+
+/// The request's id: the caller's `x-request-id` when it has one of printable ASCII of at most
+/// [`MAX_REQUEST_ID_LEN`] bytes, otherwise a new random UUID v4.
+pub fn request_id(headers: &HeaderMap) -> HeaderValue {
+    match headers.get(&X_REQUEST_ID) {
+        Some(id) if !id.is_empty() && id.len() <= MAX_REQUEST_ID_LEN && id.to_str().is_ok() => {
+            id.clone()
         }
-        None => next.run(request).await,
+        _ => new_request_id(),
     }
 }
 
-/// The route template a request matched (`/distance`), or [`UNMATCHED_ROUTE`].
-pub fn route_of<B>(request: &axum::http::Request<B>) -> &str {
-    request
-        .extensions()
-        .get::<MatchedPath>()
-        .map_or(UNMATCHED_ROUTE, MatchedPath::as_str)
+thread_local! {
+    /// The state of this thread's request id generator (SplitMix64), seeded from the standard
+    /// library's per-thread random hash keys: no system call per id.
+    static ID_STATE: Cell<u64> = Cell::new(
+        std::collections::hash_map::RandomState::new().hash_one(std::thread::current().id()),
+    );
 }
 
-/// A span per request carrying its method, route, path and id.
-#[derive(Debug, Clone, Copy)]
-pub struct RequestSpan;
-
-impl<B> MakeSpan<B> for RequestSpan {
-    fn make_span(&mut self, request: &axum::http::Request<B>) -> Span {
-        let request_id = request
-            .extensions()
-            .get::<RequestId>()
-            .and_then(|id| id.header_value().to_str().ok())
-            .unwrap_or("-");
-        tracing::info_span!(
-            "request",
-            method = %request.method(),
-            route = route_of(request),
-            path = request.uri().path(),
-            request_id,
-        )
-    }
+fn next_random() -> u64 {
+    ID_STATE.with(|state| {
+        let mut z = state.get().wrapping_add(0x9E37_79B9_7F4A_7C15);
+        state.set(z);
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    })
 }
 
-/// Writes the request's one log line when its response is ready: status and latency, inside
-/// the request's span (method, route, path, id).
-#[derive(Debug, Clone, Copy)]
-pub struct LogResponse;
-
-impl<B> OnResponse<B> for LogResponse {
-    fn on_response(self, response: &axum::http::Response<B>, latency: Duration, _: &Span) {
-        let status = response.status().as_u16();
-        let latency_ms = latency.as_secs_f64() * 1e3;
-        if response.status().is_server_error() {
-            tracing::warn!(status, latency_ms, "request served");
+/// A random UUID v4 (RFC 9562) in its 36-character hyphenated form.
+pub fn new_request_id() -> HeaderValue {
+    const HEX: &[u8; 16] = b"0123456789abcdef";
+    let (high, low) = (next_random(), next_random());
+    // Version 4 in bits 48..52, variant 0b10 in bits 64..66.
+    let bits = (u128::from(high) << 64 | u128::from(low)) & !(0xF << 76) & !(0b11 << 62)
+        | (0x4 << 76)
+        | (0b10 << 62);
+    let mut text = [0u8; 36];
+    let mut nibble = 32;
+    for (i, byte) in text.iter_mut().enumerate() {
+        if matches!(i, 8 | 13 | 18 | 23) {
+            *byte = b'-';
         } else {
-            tracing::info!(status, latency_ms, "request served");
+            nibble -= 1;
+            *byte = HEX[((bits >> (nibble * 4)) & 0xF) as usize];
         }
     }
+    HeaderValue::from_bytes(&text).expect("hex digits and hyphens are a valid header value")
 }
 
-/// The per-request logging layer: a span per request and one line when its response is ready.
-pub fn request_log() -> TraceLayer<
-    SharedClassifier<ServerErrorsAsFailures>,
-    RequestSpan,
-    DefaultOnRequest,
-    LogResponse,
-    DefaultOnBodyChunk,
-    DefaultOnEos,
-    (),
-> {
-    TraceLayer::new_for_http()
-        .make_span_with(RequestSpan)
-        .on_request(DefaultOnRequest::new().level(Level::DEBUG))
-        .on_response(LogResponse)
-        .on_failure(())
+/// Writes the access log line of one answered request, if `policy` asks for it: `info` for
+/// answers below 500, `warn` for server errors. The target is `access`, so that a filter such
+/// as `info,access=off` can silence it too.
+pub fn access_log(
+    policy: AccessLog,
+    method: &str,
+    route: &str,
+    path: &str,
+    status: StatusCode,
+    seconds: f64,
+    request_id: &HeaderValue,
+) {
+    let wanted = match policy {
+        AccessLog::Off => false,
+        AccessLog::Errors => status.as_u16() >= 400,
+        AccessLog::All => true,
+    };
+    if !wanted {
+        return;
+    }
+    let status = status.as_u16();
+    let latency_ms = seconds * 1e3;
+    let request_id = request_id.to_str().unwrap_or("-");
+    if status >= 500 {
+        tracing::warn!(target: "access", method, route, path, status, latency_ms, request_id, "request served");
+    } else {
+        tracing::info!(target: "access", method, route, path, status, latency_ms, request_id, "request served");
+    }
 }

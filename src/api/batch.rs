@@ -73,6 +73,10 @@ impl<S: Send + Sync> FromRequest<S> for DistanceBody {
     async fn from_request(req: Request, state: &S) -> Result<Self, Self::Rejection> {
         let bytes = extract::json_bytes(req, state).await?;
         expect_object(&bytes)?;
+        if !may_be_batch(&bytes) {
+            let (request, problems) = extract::decode_json(&bytes)?;
+            return Ok(DistanceBody::One(request, problems));
+        }
         let shape: Shape =
             serde_json::from_slice(&bytes).map_err(|e| extract::malformed_json(&e))?;
         if !(shape.rig.0 || shape.points.0) {
@@ -95,6 +99,14 @@ impl<S: Send + Sync> FromRequest<S> for DistanceBody {
             serde_json::from_slice(&bytes).map_err(|e| extract::malformed_json(&e))?;
         Ok(DistanceBody::Batch(diagnose(map)))
     }
+}
+
+/// Whether a body can name `rig` or `points` at all: only if those words appear in it in
+/// quotes, or if it has escapes (`"\u0072ig"` is also `rig`). The common single-point body
+/// fails this byte scan and skips the skim.
+fn may_be_batch(bytes: &[u8]) -> bool {
+    let has = |word: &[u8]| bytes.windows(word.len()).any(|w| w == word);
+    has(b"\"rig\"") || has(b"\"points\"") || bytes.contains(&b'\\')
 }
 
 /// Decodes a batch member by member, so that each fault is named where it is.
@@ -265,4 +277,19 @@ fn failure(index: usize, problems: Problems) -> PointOutcome {
             })
             .collect(),
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::may_be_batch;
+
+    /// Only a body that mentions `rig` or `points` in quotes, or has escapes, can be a batch.
+    #[test]
+    fn batch_candidates() {
+        assert!(!may_be_batch(br#"{"focal_length_px": 35, "x_left": 400}"#));
+        assert!(may_be_batch(br#"{"rig": {}, "points": []}"#));
+        assert!(may_be_batch(br#"{"points": []}"#));
+        assert!(may_be_batch(br#"{"\u0072ig": {}}"#));
+        assert!(may_be_batch(br#"{"unit": "rig"}"#));
+    }
 }

@@ -9,7 +9,7 @@
 use axum::{
     body::Bytes,
     extract::{FromRequest, FromRequestParts, Request},
-    http::{StatusCode, header, request::Parts},
+    http::{header, request::Parts},
 };
 use percent_encoding::percent_decode_str;
 use serde::de::DeserializeOwned;
@@ -44,24 +44,30 @@ where
 
 /// The body of a request declared as JSON, within the body limit: 415 for another content
 /// type, 413 beyond the limit.
-pub async fn json_bytes<S: Send + Sync>(req: Request, state: &S) -> Result<Bytes, ApiError> {
-    let content_type = req
-        .headers()
-        .get(header::CONTENT_TYPE)
-        .map(|v| String::from_utf8_lossy(v.as_bytes()).into_owned());
-    match content_type.as_deref() {
-        Some(ct) if is_json(ct) => {}
-        Some(ct) => return Err(ApiError::UnsupportedMediaType(ct.to_owned())),
+pub async fn json_bytes<S: Send + Sync>(req: Request, _state: &S) -> Result<Bytes, ApiError> {
+    match req.headers().get(header::CONTENT_TYPE) {
+        Some(ct) if ct.to_str().is_ok_and(is_json) => {}
+        Some(ct) => {
+            let ct = String::from_utf8_lossy(ct.as_bytes()).into_owned();
+            return Err(ApiError::UnsupportedMediaType(ct));
+        }
         None => return Err(ApiError::UnsupportedMediaType("no Content-Type".to_owned())),
     }
     let limit = body_limit(&req);
-    Bytes::from_request(req, state).await.map_err(|rejection| {
-        if rejection.status() == StatusCode::PAYLOAD_TOO_LARGE {
-            ApiError::PayloadTooLarge(limit)
-        } else {
-            ApiError::Malformed(FieldError::new("body", rejection.body_text()))
-        }
-    })
+    axum::body::to_bytes(req.into_body(), limit)
+        .await
+        .map_err(|error| {
+            let too_large = std::error::Error::source(&error)
+                .is_some_and(|source| source.is::<http_body_util::LengthLimitError>());
+            if too_large {
+                ApiError::PayloadTooLarge(limit)
+            } else {
+                ApiError::Malformed(FieldError::new(
+                    "body",
+                    format!("the body could not be read: {error}"),
+                ))
+            }
+        })
 }
 
 /// A request type that can come as a query string: which of its members are lists, given
@@ -96,14 +102,20 @@ fn body_limit(req: &Request) -> usize {
 
 /// `application/json`, or any `application/*+json`, with or without parameters.
 fn is_json(content_type: &str) -> bool {
-    let essence = content_type
-        .split(';')
-        .next()
-        .unwrap_or_default()
-        .trim()
-        .to_ascii_lowercase();
-    essence == "application/json"
-        || (essence.starts_with("application/") && essence.ends_with("+json"))
+    let essence = content_type.split(';').next().unwrap_or_default().trim();
+    let starts = |prefix: &str| {
+        essence
+            .get(..prefix.len())
+            .is_some_and(|head| head.eq_ignore_ascii_case(prefix))
+    };
+    let ends = |suffix: &str| {
+        essence
+            .len()
+            .checked_sub(suffix.len())
+            .and_then(|at| essence.get(at..))
+            .is_some_and(|tail| tail.eq_ignore_ascii_case(suffix))
+    };
+    essence.eq_ignore_ascii_case("application/json") || (starts("application/") && ends("+json"))
 }
 
 /// Checks that a body is a JSON object before serde sees it: serde would read an array into a

@@ -40,6 +40,10 @@ pub struct OpsState {
     pub metrics: Metrics,
 }
 
+/// The routes of the operations endpoints, which are never shed nor timed out: a probe must
+/// answer most of all when the API is overloaded.
+pub const PROBE_ROUTES: [&str; 3] = ["/healthz", "/readyz", "/metrics"];
+
 /// The body of a successful probe.
 #[derive(Debug, Serialize, ToSchema)]
 pub struct Health {
