@@ -122,7 +122,8 @@ where
     let method = method_label(request.method());
     let route = route_of(&request);
     let id = telemetry::request_id(request.headers());
-    let path = (layer.access_log != AccessLog::Off).then(|| request.uri().path().to_owned());
+    // A clone of the URI shares hyper's buffer: no copy unless a line is written.
+    let uri = (layer.access_log != AccessLog::Off).then(|| request.uri().clone());
 
     let answer = AssertUnwindSafe(inner.call(request)).catch_unwind();
     let mut response = match telemetry::with_request_id(id.clone(), answer).await {
@@ -141,8 +142,16 @@ where
     layer
         .metrics
         .observe(method, route, status.as_str(), seconds);
-    if let Some(path) = path {
-        telemetry::access_log(layer.access_log, method, route, &path, status, seconds, &id);
+    if let Some(uri) = uri {
+        telemetry::access_log(
+            layer.access_log,
+            method,
+            route,
+            uri.path(),
+            status,
+            seconds,
+            &id,
+        );
     }
     response.headers_mut().insert(X_REQUEST_ID.clone(), id);
     Ok(response)

@@ -1,7 +1,6 @@
 //! Route handlers: each is extract → validate → physics → response, and nothing else.
 
 use axum::{
-    Json,
     extract::State,
     http::{HeaderMap, HeaderValue, Method, Uri, header},
     response::{IntoResponse, Response},
@@ -14,6 +13,7 @@ use super::{
     error::{ApiError, BodyErrors, QueryErrors},
     extract::{JsonBody, QueryParams},
     format::short,
+    respond::Json,
     svg,
     types::{
         Axis, ChartPoint, ChartRequest, ChartResponse, DistanceInput, DistanceOutput,

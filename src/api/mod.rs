@@ -8,6 +8,7 @@ pub mod format;
 pub mod handlers;
 pub mod ops;
 pub mod planning;
+pub mod respond;
 pub mod svg;
 pub mod types;
 pub mod validate;

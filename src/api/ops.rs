@@ -8,7 +8,6 @@ use std::sync::{
 };
 
 use axum::{
-    Json,
     extract::State,
     http::{StatusCode, header},
     response::{IntoResponse, Response},
@@ -16,7 +15,10 @@ use axum::{
 use serde::Serialize;
 use utoipa::ToSchema;
 
-use super::error::{ApiError, problem_responses};
+use super::{
+    error::{ApiError, problem_responses},
+    respond::Json,
+};
 use crate::metrics::{Metrics, TEXT_FORMAT};
 
 /// Whether the server wants traffic: false before it serves and while it drains.

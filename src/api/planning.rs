@@ -2,12 +2,11 @@
 //! `/baseline` (the shortest baseline that meets a depth-error budget). Each is extract →
 //! validate → physics → response, like every other route.
 
-use axum::Json;
-
 use super::{
     error::{ApiError, BodyErrors, QueryErrors},
     extract::{JsonBody, QueryParams},
     format::{percent, short},
+    respond::Json,
     types::{
         BaselineRequest, BaselineResponse, DepthErrorAt, ErrorBudget, MAX_AT_DISTANCES, RigRequest,
         RigResponse,
