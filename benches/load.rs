@@ -640,6 +640,29 @@ async fn watch(pid: u32, from: Instant, to: Instant) -> Readings {
     }
 }
 
+/// Waits for every connection and the watcher, and makes their figures one row.
+async fn gather(
+    target: &Target,
+    window: Duration,
+    tasks: Vec<tokio::task::JoinHandle<io::Result<Recorded>>>,
+    watcher: tokio::task::JoinHandle<Readings>,
+) -> Result<Row, String> {
+    let connections = tasks.len();
+    let mut recorded = Recorded::default();
+    for task in tasks {
+        let connection = task.await.map_err(|e| e.to_string())?;
+        recorded.merge(connection.map_err(|e| format!("{}: {e}", target.name))?);
+    }
+    let readings = watcher.await.map_err(|e| e.to_string())?;
+    Ok(Row::new(
+        &target.name,
+        connections,
+        window,
+        recorded,
+        readings,
+    ))
+}
+
 /// Closed loop: `connections` connections each send the next request as soon as the last is
 /// answered, for the warm-up and then the measured window.
 fn closed_loop(
@@ -677,19 +700,7 @@ fn closed_loop(
                 }
             }));
         }
-        let mut recorded = Recorded::default();
-        for task in tasks {
-            let connection = task.await.map_err(|e| e.to_string())?;
-            recorded.merge(connection.map_err(|e| format!("{}: {e}", target.name))?);
-        }
-        let readings = watcher.await.map_err(|e| e.to_string())?;
-        Ok(Row::new(
-            &target.name,
-            connections,
-            options.duration,
-            recorded,
-            readings,
-        ))
+        gather(target, options.duration, tasks, watcher).await
     })
 }
 
@@ -754,19 +765,7 @@ fn open_loop(
             tokio::task::yield_now().await;
         }
         drop(release);
-        let mut recorded = Recorded::default();
-        for task in tasks {
-            let connection = task.await.map_err(|e| e.to_string())?;
-            recorded.merge(connection.map_err(|e| format!("{}: {e}", target.name))?);
-        }
-        let readings = watcher.await.map_err(|e| e.to_string())?;
-        Ok(Row::new(
-            &target.name,
-            connections,
-            options.duration,
-            recorded,
-            readings,
-        ))
+        gather(target, options.duration, tasks, watcher).await
     })
 }
 
