@@ -495,6 +495,7 @@ fn fetch(addr: SocketAddr, request: &[u8]) -> io::Result<(u16, Vec<u8>)> {
 
 /// A keep-alive connection of the load generator.
 struct Connection {
+    addr: SocketAddr,
     stream: TcpStream,
     buf: Vec<u8>,
 }
@@ -504,9 +505,31 @@ impl Connection {
         let stream = TcpStream::connect(addr).await?;
         stream.set_nodelay(true)?;
         Ok(Self {
+            addr,
             stream,
             buf: Vec::with_capacity(64 * 1024),
         })
+    }
+
+    /// One exchange, recorded in `recorded` with its latency from `since` when `since` lies
+    /// in the measured window (at or after `from`). A failed exchange counts as an error and
+    /// the connection is opened again.
+    async fn measure(
+        &mut self,
+        request: &[u8],
+        since: Instant,
+        from: Instant,
+        recorded: &mut Recorded,
+    ) -> io::Result<()> {
+        match self.exchange(request).await {
+            Ok(status) if since >= from => recorded.record(since.elapsed(), status),
+            Ok(_) => {}
+            Err(_) => {
+                recorded.errors += 1;
+                *self = Connection::open(self.addr).await?;
+            }
+        }
+        Ok(())
     }
 
     /// Sends `request` and reads the whole response; returns its status.
@@ -689,14 +712,9 @@ fn closed_loop(
                     if sent >= to {
                         return Ok::<_, io::Error>(recorded);
                     }
-                    match connection.exchange(&request).await {
-                        Ok(status) if sent >= from => recorded.record(sent.elapsed(), status),
-                        Ok(_) => {}
-                        Err(_) => {
-                            recorded.errors += 1;
-                            connection = Connection::open(addr).await?;
-                        }
-                    }
+                    connection
+                        .measure(&request, sent, from, &mut recorded)
+                        .await?;
                 }
             }));
         }
@@ -741,16 +759,9 @@ fn open_loop(
                         recorded.errors += 1;
                         continue;
                     }
-                    match connection.exchange(&request).await {
-                        Ok(status) if scheduled >= from => {
-                            recorded.record(scheduled.elapsed(), status)
-                        }
-                        Ok(_) => {}
-                        Err(_) => {
-                            recorded.errors += 1;
-                            connection = Connection::open(addr).await?;
-                        }
-                    }
+                    connection
+                        .measure(&request, scheduled, from, &mut recorded)
+                        .await?;
                 }
             }));
         }

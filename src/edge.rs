@@ -57,19 +57,22 @@ fn route_of(request: &Request) -> Option<MatchedPath> {
 // ---------------------------------------------------------------------------------------------
 // Edge
 
-/// Builds [`Edge`] services.
+/// Builds [`Edge`] services. What they share sits behind one `Arc`, because axum clones each
+/// route's service for every request.
 #[derive(Clone)]
-pub struct EdgeLayer {
+pub struct EdgeLayer(Arc<EdgeShared>);
+
+struct EdgeShared {
     metrics: Metrics,
     access_log: AccessLog,
 }
 
 impl EdgeLayer {
     pub fn new(metrics: Metrics, access_log: AccessLog) -> Self {
-        Self {
+        Self(Arc::new(EdgeShared {
             metrics,
             access_log,
-        }
+        }))
     }
 }
 
@@ -107,12 +110,16 @@ where
 
     fn call(&mut self, request: Request) -> ResponseFuture {
         let inner = take(&mut self.inner);
-        let layer = self.layer.clone();
-        Box::pin(edge(layer, inner, request))
+        let shared = Arc::clone(&self.layer.0);
+        Box::pin(edge(shared, inner, request))
     }
 }
 
-async fn edge<S>(layer: EdgeLayer, mut inner: S, request: Request) -> Result<Response, Infallible>
+async fn edge<S>(
+    layer: Arc<EdgeShared>,
+    mut inner: S,
+    request: Request,
+) -> Result<Response, Infallible>
 where
     S: Service<Request, Error = Infallible>,
     S::Response: IntoResponse,
