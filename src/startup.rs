@@ -1,16 +1,20 @@
 //! Building and running the server: the middleware stack, the HTTP/1.1 accept loop with its
-//! header read timeout, and graceful shutdown (readiness off, optional delay, bounded drain).
+//! header read timeout, and graceful shutdown (readiness off, optional delay, bounded drain
+//! that loses no request a client has sent).
 
-use std::{future::Future, io, net::SocketAddr, pin::pin, time::Duration};
+use std::{future::Future, io, net::SocketAddr, pin::pin, sync::Arc, time::Duration};
 
 use axum::Router;
+use futures_util::FutureExt;
 use hyper::server::conn::http1;
 use hyper_util::{
     rt::{TokioIo, TokioTimer},
-    server::graceful::GracefulShutdown,
     service::TowerToHyperService,
 };
-use tokio::net::{TcpListener, TcpStream};
+use tokio::{
+    net::{TcpListener, TcpStream},
+    sync::{Notify, watch},
+};
 use tower::ServiceBuilder;
 use tower_http::compression::CompressionLayer;
 
@@ -103,11 +107,12 @@ impl Application {
         let mut http = http1::Builder::new();
         http.timer(TokioTimer::new())
             .header_read_timeout(serving.header_read_timeout);
+        let (stopping, _) = watch::channel(false);
         let server = Server {
             listener,
             router,
             http,
-            graceful: GracefulShutdown::new(),
+            stopping,
         };
 
         readiness.set(true);
@@ -122,12 +127,17 @@ impl Application {
                 .accept_until(tokio::time::sleep(serving.shutdown_delay))
                 .await;
         }
+        let accepted = server.accept_pending();
         let Server {
-            listener, graceful, ..
+            listener, stopping, ..
         } = server;
         drop(listener);
-        tracing::info!("listener closed: draining in-flight requests");
-        match tokio::time::timeout(serving.shutdown_timeout, graceful.shutdown()).await {
+        tracing::info!(
+            accepted_from_queue = accepted,
+            "listener closed: draining in-flight requests"
+        );
+        stopping.send_replace(true);
+        match tokio::time::timeout(serving.shutdown_timeout, stopping.closed()).await {
             Ok(()) => tracing::info!("drained: every in-flight request finished"),
             Err(_) => tracing::warn!(
                 timeout_ms = serving.shutdown_timeout.as_millis() as u64,
@@ -143,12 +153,17 @@ impl Application {
     }
 }
 
+/// Connections the kernel may queue before they are accepted (tokio's listen backlog).
+const ACCEPT_QUEUE: usize = 1024;
+
 /// The listening half of a running server.
 struct Server {
     listener: TcpListener,
     router: Router,
     http: http1::Builder,
-    graceful: GracefulShutdown,
+    /// Turns true when the server stops; every connection task holds a receiver, so
+    /// `closed()` on it completes when the last connection is done.
+    stopping: watch::Sender<bool>,
 }
 
 impl Server {
@@ -171,19 +186,69 @@ impl Server {
         }
     }
 
-    /// Serves one connection on its own task, watched for graceful shutdown.
+    /// Accepts the connections already waiting in the kernel's queue, which closing the
+    /// listener would reset although their clients may have sent a request; returns how many.
+    fn accept_pending(&self) -> usize {
+        let mut accepted = 0;
+        while accepted < ACCEPT_QUEUE {
+            match self.listener.accept().now_or_never() {
+                Some(Ok((stream, _))) => {
+                    self.serve(stream);
+                    accepted += 1;
+                }
+                _ => break,
+            }
+        }
+        accepted
+    }
+
+    /// Serves one connection on its own task. When the server stops, a connection that has
+    /// begun a request finishes it and closes, and an idle keep-alive connection closes; a
+    /// new connection that has not yet sent its first request is given that request first
+    /// (within the header read timeout), since its client has no reason to expect a close.
     fn serve(&self, stream: TcpStream) {
         if let Err(error) = stream.set_nodelay(true) {
             tracing::debug!(%error, "cannot set TCP_NODELAY");
         }
-        let service = TowerToHyperService::new(self.router.clone());
+        let begun = Arc::new(Notify::new());
+        let signal = begun.clone();
+        let router = ServiceBuilder::new()
+            .map_request(move |request: hyper::Request<hyper::body::Incoming>| {
+                signal.notify_one();
+                request
+            })
+            .service(self.router.clone());
         let connection = self
-            .graceful
-            .watch(self.http.serve_connection(TokioIo::new(stream), service));
+            .http
+            .serve_connection(TokioIo::new(stream), TowerToHyperService::new(router));
+        let mut stopping = self.stopping.subscribe();
         tokio::spawn(async move {
-            if let Err(error) = connection.await {
+            let mut connection = pin!(connection);
+            let result = tokio::select! {
+                result = connection.as_mut() => result,
+                () = async {
+                    // The guard `wait_for` returns is dropped here: it must not cross an await.
+                    let _ = stopping.wait_for(|&stop| stop).await;
+                } => {
+                    // A request has begun on this connection (a permit is stored), or wait for
+                    // the first one.
+                    let result = tokio::select! {
+                        result = connection.as_mut() => Some(result),
+                        () = begun.notified() => None,
+                    };
+                    match result {
+                        Some(result) => result,
+                        None => {
+                            connection.as_mut().graceful_shutdown();
+                            connection.await
+                        }
+                    }
+                }
+            };
+            if let Err(error) = result {
                 tracing::debug!(%error, "connection closed with an error");
             }
+            drop(stopping);
         });
     }
 }

@@ -5,6 +5,7 @@ mod batch;
 mod chart;
 mod distance;
 mod errors;
+mod faults;
 mod helpers;
 mod openapi;
 mod operations;

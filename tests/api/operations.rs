@@ -165,6 +165,61 @@ async fn shutdown_drains_in_flight_requests() {
     app.stopped().await.expect("a clean stop");
 }
 
+/// A connection opened before shutdown, whose client sends its request only after the
+/// listener has closed, is still answered (it may have been waiting in the kernel's accept
+/// queue or accepted and not yet read); a client cannot know that a fresh connection is about
+/// to be closed, so closing it would lose the request.
+#[tokio::test]
+async fn a_connection_opened_before_shutdown_is_served() {
+    // Arrange
+    let mut app = spawn_app().await;
+    let mut early = tokio::net::TcpStream::connect(app.socket).await.unwrap();
+
+    // Act: shut down; once new connections are refused, send the request.
+    app.begin_shutdown();
+    let mut closed = false;
+    for _ in 0..2_000 {
+        if tokio::net::TcpStream::connect(app.socket).await.is_err() {
+            closed = true;
+            break;
+        }
+        tokio::time::sleep(Duration::from_millis(10)).await;
+    }
+    let request =
+        format!("GET {EXAMPLE_QUERY} HTTP/1.1\r\nHost: test\r\nConnection: keep-alive\r\n\r\n");
+    early.write_all(request.as_bytes()).await.unwrap();
+    let answer = read_to_close(&mut early).await;
+
+    // Assert: answered, then closed (the server is stopping), and the server stops.
+    assert!(closed, "the listener closes on shutdown");
+    assert!(answer.starts_with("HTTP/1.1 200"), "{answer}");
+    assert!(answer.contains("\"distance\":105"), "{answer}");
+    app.stopped().await.expect("a clean stop");
+}
+
+/// A connection that never sends a request does not hold shutdown up: the header read timeout
+/// closes it, and the server stops.
+#[tokio::test]
+async fn a_silent_connection_does_not_hold_shutdown() {
+    let mut config = Config {
+        port: 0,
+        ..Config::default()
+    };
+    config.header_read_timeout = Duration::from_millis(300);
+    config.shutdown_timeout = Duration::from_secs(30);
+    let mut app = spawn_app_with(config).await;
+    let mut silent = tokio::net::TcpStream::connect(app.socket).await.unwrap();
+
+    app.begin_shutdown();
+
+    app.stopped().await.expect("a clean stop");
+    assert_eq!(
+        read_to_close(&mut silent).await,
+        "",
+        "closed without an answer"
+    );
+}
+
 const BINARY: &str = env!("CARGO_BIN_EXE_stereo-distance");
 
 /// `stereo-distance healthcheck` exits 0 against a live server and 1 when nothing listens.
