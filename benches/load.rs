@@ -8,6 +8,9 @@
 //! from process start to the first answer; idle RSS. Nothing here asserts a time: this is a
 //! measurement, not a test.
 //!
+//! `--soak DUR` runs the soak instead (see [`soak`]): mixed requests, a fixed number of
+//! connections, statuses counted, a sample of answers checked against the physics, RSS growth.
+//!
 //! Placement on a 2-core machine: every server process is pinned to CPU 0 and the load
 //! generator (one thread, a current-thread tokio runtime, a minimal HTTP/1.1 client) to CPU 1,
 //! with `taskset`. Each server therefore runs one tokio worker, and the report shows both
@@ -42,6 +45,9 @@ use tokio::{
     sync::{Mutex, mpsc},
 };
 
+#[path = "load/soak.rs"]
+mod soak;
+
 /// The service binary, built by cargo with the bench profile (the release settings).
 const SERVICE_BIN: &str = env!("CARGO_BIN_EXE_stereo-distance");
 
@@ -55,7 +61,9 @@ usage: cargo bench --bench load -- [options]
   --out FILE           also write the report to FILE
   --service-bin PATH   the service binary to measure (default: the one cargo built for the
                        bench, with the release profile); for profiling a build with symbols
-  --only TEXT          measure only the endpoints whose name contains TEXT (and the baseline)";
+  --only TEXT          measure only the endpoints whose name contains TEXT (and the baseline)
+  --soak DUR           run the soak for DUR instead (mixed load, answers checked, RSS growth)
+  --soak-connections N connections of the soak (default 32)";
 
 /// The seed's example 1: f = 35 px, B = 150 mm, 800×600, x 400 / 350 → 105 mm.
 const DISTANCE_BODY: &str = r#"{"focal_length_px": 35, "baseline": 150, "unit": "mm", "x_left": 400, "x_right": 350, "image_width": 800, "image_height": 600}"#;
@@ -83,6 +91,8 @@ struct Options {
     out: Option<PathBuf>,
     service_bin: PathBuf,
     only: Option<String>,
+    soak: Option<Duration>,
+    soak_connections: usize,
 }
 
 impl Options {
@@ -96,6 +106,8 @@ impl Options {
             out: None,
             service_bin: PathBuf::from(SERVICE_BIN),
             only: None,
+            soak: None,
+            soak_connections: 32,
         };
         let mut args = args.iter();
         while let Some(flag) = args.next() {
@@ -121,6 +133,8 @@ impl Options {
                 "--out" => options.out = Some(PathBuf::from(value()?)),
                 "--service-bin" => options.service_bin = PathBuf::from(value()?),
                 "--only" => options.only = Some(value()?.clone()),
+                "--soak" => options.soak = Some(duration(value()?)?),
+                "--soak-connections" => options.soak_connections = count(value()?)?,
                 "-h" | "--help" => return Err(USAGE.to_owned()),
                 other => return Err(format!("unknown option {other}\n{USAGE}")),
             }
@@ -164,6 +178,28 @@ fn main() -> ExitCode {
             return ExitCode::FAILURE;
         }
     };
+    if let Some(duration) = options.soak {
+        return match soak::run(&options, duration, options.soak_connections) {
+            Ok((report, passed)) => {
+                println!("{report}");
+                if let Some(path) = &options.out
+                    && let Err(error) = fs::write(path, &report)
+                {
+                    eprintln!("cannot write {}: {error}", path.display());
+                    return ExitCode::FAILURE;
+                }
+                if passed {
+                    ExitCode::SUCCESS
+                } else {
+                    ExitCode::FAILURE
+                }
+            }
+            Err(error) => {
+                eprintln!("soak failed: {error}");
+                ExitCode::FAILURE
+            }
+        };
+    }
     match run(&options) {
         Ok(report) => {
             println!("{report}");
@@ -534,6 +570,11 @@ impl Connection {
 
     /// Sends `request` and reads the whole response; returns its status.
     async fn exchange(&mut self, request: &[u8]) -> io::Result<u16> {
+        self.exchange_body(request).await.map(|(status, _)| status)
+    }
+
+    /// Sends `request` and reads the whole response; returns its status and body.
+    async fn exchange_body(&mut self, request: &[u8]) -> io::Result<(u16, &[u8])> {
         self.stream.write_all(request).await?;
         self.buf.clear();
         loop {
@@ -543,7 +584,7 @@ impl Connection {
                 while self.buf.len() < total {
                     self.fill().await?;
                 }
-                return Ok(head.status);
+                return Ok((head.status, &self.buf[head.len..total]));
             }
             self.fill().await?;
         }

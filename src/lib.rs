@@ -18,11 +18,14 @@
 //! - [`startup`]: the middleware stack, [`startup::Application`] (binds, may use port 0), the
 //!   accept loop with its header read timeout, and graceful shutdown with readiness drain.
 //! - [`healthcheck`]: the `healthcheck` subcommand's probe, for images without curl.
+//! - [`conformance`]: what the service promises for any input, checked in process; the oracle
+//!   of the fuzz target (`fuzz/`) and of the random-input test.
 //!
 //! `main.rs` only parses the command line and runs the server or the probe.
 
 pub mod api;
 pub mod config;
+pub mod conformance;
 pub mod edge;
 pub mod healthcheck;
 pub mod metrics;

@@ -81,9 +81,10 @@ pub enum FocalLength {
 }
 
 impl FocalLength {
-    /// The focal length in pixels for an image `image_width_px` pixels wide.
-    pub fn to_pixels(self, image_width_px: f64) -> f64 {
-        match self {
+    /// The focal length in pixels for an image `image_width_px` pixels wide;
+    /// [`PhysicsError::NotFinite`] when the conversion overflows.
+    pub fn to_pixels(self, image_width_px: f64) -> Result<f64, PhysicsError> {
+        finite(match self {
             FocalLength::Pixels(px) => px,
             FocalLength::MillimetresWithSensorWidth {
                 focal_mm,
@@ -96,7 +97,7 @@ impl FocalLength {
             FocalLength::HorizontalFov { degrees } => {
                 (image_width_px / 2.0) / (degrees.to_radians() / 2.0).tan()
             }
-        }
+        })
     }
 }
 
@@ -340,7 +341,7 @@ pub fn measure(rig: &Rig, c: Correspondence) -> Result<Measurement, PhysicsError
         distance_m: finite(distance * rig.unit.metres())?,
         depth_error,
         relative_error,
-        normalized_x: rig.normalized_x(c.x_left),
+        normalized_x: finite(rig.normalized_x(c.x_left))?,
         projection_factor: finite(rig.projection_factor())?,
         point,
         warnings,
@@ -600,16 +601,16 @@ mod tests {
             focal_mm: 4.0,
             sensor_width_mm: 6.4,
         };
-        assert!(close(sensor.to_pixels(1280.0), 800.0));
+        assert!(close(sensor.to_pixels(1280.0).unwrap(), 800.0));
         let pitch = FocalLength::MillimetresWithPixelPitch {
             focal_mm: 6.0,
             pixel_pitch_um: 3.0,
         };
-        assert!(close(pitch.to_pixels(1920.0), 2000.0));
+        assert!(close(pitch.to_pixels(1920.0).unwrap(), 2000.0));
         let fov = FocalLength::HorizontalFov { degrees: 90.0 };
-        assert!(close(fov.to_pixels(1280.0), 640.0));
+        assert!(close(fov.to_pixels(1280.0).unwrap(), 640.0));
         assert!(close(field_of_view_deg(640.0, 1280.0), 90.0));
-        assert_eq!(FocalLength::Pixels(35.0).to_pixels(800.0), 35.0);
+        assert_eq!(FocalLength::Pixels(35.0).to_pixels(800.0), Ok(35.0));
     }
 
     /// Units convert through metres exactly enough to compose.

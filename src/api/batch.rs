@@ -1,11 +1,16 @@
 //! `POST /distance` with many points: telling a batch from a single correspondence, decoding
-//! each point on its own so that one bad point cannot hide the others, and answering per point.
+//! each point on its own so that every fault is named, and answering per point.
 //!
-//! A batch is refused as a whole (422) only when nothing can be computed: the envelope or the
-//! rig is wrong, or there are no points or too many. Otherwise it is a 200 in which every point
-//! has either its distance or its own errors, named like `points[17].x_left`. Points come from
-//! feature matchers, where a few bad matches per frame are normal; failing the frame for them
-//! would make every client re-implement the checks this service exists to do.
+//! The request's *shape* is all or nothing, as the OpenAPI schema states it: a wrong envelope
+//! or rig, no points or too many, or a point that is not an object of numbers `x_left`,
+//! `x_right` and optional `y` (a wrong type, an unknown or missing member) is a 422 for the
+//! whole batch, naming `rig.…` and `points[17].x_left`. Such faults are programming errors in
+//! the caller, and a schema-valid request is what clients validate against.
+//!
+//! The *values* are judged point by point: a coordinate off the image or a point at infinity
+//! is that point's own `errors` inside a 200, and the others are still computed. Points come
+//! from feature matchers, where a few bad matches per frame are normal; failing the frame for
+//! them would make every client re-implement the checks this service exists to do.
 
 use axum::extract::{FromRequest, Request};
 use serde::Deserialize;
@@ -142,7 +147,7 @@ fn diagnose(map: Map<String, Value>) -> Batch {
                 .problems
                 .add("points", format!("must be an array, got {}", kind(&other))),
             (other, _) => batch.problems.add(
-                other,
+                if other.is_empty() { "body" } else { other },
                 format!("unknown field `{other}`; a batch has only `rig` and `points`"),
             ),
         }
@@ -180,7 +185,7 @@ pub fn answer(batch: Batch, limits: &Limits) -> Result<BatchDistanceResponse, Ap
         }
     };
     for error in rig_problems.prefixed("rig.") {
-        problems.add(&error.field, error.message);
+        problems.add(error.field.trim_end_matches('.'), error.message);
     }
     match &points {
         None if !problems.has("points") => problems.add("points", "is required"),
@@ -197,13 +202,18 @@ pub fn answer(batch: Batch, limits: &Limits) -> Result<BatchDistanceResponse, Ap
         ),
         _ => {}
     }
+    if let Some(points) = &points {
+        for (index, (point, shape)) in points.iter().enumerate() {
+            refuse_malformed(index, point, shape, &mut problems);
+        }
+    }
     let (rig, points) = problems.finish(rig.zip(points))?;
     let spec = spec.unwrap_or_default();
     let bounds = Bounds::of(&spec.camera_params());
     let results: Vec<PointOutcome> = points
         .into_iter()
         .enumerate()
-        .map(|(index, (point, problems))| measure(&rig, bounds, index, point, problems))
+        .map(|(index, (point, _))| measure(&rig, bounds, index, point))
         .collect();
     let failed = results
         .iter()
@@ -221,18 +231,31 @@ pub fn answer(batch: Batch, limits: &Limits) -> Result<BatchDistanceResponse, Ap
     })
 }
 
-/// One point's outcome: its distance, or every error, named `points[index].…`.
-fn measure(
-    rig: &physics::Rig,
-    bounds: Bounds,
-    index: usize,
-    point: BatchPoint,
-    mut problems: Problems,
-) -> PointOutcome {
-    // A point that is not an object has nothing more to check.
-    if problems.has("") {
-        return failure(index, problems);
+/// Names, among the batch's own problems, what makes point `index` break the schema: what
+/// decoding refused (not an object, a wrong type, an unknown member, `null`) and a missing
+/// coordinate.
+fn refuse_malformed(index: usize, point: &BatchPoint, shape: &Problems, problems: &mut Problems) {
+    let prefix = format!("points[{index}]");
+    for error in shape.iter() {
+        match error.field.as_str() {
+            "" => problems.add_new(prefix.clone(), error.message.clone()),
+            field => problems.add_new(format!("{prefix}.{field}"), error.message.clone()),
+        }
     }
+    if shape.has("") {
+        return;
+    }
+    for (field, value) in [("x_left", point.x_left), ("x_right", point.x_right)] {
+        if value.is_none() && !shape.has(field) {
+            problems.add_new(format!("{prefix}.{field}"), "is required");
+        }
+    }
+}
+
+/// One well-formed point's outcome: its distance, or every error of its values, named
+/// `points[index].…`.
+fn measure(rig: &physics::Rig, bounds: Bounds, index: usize, point: BatchPoint) -> PointOutcome {
+    let mut problems = Problems::default();
     let correspondence = validate::correspondence(
         (point.x_left, point.x_right, point.y),
         bounds,
@@ -263,8 +286,7 @@ fn measure(
     }
 }
 
-/// A failed point, its errors named `points[index].field` (or `points[index]` for the point
-/// itself).
+/// A failed point, its errors named `points[index].field`.
 fn failure(index: usize, problems: Problems) -> PointOutcome {
     PointOutcome::Failed(PointFailure {
         index,

@@ -9,7 +9,10 @@ use axum::{
 use serde::{Deserialize, Serialize};
 use utoipa::{
     ToSchema,
-    openapi::{ContentBuilder, RefOr, ResponseBuilder, response::Response as OpenApiResponse},
+    openapi::{
+        ContentBuilder, ObjectBuilder, RefOr, ResponseBuilder, Type, header::HeaderBuilder,
+        response::Response as OpenApiResponse,
+    },
 };
 
 use crate::{physics::PhysicsError, telemetry};
@@ -259,8 +262,24 @@ pub(crate) fn problem_responses(
     statuses
         .iter()
         .map(|(status, description)| {
-            let response = ResponseBuilder::new()
-                .description(*description)
+            let mut response = ResponseBuilder::new().description(*description);
+            if *status == StatusCode::SERVICE_UNAVAILABLE && description.contains("Retry-After") {
+                response = response.header(
+                    "Retry-After",
+                    HeaderBuilder::new()
+                        .schema(
+                            ObjectBuilder::new()
+                                .schema_type(Type::Integer)
+                                .minimum(Some(0)),
+                        )
+                        .description(Some(
+                            "Seconds to wait before retrying; sent when the request was shed \
+                             at the concurrency limit.",
+                        ))
+                        .build(),
+                );
+            }
+            let response = response
                 .content(
                     PROBLEM_JSON,
                     ContentBuilder::new()
@@ -303,7 +322,7 @@ const UNAVAILABLE: (StatusCode, &str) = (
     "The server is at its concurrency limit (with a `Retry-After` header) or could not answer \
      within the request timeout; retry later.",
 );
-const METHOD: (StatusCode, &str) = (
+pub(crate) const METHOD: (StatusCode, &str) = (
     StatusCode::METHOD_NOT_ALLOWED,
     "The path does not support this method.",
 );
@@ -322,6 +341,15 @@ impl utoipa::IntoResponses for BodyErrors {
             INVALID,
             UNAVAILABLE,
         ])
+    }
+}
+
+/// Error responses of a probe, which reads nothing and is never shed or timed out.
+pub struct ProbeErrors;
+
+impl utoipa::IntoResponses for ProbeErrors {
+    fn responses() -> BTreeMap<String, RefOr<OpenApiResponse>> {
+        problem_responses(&[METHOD])
     }
 }
 

@@ -137,7 +137,7 @@ pub fn decode_json<T: DeserializeOwned>(bytes: &[u8]) -> Result<(T, Problems), A
         Ok(value) => Ok((value, Problems::default())),
         Err(error) if error.is_data() => {
             match serde_json::from_slice::<Map<String, Value>>(bytes) {
-                Ok(map) => diagnose(map, &error, Problems::default()),
+                Ok(map) => diagnose(map, &error, Problems::default(), "body"),
                 Err(syntax) => Err(malformed_json(&syntax)),
             }
         }
@@ -150,7 +150,7 @@ pub fn decode_json<T: DeserializeOwned>(bytes: &[u8]) -> Result<(T, Problems), A
 pub fn decode_object<T: DeserializeOwned + Default>(map: Map<String, Value>) -> (T, Problems) {
     match T::deserialize(&map) {
         Ok(value) => (value, Problems::default()),
-        Err(error) => match diagnose(map, &error, Problems::default()) {
+        Err(error) => match diagnose(map, &error, Problems::default(), "") {
             Ok(decoded) => decoded,
             Err(ApiError::Invalid(errors)) => (T::default(), Problems::from(errors)),
             Err(other) => (T::default(), Problems::from(other.problem().errors)),
@@ -182,12 +182,13 @@ pub fn decode_query<T: QueryForm>(query: &str) -> Result<(T, Problems), ApiError
             query_scalar(&value)
         };
         if map.insert(key.clone(), value).is_some() {
-            problems.add(&key, "is given more than once; give it once");
+            let field = if key.is_empty() { "query" } else { &key };
+            problems.add(field, "is given more than once; give it once");
         }
     }
     match T::deserialize(&map) {
         Ok(value) => Ok((value, problems)),
-        Err(error) => diagnose(map, &error, problems),
+        Err(error) => diagnose(map, &error, problems, "query"),
     }
 }
 
@@ -215,11 +216,14 @@ fn decode_component(raw: &str) -> Result<String, ApiError> {
 
 /// Records every member of `map` that `T` refuses on its own, then decodes the rest. Request
 /// types have only optional members, so a one-member object fails exactly when that member is
-/// unknown or mistyped, and the rest decodes.
+/// unknown or mistyped, and the rest decodes. A member with an empty name is reported under
+/// `itself`, the name of the object as a whole (`body`, `query`, or `""` for a batch point,
+/// which its index then names), so that every error names something.
 fn diagnose<T: DeserializeOwned>(
     mut map: Map<String, Value>,
     whole: &serde_json::Error,
     mut problems: Problems,
+    itself: &str,
 ) -> Result<(T, Problems), ApiError> {
     let refused: Vec<(String, String)> = map
         .iter()
@@ -232,7 +236,14 @@ fn diagnose<T: DeserializeOwned>(
         .collect();
     for (key, message) in refused {
         map.remove(&key);
-        problems.add(&key, message);
+        if key.is_empty() {
+            problems.add(
+                itself,
+                format!("has a member with an empty name: {message}"),
+            );
+        } else {
+            problems.add(&key, message);
+        }
     }
     match T::deserialize(&map) {
         Ok(value) if !problems.is_empty() => Ok((value, problems)),
@@ -242,7 +253,8 @@ fn diagnose<T: DeserializeOwned>(
             let field = message
                 .strip_prefix("duplicate field `")
                 .and_then(|rest| rest.split('`').next())
-                .unwrap_or("body");
+                .filter(|name| !name.is_empty())
+                .unwrap_or(itself);
             problems.add(field, message.clone());
             Err(problems.into_error())
         }

@@ -36,11 +36,40 @@ pub const IMAGE_SVG: &str = "image/svg+xml";
                    baseline, with its expected error ΔZ = Z²·Δd/(f_px·B), the intermediate values \
                    and the feature's 3D point.\n\n\
                    A body with `rig` and `points` is a batch of up to 10 000 points (the \
-                   server's cap), answered in order. A batch is a 422 only when its rig or \
-                   envelope is wrong; otherwise it is a 200 in which each point has its \
-                   distance or its own `errors`, named like `points[17].x_left`, and `failed` \
+                   server's cap), answered in order. A batch that breaks the schema (a wrong \
+                   rig or envelope, or a point with a wrong type or an unknown or missing \
+                   member) is a 422 naming each fault, such as `points[17].x_left`. Otherwise \
+                   it is a 200 in which each point has its distance or, when its values fail \
+                   against the rig (off the image, at infinity), its own `errors`; `failed` \
                    counts the latter.",
-    request_body = DistanceInput,
+    request_body(content = DistanceInput, examples(
+        ("focal length in px" = (summary = "The seed's example 1: f = 35 px, B = 150 mm, \
+                                  d = 50 px, so Z = 105 mm", value = json!({
+            "focal_length_px": 35, "baseline": 150, "unit": "mm",
+            "x_left": 400, "x_right": 350, "image_width": 800, "image_height": 600
+        }))),
+        ("focal length in mm with sensor width" = (summary = "f = 4 mm · 1280 px / 6.4 mm = \
+                                                   800 px, so Z = 1920 mm", value = json!({
+            "focal_length_mm": 4, "sensor_width_mm": 6.4, "baseline": 120, "unit": "mm",
+            "x_left": 700, "x_right": 650, "image_width": 1280, "image_height": 720
+        }))),
+        ("focal length in mm with pixel pitch" = (summary = "f = 3.6 mm · 1000 / 3 µm = \
+                                                  1200 px, so Z = 2.4 m", value = json!({
+            "focal_length_mm": 3.6, "pixel_size_um": 3, "baseline": 0.12, "unit": "m",
+            "x_left": 1000, "x_right": 940, "image_width": 1920, "image_height": 1080
+        }))),
+        ("horizontal field of view" = (summary = "f = 400 px / tan 45° = 400 px, so \
+                                       Z = 1300 mm", value = json!({
+            "horizontal_fov_deg": 90, "baseline": 65, "unit": "mm",
+            "x_left": 420, "x_right": 400, "image_width": 800, "image_height": 600,
+            "doffs": 0, "y": 300, "disparity_error_px": 0.1
+        }))),
+        ("batch" = (summary = "Two features seen by one rig", value = json!({
+            "rig": {"focal_length_px": 35, "baseline": 150, "unit": "mm",
+                    "image_width": 800, "image_height": 600},
+            "points": [{"x_left": 400, "x_right": 350}, {"x_left": 420, "x_right": 390, "y": 310}]
+        })))
+    )),
     responses(
         (status = 200, description = "The distance and its error, or one result per point \
                                       of a batch.", body = DistanceOutput),
@@ -86,7 +115,23 @@ pub async fn get_distance(
     description = "JSON by default; CSV with `format: csv` in the body, `?format=csv` in the \
                    URL, or `Accept: text/csv`.",
     params(FormatQuery),
-    request_body = TableRequest,
+    request_body(content = TableRequest, examples(
+        ("disparity range" = (summary = "The seed's rig over 10 to 100 px", value = json!({
+            "focal_length_px": 35, "baseline": 150, "unit": "mm",
+            "image_width": 800, "image_height": 600,
+            "disparity_min": 10, "disparity_max": 100, "steps": 10
+        }))),
+        ("distance range, log spacing" = (summary = "A 90° camera from 0.5 m to 20 m",
+                                          value = json!({
+            "horizontal_fov_deg": 90, "baseline": 0.065, "unit": "m",
+            "image_width": 800, "image_height": 600,
+            "distance_min": 0.5, "distance_max": 20, "spacing": "log", "steps": 12
+        }))),
+        ("CSV" = (summary = "f in mm with a sensor width, as CSV", value = json!({
+            "focal_length_mm": 4, "sensor_width_mm": 6.4, "baseline": 120,
+            "image_width": 1280, "image_height": 720, "format": "csv", "steps": 5
+        })))
+    )),
     responses(
         (status = 200, description = "The sample table.", content(
             (TableResponse = "application/json"),
@@ -158,7 +203,20 @@ fn table_response(table: TableResponse, format: TableFormat) -> Response {
     path = "/chart-data",
     tag = "chart",
     summary = "Chart series of distance and depth error against disparity",
-    request_body = ChartRequest,
+    request_body(content = ChartRequest, examples(
+        ("measured point" = (summary = "The seed's example 1 marked on the curve",
+                             value = json!({
+            "focal_length_px": 35, "baseline": 150, "unit": "mm",
+            "image_width": 800, "image_height": 600,
+            "x_left": 400, "x_right": 350, "points": 100
+        }))),
+        ("distance range" = (summary = "f in mm with a pixel pitch, from 1 m to 30 m",
+                             value = json!({
+            "focal_length_mm": 3.6, "pixel_size_um": 3, "baseline": 0.12, "unit": "m",
+            "image_width": 1920, "image_height": 1080,
+            "distance_min": 1, "distance_max": 30, "spacing": "log", "points": 50
+        })))
+    )),
     responses(
         (status = 200, description = "The chart series.", body = ChartResponse),
         BodyErrors

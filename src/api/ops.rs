@@ -16,7 +16,7 @@ use serde::Serialize;
 use utoipa::ToSchema;
 
 use super::{
-    error::{ApiError, problem_responses},
+    error::{ApiError, METHOD, ProbeErrors, problem_responses},
     respond::Json,
 };
 use crate::metrics::{Metrics, TEXT_FORMAT};
@@ -59,10 +59,13 @@ struct NotReady;
 impl utoipa::IntoResponses for NotReady {
     fn responses()
     -> std::collections::BTreeMap<String, utoipa::openapi::RefOr<utoipa::openapi::Response>> {
-        problem_responses(&[(
-            StatusCode::SERVICE_UNAVAILABLE,
-            "The server is starting or draining before shutdown; send traffic elsewhere.",
-        )])
+        problem_responses(&[
+            METHOD,
+            (
+                StatusCode::SERVICE_UNAVAILABLE,
+                "The server is starting or draining before shutdown; send traffic elsewhere.",
+            ),
+        ])
     }
 }
 
@@ -71,7 +74,10 @@ impl utoipa::IntoResponses for NotReady {
     path = "/healthz",
     tag = "operations",
     summary = "Liveness: the process is up and serving HTTP",
-    responses((status = 200, description = "The process is alive.", body = Health))
+    responses(
+        (status = 200, description = "The process is alive.", body = Health),
+        ProbeErrors
+    )
 )]
 pub async fn healthz() -> Json<Health> {
     Json(Health { status: "ok" })
@@ -105,7 +111,7 @@ pub async fn readyz(State(state): State<OpsState>) -> Result<Json<Health>, ApiEr
         description = "Metrics in the Prometheus text format, by method, route and status.",
         content_type = "text/plain; version=0.0.4; charset=utf-8",
         body = String
-    ))
+    ), ProbeErrors)
 )]
 pub async fn metrics(State(state): State<OpsState>) -> Response {
     match state.metrics.render() {

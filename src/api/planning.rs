@@ -24,7 +24,19 @@ use crate::physics::{self, Rig, finite};
                    (min_disparity_px + doffs), the depth error ΔZ = Z²·Δd/(f·B) at the \
                    requested distances, and the distance up to which the relative error stays \
                    within a budget, Z = r·f·B/Δd.",
-    request_body = RigRequest,
+    request_body(content = RigRequest, examples(
+        ("depth camera" = (summary = "A D435-like rig: 424 px, 50 mm, 126 px of search", value = json!({
+            "focal_length_px": 424, "baseline": 50, "unit": "mm",
+            "image_width": 848, "image_height": 480, "disparity_error_px": 0.08,
+            "max_disparity_px": 126, "at_distances": [500, 1000, 2000, 4000],
+            "max_relative_error": 0.02
+        }))),
+        ("f in mm with sensor width" = (summary = "A 4 mm lens on a 6.4 mm sensor, in metres", value = json!({
+            "focal_length_mm": 4, "sensor_width_mm": 6.4, "baseline": 0.12, "unit": "m",
+            "image_width": 1280, "image_height": 720, "max_disparity_px": 256,
+            "min_disparity_px": 0.25
+        })))
+    )),
     responses(
         (status = 200, description = "What the rig can see, and how well.", body = RigResponse),
         BodyErrors
@@ -60,7 +72,17 @@ pub async fn get_rig(
     summary = "The shortest baseline that meets a depth-error budget at a distance",
     description = "B = Z²·Δd / (f·ΔZ): the depth error formula solved for the baseline. With \
                    max_disparity_px, also the nearest distance that baseline lets the rig see.",
-    request_body = BaselineRequest,
+    request_body(content = BaselineRequest, examples(
+        ("relative budget" = (summary = "0.5 % at 5 m with f = 1000 px", value = json!({
+            "focal_length_px": 1000, "image_width": 1280, "image_height": 720, "unit": "mm",
+            "disparity_error_px": 0.25, "target_distance": 5000, "max_relative_error": 0.005,
+            "max_disparity_px": 128
+        }))),
+        ("absolute budget" = (summary = "±25 mm at 5 m with a 90° camera", value = json!({
+            "horizontal_fov_deg": 90, "image_width": 800, "image_height": 600, "unit": "mm",
+            "target_distance": 5000, "max_depth_error": 25
+        })))
+    )),
     responses(
         (status = 200, description = "The baseline.", body = BaselineResponse),
         BodyErrors

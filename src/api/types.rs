@@ -134,6 +134,62 @@ where
     }
 }
 
+/// The largest whole number a request member takes: the schema's `int32` format bounds it.
+pub const MAX_WHOLE: u32 = i32::MAX as u32;
+
+/// Deserializes a present whole number. JSON Schema's `integer` is a number with no fractional
+/// part, so `800.0` is the integer 800 (as generators such as schemathesis send it); `800.5`,
+/// a negative number, one beyond [`MAX_WHOLE`] and `null` are refused.
+fn whole<'de, D>(deserializer: D) -> Result<Option<u32>, D::Error>
+where
+    D: serde::Deserializer<'de>,
+{
+    struct Whole;
+
+    impl serde::de::Visitor<'_> for Whole {
+        type Value = u32;
+
+        fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+            f.write_str("a whole number")
+        }
+
+        fn visit_u64<E: serde::de::Error>(self, n: u64) -> Result<u32, E> {
+            match u32::try_from(n) {
+                Ok(n) if n <= MAX_WHOLE => Ok(n),
+                _ => Err(E::custom(format!("must be at most {MAX_WHOLE}, got {n}"))),
+            }
+        }
+
+        fn visit_i64<E: serde::de::Error>(self, n: i64) -> Result<u32, E> {
+            match u64::try_from(n) {
+                Ok(n) => self.visit_u64(n),
+                Err(_) => Err(E::custom(format!("must not be negative, got {n}"))),
+            }
+        }
+
+        fn visit_f64<E: serde::de::Error>(self, x: f64) -> Result<u32, E> {
+            if !x.is_finite() || x.fract() != 0.0 {
+                Err(E::invalid_type(serde::de::Unexpected::Float(x), &self))
+            } else if x < 0.0 {
+                Err(E::custom(format!("must not be negative, got {x}")))
+            } else if x > f64::from(MAX_WHOLE) {
+                Err(E::custom(format!("must be at most {MAX_WHOLE}, got {x}")))
+            } else {
+                // Exact: a whole number within range converts without loss.
+                Ok(x as u32)
+            }
+        }
+
+        fn visit_unit<E: serde::de::Error>(self) -> Result<u32, E> {
+            Err(E::custom(
+                "must not be null; leave the member out to use its default",
+            ))
+        }
+    }
+
+    deserializer.deserialize_any(Whole).map(Some)
+}
+
 /// Declares a flat request type holding the camera members, with `$early` after the focal
 /// options and `$late` at the end, plus `camera_params()` and query-parameter docs. (Flat,
 /// because `serde(flatten)` cannot be combined with `deny_unknown_fields`, and a misspelt field
@@ -155,23 +211,22 @@ macro_rules! camera_request {
             pub focal_length_px: Option<f64>,
             /// Focal length in millimetres. Needs `sensor_width_mm` or `pixel_size_um` to convert
             /// it to pixels: millimetres times a disparity in pixels is not a length.
-            #[schema(nullable = false, exclusive_minimum = 0.0, example = 4.0)]
+            #[schema(nullable = false, exclusive_minimum = 0.0)]
             #[serde(default, deserialize_with = "present")]
             pub focal_length_mm: Option<f64>,
             /// Sensor width in millimetres, with `focal_length_mm`:
             /// f_px = f_mm · image_width / sensor_width_mm.
-            #[schema(nullable = false, exclusive_minimum = 0.0, example = 6.4)]
+            #[schema(nullable = false, exclusive_minimum = 0.0)]
             #[serde(default, deserialize_with = "present")]
             pub sensor_width_mm: Option<f64>,
             /// Pixel pitch in micrometres, with `focal_length_mm`:
             /// f_px = f_mm · 1000 / pixel_size_um.
-            #[schema(nullable = false, exclusive_minimum = 0.0, example = 3.0)]
+            #[schema(nullable = false, exclusive_minimum = 0.0)]
             #[serde(default, deserialize_with = "present")]
             pub pixel_size_um: Option<f64>,
             /// Horizontal field of view in degrees, over the full image width:
             /// f_px = (image_width / 2) / tan(hfov / 2).
-            #[schema(nullable = false, exclusive_minimum = 0.0, exclusive_maximum = 180.0,
-                     example = 90.0)]
+            #[schema(nullable = false, exclusive_minimum = 0.0, exclusive_maximum = 180.0)]
             #[serde(default, deserialize_with = "present")]
             pub horizontal_fov_deg: Option<f64>,
             $($early)*
@@ -181,11 +236,11 @@ macro_rules! camera_request {
             pub unit: Option<Unit>,
             /// Image width in pixels.
             #[schema(nullable = false, required = true, minimum = 1, example = 800)]
-            #[serde(default, deserialize_with = "present")]
+            #[serde(default, deserialize_with = "whole")]
             pub image_width: Option<u32>,
             /// Image height in pixels.
             #[schema(nullable = false, required = true, minimum = 1, example = 600)]
-            #[serde(default, deserialize_with = "present")]
+            #[serde(default, deserialize_with = "whole")]
             pub image_height: Option<u32>,
             /// Disparity uncertainty Δd in pixels (RMS) for the depth error
             /// ΔZ = Z²·Δd/(f·B). Default 0.5 (integer-pixel matching); subpixel matchers reach
@@ -354,7 +409,7 @@ range_request! {
     pub struct TableRequest {
         /// Number of rows, from 1 to the server's cap (10 000 by default). Default 10.
         #[schema(nullable = false, minimum = 1, example = 10)]
-        #[serde(default, deserialize_with = "present")]
+        #[serde(default, deserialize_with = "whole")]
         pub steps: Option<u32>,
         /// Left-image x held fixed to compute each row's right-image `normalized_x`, in pixels.
         /// Default: the image centre.
@@ -380,7 +435,7 @@ range_request! {
         /// Number of points per series, from 2 to the server's cap (10 000 by default).
         /// Default 100.
         #[schema(nullable = false, minimum = 2, example = 100)]
-        #[serde(default, deserialize_with = "present")]
+        #[serde(default, deserialize_with = "whole")]
         pub points: Option<u32>,
         /// x of a measured feature in the left image, to mark on the chart (with `x_right`).
         #[schema(nullable = false, minimum = 0.0)]
@@ -470,7 +525,7 @@ camera_request! {
         pub max_depth_error: Option<f64>,
         /// Largest acceptable depth error at `target_distance` as a fraction of it (0.005 is
         /// 0.5 %). Give this or `max_depth_error`.
-        #[schema(nullable = false, exclusive_minimum = 0.0, maximum = 1.0, example = 0.005)]
+        #[schema(nullable = false, exclusive_minimum = 0.0, maximum = 1.0)]
         #[serde(default, deserialize_with = "present")]
         pub max_relative_error: Option<f64>,
         /// Largest disparity the matcher searches, in pixels: with it the answer also gives
@@ -490,21 +545,26 @@ rig_request! {
     pub struct StereoRig {}
 }
 
-/// One correspondence of a batch.
+/// One correspondence of a batch. Its shape is checked with the whole request (a wrong type,
+/// an unknown or missing member is a 422 for the batch); its values against the rig, point by
+/// point (a coordinate off the image or a point at infinity is that point's own `errors` in the
+/// 200 answer), so the schema bounds no value.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Deserialize, ToSchema)]
 #[serde(deny_unknown_fields)]
 pub struct BatchPoint {
-    /// x of the feature in the left image, in pixels, in [0, image_width].
-    #[schema(nullable = false, required = true, minimum = 0.0, example = 400.0)]
+    /// x of the feature in the left image, in pixels; must lie in [0, image_width], or the
+    /// point fails on its own.
+    #[schema(nullable = false, required = true, example = 400.0)]
     #[serde(default, deserialize_with = "present")]
     pub x_left: Option<f64>,
-    /// x of the same feature in the right image, in pixels, in [0, image_width].
-    #[schema(nullable = false, required = true, minimum = 0.0, example = 350.0)]
+    /// x of the same feature in the right image, in pixels; must lie in [0, image_width], or
+    /// the point fails on its own.
+    #[schema(nullable = false, required = true, example = 350.0)]
     #[serde(default, deserialize_with = "present")]
     pub x_right: Option<f64>,
-    /// y (row) of the feature in the left image, in pixels, in [0, image_height]. Default:
-    /// the rig's `cy`.
-    #[schema(nullable = false, minimum = 0.0)]
+    /// y (row) of the feature in the left image, in pixels; must lie in [0, image_height], or
+    /// the point fails on its own. Default: the rig's `cy`.
+    #[schema(nullable = false)]
     #[serde(default, deserialize_with = "present")]
     pub y: Option<f64>,
 }

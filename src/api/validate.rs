@@ -26,8 +26,20 @@ impl Problems {
         }
     }
 
+    /// Records a problem with a field that cannot have one yet (such as `points[17].x_left`
+    /// while each point is named once), without the search `add` makes: a batch may name
+    /// thousands.
+    pub fn add_new(&mut self, field: String, message: impl Into<String>) {
+        self.0.push(FieldError::new(field, message));
+    }
+
     pub fn is_empty(&self) -> bool {
         self.0.is_empty()
+    }
+
+    /// The problems recorded so far.
+    pub fn iter(&self) -> impl Iterator<Item = &FieldError> {
+        self.0.iter()
     }
 
     /// Adds everything `other` recorded.
@@ -219,15 +231,22 @@ fn focal_length(p: &CameraParams, width: Option<f64>, problems: &mut Problems) -
         }
         return None;
     };
-    let focal_px = spec.to_pixels(width?);
-    if focal_px.is_finite() && focal_px > 0.0 {
-        Some(focal_px)
-    } else {
-        problems.add(
-            focal_field(p),
-            format!("converts to {focal_px} px, which is not a usable focal length"),
-        );
-        None
+    match spec.to_pixels(width?) {
+        Ok(focal_px) if focal_px > 0.0 => Some(focal_px),
+        Ok(focal_px) => {
+            problems.add(
+                focal_field(p),
+                format!("converts to {focal_px} px, which is not a usable focal length"),
+            );
+            None
+        }
+        Err(_) => {
+            problems.add(
+                focal_field(p),
+                "converts to a focal length in pixels too large to represent",
+            );
+            None
+        }
     }
 }
 

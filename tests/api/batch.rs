@@ -61,19 +61,18 @@ async fn batch_matches_single_requests_in_order() {
     assert_eq!(results[1]["warnings"][0]["code"], "negative_disparity");
 }
 
-/// A mixed batch is a 200: the good points are computed and each bad one carries its own
-/// errors, named `points[i].field`, whether the fault is a type, a range, infinity, an unknown
-/// member, or not being an object at all.
+/// A batch whose points are well-formed but some of whose values are bad is a 200: the good
+/// points are computed and each bad one carries its own errors, named `points[i].field`,
+/// whether a coordinate is off the image, negative, or the point is at infinity.
 #[tokio::test]
-async fn bad_points_are_named_by_index_and_good_ones_computed() {
+async fn bad_values_are_named_by_index_and_good_points_computed() {
     let app = spawn_app().await;
     let mut points: Vec<Value> = (0..20)
         .map(|i| json!({"x_left": 400 + i, "x_right": 350}))
         .collect();
-    points[17] = json!({"x_left": "abc", "x_right": 350});
     points[3] = json!({"x_left": 400, "x_right": 400});
-    points[5] = json!({"x_left": 900, "x_right": 350, "z": 1});
-    points[8] = json!(42);
+    points[5] = json!({"x_left": 900, "x_right": 350});
+    points[8] = json!({"x_left": 400, "x_right": -2, "y": 700});
     let body = ok_json(
         app.post("/distance", &json!({"rig": rig(), "points": points}))
             .await,
@@ -81,19 +80,18 @@ async fn bad_points_are_named_by_index_and_good_ones_computed() {
     .await;
     assert_eq!(
         (&body["count"], &body["succeeded"], &body["failed"]),
-        (&json!(20), &json!(16), &json!(4))
+        (&json!(20), &json!(17), &json!(3))
     );
     let results = body["results"].as_array().unwrap();
     let errors = |i: usize| fields(&results[i]);
-    assert_eq!(errors(17), vec!["points[17].x_left"]);
-    assert!(message_for(&results[17], "points[17].x_left").contains("expected a number"));
     assert_eq!(errors(3), vec!["points[3].x_left", "points[3].x_right"]);
     assert!(message_for(&results[3], "points[3].x_left").contains("infinity"));
-    assert_eq!(errors(5), vec!["points[5].z", "points[5].x_left"]);
-    assert_eq!(errors(8), vec!["points[8]"]);
+    assert_eq!(errors(5), vec!["points[5].x_left"]);
+    assert!(message_for(&results[5], "points[5].x_left").contains("image width"));
+    assert_eq!(errors(8), vec!["points[8].x_right", "points[8].y"]);
     for (i, r) in results.iter().enumerate() {
         assert_eq!(r["index"], i, "results are in request order");
-        if ![3, 5, 8, 17].contains(&i) {
+        if ![3, 5, 8].contains(&i) {
             assert_close(
                 number_at(r, "distance"),
                 5250.0 / (50.0 + i as f64),
@@ -102,6 +100,40 @@ async fn bad_points_are_named_by_index_and_good_ones_computed() {
             assert!(r.get("errors").is_none());
         }
     }
+}
+
+/// A point that breaks the schema (a wrong type, an unknown or missing member, `null`, not an
+/// object) makes the whole batch a 422 that names each fault by index, as the OpenAPI schema
+/// says; nothing is computed.
+#[tokio::test]
+async fn malformed_points_refuse_the_batch() {
+    let app = spawn_app().await;
+    let mut points: Vec<Value> = (0..20)
+        .map(|i| json!({"x_left": 400 + i, "x_right": 350}))
+        .collect();
+    points[17] = json!({"x_left": "abc", "x_right": 350});
+    points[5] = json!({"x_left": 900, "x_right": 350, "z": 1});
+    points[8] = json!(42);
+    points[9] = json!({"x_right": 350, "y": null});
+    let body = problem(
+        app.post("/distance", &json!({"rig": rig(), "points": points}))
+            .await,
+        422,
+    )
+    .await;
+    assert_eq!(
+        fields(&body),
+        vec![
+            "points[5].z",
+            "points[8]",
+            "points[9].y",
+            "points[9].x_left",
+            "points[17].x_left"
+        ]
+    );
+    assert!(message_for(&body, "points[17].x_left").contains("expected a number"));
+    assert!(message_for(&body, "points[8]").contains("must be an object"));
+    assert_eq!(message_for(&body, "points[9].x_left"), "is required");
 }
 
 /// A batch with a bad rig, no points, or a non-array is refused whole (nothing could be

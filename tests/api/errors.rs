@@ -1,6 +1,6 @@
 //! Every error class answers application/problem+json naming what is wrong; nothing is a 500.
 
-use serde_json::json;
+use serde_json::{Value, json};
 
 use crate::helpers::{fields, message_for, problem, spawn_app};
 
@@ -269,4 +269,64 @@ async fn null_is_not_a_value() {
     )
     .await;
     assert_eq!(fields(&body), vec!["unit", "doffs"]);
+}
+
+/// JSON Schema's `integer` is any number without a fractional part, so `800.0` is accepted as
+/// the whole number 800, in a body and in a query; `800.5`, a negative count and one beyond
+/// the schema's `int32` are each named.
+#[tokio::test]
+async fn whole_numbers_may_carry_a_zero_fraction() {
+    let app = spawn_app().await;
+    let body = json!({"focal_length_px": 35, "baseline": 150, "x_left": 400, "x_right": 350,
+                      "image_width": 800.0, "image_height": 6e2});
+
+    let response = app.post("/distance", &body).await;
+    assert_eq!(response.status(), 200);
+    let answer: Value = response.json().await.unwrap();
+    assert_eq!(answer["distance"], 105.0);
+
+    let response = app
+        .get("/table?focal_length_px=35&baseline=150&image_width=800.0&image_height=600&steps=4.0")
+        .await;
+    assert_eq!(response.status(), 200);
+    let table: Value = response.json().await.unwrap();
+    assert_eq!(table["rows"].as_array().unwrap().len(), 4);
+
+    let body = problem(
+        app.post(
+            "/table",
+            &json!({"focal_length_px": 35, "baseline": 150, "image_width": 800.5,
+                    "image_height": -600, "steps": 2147483648u64}),
+        )
+        .await,
+        422,
+    )
+    .await;
+    assert_eq!(fields(&body), vec!["image_width", "image_height", "steps"]);
+    assert!(message_for(&body, "image_width").contains("expected a whole number"));
+    assert!(message_for(&body, "image_height").contains("must not be negative"));
+    assert!(message_for(&body, "steps").contains("at most 2147483647"));
+}
+
+/// A member with an empty name is refused under the name of what holds it (the body, the
+/// query, the rig, a batch point), so that every error names a field.
+#[tokio::test]
+async fn an_empty_member_name_is_named_by_its_holder() {
+    let app = spawn_app().await;
+    let mut body: Value = serde_json::from_str(GOOD).unwrap();
+    body[""] = json!(1);
+    let problem_body = problem(app.post("/distance", &body).await, 422).await;
+    assert_eq!(fields(&problem_body), vec!["body"]);
+    assert!(message_for(&problem_body, "body").contains("empty name"));
+
+    let response = app
+        .get("/distance?focal_length_px=35&baseline=150&image_width=800&image_height=600&x_left=400&x_right=350&=1")
+        .await;
+    assert_eq!(fields(&problem(response, 422).await), vec!["query"]);
+
+    let rig = json!({"focal_length_px": 35, "baseline": 150, "image_width": 800,
+                     "image_height": 600, "": 1});
+    let batch = json!({"rig": rig, "points": [{"x_left": 400, "x_right": 350, "": 2}], "": 3});
+    let problem_body = problem(app.post("/distance", &batch).await, 422).await;
+    assert_eq!(fields(&problem_body), vec!["body", "rig", "points[0]"]);
 }

@@ -2,7 +2,7 @@
 
 use serde_json::{Value, json};
 
-use crate::helpers::{ok_json, spawn_app};
+use crate::helpers::{assert_close, number_at, ok_json, spawn_app};
 
 const COMMITTED: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/openapi/openapi.json");
 
@@ -147,4 +147,111 @@ async fn swagger_ui_is_served_offline() {
     assert!(!html.contains("https://"), "no external assets");
     let script = app.get("/docs/swagger-ui-bundle.js").await;
     assert_eq!(script.status(), 200);
+}
+
+/// Every operation's documented responses other than 2xx carry exactly one representation,
+/// `application/problem+json` with the `Problem` schema; the 503 of an operation that can shed
+/// load documents `Retry-After`.
+#[tokio::test]
+async fn every_error_response_is_problem_json() {
+    let spec = serde_json::to_value(stereo_distance::api::openapi()).unwrap();
+    let mut errors = 0;
+    for (path, item) in spec["paths"].as_object().unwrap() {
+        for (method, op) in item.as_object().unwrap() {
+            for (status, response) in op["responses"].as_object().unwrap() {
+                if status.starts_with('2') {
+                    continue;
+                }
+                errors += 1;
+                let content = response["content"].as_object().unwrap();
+                let types: Vec<&String> = content.keys().collect();
+                assert_eq!(
+                    types,
+                    ["application/problem+json"],
+                    "{method} {path} {status}"
+                );
+                assert_eq!(
+                    content["application/problem+json"]["schema"]["$ref"],
+                    "#/components/schemas/Problem",
+                    "{method} {path} {status}"
+                );
+                let sheds = !path.ends_with("z") && path != "/metrics";
+                if status == "503" && sheds {
+                    assert_eq!(
+                        response["headers"]["Retry-After"]["schema"]["type"], "integer",
+                        "{method} {path} documents Retry-After"
+                    );
+                }
+            }
+            assert!(
+                op["responses"]["405"].is_object(),
+                "{method} {path} documents 405"
+            );
+        }
+    }
+    assert!(errors > 60, "error responses were found ({errors})");
+}
+
+/// Every request example in the spec is answered with a 200, so the examples a reader copies
+/// (and that schemathesis starts from) work: each named body example of every POST, and for
+/// every GET the query made of each parameter's example. The distance examples give the
+/// distance their summary states.
+#[tokio::test]
+async fn every_request_example_is_answered() {
+    let app = spawn_app().await;
+    let spec = ok_json(app.get("/openapi.json").await).await;
+    let expected_distance = [
+        ("focal length in px", 105.0),
+        ("focal length in mm with sensor width", 1920.0),
+        ("focal length in mm with pixel pitch", 2.4),
+        ("horizontal field of view", 1300.0),
+    ];
+    let mut answered = 0;
+    for (path, item) in spec["paths"].as_object().unwrap() {
+        if let Some(examples) =
+            item["post"]["requestBody"]["content"]["application/json"]["examples"].as_object()
+        {
+            for (name, example) in examples {
+                let response = app.post(path, &example["value"]).await;
+                assert_eq!(response.status(), 200, "POST {path} example {name:?}");
+                answered += 1;
+                if let Some((_, distance)) = expected_distance
+                    .iter()
+                    .find(|(n, _)| path == "/distance" && n == name)
+                {
+                    let body: Value = response.json().await.unwrap();
+                    assert_close(number_at(&body, "distance"), *distance, name);
+                }
+            }
+        }
+        if let Some(params) = item["get"]["parameters"].as_array() {
+            let query: serde_json::Map<String, Value> = params
+                .iter()
+                .filter_map(|p| {
+                    let example = p["schema"]
+                        .get("example")
+                        .or(p["schema"]["examples"].get(0))?;
+                    // Lists travel comma-separated (`style: form, explode: false`).
+                    let value = match example.as_array() {
+                        Some(list) => {
+                            let items: Vec<String> = list.iter().map(Value::to_string).collect();
+                            Value::String(items.join(","))
+                        }
+                        None => example.clone(),
+                    };
+                    Some((p["name"].as_str()?.to_owned(), value))
+                })
+                .collect();
+            if !query.is_empty() {
+                let response = app.get_with(path, &Value::Object(query)).await;
+                assert_eq!(
+                    response.status(),
+                    200,
+                    "GET {path} with the parameter examples"
+                );
+                answered += 1;
+            }
+        }
+    }
+    assert!(answered >= 20, "examples were found ({answered})");
 }

@@ -1,0 +1,168 @@
+//! What the service promises for *any* request, checked in process on arbitrary input: the
+//! one oracle shared by the cargo-fuzz target (`fuzz/`) and the bounded random-input test
+//! (`tests/hostile_input.rs`).
+//!
+//! For every operation that reads input, the bytes are sent as a JSON body (`POST`) and as a
+//! query string (`GET`) through the full router, middleware included. The promises:
+//! - no 5xx, and no panic (a panic would surface as a 500 from the edge layer);
+//! - a 4xx is `application/problem+json` whose `status` is the HTTP status and whose
+//!   `errors` names at least one field;
+//! - a 2xx JSON answer holds no `null` (a non-finite number would serialise as `null`);
+//!   a CSV or SVG answer is text.
+
+use axum::{
+    Router,
+    body::{Body, to_bytes},
+    http::{Method, Request, StatusCode, header},
+};
+use tower::ServiceExt;
+
+use crate::{Config, api::ops::OpsState, app};
+
+/// The operations that read a body (`POST`) and a query (`GET`).
+const BODY_PATHS: [&str; 5] = ["/distance", "/table", "/chart-data", "/rig", "/baseline"];
+const QUERY_PATHS: [&str; 6] = [
+    "/distance",
+    "/table",
+    "/chart-data",
+    "/chart.svg",
+    "/rig",
+    "/baseline",
+];
+
+/// The application with its default configuration, on a single-threaded runtime.
+pub struct Harness {
+    runtime: tokio::runtime::Runtime,
+    router: Router,
+}
+
+impl Default for Harness {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl Harness {
+    pub fn new() -> Self {
+        let runtime = tokio::runtime::Builder::new_current_thread()
+            .enable_all()
+            .build()
+            .expect("a current-thread runtime");
+        let router = app(&Config::default(), OpsState::default());
+        Self { runtime, router }
+    }
+
+    /// Sends `input` to every operation, as a JSON body and as a query string, and returns the
+    /// statuses of the answers; `Err` names the first broken promise.
+    pub fn check(&self, input: &[u8]) -> Result<Vec<StatusCode>, String> {
+        self.runtime.block_on(async {
+            let mut statuses = Vec::new();
+            for path in BODY_PATHS {
+                let request = Request::builder()
+                    .method(Method::POST)
+                    .uri(path)
+                    .header(header::CONTENT_TYPE, "application/json")
+                    .body(Body::from(input.to_vec()))
+                    .map_err(|e| format!("building POST {path}: {e}"))?;
+                statuses.push(self.exchange(request).await?);
+            }
+            let query = as_query(input);
+            for path in QUERY_PATHS {
+                let Ok(request) = Request::get(format!("{path}?{query}")).body(Body::empty())
+                else {
+                    continue;
+                };
+                statuses.push(self.exchange(request).await?);
+            }
+            Ok(statuses)
+        })
+    }
+
+    async fn exchange(&self, request: Request<Body>) -> Result<StatusCode, String> {
+        let what = format!("{} {}", request.method(), request.uri());
+        let response = self
+            .router
+            .clone()
+            .oneshot(request)
+            .await
+            .map_err(|e| format!("{what}: {e}"))?;
+        let status = response.status();
+        let content_type = response
+            .headers()
+            .get(header::CONTENT_TYPE)
+            .and_then(|v| v.to_str().ok())
+            .unwrap_or_default()
+            .to_owned();
+        let body = to_bytes(response.into_body(), usize::MAX)
+            .await
+            .map_err(|e| format!("{what}: reading the answer: {e}"))?;
+        let text = String::from_utf8_lossy(&body);
+        if status.is_server_error() {
+            return Err(format!("{what}: {status}: {text}"));
+        }
+        if status.is_client_error() {
+            return problem(status, &content_type, &body)
+                .map(|()| status)
+                .map_err(|e| format!("{what}: {e}"));
+        }
+        if content_type.starts_with("application/json") {
+            let value: serde_json::Value = serde_json::from_slice(&body)
+                .map_err(|e| format!("{what}: {status} is not JSON ({e}): {text}"))?;
+            if contains_null(&value) {
+                return Err(format!("{what}: {status} holds a null: {text}"));
+            }
+        } else if !(content_type.starts_with("text/csv") || content_type.starts_with("image/svg")) {
+            return Err(format!(
+                "{what}: {status} with content type {content_type:?}"
+            ));
+        }
+        Ok(status)
+    }
+}
+
+/// Whether a 4xx is a well-formed problem that names a field.
+fn problem(status: StatusCode, content_type: &str, body: &[u8]) -> Result<(), String> {
+    if content_type != "application/problem+json" {
+        return Err(format!("{status} with content type {content_type:?}"));
+    }
+    let value: serde_json::Value =
+        serde_json::from_slice(body).map_err(|e| format!("{status} problem is not JSON: {e}"))?;
+    if value["status"] != status.as_u16() {
+        return Err(format!("{status} problem says status {}", value["status"]));
+    }
+    let names_a_field = value["errors"].as_array().is_some_and(|errors| {
+        !errors.is_empty()
+            && errors
+                .iter()
+                .all(|e| e["field"].as_str().is_some_and(|f| !f.is_empty()))
+    });
+    if names_a_field {
+        Ok(())
+    } else {
+        Err(format!("{status} problem names no field: {value}"))
+    }
+}
+
+fn contains_null(value: &serde_json::Value) -> bool {
+    match value {
+        serde_json::Value::Null => true,
+        serde_json::Value::Array(items) => items.iter().any(contains_null),
+        serde_json::Value::Object(members) => members.values().any(contains_null),
+        _ => false,
+    }
+}
+
+/// `input` as the query part of a URI: bytes a URI may carry in a query are kept as they are
+/// (so `&`, `=`, `%` and `+` keep their meaning to the decoder), the rest percent-encoded.
+pub fn as_query(input: &[u8]) -> String {
+    let mut query = String::with_capacity(input.len());
+    for &byte in input {
+        let keep = byte.is_ascii_alphanumeric() || b"-._~!$&'()*+,;=:@/?%".contains(&byte);
+        if keep {
+            query.push(char::from(byte));
+        } else {
+            query.push_str(&format!("%{byte:02X}"));
+        }
+    }
+    query
+}
