@@ -64,6 +64,18 @@ impl TestApp {
         }
     }
 
+    /// Polls until a new connection is refused (the listener has closed); false if it never
+    /// is within [`PATIENCE`].
+    pub async fn listener_closed(&self) -> bool {
+        for _ in 0..2_000 {
+            if TcpStream::connect(self.socket).await.is_err() {
+                return true;
+            }
+            tokio::time::sleep(Duration::from_millis(10)).await;
+        }
+        false
+    }
+
     /// Waits for the server task to finish and returns what `run_until` returned.
     pub async fn stopped(&mut self) -> io::Result<()> {
         let server = self.server.take().expect("the server was started");

@@ -147,14 +147,7 @@ async fn shutdown_drains_in_flight_requests() {
 
     // Act: shut down, wait until the listener is closed, then finish the request.
     app.begin_shutdown();
-    let mut closed = false;
-    for _ in 0..2_000 {
-        if tokio::net::TcpStream::connect(app.socket).await.is_err() {
-            closed = true;
-            break;
-        }
-        tokio::time::sleep(Duration::from_millis(10)).await;
-    }
+    let closed = app.listener_closed().await;
     held.write_all(rest).await.unwrap();
     let answer = read_to_close(&mut held).await;
 
@@ -177,14 +170,7 @@ async fn a_connection_opened_before_shutdown_is_served() {
 
     // Act: shut down; once new connections are refused, send the request.
     app.begin_shutdown();
-    let mut closed = false;
-    for _ in 0..2_000 {
-        if tokio::net::TcpStream::connect(app.socket).await.is_err() {
-            closed = true;
-            break;
-        }
-        tokio::time::sleep(Duration::from_millis(10)).await;
-    }
+    let closed = app.listener_closed().await;
     let request =
         format!("GET {EXAMPLE_QUERY} HTTP/1.1\r\nHost: test\r\nConnection: keep-alive\r\n\r\n");
     early.write_all(request.as_bytes()).await.unwrap();
