@@ -20,7 +20,7 @@ use std::{
 
 use serde_json::Value;
 
-use super::{Connection, Options, Placement, Server, Target, start_service, status_field};
+use super::{Connection, Options, Placement, Target, start_service, status_field};
 
 /// How many answers in one are checked against the physics.
 const SAMPLE_ONE_IN: u64 = 8;
@@ -407,7 +407,7 @@ pub fn run(
         Ok::<_, String>((tally, rss))
     })?;
     let elapsed = started.elapsed();
-    let alive = check_alive(&service);
+    let alive = service.rss_kib().is_some();
     Ok(report(
         &tally,
         &rss,
@@ -418,10 +418,6 @@ pub fn run(
         placement,
         alive,
     ))
-}
-
-fn check_alive(service: &Server) -> bool {
-    status_field(service.pid(), "VmRSS:").is_some()
 }
 
 /// The server's RSS (KiB) sampled each second until `to`, with the second it was taken at.

@@ -17,7 +17,7 @@ use serde::Deserialize;
 use serde_json::{Map, Value};
 
 use super::{
-    error::{ApiError, FieldError},
+    error::ApiError,
     extract::{self, decode_object, expect_object},
     types::{
         BatchDistanceResponse, BatchPoint, DistanceRequest, PointDistance, PointFailure,
@@ -290,14 +290,7 @@ fn measure(rig: &physics::Rig, bounds: Bounds, index: usize, point: BatchPoint) 
 fn failure(index: usize, problems: Problems) -> PointOutcome {
     PointOutcome::Failed(PointFailure {
         index,
-        errors: problems
-            .prefixed(&format!("points[{index}]."))
-            .into_iter()
-            .map(|e| FieldError {
-                field: e.field.trim_end_matches('.').to_owned(),
-                message: e.message,
-            })
-            .collect(),
+        errors: problems.prefixed(&format!("points[{index}].")),
     })
 }
 

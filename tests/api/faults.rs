@@ -19,7 +19,9 @@ use tokio::{
     net::TcpStream,
 };
 
-use crate::helpers::{PATIENCE, fields, problem, read_to_close, spawn_app, spawn_app_with};
+use crate::helpers::{
+    PATIENCE, fields, problem, read_to_close, spawn_app, spawn_app_with, wait_in_flight_at,
+};
 
 /// Example 1 of the seed, with `baseline` replaced by `baseline`.
 fn body_with_baseline(baseline: &str) -> String {
@@ -274,26 +276,8 @@ async fn sigterm_under_load_drains_in_flight_and_loses_nothing() {
         stream.write_all(first).await.unwrap();
         held.push(stream);
     }
-    let metrics = format!("http://{address}/metrics");
-    let in_flight = || async {
-        let text = reqwest::get(&metrics).await.unwrap().text().await.unwrap();
-        text.lines().find_map(|l| {
-            l.strip_prefix("http_requests_in_flight ")?
-                .parse::<f64>()
-                .ok()
-        })
-    };
-    for _ in 0..2_000 {
-        if in_flight().await == Some(9.0) {
-            break;
-        }
-        tokio::time::sleep(Duration::from_millis(10)).await;
-    }
-    assert_eq!(
-        in_flight().await,
-        Some(9.0),
-        "eight held requests and the poll"
-    );
+    // The eight held requests and the poll itself.
+    wait_in_flight_at(&reqwest::Client::new(), &format!("http://{address}"), 9.0).await;
 
     let answered = Arc::new(AtomicUsize::new(0));
     let refused = Arc::new(AtomicBool::new(false));

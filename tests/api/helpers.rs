@@ -87,21 +87,13 @@ impl TestApp {
 
     /// The value of the metric line starting with `series` (name and labels), if present.
     pub async fn metric(&self, series: &str) -> Option<f64> {
-        let text = self.get("/metrics").await.text().await.expect("metrics");
-        text.lines()
-            .find_map(|line| line.strip_prefix(series)?.trim().parse().ok())
+        metric_at(&self.client, &self.address, series).await
     }
 
     /// Polls `/metrics` until `http_requests_in_flight` (which counts the poll itself) reaches
     /// `count`.
     pub async fn wait_in_flight(&self, count: f64) {
-        for _ in 0..2_000 {
-            if self.metric("http_requests_in_flight").await == Some(count) {
-                return;
-            }
-            tokio::time::sleep(Duration::from_millis(10)).await;
-        }
-        panic!("http_requests_in_flight never reached {count}");
+        wait_in_flight_at(&self.client, &self.address, count).await;
     }
 
     /// Opens a raw connection and sends `head` (request line and headers, with the blank line
@@ -180,6 +172,27 @@ impl TestApp {
     pub async fn get_with(&self, path: &str, fields: &Value) -> Response {
         self.get(&format!("{path}?{}", to_query(fields))).await
     }
+}
+
+/// The value of the metric line starting with `series` (name and labels) on the server at
+/// `address` (`http://host:port`), if present.
+pub async fn metric_at(client: &Client, address: &str, series: &str) -> Option<f64> {
+    let response = client.get(format!("{address}/metrics")).send().await;
+    let text = response.expect("metrics").text().await.expect("metrics");
+    text.lines()
+        .find_map(|line| line.strip_prefix(series)?.trim().parse().ok())
+}
+
+/// Polls the `/metrics` of the server at `address` until `http_requests_in_flight` (which
+/// counts the poll itself) reaches `count`, within [`PATIENCE`].
+pub async fn wait_in_flight_at(client: &Client, address: &str, count: f64) {
+    for _ in 0..2_000 {
+        if metric_at(client, address, "http_requests_in_flight").await == Some(count) {
+            return;
+        }
+        tokio::time::sleep(Duration::from_millis(10)).await;
+    }
+    panic!("http_requests_in_flight never reached {count}");
 }
 
 /// Reads a raw HTTP/1.1 answer until the peer closes (the requests send `Connection: close`),
