@@ -18,6 +18,8 @@
 //! - [`startup`]: the middleware stack, [`startup::Application`] (binds, may use port 0), the
 //!   accept loop with its header read timeout, and graceful shutdown with readiness drain.
 //! - [`healthcheck`]: the `healthcheck` subcommand's probe, for images without curl.
+//! - [`web`]: the calculator page at `/`, a client of the API, its assets embedded in the binary
+//!   (`src/web/`).
 //! - [`conformance`]: what the service promises for any input, checked in process; the oracle
 //!   of the fuzz target (`fuzz/`) and of the random-input test.
 //!
@@ -33,6 +35,7 @@ pub mod physics;
 pub mod protect;
 pub mod startup;
 pub mod telemetry;
+pub mod web;
 
 pub use config::Config;
 pub use startup::{Application, app};

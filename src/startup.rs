@@ -25,7 +25,7 @@ use crate::{
     },
     config::Config,
     edge::{EdgeLayer, GuardLayer},
-    protect,
+    protect, web,
 };
 
 /// The complete application router for `config`, every layer included. `ops` carries the
@@ -48,6 +48,7 @@ pub fn app(config: &Config, ops: OpsState) -> Router {
             limits.body_bytes,
         ));
     api.merge(probes)
+        .merge(web::router())
         .fallback(handlers::not_found)
         .method_not_allowed_fallback(handlers::method_not_allowed)
         .layer(stack)

@@ -13,3 +13,4 @@ mod planning;
 mod protection;
 mod svg;
 mod table;
+mod web;

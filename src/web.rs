@@ -1,0 +1,177 @@
+//! The web calculator at `/`: one HTML page with its script, style sheet and icon, embedded in
+//! the binary (`include_str!`), so nothing is read from disk or fetched from a CDN at run time.
+//!
+//! The page is a client of the public API (`/distance`, `/table`, `/chart-data`) and holds no
+//! physics. Each asset is answered with an `ETag` (a hash of its bytes, so a new build is a new
+//! tag) and `Cache-Control: no-cache`, so browsers revalidate and get a 304 until the binary
+//! changes. The tag is weak because the compression layer may send the same asset gzip- or
+//! br-encoded, and a strong tag must differ between such representations. The page carries a Content-Security-Policy that allows only this origin.
+
+use axum::{
+    Router,
+    http::{
+        HeaderMap, HeaderName, HeaderValue, StatusCode,
+        header::{CACHE_CONTROL, CONTENT_TYPE, ETAG, IF_NONE_MATCH},
+    },
+    response::{IntoResponse, Response},
+    routing::get,
+};
+
+/// One embedded file and how it is served.
+#[derive(Debug, Clone, Copy)]
+pub struct Asset {
+    /// The route it is served at.
+    pub path: &'static str,
+    pub content_type: &'static str,
+    pub body: &'static str,
+}
+
+/// Everything the page needs, and nothing from anywhere else.
+pub const ASSETS: [Asset; 4] = [
+    Asset {
+        path: "/",
+        content_type: "text/html; charset=utf-8",
+        body: include_str!("web/index.html"),
+    },
+    Asset {
+        path: "/app.js",
+        content_type: "text/javascript; charset=utf-8",
+        body: include_str!("web/app.js"),
+    },
+    Asset {
+        path: "/app.css",
+        content_type: "text/css; charset=utf-8",
+        body: include_str!("web/app.css"),
+    },
+    Asset {
+        path: "/favicon.svg",
+        content_type: "image/svg+xml",
+        body: include_str!("web/favicon.svg"),
+    },
+];
+
+/// Only this origin may provide scripts, styles, images and API answers; no framing.
+const CONTENT_SECURITY_POLICY: &str = "default-src 'none'; script-src 'self'; style-src 'self'; \
+     img-src 'self'; connect-src 'self'; form-action 'self'; base-uri 'none'; \
+     frame-ancestors 'none'";
+
+/// FNV-1a over the bytes: a stable tag that changes when the asset does.
+fn fnv1a(bytes: &[u8]) -> u64 {
+    bytes.iter().fold(0xcbf2_9ce4_8422_2325, |hash, byte| {
+        (hash ^ u64::from(*byte)).wrapping_mul(0x0100_0000_01b3)
+    })
+}
+
+/// The weak entity tag of an asset, as HTTP writes it: `W/"…"`.
+pub fn etag(asset: &Asset) -> String {
+    format!("W/\"{:016x}\"", fnv1a(asset.body.as_bytes()))
+}
+
+/// Whether an `If-None-Match` header names `tag` (or is `*`), by weak comparison: `W/` is
+/// ignored on either side, as RFC 9110 asks for `If-None-Match`.
+fn matches(if_none_match: Option<&HeaderValue>, tag: &str) -> bool {
+    let tag = tag.trim_start_matches("W/");
+    if_none_match
+        .and_then(|value| value.to_str().ok())
+        .is_some_and(|value| {
+            value
+                .split(',')
+                .map(|candidate| candidate.trim().trim_start_matches("W/"))
+                .any(|candidate| candidate == tag || candidate == "*")
+        })
+}
+
+fn serve(asset: Asset, tag: &HeaderValue, request: &HeaderMap) -> Response {
+    let tag_text = tag.to_str().unwrap_or_default();
+    let mut headers = HeaderMap::new();
+    headers.insert(ETAG, tag.clone());
+    headers.insert(CACHE_CONTROL, HeaderValue::from_static("no-cache"));
+    headers.insert(
+        HeaderName::from_static("x-content-type-options"),
+        HeaderValue::from_static("nosniff"),
+    );
+    if matches(request.get(IF_NONE_MATCH), tag_text) {
+        return (StatusCode::NOT_MODIFIED, headers).into_response();
+    }
+    headers.insert(CONTENT_TYPE, HeaderValue::from_static(asset.content_type));
+    if asset.content_type.starts_with("text/html") {
+        headers.insert(
+            HeaderName::from_static("content-security-policy"),
+            HeaderValue::from_static(CONTENT_SECURITY_POLICY),
+        );
+        headers.insert(
+            HeaderName::from_static("referrer-policy"),
+            HeaderValue::from_static("same-origin"),
+        );
+    }
+    (headers, asset.body).into_response()
+}
+
+/// The page's routes (GET and HEAD).
+pub fn router() -> Router {
+    ASSETS.into_iter().fold(Router::new(), |router, asset| {
+        let tag =
+            HeaderValue::from_str(&etag(&asset)).expect("hex digits in quotes are a valid header");
+        router.route(
+            asset.path,
+            get(move |headers: HeaderMap| async move { serve(asset, &tag, &headers) }),
+        )
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A tag is weak, quoted hex, and differs between assets.
+    #[test]
+    fn tags_are_weak_quoted_and_distinct() {
+        let tags: Vec<String> = ASSETS.iter().map(etag).collect();
+        for tag in &tags {
+            assert_eq!(tag.len(), 20, "{tag}");
+            assert!(tag.starts_with("W/\"") && tag.ends_with('"'), "{tag}");
+        }
+        let mut unique = tags.clone();
+        unique.sort();
+        unique.dedup();
+        assert_eq!(unique.len(), tags.len());
+    }
+
+    /// `If-None-Match` matches a listed tag, a weak form of it, or `*`, and nothing else.
+    #[test]
+    fn if_none_match_is_read_as_a_list() {
+        let tag = "W/\"0123456789abcdef\"";
+        let header = |v: &'static str| Some(HeaderValue::from_static(v));
+        assert!(matches(header("\"0123456789abcdef\"").as_ref(), tag));
+        assert!(matches(
+            header("\"x\", W/\"0123456789abcdef\"").as_ref(),
+            tag
+        ));
+        assert!(matches(header("*").as_ref(), tag));
+        assert!(!matches(header("\"fedcba9876543210\"").as_ref(), tag));
+        assert!(!matches(None, tag));
+    }
+
+    /// The page asks for nothing outside this origin: no `http(s)://` or protocol-relative
+    /// `src`/`href`, and no `@import` or `url(` of another host.
+    #[test]
+    fn assets_reference_only_this_origin() {
+        for asset in ASSETS {
+            for needle in [
+                "src=\"http",
+                "href=\"http",
+                "src=\"//",
+                "href=\"//",
+                "@import",
+                "url(http",
+                "url(//",
+            ] {
+                assert!(
+                    !asset.body.contains(needle),
+                    "{} contains {needle}",
+                    asset.path
+                );
+            }
+        }
+    }
+}

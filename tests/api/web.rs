@@ -1,0 +1,239 @@
+//! The calculator page at `/` as HTTP sees it: embedded assets with their headers, every link
+//! on the page answered by this server, caching by ETag, and the page's worked examples
+//! agreeing with the API. The page's behaviour in a browser is tested in `tests/browser.rs`.
+
+use std::collections::BTreeSet;
+
+use reqwest::{
+    StatusCode,
+    header::{CACHE_CONTROL, CONTENT_TYPE, ETAG, IF_NONE_MATCH},
+};
+
+use crate::helpers::{assert_close, number_at, ok_json, problem, spawn_app};
+
+/// Every `href="…"` and `src="…"` value in `html`, with `&amp;` decoded.
+fn references(html: &str) -> Vec<String> {
+    let mut found = Vec::new();
+    for attribute in ["href=\"", "src=\""] {
+        let mut rest = html;
+        while let Some(start) = rest.find(attribute) {
+            rest = &rest[start + attribute.len()..];
+            let end = rest.find('"').expect("a closing quote");
+            found.push(rest[..end].replace("&amp;", "&"));
+            rest = &rest[end..];
+        }
+    }
+    found
+}
+
+/// `GET /` is the calculator, with a policy that lets it load and call only this origin, and
+/// its script, style sheet and icon are served with their types.
+#[tokio::test]
+async fn the_page_and_its_assets_are_served_from_the_binary() {
+    // Arrange
+    let app = spawn_app().await;
+
+    // Act
+    let page = app.get("/").await;
+
+    // Assert
+    assert_eq!(page.status(), StatusCode::OK);
+    assert_eq!(page.headers()[CONTENT_TYPE], "text/html; charset=utf-8");
+    let policy = page.headers()["content-security-policy"]
+        .to_str()
+        .unwrap()
+        .to_owned();
+    for directive in [
+        "default-src 'none'",
+        "script-src 'self'",
+        "connect-src 'self'",
+    ] {
+        assert!(policy.contains(directive), "{policy}");
+    }
+    assert_eq!(page.headers()["x-content-type-options"], "nosniff");
+    let html = page.text().await.unwrap();
+    assert!(html.contains("<title>Stereo vision distance calculator</title>"));
+    for (path, content_type) in [
+        ("/app.js", "text/javascript; charset=utf-8"),
+        ("/app.css", "text/css; charset=utf-8"),
+        ("/favicon.svg", "image/svg+xml"),
+    ] {
+        assert!(
+            references(&html).iter().any(|r| r == path),
+            "the page loads {path}"
+        );
+        let asset = app.get(path).await;
+        assert_eq!(asset.status(), StatusCode::OK, "{path}");
+        assert_eq!(asset.headers()[CONTENT_TYPE], content_type, "{path}");
+        assert_eq!(
+            asset.headers()["x-content-type-options"],
+            "nosniff",
+            "{path}"
+        );
+        assert!(!asset.text().await.unwrap().is_empty(), "{path}");
+    }
+}
+
+/// Every link and source on the page is local and answered 200 by this server: the assets,
+/// the API documentation, the SVG chart and the worked examples' permalinks. Nothing comes
+/// from a CDN.
+#[tokio::test]
+async fn every_link_on_the_page_is_local_and_answers() {
+    // Arrange
+    let app = spawn_app().await;
+    let html = app.get("/").await.text().await.unwrap();
+    let references = references(&html);
+    assert!(references.len() >= 10, "{references:?}");
+
+    for reference in references {
+        if reference.starts_with('#') {
+            continue;
+        }
+        // Assert: local, and answered.
+        assert!(
+            reference.starts_with('/') && !reference.starts_with("//"),
+            "{reference}"
+        );
+        let response = app.get(&reference).await;
+        assert_eq!(response.status(), StatusCode::OK, "{reference}");
+    }
+}
+
+/// The script calls only the public API's documented routes: the page is a client of
+/// `/distance`, `/table` and `/chart-data`, with no physics or private endpoint of its own.
+#[tokio::test]
+async fn the_page_calls_only_the_public_api() {
+    // Arrange
+    let app = spawn_app().await;
+    let script = app.get("/app.js").await.text().await.unwrap();
+    let spec = ok_json(app.get("/openapi.json").await).await;
+
+    // Act: every path the script calls.
+    let called: BTreeSet<&str> = script
+        .match_indices("call('")
+        .map(|(at, needle)| {
+            let rest = &script[at + needle.len()..];
+            &rest[..rest.find('\'').expect("a closing quote")]
+        })
+        .collect();
+
+    // Assert
+    assert_eq!(
+        called,
+        BTreeSet::from(["/chart-data", "/distance", "/table"])
+    );
+    for path in called {
+        assert!(
+            spec["paths"][path]["get"].is_object(),
+            "{path} is in the spec"
+        );
+    }
+    assert!(!script.contains("fetch('http") && !script.contains("fetch(\"http"));
+}
+
+/// Assets carry a weak ETag and `no-cache`: a browser revalidating with the tag gets a 304
+/// with no body, also for the gzip-encoded copy, and one holding another version gets the
+/// asset.
+#[tokio::test]
+async fn assets_are_revalidated_by_etag() {
+    // Arrange
+    let app = spawn_app().await;
+    let first = app.get("/app.js").await;
+    assert_eq!(first.headers()[CACHE_CONTROL], "no-cache");
+    let tag = first.headers()[ETAG].to_str().unwrap().to_owned();
+    assert!(tag.starts_with("W/\"") && tag.ends_with('"'), "{tag}");
+
+    // Act
+    let same = app
+        .client
+        .get(format!("{}/app.js", app.address))
+        .header(IF_NONE_MATCH, &tag)
+        .send()
+        .await
+        .unwrap();
+    let gzip = app
+        .client
+        .get(format!("{}/app.js", app.address))
+        .header(IF_NONE_MATCH, &tag)
+        .header("accept-encoding", "gzip")
+        .send()
+        .await
+        .unwrap();
+    let other = app
+        .client
+        .get(format!("{}/app.js", app.address))
+        .header(IF_NONE_MATCH, "\"0000000000000000\"")
+        .send()
+        .await
+        .unwrap();
+
+    // Assert
+    assert_eq!(same.status(), StatusCode::NOT_MODIFIED);
+    assert_eq!(same.headers()[ETAG], tag.as_str());
+    assert!(same.bytes().await.unwrap().is_empty());
+    assert_eq!(gzip.status(), StatusCode::NOT_MODIFIED);
+    assert_eq!(other.status(), StatusCode::OK);
+    assert!(!other.text().await.unwrap().is_empty());
+}
+
+/// HEAD answers the page's headers with no body; any other method is a 405 problem naming it.
+#[tokio::test]
+async fn the_page_takes_get_and_head_only() {
+    // Arrange
+    let app = spawn_app().await;
+    let url = format!("{}/", app.address);
+
+    // Act
+    let head = app.client.head(&url).send().await.unwrap();
+    let post = app.client.post(&url).body("x").send().await.unwrap();
+
+    // Assert
+    assert_eq!(head.status(), StatusCode::OK);
+    assert_eq!(head.headers()[CONTENT_TYPE], "text/html; charset=utf-8");
+    assert!(head.bytes().await.unwrap().is_empty());
+    let problem = problem(post, 405).await;
+    assert_eq!(problem["errors"][0]["field"], "method");
+}
+
+/// The guide's worked examples say what the API answers for their permalinks: 105 mm for
+/// f = 35 px; about 30.4 m when the 35 is millimetres on 3.45 µm pixels; 40 mm, with the
+/// negative-disparity warning, for the inspection example.
+#[tokio::test]
+async fn the_worked_examples_agree_with_the_api() {
+    // Arrange
+    let app = spawn_app().await;
+    let html = app.get("/").await.text().await.unwrap();
+    let examples: Vec<String> = references(&html)
+        .into_iter()
+        .filter(|r| r.starts_with("/?focal_mode="))
+        .collect();
+    assert_eq!(examples.len(), 3, "{examples:?}");
+
+    // Act: each permalink's members, less the page's own `focal_mode`, sent to /distance.
+    let mut answers = Vec::new();
+    for example in &examples {
+        let query: Vec<&str> = example[2..]
+            .split('&')
+            .filter(|pair| !pair.starts_with("focal_mode="))
+            .collect();
+        answers.push(ok_json(app.get(&format!("/distance?{}", query.join("&"))).await).await);
+    }
+
+    // Assert
+    assert_close(number_at(&answers[0], "distance"), 105.0, "example 1");
+    assert!(html.contains("Z = 150 mm × 35 px / 50 px = 105 mm"));
+    assert_close(
+        number_at(&answers[1], "distance"),
+        30_434.782_608_695_65,
+        "35 mm at 3.45 µm",
+    );
+    assert!(html.contains("about 30.4 m away"));
+    assert_close(
+        number_at(&answers[1], "focal_length_px"),
+        10_144.927_536_231_884,
+        "f in px",
+    );
+    assert!(html.contains("≈ 10 145 px"));
+    assert_close(number_at(&answers[2], "distance"), 40.0, "example 2");
+    assert_eq!(answers[2]["warnings"][0]["code"], "negative_disparity");
+}
