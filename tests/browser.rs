@@ -193,6 +193,14 @@ impl Browser {
         }
     }
 
+    /// A desktop-sized browser on `/` as a first visit sees it: the defaults computed, 105 mm.
+    async fn at_defaults() -> Browser {
+        let browser = Browser::start(1280, 1400).await;
+        browser.open("/").await;
+        browser.until_text("distance", "105 mm").await;
+        browser
+    }
+
     /// Opens `path` and waits until the page has shown its first answer.
     async fn open(&self, path: &str) {
         self.client
@@ -230,6 +238,15 @@ impl Browser {
 
     async fn attr(&self, id: &str, name: &str) -> Option<String> {
         self.find(id).await.attr(name).await.expect("attribute")
+    }
+
+    /// Chooses the option with `value` in the select `#id`.
+    async fn choose(&self, id: &str, value: &str) {
+        self.find(id)
+            .await
+            .select_by_value(value)
+            .await
+            .unwrap_or_else(|e| panic!("#{id} offers {value}: {e}"));
     }
 
     /// Clears a text field and types `text` into it, as a person would.
@@ -381,9 +398,7 @@ async fn example_one_typed_in_reads_105_mm() {
 #[ignore = "needs chromium and chromedriver; .ci/run runs it"]
 async fn focal_length_in_mm_without_sensor_width_is_refused_inline() {
     // Arrange
-    let browser = Browser::start(1280, 1400).await;
-    browser.open("/").await;
-    browser.until_text("distance", "105 mm").await;
+    let browser = Browser::at_defaults().await;
     assert_eq!(
         browser.attr("focal-error", "hidden").await.as_deref(),
         Some("true")
@@ -452,12 +467,8 @@ async fn focal_length_in_mm_without_sensor_width_is_refused_inline() {
 #[tokio::test]
 #[ignore = "needs chromium and chromedriver; .ci/run runs it"]
 async fn the_chart_draws_both_curves_and_marks_the_measured_point() {
-    // Arrange
-    let browser = Browser::start(1280, 1400).await;
-
-    // Act
-    browser.open("/").await;
-    browser.until_text("distance", "105 mm").await;
+    // Arrange / Act: the page as it loads.
+    let browser = Browser::at_defaults().await;
 
     // Assert
     let chart = browser.find("chart").await;
@@ -554,9 +565,7 @@ async fn the_chart_draws_both_curves_and_marks_the_measured_point() {
 #[ignore = "needs chromium and chromedriver; .ci/run runs it"]
 async fn the_table_downloads_as_csv_and_results_copy_as_text() {
     // Arrange
-    let browser = Browser::start(1280, 1400).await;
-    browser.open("/").await;
-    browser.until_text("distance", "105 mm").await;
+    let browser = Browser::at_defaults().await;
 
     // Act / Assert: the table.
     let cells = browser
@@ -569,12 +578,7 @@ async fn the_table_downloads_as_csv_and_results_copy_as_text() {
         cells[0],
         json!(["5250", "1", "-0.0025", "0.233333", "2625"])
     );
-    browser
-        .find("rows")
-        .await
-        .select_by_value("5")
-        .await
-        .expect("select");
+    browser.choose("rows", "5").await;
     browser
         .until("5 rows", || async {
             let n = browser
@@ -640,26 +644,15 @@ async fn the_table_downloads_as_csv_and_results_copy_as_text() {
 #[ignore = "needs chromium and chromedriver; .ci/run runs it"]
 async fn reset_defaults_restores_the_form() {
     // Arrange: everything changed from the defaults, including an error.
-    let browser = Browser::start(1280, 1400).await;
-    browser.open("/").await;
+    let browser = Browser::at_defaults().await;
     browser
         .find("optional")
         .await
         .click()
         .await
         .expect("open the optional fields");
-    browser
-        .find("focal_mode")
-        .await
-        .select_by_value("fov")
-        .await
-        .expect("mode");
-    browser
-        .find("unit")
-        .await
-        .select_by_value("m")
-        .await
-        .expect("unit");
+    browser.choose("focal_mode", "fov").await;
+    browser.choose("unit", "m").await;
     for (id, value) in [
         ("focal", "90"),
         ("baseline", "0.12"),
@@ -708,21 +701,10 @@ async fn reset_defaults_restores_the_form() {
 #[ignore = "needs chromium and chromedriver; .ci/run runs it"]
 async fn a_permalink_reproduces_the_page() {
     // Arrange
-    let browser = Browser::start(1280, 1400).await;
-    browser.open("/").await;
-    browser
-        .find("focal_mode")
-        .await
-        .select_by_value("mm-pitch")
-        .await
-        .expect("mode");
+    let browser = Browser::at_defaults().await;
+    browser.choose("focal_mode", "mm-pitch").await;
     browser.type_into("pixel_size_um", "3.45").await;
-    browser
-        .find("unit")
-        .await
-        .select_by_value("m")
-        .await
-        .expect("unit");
+    browser.choose("unit", "m").await;
     browser.type_into("baseline", "0.15").await;
     browser.type_into("x_right", "360").await;
     browser.settled().await;

@@ -414,7 +414,8 @@
     return Number.isFinite(step) && step > 0 ? step : 1;
   }
 
-  function linearScale(min, max, from, to, log = false) {
+  /** A map from [min, max] onto the pixels [from, to], linear or logarithmic. */
+  function scaleOf(min, max, from, to, log = false) {
     const f = log ? Math.log10 : (v) => v;
     const [a, b] = [f(min), f(max)];
     const at = (v) => from + ((to - from) * (f(v) - a)) / (b - a || 1);
@@ -481,18 +482,18 @@
     const unit = data.y_axis.unit;
     const margin = { left: 62, right: log ? 20 : 62, top: 52, bottom: 52 };
     const xs = distance.points.map((p) => p.x).concat(data.marker ? [data.marker.x] : []);
-    const x = linearScale(Math.min(...xs), Math.max(...xs), margin.left, WIDTH - margin.right);
+    const x = scaleOf(Math.min(...xs), Math.max(...xs), margin.left, WIDTH - margin.right);
     const plotBottom = HEIGHT - margin.bottom;
     let left;
     let right = null;
     if (log) {
       const [low, high] = yRange(distance.points.concat(error.points).map((p) => p.y), true);
-      left = linearScale(low, high, plotBottom, margin.top, true);
+      left = scaleOf(low, high, plotBottom, margin.top, true);
     } else {
       const [low, high] = yRange(distance.points.map((p) => p.y), false);
-      left = linearScale(low, high, plotBottom, margin.top);
+      left = scaleOf(low, high, plotBottom, margin.top);
       const [elow, ehigh] = yRange(error.points.map((p) => p.y), false);
-      right = linearScale(elow, ehigh, plotBottom, margin.top);
+      right = scaleOf(elow, ehigh, plotBottom, margin.top);
     }
 
     const grid = svg('g', { class: 'grid-lines' });
