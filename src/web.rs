@@ -7,6 +7,8 @@
 //! changes. The tag is weak because the compression layer may send the same asset gzip- or
 //! br-encoded, and a strong tag must differ between such representations. The page carries a Content-Security-Policy that allows only this origin.
 
+use std::sync::Arc;
+
 use axum::{
     Router,
     http::{
@@ -81,40 +83,67 @@ fn matches(if_none_match: Option<&HeaderValue>, tag: &str) -> bool {
         })
 }
 
-fn serve(asset: Asset, tag: &HeaderValue, request: &HeaderMap) -> Response {
-    let tag_text = tag.to_str().unwrap_or_default();
-    let mut headers = HeaderMap::new();
-    headers.insert(ETAG, tag.clone());
-    headers.insert(CACHE_CONTROL, HeaderValue::from_static("no-cache"));
-    headers.insert(
-        HeaderName::from_static("x-content-type-options"),
-        HeaderValue::from_static("nosniff"),
-    );
-    if matches(request.get(IF_NONE_MATCH), tag_text) {
-        return (StatusCode::NOT_MODIFIED, headers).into_response();
-    }
-    headers.insert(CONTENT_TYPE, HeaderValue::from_static(asset.content_type));
-    if asset.content_type.starts_with("text/html") {
-        headers.insert(
-            HeaderName::from_static("content-security-policy"),
-            HeaderValue::from_static(CONTENT_SECURITY_POLICY),
+/// The headers of one asset's answers, built once when the router is.
+#[derive(Debug, Clone)]
+struct Served {
+    body: &'static str,
+    /// The tag as text, for comparing with `If-None-Match`.
+    tag: String,
+    /// What a 304 carries: the tag, the caching rule and `nosniff`.
+    not_modified: HeaderMap,
+    /// What a 200 carries: those, the content type and, for the page, its policies.
+    ok: HeaderMap,
+}
+
+impl Served {
+    fn new(asset: Asset) -> Self {
+        let tag = etag(&asset);
+        let mut not_modified = HeaderMap::new();
+        not_modified.insert(
+            ETAG,
+            HeaderValue::from_str(&tag).expect("hex digits in quotes are a valid header"),
         );
-        headers.insert(
-            HeaderName::from_static("referrer-policy"),
-            HeaderValue::from_static("same-origin"),
+        not_modified.insert(CACHE_CONTROL, HeaderValue::from_static("no-cache"));
+        not_modified.insert(
+            HeaderName::from_static("x-content-type-options"),
+            HeaderValue::from_static("nosniff"),
         );
+        let mut ok = not_modified.clone();
+        ok.insert(CONTENT_TYPE, HeaderValue::from_static(asset.content_type));
+        if asset.content_type.starts_with("text/html") {
+            ok.insert(
+                HeaderName::from_static("content-security-policy"),
+                HeaderValue::from_static(CONTENT_SECURITY_POLICY),
+            );
+            ok.insert(
+                HeaderName::from_static("referrer-policy"),
+                HeaderValue::from_static("same-origin"),
+            );
+        }
+        Self {
+            body: asset.body,
+            tag,
+            not_modified,
+            ok,
+        }
     }
-    (headers, asset.body).into_response()
+
+    fn answer(&self, request: &HeaderMap) -> Response {
+        if matches(request.get(IF_NONE_MATCH), &self.tag) {
+            (StatusCode::NOT_MODIFIED, self.not_modified.clone()).into_response()
+        } else {
+            (self.ok.clone(), self.body).into_response()
+        }
+    }
 }
 
 /// The page's routes (GET and HEAD).
 pub fn router() -> Router {
     ASSETS.into_iter().fold(Router::new(), |router, asset| {
-        let tag =
-            HeaderValue::from_str(&etag(&asset)).expect("hex digits in quotes are a valid header");
+        let served = Arc::new(Served::new(asset));
         router.route(
             asset.path,
-            get(move |headers: HeaderMap| async move { serve(asset, &tag, &headers) }),
+            get(move |headers: HeaderMap| async move { served.answer(&headers) }),
         )
     })
 }
