@@ -15,7 +15,7 @@ use axum::{
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use stereo_distance::{
     Config,
-    api::{self, AppState, ops::OpsState},
+    api::{self, AppState, HeavyState, routes::ops::OpsState},
     app,
     physics::{self, Correspondence, LengthUnit, Rig, SampleRange, Spacing, measure},
 };
@@ -127,9 +127,11 @@ fn router(c: &mut Criterion) {
         AppState {
             limits: config.limits,
         },
+        HeavyState::default(),
         OpsState::default(),
+        Router::new(),
     )
-    .api;
+    .light;
     let mut group = c.benchmark_group("router");
     group.bench_function("post_distance/full_stack", |b| {
         b.iter(|| runtime.block_on(post_distance(full.clone())))

@@ -41,6 +41,23 @@ pub const DEFAULT_SHUTDOWN_TIMEOUT: Duration = Duration::from_secs(10);
 /// Default log filter.
 pub const DEFAULT_LOG_LEVEL: &str = "info";
 
+/// Default body limit of the heavy (image) routes: 32 MiB, a rectified pair of 12-megapixel
+/// PNGs or a pair of 4K frames with room to spare, while bounding what one upload can make the
+/// server buffer.
+pub const DEFAULT_HEAVY_BODY_LIMIT: usize = 32 * 1024 * 1024;
+/// Default request timeout of the heavy routes: 30 s, for an upload over a slow link plus
+/// seconds of matching; past it the work is abandoned.
+pub const DEFAULT_HEAVY_REQUEST_TIMEOUT: Duration = Duration::from_secs(30);
+/// Default memory budget shared by the heavy requests in flight: 1 GiB, a few large requests at
+/// once (a 1280 × 720 pair with 128 disparities needs a few hundred MiB) within a pod of 2 GiB.
+pub const DEFAULT_HEAVY_MEMORY_BUDGET: usize = 1024 * 1024 * 1024;
+
+/// Default concurrency limit of the heavy routes: the number of CPUs. Each request keeps a core
+/// busy, so more at once would only make each slower while holding more memory.
+pub fn default_heavy_concurrency() -> usize {
+    std::thread::available_parallelism().map_or(1, usize::from)
+}
+
 /// The command line of the `stereo-distance` binary.
 #[derive(Debug, Parser)]
 #[command(
@@ -151,6 +168,50 @@ pub struct Config {
 
     #[command(flatten)]
     pub limits: Limits,
+
+    #[command(flatten)]
+    pub heavy: HeavyLimits,
+}
+
+/// The limits of the heavy route group, the image requests: megabytes in, milliseconds to
+/// seconds of CPU and tens of MB of memory each. The light group keeps the limits above.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Args)]
+#[command(next_help_heading = "Image requests (the heavy route group)")]
+pub struct HeavyLimits {
+    /// Largest accepted body of an image request (both images and their parts), in bytes or
+    /// with a unit (KiB, MiB, GiB); larger bodies get 413. At most the memory budget.
+    #[arg(id = "heavy_body_limit", long = "heavy-body-limit", env = "HEAVY_BODY_LIMIT", value_name = "SIZE",
+          default_value = "32MiB", value_parser = size::<1024, 4_294_967_296>)]
+    pub body_bytes: usize,
+
+    /// Longest time one image request may take, upload included; 408 or 503 past it.
+    #[arg(id = "heavy_request_timeout", long = "heavy-request-timeout", env = "HEAVY_REQUEST_TIMEOUT", value_name = "DURATION",
+          default_value = "30s", value_parser = timeout)]
+    pub request_timeout: Duration,
+
+    /// Most image requests served at once (default: the number of CPUs); more are refused at
+    /// once with 503 and Retry-After.
+    #[arg(id = "heavy_concurrency_limit", long = "heavy-concurrency-limit", env = "HEAVY_CONCURRENCY_LIMIT", value_name = "N",
+          default_value_t = default_heavy_concurrency(), value_parser = count::<1, 4096>)]
+    pub concurrency_limit: usize,
+
+    /// Memory shared by the image requests in flight, in bytes or with a unit (KiB, MiB, GiB).
+    /// Each reserves its body on arrival and its working memory before allocating it; one that
+    /// does not fit is refused with 503 and Retry-After.
+    #[arg(id = "heavy_memory_budget", long = "heavy-memory-budget", env = "HEAVY_MEMORY_BUDGET", value_name = "SIZE",
+          default_value = "1GiB", value_parser = size::<1024, 1_099_511_627_776>)]
+    pub memory_budget: usize,
+}
+
+impl Default for HeavyLimits {
+    fn default() -> Self {
+        Self {
+            body_bytes: DEFAULT_HEAVY_BODY_LIMIT,
+            request_timeout: DEFAULT_HEAVY_REQUEST_TIMEOUT,
+            concurrency_limit: default_heavy_concurrency(),
+            memory_budget: DEFAULT_HEAVY_MEMORY_BUDGET,
+        }
+    }
 }
 
 /// Caps on what one request may ask for.
@@ -209,6 +270,7 @@ impl Default for Config {
             shutdown_delay: DEFAULT_SHUTDOWN_DELAY,
             shutdown_timeout: DEFAULT_SHUTDOWN_TIMEOUT,
             limits: Limits::default(),
+            heavy: HeavyLimits::default(),
         }
     }
 }
@@ -221,6 +283,33 @@ fn count<const MIN: usize, const MAX: usize>(text: &str) -> Result<usize, String
         Ok(value)
     } else {
         Err(format!("must be from {MIN} to {MAX}"))
+    }
+}
+
+/// A size in bytes from `MIN` to `MAX`: a whole number, or one with a binary unit such as
+/// `64KiB`, `32MiB` or `1GiB`.
+fn size<const MIN: usize, const MAX: usize>(text: &str) -> Result<usize, String> {
+    let text = text.trim();
+    let expected = || "expected a size such as 1048576, 512KiB, 32MiB or 1GiB".to_owned();
+    let digits = text
+        .find(|c: char| !c.is_ascii_digit())
+        .unwrap_or(text.len());
+    let (number, unit) = text.split_at(digits);
+    let scale: usize = match unit.trim() {
+        "" | "B" => 1,
+        "KiB" => 1 << 10,
+        "MiB" => 1 << 20,
+        "GiB" => 1 << 30,
+        _ => return Err(expected()),
+    };
+    let value = usize::from_str(number)
+        .ok()
+        .and_then(|n| n.checked_mul(scale))
+        .ok_or_else(expected)?;
+    if (MIN..=MAX).contains(&value) {
+        Ok(value)
+    } else {
+        Err(format!("must be from {MIN} to {MAX} bytes"))
     }
 }
 
@@ -296,6 +385,17 @@ impl Cli {
 impl Config {
     /// Checks that span more than one option, reported like clap's own errors.
     fn check(&self) -> Result<(), clap::Error> {
+        if self.heavy.body_bytes > self.heavy.memory_budget {
+            return Err(clap::Error::raw(
+                clap::error::ErrorKind::ValueValidation,
+                format!(
+                    "--heavy-body-limit (HEAVY_BODY_LIMIT, {} bytes) must not exceed \
+                     --heavy-memory-budget (HEAVY_MEMORY_BUDGET, {} bytes): every image request \
+                     reserves its body from the budget\n",
+                    self.heavy.body_bytes, self.heavy.memory_budget
+                ),
+            ));
+        }
         let origins = &self.cors_allowed_origins;
         if origins.len() > 1 && origins.iter().any(|o| o == "*") {
             return Err(clap::Error::raw(
@@ -393,6 +493,55 @@ mod tests {
             (
                 &["--cors-allowed-origins", "*,https://a.com"][..],
                 "cannot be combined",
+            ),
+        ] {
+            let error = parse(args).expect_err(&format!("{args:?} must be refused"));
+            let text = error.to_string();
+            assert!(text.contains(expected), "{args:?}: {text}");
+        }
+    }
+
+    /// The heavy group's flags take sizes with units and are checked against each other.
+    #[test]
+    fn heavy_limits() {
+        let cli = parse(&[
+            "--heavy-body-limit",
+            "8MiB",
+            "--heavy-memory-budget",
+            "512MiB",
+            "--heavy-concurrency-limit",
+            "3",
+            "--heavy-request-timeout",
+            "2s",
+        ])
+        .unwrap();
+        assert_eq!(
+            cli.config.heavy,
+            HeavyLimits {
+                body_bytes: 8 << 20,
+                memory_budget: 512 << 20,
+                concurrency_limit: 3,
+                request_timeout: Duration::from_secs(2),
+            }
+        );
+        assert_eq!(size::<1, 4096>("2KiB"), Ok(2048));
+        assert_eq!(size::<1, 4096>("100"), Ok(100));
+        for (args, expected) in [
+            (&["--heavy-body-limit", "32 MB"][..], "expected a size"),
+            (&["--heavy-body-limit", "12"][..], "from 1024"),
+            (
+                &["--heavy-memory-budget", "99999999999GiB"][..],
+                "expected a size",
+            ),
+            (&["--heavy-concurrency-limit", "0"][..], "from 1 to 4096"),
+            (
+                &[
+                    "--heavy-body-limit",
+                    "64MiB",
+                    "--heavy-memory-budget",
+                    "32MiB",
+                ][..],
+                "must not exceed",
             ),
         ] {
             let error = parse(args).expect_err(&format!("{args:?} must be refused"));

@@ -17,7 +17,7 @@ use axum::{
 };
 use tower::ServiceExt;
 
-use crate::{Config, api::ops::OpsState, app};
+use crate::{Config, api::routes::ops::OpsState, app};
 
 /// The operations that read a body (`POST`) and a query (`GET`).
 const BODY_PATHS: [&str; 5] = ["/distance", "/table", "/chart-data", "/rig", "/baseline"];

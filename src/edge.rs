@@ -1,8 +1,10 @@
-//! The middleware every request passes through, written as two tower layers instead of a
-//! stack of ten. [`Edge`] (outermost) gives the request its id, counts it in flight, catches a
-//! panic as a 500, records the metrics, writes the access log line and echoes the id.
-//! [`Guard`] (innermost, API routes only) sheds load past the concurrency limit (503 with
-//! `Retry-After`), enforces the request timeout (408 or 503) and records the body limit.
+//! The middleware, written as two tower layers instead of a stack of ten. [`Edge`] (outermost,
+//! every request) gives the request its id, counts it in flight, catches a panic as a 500,
+//! records the metrics, writes the access log line and echoes the id. [`Guard`] wraps one route
+//! group with that group's limits: it sheds load past the group's concurrency limit (503 with
+//! `Retry-After`), enforces its request timeout (408 or 503) and, for the heavy group, admits a
+//! request only when its body fits in the memory budget (503 with `Retry-After`). The probes
+//! are a router of their own that no guard wraps.
 //!
 //! Why by hand: in axum, every `Router::layer` call boxes and clones each route's service on
 //! every request, and each `from_fn` middleware adds a boxed future of its own. With ten such
@@ -32,7 +34,8 @@ use http_body::Body as _;
 use tower::{Layer, Service};
 
 use crate::{
-    api::{error::ApiError, extract::BodyLimit, ops::PROBE_ROUTES},
+    api::error::ApiError,
+    budget::MemoryBudget,
     config::AccessLog,
     metrics::{InFlight, Metrics, method_label},
     protect::{RETRY_AFTER_SECS, Watched},
@@ -175,7 +178,8 @@ fn panic_message(panic: &(dyn Any + Send)) -> String {
 // ---------------------------------------------------------------------------------------------
 // Guard
 
-/// Builds [`Guard`] services, all sharing one count of API requests in flight.
+/// Builds [`Guard`] services for one route group, all sharing one count of the group's
+/// requests in flight.
 #[derive(Clone)]
 pub struct GuardLayer {
     shared: Arc<GuardShared>,
@@ -185,19 +189,44 @@ struct GuardShared {
     in_flight: AtomicUsize,
     limit: usize,
     timeout: Duration,
+    memory: Option<Admission>,
+}
+
+/// How the heavy group admits a request against its memory budget: by the body it declares, or
+/// the body limit when it declares none (a chunked upload may be that large).
+struct Admission {
+    budget: MemoryBudget,
     body_limit: usize,
 }
 
 impl GuardLayer {
-    /// At most `limit` API requests at once, each answered within `timeout`, with bodies of at
-    /// most `body_limit` bytes unless a route sets its own.
-    pub fn new(limit: usize, timeout: Duration, body_limit: usize) -> Self {
+    /// At most `limit` requests of the group at once, each answered within `timeout`.
+    pub fn new(limit: usize, timeout: Duration) -> Self {
         Self {
             shared: Arc::new(GuardShared {
                 in_flight: AtomicUsize::new(0),
                 limit,
                 timeout,
-                body_limit,
+                memory: None,
+            }),
+        }
+    }
+
+    /// The same, admitting each request only when its body (at most `body_limit` bytes) fits in
+    /// `budget`; the [`crate::budget::Reservation`] made for it is a request extension, for the
+    /// handler to grow by what it will allocate.
+    pub fn with_memory(
+        limit: usize,
+        timeout: Duration,
+        budget: MemoryBudget,
+        body_limit: usize,
+    ) -> Self {
+        Self {
+            shared: Arc::new(GuardShared {
+                in_flight: AtomicUsize::new(0),
+                limit,
+                timeout,
+                memory: Some(Admission { budget, body_limit }),
             }),
         }
     }
@@ -214,7 +243,7 @@ impl<S> Layer<S> for GuardLayer {
     }
 }
 
-/// Concurrency limit with shedding, request timeout, body limit; probes pass untouched.
+/// One route group's concurrency limit with shedding, request timeout and memory admission.
 #[derive(Clone)]
 pub struct Guard<S> {
     inner: S,
@@ -254,12 +283,6 @@ where
 
     fn call(&mut self, mut request: Request) -> ResponseFuture {
         let mut inner = take(&mut self.inner);
-        let route = request.extensions().get::<MatchedPath>();
-        if route.is_some_and(|r| PROBE_ROUTES.contains(&r.as_str())) {
-            return Box::pin(
-                async move { inner.call(request).await.map(IntoResponse::into_response) },
-            );
-        }
         let shared = Arc::clone(&self.shared);
         Box::pin(async move {
             let Some(_slot) = Slot::take(&shared) else {
@@ -268,9 +291,23 @@ where
                 }
                 .into_response());
             };
-            request
-                .extensions_mut()
-                .insert(BodyLimit(shared.body_limit));
+            // Held until the answer is made, whatever the handler does with its own clone.
+            let _reservation = match &shared.memory {
+                None => None,
+                Some(memory) => {
+                    let declared = request.body().size_hint().exact();
+                    let body = declared.map_or(memory.body_limit, |n| {
+                        usize::try_from(n).map_or(memory.body_limit, |n| n.min(memory.body_limit))
+                    });
+                    match memory.budget.reserve(body) {
+                        Ok(reservation) => {
+                            request.extensions_mut().insert(reservation.clone());
+                            Some(reservation)
+                        }
+                        Err(refusal) => return Ok(ApiError::Memory(refusal).into_response()),
+                    }
+                }
+            };
             // Whether the body was all in when time ran out tells a slow client (408) from a
             // slow server (503). A request without a body has nothing to wait for.
             let received = if request.body().is_end_stream() {

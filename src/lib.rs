@@ -1,32 +1,47 @@
 //! Stereo distance service: turns a stereo correspondence into a distance with its expected
-//! error, over HTTP and JSON.
+//! error, over HTTP and JSON; and, next, rectified image pairs into correspondences and depth.
+//!
+//! Two kinds of work, kept apart from the router down:
+//! - **light**: JSON answers that take microseconds of CPU and kilobytes of memory (`/distance`,
+//!   `/table`, `/chart-data`, `/rig`, …, the page at `/`);
+//! - **heavy**: image requests that take megabytes in, milliseconds to seconds of CPU and tens
+//!   of MB of memory each.
+//!
+//! Each is a route group with its own body limit, timeout and concurrency limit; the heavy group
+//! also shares a memory budget. The probes are a third router that no limit touches.
 //!
 //! Layout:
-//! - [`physics`]: the pure triangulation model (no HTTP, no serde): focal conversions,
-//!   `Z = B·f_px / |d + doffs|`, depth error, 3D point, sweeps for tables and charts.
-//! - [`api`]: the HTTP layer, kept thin: route → extract ([`api::extract`]) → validate
-//!   ([`api::validate`]) → physics → response ([`api::types`]); one error type
-//!   ([`api::error::ApiError`]) rendered as `application/problem+json`; the OpenAPI document
-//!   derived from the same types.
-//!   [`api::ops`] holds the probes and `/metrics`.
-//! - [`config`]: flags and environment variables (clap), defaults in code, start-up checks.
-//! - [`telemetry`]: logging setup, `x-request-id`, the access log line.
-//! - [`metrics`]: Prometheus request counts, latency histograms and in-flight gauge.
-//! - [`edge`]: the two hand-written layers every request passes through (request id, metrics,
-//!   access log, panic → 500; load shedding, request timeout, body limit).
-//! - [`protect`]: the pieces `edge` uses for timeouts and shedding, and CORS.
-//! - [`startup`]: the middleware stack, [`startup::Application`] (binds, may use port 0), the
-//!   accept loop with its header read timeout, and graceful shutdown with readiness drain.
-//! - [`healthcheck`]: the `healthcheck` subcommand's probe, for images without curl.
-//! - [`web`]: the calculator page at `/`, a client of the API, its assets embedded in the binary
+//! - Pure code, no HTTP or serde in any signature:
+//!   - [`physics`]: the triangulation model: focal conversions, `Z = B·f_px / |d + doffs|`,
+//!     depth error, 3D point, sweeps for tables and charts.
+//!   - [`vision`]: image matching (from a rectified pair to disparities); the heavy group's
+//!     engine.
+//! - [`api`]: the HTTP layer, read one way: [`api::error`] ← [`api::extract`] ←
+//!   [`api::wire`] ← [`api::validate`] ← [`api::routes`] (one module per resource, each with
+//!   its types and `router()`, merged into the light and heavy groups and the probes).
+//! - [`web`]: the calculator page at `/`, a client of the API, its assets embedded
 //!   (`src/web/`).
-//! - [`conformance`]: what the service promises for any input, checked in process; the oracle
-//!   of the fuzz target (`fuzz/`) and of the random-input test.
+//! - Serving:
+//!   - [`config`]: flags and environment variables (clap) for both groups, defaults, start-up
+//!     checks.
+//!   - [`startup`]: the route groups wrapped in their limits, [`startup::Application`] (binds,
+//!     may use port 0), the accept loop, graceful shutdown.
+//!   - [`edge`]: the two hand-written layers: `Edge` on every request (request id, metrics,
+//!     access log, panic → 500), `Guard` on each route group (shedding, timeout, memory
+//!     admission).
+//!   - [`budget`]: the memory budget shared by the heavy requests in flight.
+//!   - [`protect`]: the body watcher behind 408 vs 503, `Retry-After`, CORS.
+//!   - [`telemetry`], [`metrics`]: logs, request ids and the access log; Prometheus metrics.
+//!   - [`healthcheck`]: the `healthcheck` subcommand's probe, for images without curl.
+//! - `conformance` (cargo feature `conformance`, on for the tests and the fuzz crate): what the
+//!   service promises for any input, checked in process.
 //!
 //! `main.rs` only parses the command line and runs the server or the probe.
 
 pub mod api;
+pub mod budget;
 pub mod config;
+#[cfg(feature = "conformance")]
 pub mod conformance;
 pub mod edge;
 pub mod healthcheck;
@@ -35,7 +50,8 @@ pub mod physics;
 pub mod protect;
 pub mod startup;
 pub mod telemetry;
+pub mod vision;
 pub mod web;
 
 pub use config::Config;
-pub use startup::{Application, app};
+pub use startup::{Application, app, app_with};

@@ -20,9 +20,14 @@ use tower_http::compression::CompressionLayer;
 
 use crate::{
     api::{
-        self, AppState, Routers, handlers,
-        ops::{OpsState, Readiness},
+        self, AppState, HeavyState, Routers,
+        extract::BodyLimit,
+        routes::{
+            self,
+            ops::{OpsState, Readiness},
+        },
     },
+    budget::MemoryBudget,
     config::Config,
     edge::{EdgeLayer, GuardLayer},
     protect, web,
@@ -30,28 +35,53 @@ use crate::{
 
 /// The complete application router for `config`, every layer included. `ops` carries the
 /// readiness flag and the metrics registry, shared with whoever runs the server.
-///
-/// Layers, outermost first: [`crate::edge::Edge`] (request id, in-flight gauge, panic → 500, metrics,
-/// access log) → CORS (when configured) → compression → [`crate::edge::Guard`] (on the API routes, not
-/// the probes: load shedding at the concurrency limit, request timeout, body limit). They are
-/// applied in one `Router::layer` call, so each route is wrapped (and cloned per request) once.
 pub fn app(config: &Config, ops: OpsState) -> Router {
-    let limits = config.limits;
-    let Routers { api, ops: probes } = api::routers(AppState { limits }, ops.clone());
-    let stack = ServiceBuilder::new()
+    app_with(config, ops, Router::new())
+}
+
+/// [`app`], with `extra_heavy` mounted in the heavy group: under its limits and memory budget,
+/// but outside the OpenAPI document (the tests mount a route of their own there).
+///
+/// Each route group is wrapped in its own [`crate::edge::Guard`]: the light group (the JSON
+/// answers, the page, the docs) in the light limits, the heavy group (the image requests) in
+/// the heavy limits and the memory budget. The probes are a router of their own, outside both.
+/// Then every route, probes included, is wrapped in [`crate::edge::Edge`] (request id,
+/// in-flight gauge, panic → 500, metrics, access log) → CORS (when configured) → compression,
+/// applied in one `Router::layer` call.
+pub fn app_with(config: &Config, ops: OpsState, extra_heavy: Router<HeavyState>) -> Router {
+    let (limits, heavy) = (config.limits, config.heavy);
+    let Routers {
+        light,
+        heavy: images,
+        probes,
+    } = api::routers(
+        AppState { limits },
+        HeavyState {
+            body_limit: BodyLimit(heavy.body_bytes),
+        },
+        ops.clone(),
+        extra_heavy,
+    );
+    let light = light.merge(web::router()).layer(GuardLayer::new(
+        config.concurrency_limit,
+        config.request_timeout,
+    ));
+    let images = images.layer(GuardLayer::with_memory(
+        heavy.concurrency_limit,
+        heavy.request_timeout,
+        MemoryBudget::new(heavy.memory_budget),
+        heavy.body_bytes,
+    ));
+    let edge = ServiceBuilder::new()
         .layer(EdgeLayer::new(ops.metrics, config.access_log))
         .option_layer(protect::cors(&config.cors_allowed_origins))
-        .layer(CompressionLayer::new())
-        .layer(GuardLayer::new(
-            config.concurrency_limit,
-            config.request_timeout,
-            limits.body_bytes,
-        ));
-    api.merge(probes)
-        .merge(web::router())
-        .fallback(handlers::not_found)
-        .method_not_allowed_fallback(handlers::method_not_allowed)
-        .layer(stack)
+        .layer(CompressionLayer::new());
+    light
+        .merge(images)
+        .merge(probes)
+        .fallback(routes::not_found)
+        .method_not_allowed_fallback(routes::method_not_allowed)
+        .layer(edge)
 }
 
 /// How connections are served and how the server stops.
@@ -73,12 +103,17 @@ pub struct Application {
 impl Application {
     /// Binds `config.host:config.port` (port 0 picks a free port) and builds the router.
     pub async fn build(config: Config) -> io::Result<Self> {
+        Self::build_with(config, Router::new()).await
+    }
+
+    /// [`Application::build`], with `extra_heavy` mounted in the heavy group (see [`app_with`]).
+    pub async fn build_with(config: Config, extra_heavy: Router<HeavyState>) -> io::Result<Self> {
         let listener = TcpListener::bind((config.host, config.port)).await?;
         let ops = OpsState::default();
         Ok(Self {
             listener,
             readiness: ops.readiness.clone(),
-            router: app(&config, ops),
+            router: app_with(&config, ops, extra_heavy),
             serving: Serving {
                 header_read_timeout: config.header_read_timeout,
                 shutdown_delay: config.shutdown_delay,

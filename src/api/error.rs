@@ -1,21 +1,26 @@
-//! The one error type of the HTTP layer, rendered as RFC 9457 `application/problem+json`.
+//! The one error type of the HTTP layer, [`ApiError`], rendered as RFC 9457
+//! `application/problem+json`, and [`FieldErrors`], the collector that decoding and validation
+//! fill so that one answer names every offending field. The bottom layer of the API: it
+//! depends on no other module of it.
 
-use std::{collections::BTreeMap, time::Duration};
+use std::time::Duration;
 
 use axum::{
     http::{HeaderValue, StatusCode, header},
     response::{IntoResponse, Response},
 };
 use serde::{Deserialize, Serialize};
-use utoipa::{
-    ToSchema,
-    openapi::{
-        ContentBuilder, ObjectBuilder, RefOr, ResponseBuilder, Type, header::HeaderBuilder,
-        response::Response as OpenApiResponse,
-    },
-};
+use utoipa::ToSchema;
 
-use crate::{physics::PhysicsError, telemetry};
+use crate::{budget::Refusal, physics::PhysicsError, protect::RETRY_AFTER_SECS, telemetry};
+
+/// A byte count for people: `1.5 MiB`.
+fn mib(bytes: usize) -> String {
+    format!(
+        "{} MiB",
+        super::format::short(bytes as f64 / (1024.0 * 1024.0))
+    )
+}
 
 /// The media type of every error body.
 pub const PROBLEM_JSON: &str = "application/problem+json";
@@ -35,6 +40,74 @@ impl FieldError {
         Self {
             field: field.into(),
             message: message.into(),
+        }
+    }
+}
+
+/// Collects every field error of a request before answering, so that one 422 names them all.
+/// Decoding records what serde refused; validation (`api::validate`) adds its own checks.
+#[derive(Debug, Default)]
+pub struct FieldErrors(Vec<FieldError>);
+
+impl From<Vec<FieldError>> for FieldErrors {
+    fn from(errors: Vec<FieldError>) -> Self {
+        Self(errors)
+    }
+}
+
+impl FieldErrors {
+    /// as a wrong type found while decoding, explains the rest).
+    pub fn add(&mut self, field: &str, message: impl Into<String>) {
+        if !self.0.iter().any(|e| e.field == field) {
+            self.0.push(FieldError::new(field, message));
+        }
+    }
+
+    /// thousands.
+    pub fn add_new(&mut self, field: String, message: impl Into<String>) {
+        self.0.push(FieldError::new(field, message));
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.0.is_empty()
+    }
+
+    /// The problems recorded so far.
+    pub fn iter(&self) -> impl Iterator<Item = &FieldError> {
+        self.0.iter()
+    }
+
+    /// Adds everything `other` recorded.
+    pub fn extend(&mut self, other: FieldErrors) {
+        for error in other.0 {
+            self.add(&error.field, error.message);
+        }
+    }
+
+    /// Everything recorded, each field name behind `prefix` (such as `points[3].`).
+    pub fn prefixed(self, prefix: &str) -> Vec<FieldError> {
+        self.0
+            .into_iter()
+            .map(|e| FieldError::new(format!("{prefix}{}", e.field), e.message))
+            .collect()
+    }
+
+    /// Everything recorded, as a 422.
+    pub fn into_error(self) -> ApiError {
+        ApiError::Invalid(self.0)
+    }
+
+    /// Whether `field` already has a problem recorded.
+    pub fn has(&self, field: &str) -> bool {
+        self.0.iter().any(|e| e.field == field)
+    }
+
+    /// `Ok(value)` when nothing was recorded, else every recorded error as a 422.
+    pub fn finish<T>(self, value: Option<T>) -> Result<T, ApiError> {
+        match value {
+            Some(value) if self.0.is_empty() => Ok(value),
+            _ if self.0.is_empty() => Err(ApiError::invalid("body", "is invalid")),
+            _ => Err(self.into_error()),
         }
     }
 }
@@ -92,6 +165,9 @@ pub enum ApiError {
     },
     /// 503: more requests in flight than the concurrency limit; retry after the given seconds.
     Overloaded { retry_after_secs: u64 },
+    /// 503 with `Retry-After` when the heavy requests in flight hold the memory budget; 413
+    /// when this request alone needs more than the whole budget.
+    Memory(Refusal),
     /// 503 from `/readyz`: the server is shutting down and wants no new traffic.
     Draining,
     /// 500: a bug; never expected, but answered in the same format.
@@ -115,9 +191,11 @@ impl ApiError {
                 body_received: false,
                 ..
             } => StatusCode::REQUEST_TIMEOUT,
-            ApiError::Timeout { .. } | ApiError::Overloaded { .. } | ApiError::Draining => {
-                StatusCode::SERVICE_UNAVAILABLE
-            }
+            ApiError::Memory(Refusal::TooLarge { .. }) => StatusCode::PAYLOAD_TOO_LARGE,
+            ApiError::Timeout { .. }
+            | ApiError::Overloaded { .. }
+            | ApiError::Memory(Refusal::Busy { .. })
+            | ApiError::Draining => StatusCode::SERVICE_UNAVAILABLE,
             ApiError::Internal(_) => StatusCode::INTERNAL_SERVER_ERROR,
         }
     }
@@ -212,6 +290,33 @@ impl ApiError {
                     "refused to protect the requests already in progress",
                 )],
             ),
+            ApiError::Memory(Refusal::Busy {
+                requested,
+                available,
+            }) => plain(
+                format!(
+                    "the image requests in flight hold the server's memory budget: this one \
+                     needs {}, {} is free now; retry after {RETRY_AFTER_SECS} s",
+                    mib(*requested),
+                    mib(*available)
+                ),
+                vec![FieldError::new(
+                    "request",
+                    "refused to protect the requests already in progress",
+                )],
+            ),
+            ApiError::Memory(Refusal::TooLarge { requested, total }) => plain(
+                format!(
+                    "this request needs {} of memory, more than the server's whole budget of \
+                     {} for image requests; send smaller images",
+                    mib(*requested),
+                    mib(*total)
+                ),
+                vec![FieldError::new(
+                    "request",
+                    format!("needs {}, at most {} fits", mib(*requested), mib(*total)),
+                )],
+            ),
             ApiError::Draining => plain(
                 "the server is shutting down and takes no new traffic".to_owned(),
                 vec![FieldError::new("server", "draining")],
@@ -248,117 +353,16 @@ impl IntoResponse for ApiError {
         let mut response = (status, body).into_response();
         let headers = response.headers_mut();
         headers.insert(header::CONTENT_TYPE, HeaderValue::from_static(PROBLEM_JSON));
-        if let ApiError::Overloaded { retry_after_secs } = self {
-            headers.insert(header::RETRY_AFTER, HeaderValue::from(retry_after_secs));
+        match self {
+            ApiError::Overloaded { retry_after_secs } => {
+                headers.insert(header::RETRY_AFTER, HeaderValue::from(retry_after_secs));
+            }
+            ApiError::Memory(Refusal::Busy { .. }) => {
+                headers.insert(header::RETRY_AFTER, HeaderValue::from(RETRY_AFTER_SECS));
+            }
+            _ => {}
         }
         response
-    }
-}
-
-/// The error responses an operation documents, for `#[utoipa::path(responses(...))]`.
-pub(crate) fn problem_responses(
-    statuses: &[(StatusCode, &str)],
-) -> BTreeMap<String, RefOr<OpenApiResponse>> {
-    statuses
-        .iter()
-        .map(|(status, description)| {
-            let mut response = ResponseBuilder::new().description(*description);
-            if *status == StatusCode::SERVICE_UNAVAILABLE && description.contains("Retry-After") {
-                response = response.header(
-                    "Retry-After",
-                    HeaderBuilder::new()
-                        .schema(
-                            ObjectBuilder::new()
-                                .schema_type(Type::Integer)
-                                .minimum(Some(0)),
-                        )
-                        .description(Some(
-                            "Seconds to wait before retrying; sent when the request was shed \
-                             at the concurrency limit.",
-                        ))
-                        .build(),
-                );
-            }
-            let response = response
-                .content(
-                    PROBLEM_JSON,
-                    ContentBuilder::new()
-                        .schema(Some(RefOr::Ref(utoipa::openapi::Ref::from_schema_name(
-                            "Problem",
-                        ))))
-                        .build(),
-                )
-                .build();
-            (status.as_u16().to_string(), RefOr::T(response))
-        })
-        .collect()
-}
-
-const BAD_QUERY: (StatusCode, &str) = (
-    StatusCode::BAD_REQUEST,
-    "The query string cannot be decoded (for example invalid percent-encoding).",
-);
-const BAD_JSON: (StatusCode, &str) = (StatusCode::BAD_REQUEST, "The body is not valid JSON.");
-const TOO_LARGE: (StatusCode, &str) = (
-    StatusCode::PAYLOAD_TOO_LARGE,
-    "The body is larger than the configured limit (64 KiB by default; 2 MiB for POST /distance, \
-     which takes batches).",
-);
-const NOT_JSON: (StatusCode, &str) = (
-    StatusCode::UNSUPPORTED_MEDIA_TYPE,
-    "The body is not declared as application/json.",
-);
-const INVALID: (StatusCode, &str) = (
-    StatusCode::UNPROCESSABLE_ENTITY,
-    "One or more fields are missing, of the wrong type, unknown or out of range, or the point \
-     is at infinity; `errors` names every one.",
-);
-const TIMEOUT: (StatusCode, &str) = (
-    StatusCode::REQUEST_TIMEOUT,
-    "The request body did not arrive within the request timeout (5 s by default).",
-);
-const UNAVAILABLE: (StatusCode, &str) = (
-    StatusCode::SERVICE_UNAVAILABLE,
-    "The server is at its concurrency limit (with a `Retry-After` header) or could not answer \
-     within the request timeout; retry later.",
-);
-pub(crate) const METHOD: (StatusCode, &str) = (
-    StatusCode::METHOD_NOT_ALLOWED,
-    "The path does not support this method.",
-);
-
-/// Error responses of an operation that reads a JSON body.
-pub struct BodyErrors;
-
-impl utoipa::IntoResponses for BodyErrors {
-    fn responses() -> BTreeMap<String, RefOr<OpenApiResponse>> {
-        problem_responses(&[
-            BAD_JSON,
-            METHOD,
-            TIMEOUT,
-            TOO_LARGE,
-            NOT_JSON,
-            INVALID,
-            UNAVAILABLE,
-        ])
-    }
-}
-
-/// Error responses of a probe, which reads nothing and is never shed or timed out.
-pub struct ProbeErrors;
-
-impl utoipa::IntoResponses for ProbeErrors {
-    fn responses() -> BTreeMap<String, RefOr<OpenApiResponse>> {
-        problem_responses(&[METHOD])
-    }
-}
-
-/// Error responses of an operation that reads the query string.
-pub struct QueryErrors;
-
-impl utoipa::IntoResponses for QueryErrors {
-    fn responses() -> BTreeMap<String, RefOr<OpenApiResponse>> {
-        problem_responses(&[BAD_QUERY, METHOD, TIMEOUT, INVALID, UNAVAILABLE])
     }
 }
 

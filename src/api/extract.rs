@@ -3,48 +3,48 @@
 //!
 //! Valid input takes one typed `serde_json` pass. Only when that fails is the input parsed again
 //! as a map and each member checked on its own: each wrong type and each unknown member is
-//! recorded in [`Problems`], and the rest is still decoded, so that validation can add its own
+//! recorded in [`FieldErrors`], and the rest is still decoded, so that validation can add its own
 //! findings and one answer names everything that is wrong.
 
 use axum::{
     body::Bytes,
-    extract::{FromRequest, FromRequestParts, Request},
+    extract::{FromRef, FromRequest, FromRequestParts, Request},
     http::{header, request::Parts},
 };
 use percent_encoding::percent_decode_str;
 use serde::de::DeserializeOwned;
 use serde_json::{Map, Value};
 
-use super::error::{ApiError, FieldError};
-use super::validate::Problems;
+use super::error::{ApiError, FieldError, FieldErrors};
 
 /// A JSON request body, decoded as far as it could be, with the members it refused. The
 /// rejection (400, 413, 415, or 422 for a body that is not an object) is an [`ApiError`].
 #[derive(Debug)]
-pub struct JsonBody<T>(pub T, pub Problems);
+pub struct JsonBody<T>(pub T, pub FieldErrors);
 
 /// Query-string parameters decoded with the same rules as a JSON body, so that `?baseline=150`
 /// and `{"baseline": 150}` are one request. Numbers are recognised as JSON numbers; anything else
 /// stays a string, so `abc`, `nan` or `inf` where a number belongs is a 422 naming that field.
 #[derive(Debug)]
-pub struct QueryParams<T>(pub T, pub Problems);
+pub struct QueryParams<T>(pub T, pub FieldErrors);
 
 impl<S, T> FromRequest<S> for JsonBody<T>
 where
     S: Send + Sync,
+    BodyLimit: FromRef<S>,
     T: DeserializeOwned,
 {
     type Rejection = ApiError;
 
     async fn from_request(req: Request, state: &S) -> Result<Self, Self::Rejection> {
-        let bytes = json_bytes(req, state).await?;
+        let bytes = json_bytes(req, BodyLimit::from_ref(state)).await?;
         decode_json(&bytes).map(|(value, problems)| JsonBody(value, problems))
     }
 }
 
-/// The body of a request declared as JSON, within the body limit: 415 for another content
-/// type, 413 beyond the limit.
-pub async fn json_bytes<S: Send + Sync>(req: Request, _state: &S) -> Result<Bytes, ApiError> {
+/// The body of a request declared as JSON, within `limit`: 415 for another content type, 413
+/// beyond the limit.
+pub async fn json_bytes(req: Request, BodyLimit(limit): BodyLimit) -> Result<Bytes, ApiError> {
     match req.headers().get(header::CONTENT_TYPE) {
         Some(ct) if ct.to_str().is_ok_and(is_json) => {}
         Some(ct) => {
@@ -53,7 +53,6 @@ pub async fn json_bytes<S: Send + Sync>(req: Request, _state: &S) -> Result<Byte
         }
         None => return Err(ApiError::UnsupportedMediaType("no Content-Type".to_owned())),
     }
-    let limit = body_limit(&req);
     axum::body::to_bytes(req.into_body(), limit)
         .await
         .map_err(|error| {
@@ -90,15 +89,11 @@ where
     }
 }
 
-/// The body limit in force, recorded by [`crate::startup`] as a request extension.
-#[derive(Debug, Clone, Copy)]
+/// The largest body a route accepts, in bytes. It is the one body-limit mechanism: each route
+/// group's state provides it (`FromRef`), and every extractor that reads a body reads it within
+/// this limit, so the 413 names the limit that applied.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct BodyLimit(pub usize);
-
-fn body_limit(req: &Request) -> usize {
-    req.extensions()
-        .get::<BodyLimit>()
-        .map_or(crate::config::DEFAULT_BODY_LIMIT, |l| l.0)
-}
 
 /// `application/json`, or any `application/*+json`, with or without parameters.
 fn is_json(content_type: &str) -> bool {
@@ -131,13 +126,13 @@ pub fn expect_object(bytes: &[u8]) -> Result<(), ApiError> {
 }
 
 /// Decodes a JSON body into `T` and the members it refused.
-pub fn decode_json<T: DeserializeOwned>(bytes: &[u8]) -> Result<(T, Problems), ApiError> {
+pub fn decode_json<T: DeserializeOwned>(bytes: &[u8]) -> Result<(T, FieldErrors), ApiError> {
     expect_object(bytes)?;
     match serde_json::from_slice::<T>(bytes) {
-        Ok(value) => Ok((value, Problems::default())),
+        Ok(value) => Ok((value, FieldErrors::default())),
         Err(error) if error.is_data() => {
             match serde_json::from_slice::<Map<String, Value>>(bytes) {
-                Ok(map) => diagnose(map, &error, Problems::default(), "body"),
+                Ok(map) => diagnose(map, &error, FieldErrors::default(), "body"),
                 Err(syntax) => Err(malformed_json(&syntax)),
             }
         }
@@ -147,13 +142,13 @@ pub fn decode_json<T: DeserializeOwned>(bytes: &[u8]) -> Result<(T, Problems), A
 
 /// Decodes one JSON object (such as an element of a batch) into `T`, naming every member it
 /// refused; `T::default()` stands in for what could not be decoded at all.
-pub fn decode_object<T: DeserializeOwned + Default>(map: Map<String, Value>) -> (T, Problems) {
+pub fn decode_object<T: DeserializeOwned + Default>(map: Map<String, Value>) -> (T, FieldErrors) {
     match T::deserialize(&map) {
-        Ok(value) => (value, Problems::default()),
-        Err(error) => match diagnose(map, &error, Problems::default(), "") {
+        Ok(value) => (value, FieldErrors::default()),
+        Err(error) => match diagnose(map, &error, FieldErrors::default(), "") {
             Ok(decoded) => decoded,
-            Err(ApiError::Invalid(errors)) => (T::default(), Problems::from(errors)),
-            Err(other) => (T::default(), Problems::from(other.problem().errors)),
+            Err(ApiError::Invalid(errors)) => (T::default(), FieldErrors::from(errors)),
+            Err(other) => (T::default(), FieldErrors::from(other.problem().errors)),
         },
     }
 }
@@ -163,9 +158,9 @@ pub fn malformed_json(error: &serde_json::Error) -> ApiError {
 }
 
 /// Decodes a query string into `T` by way of a JSON object, with the parameters it refused.
-pub fn decode_query<T: QueryForm>(query: &str) -> Result<(T, Problems), ApiError> {
+pub fn decode_query<T: QueryForm>(query: &str) -> Result<(T, FieldErrors), ApiError> {
     let mut map = Map::new();
-    let mut problems = Problems::default();
+    let mut problems = FieldErrors::default();
     for pair in query.split('&').filter(|p| !p.is_empty()) {
         let (key, value) = pair.split_once('=').unwrap_or((pair, ""));
         let key = decode_component(key)?;
@@ -222,9 +217,9 @@ fn decode_component(raw: &str) -> Result<String, ApiError> {
 fn diagnose<T: DeserializeOwned>(
     mut map: Map<String, Value>,
     whole: &serde_json::Error,
-    mut problems: Problems,
+    mut problems: FieldErrors,
     itself: &str,
-) -> Result<(T, Problems), ApiError> {
+) -> Result<(T, FieldErrors), ApiError> {
     let refused: Vec<(String, String)> = map
         .iter()
         .filter_map(|(key, value)| {
@@ -325,7 +320,7 @@ mod tests {
     }
 
     /// The fields named, whether refused while still decoding the rest, or in a 422.
-    fn fields<T>(result: Result<(T, Problems), ApiError>) -> Vec<String> {
+    fn fields<T>(result: Result<(T, FieldErrors), ApiError>) -> Vec<String> {
         let error = match result {
             Ok((_, problems)) => problems.into_error(),
             Err(error) => error,

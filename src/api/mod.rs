@@ -1,30 +1,63 @@
-//! The HTTP API: routes, the OpenAPI document derived from them, and shared state.
+//! The HTTP API. Its modules read one way, each using only those before it:
+//! [`error`] ← [`extract`] ← [`wire`] ← [`validate`] ← [`routes`].
+//!
+//! - [`error`]: [`error::ApiError`] rendered as problem+json, and [`error::FieldErrors`], the
+//!   collector that names every offending field.
+//! - [`extract`]: JSON-body and query-string extractors that record every refused member.
+//! - [`wire`]: what every request and answer shares: deserialization rules, the request macros,
+//!   the unvalidated members, the measured values, the OpenAPI glue.
+//! - [`validate`]: the caller's members turned into the physics module's types.
+//! - [`routes`]: one module per resource (handlers, wire types, `router()`), merged into the
+//!   route groups: light (JSON), heavy (images) and the probes.
+//! - [`respond`], [`format`]: JSON answers in one buffer; numbers written for people.
 
-pub mod batch;
-pub mod csv;
 pub mod error;
 pub mod extract;
 pub mod format;
-pub mod handlers;
-pub mod ops;
-pub mod planning;
 pub mod respond;
-pub mod svg;
-pub mod types;
+pub mod routes;
 pub mod validate;
+pub mod wire;
 
-use axum::{Extension, Router, extract::DefaultBodyLimit};
+use axum::{Router, extract::FromRef};
 use utoipa::OpenApi;
-use utoipa_axum::{router::OpenApiRouter, routes};
+use utoipa_axum::router::OpenApiRouter;
 use utoipa_swagger_ui::SwaggerUi;
 
-use self::{extract::BodyLimit, ops::OpsState};
+use self::{extract::BodyLimit, routes::ops::OpsState};
 use crate::config::Limits;
 
-/// What every handler can see.
+/// What the light group's handlers see.
 #[derive(Debug, Clone, Copy, Default)]
 pub struct AppState {
     pub limits: Limits,
+}
+
+impl FromRef<AppState> for BodyLimit {
+    fn from_ref(state: &AppState) -> Self {
+        BodyLimit(state.limits.body_bytes)
+    }
+}
+
+/// What the heavy group's handlers see. Its memory budget reaches them as the
+/// [`crate::budget::Reservation`] the group's guard made for the request.
+#[derive(Debug, Clone, Copy)]
+pub struct HeavyState {
+    pub body_limit: BodyLimit,
+}
+
+impl Default for HeavyState {
+    fn default() -> Self {
+        Self {
+            body_limit: BodyLimit(crate::config::DEFAULT_HEAVY_BODY_LIMIT),
+        }
+    }
+}
+
+impl FromRef<HeavyState> for BodyLimit {
+    fn from_ref(state: &HeavyState) -> Self {
+        state.body_limit
+    }
 }
 
 #[derive(OpenApi)]
@@ -50,55 +83,68 @@ pub struct AppState {
 )]
 struct ApiDoc;
 
-/// The service's routers, split by how they are protected.
+/// The service's routers, one per route group, each to be wrapped in its own limits.
 pub struct Routers {
-    /// `/distance`, `/table`, `/chart-data`, `/openapi.json` and `/docs`: behind the
-    /// concurrency limit and the request timeout.
-    pub api: Router,
+    /// The JSON answers, `/openapi.json` and `/docs`.
+    pub light: Router,
+    /// The image requests.
+    pub heavy: Router,
     /// `/healthz`, `/readyz` and `/metrics`: never shed, so probes answer under load.
-    pub ops: Router,
+    pub probes: Router,
 }
 
-/// Both routers and the OpenAPI document, built from the same handler annotations.
-fn routes(state: AppState, ops: OpsState) -> (Routers, utoipa::openapi::OpenApi) {
-    // `/distance` takes batches, so it has its own, larger body limit; being the inner layer,
-    // it overrides the limit the server sets for every other route.
-    let batch_limit = state.limits.batch_body_bytes;
-    let distance = OpenApiRouter::new()
-        .routes(routes!(handlers::get_distance, handlers::post_distance))
-        .layer(DefaultBodyLimit::max(batch_limit))
-        .layer(Extension(BodyLimit(batch_limit)));
-    let (api, mut doc) = OpenApiRouter::with_openapi(ApiDoc::openapi())
-        .merge(distance)
-        .routes(routes!(handlers::get_table, handlers::post_table))
-        .routes(routes!(handlers::get_chart_data, handlers::post_chart_data))
-        .routes(routes!(handlers::get_chart_svg))
-        .routes(routes!(planning::get_rig, planning::post_rig))
-        .routes(routes!(planning::get_baseline, planning::post_baseline))
+/// The routers and the OpenAPI document, built from the same handler annotations; `extra_heavy`
+/// joins the heavy group outside the document.
+fn routes(
+    state: AppState,
+    heavy: HeavyState,
+    ops: OpsState,
+    extra_heavy: Router<HeavyState>,
+) -> (Routers, utoipa::openapi::OpenApi) {
+    let (light, mut doc) = OpenApiRouter::with_openapi(ApiDoc::openapi())
+        .merge(routes::light())
         .with_state(state)
         .split_for_parts();
-    let (ops, ops_doc) = OpenApiRouter::new()
-        .routes(routes!(ops::healthz))
-        .routes(routes!(ops::readyz))
-        .routes(routes!(ops::metrics))
-        .with_state(ops)
+    let (heavy, heavy_doc) = routes::heavy()
+        .merge(OpenApiRouter::from(extra_heavy))
+        .with_state(heavy)
         .split_for_parts();
-    doc.merge(ops_doc);
-    (Routers { api, ops }, doc)
+    let (probes, probes_doc) = routes::ops::router().with_state(ops).split_for_parts();
+    doc.merge(heavy_doc);
+    doc.merge(probes_doc);
+    (
+        Routers {
+            light,
+            heavy,
+            probes,
+        },
+        doc,
+    )
 }
 
 /// The OpenAPI document of the service, as served at `/openapi.json`.
 pub fn openapi() -> utoipa::openapi::OpenApi {
-    routes(AppState::default(), OpsState::default()).1
+    routes(
+        AppState::default(),
+        HeavyState::default(),
+        OpsState::default(),
+        Router::new(),
+    )
+    .1
 }
 
-/// The routers, with `/openapi.json` and Swagger UI at `/docs` added to the API's.
-pub fn routers(state: AppState, ops: OpsState) -> Routers {
-    let (routers, doc) = routes(state, ops);
+/// The routers, with `/openapi.json` and Swagger UI at `/docs` added to the light group's.
+pub fn routers(
+    state: AppState,
+    heavy: HeavyState,
+    ops: OpsState,
+    extra_heavy: Router<HeavyState>,
+) -> Routers {
+    let (routers, doc) = routes(state, heavy, ops, extra_heavy);
     Routers {
-        api: routers
-            .api
+        light: routers
+            .light
             .merge(SwaggerUi::new("/docs").url("/openapi.json", doc)),
-        ops: routers.ops,
+        ..routers
     }
 }

@@ -1,78 +1,21 @@
 //! Validation: turns the caller's optional, untrusted members into the physics module's types,
 //! collecting every problem (with the field it belongs to) before giving up.
 
-use super::error::{ApiError, FieldError};
-use super::types::{CameraParams, RangeParams, RigParams};
+use super::error::FieldErrors;
+use super::wire::params::{CameraParams, RangeParams, RigParams};
 use crate::physics::{
     Correspondence, DEFAULT_DISPARITY_ERROR_PX, FocalLength, LengthUnit, Rig, SampleRange, Spacing,
 };
 
-/// Collects field errors; each check records its own and returns the value only when it passed.
-#[derive(Debug, Default)]
-pub struct Problems(Vec<FieldError>);
-
-impl From<Vec<FieldError>> for Problems {
-    fn from(errors: Vec<FieldError>) -> Self {
-        Self(errors)
-    }
-}
-
-impl Problems {
-    /// Records a problem with `field`, unless one is recorded for it already (the first, such
-    /// as a wrong type found while decoding, explains the rest).
-    pub fn add(&mut self, field: &str, message: impl Into<String>) {
-        if !self.0.iter().any(|e| e.field == field) {
-            self.0.push(FieldError::new(field, message));
-        }
-    }
-
-    /// Records a problem with a field that cannot have one yet (such as `points[17].x_left`
-    /// while each point is named once), without the search `add` makes: a batch may name
-    /// thousands.
-    pub fn add_new(&mut self, field: String, message: impl Into<String>) {
-        self.0.push(FieldError::new(field, message));
-    }
-
-    pub fn is_empty(&self) -> bool {
-        self.0.is_empty()
-    }
-
-    /// The problems recorded so far.
-    pub fn iter(&self) -> impl Iterator<Item = &FieldError> {
-        self.0.iter()
-    }
-
-    /// Adds everything `other` recorded.
-    pub fn extend(&mut self, other: Problems) {
-        for error in other.0 {
-            self.add(&error.field, error.message);
-        }
-    }
-
-    /// Everything recorded, each field name behind `prefix` (such as `points[3].`).
-    pub fn prefixed(self, prefix: &str) -> Vec<FieldError> {
-        self.0
-            .into_iter()
-            .map(|e| FieldError::new(format!("{prefix}{}", e.field), e.message))
-            .collect()
-    }
-
-    /// Everything recorded, as a 422.
-    pub fn into_error(self) -> ApiError {
-        ApiError::Invalid(self.0)
-    }
-
+/// The range checks validation makes: each records its own error and returns the value only
+/// when it passed.
+impl FieldErrors {
     /// The value, or an error saying it is required.
     pub fn required<T>(&mut self, field: &str, value: Option<T>) -> Option<T> {
         if value.is_none() {
             self.add(field, "is required");
         }
         value
-    }
-
-    /// Whether `field` already has a problem recorded.
-    pub fn has(&self, field: &str) -> bool {
-        self.0.iter().any(|e| e.field == field)
     }
 
     /// `value` if it is finite and greater than zero.
@@ -131,15 +74,6 @@ impl Problems {
             None
         }
     }
-
-    /// `Ok(value)` when nothing was recorded, else every recorded error as a 422.
-    pub fn finish<T>(self, value: Option<T>) -> Result<T, ApiError> {
-        match value {
-            Some(value) if self.0.is_empty() => Ok(value),
-            _ if self.0.is_empty() => Err(ApiError::invalid("body", "is invalid")),
-            _ => Err(self.into_error()),
-        }
-    }
 }
 
 const FOCAL_OPTIONS: &str = "give focal_length_px; or focal_length_mm with sensor_width_mm or \
@@ -152,7 +86,7 @@ pub const MM_ALONE: &str = "a focal length in millimetres cannot be used on its 
     (f_px = f_mm · 1000 / pixel_size_um), or give focal_length_px or horizontal_fov_deg instead";
 
 /// Exactly one focal option, checked and converted to pixels.
-fn focal_length(p: &CameraParams, width: Option<f64>, problems: &mut Problems) -> Option<f64> {
+fn focal_length(p: &CameraParams, width: Option<f64>, problems: &mut FieldErrors) -> Option<f64> {
     let modes: Vec<&str> = [
         ("focal_length_px", p.focal_length_px.is_some()),
         ("focal_length_mm", p.focal_length_mm.is_some()),
@@ -262,7 +196,7 @@ pub fn focal_field(p: &CameraParams) -> &'static str {
 }
 
 /// The image size, as whole pixels of at least 1.
-fn image_extent(field: &str, value: Option<u32>, problems: &mut Problems) -> Option<f64> {
+fn image_extent(field: &str, value: Option<u32>, problems: &mut FieldErrors) -> Option<f64> {
     match problems.required(field, value)? {
         0 => {
             problems.add(field, "must be at least 1 pixel");
@@ -301,7 +235,7 @@ impl Camera {
 }
 
 /// Validates the camera members shared by every request.
-pub fn camera(p: &CameraParams, problems: &mut Problems) -> Option<Camera> {
+pub fn camera(p: &CameraParams, problems: &mut FieldErrors) -> Option<Camera> {
     let width = image_extent("image_width", p.image_width, problems);
     let height = image_extent("image_height", p.image_height, problems);
     let focal_px = focal_length(p, width, problems);
@@ -319,7 +253,7 @@ pub fn camera(p: &CameraParams, problems: &mut Problems) -> Option<Camera> {
 }
 
 /// Validates the rig members: the camera, the baseline and the principal points.
-pub fn rig(p: &RigParams, problems: &mut Problems) -> Option<Rig> {
+pub fn rig(p: &RigParams, problems: &mut FieldErrors) -> Option<Rig> {
     let camera = camera(&p.camera, problems);
     let bounds = Bounds::of(&p.camera);
     let baseline = problems
@@ -348,7 +282,12 @@ pub fn rig(p: &RigParams, problems: &mut Problems) -> Option<Rig> {
 
 /// Refuses a focal length and baseline whose product or ratio leaves the range of an f64,
 /// blaming both.
-pub fn balanced(focal_px: f64, baseline: f64, focal: &str, problems: &mut Problems) -> Option<()> {
+pub fn balanced(
+    focal_px: f64,
+    baseline: f64,
+    focal: &str,
+    problems: &mut FieldErrors,
+) -> Option<()> {
     if (focal_px * baseline).is_normal() && (focal_px / baseline).is_normal() {
         return Some(());
     }
@@ -383,7 +322,12 @@ impl Bounds {
 }
 
 /// An x coordinate: in `[0, image_width]` when the width is known.
-pub fn x_coordinate(field: &str, x: f64, bounds: Bounds, problems: &mut Problems) -> Option<f64> {
+pub fn x_coordinate(
+    field: &str,
+    x: f64,
+    bounds: Bounds,
+    problems: &mut FieldErrors,
+) -> Option<f64> {
     match bounds.width {
         Some(width) => problems.within(field, x, width, "the image width"),
         None => Some(x),
@@ -394,7 +338,7 @@ pub fn x_coordinate(field: &str, x: f64, bounds: Bounds, problems: &mut Problems
 pub fn x_pair(
     (x_left, x_right): (Option<f64>, Option<f64>),
     bounds: Bounds,
-    problems: &mut Problems,
+    problems: &mut FieldErrors,
 ) -> Option<(f64, f64)> {
     let x_left = problems
         .required("x_left", x_left)
@@ -410,7 +354,7 @@ pub fn correspondence(
     (x_left, x_right, y): (Option<f64>, Option<f64>, Option<f64>),
     bounds: Bounds,
     cy: Option<f64>,
-    problems: &mut Problems,
+    problems: &mut FieldErrors,
 ) -> Option<Correspondence> {
     let xs = x_pair((x_left, x_right), bounds, problems);
     let y = match (y, bounds.height) {
@@ -427,7 +371,12 @@ pub fn correspondence(
 }
 
 /// `min` if `min + doffs > 0`: a disparity search must stop short of the point at infinity.
-pub fn short_of_infinity(field: &str, min: f64, rig: &Rig, problems: &mut Problems) -> Option<f64> {
+pub fn short_of_infinity(
+    field: &str,
+    min: f64,
+    rig: &Rig,
+    problems: &mut FieldErrors,
+) -> Option<f64> {
     if min + rig.doffs > 0.0 {
         return Some(min);
     }
@@ -447,7 +396,7 @@ pub fn range(
     p: &RangeParams,
     rig: Option<&Rig>,
     measured_disparity_px: Option<f64>,
-    problems: &mut Problems,
+    problems: &mut FieldErrors,
 ) -> Option<(SampleRange, Spacing)> {
     let spacing: Spacing = p.spacing.unwrap_or_default().into();
     let distance = [
@@ -473,7 +422,7 @@ pub fn range(
         return None;
     }
     let rig = rig?;
-    let ordered = |problems: &mut Problems,
+    let ordered = |problems: &mut FieldErrors,
                    [(lo_name, lo), (hi_name, hi)]: [(&str, Option<f64>); 2]| {
         let lo = problems.required(lo_name, lo);
         let hi = problems.required(hi_name, hi);
@@ -500,4 +449,24 @@ pub fn range(
         SampleRange::default_for(rig, measured_disparity_px)
     };
     Some((range, spacing))
+}
+
+/// The fields to blame when a correspondence has no finite distance.
+pub fn disparity_fields(rig: &Rig) -> &'static [&'static str] {
+    if rig.doffs == 0.0 {
+        &["x_left", "x_right"]
+    } else {
+        &["x_left", "x_right", "doffs"]
+    }
+}
+
+/// The range fields to blame when a sweep overflows.
+pub fn range_fields(range: RangeParams) -> &'static [&'static str] {
+    if range.distance_min.is_some() {
+        &["distance_min", "distance_max"]
+    } else if range.disparity_min.is_some() {
+        &["disparity_min", "disparity_max"]
+    } else {
+        &["baseline"]
+    }
 }

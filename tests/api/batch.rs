@@ -7,9 +7,7 @@ use crate::helpers::{
     assert_close, fields, message_for, number_at, ok_json, problem, spawn_app, spawn_app_with,
 };
 
-fn rig() -> Value {
-    json!({"focal_length_px": 35, "baseline": 150, "image_width": 800, "image_height": 600})
-}
+use crate::fixtures::seed_rig as rig;
 
 /// Every good point gets the same answer as a single request; results keep request order.
 #[tokio::test]

@@ -1,13 +1,10 @@
 //! `/chart-data`: series on the rig's curve, axis labels, the marker and the point cap.
 
-use serde_json::{Value, json};
+use serde_json::json;
 
 use crate::helpers::{assert_close, fields, ok_json, problem, spawn_app};
 
-fn seed_rig() -> Value {
-    json!({"focal_length_px": 35, "baseline": 150, "unit": "mm",
-           "image_width": 800, "image_height": 600})
-}
+use crate::fixtures::seed_rig;
 
 /// Both series lie on the curve, share ascending x, and carry labelled axes; the measured
 /// point is the marker.

@@ -218,8 +218,7 @@ async fn shared_reference_file_reproduces_when_present() {
 async fn seed_examples_give_105_and_40_mm() {
     // Arrange
     let app = spawn_app().await;
-    let first = json!({"focal_length_px": 35, "baseline": 150, "x_left": 400, "x_right": 350,
-                       "image_width": 800, "image_height": 600});
+    let first = crate::fixtures::example_one();
     // Act
     let body = ok_json(app.post("/distance", &first).await).await;
     // Assert

@@ -2,9 +2,10 @@
 
 use serde_json::{Value, json};
 
-use crate::helpers::{fields, message_for, problem, spawn_app};
-
-const GOOD: &str = r#"{"focal_length_px":35,"baseline":150,"x_left":400,"x_right":350,"image_width":800,"image_height":600}"#;
+use crate::{
+    fixtures::{example_one, seed_rig, with},
+    helpers::{fields, message_for, problem, spawn_app},
+};
 
 /// A body that is not JSON is a 400 naming the body, with the parser's position.
 #[tokio::test]
@@ -45,7 +46,8 @@ async fn wrong_content_type_is_415() {
         Some("application/x-www-form-urlencoded"),
     ] {
         let body = problem(
-            app.post_raw("/distance", content_type, GOOD.into()).await,
+            app.post_raw("/distance", content_type, example_one().to_string().into())
+                .await,
             415,
         )
         .await;
@@ -56,7 +58,7 @@ async fn wrong_content_type_is_415() {
         .post_raw(
             "/distance",
             Some("application/json; charset=utf-8"),
-            GOOD.into(),
+            example_one().to_string().into(),
         )
         .await;
     assert_eq!(ok.status(), 200);
@@ -261,8 +263,7 @@ async fn null_is_not_a_value() {
     let body = problem(
         app.post(
             "/distance",
-            &json!({"focal_length_px": 35, "baseline": 150, "x_left": 400, "x_right": 350,
-                    "image_width": 800, "image_height": 600, "unit": null, "doffs": null}),
+            &with(example_one(), json!({"unit": null, "doffs": null})),
         )
         .await,
         422,
@@ -277,8 +278,10 @@ async fn null_is_not_a_value() {
 #[tokio::test]
 async fn whole_numbers_may_carry_a_zero_fraction() {
     let app = spawn_app().await;
-    let body = json!({"focal_length_px": 35, "baseline": 150, "x_left": 400, "x_right": 350,
-                      "image_width": 800.0, "image_height": 6e2});
+    let body = with(
+        example_one(),
+        json!({"image_width": 800.0, "image_height": 6e2}),
+    );
 
     let response = app.post("/distance", &body).await;
     assert_eq!(response.status(), 200);
@@ -313,7 +316,7 @@ async fn whole_numbers_may_carry_a_zero_fraction() {
 #[tokio::test]
 async fn an_empty_member_name_is_named_by_its_holder() {
     let app = spawn_app().await;
-    let mut body: Value = serde_json::from_str(GOOD).unwrap();
+    let mut body = example_one();
     body[""] = json!(1);
     let problem_body = problem(app.post("/distance", &body).await, 422).await;
     assert_eq!(fields(&problem_body), vec!["body"]);
@@ -324,8 +327,7 @@ async fn an_empty_member_name_is_named_by_its_holder() {
         .await;
     assert_eq!(fields(&problem(response, 422).await), vec!["query"]);
 
-    let rig = json!({"focal_length_px": 35, "baseline": 150, "image_width": 800,
-                     "image_height": 600, "": 1});
+    let rig = with(seed_rig(), json!({"": 1}));
     let batch = json!({"rig": rig, "points": [{"x_left": 400, "x_right": 350, "": 2}], "": 3});
     let problem_body = problem(app.post("/distance", &batch).await, 422).await;
     assert_eq!(fields(&problem_body), vec!["body", "rig", "points[0]"]);

@@ -30,16 +30,7 @@ fn body_with_baseline(baseline: &str) -> String {
     )
 }
 
-/// A raw `POST /distance` of example 1 with `Connection: close`: its head and its body.
-fn example_request() -> (String, String) {
-    let body = body_with_baseline("150");
-    let head = format!(
-        "POST /distance HTTP/1.1\r\nHost: test\r\nContent-Type: application/json\r\n\
-         Content-Length: {}\r\nConnection: close\r\n\r\n",
-        body.len()
-    );
-    (head, body)
-}
+use crate::fixtures::example_one_request as example_request;
 
 /// Nesting far past serde_json's recursion limit, numbers beyond f64 and 10 000-digit numbers
 /// are each a 400 or 422 problem naming what is wrong, never a 500 or a crash, in a body, a

@@ -2,9 +2,10 @@
 
 use std::{io, net::SocketAddr, time::Duration};
 
+use axum::Router;
 use reqwest::{Client, Response, StatusCode, header::CONTENT_TYPE};
 use serde_json::Value;
-use stereo_distance::{Application, Config};
+use stereo_distance::{Application, Config, api::HeavyState};
 use tokio::{
     io::{AsyncReadExt, AsyncWriteExt},
     net::TcpStream,
@@ -32,7 +33,13 @@ pub async fn spawn_app() -> TestApp {
 
 /// Starts the application with `config` (use port 0).
 pub async fn spawn_app_with(config: Config) -> TestApp {
-    let application = Application::build(config)
+    spawn_app_with_heavy(config, Router::new()).await
+}
+
+/// Starts the application with `config` (use port 0) and `heavy` mounted in its heavy route
+/// group.
+pub async fn spawn_app_with_heavy(config: Config, heavy: Router<HeavyState>) -> TestApp {
+    let application = Application::build_with(config, heavy)
         .await
         .expect("the test server binds");
     let socket = application.local_addr().expect("bound address");

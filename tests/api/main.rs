@@ -6,6 +6,8 @@ mod chart;
 mod distance;
 mod errors;
 mod faults;
+mod fixtures;
+mod heavy;
 mod helpers;
 mod openapi;
 mod operations;

@@ -133,14 +133,7 @@ async fn readiness_goes_off_during_drain() {
 async fn shutdown_drains_in_flight_requests() {
     // Arrange: a request whose body is half sent.
     let mut app = spawn_app().await;
-    let body = json!({"focal_length_px": 35, "baseline": 150, "image_width": 800,
-                      "image_height": 600, "x_left": 400, "x_right": 350})
-    .to_string();
-    let head = format!(
-        "POST /distance HTTP/1.1\r\nHost: test\r\nContent-Type: application/json\r\n\
-         Content-Length: {}\r\nConnection: close\r\n\r\n",
-        body.len()
-    );
+    let (head, body) = crate::fixtures::example_one_request();
     let (first, rest) = body.as_bytes().split_at(10);
     let mut held = app.raw_partial(&head, first).await;
     app.wait_in_flight(2.0).await;

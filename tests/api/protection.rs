@@ -6,7 +6,7 @@ use std::{io::Read, time::Duration};
 use reqwest::header::{
     ACCEPT_ENCODING, ACCESS_CONTROL_ALLOW_ORIGIN, CONTENT_ENCODING, ORIGIN, RETRY_AFTER,
 };
-use serde_json::{Value, json};
+use serde_json::Value;
 use stereo_distance::Config;
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
 
@@ -21,20 +21,7 @@ fn config() -> Config {
     }
 }
 
-/// Example 1 of the seed as a JSON body.
-fn example_body() -> String {
-    json!({"focal_length_px": 35, "baseline": 150, "image_width": 800, "image_height": 600,
-           "x_left": 400, "x_right": 350})
-    .to_string()
-}
-
-/// The head of a `POST /distance` announcing `length` body bytes.
-fn post_head(length: usize) -> String {
-    format!(
-        "POST /distance HTTP/1.1\r\nHost: test\r\nContent-Type: application/json\r\n\
-         Content-Length: {length}\r\nConnection: close\r\n\r\n"
-    )
-}
+use crate::fixtures::example_one_request;
 
 /// A configured body limit is enforced with a 413 problem that names the body and the limit.
 #[tokio::test]
@@ -70,9 +57,9 @@ async fn over_concurrency_limit_is_503_with_retry_after() {
     let mut config = config();
     config.concurrency_limit = 1;
     let app = spawn_app_with(config).await;
-    let body = example_body();
+    let (head, body) = example_one_request();
     let (first, rest) = body.as_bytes().split_at(10);
-    let mut held = app.raw_partial(&post_head(body.len()), first).await;
+    let mut held = app.raw_partial(&head, first).await;
     app.wait_in_flight(2.0).await; // the held request and this /metrics poll
 
     // Act
@@ -108,12 +95,10 @@ async fn slow_body_is_408() {
     let mut config = config();
     config.request_timeout = Duration::from_millis(200);
     let app = spawn_app_with(config).await;
-    let body = example_body();
+    let (head, body) = example_one_request();
 
     // Act: send half of the body and never the rest.
-    let mut stream = app
-        .raw_partial(&post_head(body.len()), &body.as_bytes()[..10])
-        .await;
+    let mut stream = app.raw_partial(&head, &body.as_bytes()[..10]).await;
     let answer = read_to_close(&mut stream).await;
 
     // Assert

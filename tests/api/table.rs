@@ -8,12 +8,7 @@ fn rig() -> Value {
     json!({"focal_length_px": 700, "baseline": 120, "image_width": 800, "image_height": 600})
 }
 
-fn with(mut base: Value, extra: Value) -> Value {
-    for (key, value) in extra.as_object().unwrap() {
-        base[key] = value.clone();
-    }
-    base
-}
+use crate::fixtures::with;
 
 /// Every row satisfies Z·|d + doffs| = B·f and ΔZ = Z²·Δd/(f·B), for each kind of range,
 /// each spacing, and a focal length given by FOV.

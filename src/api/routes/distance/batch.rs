@@ -16,21 +16,26 @@ use axum::extract::{FromRequest, Request};
 use serde::Deserialize;
 use serde_json::{Map, Value};
 
-use super::{
-    error::ApiError,
-    extract::{self, decode_object, expect_object},
-    types::{
-        BatchDistanceResponse, BatchPoint, DistanceRequest, PointDistance, PointFailure,
-        PointOutcome, StereoRig, Warning,
-    },
-    validate::{self, Bounds, Problems},
+use super::types::{
+    BatchDistanceResponse, BatchPoint, DistanceRequest, PointDistance, PointFailure, PointOutcome,
+    StereoRig,
 };
-use crate::{config::Limits, physics};
+use crate::{
+    api::{
+        AppState,
+        error::{ApiError, FieldErrors},
+        extract::{self, BodyLimit, decode_object, expect_object},
+        validate::{self, Bounds},
+        wire::measured::Measured,
+    },
+    config::Limits,
+    physics,
+};
 
 /// A `POST /distance` body: one correspondence or a batch, each with what decoding refused.
 #[derive(Debug)]
 pub enum DistanceBody {
-    One(DistanceRequest, Problems),
+    One(DistanceRequest, FieldErrors),
     Batch(Batch),
 }
 
@@ -39,9 +44,9 @@ pub enum DistanceBody {
 #[derive(Debug, Default)]
 pub struct Batch {
     pub rig: Option<StereoRig>,
-    pub rig_problems: Problems,
-    pub points: Option<Vec<(BatchPoint, Problems)>>,
-    pub problems: Problems,
+    pub rig_problems: FieldErrors,
+    pub points: Option<Vec<(BatchPoint, FieldErrors)>>,
+    pub problems: FieldErrors,
 }
 
 /// Whether a body is a batch: it names `rig` or `points` at the top level (with any value,
@@ -72,11 +77,14 @@ struct Wire {
     points: Vec<BatchPoint>,
 }
 
-impl<S: Send + Sync> FromRequest<S> for DistanceBody {
+/// A batch is larger than any other body, so `POST /distance` reads within the batch body
+/// limit instead of the light group's.
+impl FromRequest<AppState> for DistanceBody {
     type Rejection = ApiError;
 
-    async fn from_request(req: Request, state: &S) -> Result<Self, Self::Rejection> {
-        let bytes = extract::json_bytes(req, state).await?;
+    async fn from_request(req: Request, state: &AppState) -> Result<Self, Self::Rejection> {
+        let limit = BodyLimit(state.limits.batch_body_bytes);
+        let bytes = extract::json_bytes(req, limit).await?;
         expect_object(&bytes)?;
         if !may_be_batch(&bytes) {
             let (request, problems) = extract::decode_json(&bytes)?;
@@ -94,7 +102,7 @@ impl<S: Send + Sync> FromRequest<S> for DistanceBody {
                 points: Some(
                     wire.points
                         .into_iter()
-                        .map(|p| (p, Problems::default()))
+                        .map(|p| (p, FieldErrors::default()))
                         .collect(),
                 ),
                 ..Batch::default()
@@ -131,7 +139,7 @@ fn diagnose(map: Map<String, Value>) -> Batch {
                         .map(|point| match point {
                             Value::Object(point) => decode_object::<BatchPoint>(point),
                             other => {
-                                let mut problems = Problems::default();
+                                let mut problems = FieldErrors::default();
                                 problems
                                     .add("", format!("must be an object, got {}", kind(&other)));
                                 (BatchPoint::default(), problems)
@@ -234,7 +242,12 @@ pub fn answer(batch: Batch, limits: &Limits) -> Result<BatchDistanceResponse, Ap
 /// Names, among the batch's own problems, what makes point `index` break the schema: what
 /// decoding refused (not an object, a wrong type, an unknown member, `null`) and a missing
 /// coordinate.
-fn refuse_malformed(index: usize, point: &BatchPoint, shape: &Problems, problems: &mut Problems) {
+fn refuse_malformed(
+    index: usize,
+    point: &BatchPoint,
+    shape: &FieldErrors,
+    problems: &mut FieldErrors,
+) {
     let prefix = format!("points[{index}]");
     for error in shape.iter() {
         match error.field.as_str() {
@@ -255,7 +268,7 @@ fn refuse_malformed(index: usize, point: &BatchPoint, shape: &Problems, problems
 /// One well-formed point's outcome: its distance, or every error of its values, named
 /// `points[index].…`.
 fn measure(rig: &physics::Rig, bounds: Bounds, index: usize, point: BatchPoint) -> PointOutcome {
-    let mut problems = Problems::default();
+    let mut problems = FieldErrors::default();
     let correspondence = validate::correspondence(
         (point.x_left, point.x_right, point.y),
         bounds,
@@ -264,7 +277,7 @@ fn measure(rig: &physics::Rig, bounds: Bounds, index: usize, point: BatchPoint) 
     );
     let measured = match correspondence {
         Some(c) if problems.is_empty() => physics::measure(rig, c).map_err(|e| {
-            let mut problems = Problems::default();
+            let mut problems = FieldErrors::default();
             for field in ["x_left", "x_right"] {
                 problems.add(field, e.to_string());
             }
@@ -275,19 +288,14 @@ fn measure(rig: &physics::Rig, bounds: Bounds, index: usize, point: BatchPoint) 
     match measured {
         Ok(m) => PointOutcome::Measured(PointDistance {
             index,
-            distance: m.distance,
-            depth_error: m.depth_error,
-            relative_error: m.relative_error,
-            disparity_px: m.disparity_px,
-            point: m.point.into(),
-            warnings: m.warnings.iter().map(Warning::from).collect(),
+            measured: Measured::from(&m),
         }),
         Err(problems) => failure(index, problems),
     }
 }
 
 /// A failed point, its errors named `points[index].field`.
-fn failure(index: usize, problems: Problems) -> PointOutcome {
+fn failure(index: usize, problems: FieldErrors) -> PointOutcome {
     PointOutcome::Failed(PointFailure {
         index,
         errors: problems.prefixed(&format!("points[{index}].")),

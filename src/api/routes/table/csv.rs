@@ -100,7 +100,7 @@ fn preference(accept: &str, kind: &str, subtype: &str) -> (u16, u8) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::api::types::Unit;
+    use crate::api::wire::params::Unit;
 
     fn accept(value: &'static str) -> TableFormat {
         negotiate(None, Some(&HeaderValue::from_static(value)))

@@ -1,6 +1,6 @@
 //! Operational endpoints for orchestrators and monitoring: liveness, readiness and metrics.
-//! They bypass the concurrency limit and the request timeout so that probes still answer
-//! under load.
+//! They form their own router, outside every route group's concurrency limit and timeout, so
+//! that probes still answer under load.
 
 use std::sync::{
     Arc,
@@ -15,11 +15,16 @@ use axum::{
 use serde::Serialize;
 use utoipa::ToSchema;
 
-use super::{
-    error::{ApiError, METHOD, ProbeErrors, problem_responses},
-    respond::Json,
+use utoipa_axum::{router::OpenApiRouter, routes};
+
+use crate::{
+    api::{
+        error::ApiError,
+        respond::Json,
+        wire::openapi::{METHOD, ProbeErrors, problem_responses},
+    },
+    metrics::{Metrics, TEXT_FORMAT},
 };
-use crate::metrics::{Metrics, TEXT_FORMAT};
 
 /// Whether the server wants traffic: false before it serves and while it drains.
 #[derive(Debug, Clone, Default)]
@@ -42,9 +47,14 @@ pub struct OpsState {
     pub metrics: Metrics,
 }
 
-/// The routes of the operations endpoints, which are never shed nor timed out: a probe must
-/// answer most of all when the API is overloaded.
-pub const PROBE_ROUTES: [&str; 3] = ["/healthz", "/readyz", "/metrics"];
+/// `/healthz`, `/readyz` and `/metrics`: a router of their own, never shed nor timed out,
+/// because a probe must answer most of all when the API is overloaded.
+pub fn router() -> OpenApiRouter<OpsState> {
+    OpenApiRouter::new()
+        .routes(routes!(healthz))
+        .routes(routes!(readyz))
+        .routes(routes!(metrics))
+}
 
 /// The body of a successful probe.
 #[derive(Debug, Serialize, ToSchema)]

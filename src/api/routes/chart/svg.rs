@@ -8,8 +8,8 @@
 
 use std::fmt::Write;
 
-use super::format::short;
 use super::types::{ChartPoint, ChartResponse};
+use crate::api::format::short;
 
 /// Canvas size; the `viewBox` lets it scale to any width.
 const WIDTH: f64 = 800.0;

@@ -2,18 +2,33 @@
 //! `/baseline` (the shortest baseline that meets a depth-error budget). Each is extract →
 //! validate → physics → response, like every other route.
 
-use super::{
-    error::{ApiError, BodyErrors, QueryErrors},
-    extract::{JsonBody, QueryParams},
-    format::{percent, short},
-    respond::Json,
-    types::{
-        BaselineRequest, BaselineResponse, DepthErrorAt, ErrorBudget, MAX_AT_DISTANCES, RigRequest,
-        RigResponse,
-    },
-    validate::{self, Problems},
+pub mod types;
+
+use utoipa_axum::{router::OpenApiRouter, routes};
+
+use self::types::{
+    BaselineRequest, BaselineResponse, DepthErrorAt, ErrorBudget, MAX_AT_DISTANCES, RigRequest,
+    RigResponse,
 };
-use crate::physics::{self, Rig, finite};
+use crate::{
+    api::{
+        AppState,
+        error::{ApiError, FieldErrors},
+        extract::{JsonBody, QueryParams},
+        format::{percent, short},
+        respond::Json,
+        validate,
+        wire::openapi::{BodyErrors, QueryErrors},
+    },
+    physics::{self, Rig, finite},
+};
+
+/// `GET` and `POST /rig` and `/baseline`.
+pub fn router() -> OpenApiRouter<AppState> {
+    OpenApiRouter::new()
+        .routes(routes!(get_rig, post_rig))
+        .routes(routes!(get_baseline, post_baseline))
+}
 
 #[utoipa::path(
     post,
@@ -112,7 +127,7 @@ pub async fn get_baseline(
 }
 
 /// A relative-error budget: a fraction in (0, 1].
-fn budget(field: &str, value: f64, problems: &mut Problems) -> Option<f64> {
+fn budget(field: &str, value: f64, problems: &mut FieldErrors) -> Option<f64> {
     if value.is_finite() && value > 0.0 && value <= 1.0 {
         Some(value)
     } else {
@@ -124,7 +139,7 @@ fn budget(field: &str, value: f64, problems: &mut Problems) -> Option<f64> {
     }
 }
 
-fn rig(request: &RigRequest, mut problems: Problems) -> Result<RigResponse, ApiError> {
+fn rig(request: &RigRequest, mut problems: FieldErrors) -> Result<RigResponse, ApiError> {
     let rig = validate::rig(&request.rig_params(), &mut problems);
     let max_disparity = problems
         .required("max_disparity_px", request.max_disparity_px)
@@ -203,7 +218,7 @@ fn rig(request: &RigRequest, mut problems: Problems) -> Result<RigResponse, ApiE
 }
 
 /// The requested distances: each finite and positive, at most [`MAX_AT_DISTANCES`].
-fn at_distances(values: Option<&[f64]>, problems: &mut Problems) -> Option<Vec<f64>> {
+fn at_distances(values: Option<&[f64]>, problems: &mut FieldErrors) -> Option<Vec<f64>> {
     let values = values.unwrap_or_default();
     if values.len() > MAX_AT_DISTANCES {
         problems.add(
@@ -279,7 +294,7 @@ fn error_budget(rig: &Rig, budget: f64, at: f64, (near, far): (f64, f64)) -> Err
 
 fn baseline(
     request: &BaselineRequest,
-    mut problems: Problems,
+    mut problems: FieldErrors,
 ) -> Result<BaselineResponse, ApiError> {
     let params = request.camera_params();
     let camera = validate::camera(&params, &mut problems);
@@ -330,7 +345,7 @@ fn baseline(
         camera.disparity_error_px,
     )
     .map_err(blame(&["target_distance", "max_depth_error"]))?;
-    let mut fields = validate::Problems::default();
+    let mut fields = FieldErrors::default();
     validate::balanced(
         camera.focal_px,
         baseline,

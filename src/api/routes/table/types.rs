@@ -1,0 +1,95 @@
+//! The wire types of `/table`: a rig and a range in, rows of distance against disparity out,
+//! as JSON or CSV.
+
+use serde::{Deserialize, Serialize};
+use utoipa::{IntoParams, ToSchema};
+
+use crate::api::{
+    extract::QueryForm,
+    wire::{
+        de::{present, range_request, whole},
+        params::Unit,
+    },
+};
+
+/// The representation of a `/table` answer.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize, Serialize, ToSchema)]
+#[serde(rename_all = "lowercase")]
+pub enum TableFormat {
+    /// `application/json`: a [`TableResponse`].
+    #[default]
+    Json,
+    /// `text/csv`: a header row, then one line per row, with the columns of [`TableRow`].
+    Csv,
+}
+
+/// The URL query of `POST /table`, which may choose the format there instead of in the body.
+#[derive(Debug, Clone, Default, PartialEq, Deserialize, IntoParams)]
+#[serde(deny_unknown_fields)]
+#[into_params(parameter_in = Query)]
+pub struct FormatQuery {
+    /// `json` or `csv`; overrides the body's `format` and the `Accept` header.
+    #[serde(default, deserialize_with = "present")]
+    #[param(nullable = false)]
+    pub format: Option<TableFormat>,
+}
+
+range_request! {
+    /// A rig and a range: the sample table of distance against disparity.
+    #[schema(example = json!({
+        "focal_length_px": 35, "baseline": 150, "unit": "mm",
+        "image_width": 800, "image_height": 600,
+        "disparity_min": 10, "disparity_max": 100, "steps": 10
+    }))]
+    pub struct TableRequest {
+        /// Number of rows, from 1 to the server's cap (10 000 by default). Default 10.
+        #[schema(nullable = false, minimum = 1, example = 10)]
+        #[serde(default, deserialize_with = "whole")]
+        pub steps: Option<u32>,
+        /// Left-image x held fixed to compute each row's right-image `normalized_x`, in pixels.
+        /// Default: the image centre.
+        #[schema(nullable = false, minimum = 0.0)]
+        #[serde(default, deserialize_with = "present")]
+        pub x_left: Option<f64>,
+        /// `json` (the default) or `csv`. Without it, an `Accept: text/csv` header asks for
+        /// CSV. For POST it may also be given as `?format=csv` in the URL.
+        #[schema(nullable = false)]
+        #[serde(default, deserialize_with = "present")]
+        pub format: Option<TableFormat>,
+    }
+}
+
+impl QueryForm for TableRequest {}
+impl QueryForm for FormatQuery {}
+
+/// One row of the sample table.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct TableRow {
+    /// Distance Z, in `unit`.
+    pub distance: f64,
+    /// Disparity d, in pixels.
+    pub disparity_px: f64,
+    /// Normalised x of the right-image feature (x_right = x_left − d).
+    pub normalized_x: f64,
+    /// f_px / baseline.
+    pub projection_factor: f64,
+    /// Depth error at this distance, in `unit`.
+    pub depth_error: f64,
+}
+
+/// The sample table of distance against disparity for a rig.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct TableResponse {
+    /// Unit of every length in the table.
+    pub unit: Unit,
+    /// Focal length in pixels, after any conversion.
+    pub focal_length_px: f64,
+    /// The baseline, in `unit`.
+    pub baseline: f64,
+    /// The Δd used for `depth_error`, in pixels.
+    pub disparity_error_px: f64,
+    /// The left-image x used for `normalized_x`, in pixels.
+    pub x_left: f64,
+    /// The rows, in ascending order of the ranged quantity.
+    pub rows: Vec<TableRow>,
+}

@@ -1,0 +1,271 @@
+//! Deserialization rules every request shares, and the macros that declare request types
+//! with the common members (camera, rig, range) so that each endpoint's type stays flat.
+//!
+//! Every request member is optional in Rust so that validation can report *all* missing fields
+//! at once; the ones the API requires are marked `required` in the schema. Members are present
+//! or absent, never `null`.
+
+use serde::Deserialize;
+
+/// Deserializes a member that is present: `null` is refused like any other wrong type, because
+/// optional members are optional, not nullable (omit a member to take its default).
+pub fn present<'de, D, T>(deserializer: D) -> Result<Option<T>, D::Error>
+where
+    D: serde::Deserializer<'de>,
+    T: Deserialize<'de>,
+{
+    match Option::<T>::deserialize(deserializer)? {
+        Some(value) => Ok(Some(value)),
+        None => Err(serde::de::Error::custom(
+            "must not be null; leave the member out to use its default",
+        )),
+    }
+}
+
+/// The largest whole number a request member takes: the schema's `int32` format bounds it.
+pub const MAX_WHOLE: u32 = i32::MAX as u32;
+
+/// Deserializes a present whole number. JSON Schema's `integer` is a number with no fractional
+/// part, so `800.0` is the integer 800 (as generators such as schemathesis send it); `800.5`,
+/// a negative number, one beyond [`MAX_WHOLE`] and `null` are refused.
+pub fn whole<'de, D>(deserializer: D) -> Result<Option<u32>, D::Error>
+where
+    D: serde::Deserializer<'de>,
+{
+    struct Whole;
+
+    impl serde::de::Visitor<'_> for Whole {
+        type Value = u32;
+
+        fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+            f.write_str("a whole number")
+        }
+
+        fn visit_u64<E: serde::de::Error>(self, n: u64) -> Result<u32, E> {
+            match u32::try_from(n) {
+                Ok(n) if n <= MAX_WHOLE => Ok(n),
+                _ => Err(E::custom(format!("must be at most {MAX_WHOLE}, got {n}"))),
+            }
+        }
+
+        fn visit_i64<E: serde::de::Error>(self, n: i64) -> Result<u32, E> {
+            match u64::try_from(n) {
+                Ok(n) => self.visit_u64(n),
+                Err(_) => Err(E::custom(format!("must not be negative, got {n}"))),
+            }
+        }
+
+        fn visit_f64<E: serde::de::Error>(self, x: f64) -> Result<u32, E> {
+            if !x.is_finite() || x.fract() != 0.0 {
+                Err(E::invalid_type(serde::de::Unexpected::Float(x), &self))
+            } else if x < 0.0 {
+                Err(E::custom(format!("must not be negative, got {x}")))
+            } else if x > f64::from(MAX_WHOLE) {
+                Err(E::custom(format!("must be at most {MAX_WHOLE}, got {x}")))
+            } else {
+                // Exact: a whole number within range converts without loss.
+                Ok(x as u32)
+            }
+        }
+
+        fn visit_unit<E: serde::de::Error>(self) -> Result<u32, E> {
+            Err(E::custom(
+                "must not be null; leave the member out to use its default",
+            ))
+        }
+    }
+
+    deserializer.deserialize_any(Whole).map(Some)
+}
+
+/// Declares a flat request type holding the camera members, with `$early` after the focal
+/// options and `$late` at the end, plus `camera_params()` and query-parameter docs. (Flat,
+/// because `serde(flatten)` cannot be combined with `deny_unknown_fields`, and a misspelt field
+/// must be an error.)
+macro_rules! camera_request {
+    (
+        $(#[$meta:meta])*
+        pub struct $name:ident { $($early:tt)* } then { $($late:tt)* }
+    ) => {
+        #[derive(Debug, Clone, Default, PartialEq, ::serde::Deserialize, ::utoipa::ToSchema)]
+        #[serde(deny_unknown_fields)]
+        $(#[$meta])*
+        pub struct $name {
+            /// Focal length in pixels (`fx` from a calibration). Give exactly one of
+            /// `focal_length_px`, `focal_length_mm` (with `sensor_width_mm` or `pixel_size_um`),
+            /// or `horizontal_fov_deg`.
+            #[schema(nullable = false, exclusive_minimum = 0.0, example = 700.0)]
+            #[serde(default, deserialize_with = "crate::api::wire::de::present")]
+            pub focal_length_px: Option<f64>,
+            /// Focal length in millimetres. Needs `sensor_width_mm` or `pixel_size_um` to convert
+            /// it to pixels: millimetres times a disparity in pixels is not a length.
+            #[schema(nullable = false, exclusive_minimum = 0.0)]
+            #[serde(default, deserialize_with = "crate::api::wire::de::present")]
+            pub focal_length_mm: Option<f64>,
+            /// Sensor width in millimetres, with `focal_length_mm`:
+            /// f_px = f_mm · image_width / sensor_width_mm.
+            #[schema(nullable = false, exclusive_minimum = 0.0)]
+            #[serde(default, deserialize_with = "crate::api::wire::de::present")]
+            pub sensor_width_mm: Option<f64>,
+            /// Pixel pitch in micrometres, with `focal_length_mm`:
+            /// f_px = f_mm · 1000 / pixel_size_um.
+            #[schema(nullable = false, exclusive_minimum = 0.0)]
+            #[serde(default, deserialize_with = "crate::api::wire::de::present")]
+            pub pixel_size_um: Option<f64>,
+            /// Horizontal field of view in degrees, over the full image width:
+            /// f_px = (image_width / 2) / tan(hfov / 2).
+            #[schema(nullable = false, exclusive_minimum = 0.0, exclusive_maximum = 180.0)]
+            #[serde(default, deserialize_with = "crate::api::wire::de::present")]
+            pub horizontal_fov_deg: Option<f64>,
+            $($early)*
+            /// Unit of every length in the request and the response (default `mm`).
+            #[schema(nullable = false)]
+            #[serde(default, deserialize_with = "crate::api::wire::de::present")]
+            pub unit: Option<crate::api::wire::params::Unit>,
+            /// Image width in pixels.
+            #[schema(nullable = false, required = true, minimum = 1, example = 800)]
+            #[serde(default, deserialize_with = "crate::api::wire::de::whole")]
+            pub image_width: Option<u32>,
+            /// Image height in pixels.
+            #[schema(nullable = false, required = true, minimum = 1, example = 600)]
+            #[serde(default, deserialize_with = "crate::api::wire::de::whole")]
+            pub image_height: Option<u32>,
+            /// Disparity uncertainty Δd in pixels (RMS) for the depth error
+            /// ΔZ = Z²·Δd/(f·B). Default 0.5 (integer-pixel matching); subpixel matchers reach
+            /// about 0.1.
+            #[schema(nullable = false, minimum = 0.0, example = 0.5)]
+            #[serde(default, deserialize_with = "crate::api::wire::de::present")]
+            pub disparity_error_px: Option<f64>,
+            $($late)*
+        }
+
+        impl $name {
+            /// The camera members of this request.
+            pub fn camera_params(&self) -> crate::api::wire::params::CameraParams {
+                crate::api::wire::params::CameraParams {
+                    focal_length_px: self.focal_length_px,
+                    focal_length_mm: self.focal_length_mm,
+                    sensor_width_mm: self.sensor_width_mm,
+                    pixel_size_um: self.pixel_size_um,
+                    horizontal_fov_deg: self.horizontal_fov_deg,
+                    unit: self.unit,
+                    image_width: self.image_width,
+                    image_height: self.image_height,
+                    disparity_error_px: self.disparity_error_px,
+                }
+            }
+        }
+
+        impl ::utoipa::IntoParams for $name {
+            fn into_params(
+                _: impl Fn() -> Option<::utoipa::openapi::path::ParameterIn>,
+            ) -> Vec<::utoipa::openapi::path::Parameter> {
+                crate::api::wire::openapi::query_parameters(
+                    <$name as ::utoipa::PartialSchema>::schema(),
+                )
+            }
+        }
+    };
+}
+
+/// Declares a flat request type holding the rig members (camera, baseline, principal points)
+/// followed by its own, with `rig_params()`.
+macro_rules! rig_request {
+    (
+        $(#[$meta:meta])*
+        pub struct $name:ident { $($body:tt)* }
+    ) => {
+        $crate::api::wire::de::camera_request! {
+            $(#[$meta])*
+            pub struct $name {
+                /// Distance between the two optical centres, in `unit`.
+                #[schema(nullable = false, required = true, exclusive_minimum = 0.0,
+                         example = 150.0)]
+                #[serde(default, deserialize_with = "crate::api::wire::de::present")]
+                pub baseline: Option<f64>,
+            } then {
+                /// Principal-point offset between the cameras in pixels (Middlebury `doffs`),
+                /// added to every disparity: Z = B·f / |d + doffs|. Default 0.
+                #[schema(nullable = false, example = 0.0)]
+                #[serde(default, deserialize_with = "crate::api::wire::de::present")]
+                pub doffs: Option<f64>,
+                /// Principal point x of the left camera in pixels, in [0, image_width].
+                /// Default: the image centre.
+                #[schema(nullable = false, minimum = 0.0)]
+                #[serde(default, deserialize_with = "crate::api::wire::de::present")]
+                pub cx: Option<f64>,
+                /// Principal point y of the left camera in pixels, in [0, image_height].
+                /// Default: the image centre.
+                #[schema(nullable = false, minimum = 0.0)]
+                #[serde(default, deserialize_with = "crate::api::wire::de::present")]
+                pub cy: Option<f64>,
+                $($body)*
+            }
+        }
+
+        impl $name {
+            /// The rig members of this request.
+            pub fn rig_params(&self) -> crate::api::wire::params::RigParams {
+                crate::api::wire::params::RigParams {
+                    camera: self.camera_params(),
+                    baseline: self.baseline,
+                    doffs: self.doffs,
+                    cx: self.cx,
+                    cy: self.cy,
+                }
+            }
+        }
+    };
+}
+
+/// Declares the range members shared by `/table` and `/chart-data`, with `range_params()`.
+macro_rules! range_request {
+    (
+        $(#[$meta:meta])*
+        pub struct $name:ident { $($body:tt)* }
+    ) => {
+        $crate::api::wire::de::rig_request! {
+            $(#[$meta])*
+            pub struct $name {
+                /// Nearest distance to sample, in `unit`. Give `distance_min` and
+                /// `distance_max`, or `disparity_min` and `disparity_max`, or neither (then the
+                /// disparities from 1 px across a quarter of the image width are used).
+                #[schema(nullable = false, exclusive_minimum = 0.0)]
+                #[serde(default, deserialize_with = "crate::api::wire::de::present")]
+                pub distance_min: Option<f64>,
+                /// Farthest distance to sample, in `unit`; greater than `distance_min`.
+                #[schema(nullable = false, exclusive_minimum = 0.0)]
+                #[serde(default, deserialize_with = "crate::api::wire::de::present")]
+                pub distance_max: Option<f64>,
+                /// Smallest disparity to sample, in pixels; `disparity_min + doffs` must be > 0.
+                #[schema(nullable = false)]
+                #[serde(default, deserialize_with = "crate::api::wire::de::present")]
+                pub disparity_min: Option<f64>,
+                /// Largest disparity to sample, in pixels; greater than `disparity_min`.
+                #[schema(nullable = false)]
+                #[serde(default, deserialize_with = "crate::api::wire::de::present")]
+                pub disparity_max: Option<f64>,
+                /// Spacing of the samples across the range (default `linear`).
+                #[schema(nullable = false)]
+                #[serde(default, deserialize_with = "crate::api::wire::de::present")]
+                pub spacing: Option<crate::api::wire::params::Spacing>,
+                $($body)*
+            }
+        }
+
+        impl $name {
+            /// The range members of this request.
+            pub fn range_params(&self) -> crate::api::wire::params::RangeParams {
+                crate::api::wire::params::RangeParams {
+                    distance_min: self.distance_min,
+                    distance_max: self.distance_max,
+                    disparity_min: self.disparity_min,
+                    disparity_max: self.disparity_max,
+                    spacing: self.spacing,
+                }
+            }
+        }
+    };
+}
+
+pub(crate) use {camera_request, range_request, rig_request};

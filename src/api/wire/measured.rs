@@ -1,0 +1,74 @@
+//! The measured values every distance answer carries (`/distance`, each point of a batch), mapped
+//! from the physics in one place so that no two answers can disagree.
+
+use serde::{Deserialize, Serialize};
+use utoipa::ToSchema;
+
+use crate::physics;
+
+/// A point in the left camera's frame: x right, y down, z forward, in `unit`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct Point {
+    pub x: f64,
+    pub y: f64,
+    pub z: f64,
+}
+
+impl From<physics::Point3> for Point {
+    fn from(p: physics::Point3) -> Self {
+        Self {
+            x: p.x,
+            y: p.y,
+            z: p.z,
+        }
+    }
+}
+
+/// Something worth knowing about a result that was still computed.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct Warning {
+    /// Stable code: `negative_disparity` or `large_relative_error`.
+    pub code: String,
+    /// What it means and what to check.
+    pub message: String,
+}
+
+impl From<&physics::Warning> for Warning {
+    fn from(warning: &physics::Warning) -> Self {
+        Self {
+            code: warning.code().to_owned(),
+            message: warning.to_string(),
+        }
+    }
+}
+
+/// What one triangulated correspondence gives: the part of every distance answer that comes
+/// straight from the triangulation, the same in a single answer and in a batch.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct Measured {
+    /// Distance Z along the optical axis (depth), in `unit`.
+    pub distance: f64,
+    /// Expected depth error ΔZ = Z²·Δd/(f·B), in `unit`.
+    pub depth_error: f64,
+    /// depth_error / distance.
+    pub relative_error: f64,
+    /// Disparity d = x_left − x_right, in pixels (signed).
+    pub disparity_px: f64,
+    /// The feature's 3D position in the left camera's frame.
+    pub point: Point,
+    /// Caveats about this result; empty when there are none.
+    pub warnings: Vec<Warning>,
+}
+
+impl From<&physics::Measurement> for Measured {
+    fn from(m: &physics::Measurement) -> Self {
+        Self {
+            distance: m.distance,
+            depth_error: m.depth_error,
+            relative_error: m.relative_error,
+            disparity_px: m.disparity_px,
+            point: m.point.into(),
+            warnings: m.warnings.iter().map(Warning::from).collect(),
+        }
+    }
+}

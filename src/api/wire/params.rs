@@ -1,0 +1,87 @@
+//! What the caller stated, before validation: the unit and spacing enums, and the camera, rig
+//! and range members gathered from whichever request type carried them.
+
+use serde::{Deserialize, Serialize};
+use utoipa::ToSchema;
+
+use crate::physics::{self, LengthUnit};
+
+/// Unit of the baseline and of every length in the response.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize, Serialize, ToSchema)]
+#[serde(rename_all = "lowercase")]
+pub enum Unit {
+    #[default]
+    Mm,
+    Cm,
+    M,
+    In,
+    Ft,
+}
+
+impl From<Unit> for LengthUnit {
+    fn from(unit: Unit) -> Self {
+        match unit {
+            Unit::Mm => LengthUnit::Millimetre,
+            Unit::Cm => LengthUnit::Centimetre,
+            Unit::M => LengthUnit::Metre,
+            Unit::In => LengthUnit::Inch,
+            Unit::Ft => LengthUnit::Foot,
+        }
+    }
+}
+
+/// How table rows or chart points are spread across the range.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize, Serialize, ToSchema)]
+#[serde(rename_all = "lowercase")]
+pub enum Spacing {
+    /// Equal steps.
+    #[default]
+    Linear,
+    /// Equal ratios (geometric), denser where the curve bends.
+    Log,
+}
+
+impl From<Spacing> for physics::Spacing {
+    fn from(spacing: Spacing) -> Self {
+        match spacing {
+            Spacing::Linear => physics::Spacing::Linear,
+            Spacing::Log => physics::Spacing::Log,
+        }
+    }
+}
+
+/// The camera as the caller stated it, before validation: focal length, image size, unit and
+/// disparity error, the members every request shares.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct CameraParams {
+    pub focal_length_px: Option<f64>,
+    pub focal_length_mm: Option<f64>,
+    pub sensor_width_mm: Option<f64>,
+    pub pixel_size_um: Option<f64>,
+    pub horizontal_fov_deg: Option<f64>,
+    pub unit: Option<Unit>,
+    pub image_width: Option<u32>,
+    pub image_height: Option<u32>,
+    pub disparity_error_px: Option<f64>,
+}
+
+/// The rig as the caller stated it, before validation: the camera plus the baseline and the
+/// principal points.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct RigParams {
+    pub camera: CameraParams,
+    pub baseline: Option<f64>,
+    pub doffs: Option<f64>,
+    pub cx: Option<f64>,
+    pub cy: Option<f64>,
+}
+
+/// The sample range as the caller stated it, before validation.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct RangeParams {
+    pub distance_min: Option<f64>,
+    pub distance_max: Option<f64>,
+    pub disparity_min: Option<f64>,
+    pub disparity_max: Option<f64>,
+    pub spacing: Option<Spacing>,
+}

@@ -1,0 +1,232 @@
+//! The heavy route group's limits over a real socket, before any image route exists: a
+//! test-only route is mounted in the group (`Application::build_with`) and driven past its body
+//! limit, its concurrency limit and its memory budget, while the light group and the probes
+//! keep answering.
+
+use axum::{Extension, Router, extract::Query, routing::post};
+use reqwest::header::RETRY_AFTER;
+use serde::Deserialize;
+use serde_json::{Value, json};
+use stereo_distance::{
+    Config,
+    api::{HeavyState, error::ApiError, extract::JsonBody},
+    budget::Reservation,
+    config::HeavyLimits,
+};
+use tokio::io::AsyncWriteExt;
+
+use crate::{
+    fixtures::{example_one, post_head},
+    helpers::{
+        TestApp, fields, message_for, ok_json, problem, read_to_close, spawn_app_with_heavy,
+    },
+};
+
+const KIB: usize = 1024;
+
+/// The test route's query: bytes to hold besides the body, as an image route holds its cost
+/// volume once it knows the image size.
+#[derive(Deserialize)]
+struct Work {
+    work: Option<usize>,
+}
+
+/// `POST /test/heavy`: reads a JSON body within the group's body limit, grows its reservation
+/// by `?work=`, and answers the body's `data` length and the bytes it holds.
+async fn upload(
+    Extension(reservation): Extension<Reservation>,
+    Query(Work { work }): Query<Work>,
+    JsonBody(body, _): JsonBody<Value>,
+) -> Result<axum::Json<Value>, ApiError> {
+    if let Some(more) = work {
+        reservation.grow(more).map_err(ApiError::Memory)?;
+    }
+    let received = body["data"].as_str().map_or(0, str::len);
+    Ok(axum::Json(
+        json!({"received": received, "reserved": reservation.bytes()}),
+    ))
+}
+
+/// A server whose heavy group has `heavy` limits and serves the test route.
+async fn spawn(heavy: HeavyLimits) -> TestApp {
+    let config = Config {
+        port: 0,
+        heavy,
+        ..Config::default()
+    };
+    let route = Router::<HeavyState>::new().route("/test/heavy", post(upload));
+    spawn_app_with_heavy(config, route).await
+}
+
+/// A JSON body of `len` bytes whose `data` member is `len - 12` letters.
+fn body_of(len: usize) -> String {
+    format!(r#"{{"data": "{}"}}"#, "x".repeat(len - 12))
+}
+
+/// The heavy group reads bodies up to its own limit, far above the light group's, and answers
+/// a larger one 413 problem+json naming the body and the heavy limit.
+#[tokio::test]
+async fn heavy_body_limit_is_its_own() {
+    // Arrange: the light group keeps its 64 KiB; the heavy group takes 256 KiB.
+    let app = spawn(HeavyLimits {
+        body_bytes: 256 * KIB,
+        ..HeavyLimits::default()
+    })
+    .await;
+    let (within, over) = (body_of(200 * KIB), body_of(300 * KIB));
+
+    // Act
+    let accepted = app
+        .post_raw("/test/heavy", Some("application/json"), within.into())
+        .await;
+    let refused = app
+        .post_raw("/test/heavy", Some("application/json"), over.into())
+        .await;
+    let light = app
+        .post_raw(
+            "/table",
+            Some("application/json"),
+            body_of(200 * KIB).into(),
+        )
+        .await;
+
+    // Assert
+    let accepted = ok_json(accepted).await;
+    assert_eq!(accepted["received"], 200 * KIB - 12);
+    assert_eq!(
+        accepted["reserved"],
+        200 * KIB,
+        "the declared body is reserved"
+    );
+    let refused = problem(refused, 413).await;
+    assert_eq!(fields(&refused), vec!["body"]);
+    assert!(
+        message_for(&refused, "body").contains(&(256 * KIB).to_string()),
+        "{refused}"
+    );
+    let light = problem(light, 413).await;
+    assert!(
+        message_for(&light, "body").contains("65536"),
+        "the light group keeps its own limit: {light}"
+    );
+}
+
+/// Past the heavy group's concurrency limit an image request is refused at once with 503
+/// problem+json and `Retry-After`, while light requests and probes still answer; the held
+/// request completes once its body arrives.
+#[tokio::test]
+async fn heavy_concurrency_limit_sheds_only_the_heavy_group() {
+    // Arrange: one heavy slot, taken by a request whose body is half sent.
+    let app = spawn(HeavyLimits {
+        concurrency_limit: 1,
+        ..HeavyLimits::default()
+    })
+    .await;
+    let body = body_of(4 * KIB);
+    let (first, rest) = body.as_bytes().split_at(100);
+    let mut held = app
+        .raw_partial(&post_head("/test/heavy", body.len()), first)
+        .await;
+    app.wait_in_flight(2.0).await; // the held request and this /metrics poll
+
+    // Act
+    let shed = app
+        .post_raw("/test/heavy", Some("application/json"), body_of(100).into())
+        .await;
+    let light = app.post("/distance", &example_one()).await;
+    let probe = app.get("/readyz").await;
+
+    // Assert
+    assert_eq!(shed.headers()[RETRY_AFTER], "1");
+    let shed = problem(shed, 503).await;
+    assert!(
+        shed["detail"]
+            .as_str()
+            .unwrap()
+            .contains("concurrency limit"),
+        "{shed}"
+    );
+    assert_eq!(ok_json(light).await["distance"], 105.0);
+    assert_eq!(probe.status(), 200);
+    held.write_all(rest).await.unwrap();
+    let answer = read_to_close(&mut held).await;
+    assert!(answer.starts_with("HTTP/1.1 200"), "{answer}");
+    assert!(answer.contains("\"received\":4084"), "{answer}");
+}
+
+/// The memory budget is shared by the heavy requests in flight: each reserves its declared body
+/// on arrival, and a request that does not fit is refused 503 with `Retry-After`, as is a
+/// handler's growth past what is free; a growth past the whole budget is a 413. Light requests
+/// still answer, and once the held requests finish the budget is whole again.
+#[tokio::test]
+async fn heavy_memory_budget_refuses_what_does_not_fit() {
+    // Arrange: a 1 MiB budget, two requests each holding 400 KiB of declared body.
+    let app = spawn(HeavyLimits {
+        body_bytes: 512 * KIB,
+        memory_budget: 1024 * KIB,
+        concurrency_limit: 8,
+        ..HeavyLimits::default()
+    })
+    .await;
+    let body = body_of(400 * KIB);
+    let (first, rest) = body.as_bytes().split_at(100);
+    let mut held = Vec::new();
+    for _ in 0..2 {
+        let stream = app
+            .raw_partial(&post_head("/test/heavy", body.len()), first)
+            .await;
+        held.push(stream);
+    }
+    app.wait_in_flight(3.0).await;
+
+    // Act
+    let third = app
+        .post_raw("/test/heavy", Some("application/json"), body.clone().into())
+        .await;
+    let grows_past_free = app
+        .post_raw(
+            &format!("/test/heavy?work={}", 300 * KIB),
+            Some("application/json"),
+            body_of(100).into(),
+        )
+        .await;
+    let grows_past_budget = app
+        .post_raw(
+            &format!("/test/heavy?work={}", 2048 * KIB),
+            Some("application/json"),
+            body_of(100).into(),
+        )
+        .await;
+    let light = app.post("/distance", &example_one()).await;
+
+    // Assert
+    assert_eq!(third.headers()[RETRY_AFTER], "1");
+    let third = problem(third, 503).await;
+    assert!(
+        third["detail"].as_str().unwrap().contains("memory budget"),
+        "{third}"
+    );
+    assert_eq!(grows_past_free.headers()[RETRY_AFTER], "1");
+    problem(grows_past_free, 503).await;
+    let too_large = problem(grows_past_budget, 413).await;
+    assert!(
+        message_for(&too_large, "request").contains("at most 1 MiB fits"),
+        "{too_large}"
+    );
+    assert_eq!(ok_json(light).await["distance"], 105.0);
+
+    // The held requests finish and give their memory back: the third now fits, with its work.
+    for mut stream in held {
+        stream.write_all(rest).await.unwrap();
+        let answer = read_to_close(&mut stream).await;
+        assert!(answer.starts_with("HTTP/1.1 200"), "{answer}");
+    }
+    let retried = app
+        .post_raw(
+            &format!("/test/heavy?work={}", 300 * KIB),
+            Some("application/json"),
+            body.into(),
+        )
+        .await;
+    assert_eq!(ok_json(retried).await["reserved"], 700 * KIB);
+}
