@@ -14,7 +14,6 @@ use std::{
     any::Any,
     convert::Infallible,
     future::Future,
-    panic::AssertUnwindSafe,
     pin::Pin,
     sync::{
         Arc,
@@ -135,7 +134,12 @@ where
     // A clone of the URI shares hyper's buffer: no copy unless a line is written.
     let uri = (layer.access_log != AccessLog::Off).then(|| request.uri().clone());
 
-    let answer = AssertUnwindSafe(inner.call(request)).catch_unwind();
+    // With the `library-layers` variant, tower-http's CatchPanic and request-id layers do this
+    // layer's panic guard and id echo (see `crate::library_layers`).
+    #[cfg(feature = "library-layers")]
+    let answer = inner.call(request).map(Ok::<_, Box<dyn Any + Send>>);
+    #[cfg(not(feature = "library-layers"))]
+    let answer = std::panic::AssertUnwindSafe(inner.call(request)).catch_unwind();
     let mut response = match telemetry::with_request_id(id.clone(), answer).await {
         Ok(Ok(response)) => response.into_response(),
         Ok(Err(never)) => match never {},
@@ -163,7 +167,9 @@ where
             &id,
         );
     }
-    response.headers_mut().insert(X_REQUEST_ID.clone(), id);
+    if cfg!(not(feature = "library-layers")) {
+        response.headers_mut().insert(X_REQUEST_ID.clone(), id);
+    }
     Ok(response)
 }
 

@@ -33,6 +33,8 @@
 //!   - [`protect`]: the body watcher behind 408 vs 503, `Retry-After`, CORS.
 //!   - [`telemetry`], [`metrics`]: logs, request ids and the access log; Prometheus metrics.
 //!   - [`healthcheck`]: the `healthcheck` subcommand's probe, for images without curl.
+//! - `library_layers` (cargo feature `library-layers`): the same middleware from tower and
+//!   tower-http layers, built only to measure what it costs.
 //! - `conformance` (cargo feature `conformance`, on for the tests and the fuzz crate): what the
 //!   service promises for any input, checked in process.
 //!
@@ -45,6 +47,8 @@ pub mod config;
 pub mod conformance;
 pub mod edge;
 pub mod healthcheck;
+#[cfg(feature = "library-layers")]
+pub mod library_layers;
 pub mod metrics;
 pub mod physics;
 pub mod protect;

@@ -20,7 +20,11 @@ use std::{
 
 use serde_json::Value;
 
-use super::{Connection, Options, Placement, Target, start_service, status_field};
+use super::{
+    client::{Connection, Target},
+    options::Options,
+    process::{Placement, start_service, status_field},
+};
 
 /// How many answers in one are checked against the physics.
 const SAMPLE_ONE_IN: u64 = 8;

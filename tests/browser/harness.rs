@@ -1,0 +1,303 @@
+//! The page object of the browser tests: chromedriver as a child process, a headless
+//! Chromium session against the real server on 127.0.0.1, and the reads, waits and actions
+//! the tests are written in.
+
+use std::{
+    net::TcpListener,
+    path::PathBuf,
+    process::{Child, Command, Stdio},
+    time::{Duration, Instant, SystemTime, UNIX_EPOCH},
+};
+
+use fantoccini::{
+    Client, ClientBuilder, Locator,
+    elements::Element,
+    wd::{Capabilities, WebDriverCompatibleCommand},
+};
+use hyper_util::client::legacy::connect::HttpConnector;
+use serde_json::{Value, json};
+use stereo_distance::{Application, Config};
+
+/// A bound on waiting for something that must happen, so a bug fails instead of hanging. It is
+/// never what a test asserts.
+pub const PATIENCE: Duration = Duration::from_secs(30);
+
+pub fn path_from(var: &str, default: &str) -> String {
+    std::env::var(var).unwrap_or_else(|_| default.to_owned())
+}
+
+pub fn free_port() -> u16 {
+    TcpListener::bind("127.0.0.1:0")
+        .and_then(|l| l.local_addr())
+        .expect("a free port")
+        .port()
+}
+
+/// chromedriver as a child process, killed when dropped.
+pub struct Driver(Child);
+
+impl Drop for Driver {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+/// W3C WebDriver "Set Permission" (chromedriver implements it): lets the page read the
+/// clipboard, so a test can check what "Copy results" put there.
+#[derive(Debug)]
+pub struct SetPermission(pub &'static str);
+
+impl WebDriverCompatibleCommand for SetPermission {
+    fn endpoint(
+        &self,
+        base_url: &url::Url,
+        session_id: Option<&str>,
+    ) -> Result<url::Url, url::ParseError> {
+        base_url.join(&format!("session/{}/permissions", session_id.unwrap_or("")))
+    }
+
+    fn method_and_body(&self, _: &url::Url) -> (axum::http::Method, Option<String>) {
+        let body = json!({"descriptor": {"name": self.0}, "state": "granted"});
+        (axum::http::Method::POST, Some(body.to_string()))
+    }
+}
+
+/// A served application, a chromedriver and one browser session.
+pub struct Browser {
+    pub client: Client,
+    pub base: String,
+    profile: PathBuf,
+    _driver: Driver,
+    _server: tokio::task::JoinHandle<std::io::Result<()>>,
+}
+
+impl Browser {
+    /// Starts the server on a free port, chromedriver, and headless Chromium with a window of
+    /// `width`×`height`.
+    pub async fn start(width: u32, height: u32) -> Browser {
+        Self::start_with(width, height, None).await
+    }
+
+    /// As [`Browser::start`], emulating a phone's screen of `width`×`height` CSS pixels (a
+    /// headless window cannot be narrower than 500 px).
+    pub async fn phone(width: u32, height: u32) -> Browser {
+        let metrics = json!({"deviceMetrics": {"width": width, "height": height, "pixelRatio": 2}});
+        Self::start_with(500, height, Some(metrics)).await
+    }
+
+    pub async fn start_with(width: u32, height: u32, mobile: Option<Value>) -> Browser {
+        let application = Application::build(Config {
+            port: 0,
+            ..Config::default()
+        })
+        .await
+        .expect("the server binds");
+        let base = format!("http://{}", application.local_addr().expect("bound"));
+        let server = tokio::spawn(application.run_until(std::future::pending()));
+
+        let port = free_port();
+        let driver = Command::new(path_from("CHROMEDRIVER", "/usr/bin/chromedriver"))
+            .arg(format!("--port={port}"))
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .expect("chromedriver starts (install Debian's chromium-driver)");
+        let driver = Driver(driver);
+        let webdriver = format!("http://127.0.0.1:{port}");
+
+        let stamp = SystemTime::now()
+            .duration_since(UNIX_EPOCH)
+            .map_or(0, |d| d.as_nanos());
+        let profile =
+            std::env::temp_dir().join(format!("stereo-e2e-profile-{}-{stamp}", std::process::id()));
+        let mut capabilities = Capabilities::new();
+        capabilities.insert("browserName".into(), json!("chrome"));
+        let mut options = json!({
+                "binary": path_from("CHROMIUM", "/usr/bin/chromium"),
+                "args": [
+                    "--headless",
+                    "--no-sandbox",
+                    "--disable-gpu",
+                    "--disable-background-networking",
+                    "--disable-component-update",
+                    "--disable-sync",
+                    "--no-first-run",
+                    format!("--user-data-dir={}", profile.display()),
+                    format!("--window-size={width},{height}"),
+                ],
+        });
+        if let Some(mobile) = mobile {
+            options["mobileEmulation"] = mobile;
+        }
+        capabilities.insert("goog:chromeOptions".into(), options);
+        // chromedriver needs a moment to listen; retry the session until it does.
+        let started = Instant::now();
+        let client = loop {
+            match ClientBuilder::new(HttpConnector::new())
+                .capabilities(capabilities.clone())
+                .connect(&webdriver)
+                .await
+            {
+                Ok(client) => break client,
+                Err(error) if started.elapsed() < PATIENCE => {
+                    let _ = error;
+                    tokio::time::sleep(Duration::from_millis(100)).await;
+                }
+                Err(error) => panic!("no WebDriver session from chromedriver: {error}"),
+            }
+        };
+        Browser {
+            client,
+            base,
+            profile,
+            _driver: driver,
+            _server: server,
+        }
+    }
+
+    /// A desktop-sized browser on `/` as a first visit sees it: the defaults computed, 105 mm.
+    pub async fn at_defaults() -> Browser {
+        let browser = Browser::start(1280, 1400).await;
+        browser.open("/").await;
+        browser.until_text("distance", "105 mm").await;
+        browser
+    }
+
+    /// Opens `path` and waits until the page has shown its first answer.
+    pub async fn open(&self, path: &str) {
+        self.client
+            .goto(&format!("{}{path}", self.base))
+            .await
+            .expect("the page loads");
+        self.settled().await;
+    }
+
+    pub async fn find(&self, id: &str) -> Element {
+        self.client
+            .find(Locator::Id(id))
+            .await
+            .unwrap_or_else(|e| panic!("#{id} is on the page: {e}"))
+    }
+
+    pub async fn text(&self, id: &str) -> String {
+        self.find(id)
+            .await
+            .text()
+            .await
+            .expect("text")
+            .trim()
+            .to_owned()
+    }
+
+    pub async fn value(&self, id: &str) -> String {
+        self.find(id)
+            .await
+            .prop("value")
+            .await
+            .expect("value")
+            .unwrap_or_default()
+    }
+
+    pub async fn attr(&self, id: &str, name: &str) -> Option<String> {
+        self.find(id).await.attr(name).await.expect("attribute")
+    }
+
+    /// Chooses the option with `value` in the select `#id`.
+    pub async fn choose(&self, id: &str, value: &str) {
+        self.find(id)
+            .await
+            .select_by_value(value)
+            .await
+            .unwrap_or_else(|e| panic!("#{id} offers {value}: {e}"));
+    }
+
+    /// Clears a text field and types `text` into it, as a person would.
+    pub async fn type_into(&self, id: &str, text: &str) {
+        let field = self.find(id).await;
+        field.clear().await.expect("clear");
+        field.send_keys(text).await.expect("type");
+    }
+
+    pub async fn script(&self, source: &str) -> Value {
+        self.client
+            .execute(source, vec![])
+            .await
+            .unwrap_or_else(|e| panic!("script {source}: {e}"))
+    }
+
+    /// Waits until the page is not computing and no typing is pending.
+    pub async fn settled(&self) {
+        self.until("the page to finish computing", || async {
+            let state = self
+                .script("return document.body.dataset.state || ''")
+                .await;
+            (state == "done").then_some(())
+        })
+        .await;
+    }
+
+    /// Polls `probe` until it gives a value; panics naming `what` after [`PATIENCE`].
+    pub async fn until<T, F, Fut>(&self, what: &str, mut probe: F) -> T
+    where
+        F: FnMut() -> Fut,
+        Fut: std::future::Future<Output = Option<T>>,
+    {
+        let started = Instant::now();
+        loop {
+            if let Some(value) = probe().await {
+                return value;
+            }
+            assert!(started.elapsed() < PATIENCE, "timed out waiting for {what}");
+            tokio::time::sleep(Duration::from_millis(50)).await;
+        }
+    }
+
+    /// Waits until `#id`'s text is `expected`, and returns it.
+    pub async fn until_text(&self, id: &str, expected: &str) -> String {
+        self.until(&format!("#{id} to read {expected:?}"), || async {
+            let text = self.text(id).await;
+            (text == expected).then_some(text)
+        })
+        .await
+    }
+
+    /// Saves a screenshot of the window as an artifact and returns its path.
+    pub async fn screenshot(&self, name: &str) -> PathBuf {
+        let dir = std::env::var_os("E2E_ARTIFACTS").map_or_else(
+            || PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("e2e"),
+            PathBuf::from,
+        );
+        std::fs::create_dir_all(&dir).expect("artifact folder");
+        let png = self.client.screenshot().await.expect("screenshot");
+        assert!(png.starts_with(b"\x89PNG"), "a PNG image");
+        let path = dir.join(name);
+        std::fs::write(&path, png).expect("screenshot written");
+        eprintln!("screenshot: {}", path.display());
+        path
+    }
+
+    /// No alert box is open: the page reports errors inline only.
+    pub async fn assert_no_alert(&self) {
+        assert!(
+            self.client.get_alert_text().await.is_err(),
+            "the page opened an alert box"
+        );
+    }
+
+    pub async fn close(self) {
+        let _ = self.client.close().await;
+        let _ = std::fs::remove_dir_all(&self.profile);
+    }
+}
+
+/// Parses an SVG `points` attribute into (x, y) pairs.
+pub fn vertices(points: &str) -> Vec<(f64, f64)> {
+    points
+        .split_whitespace()
+        .map(|pair| {
+            let (x, y) = pair.split_once(',').expect("x,y");
+            (x.parse().expect("x"), y.parse().expect("y"))
+        })
+        .collect()
+}
