@@ -127,19 +127,24 @@ impl Drop for Held {
 mod tests {
     use super::*;
 
+    fn busy(requested: usize, available: usize) -> Refusal {
+        Refusal::Busy {
+            requested,
+            available,
+        }
+    }
+
+    fn too_large(requested: usize, total: usize) -> Refusal {
+        Refusal::TooLarge { requested, total }
+    }
+
     /// Reservations add up to the total and no further; dropping the last clone gives the bytes
     /// back.
     #[test]
     fn reservations_add_up_and_are_given_back() {
         let budget = MemoryBudget::new(1000);
         let first = budget.reserve(600).unwrap();
-        assert_eq!(
-            budget.reserve(500).unwrap_err(),
-            Refusal::Busy {
-                requested: 500,
-                available: 400
-            }
-        );
+        assert_eq!(budget.reserve(500).unwrap_err(), busy(500, 400));
         let second = budget.reserve(400).unwrap();
         assert_eq!(budget.used(), 1000);
         let shared = first.clone();
@@ -159,30 +164,12 @@ mod tests {
         held.grow(300).unwrap();
         assert_eq!((held.bytes(), budget.used()), (400, 400));
         let other = budget.reserve(500).unwrap();
-        assert_eq!(
-            held.grow(200).unwrap_err(),
-            Refusal::Busy {
-                requested: 200,
-                available: 100
-            }
-        );
+        assert_eq!(held.grow(200).unwrap_err(), busy(200, 100));
         assert_eq!((held.bytes(), budget.used()), (400, 900));
-        assert_eq!(
-            held.grow(700).unwrap_err(),
-            Refusal::TooLarge {
-                requested: 1100,
-                total: 1000
-            }
-        );
+        assert_eq!(held.grow(700).unwrap_err(), too_large(1100, 1000));
         drop(other);
         drop(held);
         assert_eq!(budget.used(), 0);
-        assert_eq!(
-            budget.reserve(1001).unwrap_err(),
-            Refusal::TooLarge {
-                requested: 1001,
-                total: 1000
-            }
-        );
+        assert_eq!(budget.reserve(1001).unwrap_err(), too_large(1001, 1000));
     }
 }

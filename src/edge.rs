@@ -34,7 +34,7 @@ use tower::{Layer, Service};
 
 use crate::{
     api::error::ApiError,
-    budget::MemoryBudget,
+    budget::{MemoryBudget, Refusal, Reservation},
     config::AccessLog,
     metrics::{InFlight, Metrics, method_label},
     protect::{RETRY_AFTER_SECS, Watched},
@@ -49,6 +49,56 @@ pub type ResponseFuture = Pin<Box<dyn Future<Output = Result<Response, Infallibl
 fn take<S: Clone>(service: &mut S) -> S {
     let clone = service.clone();
     std::mem::replace(service, clone)
+}
+
+/// A service a hand-written layer can wrap: an axum route (or a layer around one).
+pub trait Inner:
+    Service<Request, Error = Infallible, Response: IntoResponse, Future: Send + 'static>
+    + Send
+    + 'static
+{
+}
+
+impl<S> Inner for S where
+    S: Service<Request, Error = Infallible, Response: IntoResponse, Future: Send + 'static>
+        + Send
+        + 'static
+{
+}
+
+/// What a hand-written layer does with one request, given the inner service to call.
+pub trait Wrap: Clone {
+    fn wrap<S: Inner>(&self, inner: S, request: Request) -> ResponseFuture;
+}
+
+/// A service wrapped by the hand-written layer `W` ([`Edge`] or [`Guard`]).
+#[derive(Clone)]
+pub struct Wrapped<S, W> {
+    inner: S,
+    wrap: W,
+}
+
+impl<S, W: Clone> Wrapped<S, W> {
+    fn new(inner: S, wrap: &W) -> Self {
+        Self {
+            inner,
+            wrap: wrap.clone(),
+        }
+    }
+}
+
+impl<S: Inner + Clone, W: Wrap> Service<Request> for Wrapped<S, W> {
+    type Response = Response;
+    type Error = Infallible;
+    type Future = ResponseFuture;
+
+    fn poll_ready(&mut self, cx: &mut Context<'_>) -> Poll<Result<(), Infallible>> {
+        self.inner.poll_ready(cx)
+    }
+
+    fn call(&mut self, request: Request) -> ResponseFuture {
+        self.wrap.wrap(take(&mut self.inner), request)
+    }
 }
 
 /// The route template a request matched (`/distance`), or [`UNMATCHED_ROUTE`].
@@ -82,50 +132,24 @@ impl<S> Layer<S> for EdgeLayer {
     type Service = Edge<S>;
 
     fn layer(&self, inner: S) -> Edge<S> {
-        Edge {
-            inner,
-            layer: self.clone(),
-        }
+        Wrapped::new(inner, self)
     }
 }
 
 /// Request id, in-flight gauge, panic → 500, metrics, access log. See the module docs.
-#[derive(Clone)]
-pub struct Edge<S> {
-    inner: S,
-    layer: EdgeLayer,
-}
+pub type Edge<S> = Wrapped<S, EdgeLayer>;
 
-impl<S> Service<Request> for Edge<S>
-where
-    S: Service<Request, Error = Infallible> + Clone + Send + 'static,
-    S::Response: IntoResponse,
-    S::Future: Send + 'static,
-{
-    type Response = Response;
-    type Error = Infallible;
-    type Future = ResponseFuture;
-
-    fn poll_ready(&mut self, cx: &mut Context<'_>) -> Poll<Result<(), Infallible>> {
-        self.inner.poll_ready(cx)
-    }
-
-    fn call(&mut self, request: Request) -> ResponseFuture {
-        let inner = take(&mut self.inner);
-        let shared = Arc::clone(&self.layer.0);
-        Box::pin(edge(shared, inner, request))
+impl Wrap for EdgeLayer {
+    fn wrap<S: Inner>(&self, inner: S, request: Request) -> ResponseFuture {
+        Box::pin(edge(Arc::clone(&self.0), inner, request))
     }
 }
 
-async fn edge<S>(
+async fn edge<S: Inner>(
     layer: Arc<EdgeShared>,
     mut inner: S,
     request: Request,
-) -> Result<Response, Infallible>
-where
-    S: Service<Request, Error = Infallible>,
-    S::Response: IntoResponse,
-{
+) -> Result<Response, Infallible> {
     let started = Instant::now();
     let _in_flight = InFlight::enter(layer.metrics.in_flight());
     let method = method_label(request.method());
@@ -205,6 +229,20 @@ struct Admission {
     body_limit: usize,
 }
 
+impl Admission {
+    /// Reserves the body `request` declares (at most the body limit), and gives the handler a
+    /// clone of the reservation as a request extension.
+    fn admit(&self, request: &mut Request) -> Result<Reservation, Refusal> {
+        let declared = request.body().size_hint().exact();
+        let body = declared.map_or(self.body_limit, |n| {
+            usize::try_from(n).map_or(self.body_limit, |n| n.min(self.body_limit))
+        });
+        let reservation = self.budget.reserve(body)?;
+        request.extensions_mut().insert(reservation.clone());
+        Ok(reservation)
+    }
+}
+
 impl GuardLayer {
     /// At most `limit` requests of the group at once, each answered within `timeout`.
     pub fn new(limit: usize, timeout: Duration) -> Self {
@@ -242,19 +280,12 @@ impl<S> Layer<S> for GuardLayer {
     type Service = Guard<S>;
 
     fn layer(&self, inner: S) -> Guard<S> {
-        Guard {
-            inner,
-            shared: Arc::clone(&self.shared),
-        }
+        Wrapped::new(inner, self)
     }
 }
 
 /// One route group's concurrency limit with shedding, request timeout and memory admission.
-#[derive(Clone)]
-pub struct Guard<S> {
-    inner: S,
-    shared: Arc<GuardShared>,
-}
+pub type Guard<S> = Wrapped<S, GuardLayer>;
 
 /// A slot under the concurrency limit, given back when dropped.
 struct Slot(Arc<GuardShared>);
@@ -273,66 +304,45 @@ impl Drop for Slot {
     }
 }
 
-impl<S> Service<Request> for Guard<S>
-where
-    S: Service<Request, Error = Infallible> + Clone + Send + 'static,
-    S::Response: IntoResponse,
-    S::Future: Send + 'static,
-{
-    type Response = Response;
-    type Error = Infallible;
-    type Future = ResponseFuture;
-
-    fn poll_ready(&mut self, cx: &mut Context<'_>) -> Poll<Result<(), Infallible>> {
-        self.inner.poll_ready(cx)
+impl Wrap for GuardLayer {
+    fn wrap<S: Inner>(&self, inner: S, request: Request) -> ResponseFuture {
+        Box::pin(guard(Arc::clone(&self.shared), inner, request))
     }
+}
 
-    fn call(&mut self, mut request: Request) -> ResponseFuture {
-        let mut inner = take(&mut self.inner);
-        let shared = Arc::clone(&self.shared);
-        Box::pin(async move {
-            let Some(_slot) = Slot::take(&shared) else {
-                return Ok(ApiError::Overloaded {
-                    retry_after_secs: RETRY_AFTER_SECS,
-                }
-                .into_response());
-            };
-            // Held until the answer is made, whatever the handler does with its own clone.
-            let _reservation = match &shared.memory {
-                None => None,
-                Some(memory) => {
-                    let declared = request.body().size_hint().exact();
-                    let body = declared.map_or(memory.body_limit, |n| {
-                        usize::try_from(n).map_or(memory.body_limit, |n| n.min(memory.body_limit))
-                    });
-                    match memory.budget.reserve(body) {
-                        Ok(reservation) => {
-                            request.extensions_mut().insert(reservation.clone());
-                            Some(reservation)
-                        }
-                        Err(refusal) => return Ok(ApiError::Memory(refusal).into_response()),
-                    }
-                }
-            };
-            // Whether the body was all in when time ran out tells a slow client (408) from a
-            // slow server (503). A request without a body has nothing to wait for.
-            let received = if request.body().is_end_stream() {
-                None
-            } else {
-                let received = Arc::new(AtomicBool::new(false));
-                let watched = Arc::clone(&received);
-                request = request.map(|body| Body::new(Watched::new(watched, body)));
-                Some(received)
-            };
-            match tokio::time::timeout(shared.timeout, inner.call(request)).await {
-                Ok(Ok(response)) => Ok(response.into_response()),
-                Ok(Err(never)) => match never {},
-                Err(_) => Ok(ApiError::Timeout {
-                    after: shared.timeout,
-                    body_received: received.is_none_or(|r| r.load(Ordering::Acquire)),
-                }
-                .into_response()),
-            }
-        })
+async fn guard<S: Inner>(
+    shared: Arc<GuardShared>,
+    mut inner: S,
+    mut request: Request,
+) -> Result<Response, Infallible> {
+    let Some(_slot) = Slot::take(&shared) else {
+        return Ok(ApiError::Overloaded {
+            retry_after_secs: RETRY_AFTER_SECS,
+        }
+        .into_response());
+    };
+    // Held until the answer is made, whatever the handler does with its own clone.
+    let _reservation = match shared.memory.as_ref().map(|m| m.admit(&mut request)) {
+        Some(Err(refusal)) => return Ok(ApiError::Memory(refusal).into_response()),
+        held => held.and_then(Result::ok),
+    };
+    // Whether the body was all in when time ran out tells a slow client (408) from a
+    // slow server (503). A request without a body has nothing to wait for.
+    let received = if request.body().is_end_stream() {
+        None
+    } else {
+        let received = Arc::new(AtomicBool::new(false));
+        let watched = Arc::clone(&received);
+        request = request.map(|body| Body::new(Watched::new(watched, body)));
+        Some(received)
+    };
+    match tokio::time::timeout(shared.timeout, inner.call(request)).await {
+        Ok(Ok(response)) => Ok(response.into_response()),
+        Ok(Err(never)) => match never {},
+        Err(_) => Ok(ApiError::Timeout {
+            after: shared.timeout,
+            body_received: received.is_none_or(|r| r.load(Ordering::Acquire)),
+        }
+        .into_response()),
     }
 }

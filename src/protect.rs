@@ -1,20 +1,14 @@
 //! Protective pieces used by [`crate::edge`]: the body watcher behind the request timeout's
 //! 408/503 choice, the `Retry-After` of a shed request, and CORS.
 
-use std::{
-    pin::Pin,
-    sync::{
-        Arc,
-        atomic::{AtomicBool, Ordering},
-    },
-    task::{Context, Poll},
-    time::Duration,
-};
+use std::pin::Pin;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::task::{Context, Poll};
+use std::time::Duration;
 
-use axum::{
-    body::{Body, Bytes},
-    http::{HeaderValue, Method, header},
-};
+use axum::body::{Body, Bytes};
+use axum::http::{HeaderValue, Method, header};
 use http_body::{Frame, SizeHint};
 use tower_http::cors::{AllowOrigin, CorsLayer};
 

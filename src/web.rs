@@ -30,27 +30,24 @@ pub struct Asset {
 
 /// Everything the page needs, and nothing from anywhere else.
 pub const ASSETS: [Asset; 4] = [
-    Asset {
-        path: "/",
-        content_type: "text/html; charset=utf-8",
-        body: include_str!("web/index.html"),
-    },
-    Asset {
-        path: "/app.js",
-        content_type: "text/javascript; charset=utf-8",
-        body: include_str!("web/app.js"),
-    },
-    Asset {
-        path: "/app.css",
-        content_type: "text/css; charset=utf-8",
-        body: include_str!("web/app.css"),
-    },
-    Asset {
-        path: "/favicon.svg",
-        content_type: "image/svg+xml",
-        body: include_str!("web/favicon.svg"),
-    },
+    asset("/", HTML, include_str!("web/index.html")),
+    asset("/app.js", JAVASCRIPT, include_str!("web/app.js")),
+    asset("/app.css", CSS, include_str!("web/app.css")),
+    asset("/favicon.svg", SVG, include_str!("web/favicon.svg")),
 ];
+
+const HTML: &str = "text/html; charset=utf-8";
+const CSS: &str = "text/css; charset=utf-8";
+const SVG: &str = "image/svg+xml";
+const JAVASCRIPT: &str = "text/javascript; charset=utf-8";
+
+const fn asset(path: &'static str, content_type: &'static str, body: &'static str) -> Asset {
+    Asset {
+        path,
+        content_type,
+        body,
+    }
+}
 
 /// Only this origin may provide scripts, styles, images and API answers; no framing.
 const CONTENT_SECURITY_POLICY: &str = "default-src 'none'; script-src 'self'; style-src 'self'; \

@@ -10,6 +10,40 @@ pub mod planning;
 pub mod table;
 
 use axum::http::{Method, Uri};
+
+/// Declares the two handlers of a JSON operation, documented in one place: `POST` with the
+/// request as a JSON body and `GET` with the same request as a query string, both answered by
+/// `$answer(&state, &request, problems)`. The `POST` documentation gives the summary, any
+/// description and the request body's examples; the `GET` form is documented from the same
+/// request type. The calling module imports what the handlers name (`State`, `AppState`,
+/// `JsonBody`, `QueryParams`, `Json`, `ApiError`, `BodyErrors`, `QueryErrors`).
+macro_rules! json_operation {
+    (
+        $answer:ident: $request:ident => $response:ident at $path:tt, tag $tag:tt, ok $ok:tt;
+        post $post:ident($($post_doc:tt)*);
+        get $get:ident(summary = $get_summary:tt);
+    ) => {
+        $crate::api::routes::json_operation!(@handler $post, JsonBody, $request => $response,
+            $answer, #[utoipa::path(post, path = $path, tag = $tag, $($post_doc)*,
+                responses((status = 200, description = $ok, body = $response), BodyErrors))]);
+        $crate::api::routes::json_operation!(@handler $get, QueryParams, $request => $response,
+            $answer, #[utoipa::path(get, path = $path, tag = $tag, summary = $get_summary,
+                params($request),
+                responses((status = 200, description = $ok, body = $response), QueryErrors))]);
+    };
+    (@handler $name:ident, $extract:ident, $request:ident => $response:ident, $answer:ident,
+     #[$doc:meta]) => {
+        #[$doc]
+        pub async fn $name(
+            State(state): State<AppState>,
+            $extract(request, problems): $extract<$request>,
+        ) -> Result<Json<$response>, ApiError> {
+            $answer(&state, &request, problems).map(Json)
+        }
+    };
+}
+
+pub(crate) use json_operation;
 use utoipa_axum::router::OpenApiRouter;
 
 use super::{AppState, HeavyState, error::ApiError};

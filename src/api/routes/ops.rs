@@ -2,29 +2,21 @@
 //! They form their own router, outside every route group's concurrency limit and timeout, so
 //! that probes still answer under load.
 
-use std::sync::{
-    Arc,
-    atomic::{AtomicBool, Ordering},
-};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
 
-use axum::{
-    extract::State,
-    http::{StatusCode, header},
-    response::{IntoResponse, Response},
-};
+use axum::extract::State;
+use axum::http::{StatusCode, header};
+use axum::response::{IntoResponse, Response};
 use serde::Serialize;
 use utoipa::ToSchema;
 
 use utoipa_axum::{router::OpenApiRouter, routes};
 
-use crate::{
-    api::{
-        error::ApiError,
-        respond::Json,
-        wire::openapi::{METHOD, ProbeErrors, problem_responses},
-    },
-    metrics::{Metrics, TEXT_FORMAT},
-};
+use crate::api::error::ApiError;
+use crate::api::respond::Json;
+use crate::api::wire::openapi::{METHOD, ProbeErrors, problem_responses};
+use crate::metrics::{Metrics, TEXT_FORMAT};
 
 /// Whether the server wants traffic: false before it serves and while it drains.
 #[derive(Debug, Clone, Default)]

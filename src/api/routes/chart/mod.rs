@@ -4,26 +4,21 @@
 pub mod svg;
 pub mod types;
 
-use axum::{
-    extract::State,
-    http::{HeaderValue, header},
-    response::{IntoResponse, Response},
-};
+use axum::extract::State;
+use axum::http::{HeaderValue, header};
+use axum::response::{IntoResponse, Response};
 use utoipa_axum::{router::OpenApiRouter, routes};
 
 use self::types::{Axis, ChartPoint, ChartRequest, ChartResponse, Series};
-use crate::{
-    api::{
-        AppState,
-        error::{ApiError, FieldErrors},
-        extract::{JsonBody, QueryParams},
-        format::short,
-        respond::Json,
-        validate::{self, Bounds},
-        wire::openapi::{BodyErrors, QueryErrors},
-    },
-    physics,
-};
+use super::json_operation;
+use crate::api::AppState;
+use crate::api::error::{ApiError, FieldErrors};
+use crate::api::extract::{JsonBody, QueryParams};
+use crate::api::format::short;
+use crate::api::respond::Json;
+use crate::api::validate::{self, Bounds};
+use crate::api::wire::openapi::{BodyErrors, QueryErrors};
+use crate::physics;
 
 /// `GET` and `POST /chart-data`, `GET /chart.svg`.
 pub fn router() -> OpenApiRouter<AppState> {
@@ -35,53 +30,26 @@ pub fn router() -> OpenApiRouter<AppState> {
 /// The media type of `/chart.svg`.
 pub const IMAGE_SVG: &str = "image/svg+xml";
 
-#[utoipa::path(
-    post,
-    path = "/chart-data",
-    tag = "chart",
-    summary = "Chart series of distance and depth error against disparity",
-    request_body(content = ChartRequest, examples(
-        ("measured point" = (summary = "The seed's example 1 marked on the curve",
-                             value = json!({
-            "focal_length_px": 35, "baseline": 150, "unit": "mm",
-            "image_width": 800, "image_height": 600,
-            "x_left": 400, "x_right": 350, "points": 100
-        }))),
-        ("distance range" = (summary = "f in mm with a pixel pitch, from 1 m to 30 m",
-                             value = json!({
-            "focal_length_mm": 3.6, "pixel_size_um": 3, "baseline": 0.12, "unit": "m",
-            "image_width": 1920, "image_height": 1080,
-            "distance_min": 1, "distance_max": 30, "spacing": "log", "points": 50
-        })))
-    )),
-    responses(
-        (status = 200, description = "The chart series.", body = ChartResponse),
-        BodyErrors
-    )
-)]
-pub async fn post_chart_data(
-    State(state): State<AppState>,
-    JsonBody(request, problems): JsonBody<ChartRequest>,
-) -> Result<Json<ChartResponse>, ApiError> {
-    chart(&state, &request, problems).map(Json)
-}
-
-#[utoipa::path(
-    get,
-    path = "/chart-data",
-    tag = "chart",
-    summary = "Chart series (query-string form of POST /chart-data)",
-    params(ChartRequest),
-    responses(
-        (status = 200, description = "The chart series.", body = ChartResponse),
-        QueryErrors
-    )
-)]
-pub async fn get_chart_data(
-    State(state): State<AppState>,
-    QueryParams(request, problems): QueryParams<ChartRequest>,
-) -> Result<Json<ChartResponse>, ApiError> {
-    chart(&state, &request, problems).map(Json)
+json_operation! {
+    chart: ChartRequest => ChartResponse at "/chart-data", tag "chart", ok "The chart series.";
+    post post_chart_data(
+        summary = "Chart series of distance and depth error against disparity",
+        request_body(content = ChartRequest, examples(
+            ("measured point" = (summary = "The seed's example 1 marked on the curve",
+                                 value = json!({
+                "focal_length_px": 35, "baseline": 150, "unit": "mm",
+                "image_width": 800, "image_height": 600,
+                "x_left": 400, "x_right": 350, "points": 100
+            }))),
+            ("distance range" = (summary = "f in mm with a pixel pitch, from 1 m to 30 m",
+                                 value = json!({
+                "focal_length_mm": 3.6, "pixel_size_um": 3, "baseline": 0.12, "unit": "m",
+                "image_width": 1920, "image_height": 1080,
+                "distance_min": 1, "distance_max": 30, "spacing": "log", "points": 50
+            })))
+        ))
+    );
+    get get_chart_data(summary = "Chart series (query-string form of POST /chart-data)");
 }
 
 #[utoipa::path(

@@ -4,13 +4,9 @@
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
-use crate::api::{
-    extract::QueryForm,
-    wire::{
-        de::{present, range_request, whole},
-        params::Unit,
-    },
-};
+use crate::api::extract::QueryForm;
+use crate::api::wire::de::{present, range_request, whole};
+use crate::api::wire::params::Unit;
 
 range_request! {
     /// A rig and a range: chart series of distance and depth error against disparity.

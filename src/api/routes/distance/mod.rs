@@ -7,25 +7,17 @@ pub mod types;
 use axum::extract::State;
 use utoipa_axum::{router::OpenApiRouter, routes};
 
-use self::{
-    batch::DistanceBody,
-    types::{DistanceInput, DistanceOutput, DistanceRequest, DistanceResponse},
-};
-use crate::{
-    api::{
-        AppState,
-        error::{ApiError, FieldErrors},
-        extract::QueryParams,
-        format::short,
-        respond::Json,
-        validate::{self, Bounds},
-        wire::{
-            measured::Measured,
-            openapi::{BodyErrors, QueryErrors},
-        },
-    },
-    physics,
-};
+use self::batch::DistanceBody;
+use self::types::{DistanceInput, DistanceOutput, DistanceRequest, DistanceResponse};
+use crate::api::AppState;
+use crate::api::error::{ApiError, FieldErrors};
+use crate::api::extract::QueryParams;
+use crate::api::format::short;
+use crate::api::respond::Json;
+use crate::api::validate::{self, Bounds};
+use crate::api::wire::measured::Measured;
+use crate::api::wire::openapi::{BodyErrors, QueryErrors};
+use crate::physics;
 
 /// `GET` and `POST /distance`.
 pub fn router() -> OpenApiRouter<AppState> {

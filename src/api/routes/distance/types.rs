@@ -4,15 +4,11 @@
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
-use crate::api::{
-    error::FieldError,
-    extract::QueryForm,
-    wire::{
-        de::{present, rig_request},
-        measured::Measured,
-        params::Unit,
-    },
-};
+use crate::api::error::FieldError;
+use crate::api::extract::QueryForm;
+use crate::api::wire::de::{present, rig_request};
+use crate::api::wire::measured::Measured;
+use crate::api::wire::params::Unit;
 
 rig_request! {
     /// A rig and one correspondence: where a feature appears in the left and right images.

@@ -4,24 +4,21 @@
 
 pub mod types;
 
+use axum::extract::State;
 use utoipa_axum::{router::OpenApiRouter, routes};
 
 use self::types::{
     BaselineRequest, BaselineResponse, DepthErrorAt, ErrorBudget, MAX_AT_DISTANCES, RigRequest,
     RigResponse,
 };
-use crate::{
-    api::{
-        AppState,
-        error::{ApiError, FieldErrors},
-        extract::{JsonBody, QueryParams},
-        format::{percent, short},
-        respond::Json,
-        validate,
-        wire::openapi::{BodyErrors, QueryErrors},
-    },
-    physics::{self, Rig, finite},
-};
+use super::json_operation;
+use crate::api::error::{ApiError, FieldErrors};
+use crate::api::extract::{JsonBody, QueryParams};
+use crate::api::format::{percent, short};
+use crate::api::respond::Json;
+use crate::api::wire::openapi::{BodyErrors, QueryErrors};
+use crate::api::{AppState, validate};
+use crate::physics::{self, Rig, finite};
 
 /// `GET` and `POST /rig` and `/baseline`.
 pub fn router() -> OpenApiRouter<AppState> {
@@ -30,100 +27,50 @@ pub fn router() -> OpenApiRouter<AppState> {
         .routes(routes!(get_baseline, post_baseline))
 }
 
-#[utoipa::path(
-    post,
-    path = "/rig",
-    tag = "planning",
-    summary = "Depth range, field of view and depth error of a rig and its disparity search",
-    description = "min_distance = f·B / (max_disparity_px + doffs), max_distance = f·B / \
-                   (min_disparity_px + doffs), the depth error ΔZ = Z²·Δd/(f·B) at the \
-                   requested distances, and the distance up to which the relative error stays \
-                   within a budget, Z = r·f·B/Δd.",
-    request_body(content = RigRequest, examples(
-        ("depth camera" = (summary = "A D435-like rig: 424 px, 50 mm, 126 px of search", value = json!({
-            "focal_length_px": 424, "baseline": 50, "unit": "mm",
-            "image_width": 848, "image_height": 480, "disparity_error_px": 0.08,
-            "max_disparity_px": 126, "at_distances": [500, 1000, 2000, 4000],
-            "max_relative_error": 0.02
-        }))),
-        ("f in mm with sensor width" = (summary = "A 4 mm lens on a 6.4 mm sensor, in metres", value = json!({
-            "focal_length_mm": 4, "sensor_width_mm": 6.4, "baseline": 0.12, "unit": "m",
-            "image_width": 1280, "image_height": 720, "max_disparity_px": 256,
-            "min_disparity_px": 0.25
-        })))
-    )),
-    responses(
-        (status = 200, description = "What the rig can see, and how well.", body = RigResponse),
-        BodyErrors
-    )
-)]
-pub async fn post_rig(
-    JsonBody(request, problems): JsonBody<RigRequest>,
-) -> Result<Json<RigResponse>, ApiError> {
-    rig(&request, problems).map(Json)
+json_operation! {
+    rig: RigRequest => RigResponse at "/rig", tag "planning", ok "What the rig can see, and how well.";
+    post post_rig(
+        summary = "Depth range, field of view and depth error of a rig and its disparity search",
+        description = "min_distance = f·B / (max_disparity_px + doffs), max_distance = f·B / \
+                       (min_disparity_px + doffs), the depth error ΔZ = Z²·Δd/(f·B) at the \
+                       requested distances, and the distance up to which the relative error stays \
+                       within a budget, Z = r·f·B/Δd.",
+        request_body(content = RigRequest, examples(
+            ("depth camera" = (summary = "A D435-like rig: 424 px, 50 mm, 126 px of search", value = json!({
+                "focal_length_px": 424, "baseline": 50, "unit": "mm",
+                "image_width": 848, "image_height": 480, "disparity_error_px": 0.08,
+                "max_disparity_px": 126, "at_distances": [500, 1000, 2000, 4000],
+                "max_relative_error": 0.02
+            }))),
+            ("f in mm with sensor width" = (summary = "A 4 mm lens on a 6.4 mm sensor, in metres", value = json!({
+                "focal_length_mm": 4, "sensor_width_mm": 6.4, "baseline": 0.12, "unit": "m",
+                "image_width": 1280, "image_height": 720, "max_disparity_px": 256,
+                "min_disparity_px": 0.25
+            })))
+        ))
+    );
+    get get_rig(summary = "Rig planning (query-string form of POST /rig)");
 }
 
-#[utoipa::path(
-    get,
-    path = "/rig",
-    tag = "planning",
-    summary = "Rig planning (query-string form of POST /rig)",
-    params(RigRequest),
-    responses(
-        (status = 200, description = "What the rig can see, and how well.", body = RigResponse),
-        QueryErrors
-    )
-)]
-pub async fn get_rig(
-    QueryParams(request, problems): QueryParams<RigRequest>,
-) -> Result<Json<RigResponse>, ApiError> {
-    rig(&request, problems).map(Json)
-}
-
-#[utoipa::path(
-    post,
-    path = "/baseline",
-    tag = "planning",
-    summary = "The shortest baseline that meets a depth-error budget at a distance",
-    description = "B = Z²·Δd / (f·ΔZ): the depth error formula solved for the baseline. With \
-                   max_disparity_px, also the nearest distance that baseline lets the rig see.",
-    request_body(content = BaselineRequest, examples(
-        ("relative budget" = (summary = "0.5 % at 5 m with f = 1000 px", value = json!({
-            "focal_length_px": 1000, "image_width": 1280, "image_height": 720, "unit": "mm",
-            "disparity_error_px": 0.25, "target_distance": 5000, "max_relative_error": 0.005,
-            "max_disparity_px": 128
-        }))),
-        ("absolute budget" = (summary = "±25 mm at 5 m with a 90° camera", value = json!({
-            "horizontal_fov_deg": 90, "image_width": 800, "image_height": 600, "unit": "mm",
-            "target_distance": 5000, "max_depth_error": 25
-        })))
-    )),
-    responses(
-        (status = 200, description = "The baseline.", body = BaselineResponse),
-        BodyErrors
-    )
-)]
-pub async fn post_baseline(
-    JsonBody(request, problems): JsonBody<BaselineRequest>,
-) -> Result<Json<BaselineResponse>, ApiError> {
-    baseline(&request, problems).map(Json)
-}
-
-#[utoipa::path(
-    get,
-    path = "/baseline",
-    tag = "planning",
-    summary = "The shortest baseline (query-string form of POST /baseline)",
-    params(BaselineRequest),
-    responses(
-        (status = 200, description = "The baseline.", body = BaselineResponse),
-        QueryErrors
-    )
-)]
-pub async fn get_baseline(
-    QueryParams(request, problems): QueryParams<BaselineRequest>,
-) -> Result<Json<BaselineResponse>, ApiError> {
-    baseline(&request, problems).map(Json)
+json_operation! {
+    baseline: BaselineRequest => BaselineResponse at "/baseline", tag "planning", ok "The baseline.";
+    post post_baseline(
+        summary = "The shortest baseline that meets a depth-error budget at a distance",
+        description = "B = Z²·Δd / (f·ΔZ): the depth error formula solved for the baseline. With \
+                       max_disparity_px, also the nearest distance that baseline lets the rig see.",
+        request_body(content = BaselineRequest, examples(
+            ("relative budget" = (summary = "0.5 % at 5 m with f = 1000 px", value = json!({
+                "focal_length_px": 1000, "image_width": 1280, "image_height": 720, "unit": "mm",
+                "disparity_error_px": 0.25, "target_distance": 5000, "max_relative_error": 0.005,
+                "max_disparity_px": 128
+            }))),
+            ("absolute budget" = (summary = "±25 mm at 5 m with a 90° camera", value = json!({
+                "horizontal_fov_deg": 90, "image_width": 800, "image_height": 600, "unit": "mm",
+                "target_distance": 5000, "max_depth_error": 25
+            })))
+        ))
+    );
+    get get_baseline(summary = "The shortest baseline (query-string form of POST /baseline)");
 }
 
 /// A relative-error budget: a fraction in (0, 1].
@@ -139,7 +86,11 @@ fn budget(field: &str, value: f64, problems: &mut FieldErrors) -> Option<f64> {
     }
 }
 
-fn rig(request: &RigRequest, mut problems: FieldErrors) -> Result<RigResponse, ApiError> {
+fn rig(
+    _: &AppState,
+    request: &RigRequest,
+    mut problems: FieldErrors,
+) -> Result<RigResponse, ApiError> {
     let rig = validate::rig(&request.rig_params(), &mut problems);
     let max_disparity = problems
         .required("max_disparity_px", request.max_disparity_px)
@@ -293,6 +244,7 @@ fn error_budget(rig: &Rig, budget: f64, at: f64, (near, far): (f64, f64)) -> Err
 }
 
 fn baseline(
+    _: &AppState,
     request: &BaselineRequest,
     mut problems: FieldErrors,
 ) -> Result<BaselineResponse, ApiError> {

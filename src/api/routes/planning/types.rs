@@ -4,13 +4,9 @@
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
-use crate::api::{
-    extract::QueryForm,
-    wire::{
-        de::{camera_request, present, rig_request},
-        params::Unit,
-    },
-};
+use crate::api::extract::QueryForm;
+use crate::api::wire::de::{camera_request, present, rig_request};
+use crate::api::wire::params::Unit;
 
 rig_request! {
     /// A rig and its disparity search: the depth range it sees and the error it makes there.

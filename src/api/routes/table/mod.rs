@@ -4,25 +4,19 @@
 pub mod csv;
 pub mod types;
 
-use axum::{
-    extract::State,
-    http::{HeaderMap, HeaderValue, header},
-    response::{IntoResponse, Response},
-};
+use axum::extract::State;
+use axum::http::{HeaderMap, HeaderValue, header};
+use axum::response::{IntoResponse, Response};
 use utoipa_axum::{router::OpenApiRouter, routes};
 
 use self::types::{FormatQuery, TableFormat, TableRequest, TableResponse, TableRow};
-use crate::{
-    api::{
-        AppState,
-        error::{ApiError, FieldErrors},
-        extract::{JsonBody, QueryParams},
-        respond::Json,
-        validate::{self, Bounds},
-        wire::openapi::{BodyErrors, QueryErrors},
-    },
-    physics,
-};
+use crate::api::AppState;
+use crate::api::error::{ApiError, FieldErrors};
+use crate::api::extract::{JsonBody, QueryParams};
+use crate::api::respond::Json;
+use crate::api::validate::{self, Bounds};
+use crate::api::wire::openapi::{BodyErrors, QueryErrors};
+use crate::physics;
 
 /// `GET` and `POST /table`.
 pub fn router() -> OpenApiRouter<AppState> {

@@ -4,13 +4,9 @@
 use serde::{Deserialize, Serialize};
 use utoipa::{IntoParams, ToSchema};
 
-use crate::api::{
-    extract::QueryForm,
-    wire::{
-        de::{present, range_request, whole},
-        params::Unit,
-    },
-};
+use crate::api::extract::QueryForm;
+use crate::api::wire::de::{present, range_request, whole};
+use crate::api::wire::params::Unit;
 
 /// The representation of a `/table` answer.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize, Serialize, ToSchema)]
