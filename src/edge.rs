@@ -158,11 +158,11 @@ async fn edge<S: Inner>(
     // A clone of the URI shares hyper's buffer: no copy unless a line is written.
     let uri = (layer.access_log != AccessLog::Off).then(|| request.uri().clone());
 
-    // With the `library-layers` variant, tower-http's CatchPanic and request-id layers do this
-    // layer's panic guard and id echo (see `crate::library_layers`).
-    #[cfg(feature = "library-layers")]
+    // In the library-layer builds, tower-http's CatchPanic and request-id layers do this layer's
+    // panic guard and id echo (see `crate::library_layers`).
+    #[cfg(feature = "library-catch-panic")]
     let answer = inner.call(request).map(Ok::<_, Box<dyn Any + Send>>);
-    #[cfg(not(feature = "library-layers"))]
+    #[cfg(not(feature = "library-catch-panic"))]
     let answer = std::panic::AssertUnwindSafe(inner.call(request)).catch_unwind();
     let mut response = match telemetry::with_request_id(id.clone(), answer).await {
         Ok(Ok(response)) => response.into_response(),
@@ -191,7 +191,7 @@ async fn edge<S: Inner>(
             &id,
         );
     }
-    if cfg!(not(feature = "library-layers")) {
+    if cfg!(not(feature = "library-request-id")) {
         response.headers_mut().insert(X_REQUEST_ID.clone(), id);
     }
     Ok(response)

@@ -47,7 +47,7 @@ pub mod config;
 pub mod conformance;
 pub mod edge;
 pub mod healthcheck;
-#[cfg(feature = "library-layers")]
+#[cfg(any(feature = "library-catch-panic", feature = "library-limits"))]
 pub mod library_layers;
 pub mod metrics;
 pub mod physics;

@@ -6,31 +6,26 @@
 //! a stalled upload or a problem body). The edge keeps the metrics, the access log and the
 //! request id of problem bodies, which no library layer provides.
 //!
-//! `cargo build --release --features library-layers`, then
-//! `cargo bench --bench load -- --service-bin …` with that binary beside the default one.
+//! Features: `library-request-id`, `library-catch-panic`, `library-limits`, or all three as
+//! `library-layers`. Build with `cargo build --release --features …`, then measure the binary
+//! beside the default one with `cargo bench --bench load -- --compare NAME=PATH`.
 
-use std::{any::Any, time::Duration};
-
-use axum::{
-    Router,
-    error_handling::HandleErrorLayer,
-    http::StatusCode,
-    response::{IntoResponse, Response},
-};
-use tower::{
-    BoxError, ServiceBuilder, limit::GlobalConcurrencyLimitLayer, load_shed::LoadShedLayer,
-};
-use tower_http::timeout::TimeoutLayer;
-
-use crate::{api::error::ApiError, protect::RETRY_AFTER_SECS};
+use crate::api::error::ApiError;
 
 /// One route group behind the library's concurrency limit, load shedding and timeout.
-pub fn group(router: Router, limit: usize, timeout: Duration) -> Router {
+#[cfg(feature = "library-limits")]
+pub fn group(router: axum::Router, limit: usize, timeout: std::time::Duration) -> axum::Router {
+    use axum::{error_handling::HandleErrorLayer, http::StatusCode};
+    use tower::{
+        BoxError, ServiceBuilder, limit::GlobalConcurrencyLimitLayer, load_shed::LoadShedLayer,
+    };
+    use tower_http::timeout::TimeoutLayer;
+
     router.layer(
         ServiceBuilder::new()
             .layer(HandleErrorLayer::new(|_: BoxError| async {
                 ApiError::Overloaded {
-                    retry_after_secs: RETRY_AFTER_SECS,
+                    retry_after_secs: crate::protect::RETRY_AFTER_SECS,
                 }
             }))
             .layer(LoadShedLayer::new())
@@ -43,7 +38,10 @@ pub fn group(router: Router, limit: usize, timeout: Duration) -> Router {
 }
 
 /// What tower-http's `CatchPanic` answers for a panic: the same 500 problem as the edge's guard.
-pub fn panic_answer(panic: Box<dyn Any + Send + 'static>) -> Response {
+#[cfg(feature = "library-catch-panic")]
+pub fn panic_answer(panic: Box<dyn std::any::Any + Send + 'static>) -> axum::response::Response {
+    use axum::response::IntoResponse;
+
     let what = panic
         .downcast_ref::<&str>()
         .map(|s| (*s).to_owned())

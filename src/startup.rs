@@ -62,12 +62,12 @@ pub fn app_with(config: &Config, ops: OpsState, extra_heavy: Router<HeavyState>)
         ops.clone(),
         extra_heavy,
     );
-    #[cfg(not(feature = "library-layers"))]
+    #[cfg(not(feature = "library-limits"))]
     let light = light.merge(web::router()).layer(GuardLayer::new(
         config.concurrency_limit,
         config.request_timeout,
     ));
-    #[cfg(feature = "library-layers")]
+    #[cfg(feature = "library-limits")]
     let light = crate::library_layers::group(
         light.merge(web::router()),
         config.concurrency_limit,
@@ -80,15 +80,16 @@ pub fn app_with(config: &Config, ops: OpsState, extra_heavy: Router<HeavyState>)
         heavy.body_bytes,
     ));
     let edge = ServiceBuilder::new();
-    #[cfg(feature = "library-layers")]
+    #[cfg(feature = "library-request-id")]
     let edge = edge
         .layer(tower_http::request_id::SetRequestIdLayer::x_request_id(
             tower_http::request_id::MakeRequestUuid,
         ))
-        .layer(tower_http::request_id::PropagateRequestIdLayer::x_request_id())
-        .layer(tower_http::catch_panic::CatchPanicLayer::custom(
-            crate::library_layers::panic_answer,
-        ));
+        .layer(tower_http::request_id::PropagateRequestIdLayer::x_request_id());
+    #[cfg(feature = "library-catch-panic")]
+    let edge = edge.layer(tower_http::catch_panic::CatchPanicLayer::custom(
+        crate::library_layers::panic_answer,
+    ));
     let edge = edge
         .layer(EdgeLayer::new(ops.metrics, config.access_log))
         .option_layer(protect::cors(&config.cors_allowed_origins))

@@ -7,8 +7,28 @@
 
 use serde::Deserialize;
 
+/// The type of a request member: how it is read when present. Every member is read through
+/// [`member`], which refuses `null`, so the rule is stated once for all of them.
+pub trait Member: Sized {
+    fn read<'de, D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error>;
+}
+
+/// Members read as serde reads their type.
+macro_rules! plain_members {
+    ($($ty:ty),*) => {
+        $(impl $crate::api::wire::de::Member for $ty {
+            fn read<'de, D: ::serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+                <$ty as ::serde::Deserialize>::deserialize(deserializer)
+            }
+        })*
+    };
+}
+
+plain_members!(f64, Vec<f64>, super::params::Unit, super::params::Spacing);
+
 /// Deserializes a member that is present: `null` is refused like any other wrong type, because
-/// optional members are optional, not nullable (omit a member to take its default).
+/// optional members are optional, not nullable (omit a member to take its default). For the
+/// members of hand-written types; [`request!`] types read every member through [`member`].
 pub fn present<'de, D, T>(deserializer: D) -> Result<Option<T>, D::Error>
 where
     D: serde::Deserializer<'de>,
@@ -16,127 +36,164 @@ where
 {
     match Option::<T>::deserialize(deserializer)? {
         Some(value) => Ok(Some(value)),
-        None => Err(serde::de::Error::custom(
-            "must not be null; leave the member out to use its default",
-        )),
+        None => Err(null_refused()),
+    }
+}
+
+fn null_refused<E: serde::de::Error>() -> E {
+    E::custom("must not be null; leave the member out to use its default")
+}
+
+/// [`present`] for a [`Member`] type (whole numbers read as [`Member for u32`] says).
+pub fn member<'de, D, T>(deserializer: D) -> Result<Option<T>, D::Error>
+where
+    D: serde::Deserializer<'de>,
+    T: Member,
+{
+    struct Present<T>(T);
+
+    impl<'de, T: Member> Deserialize<'de> for Present<T> {
+        fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+            T::read(deserializer).map(Present)
+        }
+    }
+
+    match Option::<Present<T>>::deserialize(deserializer)? {
+        Some(Present(value)) => Ok(Some(value)),
+        None => Err(null_refused()),
     }
 }
 
 /// The largest whole number a request member takes: the schema's `int32` format bounds it.
 pub const MAX_WHOLE: u32 = i32::MAX as u32;
 
-/// Deserializes a present whole number. JSON Schema's `integer` is a number with no fractional
-/// part, so `800.0` is the integer 800 (as generators such as schemathesis send it); `800.5`,
-/// a negative number, one beyond [`MAX_WHOLE`] and `null` are refused.
-pub fn whole<'de, D>(deserializer: D) -> Result<Option<u32>, D::Error>
-where
-    D: serde::Deserializer<'de>,
-{
-    struct Whole;
+/// A whole number. JSON Schema's `integer` is a number with no fractional part, so `800.0` is
+/// the integer 800 (as generators such as schemathesis send it); `800.5`, a negative number and
+/// one beyond [`MAX_WHOLE`] are refused.
+impl Member for u32 {
+    fn read<'de, D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        struct Whole;
 
-    impl serde::de::Visitor<'_> for Whole {
-        type Value = u32;
+        impl serde::de::Visitor<'_> for Whole {
+            type Value = u32;
 
-        fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
-            f.write_str("a whole number")
-        }
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str("a whole number")
+            }
 
-        fn visit_u64<E: serde::de::Error>(self, n: u64) -> Result<u32, E> {
-            match u32::try_from(n) {
-                Ok(n) if n <= MAX_WHOLE => Ok(n),
-                _ => Err(E::custom(format!("must be at most {MAX_WHOLE}, got {n}"))),
+            fn visit_u64<E: serde::de::Error>(self, n: u64) -> Result<u32, E> {
+                match u32::try_from(n) {
+                    Ok(n) if n <= MAX_WHOLE => Ok(n),
+                    _ => Err(E::custom(format!("must be at most {MAX_WHOLE}, got {n}"))),
+                }
+            }
+
+            fn visit_i64<E: serde::de::Error>(self, n: i64) -> Result<u32, E> {
+                match u64::try_from(n) {
+                    Ok(n) => self.visit_u64(n),
+                    Err(_) => Err(E::custom(format!("must not be negative, got {n}"))),
+                }
+            }
+
+            fn visit_f64<E: serde::de::Error>(self, x: f64) -> Result<u32, E> {
+                if !x.is_finite() || x.fract() != 0.0 {
+                    Err(E::invalid_type(serde::de::Unexpected::Float(x), &self))
+                } else if x < 0.0 {
+                    Err(E::custom(format!("must not be negative, got {x}")))
+                } else if x > f64::from(MAX_WHOLE) {
+                    Err(E::custom(format!("must be at most {MAX_WHOLE}, got {x}")))
+                } else {
+                    // Exact: a whole number within range converts without loss.
+                    Ok(x as u32)
+                }
             }
         }
 
-        fn visit_i64<E: serde::de::Error>(self, n: i64) -> Result<u32, E> {
-            match u64::try_from(n) {
-                Ok(n) => self.visit_u64(n),
-                Err(_) => Err(E::custom(format!("must not be negative, got {n}"))),
-            }
-        }
-
-        fn visit_f64<E: serde::de::Error>(self, x: f64) -> Result<u32, E> {
-            if !x.is_finite() || x.fract() != 0.0 {
-                Err(E::invalid_type(serde::de::Unexpected::Float(x), &self))
-            } else if x < 0.0 {
-                Err(E::custom(format!("must not be negative, got {x}")))
-            } else if x > f64::from(MAX_WHOLE) {
-                Err(E::custom(format!("must be at most {MAX_WHOLE}, got {x}")))
-            } else {
-                // Exact: a whole number within range converts without loss.
-                Ok(x as u32)
-            }
-        }
-
-        fn visit_unit<E: serde::de::Error>(self) -> Result<u32, E> {
-            Err(E::custom(
-                "must not be null; leave the member out to use its default",
-            ))
-        }
+        deserializer.deserialize_any(Whole)
     }
-
-    deserializer.deserialize_any(Whole).map(Some)
 }
 
-/// Declares a flat request type holding the camera members, with `$early` after the focal
-/// options and `$late` at the end, plus `camera_params()` and query-parameter docs. (Flat,
-/// because `serde(flatten)` cannot be combined with `deny_unknown_fields`, and a misspelt field
-/// must be an error.)
-macro_rules! camera_request {
+/// Declares a request type from its members, each written `name: Type` with its docs and
+/// schema attributes: every member becomes `Option<Type>`, read through [`member`] (present,
+/// never `null`; absent is `None`) and documented as not nullable. Unknown members are refused,
+/// and the GET form's query parameters are documented from the same schema.
+macro_rules! request {
     (
         $(#[$meta:meta])*
-        pub struct $name:ident { $($early:tt)* } then { $($late:tt)* }
+        pub struct $name:ident { $($(#[$attr:meta])* $field:ident: $ty:ty),* $(,)? }
     ) => {
         #[derive(Debug, Clone, Default, PartialEq, ::serde::Deserialize, ::utoipa::ToSchema)]
         #[serde(deny_unknown_fields)]
         $(#[$meta])*
         pub struct $name {
-            /// Focal length in pixels (`fx` from a calibration). Give exactly one of
-            /// `focal_length_px`, `focal_length_mm` (with `sensor_width_mm` or `pixel_size_um`),
-            /// or `horizontal_fov_deg`.
-            #[schema(nullable = false, exclusive_minimum = 0.0, example = 700.0)]
-            #[serde(default, deserialize_with = "crate::api::wire::de::present")]
-            pub focal_length_px: Option<f64>,
-            /// Focal length in millimetres. Needs `sensor_width_mm` or `pixel_size_um` to convert
-            /// it to pixels: millimetres times a disparity in pixels is not a length.
-            #[schema(nullable = false, exclusive_minimum = 0.0)]
-            #[serde(default, deserialize_with = "crate::api::wire::de::present")]
-            pub focal_length_mm: Option<f64>,
-            /// Sensor width in millimetres, with `focal_length_mm`:
-            /// f_px = f_mm · image_width / sensor_width_mm.
-            #[schema(nullable = false, exclusive_minimum = 0.0)]
-            #[serde(default, deserialize_with = "crate::api::wire::de::present")]
-            pub sensor_width_mm: Option<f64>,
-            /// Pixel pitch in micrometres, with `focal_length_mm`:
-            /// f_px = f_mm · 1000 / pixel_size_um.
-            #[schema(nullable = false, exclusive_minimum = 0.0)]
-            #[serde(default, deserialize_with = "crate::api::wire::de::present")]
-            pub pixel_size_um: Option<f64>,
-            /// Horizontal field of view in degrees, over the full image width:
-            /// f_px = (image_width / 2) / tan(hfov / 2).
-            #[schema(nullable = false, exclusive_minimum = 0.0, exclusive_maximum = 180.0)]
-            #[serde(default, deserialize_with = "crate::api::wire::de::present")]
-            pub horizontal_fov_deg: Option<f64>,
-            $($early)*
-            /// Unit of every length in the request and the response (default `mm`).
-            #[schema(nullable = false)]
-            #[serde(default, deserialize_with = "crate::api::wire::de::present")]
-            pub unit: Option<crate::api::wire::params::Unit>,
-            /// Image width in pixels.
-            #[schema(nullable = false, required = true, minimum = 1, example = 800)]
-            #[serde(default, deserialize_with = "crate::api::wire::de::whole")]
-            pub image_width: Option<u32>,
-            /// Image height in pixels.
-            #[schema(nullable = false, required = true, minimum = 1, example = 600)]
-            #[serde(default, deserialize_with = "crate::api::wire::de::whole")]
-            pub image_height: Option<u32>,
-            /// Disparity uncertainty Δd in pixels (RMS) for the depth error
-            /// ΔZ = Z²·Δd/(f·B). Default 0.5 (integer-pixel matching); subpixel matchers reach
-            /// about 0.1.
-            #[schema(nullable = false, minimum = 0.0, example = 0.5)]
-            #[serde(default, deserialize_with = "crate::api::wire::de::present")]
-            pub disparity_error_px: Option<f64>,
-            $($late)*
+            $(
+                $(#[$attr])*
+                #[schema(nullable = false)]
+                #[serde(default, deserialize_with = "crate::api::wire::de::member")]
+                pub $field: Option<$ty>,
+            )*
+        }
+
+        impl ::utoipa::IntoParams for $name {
+            fn into_params(
+                _: impl Fn() -> Option<::utoipa::openapi::path::ParameterIn>,
+            ) -> Vec<::utoipa::openapi::path::Parameter> {
+                crate::api::wire::openapi::query_parameters(
+                    <$name as ::utoipa::PartialSchema>::schema(),
+                )
+            }
+        }
+    };
+}
+
+/// Declares a flat request type holding the camera members, with `$early` after the focal
+/// options and `$late` at the end, plus `camera_params()`. (Flat, because `serde(flatten)`
+/// cannot be combined with `deny_unknown_fields`, and a misspelt field must be an error.)
+macro_rules! camera_request {
+    (
+        $(#[$meta:meta])*
+        pub struct $name:ident { $($early:tt)* } then { $($late:tt)* }
+    ) => {
+        $crate::api::wire::de::request! {
+            $(#[$meta])*
+            pub struct $name {
+                /// Focal length in pixels (`fx` from a calibration). Give exactly one of
+                /// `focal_length_px`, `focal_length_mm` (with `sensor_width_mm` or
+                /// `pixel_size_um`), or `horizontal_fov_deg`.
+                #[schema(exclusive_minimum = 0.0, example = 700.0)]
+                focal_length_px: f64,
+                /// Focal length in millimetres. Needs `sensor_width_mm` or `pixel_size_um` to
+                /// convert it to pixels: millimetres times a disparity in pixels is not a length.
+                #[schema(exclusive_minimum = 0.0)]
+                focal_length_mm: f64,
+                /// Sensor width in millimetres, with `focal_length_mm`:
+                /// f_px = f_mm · image_width / sensor_width_mm.
+                #[schema(exclusive_minimum = 0.0)]
+                sensor_width_mm: f64,
+                /// Pixel pitch in micrometres, with `focal_length_mm`:
+                /// f_px = f_mm · 1000 / pixel_size_um.
+                #[schema(exclusive_minimum = 0.0)]
+                pixel_size_um: f64,
+                /// Horizontal field of view in degrees, over the full image width:
+                /// f_px = (image_width / 2) / tan(hfov / 2).
+                #[schema(exclusive_minimum = 0.0, exclusive_maximum = 180.0)]
+                horizontal_fov_deg: f64,
+                $($early)*
+                /// Unit of every length in the request and the response (default `mm`).
+                unit: crate::api::wire::params::Unit,
+                /// Image width in pixels.
+                #[schema(required = true, minimum = 1, example = 800)]
+                image_width: u32,
+                /// Image height in pixels.
+                #[schema(required = true, minimum = 1, example = 600)]
+                image_height: u32,
+                /// Disparity uncertainty Δd in pixels (RMS) for the depth error
+                /// ΔZ = Z²·Δd/(f·B). Default 0.5 (integer-pixel matching); subpixel matchers
+                /// reach about 0.1.
+                #[schema(minimum = 0.0, example = 0.5)]
+                disparity_error_px: f64,
+                $($late)*
+            }
         }
 
         impl $name {
@@ -155,16 +212,6 @@ macro_rules! camera_request {
                 }
             }
         }
-
-        impl ::utoipa::IntoParams for $name {
-            fn into_params(
-                _: impl Fn() -> Option<::utoipa::openapi::path::ParameterIn>,
-            ) -> Vec<::utoipa::openapi::path::Parameter> {
-                crate::api::wire::openapi::query_parameters(
-                    <$name as ::utoipa::PartialSchema>::schema(),
-                )
-            }
-        }
     };
 }
 
@@ -179,26 +226,21 @@ macro_rules! rig_request {
             $(#[$meta])*
             pub struct $name {
                 /// Distance between the two optical centres, in `unit`.
-                #[schema(nullable = false, required = true, exclusive_minimum = 0.0,
-                         example = 150.0)]
-                #[serde(default, deserialize_with = "crate::api::wire::de::present")]
-                pub baseline: Option<f64>,
+                #[schema(required = true, exclusive_minimum = 0.0, example = 150.0)]
+                baseline: f64,
             } then {
                 /// Principal-point offset between the cameras in pixels (Middlebury `doffs`),
                 /// added to every disparity: Z = B·f / |d + doffs|. Default 0.
-                #[schema(nullable = false, example = 0.0)]
-                #[serde(default, deserialize_with = "crate::api::wire::de::present")]
-                pub doffs: Option<f64>,
+                #[schema(example = 0.0)]
+                doffs: f64,
                 /// Principal point x of the left camera in pixels, in [0, image_width].
                 /// Default: the image centre.
-                #[schema(nullable = false, minimum = 0.0)]
-                #[serde(default, deserialize_with = "crate::api::wire::de::present")]
-                pub cx: Option<f64>,
+                #[schema(minimum = 0.0)]
+                cx: f64,
                 /// Principal point y of the left camera in pixels, in [0, image_height].
                 /// Default: the image centre.
-                #[schema(nullable = false, minimum = 0.0)]
-                #[serde(default, deserialize_with = "crate::api::wire::de::present")]
-                pub cy: Option<f64>,
+                #[schema(minimum = 0.0)]
+                cy: f64,
                 $($body)*
             }
         }
@@ -230,25 +272,17 @@ macro_rules! range_request {
                 /// Nearest distance to sample, in `unit`. Give `distance_min` and
                 /// `distance_max`, or `disparity_min` and `disparity_max`, or neither (then the
                 /// disparities from 1 px across a quarter of the image width are used).
-                #[schema(nullable = false, exclusive_minimum = 0.0)]
-                #[serde(default, deserialize_with = "crate::api::wire::de::present")]
-                pub distance_min: Option<f64>,
+                #[schema(exclusive_minimum = 0.0)]
+                distance_min: f64,
                 /// Farthest distance to sample, in `unit`; greater than `distance_min`.
-                #[schema(nullable = false, exclusive_minimum = 0.0)]
-                #[serde(default, deserialize_with = "crate::api::wire::de::present")]
-                pub distance_max: Option<f64>,
+                #[schema(exclusive_minimum = 0.0)]
+                distance_max: f64,
                 /// Smallest disparity to sample, in pixels; `disparity_min + doffs` must be > 0.
-                #[schema(nullable = false)]
-                #[serde(default, deserialize_with = "crate::api::wire::de::present")]
-                pub disparity_min: Option<f64>,
+                disparity_min: f64,
                 /// Largest disparity to sample, in pixels; greater than `disparity_min`.
-                #[schema(nullable = false)]
-                #[serde(default, deserialize_with = "crate::api::wire::de::present")]
-                pub disparity_max: Option<f64>,
+                disparity_max: f64,
                 /// Spacing of the samples across the range (default `linear`).
-                #[schema(nullable = false)]
-                #[serde(default, deserialize_with = "crate::api::wire::de::present")]
-                pub spacing: Option<crate::api::wire::params::Spacing>,
+                spacing: crate::api::wire::params::Spacing,
                 $($body)*
             }
         }
@@ -268,4 +302,4 @@ macro_rules! range_request {
     };
 }
 
-pub(crate) use {camera_request, range_request, rig_request};
+pub(crate) use {camera_request, plain_members, range_request, request, rig_request};

@@ -5,7 +5,7 @@ use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
 use crate::api::extract::QueryForm;
-use crate::api::wire::de::{present, range_request, whole};
+use crate::api::wire::de::range_request;
 use crate::api::wire::params::Unit;
 
 range_request! {
@@ -18,17 +18,14 @@ range_request! {
     pub struct ChartRequest {
         /// Number of points per series, from 2 to the server's cap (10 000 by default).
         /// Default 100.
-        #[schema(nullable = false, minimum = 2, example = 100)]
-        #[serde(default, deserialize_with = "whole")]
-        pub points: Option<u32>,
+        #[schema(minimum = 2, example = 100)]
+        points: u32,
         /// x of a measured feature in the left image, to mark on the chart (with `x_right`).
-        #[schema(nullable = false, minimum = 0.0)]
-        #[serde(default, deserialize_with = "present")]
-        pub x_left: Option<f64>,
+        #[schema(minimum = 0.0)]
+        x_left: f64,
         /// x of the measured feature in the right image (with `x_left`).
-        #[schema(nullable = false, minimum = 0.0)]
-        #[serde(default, deserialize_with = "present")]
-        pub x_right: Option<f64>,
+        #[schema(minimum = 0.0)]
+        x_right: f64,
     }
 }
 

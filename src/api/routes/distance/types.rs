@@ -6,7 +6,7 @@ use utoipa::ToSchema;
 
 use crate::api::error::FieldError;
 use crate::api::extract::QueryForm;
-use crate::api::wire::de::{present, rig_request};
+use crate::api::wire::de::{present, request, rig_request};
 use crate::api::wire::measured::Measured;
 use crate::api::wire::params::Unit;
 
@@ -18,18 +18,15 @@ rig_request! {
     }))]
     pub struct DistanceRequest {
         /// x of the feature in the left image, in pixels, in [0, image_width].
-        #[schema(nullable = false, required = true, minimum = 0.0, example = 400.0)]
-        #[serde(default, deserialize_with = "present")]
-        pub x_left: Option<f64>,
+        #[schema(required = true, minimum = 0.0, example = 400.0)]
+        x_left: f64,
         /// x of the same feature in the right image, in pixels, in [0, image_width].
-        #[schema(nullable = false, required = true, minimum = 0.0, example = 350.0)]
-        #[serde(default, deserialize_with = "present")]
-        pub x_right: Option<f64>,
+        #[schema(required = true, minimum = 0.0, example = 350.0)]
+        x_right: f64,
         /// y (row) of the feature in the left image, in pixels, in [0, image_height], for the
         /// 3D point. Default: `cy`.
-        #[schema(nullable = false, minimum = 0.0)]
-        #[serde(default, deserialize_with = "present")]
-        pub y: Option<f64>,
+        #[schema(minimum = 0.0)]
+        y: f64,
     }
 }
 
@@ -42,28 +39,24 @@ rig_request! {
     pub struct StereoRig {}
 }
 
-/// One correspondence of a batch. Its shape is checked with the whole request (a wrong type,
-/// an unknown or missing member is a 422 for the batch); its values against the rig, point by
-/// point (a coordinate off the image or a point at infinity is that point's own `errors` in the
-/// 200 answer), so the schema bounds no value.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Deserialize, ToSchema)]
-#[serde(deny_unknown_fields)]
-pub struct BatchPoint {
-    /// x of the feature in the left image, in pixels; must lie in [0, image_width], or the
-    /// point fails on its own.
-    #[schema(nullable = false, required = true, example = 400.0)]
-    #[serde(default, deserialize_with = "present")]
-    pub x_left: Option<f64>,
-    /// x of the same feature in the right image, in pixels; must lie in [0, image_width], or
-    /// the point fails on its own.
-    #[schema(nullable = false, required = true, example = 350.0)]
-    #[serde(default, deserialize_with = "present")]
-    pub x_right: Option<f64>,
-    /// y (row) of the feature in the left image, in pixels; must lie in [0, image_height], or
-    /// the point fails on its own. Default: the rig's `cy`.
-    #[schema(nullable = false)]
-    #[serde(default, deserialize_with = "present")]
-    pub y: Option<f64>,
+request! {
+    /// One correspondence of a batch. Its shape is checked with the whole request (a wrong
+    /// type, an unknown or missing member is a 422 for the batch); its values against the rig,
+    /// point by point (a coordinate off the image or a point at infinity is that point's own
+    /// `errors` in the 200 answer), so the schema bounds no value.
+    pub struct BatchPoint {
+        /// x of the feature in the left image, in pixels; must lie in [0, image_width], or the
+        /// point fails on its own.
+        #[schema(required = true, example = 400.0)]
+        x_left: f64,
+        /// x of the same feature in the right image, in pixels; must lie in [0, image_width],
+        /// or the point fails on its own.
+        #[schema(required = true, example = 350.0)]
+        x_right: f64,
+        /// y (row) of the feature in the left image, in pixels; must lie in [0, image_height],
+        /// or the point fails on its own. Default: the rig's `cy`.
+        y: f64,
+    }
 }
 
 /// Many correspondences sharing one rig, answered in one response in the same order.

@@ -5,7 +5,7 @@ use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
 use crate::api::extract::QueryForm;
-use crate::api::wire::de::{camera_request, present, rig_request};
+use crate::api::wire::de::{camera_request, rig_request};
 use crate::api::wire::params::Unit;
 
 rig_request! {
@@ -19,25 +19,21 @@ rig_request! {
     pub struct RigRequest {
         /// Largest disparity the matcher searches, in pixels (64, 95, 126, 256…): it sets
         /// the nearest distance the rig can see, `min_distance = f·B / (max + doffs)`.
-        #[schema(nullable = false, required = true, exclusive_minimum = 0.0, example = 126.0)]
-        #[serde(default, deserialize_with = "present")]
-        pub max_disparity_px: Option<f64>,
+        #[schema(required = true, exclusive_minimum = 0.0, example = 126.0)]
+        max_disparity_px: f64,
         /// Smallest disparity told apart from infinity, in pixels: it sets the farthest
         /// distance, `max_distance = f·B / (min + doffs)`. Default: `disparity_error_px`, one
         /// subpixel step.
-        #[schema(nullable = false, exclusive_minimum = 0.0, example = 0.5)]
-        #[serde(default, deserialize_with = "present")]
-        pub min_disparity_px: Option<f64>,
+        #[schema(exclusive_minimum = 0.0, example = 0.5)]
+        min_disparity_px: f64,
         /// Distances, in `unit`, at which to report the depth error (at most 1 000). In a
         /// query string: comma-separated, `at_distances=500,1000,2000`.
         #[schema(schema_with = at_distances_schema)]
-        #[serde(default, deserialize_with = "present")]
-        pub at_distances: Option<Vec<f64>>,
+        at_distances: Vec<f64>,
         /// A relative-error budget as a fraction (0.02 is 2 %): the answer says up to which
         /// distance the depth error stays within it.
-        #[schema(nullable = false, exclusive_minimum = 0.0, maximum = 1.0, example = 0.02)]
-        #[serde(default, deserialize_with = "present")]
-        pub max_relative_error: Option<f64>,
+        #[schema(exclusive_minimum = 0.0, maximum = 1.0, example = 0.02)]
+        max_relative_error: f64,
     }
 }
 
@@ -74,25 +70,21 @@ camera_request! {
     }))]
     pub struct BaselineRequest {
         /// Distance at which the error budget must hold, in `unit`.
-        #[schema(nullable = false, required = true, exclusive_minimum = 0.0, example = 5000.0)]
-        #[serde(default, deserialize_with = "present")]
-        pub target_distance: Option<f64>,
+        #[schema(required = true, exclusive_minimum = 0.0, example = 5000.0)]
+        target_distance: f64,
     } then {
         /// Largest acceptable depth error at `target_distance`, in `unit`. Give this or
         /// `max_relative_error`.
-        #[schema(nullable = false, exclusive_minimum = 0.0, example = 25.0)]
-        #[serde(default, deserialize_with = "present")]
-        pub max_depth_error: Option<f64>,
+        #[schema(exclusive_minimum = 0.0, example = 25.0)]
+        max_depth_error: f64,
         /// Largest acceptable depth error at `target_distance` as a fraction of it (0.005 is
         /// 0.5 %). Give this or `max_depth_error`.
-        #[schema(nullable = false, exclusive_minimum = 0.0, maximum = 1.0)]
-        #[serde(default, deserialize_with = "present")]
-        pub max_relative_error: Option<f64>,
+        #[schema(exclusive_minimum = 0.0, maximum = 1.0)]
+        max_relative_error: f64,
         /// Largest disparity the matcher searches, in pixels: with it the answer also gives
         /// the nearest distance the baseline lets the rig see.
-        #[schema(nullable = false, exclusive_minimum = 0.0, example = 128.0)]
-        #[serde(default, deserialize_with = "present")]
-        pub max_disparity_px: Option<f64>,
+        #[schema(exclusive_minimum = 0.0, example = 128.0)]
+        max_disparity_px: f64,
     }
 }
 

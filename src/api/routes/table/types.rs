@@ -5,7 +5,7 @@ use serde::{Deserialize, Serialize};
 use utoipa::{IntoParams, ToSchema};
 
 use crate::api::extract::QueryForm;
-use crate::api::wire::de::{present, range_request, whole};
+use crate::api::wire::de::{plain_members, present, range_request};
 use crate::api::wire::params::Unit;
 
 /// The representation of a `/table` answer.
@@ -39,21 +39,19 @@ range_request! {
     }))]
     pub struct TableRequest {
         /// Number of rows, from 1 to the server's cap (10 000 by default). Default 10.
-        #[schema(nullable = false, minimum = 1, example = 10)]
-        #[serde(default, deserialize_with = "whole")]
-        pub steps: Option<u32>,
+        #[schema(minimum = 1, example = 10)]
+        steps: u32,
         /// Left-image x held fixed to compute each row's right-image `normalized_x`, in pixels.
         /// Default: the image centre.
-        #[schema(nullable = false, minimum = 0.0)]
-        #[serde(default, deserialize_with = "present")]
-        pub x_left: Option<f64>,
+        #[schema(minimum = 0.0)]
+        x_left: f64,
         /// `json` (the default) or `csv`. Without it, an `Accept: text/csv` header asks for
         /// CSV. For POST it may also be given as `?format=csv` in the URL.
-        #[schema(nullable = false)]
-        #[serde(default, deserialize_with = "present")]
-        pub format: Option<TableFormat>,
+        format: TableFormat,
     }
 }
+
+plain_members!(TableFormat);
 
 impl QueryForm for TableRequest {}
 impl QueryForm for FormatQuery {}
