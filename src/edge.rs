@@ -1,6 +1,7 @@
 //! The middleware, written as two tower layers instead of a stack of ten. [`Edge`] (outermost,
-//! every request) gives the request its id, counts it in flight, catches a panic as a 500,
-//! records the metrics, writes the access log line and echoes the id. [`Guard`] wraps one route
+//! every request) gives the request its id, counts it in flight, records the metrics, writes
+//! the access log line and echoes the id; tower-http's `CatchPanic` right inside it turns a
+//! panic into a 500 problem ([`panic_answer`]). [`Guard`] wraps one route
 //! group with that group's limits: it sheds load past the group's concurrency limit (503 with
 //! `Retry-After`), enforces its request timeout (408 or 503) and, for the heavy group, admits a
 //! request only when its body fits in the memory budget (503 with `Retry-After`). The probes
@@ -28,7 +29,6 @@ use axum::{
     extract::{MatchedPath, Request},
     response::{IntoResponse, Response},
 };
-use futures_util::FutureExt;
 use http_body::Body as _;
 use tower::{Layer, Service};
 
@@ -158,20 +158,11 @@ async fn edge<S: Inner>(
     // A clone of the URI shares hyper's buffer: no copy unless a line is written.
     let uri = (layer.access_log != AccessLog::Off).then(|| request.uri().clone());
 
-    // In the library-layer builds, tower-http's CatchPanic and request-id layers do this layer's
-    // panic guard and id echo (see `crate::library_layers`).
-    #[cfg(feature = "library-catch-panic")]
-    let answer = inner.call(request).map(Ok::<_, Box<dyn Any + Send>>);
-    #[cfg(not(feature = "library-catch-panic"))]
-    let answer = std::panic::AssertUnwindSafe(inner.call(request)).catch_unwind();
-    let mut response = match telemetry::with_request_id(id.clone(), answer).await {
-        Ok(Ok(response)) => response.into_response(),
-        Ok(Err(never)) => match never {},
-        Err(panic) => {
-            let what = panic_message(panic.as_ref());
-            tracing::error!(request_id = ?id, panic = %what, "handler panicked");
-            telemetry::in_request(id.clone(), || ApiError::Internal(what).into_response())
-        }
+    // A panic inside is caught by tower-http's CatchPanic, the next layer in, and answered by
+    // [`panic_answer`] inside this scope, so it is counted and logged like any answer.
+    let mut response = match telemetry::with_request_id(id.clone(), inner.call(request)).await {
+        Ok(response) => response.into_response(),
+        Err(never) => match never {},
     };
 
     let seconds = started.elapsed().as_secs_f64();
@@ -191,18 +182,23 @@ async fn edge<S: Inner>(
             &id,
         );
     }
+    // In the `library-request-id` build, tower-http's request-id layers echo the id instead.
     if cfg!(not(feature = "library-request-id")) {
         response.headers_mut().insert(X_REQUEST_ID.clone(), id);
     }
     Ok(response)
 }
 
-fn panic_message(panic: &(dyn Any + Send)) -> String {
-    panic
+/// What tower-http's `CatchPanic` answers for a panic in a handler: a 500 problem naming the
+/// panic, with the request's id (it runs inside the edge's request scope), after logging it.
+pub fn panic_answer(panic: Box<dyn Any + Send + 'static>) -> Response {
+    let what = panic
         .downcast_ref::<&str>()
         .map(|s| (*s).to_owned())
         .or_else(|| panic.downcast_ref::<String>().cloned())
-        .unwrap_or_else(|| "panic".to_owned())
+        .unwrap_or_else(|| "panic".to_owned());
+    tracing::error!(request_id = ?telemetry::current_request_id(), panic = %what, "handler panicked");
+    ApiError::Internal(what).into_response()
 }
 
 // ---------------------------------------------------------------------------------------------

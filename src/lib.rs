@@ -27,14 +27,14 @@
 //!   - [`startup`]: the route groups wrapped in their limits, [`startup::Application`] (binds,
 //!     may use port 0), the accept loop, graceful shutdown.
 //!   - [`edge`]: the two hand-written layers: `Edge` on every request (request id, metrics,
-//!     access log, panic → 500), `Guard` on each route group (shedding, timeout, memory
-//!     admission).
+//!     access log; tower-http's `CatchPanic` inside it for panic → 500), `Guard` on each route
+//!     group (shedding, timeout, memory admission).
 //!   - [`budget`]: the memory budget shared by the heavy requests in flight.
 //!   - [`protect`]: the body watcher behind 408 vs 503, `Retry-After`, CORS.
 //!   - [`telemetry`], [`metrics`]: logs, request ids and the access log; Prometheus metrics.
 //!   - [`healthcheck`]: the `healthcheck` subcommand's probe, for images without curl.
-//! - `library_layers` (cargo feature `library-layers`): the same middleware from tower and
-//!   tower-http layers, built only to measure what it costs.
+//! - `library_layers` (cargo features `library-limits`, `library-layers`): the library layers
+//!   measured against the hand-written ones and not adopted, built only to measure them.
 //! - `conformance` (cargo feature `conformance`, on for the tests and the fuzz crate): what the
 //!   service promises for any input, checked in process.
 //!
@@ -47,7 +47,7 @@ pub mod config;
 pub mod conformance;
 pub mod edge;
 pub mod healthcheck;
-#[cfg(any(feature = "library-catch-panic", feature = "library-limits"))]
+#[cfg(feature = "library-limits")]
 pub mod library_layers;
 pub mod metrics;
 pub mod physics;

@@ -16,7 +16,7 @@ use tokio::{
     sync::{Notify, watch},
 };
 use tower::ServiceBuilder;
-use tower_http::compression::CompressionLayer;
+use tower_http::{catch_panic::CatchPanicLayer, compression::CompressionLayer};
 
 use crate::{
     api::{
@@ -29,7 +29,7 @@ use crate::{
     },
     budget::MemoryBudget,
     config::Config,
-    edge::{EdgeLayer, GuardLayer},
+    edge::{self, EdgeLayer, GuardLayer},
     protect, web,
 };
 
@@ -86,12 +86,9 @@ pub fn app_with(config: &Config, ops: OpsState, extra_heavy: Router<HeavyState>)
             tower_http::request_id::MakeRequestUuid,
         ))
         .layer(tower_http::request_id::PropagateRequestIdLayer::x_request_id());
-    #[cfg(feature = "library-catch-panic")]
-    let edge = edge.layer(tower_http::catch_panic::CatchPanicLayer::custom(
-        crate::library_layers::panic_answer,
-    ));
     let edge = edge
         .layer(EdgeLayer::new(ops.metrics, config.access_log))
+        .layer(CatchPanicLayer::custom(edge::panic_answer))
         .option_layer(protect::cors(&config.cors_allowed_origins))
         .layer(CompressionLayer::new());
     light

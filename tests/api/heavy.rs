@@ -47,14 +47,21 @@ async fn upload(
     ))
 }
 
-/// A server whose heavy group has `heavy` limits and serves the test route.
+/// `POST /test/panic`: a handler with a bug.
+async fn panics() -> &'static str {
+    panic!("a bug in an image handler")
+}
+
+/// A server whose heavy group has `heavy` limits and serves the test routes.
 async fn spawn(heavy: HeavyLimits) -> TestApp {
     let config = Config {
         port: 0,
         heavy,
         ..Config::default()
     };
-    let route = Router::<HeavyState>::new().route("/test/heavy", post(upload));
+    let route = Router::<HeavyState>::new()
+        .route("/test/heavy", post(upload))
+        .route("/test/panic", post(panics));
     spawn_app_with_heavy(config, route).await
 }
 
@@ -229,4 +236,49 @@ async fn heavy_memory_budget_refuses_what_does_not_fit() {
         )
         .await;
     assert_eq!(ok_json(retried).await["reserved"], 700 * KIB);
+}
+
+/// A panic in a handler is a 500 problem carrying the request's id, counted in the metrics; the
+/// slot and the memory it held are given back, so the group keeps serving.
+#[tokio::test]
+async fn a_panic_is_a_500_problem_and_frees_its_slot_and_memory() {
+    // Arrange: one slot, and a budget that holds one body at a time.
+    let app = spawn(HeavyLimits {
+        body_bytes: 64 * KIB,
+        memory_budget: 100 * KIB,
+        concurrency_limit: 1,
+        ..HeavyLimits::default()
+    })
+    .await;
+
+    // Act
+    let panicked = app
+        .client
+        .post(format!("{}/test/panic", app.address))
+        .header("x-request-id", "bug-1")
+        .body(body_of(60 * KIB))
+        .send()
+        .await
+        .unwrap();
+    let after = app
+        .post_raw(
+            "/test/heavy",
+            Some("application/json"),
+            body_of(60 * KIB).into(),
+        )
+        .await;
+
+    // Assert
+    assert_eq!(panicked.headers()["x-request-id"], "bug-1");
+    let problem_body = problem(panicked, 500).await;
+    assert_eq!(problem_body["request_id"], "bug-1");
+    assert_eq!(
+        message_for(&problem_body, "request"),
+        "a bug in an image handler"
+    );
+    assert_eq!(ok_json(after).await["reserved"], 60 * KIB);
+    let count = app
+        .metric("http_requests_total{method=\"POST\",route=\"/test/panic\",status=\"500\"}")
+        .await;
+    assert_eq!(count, Some(1.0));
 }
