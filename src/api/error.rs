@@ -1,7 +1,7 @@
 //! The one error type of the HTTP layer, [`ApiError`], rendered as RFC 9457
 //! `application/problem+json`, and [`FieldErrors`], the collector that decoding and validation
-//! fill so that one answer names every offending field. The bottom layer of the API: it
-//! depends on no other module of it.
+//! fill so that one answer names every offending field. The bottom layer of the API: of
+//! the API's modules it uses only [`super::format`], for numbers in messages.
 
 use std::time::Duration;
 
