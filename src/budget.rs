@@ -42,11 +42,6 @@ impl MemoryBudget {
         }))
     }
 
-    /// The whole budget, in bytes.
-    pub fn total(&self) -> usize {
-        self.0.total
-    }
-
     /// Bytes reserved by the requests in flight.
     pub fn used(&self) -> usize {
         self.0.used.load(Ordering::Acquire)

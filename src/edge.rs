@@ -242,14 +242,7 @@ impl Admission {
 impl GuardLayer {
     /// At most `limit` requests of the group at once, each answered within `timeout`.
     pub fn new(limit: usize, timeout: Duration) -> Self {
-        Self {
-            shared: Arc::new(GuardShared {
-                in_flight: AtomicUsize::new(0),
-                limit,
-                timeout,
-                memory: None,
-            }),
-        }
+        Self::with(limit, timeout, None)
     }
 
     /// The same, admitting each request only when its body (at most `body_limit` bytes) fits in
@@ -261,12 +254,16 @@ impl GuardLayer {
         budget: MemoryBudget,
         body_limit: usize,
     ) -> Self {
+        Self::with(limit, timeout, Some(Admission { budget, body_limit }))
+    }
+
+    fn with(limit: usize, timeout: Duration, memory: Option<Admission>) -> Self {
         Self {
             shared: Arc::new(GuardShared {
                 in_flight: AtomicUsize::new(0),
                 limit,
                 timeout,
-                memory: Some(Admission { budget, body_limit }),
+                memory,
             }),
         }
     }

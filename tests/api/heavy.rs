@@ -65,6 +65,16 @@ async fn spawn(heavy: HeavyLimits) -> TestApp {
     spawn_app_with_heavy(config, route).await
 }
 
+/// POSTs a JSON body of `len` bytes to the test route (`upload`), asking it to hold `work` bytes more.
+async fn send(app: &TestApp, len: usize, work: Option<usize>) -> reqwest::Response {
+    let path = match work {
+        Some(work) => format!("/test/heavy?work={work}"),
+        None => "/test/heavy".to_owned(),
+    };
+    app.post_raw(&path, Some("application/json"), body_of(len).into())
+        .await
+}
+
 /// A JSON body of `len` bytes whose `data` member is `len - 12` letters.
 fn body_of(len: usize) -> String {
     format!(r#"{{"data": "{}"}}"#, "x".repeat(len - 12))
@@ -80,15 +90,10 @@ async fn heavy_body_limit_is_its_own() {
         ..HeavyLimits::default()
     })
     .await;
-    let (within, over) = (body_of(200 * KIB), body_of(300 * KIB));
 
     // Act
-    let accepted = app
-        .post_raw("/test/heavy", Some("application/json"), within.into())
-        .await;
-    let refused = app
-        .post_raw("/test/heavy", Some("application/json"), over.into())
-        .await;
+    let accepted = send(&app, 200 * KIB, None).await;
+    let refused = send(&app, 300 * KIB, None).await;
     let light = app
         .post_raw(
             "/table",
@@ -137,9 +142,7 @@ async fn heavy_concurrency_limit_sheds_only_the_heavy_group() {
     app.wait_in_flight(2.0).await; // the held request and this /metrics poll
 
     // Act
-    let shed = app
-        .post_raw("/test/heavy", Some("application/json"), body_of(100).into())
-        .await;
+    let shed = send(&app, 100, None).await;
     let light = app.post("/distance", &example_one()).await;
     let probe = app.get("/readyz").await;
 
@@ -187,23 +190,9 @@ async fn heavy_memory_budget_refuses_what_does_not_fit() {
     app.wait_in_flight(3.0).await;
 
     // Act
-    let third = app
-        .post_raw("/test/heavy", Some("application/json"), body.clone().into())
-        .await;
-    let grows_past_free = app
-        .post_raw(
-            &format!("/test/heavy?work={}", 300 * KIB),
-            Some("application/json"),
-            body_of(100).into(),
-        )
-        .await;
-    let grows_past_budget = app
-        .post_raw(
-            &format!("/test/heavy?work={}", 2048 * KIB),
-            Some("application/json"),
-            body_of(100).into(),
-        )
-        .await;
+    let third = send(&app, 400 * KIB, None).await;
+    let grows_past_free = send(&app, 100, Some(300 * KIB)).await;
+    let grows_past_budget = send(&app, 100, Some(2048 * KIB)).await;
     let light = app.post("/distance", &example_one()).await;
 
     // Assert
@@ -228,13 +217,7 @@ async fn heavy_memory_budget_refuses_what_does_not_fit() {
         let answer = read_to_close(&mut stream).await;
         assert!(answer.starts_with("HTTP/1.1 200"), "{answer}");
     }
-    let retried = app
-        .post_raw(
-            &format!("/test/heavy?work={}", 300 * KIB),
-            Some("application/json"),
-            body.into(),
-        )
-        .await;
+    let retried = send(&app, 400 * KIB, Some(300 * KIB)).await;
     assert_eq!(ok_json(retried).await["reserved"], 700 * KIB);
 }
 
@@ -260,13 +243,7 @@ async fn a_panic_is_a_500_problem_and_frees_its_slot_and_memory() {
         .send()
         .await
         .unwrap();
-    let after = app
-        .post_raw(
-            "/test/heavy",
-            Some("application/json"),
-            body_of(60 * KIB).into(),
-        )
-        .await;
+    let after = send(&app, 60 * KIB, None).await;
 
     // Assert
     assert_eq!(panicked.headers()["x-request-id"], "bug-1");
