@@ -25,10 +25,11 @@ use tower::ServiceExt;
 fn rig() -> Rig {
     Rig {
         focal_px: 35.0,
+        focal_y_px: 35.0,
         baseline: 150.0,
         unit: LengthUnit::Millimetre,
-        image_width: 800.0,
-        image_height: 600.0,
+        image_width: Some(800.0),
+        image_height: Some(600.0),
         cx: 400.0,
         cy: 300.0,
         doffs: 0.0,
@@ -41,22 +42,18 @@ fn correspondences(count: usize) -> Vec<Correspondence> {
     (0..count)
         .map(|i| {
             let x_left = 100.0 + (i % 600) as f64;
-            Correspondence {
+            Correspondence::from_pair(
                 x_left,
-                x_right: x_left - 1.0 - (i % 97) as f64 * 0.5,
-                y: (i % 600) as f64,
-            }
+                x_left - 1.0 - (i % 97) as f64 * 0.5,
+                (i % 600) as f64,
+            )
         })
         .collect()
 }
 
 fn single_distance(c: &mut Criterion) {
     let rig = rig();
-    let point = Correspondence {
-        x_left: 400.0,
-        x_right: 350.0,
-        y: 300.0,
-    };
+    let point = Correspondence::from_pair(400.0, 350.0, 300.0);
     c.bench_function("measure/single", |b| {
         b.iter(|| measure(black_box(&rig), black_box(point)))
     });

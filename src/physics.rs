@@ -8,7 +8,9 @@
 //! - depth `Z = B·f_px / |d + doffs|`, in the unit of the baseline `B`;
 //! - focal length `f_px` is always in pixels: a focal length in millimetres times a disparity in
 //!   pixels is not a length, so millimetres must be converted first ([`FocalLength::to_pixels`]);
-//! - depth error `ΔZ = Z²·Δd / (f_px·B)`, the first-order propagation of a disparity error `Δd`.
+//! - depth error `ΔZ = Z²·Δd / (f_px·B)`, the first-order propagation of a disparity error `Δd`;
+//! - `distance` is the depth `Z` along the optical axis; `range` is the straight line
+//!   `√(X² + Y² + Z²)` from the left camera's optical centre to the point.
 
 use std::fmt;
 
@@ -109,11 +111,16 @@ pub fn field_of_view_deg(focal_px: f64, extent_px: f64) -> f64 {
 /// A calibrated, rectified stereo rig. Lengths are in `unit`; pixel quantities in pixels.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Rig {
+    /// Horizontal focal length `fx`, the one every disparity is measured with.
     pub focal_px: f64,
+    /// Vertical focal length `fy`, for the point's Y (equal to `fx` for square pixels).
+    pub focal_y_px: f64,
     pub baseline: f64,
     pub unit: LengthUnit,
-    pub image_width: f64,
-    pub image_height: f64,
+    /// The image size, when known: only the normalised x, the fields of view and the default
+    /// sample range need it.
+    pub image_width: Option<f64>,
+    pub image_height: Option<f64>,
     /// Principal point of the left camera, in pixels.
     pub cx: f64,
     pub cy: f64,
@@ -167,11 +174,13 @@ impl Rig {
     }
 
     /// The horizontal and vertical fields of view in degrees, for a principal point at the image
-    /// centre.
-    pub fn fields_of_view_deg(&self) -> (f64, f64) {
+    /// centre; each is `None` when its image extent is unknown.
+    pub fn fields_of_view_deg(&self) -> (Option<f64>, Option<f64>) {
         (
-            field_of_view_deg(self.focal_px, self.image_width),
-            field_of_view_deg(self.focal_px, self.image_height),
+            self.image_width
+                .map(|w| field_of_view_deg(self.focal_px, w)),
+            self.image_height
+                .map(|h| field_of_view_deg(self.focal_y_px, h)),
         )
     }
 
@@ -189,10 +198,21 @@ impl Rig {
         ))
     }
 
-    /// The seed's normalised coordinate: `(x − W/2) / (W/2)`, −1 at the left edge, +1 at the right.
-    pub fn normalized_x(&self, x_px: f64) -> f64 {
-        let half = self.image_width / 2.0;
-        (x_px - half) / half
+    /// The seed's normalised coordinate: `(x − W/2) / (W/2)`, −1 at the left edge, +1 at the
+    /// right; `None` when the image width is unknown.
+    pub fn normalized_x(&self, x_px: f64) -> Option<f64> {
+        let half = self.image_width? / 2.0;
+        Some((x_px - half) / half)
+    }
+
+    /// The point in the left camera's frame at pixel `(x, y)` of the left image and depth `z`,
+    /// by the pinhole model around the principal point.
+    pub fn point_at(&self, x_px: f64, y_px: f64, z: f64) -> Result<Point3, PhysicsError> {
+        Ok(Point3 {
+            x: finite((x_px - self.cx) * z / self.focal_px)?,
+            y: finite((y_px - self.cy) * z / self.focal_y_px)?,
+            z,
+        })
     }
 }
 
@@ -208,12 +228,32 @@ pub fn baseline_for(
     finite(distance * distance * disparity_error_px / (focal_px * max_depth_error))
 }
 
-/// One feature seen in both images: its x in each, and its row y in the left image.
+/// One feature seen in both images: where it is in the left image and its disparity
+/// `d = x_left − x_right`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Correspondence {
     pub x_left: f64,
-    pub x_right: f64,
+    pub disparity_px: f64,
     pub y: f64,
+}
+
+impl Correspondence {
+    /// The feature at `x_left` in the left image and `x_right` in the right one, on row `y`.
+    pub fn from_pair(x_left: f64, x_right: f64, y: f64) -> Self {
+        Self {
+            x_left,
+            disparity_px: x_left - x_right,
+            y,
+        }
+    }
+}
+
+impl Point3 {
+    /// The straight-line distance from the origin (the left camera's optical centre):
+    /// `√(x² + y² + z²)`, computed without intermediate overflow.
+    pub fn norm(&self) -> f64 {
+        self.x.hypot(self.y).hypot(self.z)
+    }
 }
 
 /// A point in the left camera's frame: x right, y down, z forward, in the rig's unit.
@@ -302,11 +342,14 @@ pub fn finite(value: f64) -> Result<f64, PhysicsError> {
 pub struct Measurement {
     pub disparity_px: f64,
     pub effective_disparity_px: f64,
+    /// Depth `Z` along the optical axis.
     pub distance: f64,
+    /// Straight-line distance `√(X² + Y² + Z²)` from the left optical centre to the point.
+    pub range: f64,
     pub distance_m: f64,
     pub depth_error: f64,
     pub relative_error: f64,
-    pub normalized_x: f64,
+    pub normalized_x: Option<f64>,
     pub projection_factor: f64,
     pub point: Point3,
     pub warnings: Vec<Warning>,
@@ -314,17 +357,13 @@ pub struct Measurement {
 
 /// Triangulates one correspondence. Every number in an `Ok` result is finite.
 pub fn measure(rig: &Rig, c: Correspondence) -> Result<Measurement, PhysicsError> {
-    let disparity_px = c.x_left - c.x_right;
+    let disparity_px = c.disparity_px;
     let effective_disparity_px = disparity_px + rig.doffs;
     let distance = rig.distance_at(disparity_px)?;
     let depth_error = finite(rig.depth_error_at(distance))?;
     let relative_error = finite(depth_error / distance)?;
-    let scale = distance / rig.focal_px;
-    let point = Point3 {
-        x: finite((c.x_left - rig.cx) * scale)?,
-        y: finite((c.y - rig.cy) * scale)?,
-        z: distance,
-    };
+    let point = rig.point_at(c.x_left, c.y, distance)?;
+    let range = finite(point.norm())?;
     let mut warnings = Vec::new();
     if effective_disparity_px < 0.0 {
         warnings.push(Warning::NegativeDisparity {
@@ -338,10 +377,11 @@ pub fn measure(rig: &Rig, c: Correspondence) -> Result<Measurement, PhysicsError
         disparity_px,
         effective_disparity_px,
         distance,
+        range,
         distance_m: finite(distance * rig.unit.metres())?,
         depth_error,
         relative_error,
-        normalized_x: finite(rig.normalized_x(c.x_left))?,
+        normalized_x: rig.normalized_x(c.x_left).map(finite).transpose()?,
         projection_factor: finite(rig.projection_factor())?,
         point,
         warnings,
@@ -368,12 +408,16 @@ pub enum SampleRange {
 
 impl SampleRange {
     /// The range used when a caller gives none: raw disparities from the first whole pixel of
-    /// positive effective disparity (at least 1 px) across a quarter of the image width, which is
-    /// the search range of a typical block matcher. It is widened to take in `measured`, the
-    /// caller's own disparity, when that lies beyond it.
-    pub fn default_for(rig: &Rig, measured_disparity_px: Option<f64>) -> SampleRange {
+    /// positive effective disparity (at least 1 px) across a quarter of the image width
+    /// `image_width`, which is the search range of a typical block matcher. It is widened to
+    /// take in `measured`, the caller's own disparity, when that lies beyond it.
+    pub fn default_for(
+        rig: &Rig,
+        image_width: f64,
+        measured_disparity_px: Option<f64>,
+    ) -> SampleRange {
         let min = 1.0_f64.max(1.0 - rig.doffs);
-        let mut max = min + (rig.image_width / 4.0 - 1.0).max(1.0);
+        let mut max = min + (image_width / 4.0 - 1.0).max(1.0);
         if let Some(d) = measured_disparity_px
             && d + rig.doffs > 0.0
             && d * 1.25 > max
@@ -445,8 +489,9 @@ pub fn sweep(
 pub struct TableRow {
     pub distance: f64,
     pub disparity_px: f64,
-    /// Normalised x of the right-image feature, `x_right = x_left − d`.
-    pub normalized_x: f64,
+    /// Normalised x of the right-image feature, `x_right = x_left − d`, when the image width
+    /// is known.
+    pub normalized_x: Option<f64>,
     pub projection_factor: f64,
     pub depth_error: f64,
 }
@@ -466,7 +511,10 @@ pub fn table(
             Ok(TableRow {
                 distance: s.distance,
                 disparity_px: s.disparity_px,
-                normalized_x: finite(rig.normalized_x(x_left - s.disparity_px))?,
+                normalized_x: rig
+                    .normalized_x(x_left - s.disparity_px)
+                    .map(finite)
+                    .transpose()?,
                 projection_factor,
                 depth_error: s.depth_error,
             })
@@ -481,10 +529,11 @@ mod tests {
     fn rig(focal_px: f64, baseline: f64) -> Rig {
         Rig {
             focal_px,
+            focal_y_px: focal_px,
             baseline,
             unit: LengthUnit::Millimetre,
-            image_width: 800.0,
-            image_height: 600.0,
+            image_width: Some(800.0),
+            image_height: Some(600.0),
             cx: 400.0,
             cy: 300.0,
             doffs: 0.0,
@@ -497,11 +546,7 @@ mod tests {
     }
 
     fn at(x_left: f64, x_right: f64) -> Correspondence {
-        Correspondence {
-            x_left,
-            x_right,
-            y: 300.0,
-        }
+        Correspondence::from_pair(x_left, x_right, 300.0)
     }
 
     /// The seed's first example, with f read as 35 px, is 105 mm away.
@@ -511,7 +556,8 @@ mod tests {
         assert_eq!(m.disparity_px, 50.0);
         assert!(close(m.distance, 105.0));
         assert!(close(m.distance_m, 0.105));
-        assert_eq!(m.normalized_x, 0.0);
+        assert_eq!(m.normalized_x, Some(0.0));
+        assert_eq!(m.range, m.distance);
         assert!(close(m.projection_factor, 35.0 / 150.0));
         assert!(m.warnings.is_empty());
     }
@@ -520,11 +566,11 @@ mod tests {
     #[test]
     fn negative_disparity_uses_absolute_value_and_warns() {
         let mut r = rig(12.0, 50.0);
-        r.image_width = 640.0;
+        r.image_width = Some(640.0);
         let m = measure(&r, at(180.0, 195.0)).unwrap();
         assert_eq!(m.disparity_px, -15.0);
         assert!(close(m.distance, 40.0));
-        assert!(close(m.normalized_x, -0.4375));
+        assert!(close(m.normalized_x.unwrap(), -0.4375));
         assert_eq!(m.warnings[0].code(), "negative_disparity");
     }
 
@@ -571,19 +617,11 @@ mod tests {
     #[test]
     fn point_in_left_camera_frame() {
         let mut r = rig(1000.0, 100.0);
-        r.image_width = 1000.0;
-        r.image_height = 800.0;
+        r.image_width = Some(1000.0);
+        r.image_height = Some(800.0);
         r.cx = 500.0;
         r.cy = 400.0;
-        let m = measure(
-            &r,
-            Correspondence {
-                x_left: 700.0,
-                x_right: 600.0,
-                y: 500.0,
-            },
-        )
-        .unwrap();
+        let m = measure(&r, Correspondence::from_pair(700.0, 600.0, 500.0)).unwrap();
         assert_eq!(
             m.point,
             Point3 {
@@ -592,6 +630,34 @@ mod tests {
                 z: 1000.0
             }
         );
+        // X = 200, Y = 100, Z = 1000: the range is √(200² + 100² + 1000²) = 1024.695 mm.
+        assert!(close(m.range, 1_050_000.0_f64.sqrt()));
+    }
+
+    /// Y uses fy, X uses fx: with fy = 2·fx the same pixel offset is half the height.
+    #[test]
+    fn vertical_focal_length_scales_y_only() {
+        let mut r = rig(1000.0, 100.0);
+        r.focal_y_px = 2000.0;
+        let m = measure(&r, Correspondence::from_pair(500.0, 400.0, 400.0)).unwrap();
+        assert!(close(m.point.x, 100.0));
+        assert!(close(m.point.y, 50.0));
+        assert!(close(m.distance, 1000.0));
+    }
+
+    /// Without an image width there is no normalised x, and the fields of view are unknown,
+    /// but the distance is the same.
+    #[test]
+    fn image_size_is_only_needed_for_what_uses_it() {
+        let mut r = rig(1000.0, 100.0);
+        let with = measure(&r, at(510.0, 500.0)).unwrap();
+        r.image_width = None;
+        r.image_height = None;
+        let without = measure(&r, at(510.0, 500.0)).unwrap();
+        assert_eq!(without.normalized_x, None);
+        assert_eq!(without.distance, with.distance);
+        assert_eq!(without.point, with.point);
+        assert_eq!(r.fields_of_view_deg(), (None, None));
     }
 
     /// The four focal options agree on the reference numbers, and the FOV inverts.
@@ -665,7 +731,7 @@ mod tests {
                     assert!(close(row.distance * (row.disparity_px + 3.0).abs(), r.fb()));
                     assert!(close(row.depth_error, r.depth_error_at(row.distance)));
                     let x_right = 400.0 - row.disparity_px;
-                    assert!(close(row.normalized_x, (x_right - 400.0) / 400.0));
+                    assert!(close(row.normalized_x.unwrap(), (x_right - 400.0) / 400.0));
                 }
             }
         }
@@ -686,7 +752,9 @@ mod tests {
             r.relative_error_at(2000.0),
             15.094_339_622_641_51 / 2000.0
         ));
-        let (h, v) = r.fields_of_view_deg();
+        let (Some(h), Some(v)) = r.fields_of_view_deg() else {
+            panic!("the test rig has an image size");
+        };
         assert!(close(h, field_of_view_deg(424.0, 800.0)));
         assert!(v < h);
     }
@@ -723,21 +791,21 @@ mod tests {
     fn default_range_covers_measurement() {
         let mut r = rig(35.0, 150.0);
         assert_eq!(
-            SampleRange::default_for(&r, Some(50.0)),
+            SampleRange::default_for(&r, 800.0, Some(50.0)),
             SampleRange::Disparity {
                 min: 1.0,
                 max: 200.0
             }
         );
         assert_eq!(
-            SampleRange::default_for(&r, Some(400.0)),
+            SampleRange::default_for(&r, 800.0, Some(400.0)),
             SampleRange::Disparity {
                 min: 1.0,
                 max: 500.0
             }
         );
         r.doffs = -10.0;
-        let SampleRange::Disparity { min, .. } = SampleRange::default_for(&r, None) else {
+        let SampleRange::Disparity { min, .. } = SampleRange::default_for(&r, 800.0, None) else {
             panic!("default range is in disparity");
         };
         assert_eq!(min + r.doffs, 1.0);

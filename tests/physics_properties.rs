@@ -43,10 +43,11 @@ fn rig() -> impl Strategy<Value = Rig> {
     )
         .prop_map(|(focal_px, baseline, unit, w, h, doffs, dd)| Rig {
             focal_px,
+            focal_y_px: focal_px,
             baseline,
             unit,
-            image_width: f64::from(w),
-            image_height: f64::from(h),
+            image_width: Some(f64::from(w)),
+            image_height: Some(f64::from(h)),
             cx: f64::from(w) / 2.0,
             cy: f64::from(h) / 2.0,
             doffs,
@@ -56,12 +57,12 @@ fn rig() -> impl Strategy<Value = Rig> {
 
 /// A correspondence inside `rig`'s image.
 fn inside(rig: &Rig) -> impl Strategy<Value = Correspondence> + use<> {
-    (
-        0.0..=rig.image_width,
-        0.0..=rig.image_width,
-        0.0..=rig.image_height,
-    )
-        .prop_map(|(x_left, x_right, y)| Correspondence { x_left, x_right, y })
+    let (width, height) = (
+        rig.image_width.unwrap_or(1.0),
+        rig.image_height.unwrap_or(1.0),
+    );
+    (0.0..=width, 0.0..=width, 0.0..=height)
+        .prop_map(|(x_left, x_right, y)| Correspondence::from_pair(x_left, x_right, y))
 }
 
 proptest! {
@@ -70,13 +71,17 @@ proptest! {
     fn depth_times_disparity_is_focal_times_baseline(
         (rig, c) in rig().prop_flat_map(|r| (Just(r), inside(&r)))
     ) {
-        let effective = c.x_left - c.x_right + rig.doffs;
+        let effective = c.disparity_px + rig.doffs;
         match physics::measure(&rig, c) {
             Ok(m) => {
                 prop_assert!(m.distance > 0.0);
                 prop_assert!(close(m.distance * effective.abs(), rig.focal_px * rig.baseline, 1e-12));
                 prop_assert_eq!(m.point.z, m.distance);
                 prop_assert!(close(m.distance_m, m.distance * rig.unit.metres(), 1e-12));
+                // The range is the length of the point vector, never shorter than the depth.
+                let p = m.point;
+                prop_assert!(close(m.range * m.range, p.x * p.x + p.y * p.y + p.z * p.z, 1e-9));
+                prop_assert!(m.range >= m.distance);
             }
             Err(e) => prop_assert_eq!(e, PhysicsError::AtInfinity, "only d + doffs = 0 fails here"),
         }
@@ -178,14 +183,15 @@ proptest! {
         focal_mm in any_finite(), per in any_finite(),
     ) {
         let rig = Rig {
-            focal_px, baseline, unit, image_width: width, image_height: height,
+            focal_px, focal_y_px: focal_mm, baseline, unit,
+            image_width: Some(width), image_height: Some(height),
             cx: width / 2.0, cy: height / 2.0, doffs, disparity_error_px: dd,
         };
         let spacing = if log { Spacing::Log } else { Spacing::Linear };
-        if let Ok(m) = physics::measure(&rig, Correspondence { x_left, x_right, y }) {
+        if let Ok(m) = physics::measure(&rig, Correspondence::from_pair(x_left, x_right, y)) {
             for v in [m.disparity_px, m.effective_disparity_px, m.distance, m.distance_m,
-                      m.depth_error, m.relative_error, m.normalized_x, m.projection_factor,
-                      m.point.x, m.point.y, m.point.z] {
+                      m.depth_error, m.relative_error, m.normalized_x.unwrap_or(0.0),
+                      m.projection_factor, m.range, m.point.x, m.point.y, m.point.z] {
                 prop_assert!(v.is_finite(), "{m:?}");
             }
         }
@@ -198,7 +204,7 @@ proptest! {
             }
             if let Ok(rows) = physics::table(&rig, range, count, spacing, x_left) {
                 for r in rows {
-                    prop_assert!([r.distance, r.disparity_px, r.normalized_x, r.projection_factor, r.depth_error]
+                    prop_assert!([r.distance, r.disparity_px, r.normalized_x.unwrap_or(0.0), r.projection_factor, r.depth_error]
                         .iter()
                         .all(|v| v.is_finite()));
                 }

@@ -11,6 +11,7 @@
 //!   route groups: light (JSON), heavy (images) and the probes.
 //! - [`respond`], [`format`]: JSON answers in one buffer; numbers written for people.
 
+pub mod csv;
 pub mod error;
 pub mod extract;
 pub mod format;

@@ -85,7 +85,8 @@ pub const MM_ALONE: &str = "a focal length in millimetres cannot be used on its 
     Add sensor_width_mm (f_px = f_mm · image_width / sensor_width_mm) or pixel_size_um \
     (f_px = f_mm · 1000 / pixel_size_um), or give focal_length_px or horizontal_fov_deg instead";
 
-/// Exactly one focal option, checked and converted to pixels.
+/// Exactly one focal option, checked and converted to pixels. `width` is the image width when
+/// it was given and valid; only the sensor-width and field-of-view options need it.
 fn focal_length(p: &CameraParams, width: Option<f64>, problems: &mut FieldErrors) -> Option<f64> {
     let modes: Vec<&str> = [
         ("focal_length_px", p.focal_length_px.is_some()),
@@ -165,7 +166,23 @@ fn focal_length(p: &CameraParams, width: Option<f64>, problems: &mut FieldErrors
         }
         return None;
     };
-    match spec.to_pixels(width?) {
+    let width = match spec {
+        FocalLength::MillimetresWithSensorWidth { .. } => needed(
+            "image_width",
+            width,
+            "to convert focal_length_mm with sensor_width_mm (f_px = f_mm · image_width / \
+             sensor_width_mm)",
+            problems,
+        )?,
+        FocalLength::HorizontalFov { .. } => needed(
+            "image_width",
+            width,
+            "to convert horizontal_fov_deg (f_px = (image_width / 2) / tan(hfov / 2))",
+            problems,
+        )?,
+        FocalLength::Pixels(_) | FocalLength::MillimetresWithPixelPitch { .. } => 0.0,
+    };
+    match spec.to_pixels(width) {
         Ok(focal_px) if focal_px > 0.0 => Some(focal_px),
         Ok(focal_px) => {
             problems.add(
@@ -195,9 +212,10 @@ pub fn focal_field(p: &CameraParams) -> &'static str {
     }
 }
 
-/// The image size, as whole pixels of at least 1.
+/// An image extent when given: whole pixels of at least 1. `None` when absent or refused (the
+/// refusal is recorded).
 fn image_extent(field: &str, value: Option<u32>, problems: &mut FieldErrors) -> Option<f64> {
-    match problems.required(field, value)? {
+    match value? {
         0 => {
             problems.add(field, "must be at least 1 pixel");
             None
@@ -206,28 +224,44 @@ fn image_extent(field: &str, value: Option<u32>, problems: &mut FieldErrors) -> 
     }
 }
 
-/// A validated camera: the focal length in pixels and what goes with it.
+/// `value`, or an error saying `field` is required `why` (unless `field` was already refused).
+pub fn needed<T>(
+    field: &str,
+    value: Option<T>,
+    why: &str,
+    problems: &mut FieldErrors,
+) -> Option<T> {
+    if value.is_none() && !problems.has(field) {
+        problems.add(field, format!("is required {why}"));
+    }
+    value
+}
+
+/// A validated camera: the focal lengths in pixels and what goes with them.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Camera {
     pub focal_px: f64,
+    pub focal_y_px: f64,
     pub unit: LengthUnit,
-    pub image_width: f64,
-    pub image_height: f64,
+    pub image_width: Option<f64>,
+    pub image_height: Option<f64>,
     pub disparity_error_px: f64,
 }
 
 impl Camera {
     /// The rig this camera makes with a second one `baseline` away, principal points at the
-    /// image centre and no doffs.
+    /// image centre (at 0 when the image size is unknown: a rig made this way places no
+    /// points) and no doffs.
     pub fn with_baseline(self, baseline: f64) -> Rig {
         Rig {
             focal_px: self.focal_px,
+            focal_y_px: self.focal_y_px,
             baseline,
             unit: self.unit,
             image_width: self.image_width,
             image_height: self.image_height,
-            cx: self.image_width / 2.0,
-            cy: self.image_height / 2.0,
+            cx: self.image_width.map_or(0.0, |w| w / 2.0),
+            cy: self.image_height.map_or(0.0, |h| h / 2.0),
             doffs: 0.0,
             disparity_error_px: self.disparity_error_px,
         }
@@ -239,36 +273,66 @@ pub fn camera(p: &CameraParams, problems: &mut FieldErrors) -> Option<Camera> {
     let width = image_extent("image_width", p.image_width, problems);
     let height = image_extent("image_height", p.image_height, problems);
     let focal_px = focal_length(p, width, problems);
+    let focal_y_px = p
+        .focal_length_y_px
+        .map(|fy| problems.positive("focal_length_y_px", fy));
     let disparity_error_px = problems.non_negative(
         "disparity_error_px",
         p.disparity_error_px.unwrap_or(DEFAULT_DISPARITY_ERROR_PX),
     );
+    let focal_px = focal_px?;
     Some(Camera {
-        focal_px: focal_px?,
+        focal_px,
+        focal_y_px: focal_y_px.unwrap_or(Some(focal_px))?,
         unit: p.unit.unwrap_or_default().into(),
-        image_width: width?,
-        image_height: height?,
+        image_width: width,
+        image_height: height,
         disparity_error_px: disparity_error_px?,
     })
 }
 
+/// What a request does with its rig, which decides whether it needs the principal point.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Use {
+    /// Places 3D points (`/distance`): `cx` and `cy` are needed, given or from the image size.
+    Points,
+    /// Only relates disparity and depth (`/rig`, `/table`, `/chart-data`): the principal
+    /// point is checked when given, and is 0 when it is unknown, since nothing uses it.
+    Depths,
+}
+
+/// A principal-point coordinate: within `[0, extent]` when the extent is known, else at least
+/// 0; by default the image centre, which needs the extent when the rig places points.
+fn principal(
+    (field, extent_field): (&str, &str),
+    value: Option<f64>,
+    extent: Option<f64>,
+    usage: Use,
+    problems: &mut FieldErrors,
+) -> Option<f64> {
+    match (value, extent) {
+        (Some(c), Some(extent)) => problems.within(field, c, extent, extent_field),
+        (Some(c), None) => problems.non_negative(field, c),
+        (None, Some(extent)) => Some(extent / 2.0),
+        (None, None) if usage == Use::Depths => Some(0.0),
+        (None, None) => needed(
+            extent_field,
+            None,
+            &format!("for the default {field} (the image centre); or give {field}"),
+            problems,
+        ),
+    }
+}
+
 /// Validates the rig members: the camera, the baseline and the principal points.
-pub fn rig(p: &RigParams, problems: &mut FieldErrors) -> Option<Rig> {
+pub fn rig(p: &RigParams, usage: Use, problems: &mut FieldErrors) -> Option<Rig> {
     let camera = camera(&p.camera, problems);
     let bounds = Bounds::of(&p.camera);
     let baseline = problems
         .required("baseline", p.baseline)
         .and_then(|b| problems.positive("baseline", b));
-    let cx = match (p.cx, bounds.width) {
-        (Some(cx), Some(w)) => problems.within("cx", cx, w, "the image width"),
-        (None, Some(w)) => Some(w / 2.0),
-        _ => None,
-    };
-    let cy = match (p.cy, bounds.height) {
-        (Some(cy), Some(h)) => problems.within("cy", cy, h, "the image height"),
-        (None, Some(h)) => Some(h / 2.0),
-        _ => None,
-    };
+    let cx = principal(("cx", "image_width"), p.cx, bounds.width, usage, problems);
+    let cy = principal(("cy", "image_height"), p.cy, bounds.height, usage, problems);
     let doffs = p.doffs.unwrap_or(0.0);
     let (camera, baseline) = (camera?, baseline?);
     balanced(camera.focal_px, baseline, focal_field(&p.camera), problems)?;
@@ -334,38 +398,79 @@ pub fn x_coordinate(
     }
 }
 
-/// The required pair `(x_left, x_right)`, each within the image width.
-pub fn x_pair(
-    (x_left, x_right): (Option<f64>, Option<f64>),
-    bounds: Bounds,
-    problems: &mut FieldErrors,
-) -> Option<(f64, f64)> {
-    let x_left = problems
-        .required("x_left", x_left)
-        .and_then(|x| x_coordinate("x_left", x, bounds, problems));
-    let x_right = problems
-        .required("x_right", x_right)
-        .and_then(|x| x_coordinate("x_right", x, bounds, problems));
-    Some((x_left?, x_right?))
+/// A feature as the caller placed it: `x_left` with `x_right`, or a disparity (with an
+/// optional `x_left`), and an optional row `y`.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Feature {
+    pub x_left: Option<f64>,
+    pub x_right: Option<f64>,
+    pub disparity_px: Option<f64>,
+    pub y: Option<f64>,
 }
 
-/// One correspondence; `y` defaults to the rig's `cy` (absent when the rig is invalid).
-pub fn correspondence(
-    (x_left, x_right, y): (Option<f64>, Option<f64>, Option<f64>),
+/// The message for a feature that gives both `x_right` and `disparity_px`.
+pub const X_RIGHT_OR_DISPARITY: &str =
+    "give x_right or disparity_px, not both: disparity_px = x_left − x_right";
+
+/// The disparity the feature states, whichever way: `x_left − x_right` (each within the image
+/// width) or `disparity_px`; `x_left` is required with `x_right` and, with `disparity_px`,
+/// defaults to `cx_default` (the rig's `cx`, absent when the rig is invalid). Returns
+/// `(x_left, disparity_px)`.
+pub fn disparity(
+    feature: Feature,
     bounds: Bounds,
-    cy: Option<f64>,
+    cx_default: Option<f64>,
+    problems: &mut FieldErrors,
+) -> Option<(f64, f64)> {
+    let x_left = feature
+        .x_left
+        .and_then(|x| x_coordinate("x_left", x, bounds, problems));
+    match (feature.x_right, feature.disparity_px) {
+        (Some(_), Some(_)) => {
+            for field in ["x_right", "disparity_px"] {
+                problems.add(field, X_RIGHT_OR_DISPARITY);
+            }
+            None
+        }
+        (Some(x_right), None) => {
+            let x_left = problems.required("x_left", feature.x_left).and(x_left);
+            let x_right = x_coordinate("x_right", x_right, bounds, problems);
+            let (x_left, x_right) = (x_left?, x_right?);
+            Some((x_left, x_left - x_right))
+        }
+        (None, Some(d)) => match feature.x_left {
+            Some(_) => Some((x_left?, d)),
+            None => Some((cx_default?, d)),
+        },
+        (None, None) => {
+            problems.required("x_left", feature.x_left);
+            problems.add(
+                "x_right",
+                "is required: give x_right (with x_left), or disparity_px",
+            );
+            None
+        }
+    }
+}
+
+/// One correspondence; `x_left` defaults to the rig's `cx` with a disparity, `y` to its `cy`
+/// (`rig_centre` is absent when the rig is invalid).
+pub fn correspondence(
+    feature: Feature,
+    bounds: Bounds,
+    rig_centre: Option<(f64, f64)>,
     problems: &mut FieldErrors,
 ) -> Option<Correspondence> {
-    let xs = x_pair((x_left, x_right), bounds, problems);
-    let y = match (y, bounds.height) {
+    let xd = disparity(feature, bounds, rig_centre.map(|c| c.0), problems);
+    let y = match (feature.y, bounds.height) {
         (Some(y), Some(height)) => problems.within("y", y, height, "the image height"),
-        (Some(y), None) => Some(y),
-        (None, _) => cy,
+        (Some(y), None) => problems.non_negative("y", y),
+        (None, _) => rig_centre.map(|c| c.1),
     };
-    let (x_left, x_right) = xs?;
+    let (x_left, disparity_px) = xd?;
     Some(Correspondence {
         x_left,
-        x_right,
+        disparity_px,
         y: y?,
     })
 }
@@ -446,17 +551,26 @@ pub fn range(
         let min = short_of_infinity("disparity_min", min, rig, problems)?;
         SampleRange::Disparity { min, max }
     } else {
-        SampleRange::default_for(rig, measured_disparity_px)
+        let width = needed(
+            "image_width",
+            rig.image_width,
+            "for the default range (disparities across a quarter of the image width); or \
+             give disparity_min and disparity_max, or distance_min and distance_max",
+            problems,
+        )?;
+        SampleRange::default_for(rig, width, measured_disparity_px)
     };
     Some((range, spacing))
 }
 
-/// The fields to blame when a correspondence has no finite distance.
-pub fn disparity_fields(rig: &Rig) -> &'static [&'static str] {
-    if rig.doffs == 0.0 {
-        &["x_left", "x_right"]
-    } else {
-        &["x_left", "x_right", "doffs"]
+/// The fields to blame when a correspondence has no finite distance: the disparity as the
+/// feature gave it, and `doffs` when it took part.
+pub fn disparity_fields(rig: &Rig, feature: &Feature) -> &'static [&'static str] {
+    match (feature.disparity_px.is_some(), rig.doffs == 0.0) {
+        (false, true) => &["x_left", "x_right"],
+        (false, false) => &["x_left", "x_right", "doffs"],
+        (true, true) => &["disparity_px"],
+        (true, false) => &["disparity_px", "doffs"],
     }
 }
 

@@ -336,7 +336,7 @@
       $('distance').textContent = '–';
       $('depth-error').textContent = '';
       $('distance-detail').textContent = 'Correct the marked fields to see a distance.';
-      for (const id of ['disparity_px', 'effective_disparity_px', 'focal_length_px', 'normalized_x', 'projection_factor', 'point']) {
+      for (const id of ['disparity_px', 'effective_disparity_px', 'focal_length_px', 'normalized_x', 'projection_factor', 'point', 'range']) {
         $(id).textContent = '–';
       }
       $('warnings').replaceChildren(listItem('None.'));
@@ -357,6 +357,7 @@
     $('projection_factor').textContent = `${fmt(answer.projection_factor)} px/${unit}`;
     const p = answer.point;
     $('point').textContent = `(${fmt(p.x)}, ${fmt(p.y)}, ${fmt(p.z)}) ${unit}`;
+    $('range').textContent = `${fmt(answer.range)} ${unit}`;
     const warnings = answer.warnings.map((w) => {
       const item = listItem(w.message);
       item.className = 'warning';
@@ -384,6 +385,7 @@
       `Normalized x: ${fmt(answer.normalized_x)}`,
       `Projection factor f/B: ${fmt(answer.projection_factor)} px/${u}`,
       `3D point (X, Y, Z): (${fmt(answer.point.x)}, ${fmt(answer.point.y)}, ${fmt(answer.point.z)}) ${u}`,
+      `Range (straight line to the point): ${fmt(answer.range)} ${u}`,
       `Formula: ${answer.formula}`,
       `Warnings: ${answer.warnings.length > 0 ? answer.warnings.map((w) => w.message).join('; ') : 'none'}`,
       `Permalink: ${location.href}`,

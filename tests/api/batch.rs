@@ -131,7 +131,10 @@ async fn malformed_points_refuse_the_batch() {
     );
     assert!(message_for(&body, "points[17].x_left").contains("expected a number"));
     assert!(message_for(&body, "points[8]").contains("must be an object"));
-    assert_eq!(message_for(&body, "points[9].x_left"), "is required");
+    assert_eq!(
+        message_for(&body, "points[9].x_left"),
+        "is required with x_right"
+    );
 }
 
 /// A batch with a bad rig, no points, or a non-array is refused whole (nothing could be

@@ -134,14 +134,16 @@ async fn missing_fields_are_all_named() {
     assert_eq!(
         fields(&body),
         vec![
+            "baseline",
             "image_width",
             "image_height",
-            "baseline",
             "x_left",
             "x_right"
         ]
     );
     assert_eq!(message_for(&body, "baseline"), "is required");
+    assert!(message_for(&body, "image_width").contains("or give cx"));
+    assert!(message_for(&body, "x_right").contains("or disparity_px"));
 }
 
 /// Out-of-range values are named: coordinates outside the image, FOV outside (0, 180), a zero

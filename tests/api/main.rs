@@ -3,6 +3,7 @@
 
 mod batch;
 mod chart;
+mod disparity;
 mod distance;
 mod errors;
 mod faults;

@@ -205,8 +205,5 @@ async fn bad_svg_query_is_422() {
         422,
     )
     .await;
-    assert_eq!(
-        fields(&body),
-        vec!["image_width", "image_height", "focal_length_mm"]
-    );
+    assert_eq!(fields(&body), vec!["focal_length_mm"]);
 }

@@ -202,9 +202,23 @@ async fn csv_has_the_json_columns_and_numbers() {
     // Assert
     let rows = json["rows"].as_array().unwrap();
     let columns: Vec<&String> = rows[0].as_object().unwrap().keys().collect();
-    assert_eq!(lines[0].iter().collect::<Vec<_>>(), columns, "header row");
+    assert_eq!(
+        lines[0],
+        [
+            "distance_mm",
+            "disparity_px",
+            "normalized_x",
+            "projection_factor_px_per_mm",
+            "depth_error_mm",
+            "relative_error"
+        ],
+        "header row: the JSON members in order, lengths with their unit"
+    );
+    assert_eq!(columns.len(), lines[0].len());
     assert_eq!(lines.len(), rows.len() + 1, "one line per row");
     for (line, row) in lines[1..].iter().zip(rows) {
+        let relative = row["depth_error"].as_f64().unwrap() / row["distance"].as_f64().unwrap();
+        assert_eq!(row["relative_error"].as_f64().unwrap(), relative);
         for (cell, column) in line.iter().zip(&columns) {
             assert_eq!(
                 cell.parse::<f64>().unwrap(),

@@ -311,7 +311,8 @@ async fn the_table_downloads_as_csv_and_results_copy_as_text() {
     let lines: Vec<&str> = body.lines().collect();
     assert_eq!(
         lines[0],
-        "distance,disparity_px,normalized_x,projection_factor,depth_error"
+        "distance_mm,disparity_px,normalized_x,projection_factor_px_per_mm,depth_error_mm,\
+         relative_error"
     );
     assert_eq!(lines.len(), 6, "a header and 5 rows: {body}");
 

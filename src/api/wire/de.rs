@@ -178,14 +178,23 @@ macro_rules! camera_request {
                 /// f_px = (image_width / 2) / tan(hfov / 2).
                 #[schema(exclusive_minimum = 0.0, exclusive_maximum = 180.0)]
                 horizontal_fov_deg: f64,
+                /// Vertical focal length `fy` in pixels, for the point's Y
+                /// (Y = (y − cy)·Z / fy). Default: the horizontal focal length, as for square
+                /// pixels. Disparities and depth use only the horizontal one.
+                #[schema(exclusive_minimum = 0.0)]
+                focal_length_y_px: f64,
                 $($early)*
                 /// Unit of every length in the request and the response (default `mm`).
                 unit: crate::api::wire::params::Unit,
-                /// Image width in pixels.
-                #[schema(required = true, minimum = 1, example = 800)]
+                /// Image width in pixels. Needed only by what uses it: the default `cx`, a
+                /// focal length from `sensor_width_mm` or `horizontal_fov_deg`, the
+                /// horizontal field of view, `normalized_x` and a default sample range. A
+                /// focal length in pixels with `cx` and `cy` needs no image size.
+                #[schema(minimum = 1, example = 800)]
                 image_width: u32,
-                /// Image height in pixels.
-                #[schema(required = true, minimum = 1, example = 600)]
+                /// Image height in pixels. Needed only for the default `cy` and the vertical
+                /// field of view.
+                #[schema(minimum = 1, example = 600)]
                 image_height: u32,
                 /// Disparity uncertainty Δd in pixels (RMS) for the depth error
                 /// ΔZ = Z²·Δd/(f·B). Default 0.5 (integer-pixel matching); subpixel matchers
@@ -205,6 +214,7 @@ macro_rules! camera_request {
                     sensor_width_mm: self.sensor_width_mm,
                     pixel_size_um: self.pixel_size_um,
                     horizontal_fov_deg: self.horizontal_fov_deg,
+                    focal_length_y_px: self.focal_length_y_px,
                     unit: self.unit,
                     image_width: self.image_width,
                     image_height: self.image_height,
@@ -233,12 +243,14 @@ macro_rules! rig_request {
                 /// added to every disparity: Z = B·f / |d + doffs|. Default 0.
                 #[schema(example = 0.0)]
                 doffs: f64,
-                /// Principal point x of the left camera in pixels, in [0, image_width].
-                /// Default: the image centre.
+                /// Principal point x of the left camera in pixels, in [0, image_width] when
+                /// the width is given. Default: the image centre (then `image_width` is
+                /// required).
                 #[schema(minimum = 0.0)]
                 cx: f64,
-                /// Principal point y of the left camera in pixels, in [0, image_height].
-                /// Default: the image centre.
+                /// Principal point y of the left camera in pixels, in [0, image_height] when
+                /// the height is given. Default: the image centre (then `image_height` is
+                /// required).
                 #[schema(minimum = 0.0)]
                 cy: f64,
                 $($body)*

@@ -46,8 +46,12 @@ impl From<&physics::Warning> for Warning {
 /// straight from the triangulation, the same in a single answer and in a batch.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
 pub struct Measured {
-    /// Distance Z along the optical axis (depth), in `unit`.
+    /// Depth: the distance Z along the optical axis, from the plane of the cameras to the
+    /// point, in `unit`. This is what Z = B·f / |d + doffs| gives.
     pub distance: f64,
+    /// Range: the straight-line distance √(X² + Y² + Z²) from the left camera's optical
+    /// centre to the point, in `unit`. Equal to `distance` on the optical axis, longer off it.
+    pub range: f64,
     /// Expected depth error ΔZ = Z²·Δd/(f·B), in `unit`.
     pub depth_error: f64,
     /// depth_error / distance.
@@ -64,6 +68,7 @@ impl From<&physics::Measurement> for Measured {
     fn from(m: &physics::Measurement) -> Self {
         Self {
             distance: m.distance,
+            range: m.range,
             depth_error: m.depth_error,
             relative_error: m.relative_error,
             disparity_px: m.disparity_px,

@@ -59,6 +59,7 @@ pub struct CameraParams {
     pub sensor_width_mm: Option<f64>,
     pub pixel_size_um: Option<f64>,
     pub horizontal_fov_deg: Option<f64>,
+    pub focal_length_y_px: Option<f64>,
     pub unit: Option<Unit>,
     pub image_width: Option<u32>,
     pub image_height: Option<u32>,

@@ -5,18 +5,17 @@ pub mod svg;
 pub mod types;
 
 use axum::extract::State;
-use axum::http::{HeaderValue, header};
+use axum::http::{HeaderMap, HeaderValue, header};
 use axum::response::{IntoResponse, Response};
 use utoipa_axum::{router::OpenApiRouter, routes};
 
-use self::types::{Axis, ChartPoint, ChartRequest, ChartResponse, Series};
-use super::json_operation;
+use self::types::{Axis, AxisScale, ChartPoint, ChartRequest, ChartResponse, Series};
 use crate::api::AppState;
+use crate::api::csv::{self, DataFormat, FormatQuery};
 use crate::api::error::{ApiError, FieldErrors};
 use crate::api::extract::{JsonBody, QueryParams};
 use crate::api::format::short;
-use crate::api::respond::Json;
-use crate::api::validate::{self, Bounds};
+use crate::api::validate::{self, Bounds, Feature};
 use crate::api::wire::openapi::{BodyErrors, QueryErrors};
 use crate::physics;
 
@@ -30,26 +29,113 @@ pub fn router() -> OpenApiRouter<AppState> {
 /// The media type of `/chart.svg`.
 pub const IMAGE_SVG: &str = "image/svg+xml";
 
-json_operation! {
-    chart: ChartRequest => ChartResponse at "/chart-data", tag "chart", ok "The chart series.";
-    post post_chart_data(
-        summary = "Chart series of distance and depth error against disparity",
-        request_body(content = ChartRequest, examples(
-            ("measured point" = (summary = "The seed's example 1 marked on the curve",
-                                 value = json!({
-                "focal_length_px": 35, "baseline": 150, "unit": "mm",
-                "image_width": 800, "image_height": 600,
-                "x_left": 400, "x_right": 350, "points": 100
-            }))),
-            ("distance range" = (summary = "f in mm with a pixel pitch, from 1 m to 30 m",
-                                 value = json!({
-                "focal_length_mm": 3.6, "pixel_size_um": 3, "baseline": 0.12, "unit": "m",
-                "image_width": 1920, "image_height": 1080,
-                "distance_min": 1, "distance_max": 30, "spacing": "log", "points": 50
-            })))
-        ))
-    );
-    get get_chart_data(summary = "Chart series (query-string form of POST /chart-data)");
+#[utoipa::path(
+    post,
+    path = "/chart-data",
+    tag = "chart",
+    summary = "Chart series of distance and depth error against disparity",
+    description = "JSON by default; CSV with `format: csv` in the body, `?format=csv` in the \
+                   URL, or `Accept: text/csv`.",
+    params(FormatQuery),
+    request_body(content = ChartRequest, examples(
+        ("measured point" = (summary = "The seed's example 1 marked on the curve",
+                             value = json!({
+            "focal_length_px": 35, "baseline": 150, "unit": "mm",
+            "image_width": 800, "image_height": 600,
+            "x_left": 400, "x_right": 350, "points": 100
+        }))),
+        ("distance range" = (summary = "f in mm with a pixel pitch, from 1 m to 30 m",
+                             value = json!({
+            "focal_length_mm": 3.6, "pixel_size_um": 3, "baseline": 0.12, "unit": "m",
+            "image_width": 1920, "image_height": 1080,
+            "distance_min": 1, "distance_max": 30, "spacing": "log", "points": 50
+        }))),
+        ("KITTI, measured disparity, CSV" = (summary = "A rig from /calibration, a \
+                                             disparity from a matcher, as CSV",
+                                             value = json!({
+            "focal_length_px": 721.5377, "baseline": 0.5327254, "unit": "m",
+            "cx": 609.5593, "cy": 172.854, "disparity_px": 38.5,
+            "disparity_min": 1, "disparity_max": 128, "spacing": "log", "scale": "log",
+            "format": "csv", "points": 20
+        })))
+    )),
+    responses(
+        (status = 200, description = "The chart series.", content(
+            (ChartResponse = "application/json"),
+            (String = "text/csv")
+        )),
+        BodyErrors
+    )
+)]
+pub async fn post_chart_data(
+    State(state): State<AppState>,
+    QueryParams(query, query_problems): QueryParams<FormatQuery>,
+    headers: HeaderMap,
+    JsonBody(request, mut problems): JsonBody<ChartRequest>,
+) -> Result<Response, ApiError> {
+    problems.extend(query_problems);
+    let format = csv::negotiate(query.format.or(request.format), headers.get(header::ACCEPT));
+    chart(&state, &request, problems).map(|c| chart_response(c, format))
+}
+
+#[utoipa::path(
+    get,
+    path = "/chart-data",
+    tag = "chart",
+    summary = "Chart series (query-string form of POST /chart-data)",
+    description = "JSON by default; CSV with `format=csv` or `Accept: text/csv`.",
+    params(ChartRequest),
+    responses(
+        (status = 200, description = "The chart series.", content(
+            (ChartResponse = "application/json"),
+            (String = "text/csv")
+        )),
+        QueryErrors
+    )
+)]
+pub async fn get_chart_data(
+    State(state): State<AppState>,
+    headers: HeaderMap,
+    QueryParams(request, problems): QueryParams<ChartRequest>,
+) -> Result<Response, ApiError> {
+    let format = csv::negotiate(request.format, headers.get(header::ACCEPT));
+    chart(&state, &request, problems).map(|c| chart_response(c, format))
+}
+
+/// The chart series in the negotiated format.
+fn chart_response(chart: ChartResponse, format: DataFormat) -> Response {
+    csv::respond(
+        format,
+        chart,
+        chart_csv,
+        "attachment; filename=\"stereo-chart.csv\"",
+    )
+}
+
+/// The series as CSV: one row per disparity, the distance and depth error in the chart's
+/// unit and the relative error. (The marker is not a row; it is in the JSON answer.)
+fn chart_csv(chart: &ChartResponse) -> String {
+    let unit = &chart.y_axis.unit;
+    let points = |name: &str| {
+        chart
+            .series
+            .iter()
+            .find(|s| s.name == name)
+            .map_or(&[][..], |s| &s.points[..])
+    };
+    let (distance, error) = (points("distance"), points("depth_error"));
+    csv::write(
+        &[
+            "disparity_px".to_owned(),
+            csv::column("distance", unit),
+            csv::column("depth_error", unit),
+            "relative_error".to_owned(),
+        ],
+        distance
+            .iter()
+            .zip(error)
+            .map(|(d, e)| [Some(d.x), Some(d.y), Some(e.y), Some(e.y / d.y)]),
+    )
 }
 
 #[utoipa::path(
@@ -68,8 +154,14 @@ json_operation! {
 )]
 pub async fn get_chart_svg(
     State(state): State<AppState>,
-    QueryParams(request, problems): QueryParams<ChartRequest>,
+    QueryParams(request, mut problems): QueryParams<ChartRequest>,
 ) -> Result<Response, ApiError> {
+    if request.format.is_some() {
+        problems.add(
+            "format",
+            "/chart.svg always answers SVG; ask /chart-data for json or csv",
+        );
+    }
     let chart = chart(&state, &request, problems)?;
     Ok((
         [(header::CONTENT_TYPE, HeaderValue::from_static(IMAGE_SVG))],
@@ -84,11 +176,24 @@ fn chart(
     mut problems: FieldErrors,
 ) -> Result<ChartResponse, ApiError> {
     let params = request.rig_params();
-    let rig = validate::rig(&params, &mut problems);
-    let measured = match (request.x_left, request.x_right) {
-        (None, None) => None,
-        pair => validate::x_pair(pair, Bounds::of(&params.camera), &mut problems)
-            .map(|(x_left, x_right)| x_left - x_right),
+    let rig = validate::rig(&params, validate::Use::Depths, &mut problems);
+    let feature = Feature {
+        x_left: request.x_left,
+        x_right: request.x_right,
+        disparity_px: request.disparity_px,
+        y: None,
+    };
+    let measured = if feature == Feature::default() {
+        None
+    } else {
+        // The marker needs only the disparity: x_left places nothing here.
+        validate::disparity(
+            feature,
+            Bounds::of(&params.camera),
+            Some(0.0),
+            &mut problems,
+        )
+        .map(|(_, d)| d)
     };
     let range = validate::range(
         &request.range_params(),
@@ -102,7 +207,7 @@ fn chart(
         .map(|d| {
             rig.distance_at(d)
                 .map(|z| ChartPoint { x: d, y: z })
-                .map_err(|e| ApiError::from((e, validate::disparity_fields(&rig))))
+                .map_err(|e| ApiError::from((e, validate::disparity_fields(&rig, &feature))))
         })
         .transpose()?;
     let mut samples = physics::sweep(&rig, range, points, spacing)
@@ -126,10 +231,12 @@ fn chart(
         x_axis: Axis {
             label: "Disparity d (px)".to_owned(),
             unit: "px".to_owned(),
+            scale: AxisScale::Linear,
         },
         y_axis: Axis {
             label: format!("Distance Z ({unit})"),
             unit: unit.to_owned(),
+            scale: request.scale.unwrap_or_default(),
         },
         series: vec![
             series("distance", format!("Distance Z ({unit})"), |s| s.distance),

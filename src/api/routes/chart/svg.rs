@@ -8,7 +8,7 @@
 
 use std::fmt::Write;
 
-use super::types::{ChartPoint, ChartResponse};
+use super::types::{AxisScale, ChartPoint, ChartResponse};
 use crate::api::format::short;
 
 /// Canvas size; the `viewBox` lets it scale to any width.
@@ -24,33 +24,84 @@ const DISTANCE_COLOUR: &str = "#1565c0";
 const ERROR_COLOUR: &str = "#c62828";
 const MARKER_COLOUR: &str = "#2e7d32";
 
-/// A linear map from a data interval onto a pixel interval.
+/// A map from a data interval onto a pixel interval, linear or logarithmic.
 #[derive(Debug, Clone, Copy)]
 struct Scale {
     min: f64,
     max: f64,
     from: f64,
     to: f64,
+    log: bool,
 }
 
 impl Scale {
     fn new((min, max): (f64, f64), from: f64, to: f64) -> Self {
-        Self { min, max, from, to }
+        Self {
+            min,
+            max,
+            from,
+            to,
+            log: false,
+        }
+    }
+
+    /// A logarithmic scale over `(min, max)`, both positive.
+    fn log((min, max): (f64, f64), from: f64, to: f64) -> Self {
+        Self {
+            log: true,
+            ..Self::new((min, max), from, to)
+        }
+    }
+
+    fn f(&self, value: f64) -> f64 {
+        if self.log { value.log10() } else { value }
     }
 
     fn at(&self, value: f64) -> f64 {
-        let span = self.max - self.min;
+        let (lo, hi) = (self.f(self.min), self.f(self.max));
+        let span = hi - lo;
         let t = if span > 0.0 {
-            (value - self.min) / span
+            (self.f(value) - lo) / span
         } else {
             0.0
         };
         self.from + (self.to - self.from) * t
     }
 
+    /// Whether `value` can be drawn: inside the interval (and positive on a log scale).
     fn contains(&self, value: f64) -> bool {
-        (self.min..=self.max).contains(&value)
+        (self.min..=self.max).contains(&value) && (!self.log || value > 0.0)
     }
+
+    /// The tick values of this scale.
+    fn ticks(&self) -> Vec<f64> {
+        if self.log {
+            decade_ticks((self.min, self.max))
+        } else {
+            ticks((self.min, self.max))
+        }
+    }
+}
+
+/// The y range of a log axis: whole decades around the positive values in `(min, max)`.
+fn decade_range((min, max): (f64, f64)) -> (f64, f64) {
+    if !(min.is_finite() && max.is_finite() && min > 0.0) {
+        return (1.0, 10.0);
+    }
+    let low = 10f64.powf(min.log10().floor());
+    let high = 10f64.powf(max.log10().ceil());
+    (low, if high > low { high } else { low * 10.0 })
+}
+
+/// The powers of ten in `[min, max]`, thinned to at most eight.
+fn decade_ticks((min, max): (f64, f64)) -> Vec<f64> {
+    let first = (min.log10() - 1e-9).ceil() as i32;
+    let last = (max.log10() + 1e-9).floor() as i32;
+    let every = ((last - first + 1) as f64 / 8.0).ceil().max(1.0) as usize;
+    (first..=last)
+        .step_by(every)
+        .map(|e| 10f64.powi(e))
+        .collect()
 }
 
 /// A step of 1, 2 or 5 × 10ⁿ giving about `target` intervals across `span`.
@@ -118,7 +169,7 @@ fn polyline(out: &mut String, id: &str, colour: &str, points: &[ChartPoint], x: 
         out,
         r#"<polyline id="{id}" fill="none" stroke="{colour}" stroke-width="2" stroke-linejoin="round" points=""#
     );
-    for (i, p) in points.iter().enumerate() {
+    for (i, p) in points.iter().filter(|p| !y.log || p.y > 0.0).enumerate() {
         let sep = if i == 0 { "" } else { " " };
         let _ = write!(out, "{sep}{:.2},{:.2}", x.at(p.x), y.at(p.y));
     }
@@ -149,11 +200,29 @@ pub fn chart(chart: &ChartResponse) -> String {
     } else {
         (0.0, 1.0)
     };
-    let y_range = value_range(extent(distance, |p| p.y).1);
-    let e_range = value_range(extent(error, |p| p.y).1);
+    let log = chart.y_axis.scale == AxisScale::Log;
+    let positive = |points: &[ChartPoint]| {
+        points
+            .iter()
+            .map(|p| p.y)
+            .filter(|y| *y > 0.0)
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
+                (lo.min(v), hi.max(v))
+            })
+    };
+    let (y, e) = if log {
+        (
+            Scale::log(decade_range(positive(distance)), BOTTOM, TOP),
+            Scale::log(decade_range(positive(error)), BOTTOM, TOP),
+        )
+    } else {
+        (
+            Scale::new(value_range(extent(distance, |p| p.y).1), BOTTOM, TOP),
+            Scale::new(value_range(extent(error, |p| p.y).1), BOTTOM, TOP),
+        )
+    };
+    let (y_range, e_range) = ((y.min, y.max), (e.min, e.max));
     let x = Scale::new(x_range, LEFT, RIGHT);
-    let y = Scale::new(y_range, BOTTOM, TOP);
-    let e = Scale::new(e_range, BOTTOM, TOP);
     let unit = escape(&chart.y_axis.unit);
 
     let mut out = String::with_capacity(4096 + 32 * (distance.len() + error.len()));
@@ -209,8 +278,14 @@ pub fn chart(chart: &ChartResponse) -> String {
     }
     let _ = writeln!(
         out,
-        r#"<g id="plot" data-x-min="{}" data-x-max="{}" data-y-min="{}" data-y-max="{}" data-y2-min="{}" data-y2-max="{}">"#,
-        x_range.0, x_range.1, y_range.0, y_range.1, e_range.0, e_range.1
+        r#"<g id="plot" data-x-min="{}" data-x-max="{}" data-y-min="{}" data-y-max="{}" data-y2-min="{}" data-y2-max="{}" data-y-scale="{}">"#,
+        x_range.0,
+        x_range.1,
+        y_range.0,
+        y_range.1,
+        e_range.0,
+        e_range.1,
+        if log { "log" } else { "linear" }
     );
     let _ = writeln!(
         out,
@@ -240,7 +315,7 @@ pub fn chart(chart: &ChartResponse) -> String {
         out,
         r#"<g id="y-axis" fill="{DISTANCE_COLOUR}" text-anchor="end">"#
     );
-    for t in ticks(y_range) {
+    for t in y.ticks() {
         let py = y.at(t);
         let _ = write!(
             out,
@@ -260,7 +335,7 @@ pub fn chart(chart: &ChartResponse) -> String {
         out,
         r#"<g id="y2-axis" fill="{ERROR_COLOUR}" text-anchor="start">"#
     );
-    for t in ticks(e_range) {
+    for t in e.ticks() {
         let _ = write!(
             out,
             r#"<text x="{}" y="{:.2}">{}</text>"#,
@@ -324,6 +399,21 @@ mod tests {
         assert_eq!(value_range(0.0), (0.0, 1.0));
         assert_eq!(ticks((0.0, 6000.0)).len(), 7);
         assert_eq!(ticks((1.0, 200.0)), vec![50.0, 100.0, 150.0, 200.0]);
+    }
+
+    /// A log axis spans whole decades and ticks at the powers of ten; its positions are
+    /// equal for equal ratios.
+    #[test]
+    fn log_axis() {
+        assert_eq!(decade_range((4.2, 380.0)), (1.0, 1000.0));
+        assert_eq!(decade_range((10.0, 10.0)), (10.0, 100.0));
+        assert_eq!(decade_ticks((1.0, 1000.0)), vec![1.0, 10.0, 100.0, 1000.0]);
+        assert_eq!(decade_ticks((1e-3, 1e13)).len(), 6);
+        let s = Scale::log((1.0, 1000.0), 300.0, 0.0);
+        assert_eq!(s.at(1.0), 300.0);
+        assert!((s.at(10.0) - 200.0).abs() < 1e-9);
+        assert!((s.at(100.0) - 100.0).abs() < 1e-9);
+        assert!(!s.contains(0.0));
     }
 
     /// Text is escaped for XML.

@@ -4,8 +4,9 @@
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
+use crate::api::csv::DataFormat;
 use crate::api::extract::QueryForm;
-use crate::api::wire::de::range_request;
+use crate::api::wire::de::{plain_members, range_request};
 use crate::api::wire::params::Unit;
 
 range_request! {
@@ -26,10 +27,35 @@ range_request! {
         /// x of the measured feature in the right image (with `x_left`).
         #[schema(minimum = 0.0)]
         x_right: f64,
+        /// The measured feature's disparity in pixels, to mark on the chart instead of
+        /// `x_left` and `x_right`.
+        disparity_px: f64,
+        /// The y axes: `linear` (the default) or `log`, in whole decades, which keeps the far
+        /// end of a long range readable (a KITTI rig spans 4 m to 400 m). `/chart.svg` draws
+        /// it; `/chart-data` reports it in `y_axis.scale` for the chart library.
+        scale: AxisScale,
+        /// `/chart-data` only: `json` (the default) or `csv` (one row per disparity, with
+        /// `distance_<unit>`, `depth_error_<unit>` and `relative_error`). Without it, an
+        /// `Accept: text/csv` header asks for CSV. For POST it may also be given as
+        /// `?format=csv` in the URL. `/chart.svg` refuses it: it always answers SVG.
+        format: DataFormat,
     }
 }
 
 impl QueryForm for ChartRequest {}
+
+/// How an axis maps values to positions.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize, Serialize, ToSchema)]
+#[serde(rename_all = "lowercase")]
+pub enum AxisScale {
+    /// Equal steps of value are equal distances.
+    #[default]
+    Linear,
+    /// Equal ratios of value are equal distances (decades); only positive values are drawn.
+    Log,
+}
+
+plain_members!(AxisScale);
 
 /// A point of a chart series.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, ToSchema)]
@@ -45,6 +71,8 @@ pub struct Axis {
     pub label: String,
     /// The unit alone.
     pub unit: String,
+    /// `linear` or `log`, as the request asked (the x axis is always linear).
+    pub scale: AxisScale,
 }
 
 /// One named curve.
@@ -72,7 +100,7 @@ pub struct ChartResponse {
     /// `distance` then `depth_error`.
     pub series: Vec<Series>,
     /// The measured feature (x = its disparity, y = its distance), when the request gave
-    /// `x_left` and `x_right`.
+    /// `x_left` and `x_right`, or `disparity_px`.
     #[serde(skip_serializing_if = "Option::is_none")]
     #[schema(nullable = false)]
     pub marker: Option<ChartPoint>,

@@ -2,9 +2,9 @@
 //! each point on its own so that every fault is named, and answering per point.
 //!
 //! The request's *shape* is all or nothing, as the OpenAPI schema states it: a wrong envelope
-//! or rig, no points or too many, or a point that is not an object of numbers `x_left`,
-//! `x_right` and optional `y` (a wrong type, an unknown or missing member) is a 422 for the
-//! whole batch, naming `rig.…` and `points[17].x_left`. Such faults are programming errors in
+//! or rig, no points or too many, or a point that is not an object of numbers `x_left` and
+//! `x_right` (or `disparity_px`) and optional `y` (a wrong type, an unknown or missing member,
+//! both `x_right` and `disparity_px`) is a 422 for the whole batch, naming `rig.…` and `points[17].x_left`. Such faults are programming errors in
 //! the caller, and a schema-valid request is what clients validate against.
 //!
 //! The *values* are judged point by point: a coordinate off the image or a point at infinity
@@ -25,7 +25,7 @@ use crate::{
         AppState,
         error::{ApiError, FieldErrors},
         extract::{self, BodyLimit, decode_object, expect_object},
-        validate::{self, Bounds},
+        validate::{self, Bounds, Feature},
         wire::measured::Measured,
     },
     config::Limits,
@@ -184,7 +184,7 @@ pub fn answer(batch: Batch, limits: &Limits) -> Result<BatchDistanceResponse, Ap
         mut problems,
     } = batch;
     let rig = match &spec {
-        Some(spec) => validate::rig(&spec.rig_params(), &mut rig_problems),
+        Some(spec) => validate::rig(&spec.rig_params(), validate::Use::Points, &mut rig_problems),
         None => {
             if !problems.has("rig") {
                 problems.add("rig", "is required");
@@ -258,10 +258,23 @@ fn refuse_malformed(
     if shape.has("") {
         return;
     }
-    for (field, value) in [("x_left", point.x_left), ("x_right", point.x_right)] {
-        if value.is_none() && !shape.has(field) {
-            problems.add_new(format!("{prefix}.{field}"), "is required");
+    let named = |field: &str| format!("{prefix}.{field}");
+    match (point.x_right, point.disparity_px) {
+        (Some(_), Some(_)) => {
+            for field in ["x_right", "disparity_px"] {
+                problems.add_new(named(field), validate::X_RIGHT_OR_DISPARITY);
+            }
         }
+        (Some(_), None) if point.x_left.is_none() && !shape.has("x_left") => {
+            problems.add_new(named("x_left"), "is required with x_right");
+        }
+        (None, None) if !shape.has("x_right") && !shape.has("disparity_px") => {
+            problems.add_new(
+                named("x_right"),
+                "is required: give x_right (with x_left), or disparity_px",
+            );
+        }
+        _ => {}
     }
 }
 
@@ -269,17 +282,21 @@ fn refuse_malformed(
 /// `points[index].…`.
 fn measure(rig: &physics::Rig, bounds: Bounds, index: usize, point: BatchPoint) -> PointOutcome {
     let mut problems = FieldErrors::default();
-    let correspondence = validate::correspondence(
-        (point.x_left, point.x_right, point.y),
-        bounds,
-        Some(rig.cy),
-        &mut problems,
-    );
+    let feature = Feature {
+        x_left: point.x_left,
+        x_right: point.x_right,
+        disparity_px: point.disparity_px,
+        y: point.y,
+    };
+    let correspondence =
+        validate::correspondence(feature, bounds, Some((rig.cx, rig.cy)), &mut problems);
     let measured = match correspondence {
         Some(c) if problems.is_empty() => physics::measure(rig, c).map_err(|e| {
             let mut problems = FieldErrors::default();
-            for field in ["x_left", "x_right"] {
-                problems.add(field, e.to_string());
+            for field in validate::disparity_fields(rig, &feature) {
+                if *field != "doffs" {
+                    problems.add(field, e.to_string());
+                }
             }
             problems
         }),

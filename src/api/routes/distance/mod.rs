@@ -14,7 +14,7 @@ use crate::api::error::{ApiError, FieldErrors};
 use crate::api::extract::QueryParams;
 use crate::api::format::short;
 use crate::api::respond::Json;
-use crate::api::validate::{self, Bounds};
+use crate::api::validate::{self, Bounds, Feature};
 use crate::api::wire::measured::Measured;
 use crate::api::wire::openapi::{BodyErrors, QueryErrors};
 use crate::physics;
@@ -109,16 +109,22 @@ fn distance(
     mut problems: FieldErrors,
 ) -> Result<DistanceResponse, ApiError> {
     let params = request.rig_params();
-    let rig = validate::rig(&params, &mut problems);
+    let rig = validate::rig(&params, validate::Use::Points, &mut problems);
+    let feature = Feature {
+        x_left: request.x_left,
+        x_right: request.x_right,
+        disparity_px: request.disparity_px,
+        y: request.y,
+    };
     let correspondence = validate::correspondence(
-        (request.x_left, request.x_right, request.y),
+        feature,
         Bounds::of(&params.camera),
-        rig.map(|r| r.cy),
+        rig.map(|r| (r.cx, r.cy)),
         &mut problems,
     );
     let (rig, correspondence) = problems.finish(rig.zip(correspondence))?;
     let m = physics::measure(&rig, correspondence)
-        .map_err(|e| ApiError::from((e, validate::disparity_fields(&rig))))?;
+        .map_err(|e| ApiError::from((e, validate::disparity_fields(&rig, &feature))))?;
     let unit = rig.unit.symbol();
     Ok(DistanceResponse {
         formula: format!(

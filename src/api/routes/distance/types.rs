@@ -17,12 +17,17 @@ rig_request! {
         "x_left": 400, "x_right": 350, "image_width": 800, "image_height": 600
     }))]
     pub struct DistanceRequest {
-        /// x of the feature in the left image, in pixels, in [0, image_width].
-        #[schema(required = true, minimum = 0.0, example = 400.0)]
+        /// x of the feature in the left image, in pixels, in [0, image_width]. Required with
+        /// `x_right`; with `disparity_px` it only places the 3D point (default `cx`).
+        #[schema(minimum = 0.0, example = 400.0)]
         x_left: f64,
-        /// x of the same feature in the right image, in pixels, in [0, image_width].
-        #[schema(required = true, minimum = 0.0, example = 350.0)]
+        /// x of the same feature in the right image, in pixels, in [0, image_width]. Give
+        /// `x_right` or `disparity_px`, not both.
+        #[schema(minimum = 0.0, example = 350.0)]
         x_right: f64,
+        /// The disparity d = x_left − x_right in pixels, as a matcher gives it, instead of
+        /// `x_right`. Give `x_right` or `disparity_px`, not both.
+        disparity_px: f64,
         /// y (row) of the feature in the left image, in pixels, in [0, image_height], for the
         /// 3D point. Default: `cy`.
         #[schema(minimum = 0.0)]
@@ -46,13 +51,16 @@ request! {
     /// `errors` in the 200 answer), so the schema bounds no value.
     pub struct BatchPoint {
         /// x of the feature in the left image, in pixels; must lie in [0, image_width], or the
-        /// point fails on its own.
-        #[schema(required = true, example = 400.0)]
+        /// point fails on its own. Required with `x_right`; default `cx` with `disparity_px`.
+        #[schema(example = 400.0)]
         x_left: f64,
         /// x of the same feature in the right image, in pixels; must lie in [0, image_width],
-        /// or the point fails on its own.
-        #[schema(required = true, example = 350.0)]
+        /// or the point fails on its own. Give `x_right` or `disparity_px`, not both (both
+        /// is a 422 for the batch).
+        #[schema(example = 350.0)]
         x_right: f64,
+        /// The disparity d = x_left − x_right in pixels, instead of `x_right`.
+        disparity_px: f64,
         /// y (row) of the feature in the left image, in pixels; must lie in [0, image_height],
         /// or the point fails on its own. Default: the rig's `cy`.
         y: f64,
@@ -90,7 +98,7 @@ impl QueryForm for DistanceRequest {}
 /// The distance to one feature, its expected error and the intermediate values.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
 #[schema(example = json!({
-    "distance": 105.0, "unit": "mm", "distance_m": 0.105, "depth_error": 1.05,
+    "distance": 105.0, "range": 105.0, "unit": "mm", "distance_m": 0.105, "depth_error": 1.05,
     "relative_error": 0.01, "disparity_error_px": 0.5, "disparity_px": 50.0,
     "effective_disparity_px": 50.0, "focal_length_px": 35.0, "baseline": 150.0,
     "normalized_x": 0.0, "projection_factor": 0.23333333333333334,
@@ -115,8 +123,11 @@ pub struct DistanceResponse {
     pub focal_length_px: f64,
     /// The baseline, in `unit`.
     pub baseline: f64,
-    /// (x_left − W/2) / (W/2): −1 at the left edge of the image, +1 at the right.
-    pub normalized_x: f64,
+    /// (x_left − W/2) / (W/2): −1 at the left edge of the image, +1 at the right. Absent
+    /// when the request gave no `image_width`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub normalized_x: Option<f64>,
     /// f_px / baseline, in pixels per `unit`.
     pub projection_factor: f64,
     /// The formula with this request's numbers in it.

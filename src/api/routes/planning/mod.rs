@@ -91,7 +91,7 @@ fn rig(
     request: &RigRequest,
     mut problems: FieldErrors,
 ) -> Result<RigResponse, ApiError> {
-    let rig = validate::rig(&request.rig_params(), &mut problems);
+    let rig = validate::rig(&request.rig_params(), validate::Use::Depths, &mut problems);
     let max_disparity = problems
         .required("max_disparity_px", request.max_disparity_px)
         .and_then(|d| problems.positive("max_disparity_px", d));

@@ -141,10 +141,16 @@ pub struct RigResponse {
     pub unit: Unit,
     /// Focal length in pixels, after any conversion.
     pub focal_length_px: f64,
-    /// Horizontal field of view in degrees (principal point at the image centre).
-    pub horizontal_fov_deg: f64,
-    /// Vertical field of view in degrees (square pixels, principal point at the centre).
-    pub vertical_fov_deg: f64,
+    /// Horizontal field of view in degrees (principal point at the image centre); absent
+    /// without `image_width`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub horizontal_fov_deg: Option<f64>,
+    /// Vertical field of view in degrees, from `focal_length_y_px` (principal point at the
+    /// centre); absent without `image_height`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub vertical_fov_deg: Option<f64>,
     /// The baseline, in `unit`.
     pub baseline: f64,
     /// f_px·B in px·`unit`: the constant that turns a disparity into a depth, Z = fb / (d + doffs).
@@ -177,8 +183,10 @@ pub struct BaselineResponse {
     pub unit: Unit,
     /// Focal length in pixels, after any conversion.
     pub focal_length_px: f64,
-    /// Horizontal field of view in degrees.
-    pub horizontal_fov_deg: f64,
+    /// Horizontal field of view in degrees; absent without `image_width`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub horizontal_fov_deg: Option<f64>,
     /// The Δd assumed, in pixels.
     pub disparity_error_px: f64,
     /// Where the budget must hold, in `unit`.

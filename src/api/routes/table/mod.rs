@@ -1,19 +1,18 @@
 //! `/table`: the sample table of distance against disparity for a rig (GET and POST), as JSON
 //! or CSV.
 
-pub mod csv;
 pub mod types;
 
 use axum::extract::State;
-use axum::http::{HeaderMap, HeaderValue, header};
-use axum::response::{IntoResponse, Response};
+use axum::http::{HeaderMap, header};
+use axum::response::Response;
 use utoipa_axum::{router::OpenApiRouter, routes};
 
-use self::types::{FormatQuery, TableFormat, TableRequest, TableResponse, TableRow};
+use self::types::{TableRequest, TableResponse, TableRow};
 use crate::api::AppState;
+use crate::api::csv::{self, DataFormat, FormatQuery};
 use crate::api::error::{ApiError, FieldErrors};
 use crate::api::extract::{JsonBody, QueryParams};
-use crate::api::respond::Json;
 use crate::api::validate::{self, Bounds};
 use crate::api::wire::openapi::{BodyErrors, QueryErrors};
 use crate::physics;
@@ -91,27 +90,49 @@ pub async fn get_table(
     table(&state, &request, problems).map(|t| table_response(t, format))
 }
 
-/// The table in the negotiated format. Both vary with `Accept`, which caches must know.
-fn table_response(table: TableResponse, format: TableFormat) -> Response {
-    let vary = (header::VARY, HeaderValue::from_static("accept"));
-    match format {
-        TableFormat::Json => ([vary], Json(table)).into_response(),
-        TableFormat::Csv => (
-            [
-                vary,
-                (
-                    header::CONTENT_TYPE,
-                    HeaderValue::from_static(csv::TEXT_CSV),
-                ),
-                (
-                    header::CONTENT_DISPOSITION,
-                    HeaderValue::from_static("attachment; filename=\"stereo-table.csv\""),
-                ),
-            ],
-            csv::table(&table),
-        )
-            .into_response(),
+/// The table in the negotiated format.
+fn table_response(table: TableResponse, format: DataFormat) -> Response {
+    csv::respond(
+        format,
+        table,
+        table_csv,
+        "attachment; filename=\"stereo-table.csv\"",
+    )
+}
+
+/// The header row: the members of a JSON [`TableRow`] in the same order, each length with
+/// its unit (`distance_mm`) and the projection factor in pixels per unit; `normalized_x` only
+/// when the rows have it.
+fn table_columns(table: &TableResponse) -> Vec<String> {
+    let unit = crate::physics::LengthUnit::from(table.unit).symbol();
+    let mut columns = vec![csv::column("distance", unit), "disparity_px".to_owned()];
+    if table.rows.first().is_some_and(|r| r.normalized_x.is_some()) {
+        columns.push("normalized_x".to_owned());
     }
+    columns.extend([
+        csv::column("projection_factor_px_per", unit),
+        csv::column("depth_error", unit),
+        "relative_error".to_owned(),
+    ]);
+    columns
+}
+
+/// The table as CSV.
+fn table_csv(table: &TableResponse) -> String {
+    let with_x = table.rows.first().is_some_and(|r| r.normalized_x.is_some());
+    csv::write(
+        &table_columns(table),
+        table.rows.iter().map(|r| {
+            [Some(r.distance), Some(r.disparity_px)]
+                .into_iter()
+                .chain(with_x.then_some(r.normalized_x))
+                .chain([
+                    Some(r.projection_factor),
+                    Some(r.depth_error),
+                    Some(r.relative_error),
+                ])
+        }),
+    )
 }
 
 fn table(
@@ -120,12 +141,12 @@ fn table(
     mut problems: FieldErrors,
 ) -> Result<TableResponse, ApiError> {
     let params = request.rig_params();
-    let rig = validate::rig(&params, &mut problems);
+    let rig = validate::rig(&params, validate::Use::Depths, &mut problems);
     let range = validate::range(&request.range_params(), rig.as_ref(), None, &mut problems);
     let steps = problems.count("steps", request.steps, 10, 1, state.limits.table_rows);
     let x_left = match request.x_left {
         Some(x) => validate::x_coordinate("x_left", x, Bounds::of(&params.camera), &mut problems),
-        None => rig.map(|r| r.image_width / 2.0),
+        None => rig.map(|r| r.image_width.map_or(r.cx, |w| w / 2.0)),
     };
     let (rig, ((range, spacing), (steps, x_left))) =
         problems.finish(rig.zip(range.zip(steps.zip(x_left))))?;
@@ -145,7 +166,65 @@ fn table(
                 normalized_x: r.normalized_x,
                 projection_factor: r.projection_factor,
                 depth_error: r.depth_error,
+                relative_error: r.depth_error / r.distance,
             })
             .collect(),
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::api::wire::params::Unit;
+
+    /// The header names the JSON members with their units, and each number is the JSON's
+    /// number; `normalized_x` is left out when the image width was not given.
+    #[test]
+    fn csv_rows() {
+        let row = TableRow {
+            distance: 105.0,
+            disparity_px: 50.0,
+            normalized_x: Some(-0.125),
+            projection_factor: 0.23333333333333334,
+            depth_error: 1.05,
+            relative_error: 0.01,
+        };
+        let mut table = TableResponse {
+            unit: Unit::Mm,
+            focal_length_px: 35.0,
+            baseline: 150.0,
+            disparity_error_px: 0.5,
+            x_left: 400.0,
+            rows: vec![row],
+        };
+        assert_eq!(
+            table_csv(&table),
+            "distance_mm,disparity_px,normalized_x,projection_factor_px_per_mm,depth_error_mm,\
+             relative_error\r\n105.0,50.0,-0.125,0.23333333333333334,1.05,0.01\r\n"
+        );
+        let json = serde_json::to_value(row).unwrap();
+        let keys: Vec<&str> = json
+            .as_object()
+            .unwrap()
+            .keys()
+            .map(String::as_str)
+            .collect();
+        let columns = table_columns(&table);
+        assert_eq!(keys.len(), columns.len());
+        for (key, column) in keys.iter().zip(&columns) {
+            assert!(column.starts_with(key), "{column} is not {key} with a unit");
+        }
+        table.unit = Unit::M;
+        table.rows[0].normalized_x = None;
+        assert_eq!(
+            table_columns(&table),
+            [
+                "distance_m",
+                "disparity_px",
+                "projection_factor_px_per_m",
+                "depth_error_m",
+                "relative_error"
+            ]
+        );
+    }
 }

@@ -2,33 +2,12 @@
 //! as JSON or CSV.
 
 use serde::{Deserialize, Serialize};
-use utoipa::{IntoParams, ToSchema};
+use utoipa::ToSchema;
 
+use crate::api::csv::DataFormat;
 use crate::api::extract::QueryForm;
-use crate::api::wire::de::{plain_members, present, range_request};
+use crate::api::wire::de::range_request;
 use crate::api::wire::params::Unit;
-
-/// The representation of a `/table` answer.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize, Serialize, ToSchema)]
-#[serde(rename_all = "lowercase")]
-pub enum TableFormat {
-    /// `application/json`: a [`TableResponse`].
-    #[default]
-    Json,
-    /// `text/csv`: a header row, then one line per row, with the columns of [`TableRow`].
-    Csv,
-}
-
-/// The URL query of `POST /table`, which may choose the format there instead of in the body.
-#[derive(Debug, Clone, Default, PartialEq, Deserialize, IntoParams)]
-#[serde(deny_unknown_fields)]
-#[into_params(parameter_in = Query)]
-pub struct FormatQuery {
-    /// `json` or `csv`; overrides the body's `format` and the `Accept` header.
-    #[serde(default, deserialize_with = "present")]
-    #[param(nullable = false)]
-    pub format: Option<TableFormat>,
-}
 
 range_request! {
     /// A rig and a range: the sample table of distance against disparity.
@@ -42,19 +21,16 @@ range_request! {
         #[schema(minimum = 1, example = 10)]
         steps: u32,
         /// Left-image x held fixed to compute each row's right-image `normalized_x`, in pixels.
-        /// Default: the image centre.
+        /// Default: the image centre (`cx` when the image width is not given).
         #[schema(minimum = 0.0)]
         x_left: f64,
         /// `json` (the default) or `csv`. Without it, an `Accept: text/csv` header asks for
         /// CSV. For POST it may also be given as `?format=csv` in the URL.
-        format: TableFormat,
+        format: DataFormat,
     }
 }
 
-plain_members!(TableFormat);
-
 impl QueryForm for TableRequest {}
-impl QueryForm for FormatQuery {}
 
 /// One row of the sample table.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, ToSchema)]
@@ -63,12 +39,17 @@ pub struct TableRow {
     pub distance: f64,
     /// Disparity d, in pixels.
     pub disparity_px: f64,
-    /// Normalised x of the right-image feature (x_right = x_left − d).
-    pub normalized_x: f64,
+    /// Normalised x of the right-image feature (x_right = x_left − d); absent without
+    /// `image_width`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub normalized_x: Option<f64>,
     /// f_px / baseline.
     pub projection_factor: f64,
     /// Depth error at this distance, in `unit`.
     pub depth_error: f64,
+    /// depth_error / distance.
+    pub relative_error: f64,
 }
 
 /// The sample table of distance against disparity for a rig.
