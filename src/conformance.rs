@@ -3,7 +3,8 @@
 //! (`tests/hostile_input.rs`).
 //!
 //! For every operation that reads input, the bytes are sent as a JSON body (`POST`) and as a
-//! query string (`GET`) through the full router, middleware included. The promises:
+//! query string (`GET`), and to `/calibration` as a text body, through the full router,
+//! middleware included. The promises:
 //! - no 5xx, and no panic (a panic would surface as a 500 from the edge layer);
 //! - a 4xx is `application/problem+json` whose `status` is the HTTP status and whose
 //!   `errors` names at least one field;
@@ -20,7 +21,14 @@ use tower::ServiceExt;
 use crate::{Config, api::routes::ops::OpsState, app};
 
 /// The operations that read a body (`POST`) and a query (`GET`).
-const BODY_PATHS: [&str; 5] = ["/distance", "/table", "/chart-data", "/rig", "/baseline"];
+const BODY_PATHS: [&str; 6] = [
+    "/distance",
+    "/table",
+    "/chart-data",
+    "/rig",
+    "/baseline",
+    "/calibration",
+];
 const QUERY_PATHS: [&str; 6] = [
     "/distance",
     "/table",
@@ -66,6 +74,14 @@ impl Harness {
                     .map_err(|e| format!("building POST {path}: {e}"))?;
                 statuses.push(self.exchange(request).await?);
             }
+            // A calibration file may also be the raw body.
+            let request = Request::builder()
+                .method(Method::POST)
+                .uri("/calibration")
+                .header(header::CONTENT_TYPE, "text/plain")
+                .body(Body::from(input.to_vec()))
+                .map_err(|e| format!("building POST /calibration: {e}"))?;
+            statuses.push(self.exchange(request).await?);
             let query = as_query(input);
             for path in QUERY_PATHS {
                 let Ok(request) = Request::get(format!("{path}?{query}")).body(Body::empty())

@@ -42,6 +42,7 @@
 
 pub mod api;
 pub mod budget;
+pub mod calibration;
 pub mod config;
 #[cfg(feature = "conformance")]
 pub mod conformance;

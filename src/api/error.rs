@@ -150,8 +150,9 @@ pub enum ApiError {
     Malformed(FieldError),
     /// 413: the body is larger than the limit, in bytes.
     PayloadTooLarge(usize),
-    /// 415: the body is not declared as JSON.
-    UnsupportedMediaType(String),
+    /// 415: the body is not declared as a type the route reads (`got`; `accepted` names
+    /// those it reads).
+    UnsupportedMediaType { got: String, accepted: &'static str },
     /// 422: one or more fields are missing, of the wrong type, unknown or out of range.
     Invalid(Vec<FieldError>),
     /// 404: no such route.
@@ -183,7 +184,7 @@ impl ApiError {
         match self {
             ApiError::Malformed(_) => StatusCode::BAD_REQUEST,
             ApiError::PayloadTooLarge(_) => StatusCode::PAYLOAD_TOO_LARGE,
-            ApiError::UnsupportedMediaType(_) => StatusCode::UNSUPPORTED_MEDIA_TYPE,
+            ApiError::UnsupportedMediaType { .. } => StatusCode::UNSUPPORTED_MEDIA_TYPE,
             ApiError::Invalid(_) => StatusCode::UNPROCESSABLE_ENTITY,
             ApiError::NotFound(_) => StatusCode::NOT_FOUND,
             ApiError::MethodNotAllowed(_) => StatusCode::METHOD_NOT_ALLOWED,
@@ -230,11 +231,11 @@ impl ApiError {
                     format!("must be at most {limit} bytes"),
                 )],
             ),
-            ApiError::UnsupportedMediaType(got) => plain(
-                format!("the request body must be sent as application/json, not {got}"),
+            ApiError::UnsupportedMediaType { got, accepted } => plain(
+                format!("the request body must be sent as {accepted}, not {got}"),
                 vec![FieldError::new(
                     "content-type",
-                    format!("must be application/json, got {got}"),
+                    format!("must be {accepted}, got {got}"),
                 )],
             ),
             ApiError::Invalid(errors) => {

@@ -9,7 +9,7 @@
 use axum::{
     body::Bytes,
     extract::{FromRef, FromRequest, FromRequestParts, Request},
-    http::{header, request::Parts},
+    http::{HeaderValue, header, request::Parts},
 };
 use percent_encoding::percent_decode_str;
 use serde::de::DeserializeOwned;
@@ -44,15 +44,25 @@ where
 
 /// The body of a request declared as JSON, within `limit`: 415 for another content type, 413
 /// beyond the limit.
-pub async fn json_bytes(req: Request, BodyLimit(limit): BodyLimit) -> Result<Bytes, ApiError> {
+pub async fn json_bytes(req: Request, limit: BodyLimit) -> Result<Bytes, ApiError> {
     match req.headers().get(header::CONTENT_TYPE) {
         Some(ct) if ct.to_str().is_ok_and(is_json) => {}
-        Some(ct) => {
-            let ct = String::from_utf8_lossy(ct.as_bytes()).into_owned();
-            return Err(ApiError::UnsupportedMediaType(ct));
-        }
-        None => return Err(ApiError::UnsupportedMediaType("no Content-Type".to_owned())),
+        other => return Err(unsupported(other, "application/json")),
     }
+    body_bytes(req, limit).await
+}
+
+/// The 415 for a body sent as `content_type` (or none) where `accepted` was expected.
+pub fn unsupported(content_type: Option<&HeaderValue>, accepted: &'static str) -> ApiError {
+    let got = content_type.map_or_else(
+        || "no Content-Type".to_owned(),
+        |ct| String::from_utf8_lossy(ct.as_bytes()).into_owned(),
+    );
+    ApiError::UnsupportedMediaType { got, accepted }
+}
+
+/// The body, whatever its type, within `limit`: 413 beyond it.
+pub async fn body_bytes(req: Request, BodyLimit(limit): BodyLimit) -> Result<Bytes, ApiError> {
     axum::body::to_bytes(req.into_body(), limit)
         .await
         .map_err(|error| {
@@ -96,7 +106,7 @@ where
 pub struct BodyLimit(pub usize);
 
 /// `application/json`, or any `application/*+json`, with or without parameters.
-fn is_json(content_type: &str) -> bool {
+pub fn is_json(content_type: &str) -> bool {
     let essence = content_type.split(';').next().unwrap_or_default().trim();
     let starts = |prefix: &str| {
         essence

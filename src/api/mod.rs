@@ -68,13 +68,17 @@ impl FromRef<HeavyState> for BodyLimit {
         description = "Turns a stereo correspondence into a distance with its expected error, \
                        and shows how distance and error vary with disparity for a rig.\n\n\
                        Depth is Z = B·f_px / |d + doffs| with d = x_left − x_right in pixels; \
-                       the focal length is always converted to pixels first. Every error is \
+                       the focal length is always converted to pixels first. `distance` is \
+                       that depth Z, along the optical axis; `range` is the straight line \
+                       √(X² + Y² + Z²) from the left camera to the point. `/calibration` reads \
+                       a calibration file into the rig the other endpoints take. Every error is \
                        `application/problem+json` (RFC 9457) with an `errors` array naming \
                        every offending field.",
         license(name = "MIT")
     ),
     components(schemas(error::Problem, error::FieldError)),
     tags(
+        (name = "calibration", description = "Calibration files read into a rig"),
         (name = "distance", description = "Distance to one feature"),
         (name = "table", description = "Sample tables for a rig"),
         (name = "chart", description = "Chart data and the chart as SVG for a rig"),

@@ -2,6 +2,7 @@
 //! socket with reqwest.
 
 mod batch;
+mod calibration;
 mod chart;
 mod disparity;
 mod distance;

@@ -3,6 +3,7 @@
 //! [`ops::router`] the probes, each group to be wrapped in its own limits by
 //! [`crate::startup`].
 
+pub mod calibration;
 pub mod chart;
 pub mod distance;
 pub mod ops;
@@ -55,6 +56,7 @@ pub fn light() -> OpenApiRouter<AppState> {
         .merge(table::router())
         .merge(chart::router())
         .merge(planning::router())
+        .merge(calibration::router())
 }
 
 /// The image requests: megabytes in, milliseconds to seconds of CPU each. None is served yet;

@@ -30,6 +30,18 @@ impl From<Unit> for LengthUnit {
     }
 }
 
+impl From<LengthUnit> for Unit {
+    fn from(unit: LengthUnit) -> Self {
+        match unit {
+            LengthUnit::Millimetre => Unit::Mm,
+            LengthUnit::Centimetre => Unit::Cm,
+            LengthUnit::Metre => Unit::M,
+            LengthUnit::Inch => Unit::In,
+            LengthUnit::Foot => Unit::Ft,
+        }
+    }
+}
+
 /// How table rows or chart points are spread across the range.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize, Serialize, ToSchema)]
 #[serde(rename_all = "lowercase")]

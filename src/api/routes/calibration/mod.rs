@@ -1,0 +1,252 @@
+//! `/calibration`: reads a Middlebury, KITTI, ROS or OpenCV calibration file and answers the
+//! rig in the members every other endpoint takes. The file comes in a JSON body's `text`, or
+//! as the raw body with `Content-Type: text/plain` (`curl --data-binary @calib.txt`).
+
+pub mod types;
+
+use axum::extract::{FromRequest, FromRequestParts, Request};
+use axum::http::header;
+use utoipa_axum::{router::OpenApiRouter, routes};
+
+use self::types::{CalibratedRig, CalibrationQuery, CalibrationRequest, CalibrationResponse};
+use crate::api::AppState;
+use crate::api::error::{ApiError, FieldErrors};
+use crate::api::extract::{self, BodyLimit, QueryParams};
+use crate::api::respond::Json;
+use crate::api::wire::openapi::BodyErrors;
+use crate::api::wire::params::Unit;
+use crate::calibration::{self, Format, Part, Source};
+use crate::physics::LengthUnit;
+
+/// `POST /calibration`.
+pub fn router() -> OpenApiRouter<AppState> {
+    OpenApiRouter::new().routes(routes!(post_calibration))
+}
+
+/// The media types `/calibration` reads.
+const ACCEPTED: &str = "application/json, or text/plain for the file itself";
+
+/// A calibration request from either body form, with what decoding refused.
+pub struct CalibrationBody(CalibrationRequest, FieldErrors);
+
+impl FromRequest<AppState> for CalibrationBody {
+    type Rejection = ApiError;
+
+    async fn from_request(req: Request, state: &AppState) -> Result<Self, Self::Rejection> {
+        let (mut parts, body) = req.into_parts();
+        let QueryParams(query, mut problems) =
+            QueryParams::<CalibrationQuery>::from_request_parts(&mut parts, state).await?;
+        let req = Request::from_parts(parts, body);
+        let content_type = req.headers().get(header::CONTENT_TYPE).cloned();
+        let essence = content_type
+            .as_ref()
+            .and_then(|ct| ct.to_str().ok())
+            .map(|ct| {
+                ct.split(';')
+                    .next()
+                    .unwrap_or_default()
+                    .trim()
+                    .to_ascii_lowercase()
+            });
+        let limit = BodyLimit(state.limits.body_bytes);
+        let mut request = match essence.as_deref() {
+            Some(ct) if extract::is_json(ct) => {
+                let bytes = extract::json_bytes(req, limit).await?;
+                let (request, refused) = extract::decode_json::<CalibrationRequest>(&bytes)?;
+                problems.extend(refused);
+                request
+            }
+            Some("text/plain") => {
+                let bytes = extract::body_bytes(req, limit).await?;
+                match String::from_utf8(bytes.to_vec()) {
+                    Ok(text) => CalibrationRequest {
+                        text: Some(text),
+                        ..CalibrationRequest::default()
+                    },
+                    Err(e) => {
+                        problems.add(
+                            "text",
+                            format!(
+                                "must be UTF-8 text; byte {} is not",
+                                e.utf8_error().valid_up_to()
+                            ),
+                        );
+                        CalibrationRequest::default()
+                    }
+                }
+            }
+            _ => return Err(extract::unsupported(content_type.as_ref(), ACCEPTED)),
+        };
+        // The query's options apply to either form, and win over the body's.
+        request.format = query.format.or(request.format);
+        request.cameras = query.cameras.or(request.cameras);
+        request.calibration_unit = query.calibration_unit.or(request.calibration_unit);
+        request.unit = query.unit.or(request.unit);
+        Ok(CalibrationBody(request, problems))
+    }
+}
+
+#[utoipa::path(
+    post,
+    path = "/calibration",
+    tag = "calibration",
+    summary = "Read a calibration file into a rig",
+    description = "Reads a Middlebury 2014 `calib.txt`, a KITTI calibration \
+                   (`calib_cam_to_cam.txt` or odometry `calib.txt`), a pair of ROS \
+                   `CameraInfo` files or OpenCV's `stereoRectify` output (FileStorage YAML or \
+                   XML), and answers the rig with the member names of `/distance`, so that a \
+                   client can send it back with a disparity added.\n\n\
+                   Formulas: Middlebury f = cam0[0,0], doffs and baseline (mm) as written; \
+                   KITTI f = P_l[0,0], B = (P_l[0,3] − P_r[0,3]) / f (m), doffs = P_r[0,2] − \
+                   P_l[0,2]; ROS f = P_r[0], B = −P_r[3] / P_r[0] (m), doffs = P_r[2] − P_l[2]; \
+                   OpenCV f = Q[2,3], cx = −Q[0,3], cy = −Q[1,3], B = 1/Q[3,2], doffs = \
+                   Q[3,3]/Q[3,2] (in `calibration_unit`, which is required).\n\n\
+                   The file may also be the raw body with `Content-Type: text/plain`, with the \
+                   options in the query (`?format=kitti&cameras=0-1`). A file that cannot be \
+                   read is a 422 naming `text` (or `right_text`) with the line and what was \
+                   expected there.",
+    params(CalibrationQuery),
+    request_body(
+        description = "The calibration as JSON, or the file itself as `text/plain`.",
+        content(
+            (CalibrationRequest = "application/json", examples(
+                ("middlebury" = (summary = "Middlebury 2014 calib.txt (mm)", value = json!({
+                    "text": "cam0=[1000 0 640; 0 1000 360; 0 0 1]\n\
+                             cam1=[1000 0 652; 0 1000 360; 0 0 1]\n\
+                             doffs=12\nbaseline=120\nwidth=1280\nheight=720\nndisp=192\n"
+                }))),
+                ("kitti" = (summary = "KITTI odometry calib.txt, grey pair, answer in mm",
+                            value = json!({
+                    "text": "P0: 700 0 600 0 0 700 180 0 0 0 1 0\n\
+                             P1: 700 0 600 -378 0 700 180 0 0 0 1 0\n\
+                             P2: 700 0 600 42 0 700 180 0.2 0 0 1 0.003\n\
+                             P3: 700 0 600 -336 0 700 180 2.2 0 0 1 0.003\n",
+                    "cameras": "0-1", "unit": "mm"
+                }))),
+                ("ros" = (summary = "ROS CameraInfo pair (camera_calibration YAML)",
+                          value = json!({
+                    "text": "image_width: 640\nimage_height: 480\nprojection_matrix:\n  \
+                             rows: 3\n  cols: 4\n  data: [500, 0, 320, 0, 0, 500, 240, 0, 0, 0, \
+                             1, 0]\n",
+                    "right_text": "image_width: 640\nimage_height: 480\nprojection_matrix:\n  \
+                                   rows: 3\n  cols: 4\n  data: [500, 0, 322, -50, 0, 500, 240, \
+                                   0, 0, 0, 1, 0]\n",
+                    "format": "ros"
+                }))),
+                ("opencv" = (summary = "OpenCV FileStorage YAML after stereoRectify, T in mm",
+                             value = json!({
+                    "text": "%YAML:1.0\n---\nQ: !!opencv-matrix\n   rows: 4\n   cols: 4\n   \
+                             dt: d\n   data: [ 1., 0., 0., -640., 0., 1., 0., -360., 0., 0., \
+                             0., 900., 0., 0., 1.6666666666666666e-02, 0. ]\nimage_width: \
+                             1280\nimage_height: 720\n",
+                    "calibration_unit": "mm"
+                })))
+            )),
+            (String = "text/plain")
+        )
+    ),
+    responses(
+        (status = 200, description = "The rig the file describes.", body = CalibrationResponse),
+        BodyErrors
+    )
+)]
+pub async fn post_calibration(
+    CalibrationBody(request, problems): CalibrationBody,
+) -> Result<Json<CalibrationResponse>, ApiError> {
+    read(&request, problems).map(Json)
+}
+
+/// Reads the file and states the rig in the requested unit.
+fn read(
+    request: &CalibrationRequest,
+    mut problems: FieldErrors,
+) -> Result<CalibrationResponse, ApiError> {
+    let text = problems.required("text", request.text.as_deref());
+    if !problems.is_empty() {
+        return Err(problems.into_error());
+    }
+    let text = text.unwrap_or_default();
+    let source = Source {
+        text,
+        right_text: request.right_text.as_deref(),
+        format: request.format.unwrap_or_default().format(),
+        kitti_pair: request.cameras.map(Into::into),
+    };
+    let parsed = calibration::parse(source);
+    let mut warnings = Vec::new();
+    let format = match &parsed {
+        Ok(c) => Some(c.format),
+        Err(_) => source
+            .format
+            .or_else(|| calibration::detect(text, source.right_text.is_some()).ok()),
+    };
+    if let Err(errors) = &parsed {
+        for error in errors {
+            let field = match error.part {
+                Part::Text => "text",
+                Part::RightText => "right_text",
+            };
+            problems.add(field, error.to_string());
+        }
+    }
+    let file_unit = match (request.calibration_unit, format.and_then(Format::unit)) {
+        (Some(given), Some(own)) => {
+            let given = LengthUnit::from(given);
+            if given != own {
+                warnings.push(format!(
+                    "calibration_unit {} overrides this format's own unit, {}",
+                    given.symbol(),
+                    own.symbol()
+                ));
+            }
+            Some(given)
+        }
+        (Some(given), None) => Some(given.into()),
+        (None, Some(own)) => Some(own),
+        (None, None) if format == Some(Format::OpenCv) => {
+            problems.add(
+                "calibration_unit",
+                "is required for OpenCV files: their lengths (T, P2, Q) are in the unit the \
+                 calibration target's squares were measured in, which the file does not record; \
+                 give that unit (mm, cm, m, in or ft)",
+            );
+            None
+        }
+        (None, None) => None,
+    };
+    if let Some(format) = format {
+        if request.right_text.is_some() && format != Format::Ros {
+            warnings.push(format!(
+                "right_text is read only for ROS files; this is a {} file, so it was ignored",
+                format.name()
+            ));
+        }
+        if request.cameras.is_some() && format != Format::Kitti {
+            warnings.push(format!(
+                "cameras applies only to KITTI files; this is a {} file, so it was ignored",
+                format.name()
+            ));
+        }
+    }
+    let (parsed, file_unit) = problems.finish(parsed.ok().zip(file_unit))?;
+    let unit = request.unit.map_or(file_unit, LengthUnit::from);
+    let baseline = file_unit.convert(parsed.baseline, unit);
+    let (image_width, image_height) = parsed.image_size.unzip();
+    warnings.extend(parsed.warnings);
+    Ok(CalibrationResponse {
+        format: parsed.format.into(),
+        rig: CalibratedRig {
+            focal_length_px: parsed.focal_px,
+            focal_length_y_px: (parsed.focal_y_px != parsed.focal_px).then_some(parsed.focal_y_px),
+            baseline,
+            unit: Unit::from(unit),
+            cx: parsed.cx,
+            cy: parsed.cy,
+            doffs: parsed.doffs,
+            image_width,
+            image_height,
+        },
+        max_disparity_px: parsed.max_disparity_px,
+        warnings,
+    })
+}
