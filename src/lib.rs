@@ -1,5 +1,6 @@
 //! Stereo distance service: turns a stereo correspondence into a distance with its expected
-//! error, over HTTP and JSON; and, next, rectified image pairs into correspondences and depth.
+//! error, and a calibration file into the rig, over HTTP and JSON; and, next, rectified image
+//! pairs into correspondences and depth.
 //!
 //! Two kinds of work, kept apart from the router down:
 //! - **light**: JSON answers that take microseconds of CPU and kilobytes of memory (`/distance`,
@@ -13,7 +14,8 @@
 //! Layout:
 //! - Pure code, no HTTP or serde in any signature:
 //!   - [`physics`]: the triangulation model: focal conversions, `Z = B·f_px / |d + doffs|`,
-//!     depth error, 3D point, sweeps for tables and charts.
+//!     depth error, 3D point and range, sweeps for tables and charts.
+//!   - [`calibration`]: Middlebury, KITTI, ROS and OpenCV calibration files read into a rig.
 //!   - [`vision`]: image matching (from a rectified pair to disparities); the heavy group's
 //!     engine.
 //! - [`api`]: the HTTP layer, read one way: [`api::error`] ← [`api::extract`] ←
