@@ -97,7 +97,7 @@ request! {
         /// The format, or `auto` (the default) to detect it.
         format: FormatChoice,
         /// ROS only: the right camera's `CameraInfo`, whose projection matrix holds the
-        /// baseline (P_r[3] = −f·B).
+        /// baseline (`P_r[3] = −f·B`).
         right_text: String,
         /// KITTI only: the camera pair, `2-3` (colour, the default) or `0-1` (grey).
         cameras: Cameras,
