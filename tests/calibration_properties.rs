@@ -178,68 +178,35 @@ fn ros2(r: &Rig, cx: f64, p3: f64) -> String {
     )
 }
 
-/// OpenCV FileStorage YAML with Q (and P1 for fy), as `cv::FileStorage` writes it.
+/// The rectified projections `stereoRectify` writes: P1 at the origin, P2 a baseline to the
+/// right (`P2[0,3] = −f·B`), row-major.
+fn projections(r: &Rig) -> [[f64; 12]; 2] {
+    let p = |cx: f64, tx: f64| [r.f, 0.0, cx, tx, 0.0, r.fy, r.cy, 0.0, 0.0, 0.0, 1.0, 0.0];
+    [p(r.cx, 0.0), p(r.cx + r.doffs, -r.f * r.baseline)]
+}
+
+/// OpenCV FileStorage YAML with Q (and P1, P2 for fy), as `cv::FileStorage` writes it.
 fn opencv_yaml(r: &Rig) -> String {
-    let matrix = |name: &str, rows: usize, cols: usize, data: &[f64]| {
+    let matrix = |name: &str, rows: usize, data: &[f64]| {
         let values: Vec<String> = data.iter().map(|v| format!("{v:?}")).collect();
         format!(
-            "{name}: !!opencv-matrix\n   rows: {rows}\n   cols: {cols}\n   dt: d\n   data: [ {} ]\n",
+            "{name}: !!opencv-matrix\n   rows: {rows}\n   cols: 4\n   dt: d\n   data: [ {} ]\n",
             values.join(",\n       ")
         )
     };
     let q32 = 1.0 / r.baseline;
+    let q = [
+        [1.0, 0.0, 0.0, -r.cx],
+        [0.0, 1.0, 0.0, -r.cy],
+        [0.0, 0.0, 0.0, r.f],
+        [0.0, 0.0, q32, r.doffs * q32],
+    ];
+    let [p1, p2] = projections(r);
     format!(
         "%YAML:1.0\n---\n{}{}{}imageSize: [ {}, {} ]\n",
-        matrix(
-            "P1",
-            3,
-            4,
-            &[
-                r.f, 0.0, r.cx, 0.0, 0.0, r.fy, r.cy, 0.0, 0.0, 0.0, 1.0, 0.0
-            ]
-        ),
-        matrix(
-            "P2",
-            3,
-            4,
-            &[
-                r.f,
-                0.0,
-                r.cx + r.doffs,
-                -r.f * r.baseline,
-                0.0,
-                r.fy,
-                r.cy,
-                0.0,
-                0.0,
-                0.0,
-                1.0,
-                0.0
-            ]
-        ),
-        matrix(
-            "Q",
-            4,
-            4,
-            &[
-                1.0,
-                0.0,
-                0.0,
-                -r.cx,
-                0.0,
-                1.0,
-                0.0,
-                -r.cy,
-                0.0,
-                0.0,
-                0.0,
-                r.f,
-                0.0,
-                0.0,
-                q32,
-                r.doffs * q32
-            ]
-        ),
+        matrix("P1", 3, &p1),
+        matrix("P2", 3, &p2),
+        matrix("Q", 4, q.as_flattened()),
         r.width,
         r.height,
     )
@@ -255,32 +222,12 @@ fn opencv_xml(r: &Rig) -> String {
             values.join(" ")
         )
     };
+    let [p1, p2] = projections(r);
     format!(
         "<?xml version=\"1.0\"?>\n<opencv_storage>\n{}{}<imageSize>\n  {} {}</imageSize>\n\
          </opencv_storage>\n",
-        matrix(
-            "P1",
-            &[
-                r.f, 0.0, r.cx, 0.0, 0.0, r.fy, r.cy, 0.0, 0.0, 0.0, 1.0, 0.0
-            ]
-        ),
-        matrix(
-            "P2",
-            &[
-                r.f,
-                0.0,
-                r.cx + r.doffs,
-                -r.f * r.baseline,
-                0.0,
-                r.fy,
-                r.cy,
-                0.0,
-                0.0,
-                0.0,
-                1.0,
-                0.0
-            ]
-        ),
+        matrix("P1", &p1),
+        matrix("P2", &p2),
         r.width,
         r.height,
     )

@@ -44,8 +44,54 @@ macro_rules! json_operation {
     };
 }
 
-pub(crate) use json_operation;
+/// Declares the two handlers of an operation that answers JSON or CSV, as
+/// [`json_operation!`] does, plus the format choice: `format` in the body or query (`POST` may
+/// also take `?format=`), else the `Accept` header; `$respond(answer, format)` writes the
+/// answer. The calling module also imports `HeaderMap`, `header`, `Response`, `csv` and
+/// `FormatQuery`.
+macro_rules! data_operation {
+    (
+        $answer:ident: $request:ident => $response:ident by $respond:ident at $path:tt,
+        tag $tag:tt, ok $ok:tt;
+        post $post:ident($($post_doc:tt)*);
+        get $get:ident(summary = $get_summary:tt);
+    ) => {
+        #[utoipa::path(post, path = $path, tag = $tag, $($post_doc)*,
+            description = "JSON by default; CSV with `format: csv` in the body, \
+                           `?format=csv` in the URL, or `Accept: text/csv`.",
+            params(FormatQuery),
+            responses((status = 200, description = $ok, content(
+                ($response = "application/json"), (String = "text/csv"))), BodyErrors))]
+        pub async fn $post(
+            State(state): State<AppState>,
+            QueryParams(query, query_problems): QueryParams<FormatQuery>,
+            headers: HeaderMap,
+            JsonBody(request, mut problems): JsonBody<$request>,
+        ) -> Result<Response, ApiError> {
+            problems.extend(query_problems);
+            let format =
+                csv::negotiate(query.format.or(request.format), headers.get(header::ACCEPT));
+            $answer(&state, &request, problems).map(|answer| $respond(answer, format))
+        }
+
+        #[utoipa::path(get, path = $path, tag = $tag, summary = $get_summary,
+            description = "JSON by default; CSV with `format=csv` or `Accept: text/csv`.",
+            params($request),
+            responses((status = 200, description = $ok, content(
+                ($response = "application/json"), (String = "text/csv"))), QueryErrors))]
+        pub async fn $get(
+            State(state): State<AppState>,
+            headers: HeaderMap,
+            QueryParams(request, problems): QueryParams<$request>,
+        ) -> Result<Response, ApiError> {
+            let format = csv::negotiate(request.format, headers.get(header::ACCEPT));
+            $answer(&state, &request, problems).map(|answer| $respond(answer, format))
+        }
+    };
+}
+
 use utoipa_axum::router::OpenApiRouter;
+pub(crate) use {data_operation, json_operation};
 
 use super::{AppState, HeavyState, error::ApiError};
 

@@ -10,6 +10,7 @@ use axum::response::{IntoResponse, Response};
 use utoipa_axum::{router::OpenApiRouter, routes};
 
 use self::types::{Axis, AxisScale, ChartPoint, ChartRequest, ChartResponse, Series};
+use super::data_operation;
 use crate::api::AppState;
 use crate::api::csv::{self, DataFormat, FormatQuery};
 use crate::api::error::{ApiError, FieldErrors};
@@ -29,14 +30,11 @@ pub fn router() -> OpenApiRouter<AppState> {
 /// The media type of `/chart.svg`.
 pub const IMAGE_SVG: &str = "image/svg+xml";
 
-#[utoipa::path(
-    post,
-    path = "/chart-data",
-    tag = "chart",
-    summary = "Chart series of distance and depth error against disparity",
-    description = "JSON by default; CSV with `format: csv` in the body, `?format=csv` in the \
-                   URL, or `Accept: text/csv`.",
-    params(FormatQuery),
+data_operation! {
+    chart: ChartRequest => ChartResponse by chart_response at "/chart-data", tag "chart",
+        ok "The chart series.";
+    post post_chart_data(
+        summary = "Chart series of distance and depth error against disparity",
     request_body(content = ChartRequest, examples(
         ("measured point" = (summary = "The seed's example 1 marked on the curve",
                              value = json!({
@@ -58,48 +56,9 @@ pub const IMAGE_SVG: &str = "image/svg+xml";
             "disparity_min": 1, "disparity_max": 128, "spacing": "log", "scale": "log",
             "format": "csv", "points": 20
         })))
-    )),
-    responses(
-        (status = 200, description = "The chart series.", content(
-            (ChartResponse = "application/json"),
-            (String = "text/csv")
-        )),
-        BodyErrors
-    )
-)]
-pub async fn post_chart_data(
-    State(state): State<AppState>,
-    QueryParams(query, query_problems): QueryParams<FormatQuery>,
-    headers: HeaderMap,
-    JsonBody(request, mut problems): JsonBody<ChartRequest>,
-) -> Result<Response, ApiError> {
-    problems.extend(query_problems);
-    let format = csv::negotiate(query.format.or(request.format), headers.get(header::ACCEPT));
-    chart(&state, &request, problems).map(|c| chart_response(c, format))
-}
-
-#[utoipa::path(
-    get,
-    path = "/chart-data",
-    tag = "chart",
-    summary = "Chart series (query-string form of POST /chart-data)",
-    description = "JSON by default; CSV with `format=csv` or `Accept: text/csv`.",
-    params(ChartRequest),
-    responses(
-        (status = 200, description = "The chart series.", content(
-            (ChartResponse = "application/json"),
-            (String = "text/csv")
-        )),
-        QueryErrors
-    )
-)]
-pub async fn get_chart_data(
-    State(state): State<AppState>,
-    headers: HeaderMap,
-    QueryParams(request, problems): QueryParams<ChartRequest>,
-) -> Result<Response, ApiError> {
-    let format = csv::negotiate(request.format, headers.get(header::ACCEPT));
-    chart(&state, &request, problems).map(|c| chart_response(c, format))
+    ))
+    );
+    get get_chart_data(summary = "Chart series (query-string form of POST /chart-data)");
 }
 
 /// The chart series in the negotiated format.

@@ -9,6 +9,7 @@ use axum::response::Response;
 use utoipa_axum::{router::OpenApiRouter, routes};
 
 use self::types::{TableRequest, TableResponse, TableRow};
+use super::data_operation;
 use crate::api::AppState;
 use crate::api::csv::{self, DataFormat, FormatQuery};
 use crate::api::error::{ApiError, FieldErrors};
@@ -22,14 +23,11 @@ pub fn router() -> OpenApiRouter<AppState> {
     OpenApiRouter::new().routes(routes!(get_table, post_table))
 }
 
-#[utoipa::path(
-    post,
-    path = "/table",
-    tag = "table",
-    summary = "Sample table of distance against disparity for a rig",
-    description = "JSON by default; CSV with `format: csv` in the body, `?format=csv` in the \
-                   URL, or `Accept: text/csv`.",
-    params(FormatQuery),
+data_operation! {
+    table: TableRequest => TableResponse by table_response at "/table", tag "table",
+        ok "The sample table.";
+    post post_table(
+        summary = "Sample table of distance against disparity for a rig",
     request_body(content = TableRequest, examples(
         ("disparity range" = (summary = "The seed's rig over 10 to 100 px", value = json!({
             "focal_length_px": 35, "baseline": 150, "unit": "mm",
@@ -46,48 +44,9 @@ pub fn router() -> OpenApiRouter<AppState> {
             "focal_length_mm": 4, "sensor_width_mm": 6.4, "baseline": 120,
             "image_width": 1280, "image_height": 720, "format": "csv", "steps": 5
         })))
-    )),
-    responses(
-        (status = 200, description = "The sample table.", content(
-            (TableResponse = "application/json"),
-            (String = "text/csv")
-        )),
-        BodyErrors
-    )
-)]
-pub async fn post_table(
-    State(state): State<AppState>,
-    QueryParams(query, query_problems): QueryParams<FormatQuery>,
-    headers: HeaderMap,
-    JsonBody(request, mut problems): JsonBody<TableRequest>,
-) -> Result<Response, ApiError> {
-    problems.extend(query_problems);
-    let format = csv::negotiate(query.format.or(request.format), headers.get(header::ACCEPT));
-    table(&state, &request, problems).map(|t| table_response(t, format))
-}
-
-#[utoipa::path(
-    get,
-    path = "/table",
-    tag = "table",
-    summary = "Sample table (query-string form of POST /table)",
-    description = "JSON by default; CSV with `format=csv` or `Accept: text/csv`.",
-    params(TableRequest),
-    responses(
-        (status = 200, description = "The sample table.", content(
-            (TableResponse = "application/json"),
-            (String = "text/csv")
-        )),
-        QueryErrors
-    )
-)]
-pub async fn get_table(
-    State(state): State<AppState>,
-    headers: HeaderMap,
-    QueryParams(request, problems): QueryParams<TableRequest>,
-) -> Result<Response, ApiError> {
-    let format = csv::negotiate(request.format, headers.get(header::ACCEPT));
-    table(&state, &request, problems).map(|t| table_response(t, format))
+    ))
+    );
+    get get_table(summary = "Sample table (query-string form of POST /table)");
 }
 
 /// The table in the negotiated format.
