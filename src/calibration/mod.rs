@@ -206,13 +206,42 @@ pub fn parse(source: Source) -> Result<Calibration, Vec<ParseError>> {
         Some(format) => format,
         None => detect(source.text, source.right_text.is_some())?,
     };
-    match format {
+    let parsed = match format {
         Format::Middlebury => middlebury::parse(source.text),
         Format::Kitti => kitti::parse(source.text, source.kitti_pair),
         Format::Ros => ros::parse(source.text, source.right_text),
         Format::OpenCv => opencv::parse(source.text),
-    }
+    };
+    parsed.map_err(|mut errors| {
+        // A format given by the caller that the file does not have: say which it looks like.
+        if source.format.is_some()
+            && let Ok(looks) = detect(source.text, source.right_text.is_some())
+            && looks != format
+        {
+            errors.insert(
+                0,
+                ParseError::whole(format!(
+                    "this looks like a {} file, not {}: send format auto or {}",
+                    looks.name(),
+                    format.name(),
+                    looks.name()
+                )),
+            );
+        }
+        if errors.len() > MAX_ERRORS {
+            let more = errors.len() - MAX_ERRORS;
+            errors.truncate(MAX_ERRORS);
+            errors.push(ParseError::whole(format!(
+                "and {more} more problems like these"
+            )));
+        }
+        errors
+    })
 }
+
+/// The most problems reported for one file; a file in another format would otherwise get one
+/// per line.
+const MAX_ERRORS: usize = 10;
 
 /// The format a file is in, from the marks each format leaves.
 pub fn detect(text: &str, has_right: bool) -> Result<Format, Vec<ParseError>> {
@@ -276,6 +305,20 @@ mod tests {
             Ok(Format::Ros)
         );
         assert_eq!(detect("k:\n- 1.0\np:\n- 1.0\n", false), Ok(Format::Ros));
+        let kitti = "calib_time: 09-Jan-2012\n".repeat(30) + "P_rect_02: 1 0 2 0 0 1 3 0 0 0 1 0\n";
+        let errors = parse(Source {
+            text: &kitti,
+            format: Some(Format::Middlebury),
+            ..Source::default()
+        })
+        .unwrap_err();
+        assert!(
+            errors[0]
+                .message
+                .starts_with("this looks like a kitti file")
+        );
+        assert_eq!(errors.len(), MAX_ERRORS + 1);
+        assert!(errors[MAX_ERRORS].message.contains("more problems"));
         let error = detect("hello world\n", false).unwrap_err();
         for tried in ["middlebury", "kitti", "opencv", "ros"] {
             assert!(error[0].message.contains(tried), "{tried}");
