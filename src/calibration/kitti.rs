@@ -6,7 +6,7 @@
 //! `P[0,3]` divided by f: for the colour pair `(P_rect_02[0,3] − P_rect_03[0,3]) / f`, not
 //! `−P_rect_03[0,3] / f`, because camera 2 is itself 6 cm from camera 0.
 
-use super::{Calibration, Format, KittiPair, ParseError, yaml::number};
+use super::{Calibration, Format, KittiPair, ParseError, pixels, yaml::number};
 
 /// The numbers of a `key: numbers` line, with its line number.
 struct Entry {
@@ -124,26 +124,23 @@ pub fn parse(text: &str, pair: Option<KittiPair>) -> Result<Calibration, Vec<Par
     }
     let size_key = format!("S_rect_0{l}");
     let image_size = match entries.iter().find(|(k, _)| *k == size_key) {
-        Some((_, entry)) => {
-            let whole = |v: f64| (v.fract() == 0.0 && (1.0..=1e6).contains(&v)).then_some(v as u32);
-            match entry.values.as_slice() {
-                [w, h] => match (whole(*w), whole(*h)) {
-                    (Some(w), Some(h)) => Some((w, h)),
-                    _ => {
-                        return Err(vec![ParseError::at(
-                            entry.line,
-                            format!("{size_key} must be a width and a height in whole pixels"),
-                        )]);
-                    }
-                },
+        Some((_, entry)) => match entry.values.as_slice() {
+            [w, h] => match (pixels(*w), pixels(*h)) {
+                (Some(w), Some(h)) => Some((w, h)),
                 _ => {
                     return Err(vec![ParseError::at(
                         entry.line,
-                        format!("{size_key} must be two numbers, the width and the height"),
+                        format!("{size_key} must be a width and a height in whole pixels"),
                     )]);
                 }
+            },
+            _ => {
+                return Err(vec![ParseError::at(
+                    entry.line,
+                    format!("{size_key} must be two numbers, the width and the height"),
+                )]);
             }
-        }
+        },
         None => None,
     };
     let calibration = Calibration {

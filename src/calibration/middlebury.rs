@@ -2,7 +2,7 @@
 //! `doffs` and `baseline` in millimetres, `width`, `height` and `ndisp`; other keys (`isint`,
 //! `vmin`, `vmax`, `dyavg`, `dymax`) are read and ignored.
 
-use super::{Calibration, Format, ParseError, yaml::number};
+use super::{Calibration, Format, ParseError, pixels, yaml::number};
 
 /// A 3×3 matrix written `[a b c; d e f; g h i]`.
 fn matrix(key: &str, value: &str, line: usize) -> Result<[[f64; 3]; 3], ParseError> {
@@ -38,19 +38,24 @@ fn matrix(key: &str, value: &str, line: usize) -> Result<[[f64; 3]; 3], ParseErr
 
 /// A whole number of pixels (`2964`, also `2964.0`).
 fn whole(key: &str, value: &str, line: usize) -> Result<u32, ParseError> {
+    number(value).and_then(pixels).ok_or_else(|| {
+        ParseError::at(
+            line,
+            format!("{key} must be a whole number of pixels, got `{value}`"),
+        )
+    })
+}
+
+/// A number.
+fn scalar(key: &str, value: &str, line: usize) -> Result<f64, ParseError> {
     number(value)
-        .filter(|v| v.fract() == 0.0 && *v >= 1.0 && *v <= f64::from(u32::MAX))
-        .map(|v| v as u32)
-        .ok_or_else(|| {
-            ParseError::at(
-                line,
-                format!("{key} must be a whole number of pixels, got `{value}`"),
-            )
-        })
+        .ok_or_else(|| ParseError::at(line, format!("{key} must be a number, got `{value}`")))
 }
 
 pub fn parse(text: &str) -> Result<Calibration, Vec<ParseError>> {
     let mut errors = Vec::new();
+    // The keys present, refused or not: a refused key is not also reported missing.
+    let mut seen: Vec<&str> = Vec::new();
     let mut cams: [Option<([[f64; 3]; 3], usize)>; 2] = [None, None];
     let (mut doffs, mut baseline, mut width, mut height, mut ndisp) =
         (None, None, None, None, None);
@@ -68,48 +73,30 @@ pub fn parse(text: &str) -> Result<Calibration, Vec<ParseError>> {
             continue;
         };
         let (key, value) = (key.trim(), value.trim());
-        let scalar = |errors: &mut Vec<ParseError>| {
-            let parsed = number(value);
-            if parsed.is_none() {
-                errors.push(ParseError::at(
-                    line,
-                    format!("{key} must be a number, got `{value}`"),
-                ));
-            }
-            parsed.map(|v| (v, line))
-        };
-        let mut record = |r: Result<u32, ParseError>| match r {
-            Ok(v) => Some((v, line)),
-            Err(e) => {
-                errors.push(e);
-                None
-            }
-        };
-        match key {
+        seen.push(key);
+        let read = match key {
             "cam0" | "cam1" => {
-                let slot = usize::from(key == "cam1");
-                match matrix(key, value, line) {
-                    Ok(m) => cams[slot] = Some((m, line)),
-                    Err(e) => errors.push(e),
-                }
+                matrix(key, value, line).map(|m| cams[usize::from(key == "cam1")] = Some((m, line)))
             }
-            "doffs" => doffs = scalar(&mut errors),
-            "baseline" => baseline = scalar(&mut errors),
-            "width" => width = record(whole(key, value, line)),
-            "height" => height = record(whole(key, value, line)),
-            "ndisp" => ndisp = record(whole(key, value, line)),
-            _ => {}
+            "doffs" => scalar(key, value, line).map(|v| doffs = Some(v)),
+            "baseline" => scalar(key, value, line).map(|v| baseline = Some((v, line))),
+            "width" => whole(key, value, line).map(|v| width = Some(v)),
+            "height" => whole(key, value, line).map(|v| height = Some(v)),
+            "ndisp" => whole(key, value, line).map(|v| ndisp = Some(v)),
+            _ => Ok(()),
+        };
+        if let Err(error) = read {
+            errors.push(error);
         }
     }
-    for (slot, name) in [(0, "cam0"), (1, "cam1")] {
-        if cams[slot].is_none() && !errors.iter().any(|e| e.message.starts_with(name)) {
-            errors.push(ParseError::whole(format!(
-                "{name}=[f 0 cx; 0 f cy; 0 0 1] is missing"
-            )));
+    for (key, missing) in [
+        ("cam0", "cam0=[f 0 cx; 0 f cy; 0 0 1] is missing"),
+        ("cam1", "cam1=[f 0 cx; 0 f cy; 0 0 1] is missing"),
+        ("baseline", "baseline=... (in mm) is missing"),
+    ] {
+        if !seen.contains(&key) {
+            errors.push(ParseError::whole(missing));
         }
-    }
-    if baseline.is_none() && !errors.iter().any(|e| e.message.starts_with("baseline")) {
-        errors.push(ParseError::whole("baseline=... (in mm) is missing"));
     }
     let ([Some((cam0, line0)), Some((cam1, _))], Some((baseline, baseline_line))) =
         (cams, baseline)
@@ -122,7 +109,7 @@ pub fn parse(text: &str) -> Result<Calibration, Vec<ParseError>> {
     let mut warnings = Vec::new();
     let derived = cam1[0][2] - cam0[0][2];
     let doffs = match doffs {
-        Some((doffs, _)) => {
+        Some(doffs) => {
             if (doffs - derived).abs() > 1e-3 * doffs.abs().max(1.0) {
                 warnings.push(format!(
                     "doffs = {doffs} but cam1's cx − cam0's cx = {derived}; doffs is used"
@@ -145,7 +132,7 @@ pub fn parse(text: &str) -> Result<Calibration, Vec<ParseError>> {
         ));
     }
     let image_size = match (width, height) {
-        (Some((w, _)), Some((h, _))) => Some((w, h)),
+        (Some(w), Some(h)) => Some((w, h)),
         (None, None) => None,
         _ => {
             warnings
@@ -162,7 +149,7 @@ pub fn parse(text: &str) -> Result<Calibration, Vec<ParseError>> {
         cy: cam0[1][2],
         doffs,
         image_size,
-        max_disparity_px: ndisp.map(|(n, _)| n),
+        max_disparity_px: ndisp,
         warnings,
     };
     let line = if baseline > 0.0 { line0 } else { baseline_line };

@@ -17,6 +17,15 @@ use std::fmt;
 
 use crate::physics::LengthUnit;
 
+/// The largest image side a calibration file may state, in pixels.
+const MAX_PIXELS: f64 = 1e6;
+
+/// `value` as an image extent: a whole number of pixels from 1 to [`MAX_PIXELS`] (`2964.0` is
+/// 2964); `None` when it is not one. Every reader states image sizes through this.
+fn pixels(value: f64) -> Option<u32> {
+    (value.fract() == 0.0 && (1.0..=MAX_PIXELS).contains(&value)).then_some(value as u32)
+}
+
 /// The calibration formats the service reads.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Format {

@@ -10,7 +10,7 @@
 //! the unit of the calibration target's squares, which the file does not record.
 
 use super::yaml::{self, Node};
-use super::{Calibration, Format, ParseError};
+use super::{Calibration, Format, ParseError, pixels};
 
 pub fn parse(text: &str) -> Result<Calibration, Vec<ParseError>> {
     let doc = if text.trim_start().starts_with('<') {
@@ -70,26 +70,25 @@ fn matrix(
 fn image_size(doc: &Node) -> Result<Option<(u32, u32)>, ParseError> {
     let whole = |node: &Node, what: &str| -> Result<u32, ParseError> {
         let v = node.number(what)?;
-        if v.fract() == 0.0 && (1.0..=1e6).contains(&v) {
-            Ok(v as u32)
-        } else {
-            Err(ParseError::at(
+        pixels(v).ok_or_else(|| {
+            ParseError::at(
                 node.line(),
                 format!("{what} must be a whole number of pixels, got {v}"),
-            ))
-        }
+            )
+        })
     };
     if let Some(node) = doc.get("imageSize") {
         let values = node.numbers("imageSize")?;
-        return match values.as_slice() {
-            [w, h] if w.fract() == 0.0 && h.fract() == 0.0 && *w >= 1.0 && *h >= 1.0 => {
-                Ok(Some((*w as u32, *h as u32)))
-            }
-            _ => Err(ParseError::at(
+        let size = match values.as_slice() {
+            [w, h] => pixels(*w).zip(pixels(*h)),
+            _ => None,
+        };
+        return size.map(Some).ok_or_else(|| {
+            ParseError::at(
                 node.line(),
                 "imageSize must be [width, height] in whole pixels",
-            )),
-        };
+            )
+        });
     }
     match (doc.get("image_width"), doc.get("image_height")) {
         (Some(w), Some(h)) => Ok(Some((whole(w, "image_width")?, whole(h, "image_height")?))),

@@ -4,7 +4,7 @@
 //! (`K`, `P`). The right camera's projection carries the baseline: `P_r[3] = −f·B`.
 
 use super::yaml::{self, Node};
-use super::{Calibration, Format, ParseError};
+use super::{Calibration, Format, ParseError, pixels};
 
 /// What one camera's file gives.
 struct Camera {
@@ -51,13 +51,16 @@ fn camera(text: &str) -> Result<Camera, ParseError> {
             return Ok(None);
         };
         let value = node.number(key)?;
-        if value.fract() != 0.0 || !(0.0..=1e6).contains(&value) {
-            return Err(ParseError::at(
+        // CameraInfo leaves an unset size at 0.
+        if value == 0.0 {
+            return Ok(None);
+        }
+        pixels(value).map(Some).ok_or_else(|| {
+            ParseError::at(
                 node.line(),
                 format!("{key} must be a whole number of pixels, got {value}"),
-            ));
-        }
-        Ok((value > 0.0).then_some(value as u32))
+            )
+        })
     };
     let width = extent(["image_width", "width"])?;
     let height = extent(["image_height", "height"])?;
