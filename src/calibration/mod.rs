@@ -208,12 +208,23 @@ impl Calibration {
     }
 }
 
+/// A calibration that could not be read: the format it was read as (`None` when it matches
+/// none) and every problem found.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Rejected {
+    pub format: Option<Format>,
+    pub errors: Vec<ParseError>,
+}
+
 /// Reads a calibration. A file that matches no format says which were tried and why each did
 /// not fit.
-pub fn parse(source: Source) -> Result<Calibration, Vec<ParseError>> {
+pub fn parse(source: Source) -> Result<Calibration, Rejected> {
     let format = match source.format {
         Some(format) => format,
-        None => detect(source.text, source.right_text.is_some())?,
+        None => detect(source.text, source.right_text.is_some()).map_err(|errors| Rejected {
+            format: None,
+            errors,
+        })?,
     };
     let parsed = match format {
         Format::Middlebury => middlebury::parse(source.text),
@@ -244,7 +255,10 @@ pub fn parse(source: Source) -> Result<Calibration, Vec<ParseError>> {
                 "and {more} more problems like these"
             )));
         }
-        errors
+        Rejected {
+            format: Some(format),
+            errors,
+        }
     })
 }
 
@@ -320,7 +334,8 @@ mod tests {
             format: Some(Format::Middlebury),
             ..Source::default()
         })
-        .unwrap_err();
+        .unwrap_err()
+        .errors;
         assert!(
             errors[0]
                 .message

@@ -172,23 +172,23 @@ fn read(
         format: request.format.unwrap_or_default().format(),
         kitti_pair: request.cameras.map(Into::into),
     };
-    let parsed = calibration::parse(source);
-    let mut warnings = Vec::new();
-    let format = match &parsed {
-        Ok(c) => Some(c.format),
-        Err(_) => source
-            .format
-            .or_else(|| calibration::detect(text, source.right_text.is_some()).ok()),
-    };
-    if let Err(errors) = &parsed {
-        for error in errors {
-            let field = match error.part {
-                Part::Text => "text",
-                Part::RightText => "right_text",
-            };
-            problems.add(field, error.to_string());
+    let (parsed, format) = match calibration::parse(source) {
+        Ok(calibration) => {
+            let format = calibration.format;
+            (Some(calibration), Some(format))
         }
-    }
+        Err(rejected) => {
+            for error in &rejected.errors {
+                let field = match error.part {
+                    Part::Text => "text",
+                    Part::RightText => "right_text",
+                };
+                problems.add(field, error.to_string());
+            }
+            (None, rejected.format)
+        }
+    };
+    let mut warnings = Vec::new();
     let file_unit = match (request.calibration_unit, format.and_then(Format::unit)) {
         (Some(given), Some(own)) => {
             let given = LengthUnit::from(given);
@@ -228,7 +228,7 @@ fn read(
             ));
         }
     }
-    let (parsed, file_unit) = problems.finish(parsed.ok().zip(file_unit))?;
+    let (parsed, file_unit) = problems.finish(parsed.zip(file_unit))?;
     let unit = request.unit.map_or(file_unit, LengthUnit::from);
     let baseline = file_unit.convert(parsed.baseline, unit);
     let (image_width, image_height) = parsed.image_size.unzip();
