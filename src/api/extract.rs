@@ -105,9 +105,14 @@ where
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct BodyLimit(pub usize);
 
+/// A media type without its parameters: `text/plain` of `text/plain; charset=utf-8`.
+pub fn essence(content_type: &str) -> &str {
+    content_type.split(';').next().unwrap_or_default().trim()
+}
+
 /// `application/json`, or any `application/*+json`, with or without parameters.
 pub fn is_json(content_type: &str) -> bool {
-    let essence = content_type.split(';').next().unwrap_or_default().trim();
+    let essence = essence(content_type);
     let starts = |prefix: &str| {
         essence
             .get(..prefix.len())

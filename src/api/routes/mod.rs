@@ -46,13 +46,13 @@ macro_rules! json_operation {
 
 /// Declares the two handlers of an operation that answers JSON or CSV, as
 /// [`json_operation!`] does, plus the format choice: `format` in the body or query (`POST` may
-/// also take `?format=`), else the `Accept` header; `$respond(answer, format)` writes the
-/// answer. The calling module also imports `HeaderMap`, `header`, `Response`, `csv` and
-/// `FormatQuery`.
+/// also take `?format=`), else the `Accept` header; the CSV form is `$csv(&answer)`, sent as
+/// the attachment `$file`. The calling module also imports `HeaderMap`, `header`, `Response`,
+/// `csv` and `FormatQuery`.
 macro_rules! data_operation {
     (
-        $answer:ident: $request:ident => $response:ident by $respond:ident at $path:tt,
-        tag $tag:tt, ok $ok:tt;
+        $answer:ident: $request:ident => $response:ident, csv $csv:ident as $file:literal
+        at $path:tt, tag $tag:tt, ok $ok:tt;
         post $post:ident($($post_doc:tt)*);
         get $get:ident(summary = $get_summary:tt);
     ) => {
@@ -71,7 +71,8 @@ macro_rules! data_operation {
             problems.extend(query_problems);
             let format =
                 csv::negotiate(query.format.or(request.format), headers.get(header::ACCEPT));
-            $answer(&state, &request, problems).map(|answer| $respond(answer, format))
+            $crate::api::routes::data_operation!(@respond $answer(&state, &request, problems),
+                format, $csv, $file)
         }
 
         #[utoipa::path(get, path = $path, tag = $tag, summary = $get_summary,
@@ -85,8 +86,14 @@ macro_rules! data_operation {
             QueryParams(request, problems): QueryParams<$request>,
         ) -> Result<Response, ApiError> {
             let format = csv::negotiate(request.format, headers.get(header::ACCEPT));
-            $answer(&state, &request, problems).map(|answer| $respond(answer, format))
+            $crate::api::routes::data_operation!(@respond $answer(&state, &request, problems),
+                format, $csv, $file)
         }
+    };
+    (@respond $answer:expr, $format:ident, $csv:ident, $file:literal) => {
+        $answer.map(|answer| {
+            csv::respond($format, answer, $csv, concat!("attachment; filename=\"", $file, "\""))
+        })
     };
 }
 

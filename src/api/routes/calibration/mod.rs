@@ -38,25 +38,16 @@ impl FromRequest<AppState> for CalibrationBody {
             QueryParams::<CalibrationQuery>::from_request_parts(&mut parts, state).await?;
         let req = Request::from_parts(parts, body);
         let content_type = req.headers().get(header::CONTENT_TYPE).cloned();
-        let essence = content_type
-            .as_ref()
-            .and_then(|ct| ct.to_str().ok())
-            .map(|ct| {
-                ct.split(';')
-                    .next()
-                    .unwrap_or_default()
-                    .trim()
-                    .to_ascii_lowercase()
-            });
+        let media = content_type.as_ref().and_then(|ct| ct.to_str().ok());
         let limit = BodyLimit(state.limits.body_bytes);
-        let mut request = match essence.as_deref() {
+        let mut request = match media {
             Some(ct) if extract::is_json(ct) => {
                 let bytes = extract::json_bytes(req, limit).await?;
                 let (request, refused) = extract::decode_json::<CalibrationRequest>(&bytes)?;
                 problems.extend(refused);
                 request
             }
-            Some("text/plain") => {
+            Some(ct) if extract::essence(ct).eq_ignore_ascii_case("text/plain") => {
                 let bytes = extract::body_bytes(req, limit).await?;
                 match String::from_utf8(bytes.to_vec()) {
                     Ok(text) => CalibrationRequest {

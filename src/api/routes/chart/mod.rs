@@ -12,7 +12,7 @@ use utoipa_axum::{router::OpenApiRouter, routes};
 use self::types::{Axis, AxisScale, ChartPoint, ChartRequest, ChartResponse, Series};
 use super::data_operation;
 use crate::api::AppState;
-use crate::api::csv::{self, DataFormat, FormatQuery};
+use crate::api::csv::{self, FormatQuery};
 use crate::api::error::{ApiError, FieldErrors};
 use crate::api::extract::{JsonBody, QueryParams};
 use crate::api::format::short;
@@ -31,8 +31,8 @@ pub fn router() -> OpenApiRouter<AppState> {
 pub const IMAGE_SVG: &str = "image/svg+xml";
 
 data_operation! {
-    chart: ChartRequest => ChartResponse by chart_response at "/chart-data", tag "chart",
-        ok "The chart series.";
+    chart: ChartRequest => ChartResponse, csv chart_csv as "stereo-chart.csv"
+        at "/chart-data", tag "chart", ok "The chart series.";
     post post_chart_data(
         summary = "Chart series of distance and depth error against disparity",
     request_body(content = ChartRequest, examples(
@@ -59,16 +59,6 @@ data_operation! {
     ))
     );
     get get_chart_data(summary = "Chart series (query-string form of POST /chart-data)");
-}
-
-/// The chart series in the negotiated format.
-fn chart_response(chart: ChartResponse, format: DataFormat) -> Response {
-    csv::respond(
-        format,
-        chart,
-        chart_csv,
-        "attachment; filename=\"stereo-chart.csv\"",
-    )
 }
 
 /// The series as CSV: one row per disparity, the distance and depth error in the chart's

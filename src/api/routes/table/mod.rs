@@ -11,7 +11,7 @@ use utoipa_axum::{router::OpenApiRouter, routes};
 use self::types::{TableRequest, TableResponse, TableRow};
 use super::data_operation;
 use crate::api::AppState;
-use crate::api::csv::{self, DataFormat, FormatQuery};
+use crate::api::csv::{self, FormatQuery};
 use crate::api::error::{ApiError, FieldErrors};
 use crate::api::extract::{JsonBody, QueryParams};
 use crate::api::validate::{self, Bounds};
@@ -24,8 +24,8 @@ pub fn router() -> OpenApiRouter<AppState> {
 }
 
 data_operation! {
-    table: TableRequest => TableResponse by table_response at "/table", tag "table",
-        ok "The sample table.";
+    table: TableRequest => TableResponse, csv table_csv as "stereo-table.csv"
+        at "/table", tag "table", ok "The sample table.";
     post post_table(
         summary = "Sample table of distance against disparity for a rig",
     request_body(content = TableRequest, examples(
@@ -47,16 +47,6 @@ data_operation! {
     ))
     );
     get get_table(summary = "Sample table (query-string form of POST /table)");
-}
-
-/// The table in the negotiated format.
-fn table_response(table: TableResponse, format: DataFormat) -> Response {
-    csv::respond(
-        format,
-        table,
-        table_csv,
-        "attachment; filename=\"stereo-table.csv\"",
-    )
 }
 
 /// The header row: the members of a JSON [`TableRow`] in the same order, each length with
