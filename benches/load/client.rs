@@ -310,6 +310,31 @@ pub async fn gather(
     ))
 }
 
+/// A run's timeline: it starts now, measures from the end of the warm-up `from` to `to`, and
+/// `watcher` reads the server's and the client's CPU over that window.
+struct Window {
+    start: Instant,
+    from: Instant,
+    to: Instant,
+    watcher: tokio::task::JoinHandle<Readings>,
+}
+
+impl Window {
+    /// Opens the window of one run (inside the runtime: it spawns the watcher).
+    fn open(server: &Server, options: &Options) -> Self {
+        let start = Instant::now();
+        let from = start + options.warmup;
+        let to = from + options.duration;
+        let watcher = tokio::spawn(watch(server.pid(), from, to));
+        Self {
+            start,
+            from,
+            to,
+            watcher,
+        }
+    }
+}
+
 /// Closed loop: `connections` connections each send the next request as soon as the last is
 /// answered, for the warm-up and then the measured window.
 pub fn closed_loop(
@@ -320,10 +345,9 @@ pub fn closed_loop(
     options: &Options,
 ) -> Result<Row, String> {
     runtime.block_on(async {
-        let start = Instant::now();
-        let from = start + options.warmup;
-        let to = from + options.duration;
-        let watcher = tokio::spawn(watch(server.pid(), from, to));
+        let Window {
+            from, to, watcher, ..
+        } = Window::open(server, options);
         let mut tasks = Vec::with_capacity(connections);
         for _ in 0..connections {
             let request = Arc::clone(&target.bytes);
@@ -359,10 +383,12 @@ pub fn open_loop(
     options: &Options,
 ) -> Result<Row, String> {
     runtime.block_on(async {
-        let start = Instant::now();
-        let from = start + options.warmup;
-        let to = from + options.duration;
-        let watcher = tokio::spawn(watch(server.pid(), from, to));
+        let Window {
+            start,
+            from,
+            to,
+            watcher,
+        } = Window::open(server, options);
         let (release, due) = mpsc::unbounded_channel::<Instant>();
         let due = Arc::new(Mutex::new(due));
         let mut tasks = Vec::with_capacity(connections);
