@@ -80,7 +80,8 @@ pub async fn body_bytes(req: Request, BodyLimit(limit): BodyLimit) -> Result<Byt
 }
 
 /// A request type that can come as a query string: which of its members are lists, given
-/// comma-separated (OpenAPI `style: form, explode: false`), such as `at_distances=500,1000`.
+/// comma-separated (OpenAPI `style: form, explode: false`), such as `at_distances=500,1000`,
+/// or repeated, `at_distances=500&at_distances=1000`, as many generated clients send them.
 pub trait QueryForm: DeserializeOwned {
     /// The members that are lists.
     const LISTS: &'static [&'static str] = &[];
@@ -180,17 +181,19 @@ pub fn decode_query<T: QueryForm>(query: &str) -> Result<(T, FieldErrors), ApiEr
         let (key, value) = pair.split_once('=').unwrap_or((pair, ""));
         let key = decode_component(key)?;
         let value = decode_component(value)?;
-        let value = if T::LISTS.contains(&key.as_str()) {
-            Value::Array(
-                value
-                    .split(',')
-                    .filter(|item| !item.is_empty())
-                    .map(query_scalar)
-                    .collect(),
-            )
-        } else {
-            query_scalar(&value)
-        };
+        if T::LISTS.contains(&key.as_str()) {
+            // Comma-separated (`explode: false`) or repeated (`at_distances=500&at_distances=
+            // 1000`, as many generated clients send lists), or both: the items in order.
+            let items = value
+                .split(',')
+                .filter(|item| !item.is_empty())
+                .map(query_scalar);
+            if let Value::Array(list) = map.entry(key).or_insert_with(|| Value::Array(Vec::new())) {
+                list.extend(items);
+            }
+            continue;
+        }
+        let value = query_scalar(&value);
         if map.insert(key.clone(), value).is_some() {
             let field = if key.is_empty() { "query" } else { &key };
             problems.add(field, "is given more than once; give it once");
@@ -423,6 +426,10 @@ mod tests {
         let (p, _): (Probe, _) = decode_query("list=7").unwrap();
         assert_eq!(p.list, Some(vec![7.0]));
         assert_eq!(fields(decode_query::<Probe>("list=1,x&s=ok")), vec!["list"]);
+        // Repeated, as generated clients send lists, and mixed with commas.
+        let (p, problems): (Probe, _) = decode_query("list=500&list=1000,2000&list=").unwrap();
+        assert!(problems.is_empty());
+        assert_eq!(p.list, Some(vec![500.0, 1000.0, 2000.0]));
         // A scalar member with a comma is one (wrong) value, not a list.
         assert_eq!(fields(decode_query::<Probe>("a=1,2")), vec!["a"]);
     }

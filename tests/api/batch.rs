@@ -235,3 +235,57 @@ async fn ten_thousand_points_are_answered() {
         "d",
     );
 }
+
+/// A point given as an array is a 422 naming that point, whatever the rest of the batch
+/// holds: serde would read `[620, 610, 200]` by position, but the schema says an object.
+#[tokio::test]
+async fn array_points_are_refused_by_index() {
+    // Arrange
+    let app = spawn_app().await;
+    let batches = [
+        (
+            json!([[620, 610], [630, 600]]),
+            vec!["points[0]", "points[1]"],
+        ),
+        (json!([[620, 610, 200]]), vec!["points[0]"]),
+        (
+            json!([[620, 610, 200], [620]]),
+            vec!["points[0]", "points[1]"],
+        ),
+        (
+            json!([{"x_left": 620, "x_right": 610}, [630, 600]]),
+            vec!["points[1]"],
+        ),
+    ];
+    for (points, expected) in batches {
+        // Act
+        let body = problem(
+            app.post("/distance", &json!({"rig": rig(), "points": points}))
+                .await,
+            422,
+        )
+        .await;
+        // Assert
+        assert_eq!(fields(&body), expected, "{points}");
+        for field in expected {
+            assert_eq!(message_for(&body, field), "must be an object, got an array");
+        }
+    }
+}
+
+/// A rig given as an array is named as `rig`, not as focal options nobody sent.
+#[tokio::test]
+async fn array_rig_is_refused_as_rig() {
+    let app = spawn_app().await;
+    let body = problem(
+        app.post(
+            "/distance",
+            &json!({"rig": [721.5, 0.54], "points": [{"x_left": 620, "x_right": 610}]}),
+        )
+        .await,
+        422,
+    )
+    .await;
+    assert_eq!(fields(&body), vec!["rig"]);
+    assert_eq!(message_for(&body, "rig"), "must be an object, got an array");
+}

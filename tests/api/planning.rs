@@ -290,3 +290,39 @@ async fn bad_baseline_requests_are_named() {
     assert_eq!(fields(&body), vec!["baseline", "focal_length_mm"]);
     assert!(message_for(&body, "focal_length_mm").contains("not a length"));
 }
+
+/// `at_distances` repeated, as generated clients send a list despite `explode: false`, is
+/// the same request as the comma-separated form, items in order.
+#[tokio::test]
+async fn repeated_list_parameters_are_one_list() {
+    // Arrange
+    let app = spawn_app().await;
+    let rig = "/rig?focal_length_px=424&baseline=50&image_width=848&image_height=480\
+               &disparity_error_px=0.08&max_disparity_px=126";
+
+    // Act
+    let commas = ok_json(app.get(&format!("{rig}&at_distances=500,1000,2000")).await).await;
+    let repeated = ok_json(
+        app.get(&format!(
+            "{rig}&at_distances=500&at_distances=1000&at_distances=2000"
+        ))
+        .await,
+    )
+    .await;
+    let mixed = ok_json(
+        app.get(&format!("{rig}&at_distances=500,1000&at_distances=2000"))
+            .await,
+    )
+    .await;
+
+    // Assert
+    assert_eq!(repeated, commas);
+    assert_eq!(mixed, commas);
+    let distances: Vec<f64> = repeated["at_distances"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|at| number_at(at, "distance"))
+        .collect();
+    assert_eq!(distances, [500.0, 1000.0, 2000.0]);
+}

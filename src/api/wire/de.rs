@@ -64,6 +64,34 @@ where
     }
 }
 
+/// A value that must be a JSON object. serde's derived structs also read an array, by
+/// position (`[620, 610]` as `x_left`, `x_right`); the schema says an object, so this refuses
+/// anything else, in the same single pass.
+#[derive(Debug)]
+pub struct Object<T>(pub T);
+
+impl<'de, T: Deserialize<'de>> Deserialize<'de> for Object<T> {
+    fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        struct Members<T>(std::marker::PhantomData<T>);
+
+        impl<'de, T: Deserialize<'de>> serde::de::Visitor<'de> for Members<T> {
+            type Value = T;
+
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str("an object")
+            }
+
+            fn visit_map<A: serde::de::MapAccess<'de>>(self, map: A) -> Result<T, A::Error> {
+                T::deserialize(serde::de::value::MapAccessDeserializer::new(map))
+            }
+        }
+
+        deserializer
+            .deserialize_map(Members(std::marker::PhantomData))
+            .map(Object)
+    }
+}
+
 /// The largest whole number a request member takes: the schema's `int32` format bounds it.
 pub const MAX_WHOLE: u32 = i32::MAX as u32;
 

@@ -26,7 +26,7 @@ use crate::{
         error::{ApiError, FieldErrors},
         extract::{self, BodyLimit, decode_object, expect_object},
         validate::{self, Bounds, Feature},
-        wire::measured::Measured,
+        wire::{de::Object, measured::Measured},
     },
     config::Limits,
     physics,
@@ -73,8 +73,8 @@ impl<'de> Deserialize<'de> for Seen {
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct Wire {
-    rig: StereoRig,
-    points: Vec<BatchPoint>,
+    rig: Object<StereoRig>,
+    points: Vec<Object<BatchPoint>>,
 }
 
 /// A batch is larger than any other body, so `POST /distance` reads within the batch body
@@ -98,11 +98,11 @@ impl FromRequest<AppState> for DistanceBody {
         }
         if let Ok(wire) = serde_json::from_slice::<Wire>(&bytes) {
             return Ok(DistanceBody::Batch(Batch {
-                rig: Some(wire.rig),
+                rig: Some(wire.rig.0),
                 points: Some(
                     wire.points
                         .into_iter()
-                        .map(|p| (p, FieldErrors::default()))
+                        .map(|Object(p)| (p, FieldErrors::default()))
                         .collect(),
                 ),
                 ..Batch::default()
