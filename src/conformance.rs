@@ -21,18 +21,22 @@ use tower::ServiceExt;
 use crate::{Config, api::routes::ops::OpsState, app};
 
 /// The operations that read a body (`POST`) and a query (`GET`).
-const BODY_PATHS: [&str; 6] = [
+const BODY_PATHS: [&str; 8] = [
     "/distance",
     "/table",
+    "/table.csv",
     "/chart-data",
+    "/chart-data.csv",
     "/rig",
     "/baseline",
     "/calibration",
 ];
-const QUERY_PATHS: [&str; 6] = [
+const QUERY_PATHS: [&str; 8] = [
     "/distance",
     "/table",
+    "/table.csv",
     "/chart-data",
+    "/chart-data.csv",
     "/chart.svg",
     "/rig",
     "/baseline",

@@ -16,6 +16,7 @@
 //!   - [`physics`]: the triangulation model: focal conversions, `Z = B·f_px / |d + doffs|`,
 //!     depth error, 3D point and range, sweeps for tables and charts.
 //!   - [`calibration`]: Middlebury, KITTI, ROS and OpenCV calibration files read into a rig.
+//!   - [`numbers`]: numbers and text echoed into messages, short and exact.
 //!   - [`vision`]: image matching (from a rectified pair to disparities); the heavy group's
 //!     engine.
 //! - [`api`]: the HTTP layer, read one way: [`api::error`] ← [`api::extract`] ←
@@ -53,6 +54,7 @@ pub mod healthcheck;
 #[cfg(feature = "library-limits")]
 pub mod library_layers;
 pub mod metrics;
+pub mod numbers;
 pub mod physics;
 pub mod protect;
 pub mod startup;

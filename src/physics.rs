@@ -290,9 +290,10 @@ impl fmt::Display for Warning {
                 effective_disparity_px,
             } => write!(
                 f,
-                "the effective disparity d + doffs = {effective_disparity_px} px is negative: \
-                 the distance uses its absolute value, but check that the left and right images \
-                 (or x_left and x_right) are not swapped"
+                "the effective disparity d + doffs = {} px is negative: the distance uses its \
+                 absolute value, but check that the left and right images (or x_left and \
+                 x_right) are not swapped",
+                crate::numbers::Num(*effective_disparity_px)
             ),
             Warning::LargeRelativeError { relative_error } => write!(
                 f,

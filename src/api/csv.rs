@@ -1,21 +1,17 @@
-//! CSV answers (RFC 4180, a header row naming each column with its unit, CRLF line ends) and
-//! the choice between CSV and JSON: an explicit `format` first, then the `Accept` header.
+//! CSV answers (RFC 4180, a header row naming each column with its unit, CRLF line ends), and
+//! the `Accept` negotiation that lets a JSON path answer CSV to curl users.
 
 use axum::http::{HeaderValue, header};
 use axum::response::{IntoResponse, Response};
-use serde::{Deserialize, Serialize};
-use utoipa::{IntoParams, ToSchema};
+use serde::Serialize;
 
-use super::extract::QueryForm;
 use super::respond::Json;
-use super::wire::de::{plain_members, present};
 
 /// The media type of a CSV answer; `header=present` tells readers the first line names columns.
 pub const TEXT_CSV: &str = "text/csv; charset=utf-8; header=present";
 
 /// The representation of a `/table` or `/chart-data` answer.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize, Serialize, ToSchema)]
-#[serde(rename_all = "lowercase")]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub enum DataFormat {
     /// `application/json`.
     #[default]
@@ -24,21 +20,6 @@ pub enum DataFormat {
     /// line per row.
     Csv,
 }
-
-plain_members!(DataFormat);
-
-/// The URL query of a POST that may choose the format there instead of in the body.
-#[derive(Debug, Clone, Default, PartialEq, Deserialize, IntoParams)]
-#[serde(deny_unknown_fields)]
-#[into_params(parameter_in = Query)]
-pub struct FormatQuery {
-    /// `json` or `csv`; overrides the body's `format` and the `Accept` header.
-    #[serde(default, deserialize_with = "present")]
-    #[param(nullable = false)]
-    pub format: Option<DataFormat>,
-}
-
-impl QueryForm for FormatQuery {}
 
 /// A CSV document: the header row, then one line per row. A cell that is `None` is left empty;
 /// numbers are written as the JSON writes them (shortest round-trip form).
@@ -68,8 +49,9 @@ pub fn column(name: &str, unit: &str) -> String {
     format!("{name}_{unit}")
 }
 
-/// The answer in the negotiated format: `json` as JSON, or `csv()` as a CSV attachment named
-/// `filename`. Both vary with `Accept`, which caches must know.
+/// The answer in `format`: `json` as JSON, or `csv()` as a CSV attachment named `filename`.
+/// Both vary with `Accept`, which caches must know of the JSON paths (harmless on the CSV
+/// ones).
 pub fn respond<T: Serialize>(
     format: DataFormat,
     json: T,
@@ -94,13 +76,10 @@ pub fn respond<T: Serialize>(
     }
 }
 
-/// The format to answer in: `explicit` when given, else the better of JSON and CSV by the
-/// `Accept` header's q-values (a more specific match wins a tie; JSON wins what remains,
-/// including no header, a browser's `*/*` and types we cannot produce).
-pub fn negotiate(explicit: Option<DataFormat>, accept: Option<&HeaderValue>) -> DataFormat {
-    if let Some(format) = explicit {
-        return format;
-    }
+/// The format a JSON path answers in: the better of JSON and CSV by the `Accept` header's
+/// q-values (a more specific match wins a tie; JSON wins what remains, including no header, a
+/// browser's `*/*` and types we cannot produce).
+pub fn negotiate(accept: Option<&HeaderValue>) -> DataFormat {
     let Some(accept) = accept.and_then(|v| v.to_str().ok()) else {
         return DataFormat::Json;
     };
@@ -150,13 +129,13 @@ mod tests {
     use super::*;
 
     fn accept(value: &'static str) -> DataFormat {
-        negotiate(None, Some(&HeaderValue::from_static(value)))
+        negotiate(Some(&HeaderValue::from_static(value)))
     }
 
-    /// CSV is chosen only when the client prefers it; an explicit format beats the header.
+    /// CSV is chosen only when the client prefers it.
     #[test]
     fn negotiation() {
-        assert_eq!(negotiate(None, None), DataFormat::Json);
+        assert_eq!(negotiate(None), DataFormat::Json);
         assert_eq!(accept("text/csv"), DataFormat::Csv);
         assert_eq!(accept("text/*"), DataFormat::Csv);
         assert_eq!(accept("text/csv, */*"), DataFormat::Csv);
@@ -176,13 +155,6 @@ mod tests {
         );
         assert_eq!(accept("text/csv;q=0, */*"), DataFormat::Json);
         assert_eq!(accept("image/png"), DataFormat::Json);
-        assert_eq!(
-            negotiate(
-                Some(DataFormat::Json),
-                Some(&HeaderValue::from_static("text/csv"))
-            ),
-            DataFormat::Json
-        );
     }
 
     /// Empty cells for absent values, CRLF ends, numbers in their shortest form.

@@ -97,6 +97,14 @@ impl FieldErrors {
         ApiError::Invalid(self.0)
     }
 
+    /// Replaces the message recorded for `field`, if any, with `message`: for a member whose
+    /// refusal needs more than the generic words, such as one that moved.
+    pub fn reword(&mut self, field: &str, message: &str) {
+        for error in self.0.iter_mut().filter(|e| e.field == field) {
+            message.clone_into(&mut error.message);
+        }
+    }
+
     /// Whether `field` already has a problem recorded.
     pub fn has(&self, field: &str) -> bool {
         self.0.iter().any(|e| e.field == field)

@@ -16,6 +16,8 @@ use serde::de::DeserializeOwned;
 use serde_json::{Map, Value};
 
 use super::error::{ApiError, FieldError, FieldErrors};
+use super::wording::{self, ECHO, Refusal};
+use crate::numbers::clip;
 
 /// A JSON request body, decoded as far as it could be, with the members it refused. The
 /// rejection (400, 413, 415, or 422 for a body that is not an object) is an [`ApiError`].
@@ -146,13 +148,13 @@ pub fn decode_json<T: DeserializeOwned>(bytes: &[u8]) -> Result<(T, FieldErrors)
     expect_object(bytes)?;
     match serde_json::from_slice::<T>(bytes) {
         Ok(value) => Ok((value, FieldErrors::default())),
-        Err(error) if error.is_data() => {
-            match serde_json::from_slice::<Map<String, Value>>(bytes) {
-                Ok(map) => diagnose(map, &error, FieldErrors::default(), "body"),
-                Err(syntax) => Err(malformed_json(&syntax)),
-            }
-        }
-        Err(error) => Err(malformed_json(&error)),
+        // A typed pass can fail on valid JSON as a syntax error (serde_json reports a number
+        // where a string belongs as `expected value`), so the body is read again to tell a
+        // wrong member (422) from broken JSON (400).
+        Err(error) => match serde_json::from_slice::<Map<String, Value>>(bytes) {
+            Ok(map) => diagnose(map, &error, FieldErrors::default(), "body", None),
+            Err(syntax) => Err(malformed_json(&syntax)),
+        },
     }
 }
 
@@ -161,7 +163,7 @@ pub fn decode_json<T: DeserializeOwned>(bytes: &[u8]) -> Result<(T, FieldErrors)
 pub fn decode_object<T: DeserializeOwned + Default>(map: Map<String, Value>) -> (T, FieldErrors) {
     match T::deserialize(&map) {
         Ok(value) => (value, FieldErrors::default()),
-        Err(error) => match diagnose(map, &error, FieldErrors::default(), "") {
+        Err(error) => match diagnose(map, &error, FieldErrors::default(), "", None) {
             Ok(decoded) => decoded,
             Err(ApiError::Invalid(errors)) => (T::default(), FieldErrors::from(errors)),
             Err(other) => (T::default(), FieldErrors::from(other.problem().errors)),
@@ -176,6 +178,7 @@ pub fn malformed_json(error: &serde_json::Error) -> ApiError {
 /// Decodes a query string into `T` by way of a JSON object, with the parameters it refused.
 pub fn decode_query<T: QueryForm>(query: &str) -> Result<(T, FieldErrors), ApiError> {
     let mut map = Map::new();
+    let mut text = Map::new();
     let mut problems = FieldErrors::default();
     for pair in query.split('&').filter(|p| !p.is_empty()) {
         let (key, value) = pair.split_once('=').unwrap_or((pair, ""));
@@ -193,15 +196,16 @@ pub fn decode_query<T: QueryForm>(query: &str) -> Result<(T, FieldErrors), ApiEr
             }
             continue;
         }
-        let value = query_scalar(&value);
-        if map.insert(key.clone(), value).is_some() {
+        let scalar = query_scalar(&value);
+        text.insert(key.clone(), Value::String(value));
+        if map.insert(key.clone(), scalar).is_some() {
             let field = if key.is_empty() { "query" } else { &key };
             problems.add(field, "is given more than once; give it once");
         }
     }
     match T::deserialize(&map) {
         Ok(value) => Ok((value, problems)),
-        Err(error) => diagnose(map, &error, problems, "query"),
+        Err(error) => diagnose(map, &error, problems, "query", Some(&text)),
     }
 }
 
@@ -222,7 +226,7 @@ fn decode_component(raw: &str) -> Result<String, ApiError> {
         .map_err(|_| {
             ApiError::Malformed(FieldError::new(
                 "query",
-                format!("`{raw}` does not percent-decode to UTF-8"),
+                format!("`{}` does not percent-decode to UTF-8", clip(raw, ECHO)),
             ))
         })
 }
@@ -232,21 +236,40 @@ fn decode_component(raw: &str) -> Result<String, ApiError> {
 /// unknown or mistyped, and the rest decodes. A member with an empty name is reported under
 /// `itself`, the name of the object as a whole (`body`, `query`, or `""` for a batch point,
 /// which its index then names), so that every error names something.
+///
+/// In a query string every value is text: `text` holds each scalar as given, and a member
+/// that refuses the number a value reads as takes the text instead (a string member given
+/// `123`).
 fn diagnose<T: DeserializeOwned>(
     mut map: Map<String, Value>,
     whole: &serde_json::Error,
     mut problems: FieldErrors,
     itself: &str,
+    text: Option<&Map<String, Value>>,
 ) -> Result<(T, FieldErrors), ApiError> {
-    let refused: Vec<(String, String)> = map
-        .iter()
-        .filter_map(|(key, value)| {
-            let single = Value::Object(Map::from_iter([(key.clone(), value.clone())]));
-            T::deserialize(&single)
-                .err()
-                .map(|error| (key.clone(), plain_message(&error)))
-        })
-        .collect();
+    let alone = |key: &str, value: &Value| {
+        T::deserialize(&Value::Object(Map::from_iter([(
+            key.to_owned(),
+            value.clone(),
+        )])))
+    };
+    let mut refused = Vec::new();
+    let mut as_text = Vec::new();
+    for (key, value) in &map {
+        let Err(error) = alone(key, value) else {
+            continue;
+        };
+        let raw = text.and_then(|t| t.get(key)).filter(|_| value.is_number());
+        match raw {
+            Some(raw) if alone(key, raw).is_ok() => as_text.push((key.clone(), raw.clone())),
+            _ => refused.push((
+                key.clone(),
+                wording::message(&error.to_string(), Some(value)),
+            )),
+        }
+    }
+    let retyped = !as_text.is_empty();
+    map.extend(as_text);
     for (key, message) in refused {
         map.remove(&key);
         if key.is_empty() {
@@ -255,68 +278,22 @@ fn diagnose<T: DeserializeOwned>(
                 format!("has a member with an empty name: {message}"),
             );
         } else {
-            problems.add(&key, message);
+            problems.add(&clip(&key, ECHO), message);
         }
     }
     match T::deserialize(&map) {
-        Ok(value) if !problems.is_empty() => Ok((value, problems)),
+        Ok(value) if retyped || !problems.is_empty() => Ok((value, problems)),
         // Not attributable to one member alone, such as a member given twice.
         _ => {
-            let message = plain_message(whole);
-            let field = message
-                .strip_prefix("duplicate field `")
-                .and_then(|rest| rest.split('`').next())
-                .filter(|name| !name.is_empty())
-                .unwrap_or(itself);
-            problems.add(field, message.clone());
+            let text = whole.to_string();
+            let field = match wording::parse(&text) {
+                Refusal::Duplicate { name } if !name.is_empty() => clip(name, ECHO),
+                _ => itself.to_owned(),
+            };
+            problems.add(&field, wording::message(&text, None));
             Err(problems.into_error())
         }
     }
-}
-
-/// serde's message without its position suffix, with Rust type names in words, and a
-/// suggestion for a misspelt member.
-fn plain_message(error: &serde_json::Error) -> String {
-    let text = error.to_string();
-    let text = text.split(" at line ").next().unwrap_or(text.as_str());
-    if let Some(suggestion) = suggest_field(text) {
-        return suggestion;
-    }
-    text.replace("expected f64", "expected a number")
-        .replace("expected u32", "expected a whole number")
-}
-
-/// For serde's "unknown field `x`, expected one of `a`, `b`": the nearest known name, when it
-/// is near enough to be a misspelling.
-fn suggest_field(text: &str) -> Option<String> {
-    let rest = text.strip_prefix("unknown field `")?;
-    let (unknown, expected) = rest.split_once("`, expected ")?;
-    let (distance, nearest) = expected
-        .split('`')
-        .skip(1)
-        .step_by(2)
-        .map(|known| (edit_distance(unknown, known), known))
-        .min()?;
-    (distance <= unknown.chars().count() / 2)
-        .then(|| format!("unknown field `{unknown}`; did you mean `{nearest}`?"))
-}
-
-/// Levenshtein distance between two short strings.
-fn edit_distance(a: &str, b: &str) -> usize {
-    let b: Vec<char> = b.chars().collect();
-    let mut row: Vec<usize> = (0..=b.len()).collect();
-    for (i, ca) in a.chars().enumerate() {
-        let mut diagonal = row[0];
-        row[0] = i + 1;
-        for (j, cb) in b.iter().enumerate() {
-            let above = row[j + 1];
-            row[j + 1] = (above + 1)
-                .min(row[j] + 1)
-                .min(diagonal + usize::from(ca != *cb));
-            diagonal = above;
-        }
-    }
-    row[b.len()]
 }
 
 #[cfg(test)]
@@ -446,10 +423,9 @@ mod tests {
         assert_eq!(fields(Ok::<_, ApiError>(((), problems))), vec!["a", "q"]);
     }
 
-    /// A misspelt member gets the nearest known name; a stranger one gets the full list.
+    /// A misspelt member gets the nearest known name; a stranger one gets the list.
     #[test]
     fn unknown_members_get_suggestions() {
-        assert_eq!(edit_distance("kitten", "sitting"), 3);
         let (_, problems) = decode_json::<Probe>(br#"{"aa": 1, "zzzzzz": 2}"#).unwrap();
         let ApiError::Invalid(errors) = problems.into_error() else {
             panic!("a 422");
@@ -458,8 +434,39 @@ mod tests {
         assert!(
             errors[1]
                 .message
-                .contains("expected one of `a`, `n`, `s`, `list`")
+                .ends_with("the members here are a, n, s, list")
         );
+    }
+
+    /// A wrongly typed member of valid JSON is a 422 naming it, even where serde_json's typed
+    /// pass calls it a syntax error; only broken JSON is a 400.
+    #[test]
+    fn valid_json_with_a_wrong_member_is_422() {
+        #[derive(Debug, Default, Deserialize)]
+        #[serde(deny_unknown_fields)]
+        #[allow(dead_code)]
+        struct Chosen {
+            #[serde(default, deserialize_with = "crate::api::wire::de::member")]
+            unit: Option<crate::api::wire::params::Unit>,
+        }
+        let error = match decode_json::<Chosen>(br#"{"unit": 5}"#) {
+            Ok((_, problems)) => problems.into_error(),
+            Err(error) => error,
+        };
+        let ApiError::Invalid(errors) = error else {
+            panic!("a 422, got {error:?}");
+        };
+        assert_eq!(errors[0].field, "unit");
+        assert_eq!(errors[0].message, "must be one of mm, cm, m, in, ft, got 5");
+    }
+
+    /// In a query string a string member takes digits as text.
+    #[test]
+    fn query_text_members_take_digits() {
+        let (p, problems): (Probe, _) = decode_query("s=123&a=1").unwrap();
+        assert!(problems.is_empty());
+        assert_eq!(p.s.as_deref(), Some("123"));
+        assert_eq!(p.a, Some(1.0));
     }
 
     /// JSON media types are recognised with parameters and suffixes.

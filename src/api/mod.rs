@@ -19,6 +19,7 @@ pub mod respond;
 pub mod routes;
 pub mod validate;
 pub mod wire;
+pub mod wording;
 
 use axum::{Router, extract::FromRef};
 use utoipa::OpenApi;

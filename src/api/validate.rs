@@ -3,6 +3,7 @@
 
 use super::error::FieldErrors;
 use super::wire::params::{CameraParams, RangeParams, RigParams};
+use crate::numbers::Num;
 use crate::physics::{
     Correspondence, DEFAULT_DISPARITY_ERROR_PX, FocalLength, LengthUnit, Rig, SampleRange, Spacing,
 };
@@ -23,7 +24,7 @@ impl FieldErrors {
         if value.is_finite() && value > 0.0 {
             Some(value)
         } else {
-            self.add(field, format!("must be greater than 0, got {value}"));
+            self.add(field, format!("must be greater than 0, got {}", Num(value)));
             None
         }
     }
@@ -33,7 +34,7 @@ impl FieldErrors {
         if value.is_finite() && value >= 0.0 {
             Some(value)
         } else {
-            self.add(field, format!("must be 0 or more, got {value}"));
+            self.add(field, format!("must be 0 or more, got {}", Num(value)));
             None
         }
     }
@@ -45,7 +46,7 @@ impl FieldErrors {
         } else {
             self.add(
                 field,
-                format!("must lie in [0, {max}] ({what}), got {value}"),
+                format!("must lie in [0, {}] ({what}), got {}", Num(max), Num(value)),
             );
             None
         }
@@ -144,7 +145,10 @@ fn focal_length(p: &CameraParams, width: Option<f64>, problems: &mut FieldErrors
         if !(degrees > 0.0 && degrees < 180.0) {
             problems.add(
                 "horizontal_fov_deg",
-                format!("must lie strictly between 0 and 180 degrees, got {degrees}"),
+                format!(
+                    "must lie strictly between 0 and 180 degrees, got {}",
+                    Num(degrees)
+                ),
             );
             return None;
         }
@@ -187,7 +191,10 @@ fn focal_length(p: &CameraParams, width: Option<f64>, problems: &mut FieldErrors
         Ok(focal_px) => {
             problems.add(
                 focal_field(p),
-                format!("converts to {focal_px} px, which is not a usable focal length"),
+                format!(
+                    "converts to {} px, which is not a usable focal length",
+                    Num(focal_px)
+                ),
             );
             None
         }
@@ -359,8 +366,10 @@ pub fn balanced(
         problems.add(
             field,
             format!(
-                "focal length ({focal_px} px) and baseline ({baseline}) are too far apart in \
-                 magnitude: their product or ratio leaves the range of a 64-bit float"
+                "focal length ({} px) and baseline ({}) are too far apart in magnitude: \
+                 their product or ratio leaves the range of a 64-bit float",
+                Num(focal_px),
+                Num(baseline)
             ),
         );
     }
@@ -489,8 +498,9 @@ pub fn short_of_infinity(
         field,
         format!(
             "{field} + doffs must be greater than 0 (at d + doffs = 0 the point is at \
-             infinity), got {min} + {}",
-            rig.doffs
+             infinity), got {} + {}",
+            Num(min),
+            Num(rig.doffs)
         ),
     );
     None
@@ -537,7 +547,11 @@ pub fn range(
         } else {
             problems.add(
                 hi_name,
-                format!("must be greater than {lo_name} ({lo}), got {hi}"),
+                format!(
+                    "must be greater than {lo_name} ({}), got {}",
+                    Num(lo),
+                    Num(hi)
+                ),
             );
             None
         }

@@ -7,6 +7,7 @@
 //! `−P_rect_03[0,3] / f`, because camera 2 is itself 6 cm from camera 0.
 
 use super::{Calibration, Format, KittiPair, ParseError, pixels, yaml::number};
+use crate::numbers::Num;
 
 /// The numbers of a `key: numbers` line, with its line number.
 struct Entry {
@@ -117,9 +118,10 @@ pub fn parse(text: &str, pair: Option<KittiPair>) -> Result<Calibration, Vec<Par
     let f = pl[0];
     if (pr[0] - f).abs() > 1e-9 * f.abs() {
         warnings.push(format!(
-            "{left_key} and {right_key} have different focal lengths ({f} and {} px): a \
+            "{left_key} and {right_key} have different focal lengths ({} and {} px): a \
              rectified pair shares one; {left_key}'s is used",
-            pr[0]
+            Num(f),
+            Num(pr[0])
         ));
     }
     let size_key = format!("S_rect_0{l}");

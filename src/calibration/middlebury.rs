@@ -3,6 +3,7 @@
 //! `vmin`, `vmax`, `dyavg`, `dymax`) are read and ignored.
 
 use super::{Calibration, Format, ParseError, pixels, yaml::number};
+use crate::numbers::Num;
 
 /// A 3×3 matrix written `[a b c; d e f; g h i]`.
 fn matrix(key: &str, value: &str, line: usize) -> Result<[[f64; 3]; 3], ParseError> {
@@ -112,14 +113,17 @@ pub fn parse(text: &str) -> Result<Calibration, Vec<ParseError>> {
         Some(doffs) => {
             if (doffs - derived).abs() > 1e-3 * doffs.abs().max(1.0) {
                 warnings.push(format!(
-                    "doffs = {doffs} but cam1's cx − cam0's cx = {derived}; doffs is used"
+                    "doffs = {} but cam1's cx − cam0's cx = {}; doffs is used",
+                    Num(doffs),
+                    Num(derived)
                 ));
             }
             doffs
         }
         None => {
             warnings.push(format!(
-                "no doffs line: doffs = cam1's cx − cam0's cx = {derived} px is used"
+                "no doffs line: doffs = cam1's cx − cam0's cx = {} px is used",
+                Num(derived)
             ));
             derived
         }
@@ -128,7 +132,8 @@ pub fn parse(text: &str) -> Result<Calibration, Vec<ParseError>> {
         warnings.push(format!(
             "cam0 and cam1 have different focal lengths ({} and {} px): a rectified pair \
              shares one; cam0's is used",
-            cam0[0][0], cam1[0][0]
+            Num(cam0[0][0]),
+            Num(cam1[0][0])
         ));
     }
     let image_size = match (width, height) {

@@ -13,6 +13,7 @@ mod opencv;
 mod ros;
 pub mod yaml;
 
+use crate::numbers::{Num, clip};
 use std::fmt;
 
 use crate::physics::LengthUnit;
@@ -107,13 +108,17 @@ pub struct ParseError {
     pub message: String,
 }
 
+/// The longest message a [`ParseError`] carries, in characters.
+pub const MAX_MESSAGE: usize = 200;
+
 impl ParseError {
-    /// A problem on `line` of the (left) file.
+    /// A problem on `line` of the (left) file. Messages end with what the line held, which
+    /// can be anything, so they are cut to [`MAX_MESSAGE`] characters.
     pub fn at(line: usize, message: impl Into<String>) -> Self {
         Self {
             part: Part::Text,
             line: Some(line),
-            message: message.into(),
+            message: clip(&message.into(), MAX_MESSAGE),
         }
     }
 
@@ -180,19 +185,19 @@ impl Calibration {
         if !(self.focal_px.is_finite() && self.focal_px > 0.0) {
             errors.push(error(format!(
                 "the focal length must be greater than 0, got {}",
-                self.focal_px
+                Num(self.focal_px)
             )));
         }
         if !(self.focal_y_px.is_finite() && self.focal_y_px > 0.0) {
             errors.push(error(format!(
                 "the vertical focal length must be greater than 0, got {}",
-                self.focal_y_px
+                Num(self.focal_y_px)
             )));
         }
         if !(self.baseline.is_finite() && self.baseline > 0.0) {
             errors.push(error(format!(
                 "the baseline must be greater than 0, got {}",
-                self.baseline
+                Num(self.baseline)
             )));
         }
         for (name, value) in [("cx", self.cx), ("cy", self.cy), ("doffs", self.doffs)] {

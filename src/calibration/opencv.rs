@@ -11,6 +11,7 @@
 
 use super::yaml::{self, Node};
 use super::{Calibration, Format, ParseError, pixels};
+use crate::numbers::Num;
 
 pub fn parse(text: &str) -> Result<Calibration, Vec<ParseError>> {
     let doc = if text.trim_start().starts_with('<') {
@@ -73,7 +74,7 @@ fn image_size(doc: &Node) -> Result<Option<(u32, u32)>, ParseError> {
         pixels(v).ok_or_else(|| {
             ParseError::at(
                 node.line(),
-                format!("{what} must be a whole number of pixels, got {v}"),
+                format!("{what} must be a whole number of pixels, got {}", Num(v)),
             )
         })
     };

@@ -5,6 +5,7 @@
 
 use super::yaml::{self, Node};
 use super::{Calibration, Format, ParseError, pixels};
+use crate::numbers::Num;
 
 /// What one camera's file gives.
 struct Camera {
@@ -58,7 +59,7 @@ fn camera(text: &str) -> Result<Camera, ParseError> {
         pixels(value).map(Some).ok_or_else(|| {
             ParseError::at(
                 node.line(),
-                format!("{key} must be a whole number of pixels, got {value}"),
+                format!("{key} must be a whole number of pixels, got {}", Num(value)),
             )
         })
     };
@@ -94,9 +95,10 @@ pub fn parse(text: &str, right_text: Option<&str>) -> Result<Calibration, Vec<Pa
     let f = pr[0];
     if (pl[0] - f).abs() > 1e-9 * f.abs() {
         warnings.push(format!(
-            "the two projection matrices have different focal lengths ({} and {f} px): a \
+            "the two projection matrices have different focal lengths ({} and {} px): a \
              rectified pair shares one; the right camera's is used",
-            pl[0]
+            Num(pl[0]),
+            Num(f)
         ));
     }
     if pl[3] != 0.0 {

@@ -562,13 +562,11 @@
   }
 
   // ---------------------------------------------------------------------------------------
-  // The sample table, from /table.
+  // The sample table, from /table (and its CSV from /table.csv).
 
   function showTable(data, params) {
     const body = $('table-body');
-    const csv = new URLSearchParams(params);
-    csv.set('format', 'csv');
-    $('csv').href = `/table?${csv}`;
+    $('csv').href = `/table.csv?${new URLSearchParams(params)}`;
     if (data === null) {
       body.replaceChildren();
       $('table-caption').textContent = 'No table until the rig is valid.';

@@ -129,7 +129,10 @@ async fn malformed_points_refuse_the_batch() {
             "points[17].x_left"
         ]
     );
-    assert!(message_for(&body, "points[17].x_left").contains("expected a number"));
+    assert_eq!(
+        message_for(&body, "points[17].x_left"),
+        "must be a number, got `abc`"
+    );
     assert!(message_for(&body, "points[8]").contains("must be an object"));
     assert_eq!(
         message_for(&body, "points[9].x_left"),

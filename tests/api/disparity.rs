@@ -194,7 +194,9 @@ async fn chart_takes_a_disparity_and_answers_csv_and_log() {
 
     // Act
     let json = ok_json(app.get(query).await).await;
-    let csv = app.get(&format!("{query}&format=csv")).await;
+    let csv = app
+        .get(&query.replacen("/chart-data", "/chart-data.csv", 1))
+        .await;
     let svg = app
         .get(&format!("/chart.svg{}&scale=log", &query[11..]))
         .await;
@@ -236,4 +238,5 @@ async fn chart_takes_a_disparity_and_answers_csv_and_log() {
     )
     .await;
     assert_eq!(fields(&body), ["format"]);
+    assert!(message_for(&body, "format").contains("/chart.svg always answers SVG"));
 }

@@ -245,7 +245,11 @@ async fn decoding_and_validation_errors_are_named_together() {
         fields(&body),
         vec!["x_left", "focal_lenght", "baseline", "x_right"]
     );
-    assert!(message_for(&body, "x_left").contains("expected a number"));
+    assert_eq!(
+        message_for(&body, "x_left"),
+        "must be a number, got `400`",
+        "a string is not a number, whatever it holds"
+    );
 
     let body = problem(
         app.get(
@@ -308,7 +312,10 @@ async fn whole_numbers_may_carry_a_zero_fraction() {
     )
     .await;
     assert_eq!(fields(&body), vec!["image_width", "image_height", "steps"]);
-    assert!(message_for(&body, "image_width").contains("expected a whole number"));
+    assert_eq!(
+        message_for(&body, "image_width"),
+        "must be a whole number, got 800.5"
+    );
     assert!(message_for(&body, "image_height").contains("must not be negative"));
     assert!(message_for(&body, "steps").contains("at most 2147483647"));
 }
@@ -333,4 +340,101 @@ async fn an_empty_member_name_is_named_by_its_holder() {
     let batch = json!({"rig": rig, "points": [{"x_left": 400, "x_right": 350, "": 2}], "": 3});
     let problem_body = problem(app.post("/distance", &batch).await, 422).await;
     assert_eq!(fields(&problem_body), vec!["body", "rig", "points[0]"]);
+}
+
+/// The messages people read say what was expected in the API's own words, never serde's
+/// (`unknown variant`, `invalid type`, `expected f64`), over a query string and a JSON body.
+#[tokio::test]
+async fn messages_are_in_the_apis_own_words() {
+    // Arrange
+    let app = spawn_app().await;
+    let kitti = "focal_length_px=721.5377&baseline=0.54&x_left=620&x_right=610\
+                 &image_width=1242&image_height=375";
+    let cases = [
+        (
+            "unit=meters",
+            "unit",
+            "must be one of mm, cm, m, in, ft, got `meters`",
+        ),
+        ("unit=5", "unit", "must be one of mm, cm, m, in, ft, got 5"),
+        (
+            "baseline=0,54",
+            "baseline",
+            "must be a number, got `0,54`; use a dot for decimals",
+        ),
+        ("baseline=wide", "baseline", "must be a number, got `wide`"),
+        (
+            "image_width=1242.5",
+            "image_width",
+            "must be a whole number, got 1242.5",
+        ),
+    ];
+    for (change, field, expected) in cases {
+        let name = change.split('=').next().unwrap();
+        let query: Vec<&str> = kitti
+            .split('&')
+            .filter(|pair| !pair.starts_with(&format!("{name}=")))
+            .chain([change])
+            .collect();
+
+        // Act
+        let body = problem(
+            app.get(&format!("/distance?{}", query.join("&"))).await,
+            422,
+        )
+        .await;
+
+        // Assert
+        assert_eq!(fields(&body), [field], "{change}");
+        assert_eq!(message_for(&body, field), expected, "{change}");
+    }
+
+    let body = problem(
+        app.post(
+            "/distance",
+            &json!({"focal_length_px": 721.5377, "baseline": 0.54, "unit": {"mm": null},
+                    "spacing": 3, "x_left": 620, "x_right": 610, "cx": 600, "cy": 180}),
+        )
+        .await,
+        422,
+    )
+    .await;
+    assert_eq!(fields(&body), ["unit", "spacing"]);
+    assert_eq!(
+        message_for(&body, "unit"),
+        "must be one of mm, cm, m, in, ft, got an object"
+    );
+    for text in [message_for(&body, "unit"), message_for(&body, "spacing")] {
+        for serde_words in ["variant", "invalid type", "expected", "f64", "u32"] {
+            assert!(!text.contains(serde_words), "{text}");
+        }
+    }
+}
+
+/// Numbers in messages are written short: a baseline of 1e308 is echoed as `1e308`, and the
+/// problem stays under 1 KiB (it was 1 768 bytes spelling out 309 digits four times).
+#[tokio::test]
+async fn huge_numbers_are_echoed_short() {
+    let app = spawn_app().await;
+    let response = app
+        .post(
+            "/distance",
+            &json!({"focal_length_px": 721.5377, "baseline": 1e308, "x_left": 620,
+                    "x_right": 610, "image_width": 1242, "image_height": 375}),
+        )
+        .await;
+    let bytes = response.content_length();
+    let body = problem(response, 422).await;
+    assert_eq!(fields(&body), ["focal_length_px", "baseline"]);
+    assert!(message_for(&body, "baseline").contains("baseline (1e308)"));
+    assert!(bytes.is_some_and(|n| n < 1024), "{bytes:?} bytes");
+
+    let long = "9".repeat(5000);
+    let body = problem(
+        app.get(&format!("/distance?baseline={long}x&focal_length_px=700"))
+            .await,
+        422,
+    )
+    .await;
+    assert!(body.to_string().len() < 1024, "{body}");
 }

@@ -197,7 +197,7 @@ async fn csv_has_the_json_columns_and_numbers() {
 
     // Act
     let json = ok_json(app.get(query).await).await;
-    let lines = csv(app.get(&format!("{query}&format=csv")).await).await;
+    let lines = csv(app.get(&query.replacen("/table", "/table.csv", 1)).await).await;
 
     // Assert
     let rows = json["rows"].as_array().unwrap();
@@ -229,53 +229,69 @@ async fn csv_has_the_json_columns_and_numbers() {
     }
 }
 
-/// CSV is chosen by `Accept: text/csv` (GET and POST), by `?format=csv` on POST, or by
-/// `format` in the body; an explicit `format=json` beats the header, and a browser's Accept
-/// gets JSON.
+/// CSV has its own path, GET and POST, with one media type each; the JSON path also answers
+/// CSV to `Accept: text/csv`, as curl users ask, and a browser's Accept gets JSON.
 #[tokio::test]
-async fn csv_is_negotiated() {
+async fn csv_has_its_own_path_and_accept_still_works() {
+    // Arrange
     let app = spawn_app().await;
     let body = with(rig(), json!({"steps": 3}));
-    let query = "/table?focal_length_px=700&baseline=120&image_width=800&image_height=600&steps=3";
-    let by_accept = csv(app.get_with_header(query, "accept", "text/csv").await).await;
+    let query = "focal_length_px=700&baseline=120&image_width=800&image_height=600&steps=3";
+
+    // Act
+    let by_path = csv(app.get(&format!("/table.csv?{query}")).await).await;
+    let by_post_path = csv(app.post("/table.csv", &body).await).await;
+    let by_accept = csv(app
+        .get_with_header(&format!("/table?{query}"), "accept", "text/csv")
+        .await)
+    .await;
     let by_post_accept = csv(app
         .post_with_header("/table", &body, ("accept", "text/csv"))
         .await)
     .await;
-    let by_post_query = csv(app
-        .post_with_header("/table?format=csv", &body, ("accept", "*/*"))
+    let csv_path_ignores_accept = csv(app
+        .post_with_header("/table.csv", &body, ("accept", "application/json"))
         .await)
     .await;
-    let by_member = csv(app
-        .post("/table", &with(body.clone(), json!({"format": "csv"})))
-        .await)
-    .await;
-    assert_eq!(by_accept.len(), 4);
-    assert_eq!(by_accept, by_post_accept);
-    assert_eq!(by_accept, by_post_query);
-    assert_eq!(by_accept, by_member);
-
-    let explicit = app
-        .get_with_header(&format!("{query}&format=json"), "accept", "text/csv")
-        .await;
-    assert_eq!(ok_json(explicit).await["rows"].as_array().unwrap().len(), 3);
     let browser = app
-        .get_with_header(query, "accept", "text/html,application/xhtml+xml,*/*;q=0.8")
+        .get_with_header(
+            &format!("/table?{query}"),
+            "accept",
+            "text/html,application/xhtml+xml,*/*;q=0.8",
+        )
         .await;
+
+    // Assert
+    assert_eq!(by_path.len(), 4, "a header and three rows");
+    assert_eq!(by_path, by_post_path);
+    assert_eq!(by_path, by_accept);
+    assert_eq!(by_path, by_post_accept);
+    assert_eq!(by_path, csv_path_ignores_accept);
     assert_eq!(browser.headers()["content-type"], "application/json");
     assert_eq!(browser.headers()["vary"], "accept");
 }
 
-/// An unknown format, in the body or the URL, is a 422 naming `format`.
+/// `format`, the member CSV used to be asked with, in the body, the query or the URL of a
+/// POST, is a 422 that says where CSV is now; no POST query parameter is silently ignored.
 #[tokio::test]
-async fn bad_format_is_named() {
+async fn the_former_format_member_points_to_the_csv_path() {
     let app = spawn_app().await;
-    let body = problem(
-        app.post("/table?format=xml", &with(rig(), json!({"steps": 3})))
+    let moved = "CSV has its own path now: /table.csv (or send Accept: text/csv)";
+    for response in [
+        app.post("/table?format=csv", &with(rig(), json!({"steps": 3})))
             .await,
-        422,
-    )
-    .await;
-    assert_eq!(fields(&body), vec!["format"]);
-    assert!(message_for(&body, "format").contains("`json` or `csv`"));
+        app.post("/table", &with(rig(), json!({"steps": 3, "format": "csv"})))
+            .await,
+        app.get(
+            "/table?focal_length_px=700&baseline=120&image_width=800&image_height=600&format=csv",
+        )
+        .await,
+    ] {
+        let body = problem(response, 422).await;
+        assert_eq!(fields(&body), vec!["format"]);
+        assert_eq!(message_for(&body, "format"), moved);
+    }
+    let body = problem(app.post("/table.csv?steps=3", &rig()).await, 422).await;
+    assert_eq!(fields(&body), vec!["steps"]);
+    assert!(message_for(&body, "steps").contains("from the JSON body"));
 }

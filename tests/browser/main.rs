@@ -295,6 +295,7 @@ async fn the_table_downloads_as_csv_and_results_copy_as_text() {
         .await;
     browser.settled().await;
     let href = browser.attr("csv", "href").await.expect("a link");
+    assert!(href.starts_with("/table.csv?"), "{href}");
     let csv = reqwest::get(format!("{}{href}", browser.base))
         .await
         .expect("the CSV link answers");

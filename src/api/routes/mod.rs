@@ -44,53 +44,88 @@ macro_rules! json_operation {
     };
 }
 
-/// Declares the two handlers of an operation that answers JSON or CSV, as
-/// [`json_operation!`] does, plus the format choice: `format` in the body or query (`POST` may
-/// also take `?format=`), else the `Accept` header; the CSV form is `$csv(&answer)`, sent as
-/// the attachment `$file`. The calling module also imports `HeaderMap`, `header`, `Response`,
-/// `csv` and `FormatQuery`.
+/// Declares the four handlers of a resource that answers JSON or CSV, each representation at
+/// its own path with one media type, so that generated clients read each answer: `GET` and
+/// `POST $path` answer JSON (or CSV to an `Accept: text/csv` header, for curl users), `GET`
+/// and `POST $csv_path` answer CSV, `$csv(&answer)` sent as the attachment `$file`. A request
+/// naming the former `format` member is told where CSV is now (`$moved`). The calling module
+/// imports what [`json_operation!`] names, plus `HeaderMap`, `header`, `Uri`, `Response` and
+/// `csv`.
 macro_rules! data_operation {
     (
-        $answer:ident: $request:ident => $response:ident, csv $csv:ident as $file:literal
-        at $path:tt, tag $tag:tt, ok $ok:tt;
+        $answer:ident: $request:ident => $response:ident at $path:tt, tag $tag:tt, ok $ok:tt;
+        csv $csv:ident as $file:literal at $csv_path:tt, ok $csv_ok:tt, moved $moved:tt;
         post $post:ident($($post_doc:tt)*);
         get $get:ident(summary = $get_summary:tt);
+        post csv $post_csv:ident($($post_csv_doc:tt)*);
+        get csv $get_csv:ident(summary = $get_csv_summary:tt);
     ) => {
         #[utoipa::path(post, path = $path, tag = $tag, $($post_doc)*,
-            description = "JSON by default; CSV with `format: csv` in the body, \
-                           `?format=csv` in the URL, or `Accept: text/csv`.",
-            params(FormatQuery),
-            responses((status = 200, description = $ok, content(
-                ($response = "application/json"), (String = "text/csv"))), BodyErrors))]
+            description = concat!("Answers JSON. The same answer as CSV is at POST ", $csv_path,
+                                  " (an `Accept: text/csv` header here also gets CSV)."),
+            responses((status = 200, description = $ok, body = $response), BodyErrors))]
         pub async fn $post(
             State(state): State<AppState>,
-            QueryParams(query, query_problems): QueryParams<FormatQuery>,
             headers: HeaderMap,
+            uri: Uri,
             JsonBody(request, mut problems): JsonBody<$request>,
         ) -> Result<Response, ApiError> {
-            problems.extend(query_problems);
-            let format =
-                csv::negotiate(query.format.or(request.format), headers.get(header::ACCEPT));
+            $crate::api::routes::body_only(&uri, &mut problems);
+            problems.reword("format", $moved);
+            let format = csv::negotiate(headers.get(header::ACCEPT));
             $crate::api::routes::data_operation!(@respond $answer(&state, &request, problems),
                 format, $csv, $file)
         }
 
         #[utoipa::path(get, path = $path, tag = $tag, summary = $get_summary,
-            description = "JSON by default; CSV with `format=csv` or `Accept: text/csv`.",
+            description = concat!("The query-string form of POST ", $path, ": the same members \
+                                   as query parameters. Answers JSON; CSV is at GET ",
+                                  $csv_path, "."),
             params($request),
-            responses((status = 200, description = $ok, content(
-                ($response = "application/json"), (String = "text/csv"))), QueryErrors))]
+            responses((status = 200, description = $ok, body = $response), QueryErrors))]
         pub async fn $get(
             State(state): State<AppState>,
             headers: HeaderMap,
-            QueryParams(request, problems): QueryParams<$request>,
+            QueryParams(request, mut problems): QueryParams<$request>,
         ) -> Result<Response, ApiError> {
-            let format = csv::negotiate(request.format, headers.get(header::ACCEPT));
+            problems.reword("format", $moved);
+            let format = csv::negotiate(headers.get(header::ACCEPT));
             $crate::api::routes::data_operation!(@respond $answer(&state, &request, problems),
                 format, $csv, $file)
         }
+
+        #[utoipa::path(post, path = $csv_path, tag = $tag, $($post_csv_doc)*,
+            description = concat!("The answer of POST ", $path, " as CSV (RFC 4180): a header \
+                                   row naming each column with its unit, such as \
+                                   `distance_mm`, then one line per row."),
+            responses((status = 200, description = $csv_ok, content_type = "text/csv",
+                       body = String), BodyErrors))]
+        pub async fn $post_csv(
+            State(state): State<AppState>,
+            uri: Uri,
+            JsonBody(request, mut problems): JsonBody<$request>,
+        ) -> Result<Response, ApiError> {
+            $crate::api::routes::body_only(&uri, &mut problems);
+            problems.reword("format", $moved);
+            $crate::api::routes::data_operation!(@respond $answer(&state, &request, problems),
+                csv::DataFormat::Csv, $csv, $file)
+        }
+
+        #[utoipa::path(get, path = $csv_path, tag = $tag, summary = $get_csv_summary,
+            description = concat!("The query-string form of POST ", $csv_path, "."),
+            params($request),
+            responses((status = 200, description = $csv_ok, content_type = "text/csv",
+                       body = String), QueryErrors))]
+        pub async fn $get_csv(
+            State(state): State<AppState>,
+            QueryParams(request, mut problems): QueryParams<$request>,
+        ) -> Result<Response, ApiError> {
+            problems.reword("format", $moved);
+            $crate::api::routes::data_operation!(@respond $answer(&state, &request, problems),
+                csv::DataFormat::Csv, $csv, $file)
+        }
     };
-    (@respond $answer:expr, $format:ident, $csv:ident, $file:literal) => {
+    (@respond $answer:expr, $format:expr, $csv:ident, $file:literal) => {
         $answer.map(|answer| {
             csv::respond($format, answer, $csv, concat!("attachment; filename=\"", $file, "\""))
         })
@@ -100,7 +135,10 @@ macro_rules! data_operation {
 use utoipa_axum::router::OpenApiRouter;
 pub(crate) use {data_operation, json_operation};
 
-use super::{AppState, HeavyState, error::ApiError};
+use super::{
+    AppState, HeavyState,
+    error::{ApiError, FieldErrors},
+};
 
 /// The JSON answers: microseconds of CPU and small bodies each.
 pub fn light() -> OpenApiRouter<AppState> {
@@ -117,6 +155,20 @@ pub fn light() -> OpenApiRouter<AppState> {
 /// their own here, see [`crate::startup::app_with`]).
 pub fn heavy() -> OpenApiRouter<HeavyState> {
     OpenApiRouter::new()
+}
+
+/// Names each query parameter of a POST whose members come in the body: such a parameter
+/// would be ignored, and a caller who sent `?format=csv` must hear that it was.
+pub fn body_only(uri: &Uri, problems: &mut FieldErrors) {
+    for pair in uri.query().unwrap_or_default().split('&') {
+        let name = pair.split('=').next().unwrap_or_default();
+        if !name.is_empty() {
+            problems.add(
+                &crate::numbers::clip(name, super::wording::ECHO),
+                "is a query parameter, but this POST reads its members from the JSON body",
+            );
+        }
+    }
 }
 
 /// Answers any path the API does not have.

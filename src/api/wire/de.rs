@@ -7,6 +7,8 @@
 
 use serde::Deserialize;
 
+use crate::api::wording;
+
 /// The type of a request member: how it is read when present. Every member is read through
 /// [`member`], which refuses `null`, so the rule is stated once for all of them.
 pub trait Member: Sized {
@@ -24,7 +26,52 @@ macro_rules! plain_members {
     };
 }
 
-plain_members!(f64, Vec<f64>, super::params::Unit, super::params::Spacing);
+plain_members!(f64, Vec<f64>);
+
+/// Enumerated members (`unit`, `spacing`, …): read through [`choice`], so that only a string
+/// is taken and any refusal lists the allowed values.
+macro_rules! choice_members {
+    ($($ty:ty),*) => {
+        $(impl $crate::api::wire::de::Member for $ty {
+            fn read<'de, D: ::serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+                $crate::api::wire::de::choice(deserializer)
+            }
+        })*
+    };
+}
+
+choice_members!(super::params::Unit, super::params::Spacing);
+
+/// An enumerated member: one of its values, given as a string. serde's own enum reading also
+/// takes `{"mm": null}` and says `expected string or map` for a number; this takes only the
+/// string, and says `must be one of mm, cm, m, in, ft, got 5`.
+pub fn choice<'de, D, T>(deserializer: D) -> Result<T, D::Error>
+where
+    D: serde::Deserializer<'de>,
+    T: serde::de::DeserializeOwned,
+{
+    use serde::de::{Error, IntoDeserializer};
+
+    let value = serde_json::Value::deserialize(deserializer)?;
+    let read = |text: &str| {
+        T::deserialize(IntoDeserializer::<serde::de::value::Error>::into_deserializer(text))
+    };
+    let refusal = match &value {
+        serde_json::Value::String(text) => match read(text) {
+            Ok(choice) => return Ok(choice),
+            Err(error) => error,
+        },
+        // The empty string is no value's name: its refusal lists them all.
+        _ => match read("") {
+            Ok(choice) => return Ok(choice),
+            Err(error) => error,
+        },
+    };
+    Err(D::Error::custom(wording::message(
+        &refusal.to_string(),
+        Some(&value),
+    )))
+}
 
 /// Deserializes a member that is present: `null` is refused like any other wrong type, because
 /// optional members are optional, not nullable (omit a member to take its default). For the
@@ -342,4 +389,6 @@ macro_rules! range_request {
     };
 }
 
-pub(crate) use {camera_request, plain_members, range_request, request, rig_request};
+pub(crate) use {
+    camera_request, choice_members, plain_members, range_request, request, rig_request,
+};

@@ -5,7 +5,7 @@ use serde::{Deserialize, Serialize};
 use utoipa::{IntoParams, ToSchema};
 
 use crate::api::extract::QueryForm;
-use crate::api::wire::de::{plain_members, present, request};
+use crate::api::wire::de::{choice_members, plain_members, present, request};
 use crate::api::wire::params::Unit;
 use crate::calibration::{Format, KittiPair};
 
@@ -80,7 +80,8 @@ impl From<Cameras> for KittiPair {
     }
 }
 
-plain_members!(String, FormatChoice, Cameras);
+plain_members!(String);
+choice_members!(FormatChoice, Cameras);
 
 request! {
     /// A calibration file to read, as text, with the options that some formats need.

@@ -1,18 +1,19 @@
-//! `/chart-data` and `/chart.svg`: distance and depth error against disparity for a rig, as
-//! series for a chart library (GET and POST) or drawn as a self-contained SVG (GET).
+//! `/chart-data`, `/chart-data.csv` and `/chart.svg`: distance and depth error against
+//! disparity for a rig, as series for a chart library or a spreadsheet (GET and POST) or drawn
+//! as a self-contained SVG (GET).
 
 pub mod svg;
 pub mod types;
 
 use axum::extract::State;
-use axum::http::{HeaderMap, HeaderValue, header};
+use axum::http::{HeaderMap, HeaderValue, Uri, header};
 use axum::response::{IntoResponse, Response};
 use utoipa_axum::{router::OpenApiRouter, routes};
 
 use self::types::{Axis, AxisScale, ChartPoint, ChartRequest, ChartResponse, Series};
 use super::data_operation;
 use crate::api::AppState;
-use crate::api::csv::{self, FormatQuery};
+use crate::api::csv;
 use crate::api::error::{ApiError, FieldErrors};
 use crate::api::extract::{JsonBody, QueryParams};
 use crate::api::format::short;
@@ -20,10 +21,11 @@ use crate::api::validate::{self, Bounds, Feature};
 use crate::api::wire::openapi::{BodyErrors, QueryErrors};
 use crate::physics;
 
-/// `GET` and `POST /chart-data`, `GET /chart.svg`.
+/// `GET` and `POST /chart-data` and `/chart-data.csv`, `GET /chart.svg`.
 pub fn router() -> OpenApiRouter<AppState> {
     OpenApiRouter::new()
         .routes(routes!(get_chart_data, post_chart_data))
+        .routes(routes!(get_chart_data_csv, post_chart_data_csv))
         .routes(routes!(get_chart_svg))
 }
 
@@ -31,34 +33,41 @@ pub fn router() -> OpenApiRouter<AppState> {
 pub const IMAGE_SVG: &str = "image/svg+xml";
 
 data_operation! {
-    chart: ChartRequest => ChartResponse, csv chart_csv as "stereo-chart.csv"
-        at "/chart-data", tag "chart", ok "The chart series.";
+    chart: ChartRequest => ChartResponse at "/chart-data", tag "chart", ok "The chart series.";
+    csv chart_csv as "stereo-chart.csv" at "/chart-data.csv",
+        ok "The chart series as CSV, one row per disparity.",
+        moved "CSV has its own path now: /chart-data.csv (or send Accept: text/csv)";
     post post_chart_data(
         summary = "Chart series of distance and depth error against disparity",
-    request_body(content = ChartRequest, examples(
-        ("measured point" = (summary = "The seed's example 1 marked on the curve",
-                             value = json!({
-            "focal_length_px": 35, "baseline": 150, "unit": "mm",
-            "image_width": 800, "image_height": 600,
-            "x_left": 400, "x_right": 350, "points": 100
-        }))),
-        ("distance range" = (summary = "f in mm with a pixel pitch, from 1 m to 30 m",
-                             value = json!({
-            "focal_length_mm": 3.6, "pixel_size_um": 3, "baseline": 0.12, "unit": "m",
-            "image_width": 1920, "image_height": 1080,
-            "distance_min": 1, "distance_max": 30, "spacing": "log", "points": 50
-        }))),
-        ("KITTI, measured disparity, CSV" = (summary = "A rig from /calibration, a \
-                                             disparity from a matcher, as CSV",
-                                             value = json!({
-            "focal_length_px": 721.5377, "baseline": 0.5327254, "unit": "m",
-            "cx": 609.5593, "cy": 172.854, "disparity_px": 38.5,
-            "disparity_min": 1, "disparity_max": 128, "spacing": "log", "scale": "log",
-            "format": "csv", "points": 20
-        })))
-    ))
+        request_body(content = ChartRequest, examples(
+            ("measured point" = (summary = "The seed's example 1 marked on the curve",
+                                 value = json!({
+                "focal_length_px": 35, "baseline": 150, "unit": "mm",
+                "image_width": 800, "image_height": 600,
+                "x_left": 400, "x_right": 350, "points": 100
+            }))),
+            ("distance range" = (summary = "f in mm with a pixel pitch, from 1 m to 30 m",
+                                 value = json!({
+                "focal_length_mm": 3.6, "pixel_size_um": 3, "baseline": 0.12, "unit": "m",
+                "image_width": 1920, "image_height": 1080,
+                "distance_min": 1, "distance_max": 30, "spacing": "log", "points": 50
+            })))
+        ))
     );
     get get_chart_data(summary = "Chart series (query-string form of POST /chart-data)");
+    post csv post_chart_data_csv(
+        summary = "Chart series as CSV",
+        request_body(content = ChartRequest, examples(
+            ("KITTI, measured disparity" = (summary = "A rig from /calibration, a disparity \
+                                            from a matcher", value = json!({
+                "focal_length_px": 721.5377, "baseline": 0.5327254, "unit": "m",
+                "cx": 609.5593, "cy": 172.854, "disparity_px": 38.5,
+                "disparity_min": 1, "disparity_max": 128, "spacing": "log", "scale": "log",
+                "points": 20
+            })))
+        ))
+    );
+    get csv get_chart_data_csv(summary = "Chart series as CSV (query-string form)");
 }
 
 /// The series as CSV: one row per disparity, the distance and depth error in the chart's
@@ -105,12 +114,10 @@ pub async fn get_chart_svg(
     State(state): State<AppState>,
     QueryParams(request, mut problems): QueryParams<ChartRequest>,
 ) -> Result<Response, ApiError> {
-    if request.format.is_some() {
-        problems.add(
-            "format",
-            "/chart.svg always answers SVG; ask /chart-data for json or csv",
-        );
-    }
+    problems.reword(
+        "format",
+        "/chart.svg always answers SVG; /chart-data answers JSON and /chart-data.csv CSV",
+    );
     let chart = chart(&state, &request, problems)?;
     Ok((
         [(header::CONTENT_TYPE, HeaderValue::from_static(IMAGE_SVG))],

@@ -4,9 +4,8 @@
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
-use crate::api::csv::DataFormat;
 use crate::api::extract::QueryForm;
-use crate::api::wire::de::{plain_members, range_request};
+use crate::api::wire::de::{choice_members, range_request};
 use crate::api::wire::params::Unit;
 
 range_request! {
@@ -34,11 +33,6 @@ range_request! {
         /// end of a long range readable (a KITTI rig spans 4 m to 400 m). `/chart.svg` draws
         /// it; `/chart-data` reports it in `y_axis.scale` for the chart library.
         scale: AxisScale,
-        /// `/chart-data` only: `json` (the default) or `csv` (one row per disparity, with
-        /// `distance_<unit>`, `depth_error_<unit>` and `relative_error`). Without it, an
-        /// `Accept: text/csv` header asks for CSV. For POST it may also be given as
-        /// `?format=csv` in the URL. `/chart.svg` refuses it: it always answers SVG.
-        format: DataFormat,
     }
 }
 
@@ -55,7 +49,7 @@ pub enum AxisScale {
     Log,
 }
 
-plain_members!(AxisScale);
+choice_members!(AxisScale);
 
 /// A point of a chart series.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, ToSchema)]

@@ -4,6 +4,7 @@
 
 pub mod types;
 
+use crate::numbers::Num;
 use axum::extract::State;
 use utoipa_axum::{router::OpenApiRouter, routes};
 
@@ -80,7 +81,10 @@ fn budget(field: &str, value: f64, problems: &mut FieldErrors) -> Option<f64> {
     } else {
         problems.add(
             field,
-            format!("must be a fraction in (0, 1] (0.02 means 2 %), got {value}"),
+            format!(
+                "must be a fraction in (0, 1] (0.02 means 2 %), got {}",
+                Num(value)
+            ),
         );
         None
     }
@@ -112,7 +116,11 @@ fn rig(
     {
         problems.add(
             "max_disparity_px",
-            format!("must be greater than min_disparity_px ({min}), got {max}"),
+            format!(
+                "must be greater than min_disparity_px ({}), got {}",
+                Num(min),
+                Num(max)
+            ),
         );
     }
     if let (Some(min), Some(r)) = (min_disparity, rig) {

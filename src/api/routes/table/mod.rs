@@ -1,52 +1,61 @@
-//! `/table`: the sample table of distance against disparity for a rig (GET and POST), as JSON
-//! or CSV.
+//! `/table` and `/table.csv`: the sample table of distance against disparity for a rig (GET
+//! and POST), as JSON or CSV.
 
 pub mod types;
 
 use axum::extract::State;
-use axum::http::{HeaderMap, header};
+use axum::http::{HeaderMap, Uri, header};
 use axum::response::Response;
 use utoipa_axum::{router::OpenApiRouter, routes};
 
 use self::types::{TableRequest, TableResponse, TableRow};
 use super::data_operation;
 use crate::api::AppState;
-use crate::api::csv::{self, FormatQuery};
+use crate::api::csv;
 use crate::api::error::{ApiError, FieldErrors};
 use crate::api::extract::{JsonBody, QueryParams};
 use crate::api::validate::{self, Bounds};
 use crate::api::wire::openapi::{BodyErrors, QueryErrors};
 use crate::physics;
 
-/// `GET` and `POST /table`.
+/// `GET` and `POST /table` and `/table.csv`.
 pub fn router() -> OpenApiRouter<AppState> {
-    OpenApiRouter::new().routes(routes!(get_table, post_table))
+    OpenApiRouter::new()
+        .routes(routes!(get_table, post_table))
+        .routes(routes!(get_table_csv, post_table_csv))
 }
 
 data_operation! {
-    table: TableRequest => TableResponse, csv table_csv as "stereo-table.csv"
-        at "/table", tag "table", ok "The sample table.";
+    table: TableRequest => TableResponse at "/table", tag "table", ok "The sample table.";
+    csv table_csv as "stereo-table.csv" at "/table.csv", ok "The sample table as CSV.",
+        moved "CSV has its own path now: /table.csv (or send Accept: text/csv)";
     post post_table(
         summary = "Sample table of distance against disparity for a rig",
-    request_body(content = TableRequest, examples(
-        ("disparity range" = (summary = "The seed's rig over 10 to 100 px", value = json!({
-            "focal_length_px": 35, "baseline": 150, "unit": "mm",
-            "image_width": 800, "image_height": 600,
-            "disparity_min": 10, "disparity_max": 100, "steps": 10
-        }))),
-        ("distance range, log spacing" = (summary = "A 90° camera from 0.5 m to 20 m",
-                                          value = json!({
-            "horizontal_fov_deg": 90, "baseline": 0.065, "unit": "m",
-            "image_width": 800, "image_height": 600,
-            "distance_min": 0.5, "distance_max": 20, "spacing": "log", "steps": 12
-        }))),
-        ("CSV" = (summary = "f in mm with a sensor width, as CSV", value = json!({
-            "focal_length_mm": 4, "sensor_width_mm": 6.4, "baseline": 120,
-            "image_width": 1280, "image_height": 720, "format": "csv", "steps": 5
-        })))
-    ))
+        request_body(content = TableRequest, examples(
+            ("disparity range" = (summary = "The seed's rig over 10 to 100 px", value = json!({
+                "focal_length_px": 35, "baseline": 150, "unit": "mm",
+                "image_width": 800, "image_height": 600,
+                "disparity_min": 10, "disparity_max": 100, "steps": 10
+            }))),
+            ("distance range, log spacing" = (summary = "A 90° camera from 0.5 m to 20 m",
+                                              value = json!({
+                "horizontal_fov_deg": 90, "baseline": 0.065, "unit": "m",
+                "image_width": 800, "image_height": 600,
+                "distance_min": 0.5, "distance_max": 20, "spacing": "log", "steps": 12
+            })))
+        ))
     );
     get get_table(summary = "Sample table (query-string form of POST /table)");
+    post csv post_table_csv(
+        summary = "Sample table as CSV",
+        request_body(content = TableRequest, examples(
+            ("f in mm" = (summary = "f in mm with a sensor width", value = json!({
+                "focal_length_mm": 4, "sensor_width_mm": 6.4, "baseline": 120,
+                "image_width": 1280, "image_height": 720, "steps": 5
+            })))
+        ))
+    );
+    get csv get_table_csv(summary = "Sample table as CSV (query-string form)");
 }
 
 /// The header row: the members of a JSON [`TableRow`] in the same order, each length with

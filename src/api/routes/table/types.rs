@@ -1,10 +1,9 @@
 //! The wire types of `/table`: a rig and a range in, rows of distance against disparity out,
-//! as JSON or CSV.
+//! as JSON or CSV (`/table.csv`).
 
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
-use crate::api::csv::DataFormat;
 use crate::api::extract::QueryForm;
 use crate::api::wire::de::range_request;
 use crate::api::wire::params::Unit;
@@ -24,9 +23,6 @@ range_request! {
         /// Default: the image centre (`cx` when the image width is not given).
         #[schema(minimum = 0.0)]
         x_left: f64,
-        /// `json` (the default) or `csv`. Without it, an `Accept: text/csv` header asks for
-        /// CSV. For POST it may also be given as `?format=csv` in the URL.
-        format: DataFormat,
     }
 }
 
