@@ -120,18 +120,9 @@ impl FieldErrors {
     }
 }
 
-/// An RFC 9457 problem details object with the list of every offending field.
+/// An RFC 9457 problem details object with the list of every offending field. Each documented
+/// error response carries examples of its own status (`wire::openapi`).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
-#[schema(example = json!({
-    "type": "urn:stereo-distance:problem:invalid-input",
-    "title": "Invalid input",
-    "status": 422,
-    "detail": "2 fields are invalid: baseline, x_left",
-    "errors": [
-        {"field": "baseline", "message": "must be greater than 0, got 0"},
-        {"field": "x_left", "message": "must lie in [0, 800] (the image width), got 900"}
-    ]
-}))]
 pub struct Problem {
     /// A URI reference naming the kind of problem (`about:blank` for plain HTTP errors).
     #[serde(rename = "type")]

@@ -75,8 +75,14 @@ impl FromRef<HeavyState> for BodyLimit {
                        a calibration file into the rig the other endpoints take. Every error is \
                        `application/problem+json` (RFC 9457) with an `errors` array naming \
                        every offending field.",
-        license(name = "MIT")
+        license(name = "MIT", identifier = "MIT"),
+        contact(name = "Stereo distance service maintainers")
     ),
+    // Relative: the server that serves this document (Swagger UI, generators and
+    // schemathesis resolve it against the document's own URL).
+    servers((url = "/", description = "The server that serves this document")),
+    // No operation needs credentials: stated, not left out.
+    security(),
     components(schemas(error::Problem, error::FieldError)),
     tags(
         (name = "calibration", description = "Calibration files read into a rig"),

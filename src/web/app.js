@@ -68,6 +68,17 @@
   });
   const UNITS = ['mm', 'cm', 'm', 'in', 'ft'];
   const ROWS = ['5', '10', '20', '50'];
+  /** The permalink members a select (or the log checkbox) holds, with the values it offers.
+   * A permalink naming another value is shown as given, with an error next to its control,
+   * and nothing is computed in a value nobody chose. */
+  const CHOICES = {
+    focal_mode: Object.keys(FOCAL_MODES),
+    unit: UNITS,
+    rows: ROWS,
+    scale: ['linear', 'log'],
+  };
+  /** The control each choice lives in. */
+  const CHOICE_INPUTS = { focal_mode: 'focal_mode', unit: 'unit', rows: 'rows', scale: 'log' };
   const CHART_POINTS = 120;
   const DEBOUNCE_MS = 300;
 
@@ -78,21 +89,44 @@
   // ---------------------------------------------------------------------------------------
   // State: the form, the query string and the API's parameters.
 
+  /** A scale from a permalink that is neither linear nor log, until the box is ticked. */
+  let unknownScale = null;
+
   function readForm() {
     const state = { focal_mode: $('focal_mode').value, unit: $('unit').value, rows: $('rows').value };
     for (const name of TEXT_FIELDS) state[name] = $(name).value.trim();
-    state.scale = $('log').checked ? 'log' : 'linear';
+    state.scale = unknownScale ?? ($('log').checked ? 'log' : 'linear');
     return state;
   }
 
+  /** Selects `value`, adding it as an option marked unknown when the select has no such
+   * option, so that the control shows what the permalink said. */
+  function choose(select, value) {
+    for (const option of select.querySelectorAll('option[data-unknown]')) option.remove();
+    if (![...select.options].some((option) => option.value === value)) {
+      const option = document.createElement('option');
+      option.value = value;
+      option.textContent = `${value} (not an option)`;
+      option.dataset.unknown = 'true';
+      select.append(option);
+    }
+    select.value = value;
+  }
+
+  /** Removes a select's unknown option once a real one is chosen. */
+  function forgetUnknown(select) {
+    for (const option of select.querySelectorAll('option[data-unknown]')) {
+      if (!option.selected) option.remove();
+    }
+  }
+
   function writeForm(state) {
-    $('focal_mode').value = state.focal_mode;
-    $('unit').value = state.unit;
-    $('rows').value = state.rows;
+    for (const name of ['focal_mode', 'unit', 'rows']) choose($(name), state[name]);
+    unknownScale = CHOICES.scale.includes(state.scale) ? null : state.scale;
     $('log').checked = state.scale === 'log';
     for (const name of TEXT_FIELDS) $(name).value = state[name];
-    showFocalMode(state.focal_mode);
-    showUnit(state.unit);
+    showFocalMode(state.focal_mode in FOCAL_MODES ? state.focal_mode : state.focal_shown);
+    showUnit(UNITS.includes(state.unit) ? state.unit : '?');
     // Optional values given in a permalink should be visible.
     if (OPTIONAL_FIELDS.some((name) => state[name] !== '')) $('optional').open = true;
   }
@@ -105,19 +139,37 @@
     const state = { ...DEFAULTS };
     for (const name of TEXT_FIELDS) state[name] = '';
     for (const name of TEXT_FIELDS) if (query.has(name) && name !== 'focal') state[name] = query.get(name);
+    // Without focal_mode (an API query pasted as it is), the member given tells the mode.
     let mode = query.get('focal_mode');
+    let shown = mode;
     if (!(mode in FOCAL_MODES)) {
-      if (query.has('horizontal_fov_deg')) mode = 'fov';
-      else if (query.has('pixel_size_um')) mode = 'mm-pitch';
-      else if (query.has('focal_length_mm')) mode = 'mm-sensor';
-      else mode = 'px';
+      if (query.has('horizontal_fov_deg')) shown = 'fov';
+      else if (query.has('pixel_size_um')) shown = 'mm-pitch';
+      else if (query.has('focal_length_mm')) shown = 'mm-sensor';
+      else shown = 'px';
+      if (mode === null) mode = shown;
     }
     state.focal_mode = mode;
-    state.focal = query.get(FOCAL_MODES[mode].member) ?? '';
-    if (UNITS.includes(query.get('unit'))) state.unit = query.get('unit');
-    if (ROWS.includes(query.get('rows'))) state.rows = query.get('rows');
-    if (query.get('scale') === 'linear') state.scale = 'linear';
+    state.focal_shown = shown;
+    state.focal = query.get(FOCAL_MODES[shown].member) ?? '';
+    // Each choice is taken as given, even one the page does not offer: it is refused, with
+    // its error, rather than replaced by a default nobody chose.
+    for (const name of ['unit', 'rows', 'scale']) if (query.has(name)) state[name] = query.get(name);
     return state;
+  }
+
+  /** The permalink members the page itself refuses (focal_mode, rows, scale: the API never
+   * sees them), worded as the API words its own refusals. The unit goes to the API as given,
+   * and its refusal comes back from there. */
+  function choiceErrors(state) {
+    const errors = [];
+    for (const name of ['focal_mode', 'rows', 'scale']) {
+      const allowed = CHOICES[name];
+      if (allowed.includes(state[name])) continue;
+      const list = allowed.length === 2 ? allowed.join(' or ') : `one of ${allowed.join(', ')}`;
+      errors.push({ field: name, message: `must be ${list}, got \`${state[name]}\`` });
+    }
+    return errors;
   }
 
   /** The API's rig members for a state: only what the person filled in. */
@@ -186,12 +238,13 @@
     if (FOCAL_MEMBERS.includes(member)) return 'focal';
     if (COMPANIONS.includes(member)) return FOCAL_MODES[state.focal_mode].companion === member ? member : null;
     if (member === 'steps') return 'rows';
+    if (member in CHOICE_INPUTS) return CHOICE_INPUTS[member];
     if (TEXT_FIELDS.includes(member) || member === 'unit') return member;
     return null;
   }
 
   function clearErrors() {
-    for (const name of [...TEXT_FIELDS, 'unit']) {
+    for (const name of [...TEXT_FIELDS, ...Object.values(CHOICE_INPUTS)]) {
       $(name).removeAttribute('aria-invalid');
       const slot = $(`${name}-error`);
       if (slot) {
@@ -270,6 +323,19 @@
     if (inFlight) inFlight.abort();
     inFlight = new AbortController();
     const { signal } = inFlight;
+    const refused = choiceErrors(state);
+    if (refused.length > 0) {
+      // Nothing is computed in a choice nobody made; the address keeps what was asked.
+      clearErrors();
+      const fields = showErrors(refused, state);
+      showDistance(null, state);
+      showChart(null, false);
+      showTable(null, new URLSearchParams());
+      status.textContent = (note ? `${note} ` : '') +
+        `No distance: ${fields} ${fields === 1 ? 'choice needs' : 'choices need'} attention.`;
+      document.body.dataset.state = 'done';
+      return;
+    }
     const address = permalink(state);
     history.replaceState(null, '', address);
     $('permalink').href = address;
@@ -645,7 +711,8 @@
     if (event.target.matches('input[type="text"]')) schedule();
   });
   form.addEventListener('change', (event) => {
-    if (event.target.id === 'focal_mode') showFocalMode(event.target.value);
+    if (event.target.tagName === 'SELECT') forgetUnknown(event.target);
+    if (event.target.id === 'focal_mode' && event.target.value in FOCAL_MODES) showFocalMode(event.target.value);
     if (event.target.id === 'unit') showUnit(event.target.value);
     if (event.target.tagName === 'SELECT') compute();
   });
@@ -653,8 +720,14 @@
     event.preventDefault();
     compute();
   });
-  $('rows').addEventListener('change', () => compute());
-  $('log').addEventListener('change', () => compute());
+  $('rows').addEventListener('change', (event) => {
+    forgetUnknown(event.target);
+    compute();
+  });
+  $('log').addEventListener('change', () => {
+    unknownScale = null;
+    compute();
+  });
   $('reset').addEventListener('click', reset);
   $('copy').addEventListener('click', copyResults);
   $('permalink').addEventListener('click', async (event) => {

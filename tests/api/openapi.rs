@@ -248,3 +248,59 @@ async fn every_request_example_is_answered() {
     }
     assert!(answered >= 20, "examples were found ({answered})");
 }
+
+/// Each documented error response carries examples of its own status, each with a realistic
+/// `errors` array; the 422 example is what the server really answers to its request.
+#[tokio::test]
+async fn every_error_status_has_its_own_example() {
+    // Arrange
+    let app = spawn_app().await;
+    let spec = ok_json(app.get("/openapi.json").await).await;
+
+    // Act
+    let mut seen = std::collections::BTreeSet::new();
+    for (path, item) in spec["paths"].as_object().unwrap() {
+        for (method, op) in item.as_object().unwrap() {
+            for (status, response) in op["responses"].as_object().unwrap() {
+                if !status.starts_with('4') && !status.starts_with('5') {
+                    continue;
+                }
+                let examples = response["content"]["application/problem+json"]["examples"]
+                    .as_object()
+                    .unwrap_or_else(|| panic!("{method} {path} {status} has examples"));
+
+                // Assert
+                assert!(!examples.is_empty(), "{method} {path} {status}");
+                for example in examples.values() {
+                    let value = &example["value"];
+                    assert_eq!(value["status"].to_string(), *status, "{method} {path}");
+                    assert!(!value["errors"].as_array().unwrap().is_empty());
+                    seen.insert(status.clone());
+                }
+            }
+        }
+    }
+    assert_eq!(
+        seen.into_iter().collect::<Vec<_>>(),
+        ["400", "405", "408", "413", "415", "422", "503"]
+    );
+    assert!(
+        spec["components"]["schemas"]["Problem"]["example"].is_null(),
+        "no one example stands for every status"
+    );
+
+    let documented = &spec["paths"]["/distance"]["post"]["responses"]["422"]["content"]["application/problem+json"]
+        ["examples"]["three-fields-at-fault"]["value"];
+    let real = crate::helpers::problem(
+        app.post(
+            "/distance",
+            &json!({"focal_length_px": 35, "baseline": 0, "unit": "meters", "x_left": 900,
+                    "x_right": 750, "image_width": 800, "image_height": 600}),
+        )
+        .await,
+        422,
+    )
+    .await;
+    assert_eq!(real["errors"], documented["errors"]);
+    assert_eq!(real["detail"], documented["detail"]);
+}

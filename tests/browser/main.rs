@@ -438,6 +438,106 @@ async fn a_permalink_reproduces_the_page() {
     browser.close().await;
 }
 
+/// A permalink naming a unit the API refuses (`unit=meters`) shows the API's error next to
+/// the unit field and computes nothing, never millimetres nobody chose; the same holds for the
+/// page's own choices (`focal_mode`, `rows`, `scale`). Choosing real values computes again.
+#[tokio::test]
+#[ignore = "needs chromium and chromedriver; .ci/run runs it"]
+async fn unknown_choices_in_a_permalink_are_refused_next_to_their_control() {
+    // Arrange
+    let browser = Browser::start(1280, 1400).await;
+    let kitti = "focal_length_px=721.5377&baseline=0.54&x_left=620&x_right=610\
+                 &image_width=1242&image_height=375";
+
+    // Act: the unit the issue found turned into millimetres.
+    browser
+        .open(&format!("/?focal_mode=px&{kitti}&unit=meters"))
+        .await;
+
+    // Assert
+    browser
+        .until_text(
+            "unit-error",
+            "must be one of mm, cm, m, in, ft, got `meters`",
+        )
+        .await;
+    assert_eq!(
+        browser.attr("unit", "aria-invalid").await.as_deref(),
+        Some("true")
+    );
+    assert_eq!(
+        browser.value("unit").await,
+        "meters",
+        "the control shows what was asked"
+    );
+    assert_eq!(browser.text("distance").await, "–");
+    assert!(!browser.text("status").await.contains("mm"));
+    browser.assert_no_alert().await;
+
+    // Act: choosing a unit computes in it, and the unknown option is gone.
+    browser.choose("unit", "m").await;
+    browser.settled().await;
+
+    // Assert: 721.5377 × 0.54 / 10 px.
+    browser.until_text("distance", "38.963 m").await;
+    assert!(
+        browser
+            .find("unit-error")
+            .await
+            .attr("hidden")
+            .await
+            .expect("attr")
+            .is_some()
+    );
+    let options = browser
+        .script("return document.querySelectorAll('#unit option[data-unknown]').length")
+        .await;
+    assert_eq!(options, serde_json::json!(0));
+
+    // Act: the page's own choices, all wrong at once.
+    browser
+        .open(&format!(
+            "/?focal_mode=pixels&{kitti}&unit=m&rows=7&scale=cubic"
+        ))
+        .await;
+
+    // Assert
+    browser
+        .until_text(
+            "focal_mode-error",
+            "must be one of px, mm-sensor, mm-pitch, fov, got `pixels`",
+        )
+        .await;
+    assert_eq!(
+        browser.text("rows-error").await,
+        "must be one of 5, 10, 20, 50, got `7`"
+    );
+    assert_eq!(
+        browser.text("log-error").await,
+        "must be linear or log, got `cubic`"
+    );
+    assert_eq!(browser.text("distance").await, "–");
+    assert_eq!(
+        browser.value("focal").await,
+        "721.5377",
+        "the focal value is kept"
+    );
+
+    // Act: choose each.
+    browser.choose("focal_mode", "px").await;
+    browser.choose("rows", "5").await;
+    browser.find("log").await.click().await.expect("tick");
+    browser.settled().await;
+
+    // Assert
+    browser.until_text("distance", "38.963 m").await;
+    let rows = browser
+        .script("return document.querySelectorAll('#table-body tr').length")
+        .await;
+    assert_eq!(rows, serde_json::json!(5));
+    browser.close().await;
+}
+
 /// On a phone-width screen nothing scrolls sideways, every control has a label a screen
 /// reader reads, and the results are still computed.
 #[tokio::test]

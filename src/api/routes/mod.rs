@@ -29,6 +29,9 @@ macro_rules! json_operation {
                 responses((status = 200, description = $ok, body = $response), BodyErrors))]);
         $crate::api::routes::json_operation!(@handler $get, QueryParams, $request => $response,
             $answer, #[utoipa::path(get, path = $path, tag = $tag, summary = $get_summary,
+                description = concat!("The query-string form of POST ", $path, ": the same \
+                                       members as query parameters, lists comma-separated or \
+                                       repeated; the same answer."),
                 params($request),
                 responses((status = 200, description = $ok, body = $response), QueryErrors))]);
     };
@@ -79,8 +82,8 @@ macro_rules! data_operation {
 
         #[utoipa::path(get, path = $path, tag = $tag, summary = $get_summary,
             description = concat!("The query-string form of POST ", $path, ": the same members \
-                                   as query parameters. Answers JSON; CSV is at GET ",
-                                  $csv_path, "."),
+                                   as query parameters, lists comma-separated or repeated. \
+                                   Answers JSON; CSV is at GET ", $csv_path, "."),
             params($request),
             responses((status = 200, description = $ok, body = $response), QueryErrors))]
         pub async fn $get(

@@ -6,7 +6,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 
 use axum::extract::State;
-use axum::http::{StatusCode, header};
+use axum::http::header;
 use axum::response::{IntoResponse, Response};
 use serde::Serialize;
 use utoipa::ToSchema;
@@ -15,7 +15,7 @@ use utoipa_axum::{router::OpenApiRouter, routes};
 
 use crate::api::error::ApiError;
 use crate::api::respond::Json;
-use crate::api::wire::openapi::{METHOD, ProbeErrors, problem_responses};
+use crate::api::wire::openapi::{DRAINING, METHOD, ProbeErrors, problem_responses};
 use crate::metrics::{Metrics, TEXT_FORMAT};
 
 /// Whether the server wants traffic: false before it serves and while it drains.
@@ -61,13 +61,7 @@ struct NotReady;
 impl utoipa::IntoResponses for NotReady {
     fn responses()
     -> std::collections::BTreeMap<String, utoipa::openapi::RefOr<utoipa::openapi::Response>> {
-        problem_responses(&[
-            METHOD,
-            (
-                StatusCode::SERVICE_UNAVAILABLE,
-                "The server is starting or draining before shutdown; send traffic elsewhere.",
-            ),
-        ])
+        problem_responses(&[METHOD, DRAINING])
     }
 }
 
@@ -76,6 +70,8 @@ impl utoipa::IntoResponses for NotReady {
     path = "/healthz",
     tag = "operations",
     summary = "Liveness: the process is up and serving HTTP",
+    description = "For a liveness probe: 200 while the process serves HTTP. Never shed, \
+                   timed out or limited, so it answers under any load.",
     responses(
         (status = 200, description = "The process is alive.", body = Health),
         ProbeErrors
@@ -90,6 +86,9 @@ pub async fn healthz() -> Json<Health> {
     path = "/readyz",
     tag = "operations",
     summary = "Readiness: the server wants traffic (503 while it drains for shutdown)",
+    description = "For a readiness probe: 200 while the server wants traffic, 503 from \
+                   the moment it begins to drain for shutdown, so that load balancers move \
+                   traffic away before it stops.",
     responses(
         (status = 200, description = "Ready for traffic.", body = Health),
         NotReady
@@ -108,6 +107,9 @@ pub async fn readyz(State(state): State<OpsState>) -> Result<Json<Health>, ApiEr
     path = "/metrics",
     tag = "operations",
     summary = "Prometheus metrics: requests, latency histograms and in-flight requests",
+    description = "For a Prometheus scrape: `http_requests_total` and the \
+                   `http_request_duration_seconds` histogram by method, route and status, and \
+                   `http_requests_in_flight`.",
     responses((
         status = 200,
         description = "Metrics in the Prometheus text format, by method, route and status.",

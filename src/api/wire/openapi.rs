@@ -1,18 +1,23 @@
 //! OpenAPI glue: the query parameters of a GET operation derived from its POST body schema,
-//! and the problem+json error responses each kind of operation documents.
+//! and the problem+json error responses each kind of operation documents, each status with
+//! examples of its own rendered from the errors the server answers.
 
 use std::collections::BTreeMap;
 
 use axum::http::StatusCode;
 use utoipa::openapi::{
     ContentBuilder, ObjectBuilder, RefOr, Required, ResponseBuilder, Type,
+    example::ExampleBuilder,
     header::HeaderBuilder,
     path::{Parameter, ParameterBuilder, ParameterIn, ParameterStyle},
     response::Response as OpenApiResponse,
     schema::Schema,
 };
 
-use crate::api::error::PROBLEM_JSON;
+use crate::api::error::{ApiError, FieldError, PROBLEM_JSON};
+use crate::api::extract::{QueryForm, decode_query, malformed_json};
+use crate::config::{DEFAULT_BODY_LIMIT, DEFAULT_REQUEST_TIMEOUT};
+use crate::protect::RETRY_AFTER_SECS;
 
 /// Documents each member of a request body schema as a query parameter, so that the GET form of
 /// an operation is described by the very type its POST form takes.
@@ -48,15 +53,27 @@ pub fn query_parameters(schema: RefOr<Schema>) -> Vec<Parameter> {
         .collect()
 }
 
+/// One documented error response: its status, what it means, and its examples, each the
+/// problem the server really answers for one case (rendered by [`ApiError::problem`]), so that
+/// every status shows its own `status`, `title` and `errors`.
+#[derive(Clone, Copy)]
+pub struct ErrorDoc {
+    pub status: StatusCode,
+    pub description: &'static str,
+    pub examples: fn() -> Vec<(&'static str, ApiError)>,
+}
+
+/// The request id shown in examples.
+const EXAMPLE_REQUEST_ID: &str = "5b0f9b5c-3c1e-4c8e-9d0a-7f1c2e4b8a61";
+
 /// The error responses an operation documents, for `#[utoipa::path(responses(...))]`.
-pub fn problem_responses(
-    statuses: &[(StatusCode, &str)],
-) -> BTreeMap<String, RefOr<OpenApiResponse>> {
-    statuses
-        .iter()
-        .map(|(status, description)| {
-            let mut response = ResponseBuilder::new().description(*description);
-            if *status == StatusCode::SERVICE_UNAVAILABLE && description.contains("Retry-After") {
+pub fn problem_responses(docs: &[ErrorDoc]) -> BTreeMap<String, RefOr<OpenApiResponse>> {
+    docs.iter()
+        .map(|doc| {
+            let mut response = ResponseBuilder::new().description(doc.description);
+            if doc.status == StatusCode::SERVICE_UNAVAILABLE
+                && doc.description.contains("Retry-After")
+            {
                 response = response.header(
                     "Retry-After",
                     HeaderBuilder::new()
@@ -72,6 +89,26 @@ pub fn problem_responses(
                         .build(),
                 );
             }
+            let examples = (doc.examples)().into_iter().map(|(name, error)| {
+                debug_assert_eq!(error.status(), doc.status, "{name}");
+                let mut problem = error.problem();
+                problem.request_id = Some(EXAMPLE_REQUEST_ID.to_owned());
+                let example = ExampleBuilder::new()
+                    .summary(name)
+                    .value(serde_json::to_value(problem).ok())
+                    .build();
+                let key: String = name
+                    .chars()
+                    .map(|c| {
+                        if c.is_ascii_alphanumeric() {
+                            c.to_ascii_lowercase()
+                        } else {
+                            '-'
+                        }
+                    })
+                    .collect();
+                (key, example)
+            });
             let response = response
                 .content(
                     PROBLEM_JSON,
@@ -79,46 +116,136 @@ pub fn problem_responses(
                         .schema(Some(RefOr::Ref(utoipa::openapi::Ref::from_schema_name(
                             "Problem",
                         ))))
+                        .examples_from_iter(examples)
                         .build(),
                 )
                 .build();
-            (status.as_u16().to_string(), RefOr::T(response))
+            (doc.status.as_u16().to_string(), RefOr::T(response))
         })
         .collect()
 }
 
-const BAD_QUERY: (StatusCode, &str) = (
-    StatusCode::BAD_REQUEST,
-    "The query string cannot be decoded (for example invalid percent-encoding).",
-);
-const BAD_JSON: (StatusCode, &str) = (StatusCode::BAD_REQUEST, "The body is not valid JSON.");
-const TOO_LARGE: (StatusCode, &str) = (
-    StatusCode::PAYLOAD_TOO_LARGE,
-    "The body is larger than the configured limit (64 KiB by default; 2 MiB for POST /distance, \
-     which takes batches).",
-);
-const NOT_JSON: (StatusCode, &str) = (
-    StatusCode::UNSUPPORTED_MEDIA_TYPE,
-    "The body is not declared as application/json.",
-);
-const INVALID: (StatusCode, &str) = (
-    StatusCode::UNPROCESSABLE_ENTITY,
-    "One or more fields are missing, of the wrong type, unknown or out of range, or the point \
-     is at infinity; `errors` names every one.",
-);
-const TIMEOUT: (StatusCode, &str) = (
-    StatusCode::REQUEST_TIMEOUT,
-    "The request body did not arrive within the request timeout (5 s by default).",
-);
-const UNAVAILABLE: (StatusCode, &str) = (
-    StatusCode::SERVICE_UNAVAILABLE,
-    "The server is at its concurrency limit (with a `Retry-After` header) or could not answer \
-     within the request timeout; retry later.",
-);
-pub const METHOD: (StatusCode, &str) = (
-    StatusCode::METHOD_NOT_ALLOWED,
-    "The path does not support this method.",
-);
+/// The 400 of a body that is not JSON: serde_json's own words for a truncated body.
+fn broken_json() -> Vec<(&'static str, ApiError)> {
+    let error = serde_json::from_str::<serde_json::Value>(r#"{"baseline": 150,"#)
+        .err()
+        .map_or_else(
+            || ApiError::Malformed(FieldError::new("body", "invalid JSON")),
+            |e| malformed_json(&e),
+        );
+    vec![("A truncated body", error)]
+}
+
+/// The 400 of a query string that does not percent-decode.
+fn broken_query() -> Vec<(&'static str, ApiError)> {
+    let error = match decode_query::<NoMembers>("unit=%FF") {
+        Err(error) => error,
+        Ok(_) => ApiError::Malformed(FieldError::new("query", "cannot be decoded")),
+    };
+    vec![("Invalid percent-encoding", error)]
+}
+
+/// A request type without members, to decode a query string for an example.
+#[derive(serde::Deserialize)]
+struct NoMembers {}
+
+impl QueryForm for NoMembers {}
+
+/// The 422 an example request gets: a zero baseline, an unknown unit and an `x_left` off an
+/// 800 px image (`tests/api/openapi.rs` sends it and compares).
+pub fn invalid_example() -> ApiError {
+    ApiError::Invalid(vec![
+        FieldError::new("unit", "must be one of mm, cm, m, in, ft, got `meters`"),
+        FieldError::new("baseline", "must be greater than 0, got 0"),
+        FieldError::new("x_left", "must lie in [0, 800] (the image width), got 900"),
+    ])
+}
+
+const BAD_QUERY: ErrorDoc = ErrorDoc {
+    status: StatusCode::BAD_REQUEST,
+    description: "The query string cannot be decoded (for example invalid percent-encoding).",
+    examples: broken_query,
+};
+const BAD_JSON: ErrorDoc = ErrorDoc {
+    status: StatusCode::BAD_REQUEST,
+    description: "The body is not valid JSON.",
+    examples: broken_json,
+};
+const TOO_LARGE: ErrorDoc = ErrorDoc {
+    status: StatusCode::PAYLOAD_TOO_LARGE,
+    description: "The body is larger than the configured limit (64 KiB by default; 2 MiB for \
+                  POST /distance, which takes batches).",
+    examples: || {
+        vec![(
+            "A body over the default limit",
+            ApiError::PayloadTooLarge(DEFAULT_BODY_LIMIT),
+        )]
+    },
+};
+const NOT_JSON: ErrorDoc = ErrorDoc {
+    status: StatusCode::UNSUPPORTED_MEDIA_TYPE,
+    description: "The body is not declared as application/json.",
+    examples: || {
+        vec![(
+            "A form body",
+            ApiError::UnsupportedMediaType {
+                got: "application/x-www-form-urlencoded".to_owned(),
+                accepted: "application/json",
+            },
+        )]
+    },
+};
+const INVALID: ErrorDoc = ErrorDoc {
+    status: StatusCode::UNPROCESSABLE_ENTITY,
+    description: "One or more fields are missing, of the wrong type, unknown or out of range, \
+                  or the point is at infinity; `errors` names every one.",
+    examples: || vec![("Three fields at fault", invalid_example())],
+};
+const TIMEOUT: ErrorDoc = ErrorDoc {
+    status: StatusCode::REQUEST_TIMEOUT,
+    description: "The request body did not arrive within the request timeout (5 s by default).",
+    examples: || {
+        vec![(
+            "A body still arriving at the deadline",
+            ApiError::Timeout {
+                after: DEFAULT_REQUEST_TIMEOUT,
+                body_received: false,
+            },
+        )]
+    },
+};
+const UNAVAILABLE: ErrorDoc = ErrorDoc {
+    status: StatusCode::SERVICE_UNAVAILABLE,
+    description: "The server is at its concurrency limit (with a `Retry-After` header) or could \
+                  not answer within the request timeout; retry later.",
+    examples: || {
+        vec![
+            (
+                "Shed at the concurrency limit",
+                ApiError::Overloaded {
+                    retry_after_secs: RETRY_AFTER_SECS,
+                },
+            ),
+            (
+                "No answer within the timeout",
+                ApiError::Timeout {
+                    after: DEFAULT_REQUEST_TIMEOUT,
+                    body_received: true,
+                },
+            ),
+        ]
+    },
+};
+pub const METHOD: ErrorDoc = ErrorDoc {
+    status: StatusCode::METHOD_NOT_ALLOWED,
+    description: "The path does not support this method.",
+    examples: || vec![("DELETE", ApiError::MethodNotAllowed("DELETE".to_owned()))],
+};
+pub const DRAINING: ErrorDoc = ErrorDoc {
+    status: StatusCode::SERVICE_UNAVAILABLE,
+    description: "The server is starting or draining before shutdown; send traffic elsewhere.",
+    examples: || vec![("Draining", ApiError::Draining)],
+};
 
 /// Error responses of an operation that reads a JSON body.
 pub struct BodyErrors;

@@ -92,6 +92,8 @@ pub async fn post_distance(
     path = "/distance",
     tag = "distance",
     summary = "Distance to one feature (query-string form of POST /distance)",
+    description = "The query-string form of POST /distance for one correspondence: the same \
+                   members as query parameters, the same answer. Batches are POST only.",
     params(DistanceRequest),
     responses(
         (status = 200, description = "The distance and its error.", body = DistanceResponse),
