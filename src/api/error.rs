@@ -56,6 +56,7 @@ impl From<Vec<FieldError>> for FieldErrors {
 }
 
 impl FieldErrors {
+    /// Records a problem with `field`, unless that field already has one (the first, such
     /// as a wrong type found while decoding, explains the rest).
     pub fn add(&mut self, field: &str, message: impl Into<String>) {
         if !self.0.iter().any(|e| e.field == field) {
@@ -63,6 +64,8 @@ impl FieldErrors {
         }
     }
 
+    /// Records a problem without looking for one already recorded for the field: for
+    /// fields known to be new, such as a batch's `points[i]…`, of which there may be
     /// thousands.
     pub fn add_new(&mut self, field: String, message: impl Into<String>) {
         self.0.push(FieldError::new(field, message));

@@ -21,7 +21,7 @@ pub mod validate;
 pub mod wire;
 pub mod wording;
 
-use axum::{Router, extract::FromRef};
+use axum::{Router, extract::FromRef, http::header, routing::get};
 use utoipa::OpenApi;
 use utoipa_axum::router::OpenApiRouter;
 use utoipa_swagger_ui::SwaggerUi;
@@ -153,10 +153,25 @@ pub fn routers(
     extra_heavy: Router<HeavyState>,
 ) -> Routers {
     let (routers, doc) = routes(state, heavy, ops, extra_heavy);
+    let spec = axum::body::Bytes::from(openapi_text(&doc));
+    let served = move || {
+        let spec = spec.clone();
+        async move { ([(header::CONTENT_TYPE, "application/json")], spec) }
+    };
     Routers {
-        light: routers
-            .light
-            .merge(SwaggerUi::new("/docs").url("/openapi.json", doc)),
+        light: routers.light.route("/openapi.json", get(served)).merge(
+            SwaggerUi::new("/docs").config(utoipa_swagger_ui::Config::from("/openapi.json")),
+        ),
         ..routers
     }
+}
+
+/// The OpenAPI document as served at `/openapi.json` and committed as `openapi/openapi.json`,
+/// byte for byte: pretty-printed JSON with a final newline.
+pub fn openapi_text(doc: &utoipa::openapi::OpenApi) -> String {
+    let mut text = doc
+        .to_pretty_json()
+        .unwrap_or_else(|e| format!("{{\"error\": \"the OpenAPI document: {e}\"}}"));
+    text.push('\n');
+    text
 }

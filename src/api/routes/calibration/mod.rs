@@ -8,7 +8,9 @@ use axum::extract::{FromRequest, FromRequestParts, Request};
 use axum::http::header;
 use utoipa_axum::{router::OpenApiRouter, routes};
 
-use self::types::{CalibratedRig, CalibrationQuery, CalibrationRequest, CalibrationResponse};
+use self::types::{
+    CalibratedRig, CalibrationFile, CalibrationQuery, CalibrationRequest, CalibrationResponse,
+};
 use crate::api::AppState;
 use crate::api::error::{ApiError, FieldErrors};
 use crate::api::extract::{self, BodyLimit, QueryParams};
@@ -133,7 +135,7 @@ impl FromRequest<AppState> for CalibrationBody {
                     "calibration_unit": "mm"
                 })))
             )),
-            (String = "text/plain")
+            (CalibrationFile = "text/plain")
         )
     ),
     responses(

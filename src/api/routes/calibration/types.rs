@@ -189,3 +189,9 @@ pub struct CalibrationResponse {
     /// Things worth checking that did not stop the reading; empty when there are none.
     pub warnings: Vec<String>,
 }
+
+/// The calibration file itself as the raw body (`Content-Type: text/plain`): its bytes, which
+/// must be UTF-8 text. Documented as binary so that generated clients send a file's bytes.
+#[derive(ToSchema)]
+#[schema(value_type = String, format = Binary)]
+pub struct CalibrationFile(pub Vec<u8>);
