@@ -11,10 +11,9 @@ use super::respond::Json;
 pub const TEXT_CSV: &str = "text/csv; charset=utf-8; header=present";
 
 /// The representation of a `/table` or `/chart-data` answer.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum DataFormat {
     /// `application/json`.
-    #[default]
     Json,
     /// `text/csv`: a header row naming each column with its unit (`distance_mm`), then one
     /// line per row.

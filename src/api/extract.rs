@@ -9,7 +9,7 @@
 use axum::{
     body::Bytes,
     extract::{FromRef, FromRequest, FromRequestParts, Request},
-    http::{HeaderValue, header, request::Parts},
+    http::{HeaderValue, Uri, header, request::Parts},
 };
 use percent_encoding::percent_decode_str;
 use serde::de::DeserializeOwned;
@@ -19,8 +19,8 @@ use super::error::{ApiError, FieldError, FieldErrors};
 use super::wording::{self, ECHO, Refusal};
 use crate::numbers::clip;
 
-/// A JSON request body, decoded as far as it could be, with the members it refused. The
-/// rejection (400, 413, 415, or 422 for a body that is not an object) is an [`ApiError`].
+/// A JSON request body, decoded as far as it could be, with the members it refused and the
+/// query parameters it would have ignored ([`unread_query`]). The rejection (400, 413, 415, or 422 for a body that is not an object) is an [`ApiError`].
 #[derive(Debug)]
 pub struct JsonBody<T>(pub T, pub FieldErrors);
 
@@ -39,9 +39,28 @@ where
     type Rejection = ApiError;
 
     async fn from_request(req: Request, state: &S) -> Result<Self, Self::Rejection> {
+        let mut problems = unread_query(req.uri());
         let bytes = json_bytes(req, BodyLimit::from_ref(state)).await?;
-        decode_json(&bytes).map(|(value, problems)| JsonBody(value, problems))
+        let (value, refused) = decode_json(&bytes)?;
+        problems.extend(refused);
+        Ok(JsonBody(value, problems))
     }
+}
+
+/// Each query parameter of a request whose members come in its JSON body: it would be
+/// ignored, so it is named instead (a caller who sent `?format=csv` must hear that it was).
+pub fn unread_query(uri: &Uri) -> FieldErrors {
+    let mut problems = FieldErrors::default();
+    for pair in uri.query().unwrap_or_default().split('&') {
+        let name = pair.split('=').next().unwrap_or_default();
+        if !name.is_empty() {
+            problems.add(
+                &clip(name, ECHO),
+                "is a query parameter, but this POST reads its members from the JSON body",
+            );
+        }
+    }
+    problems
 }
 
 /// The body of a request declared as JSON, within `limit`: 415 for another content type, 413
@@ -178,7 +197,6 @@ pub fn malformed_json(error: &serde_json::Error) -> ApiError {
 /// Decodes a query string into `T` by way of a JSON object, with the parameters it refused.
 pub fn decode_query<T: QueryForm>(query: &str) -> Result<(T, FieldErrors), ApiError> {
     let mut map = Map::new();
-    let mut text = Map::new();
     let mut problems = FieldErrors::default();
     for pair in query.split('&').filter(|p| !p.is_empty()) {
         let (key, value) = pair.split_once('=').unwrap_or((pair, ""));
@@ -196,17 +214,29 @@ pub fn decode_query<T: QueryForm>(query: &str) -> Result<(T, FieldErrors), ApiEr
             }
             continue;
         }
-        let scalar = query_scalar(&value);
-        text.insert(key.clone(), Value::String(value));
-        if map.insert(key.clone(), scalar).is_some() {
+        if map.insert(key.clone(), query_scalar(&value)).is_some() {
             let field = if key.is_empty() { "query" } else { &key };
             problems.add(field, "is given more than once; give it once");
         }
     }
     match T::deserialize(&map) {
         Ok(value) => Ok((value, problems)),
-        Err(error) => diagnose(map, &error, problems, "query", Some(&text)),
+        Err(error) => diagnose(map, &error, problems, "query", Some(query)),
     }
+}
+
+/// The text `query` gives for `key` (the last, as the decoded map keeps it), read again only
+/// when a member refuses the number it reads as.
+fn query_text(query: &str, key: &str) -> Option<Value> {
+    query
+        .split('&')
+        .filter_map(|pair| {
+            let (k, v) = pair.split_once('=').unwrap_or((pair, ""));
+            (decode_component(k).ok()? == key).then_some(v)
+        })
+        .next_back()
+        .and_then(|v| decode_component(v).ok())
+        .map(Value::String)
 }
 
 /// A query value as JSON: a number when it reads as a JSON number, else a string.
@@ -237,15 +267,14 @@ fn decode_component(raw: &str) -> Result<String, ApiError> {
 /// `itself`, the name of the object as a whole (`body`, `query`, or `""` for a batch point,
 /// which its index then names), so that every error names something.
 ///
-/// In a query string every value is text: `text` holds each scalar as given, and a member
-/// that refuses the number a value reads as takes the text instead (a string member given
-/// `123`).
+/// In a query string every value is text: a member that refuses the number a value of `query`
+/// reads as takes the text instead (a string member given `123`).
 fn diagnose<T: DeserializeOwned>(
     mut map: Map<String, Value>,
     whole: &serde_json::Error,
     mut problems: FieldErrors,
     itself: &str,
-    text: Option<&Map<String, Value>>,
+    query: Option<&str>,
 ) -> Result<(T, FieldErrors), ApiError> {
     let alone = |key: &str, value: &Value| {
         T::deserialize(&Value::Object(Map::from_iter([(
@@ -259,9 +288,11 @@ fn diagnose<T: DeserializeOwned>(
         let Err(error) = alone(key, value) else {
             continue;
         };
-        let raw = text.and_then(|t| t.get(key)).filter(|_| value.is_number());
+        let raw = query
+            .filter(|_| value.is_number())
+            .and_then(|query| query_text(query, key));
         match raw {
-            Some(raw) if alone(key, raw).is_ok() => as_text.push((key.clone(), raw.clone())),
+            Some(raw) if alone(key, &raw).is_ok() => as_text.push((key.clone(), raw)),
             _ => refused.push((
                 key.clone(),
                 wording::message(&error.to_string(), Some(value)),

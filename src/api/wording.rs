@@ -123,18 +123,12 @@ fn one_of(allowed: &[&str], value: Option<&Value>) -> String {
     }
 }
 
-/// serde's expectation in words.
+/// serde's expectation in words. The others a request member can meet are already words:
+/// `a whole number` and `an object` (the API's own visitors), `a string`.
 fn expectation(expected: &str) -> String {
     match expected {
-        "f64" | "f32" => "a number".to_owned(),
-        "u32" | "u64" | "usize" | "i32" | "i64" => "a whole number".to_owned(),
+        "f64" => "a number".to_owned(),
         "a sequence" => "a list".to_owned(),
-        "a borrowed string" => "a string".to_owned(),
-        "string or map" => "one of the documented values".to_owned(),
-        "bool" | "a boolean" => "true or false".to_owned(),
-        other if other.starts_with("struct ") || other.starts_with("a map") => {
-            "an object".to_owned()
-        }
         other => other.to_owned(),
     }
 }

@@ -145,17 +145,6 @@ pub fn parse(text: &str, pair: Option<KittiPair>) -> Result<Calibration, Vec<Par
         },
         None => None,
     };
-    let calibration = Calibration {
-        format: Format::Kitti,
-        focal_px: f,
-        focal_y_px: pl[5],
-        baseline: (pl[3] - pr[3]) / f,
-        cx: pl[2],
-        cy: pl[6],
-        doffs: pr[2] - pl[2],
-        image_size,
-        max_disparity_px: None,
-        warnings,
-    };
-    calibration.checked(Some(right.line))
+    Calibration::from_projections(Format::Kitti, pl, pr, f, image_size, warnings)
+        .checked(Some(right.line))
 }

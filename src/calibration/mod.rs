@@ -173,6 +173,33 @@ pub struct Calibration {
 }
 
 impl Calibration {
+    /// The rig a rectified pair's 3×4 projection matrices describe (row-major, as KITTI, ROS
+    /// and OpenCV write them, the right one's `P[0,3] = −f·B`): `fy`, `cx` and `cy` from the
+    /// left one, `B = (P_l[0,3] − P_r[0,3]) / f` and `doffs = cx_right − cx_left`. `f` is the
+    /// focal length the format takes (a rectified pair shares one); both slices hold 12
+    /// numbers.
+    fn from_projections(
+        format: Format,
+        left: &[f64],
+        right: &[f64],
+        f: f64,
+        image_size: Option<(u32, u32)>,
+        warnings: Vec<String>,
+    ) -> Self {
+        Self {
+            format,
+            focal_px: f,
+            focal_y_px: left[5],
+            baseline: (left[3] - right[3]) / f,
+            cx: left[2],
+            cy: left[6],
+            doffs: right[2] - left[2],
+            image_size,
+            max_disparity_px: None,
+            warnings,
+        }
+    }
+
     /// Checks what every format must give: a positive focal length and baseline, finite
     /// numbers. `line` places the error.
     fn checked(self, line: Option<usize>) -> Result<Self, Vec<ParseError>> {

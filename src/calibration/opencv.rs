@@ -50,7 +50,7 @@ fn matrix(
     if (r, c) != (rows as f64, cols as f64) {
         return Err(ParseError::at(
             node.line(),
-            format!("{name} must be {rows}×{cols}, got {r}×{c}"),
+            format!("{name} must be {rows}×{cols}, got {}×{}", Num(r), Num(c)),
         ));
     }
     let values = data.numbers(&format!("{name}.data"))?;
@@ -121,19 +121,14 @@ fn rig(doc: &Node) -> Result<Calibration, Vec<ParseError>> {
                      horizontal disparities",
                 )]);
             }
-            let f = p1[0];
-            Some(Calibration {
-                format: Format::OpenCv,
-                focal_px: f,
-                focal_y_px: p1[5],
-                baseline: (p1[3] - p2[3]) / f,
-                cx: p1[2],
-                cy: p1[6],
-                doffs: p2[2] - p1[2],
+            Some(Calibration::from_projections(
+                Format::OpenCv,
+                p1,
+                p2,
+                p1[0],
                 image_size,
-                max_disparity_px: None,
-                warnings: Vec::new(),
-            })
+                Vec::new(),
+            ))
         }
         _ => None,
     };
@@ -149,8 +144,9 @@ fn rig(doc: &Node) -> Result<Calibration, Vec<ParseError>> {
             let mut baseline = 1.0 / q32;
             if baseline < 0.0 {
                 warnings.push(format!(
-                    "Q[3,2] is negative ({q32}): the baseline is taken as its absolute value; \
-                     check that the left camera was passed first to stereoRectify"
+                    "Q[3,2] is negative ({}): the baseline is taken as its absolute value; \
+                     check that the left camera was passed first to stereoRectify",
+                    Num(q32)
                 ));
                 baseline = -baseline;
             }
@@ -174,7 +170,10 @@ fn rig(doc: &Node) -> Result<Calibration, Vec<ParseError>> {
                 {
                     warnings.push(format!(
                         "Q and P1/P2 disagree (f {} vs {}, B {} vs {}); Q is used",
-                        from_q.focal_px, p.focal_px, from_q.baseline, p.baseline
+                        Num(from_q.focal_px),
+                        Num(p.focal_px),
+                        Num(from_q.baseline),
+                        Num(p.baseline)
                     ));
                 }
             }

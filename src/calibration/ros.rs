@@ -104,21 +104,22 @@ pub fn parse(text: &str, right_text: Option<&str>) -> Result<Calibration, Vec<Pa
     if pl[3] != 0.0 {
         warnings.push(format!(
             "the left camera's P[3] is {} rather than 0; the baseline is (P_l[3] − P_r[3]) / f",
-            pl[3]
+            Num(pl[3])
         ));
     }
     if left.size.is_some() && right.size.is_some() && left.size != right.size {
         warnings.push("the two cameras give different image sizes; the left one's is used".into());
     }
-    let baseline = (pl[3] - pr[3]) / f;
-    if baseline < 0.0 {
+    let size = left.size.or(right.size);
+    let calibration = Calibration::from_projections(Format::Ros, pl, pr, f, size, warnings);
+    if calibration.baseline < 0.0 {
         return Err(vec![
             ParseError::at(
                 left.p_line,
                 format!(
-                    "the baseline from these files is negative ({baseline} m): text must be \
-                     the left camera's CameraInfo and right_text the right camera's; they look \
-                     swapped"
+                    "the baseline from these files is negative ({} m): text must be the left \
+                     camera's CameraInfo and right_text the right camera's; they look swapped",
+                    Num(calibration.baseline)
                 ),
             ),
             ParseError::at(
@@ -128,18 +129,6 @@ pub fn parse(text: &str, right_text: Option<&str>) -> Result<Calibration, Vec<Pa
             .in_right(),
         ]);
     }
-    let calibration = Calibration {
-        format: Format::Ros,
-        focal_px: f,
-        focal_y_px: pl[5],
-        baseline,
-        cx: pl[2],
-        cy: pl[6],
-        doffs: pr[2] - pl[2],
-        image_size: left.size.or(right.size),
-        max_disparity_px: None,
-        warnings,
-    };
     calibration
         .checked(Some(right.p_line))
         .map_err(|errors| errors.into_iter().map(ParseError::in_right).collect())

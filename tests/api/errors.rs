@@ -438,3 +438,26 @@ async fn huge_numbers_are_echoed_short() {
     .await;
     assert!(body.to_string().len() < 1024, "{body}");
 }
+
+/// A `POST` reads its members from the JSON body; a query parameter it would ignore is named
+/// instead, on every body-reading operation (single and batch `/distance`, `/rig`).
+#[tokio::test]
+async fn post_query_parameters_are_named_not_ignored() {
+    let app = spawn_app().await;
+    for (path, body) in [
+        ("/distance?unit=m", example_one()),
+        (
+            "/distance?unit=m",
+            json!({"rig": seed_rig(), "points": [{"x_left": 400, "x_right": 350}]}),
+        ),
+        (
+            "/rig?unit=m",
+            json!({"focal_length_px": 424, "baseline": 50, "image_width": 848,
+                   "image_height": 480, "max_disparity_px": 126}),
+        ),
+    ] {
+        let body = problem(app.post(path, &body).await, 422).await;
+        assert_eq!(fields(&body), ["unit"], "{path}");
+        assert!(message_for(&body, "unit").contains("reads its members from the JSON body"));
+    }
+}

@@ -52,8 +52,7 @@ macro_rules! json_operation {
 /// `POST $path` answer JSON (or CSV to an `Accept: text/csv` header, for curl users), `GET`
 /// and `POST $csv_path` answer CSV, `$csv(&answer)` sent as the attachment `$file`. A request
 /// naming the former `format` member is told where CSV is now (`$moved`). The calling module
-/// imports what [`json_operation!`] names, plus `HeaderMap`, `header`, `Uri`, `Response` and
-/// `csv`.
+/// imports what [`json_operation!`] names, plus `HeaderMap`, `header`, `Response` and `csv`.
 macro_rules! data_operation {
     (
         $answer:ident: $request:ident => $response:ident at $path:tt, tag $tag:tt, ok $ok:tt;
@@ -70,14 +69,11 @@ macro_rules! data_operation {
         pub async fn $post(
             State(state): State<AppState>,
             headers: HeaderMap,
-            uri: Uri,
             JsonBody(request, mut problems): JsonBody<$request>,
         ) -> Result<Response, ApiError> {
-            $crate::api::routes::body_only(&uri, &mut problems);
-            problems.reword("format", $moved);
             let format = csv::negotiate(headers.get(header::ACCEPT));
             $crate::api::routes::data_operation!(@respond $answer(&state, &request, problems),
-                format, $csv, $file)
+                format, $csv, $file, $moved)
         }
 
         #[utoipa::path(get, path = $path, tag = $tag, summary = $get_summary,
@@ -91,10 +87,9 @@ macro_rules! data_operation {
             headers: HeaderMap,
             QueryParams(request, mut problems): QueryParams<$request>,
         ) -> Result<Response, ApiError> {
-            problems.reword("format", $moved);
             let format = csv::negotiate(headers.get(header::ACCEPT));
             $crate::api::routes::data_operation!(@respond $answer(&state, &request, problems),
-                format, $csv, $file)
+                format, $csv, $file, $moved)
         }
 
         #[utoipa::path(post, path = $csv_path, tag = $tag, $($post_csv_doc)*,
@@ -105,13 +100,10 @@ macro_rules! data_operation {
                        body = String), BodyErrors))]
         pub async fn $post_csv(
             State(state): State<AppState>,
-            uri: Uri,
             JsonBody(request, mut problems): JsonBody<$request>,
         ) -> Result<Response, ApiError> {
-            $crate::api::routes::body_only(&uri, &mut problems);
-            problems.reword("format", $moved);
             $crate::api::routes::data_operation!(@respond $answer(&state, &request, problems),
-                csv::DataFormat::Csv, $csv, $file)
+                csv::DataFormat::Csv, $csv, $file, $moved)
         }
 
         #[utoipa::path(get, path = $csv_path, tag = $tag, summary = $get_csv_summary,
@@ -123,25 +115,23 @@ macro_rules! data_operation {
             State(state): State<AppState>,
             QueryParams(request, mut problems): QueryParams<$request>,
         ) -> Result<Response, ApiError> {
-            problems.reword("format", $moved);
             $crate::api::routes::data_operation!(@respond $answer(&state, &request, problems),
-                csv::DataFormat::Csv, $csv, $file)
+                csv::DataFormat::Csv, $csv, $file, $moved)
         }
     };
-    (@respond $answer:expr, $format:expr, $csv:ident, $file:literal) => {
-        $answer.map(|answer| {
+    (@respond $answer:ident(&$state:ident, &$request:ident, $problems:ident), $format:expr,
+     $csv:ident, $file:literal, $moved:tt) => {{
+        $problems.reword("format", $moved);
+        $answer(&$state, &$request, $problems).map(|answer| {
             csv::respond($format, answer, $csv, concat!("attachment; filename=\"", $file, "\""))
         })
-    };
+    }};
 }
 
 use utoipa_axum::router::OpenApiRouter;
 pub(crate) use {data_operation, json_operation};
 
-use super::{
-    AppState, HeavyState,
-    error::{ApiError, FieldErrors},
-};
+use super::{AppState, HeavyState, error::ApiError};
 
 /// The JSON answers: microseconds of CPU and small bodies each.
 pub fn light() -> OpenApiRouter<AppState> {
@@ -158,20 +148,6 @@ pub fn light() -> OpenApiRouter<AppState> {
 /// their own here, see [`crate::startup::app_with`]).
 pub fn heavy() -> OpenApiRouter<HeavyState> {
     OpenApiRouter::new()
-}
-
-/// Names each query parameter of a POST whose members come in the body: such a parameter
-/// would be ignored, and a caller who sent `?format=csv` must hear that it was.
-pub fn body_only(uri: &Uri, problems: &mut FieldErrors) {
-    for pair in uri.query().unwrap_or_default().split('&') {
-        let name = pair.split('=').next().unwrap_or_default();
-        if !name.is_empty() {
-            problems.add(
-                &crate::numbers::clip(name, super::wording::ECHO),
-                "is a query parameter, but this POST reads its members from the JSON body",
-            );
-        }
-    }
 }
 
 /// Answers any path the API does not have.

@@ -153,7 +153,7 @@ impl QueryForm for NoMembers {}
 
 /// The 422 an example request gets: a zero baseline, an unknown unit and an `x_left` off an
 /// 800 px image (`tests/api/openapi.rs` sends it and compares).
-pub fn invalid_example() -> ApiError {
+fn invalid_example() -> ApiError {
     ApiError::Invalid(vec![
         FieldError::new("unit", "must be one of mm, cm, m, in, ft, got `meters`"),
         FieldError::new("baseline", "must be greater than 0, got 0"),

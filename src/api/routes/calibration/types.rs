@@ -5,7 +5,7 @@ use serde::{Deserialize, Serialize};
 use utoipa::{IntoParams, ToSchema};
 
 use crate::api::extract::QueryForm;
-use crate::api::wire::de::{choice_members, plain_members, present, request};
+use crate::api::wire::de::{choice_members, member, plain_members, request};
 use crate::api::wire::params::Unit;
 use crate::calibration::{Format, KittiPair};
 
@@ -112,25 +112,26 @@ request! {
     }
 }
 
-/// The options of a calibration sent as a raw `text/plain` body, in the URL's query.
+/// The options of a calibration sent as a raw `text/plain` body, in the URL's query; each read
+/// as [`member`] reads every request member (present, never `null`, a choice as a string).
 #[derive(Debug, Clone, Default, PartialEq, Deserialize, IntoParams)]
 #[serde(deny_unknown_fields)]
 #[into_params(parameter_in = Query)]
 pub struct CalibrationQuery {
     /// The format, or `auto` (the default) to detect it.
-    #[serde(default, deserialize_with = "present")]
+    #[serde(default, deserialize_with = "member")]
     #[param(nullable = false)]
     pub format: Option<FormatChoice>,
     /// KITTI only: the camera pair, `2-3` (the default) or `0-1`.
-    #[serde(default, deserialize_with = "present")]
+    #[serde(default, deserialize_with = "member")]
     #[param(nullable = false)]
     pub cameras: Option<Cameras>,
     /// The unit the file's lengths are in (required for OpenCV files).
-    #[serde(default, deserialize_with = "present")]
+    #[serde(default, deserialize_with = "member")]
     #[param(nullable = false)]
     pub calibration_unit: Option<Unit>,
     /// The unit of the answer's lengths (default: the file's own).
-    #[serde(default, deserialize_with = "present")]
+    #[serde(default, deserialize_with = "member")]
     #[param(nullable = false)]
     pub unit: Option<Unit>,
 }

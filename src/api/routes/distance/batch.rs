@@ -83,18 +83,22 @@ impl FromRequest<AppState> for DistanceBody {
     type Rejection = ApiError;
 
     async fn from_request(req: Request, state: &AppState) -> Result<Self, Self::Rejection> {
+        let unread = extract::unread_query(req.uri());
         let limit = BodyLimit(state.limits.batch_body_bytes);
         let bytes = extract::json_bytes(req, limit).await?;
         expect_object(&bytes)?;
+        let one = |mut problems: FieldErrors| {
+            let (request, refused) = extract::decode_json(&bytes)?;
+            problems.extend(refused);
+            Ok(DistanceBody::One(request, problems))
+        };
         if !may_be_batch(&bytes) {
-            let (request, problems) = extract::decode_json(&bytes)?;
-            return Ok(DistanceBody::One(request, problems));
+            return one(unread);
         }
         let shape: Shape =
             serde_json::from_slice(&bytes).map_err(|e| extract::malformed_json(&e))?;
         if !(shape.rig.0 || shape.points.0) {
-            let (request, problems) = extract::decode_json(&bytes)?;
-            return Ok(DistanceBody::One(request, problems));
+            return one(unread);
         }
         if let Ok(wire) = serde_json::from_slice::<Wire>(&bytes) {
             return Ok(DistanceBody::Batch(Batch {
@@ -105,12 +109,15 @@ impl FromRequest<AppState> for DistanceBody {
                         .map(|Object(p)| (p, FieldErrors::default()))
                         .collect(),
                 ),
+                problems: unread,
                 ..Batch::default()
             }));
         }
         let map: Map<String, Value> =
             serde_json::from_slice(&bytes).map_err(|e| extract::malformed_json(&e))?;
-        Ok(DistanceBody::Batch(diagnose(map)))
+        let mut batch = diagnose(map);
+        batch.problems.extend(unread);
+        Ok(DistanceBody::Batch(batch))
     }
 }
 

@@ -4,7 +4,7 @@
 pub mod types;
 
 use axum::extract::State;
-use axum::http::{HeaderMap, Uri, header};
+use axum::http::{HeaderMap, header};
 use axum::response::Response;
 use utoipa_axum::{router::OpenApiRouter, routes};
 
