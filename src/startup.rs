@@ -73,12 +73,16 @@ pub fn app_with(config: &Config, ops: OpsState, extra_heavy: Router<HeavyState>)
         config.concurrency_limit,
         config.request_timeout,
     );
-    let images = images.layer(GuardLayer::with_memory(
-        heavy.concurrency_limit,
-        heavy.request_timeout,
-        MemoryBudget::new(heavy.memory_budget),
-        heavy.body_bytes,
-    ));
+    // The form extractor's own cap (2 MB by default) raised to the group's body limit; the
+    // guard's admission and the form reader enforce that limit.
+    let images = images
+        .layer(axum::extract::DefaultBodyLimit::max(heavy.body_bytes))
+        .layer(GuardLayer::with_memory(
+            heavy.concurrency_limit,
+            heavy.request_timeout,
+            MemoryBudget::new(heavy.memory_budget),
+            heavy.body_bytes,
+        ));
     let edge = ServiceBuilder::new();
     #[cfg(feature = "library-request-id")]
     let edge = edge

@@ -175,6 +175,9 @@ pub enum ApiError {
     Draining,
     /// 500: a bug; never expected, but answered in the same format.
     Internal(String),
+    /// 413: the request's images or disparity range are beyond the server's limits; the
+    /// errors name the parts and parameters to shrink.
+    Oversized(Vec<FieldError>),
 }
 
 impl ApiError {
@@ -200,6 +203,7 @@ impl ApiError {
             | ApiError::Memory(Refusal::Busy { .. })
             | ApiError::Draining => StatusCode::SERVICE_UNAVAILABLE,
             ApiError::Internal(_) => StatusCode::INTERNAL_SERVER_ERROR,
+            ApiError::Oversized(_) => StatusCode::PAYLOAD_TOO_LARGE,
         }
     }
 
@@ -323,6 +327,20 @@ impl ApiError {
             ApiError::Draining => plain(
                 "the server is shutting down and takes no new traffic".to_owned(),
                 vec![FieldError::new("server", "draining")],
+            ),
+            ApiError::Oversized(errors) => plain(
+                match errors.as_slice() {
+                    [one] => format!("{}: {}", one.field, one.message),
+                    _ => format!(
+                        "the request is beyond the server's limits: {}",
+                        errors
+                            .iter()
+                            .map(|e| e.field.as_str())
+                            .collect::<Vec<_>>()
+                            .join(", ")
+                    ),
+                },
+                errors.clone(),
             ),
             ApiError::Internal(what) => plain(
                 "the server failed to answer this request; it has been logged".to_owned(),

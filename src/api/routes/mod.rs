@@ -5,7 +5,9 @@
 
 pub mod calibration;
 pub mod chart;
+pub mod depth_map;
 pub mod distance;
+pub mod images;
 pub mod ops;
 pub mod planning;
 pub mod table;
@@ -143,11 +145,10 @@ pub fn light() -> OpenApiRouter<AppState> {
         .merge(calibration::router())
 }
 
-/// The image requests: megabytes in, milliseconds to seconds of CPU each. None is served yet;
-/// the group, its limits and its memory budget are in place for them (tests mount a route of
-/// their own here, see [`crate::startup::app_with`]).
+/// The image requests: megabytes in, milliseconds to seconds of CPU each (tests mount a route
+/// of their own here too, see [`crate::startup::app_with`]).
 pub fn heavy() -> OpenApiRouter<HeavyState> {
-    OpenApiRouter::new()
+    OpenApiRouter::new().merge(depth_map::router())
 }
 
 /// Answers any path the API does not have.

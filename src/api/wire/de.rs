@@ -188,6 +188,53 @@ impl Member for u32 {
     }
 }
 
+/// A whole number that may be negative (`min_disparity`): an integral JSON number within
+/// ±[`MAX_WHOLE`], `−32.0` included.
+impl Member for i32 {
+    fn read<'de, D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        use serde::de::Error;
+
+        let value = serde_json::Value::deserialize(deserializer)?;
+        let refuse = || {
+            D::Error::custom(format!(
+                "must be a whole number, got {}",
+                wording::describe(&value)
+            ))
+        };
+        let x = value.as_f64().ok_or_else(refuse)?;
+        if x.fract() != 0.0 {
+            return Err(D::Error::custom(format!(
+                "must be a whole number, got {}",
+                crate::numbers::Num(x)
+            )));
+        }
+        if x.abs() > f64::from(MAX_WHOLE) {
+            return Err(D::Error::custom(format!(
+                "must lie in [-{MAX_WHOLE}, {MAX_WHOLE}], got {}",
+                crate::numbers::Num(x)
+            )));
+        }
+        Ok(x as i32)
+    }
+}
+
+/// A switch: `true` or `false`, as JSON booleans or, in a query string, as those words.
+impl Member for bool {
+    fn read<'de, D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        use serde::de::Error;
+
+        match serde_json::Value::deserialize(deserializer)? {
+            serde_json::Value::Bool(b) => Ok(b),
+            serde_json::Value::String(s) if s == "true" => Ok(true),
+            serde_json::Value::String(s) if s == "false" => Ok(false),
+            other => Err(D::Error::custom(format!(
+                "must be true or false, got {}",
+                wording::describe(&other)
+            ))),
+        }
+    }
+}
+
 /// Declares a request type from its members, each written `name: Type` with its docs and
 /// schema attributes: every member becomes `Option<Type>`, read through [`member`] (present,
 /// never `null`; absent is `None`) and documented as not nullable. Unknown members are refused,

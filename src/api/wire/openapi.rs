@@ -264,6 +264,108 @@ impl utoipa::IntoResponses for BodyErrors {
     }
 }
 
+/// Error responses of an image operation (multipart form, query options, memory budget).
+pub struct ImageErrors;
+
+impl utoipa::IntoResponses for ImageErrors {
+    fn responses() -> BTreeMap<String, RefOr<OpenApiResponse>> {
+        problem_responses(&[
+            BAD_FORM,
+            METHOD,
+            TIMEOUT,
+            IMAGES_TOO_LARGE,
+            NOT_FORM,
+            INVALID_IMAGES,
+            IMAGES_UNAVAILABLE,
+        ])
+    }
+}
+
+const BAD_FORM: ErrorDoc = ErrorDoc {
+    status: StatusCode::BAD_REQUEST,
+    description: "The multipart body or the query string cannot be decoded.",
+    examples: || {
+        vec![(
+            "A body cut short",
+            ApiError::Malformed(FieldError::new(
+                "body",
+                "is not a readable multipart/form-data body: Failed to read stream",
+            )),
+        )]
+    },
+};
+const IMAGES_TOO_LARGE: ErrorDoc = ErrorDoc {
+    status: StatusCode::PAYLOAD_TOO_LARGE,
+    description: "The body is larger than the heavy group's limit (32 MiB by default), an image \
+                  is beyond 8192 px a side or 12 megapixels, or the request would need more \
+                  memory than the heavy group's whole budget; `errors` names what to shrink.",
+    examples: || {
+        vec![(
+            "Images too large",
+            ApiError::Oversized(vec![FieldError::new(
+                "left",
+                "is 20000 × 20000 pixels; this server takes at most 8192 pixels a side and 12 \
+                 megapixels: send smaller images (scale the rig with them)",
+            )]),
+        )]
+    },
+};
+const NOT_FORM: ErrorDoc = ErrorDoc {
+    status: StatusCode::UNSUPPORTED_MEDIA_TYPE,
+    description: "The body is not multipart/form-data.",
+    examples: || {
+        vec![(
+            "A JSON body",
+            ApiError::UnsupportedMediaType {
+                got: "Invalid `boundary` for `multipart/form-data` request".to_owned(),
+                accepted: "multipart/form-data",
+            },
+        )]
+    },
+};
+const INVALID_IMAGES: ErrorDoc = ErrorDoc {
+    status: StatusCode::UNPROCESSABLE_ENTITY,
+    description: "A part is missing, unknown, not a PNG or JPEG, the pair's sizes differ, the \
+                  rig or calibration is at fault, or an option is out of range; `errors` names \
+                  every part and parameter.",
+    examples: || {
+        vec![(
+            "A pair of two sizes and a bad rig",
+            ApiError::Invalid(vec![
+                FieldError::new(
+                    "right",
+                    "is 740 × 500 pixels but the left image is 741 × 500: a rectified pair has \
+                     one size",
+                ),
+                FieldError::new("rig.baseline", "must be greater than 0, got 0"),
+            ]),
+        )]
+    },
+};
+const IMAGES_UNAVAILABLE: ErrorDoc = ErrorDoc {
+    status: StatusCode::SERVICE_UNAVAILABLE,
+    description: "The heavy group is at its concurrency limit or its memory budget is held by \
+                  the image requests in flight (with `Retry-After`), or the answer took longer \
+                  than the heavy request timeout (30 s by default); retry later.",
+    examples: || {
+        vec![
+            (
+                "Shed at the concurrency limit",
+                ApiError::Overloaded {
+                    retry_after_secs: RETRY_AFTER_SECS,
+                },
+            ),
+            (
+                "Memory held by other requests",
+                ApiError::Memory(crate::budget::Refusal::Busy {
+                    requested: 120 << 20,
+                    available: 40 << 20,
+                }),
+            ),
+        ]
+    },
+};
+
 /// Error responses of a probe, which reads nothing and is never shed or timed out.
 pub struct ProbeErrors;
 

@@ -150,7 +150,7 @@ pub async fn post_calibration(
 }
 
 /// Reads the file and states the rig in the requested unit.
-fn read(
+pub(crate) fn read(
     request: &CalibrationRequest,
     mut problems: FieldErrors,
 ) -> Result<CalibrationResponse, ApiError> {

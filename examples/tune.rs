@@ -1,0 +1,110 @@
+//! Tunes the matcher's defaults: runs it on a pair with ground truth under a grid of parameters
+//! and prints Middlebury's bad-0.5/1.0/2.0 (holes filled from the row's background first) and
+//! density for each.
+//!
+//! ```text
+//! cargo run --profile tune --example tune -- LEFT.png RIGHT.png TRUTH.f32 [COUNT] [KEY=V1,V2 …]
+//! ```
+//! `TRUTH.f32` is the ground truth as raw little-endian float32, row-major, +inf where unknown.
+//! Keys: p1, p2, edge, uniq, lr, speckle, median (0/1), sub (off/parabola/equiangular).
+
+use std::sync::atomic::AtomicBool;
+use std::time::Instant;
+
+use stereo_distance::vision::{self, Params, Subpixel, decode, refine};
+
+fn main() {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let limits = decode::Limits {
+        max_side: 8192,
+        max_pixels: 50_000_000,
+    };
+    let left = decode::decode(&std::fs::read(&args[0]).unwrap(), limits, false).unwrap();
+    let right = decode::decode(&std::fs::read(&args[1]).unwrap(), limits, false).unwrap();
+    let truth: Vec<f32> = std::fs::read(&args[2])
+        .unwrap()
+        .chunks_exact(4)
+        .map(|c| f32::from_le_bytes(c.try_into().unwrap()))
+        .collect();
+    let count: usize = args.get(3).map_or(64, |c| c.parse().unwrap());
+    let mut grid: Vec<Params> = vec![Params {
+        count,
+        ..Params::default()
+    }];
+    for spec in args.iter().skip(4) {
+        let (key, values) = spec.split_once('=').unwrap();
+        grid = grid
+            .into_iter()
+            .flat_map(|p| {
+                values.split(',').map(move |v| {
+                    let mut p = p;
+                    match key {
+                        "p1" => p.penalties.p1 = v.parse().unwrap(),
+                        "p2" => p.penalties.p2 = v.parse().unwrap(),
+                        "edge" => p.penalties.edge = v.parse().unwrap(),
+                        "uniq" => p.uniqueness = v.parse().unwrap(),
+                        "lr" => p.lr_tolerance = v.parse().ok().filter(|t: &f32| *t >= 0.0),
+                        "speckle" => p.speckle_size = v.parse().unwrap(),
+                        "median" => p.median = v == "1",
+                        "sub" => {
+                            p.subpixel = match v {
+                                "off" => Subpixel::Off,
+                                "parabola" => Subpixel::Parabola,
+                                _ => Subpixel::Equiangular,
+                            }
+                        }
+                        other => panic!("unknown key {other}"),
+                    }
+                    p
+                })
+            })
+            .collect();
+    }
+    let w = left.grey.width;
+    for params in grid {
+        let started = Instant::now();
+        let (map, t) =
+            vision::disparity(&left.grey, &right.grey, &params, &AtomicBool::new(false)).unwrap();
+        let total = started.elapsed();
+        let density =
+            map.data.iter().filter(|d| !d.is_nan()).count() as f64 / map.data.len() as f64;
+        let mut filled = map.data.clone();
+        refine::fill(&mut filled, w);
+        let (mut n, mut bad) = (0usize, [0usize; 3]);
+        for (&d, &g) in filled.iter().zip(&truth) {
+            if !g.is_finite() {
+                continue;
+            }
+            n += 1;
+            let e = if d.is_nan() {
+                f32::INFINITY
+            } else {
+                (d - g).abs()
+            };
+            for (b, t) in bad.iter_mut().zip([0.5, 1.0, 2.0]) {
+                *b += usize::from(e > t);
+            }
+        }
+        let pct = |b: usize| 100.0 * b as f64 / n as f64;
+        println!(
+            "p1 {:3} p2 {:3} edge {:3} uniq {:2} lr {:?} speckle {:3} median {} sub {:?}: \
+             bad0.5 {:5.2} bad1 {:5.2} bad2 {:5.2} dens {:5.1}  {:4.0} ms (cost {:.0} agg {:.0} refine {:.0})",
+            params.penalties.p1,
+            params.penalties.p2,
+            params.penalties.edge,
+            params.uniqueness,
+            params.lr_tolerance,
+            params.speckle_size,
+            u8::from(params.median),
+            params.subpixel,
+            pct(bad[0]),
+            pct(bad[1]),
+            pct(bad[2]),
+            100.0 * density,
+            total.as_secs_f64() * 1e3,
+            t.cost.as_secs_f64() * 1e3,
+            t.aggregate.as_secs_f64() * 1e3,
+            t.refine.as_secs_f64() * 1e3,
+        );
+    }
+}

@@ -1,0 +1,308 @@
+//! The wire types of `/depth-map`: the multipart form (documentation), the query's options, and
+//! the JSON summary.
+
+use serde::{Deserialize, Serialize};
+use utoipa::ToSchema;
+
+use crate::api::extract::QueryForm;
+use crate::api::routes::calibration::types::CalibratedRig;
+use crate::api::routes::distance::types::StereoRig;
+use crate::api::wire::de::{choice_members, request};
+use crate::vision::Subpixel;
+
+/// What `/depth-map` answers.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize, Serialize, ToSchema)]
+pub enum Output {
+    /// JSON: the size, the range searched, the valid fraction, disparity and depth statistics,
+    /// the rig, the parameters and the stage times.
+    #[default]
+    #[serde(rename = "summary")]
+    Summary,
+    /// Middlebury's PFM (`Pf`, little-endian, rows bottom to top), invalid = +inf.
+    #[serde(rename = "disparity.pfm")]
+    DisparityPfm,
+    /// KITTI's 16-bit PNG: round(d · 256), 0 = invalid.
+    #[serde(rename = "disparity.png")]
+    DisparityPng,
+    /// NumPy float32 array (height × width) of disparities, invalid = NaN.
+    #[serde(rename = "disparity.npy")]
+    DisparityNpy,
+    /// NumPy float32 array (height × width) of depths Z in the rig's unit, invalid = NaN.
+    #[serde(rename = "depth.npy")]
+    DepthNpy,
+    /// 16-bit PNG of depth in millimetres (ROS `16UC1`), 0 = invalid or beyond 65.535 m.
+    #[serde(rename = "depth.png")]
+    DepthPng,
+    /// The depth coloured for people (Turbo on inverse depth, near = warm), invalid = black.
+    #[serde(rename = "preview.png")]
+    PreviewPng,
+    /// Binary PLY point cloud of the valid pixels, x y z in the rig's unit in the left
+    /// camera's frame, coloured from the left image.
+    #[serde(rename = "points.ply")]
+    PointsPly,
+}
+
+impl Output {
+    /// The name, as the query takes it and as the file is called.
+    pub fn name(self) -> &'static str {
+        match self {
+            Output::Summary => "summary",
+            Output::DisparityPfm => "disparity.pfm",
+            Output::DisparityPng => "disparity.png",
+            Output::DisparityNpy => "disparity.npy",
+            Output::DepthNpy => "depth.npy",
+            Output::DepthPng => "depth.png",
+            Output::PreviewPng => "preview.png",
+            Output::PointsPly => "points.ply",
+        }
+    }
+
+    /// The media type of the answer.
+    pub fn media_type(self) -> &'static str {
+        match self {
+            Output::Summary => "application/json",
+            Output::DisparityPfm => PFM,
+            Output::DisparityPng | Output::DepthPng | Output::PreviewPng => "image/png",
+            Output::DisparityNpy | Output::DepthNpy => NPY,
+            Output::PointsPly => PLY,
+        }
+    }
+
+    /// Whether the answer needs depths, hence a rig.
+    pub fn needs_rig(self) -> bool {
+        matches!(
+            self,
+            Output::DepthNpy | Output::DepthPng | Output::PointsPly
+        )
+    }
+
+    /// The output an `Accept` header asks for, when one of its media types names exactly one.
+    pub fn from_accept(accept: &str) -> Option<Output> {
+        accept
+            .split(',')
+            .map(|m| {
+                m.split(';')
+                    .next()
+                    .unwrap_or("")
+                    .trim()
+                    .to_ascii_lowercase()
+            })
+            .find_map(|m| match m.as_str() {
+                "application/json" => Some(Output::Summary),
+                PFM => Some(Output::DisparityPfm),
+                PLY => Some(Output::PointsPly),
+                _ => None,
+            })
+    }
+}
+
+/// The media type of a PFM answer.
+pub const PFM: &str = "image/x-portable-floatmap";
+/// The media type of an NPY answer.
+pub const NPY: &str = "application/x-npy";
+/// The media type of a PLY answer.
+pub const PLY: &str = "application/x-ply";
+
+/// How the disparity is refined between whole pixels.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize, ToSchema)]
+#[serde(rename_all = "lowercase")]
+pub enum SubpixelChoice {
+    /// Whole pixels.
+    Off,
+    /// A parabola through the best cost and its neighbours (OpenCV's fit).
+    Parabola,
+    /// The equiangular (V) fit, which locks less to whole pixels (the default).
+    Equiangular,
+}
+
+impl From<SubpixelChoice> for Subpixel {
+    fn from(c: SubpixelChoice) -> Self {
+        match c {
+            SubpixelChoice::Off => Subpixel::Off,
+            SubpixelChoice::Parabola => Subpixel::Parabola,
+            SubpixelChoice::Equiangular => Subpixel::Equiangular,
+        }
+    }
+}
+
+impl From<Subpixel> for SubpixelChoice {
+    fn from(s: Subpixel) -> Self {
+        match s {
+            Subpixel::Off => SubpixelChoice::Off,
+            Subpixel::Parabola => SubpixelChoice::Parabola,
+            Subpixel::Equiangular => SubpixelChoice::Equiangular,
+        }
+    }
+}
+
+choice_members!(Output, SubpixelChoice);
+
+request! {
+    /// The options of `/depth-map`, in the query string.
+    pub struct DepthMapQuery {
+        /// The smallest disparity searched, in pixels. Default 0.
+        #[schema(minimum = -4096, maximum = 4096, example = 0)]
+        min_disparity: i32,
+        /// The search stops before this disparity: `min_disparity ≤ d < max_disparity`, at
+        /// most 512 disparities. Default: the calibration file's `ndisp` when one is given,
+        /// else 128.
+        #[schema(minimum = -4095, maximum = 4608, example = 64)]
+        max_disparity: i32,
+        /// What to answer (default `summary`); also chosen by `Accept` for
+        /// `application/json`, `image/x-portable-floatmap` and `application/x-ply`.
+        output: Output,
+        /// Fill invalid pixels from their row's background (the smaller of the nearest valid
+        /// disparities left and right) instead of leaving them invalid. Default false.
+        fill: bool,
+        /// SGM penalty for a disparity step of one pixel, in census bits. Default 12.
+        #[schema(minimum = 1, maximum = 255)]
+        p1: u32,
+        /// SGM penalty for a larger jump, in census bits, where the intensity is flat.
+        /// Default 64.
+        #[schema(minimum = 2, maximum = 1024)]
+        p2: u32,
+        /// The intensity step (grey levels of 255) across which `p2` is halved:
+        /// P2' = max(P1 + 1, P2 · T / (T + |ΔI|)); 0 keeps P2 constant. Default 16.
+        #[schema(minimum = 0, maximum = 255)]
+        p2_edge: u32,
+        /// How much lower (in percent) the best cost must be than any other more than one
+        /// pixel away; otherwise the pixel is invalid. Default 5.
+        #[schema(minimum = 0, maximum = 100)]
+        uniqueness: u32,
+        /// The left-right check: whether to run it. Default true.
+        lr_check: bool,
+        /// The left-right check's tolerance in pixels. Default 1.
+        #[schema(minimum = 0.0, maximum = 64.0)]
+        lr_tolerance: f64,
+        /// The sub-pixel fit. Default `equiangular`.
+        subpixel: SubpixelChoice,
+        /// Regions with fewer pixels than this are removed as speckles; 0 keeps them.
+        /// Default 100.
+        #[schema(minimum = 0, maximum = 1000000)]
+        speckle_size: u32,
+        /// Neighbours whose disparities differ by at most this many pixels are one region.
+        /// Default 2.
+        #[schema(exclusive_minimum = 0.0, maximum = 64.0)]
+        speckle_range: f64,
+        /// A 3 × 3 median filter of the result. Default true.
+        median: bool,
+    }
+}
+
+impl QueryForm for DepthMapQuery {}
+
+/// The `multipart/form-data` parts of `/depth-map` (for the documentation: the handler reads
+/// the parts itself, to name each one in its errors).
+#[derive(ToSchema)]
+#[allow(dead_code)]
+pub struct DepthMapForm {
+    /// The left image of the rectified pair: PNG or JPEG, 8 or 16 bits, grey, RGB or RGBA.
+    #[schema(value_type = String, format = Binary)]
+    left: Vec<u8>,
+    /// The right image, the same size as the left.
+    #[schema(value_type = String, format = Binary)]
+    right: Vec<u8>,
+    /// The rig, with the members of `/distance` (what `/calibration` answers as `rig`). The
+    /// image size defaults to the images'. Give `rig` or `calibration` for depth outputs.
+    #[schema(nullable = false)]
+    rig: Option<StereoRig>,
+    /// A calibration file as `/calibration` reads it (Middlebury, KITTI, ROS, OpenCV).
+    #[schema(value_type = Option<String>, format = Binary, nullable = false)]
+    calibration: Option<Vec<u8>>,
+    /// The calibration's format, or `auto` (the default).
+    #[schema(nullable = false)]
+    calibration_format: Option<String>,
+    /// The right camera's ROS `CameraInfo`, for ROS calibrations.
+    #[schema(value_type = Option<String>, format = Binary, nullable = false)]
+    right_calibration: Option<Vec<u8>>,
+    /// The unit of the calibration's lengths (required for OpenCV files).
+    #[schema(nullable = false)]
+    calibration_unit: Option<String>,
+    /// KITTI only: the camera pair, `2-3` (the default) or `0-1`.
+    #[schema(nullable = false)]
+    calibration_cameras: Option<String>,
+}
+
+/// The smallest, median and largest of the valid values.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct Spread {
+    pub min: f64,
+    pub median: f64,
+    pub max: f64,
+}
+
+/// How long each stage took, in milliseconds (also in the `Server-Timing` header).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct StageTimes {
+    /// Decoding both images.
+    pub decode: f64,
+    /// Census transform and cost volume.
+    pub cost: f64,
+    /// Semi-global aggregation.
+    pub aggregate: f64,
+    /// Winner-takes-all, sub-pixel, left-right check, speckle and median filters.
+    pub refine: f64,
+}
+
+/// The matcher's parameters as used.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct MatcherParameters {
+    pub p1: u32,
+    pub p2: u32,
+    pub p2_edge: u32,
+    pub uniqueness: u32,
+    /// The left-right tolerance in pixels; absent when the check was off.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub lr_tolerance: Option<f64>,
+    pub subpixel: SubpixelChoice,
+    pub speckle_size: u32,
+    pub speckle_range: f64,
+    pub median: bool,
+    pub fill: bool,
+}
+
+/// The depth map in numbers.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+#[schema(example = json!({
+    "width": 741, "height": 500, "min_disparity": 0, "max_disparity": 64,
+    "valid_fraction": 0.859,
+    "disparity_px": {"min": 3.21, "median": 28.4, "max": 61.9},
+    "distance": {"min": 1196.1, "median": 3215.0, "max": 14987.2},
+    "rig": {"focal_length_px": 994.978, "baseline": 193.001, "unit": "mm", "cx": 311.193,
+            "cy": 254.877, "doffs": 31.086, "image_width": 741, "image_height": 500},
+    "parameters": {"p1": 12, "p2": 64, "p2_edge": 16, "uniqueness": 5, "lr_tolerance": 1.0,
+                   "subpixel": "equiangular", "speckle_size": 100, "speckle_range": 2.0,
+                   "median": true, "fill": false},
+    "timings_ms": {"decode": 14.2, "cost": 9.8, "aggregate": 41.0, "refine": 18.3},
+    "warnings": []
+}))]
+pub struct DepthMapSummary {
+    /// Image width in pixels.
+    pub width: usize,
+    /// Image height in pixels.
+    pub height: usize,
+    /// The smallest disparity searched.
+    pub min_disparity: i32,
+    /// The search stopped before this disparity.
+    pub max_disparity: i32,
+    /// The share of pixels with a disparity, in [0, 1].
+    pub valid_fraction: f64,
+    /// The valid disparities, in pixels; absent when none is valid.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub disparity_px: Option<Spread>,
+    /// The depths Z = B·f / (d + doffs) of the valid pixels, in the rig's unit; absent without
+    /// a rig or when none is valid.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub distance: Option<Spread>,
+    /// The rig used, when one was given.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub rig: Option<CalibratedRig>,
+    pub parameters: MatcherParameters,
+    pub timings_ms: StageTimes,
+    /// Things to know about the answer (such as a calibration option that did not apply).
+    pub warnings: Vec<String>,
+}

@@ -1,0 +1,206 @@
+//! Decoding the uploaded images: PNG and JPEG, 8 or 16 bits, grey, grey-alpha, RGB or RGBA.
+//! The header is read first and judged against the limits, and the decoder gets its own width,
+//! height and allocation caps before it decodes, so a small file that claims 20 000 × 20 000
+//! pixels is refused without allocating them.
+
+use std::io::Cursor;
+
+use image::{ImageError, ImageFormat, ImageReader, error::LimitErrorKind};
+
+use super::Gray;
+
+/// What a decode may take.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Limits {
+    /// The widest and tallest image accepted, in pixels.
+    pub max_side: u32,
+    /// The most pixels (width × height) accepted.
+    pub max_pixels: u64,
+}
+
+/// The two formats read.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Format {
+    Png,
+    Jpeg,
+}
+
+/// Why a file could not be read as an image.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum DecodeError {
+    /// Empty, or no image format's signature.
+    NotAnImage,
+    /// A known image format that is not read here (named).
+    Unsupported(&'static str),
+    /// Larger than the limits allow.
+    TooLarge {
+        width: u32,
+        height: u32,
+        limits: Limits,
+    },
+    /// The header or the data is damaged (the decoder's words).
+    Corrupt(String),
+}
+
+/// A decoded image: its grey levels for matching and, when asked, its colours for a point cloud.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Decoded {
+    pub format: Format,
+    pub grey: Gray,
+    /// RGB, 8 bits a channel, row-major; present when decoding was asked to keep colour.
+    pub rgb: Option<Vec<u8>>,
+}
+
+/// The format of `bytes` from its signature, or why it is not one read here.
+pub fn sniff(bytes: &[u8]) -> Result<Format, DecodeError> {
+    const OTHERS: [(&[u8], &str); 9] = [
+        (b"GIF8", "GIF"),
+        (b"BM", "BMP"),
+        (b"II*\0", "TIFF"),
+        (b"MM\0*", "TIFF"),
+        (b"RIFF", "WebP"),
+        (b"Pf\n", "PFM"),
+        (b"PF\n", "PFM"),
+        (b"\x93NUMPY", "NPY"),
+        (b"\0\0\0\x0cjP  ", "JPEG 2000"),
+    ];
+    if bytes.starts_with(b"\x89PNG\r\n\x1a\n") {
+        return Ok(Format::Png);
+    }
+    if bytes.starts_with(&[0xFF, 0xD8, 0xFF]) {
+        return Ok(Format::Jpeg);
+    }
+    if bytes.len() >= 12 && &bytes[4..8] == b"ftyp" {
+        return Err(DecodeError::Unsupported("HEIF/AVIF"));
+    }
+    for (magic, name) in OTHERS {
+        if bytes.starts_with(magic) {
+            return Err(DecodeError::Unsupported(name));
+        }
+    }
+    Err(DecodeError::NotAnImage)
+}
+
+/// The width and height `bytes` declare, from the header alone.
+pub fn dimensions(bytes: &[u8]) -> Result<(u32, u32), DecodeError> {
+    let format = sniff(bytes)?;
+    reader(bytes, format)
+        .into_dimensions()
+        .map_err(|e| corrupt(&e))
+}
+
+/// Decodes `bytes` within `limits`, keeping the colours when `colour` is set.
+pub fn decode(bytes: &[u8], limits: Limits, colour: bool) -> Result<Decoded, DecodeError> {
+    let format = sniff(bytes)?;
+    let (width, height) = dimensions(bytes)?;
+    let too_large = || DecodeError::TooLarge {
+        width,
+        height,
+        limits,
+    };
+    if width > limits.max_side
+        || height > limits.max_side
+        || u64::from(width) * u64::from(height) > limits.max_pixels
+    {
+        return Err(too_large());
+    }
+    if width == 0 || height == 0 {
+        return Err(DecodeError::Corrupt("the image has no pixels".into()));
+    }
+    let mut reader = reader(bytes, format);
+    let mut caps = image::Limits::default();
+    caps.max_image_width = Some(limits.max_side);
+    caps.max_image_height = Some(limits.max_side);
+    // The decoded image at its widest (16-bit RGBA) and the decoder's own buffers.
+    caps.max_alloc = Some(limits.max_pixels.saturating_mul(8).saturating_add(64 << 20));
+    reader.limits(caps);
+    let image = reader.decode().map_err(|e| match e {
+        ImageError::Limits(l) if matches!(l.kind(), LimitErrorKind::DimensionError) => too_large(),
+        other => corrupt(&other),
+    })?;
+    let grey = image.to_luma16();
+    let rgb = colour.then(|| image.to_rgb8().into_raw());
+    Ok(Decoded {
+        format,
+        grey: Gray::new(width as usize, height as usize, grey.into_raw()),
+        rgb,
+    })
+}
+
+fn reader(bytes: &[u8], format: Format) -> ImageReader<Cursor<&[u8]>> {
+    ImageReader::with_format(
+        Cursor::new(bytes),
+        match format {
+            Format::Png => ImageFormat::Png,
+            Format::Jpeg => ImageFormat::Jpeg,
+        },
+    )
+}
+
+fn corrupt(e: &ImageError) -> DecodeError {
+    DecodeError::Corrupt(e.to_string())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const LIMITS: Limits = Limits {
+        max_side: 4096,
+        max_pixels: 4_000_000,
+    };
+
+    fn png(width: u32, height: u32) -> Vec<u8> {
+        let mut out = Vec::new();
+        image::GrayImage::from_pixel(width, height, image::Luma([7]))
+            .write_to(&mut Cursor::new(&mut out), ImageFormat::Png)
+            .unwrap();
+        out
+    }
+
+    /// A PNG decodes to its size, grey levels scaled to 16 bits.
+    #[test]
+    fn decodes_png() {
+        let d = decode(&png(5, 3), LIMITS, true).unwrap();
+        assert_eq!((d.grey.width, d.grey.height, d.format), (5, 3, Format::Png));
+        assert!(d.grey.data.iter().all(|&v| v == 7 * 257));
+        assert_eq!(d.rgb.unwrap().len(), 5 * 3 * 3);
+    }
+
+    /// A header that claims more pixels than allowed is refused before decoding: the file
+    /// below is a 1 × 1 PNG whose header (and its checksum) was edited to say 20 000 × 20 000.
+    #[test]
+    fn refuses_a_huge_header_without_decoding() {
+        let mut bytes = png(1, 1);
+        bytes[16..20].copy_from_slice(&20_000u32.to_be_bytes());
+        bytes[20..24].copy_from_slice(&20_000u32.to_be_bytes());
+        let mut crc = flate2::Crc::new();
+        crc.update(&bytes[12..29]);
+        bytes[29..33].copy_from_slice(&crc.sum().to_be_bytes());
+        assert_eq!(dimensions(&bytes), Ok((20_000, 20_000)));
+        let e = decode(&bytes, LIMITS, false).unwrap_err();
+        assert!(
+            matches!(
+                e,
+                DecodeError::TooLarge {
+                    width: 20_000,
+                    height: 20_000,
+                    ..
+                }
+            ),
+            "{e:?}"
+        );
+    }
+
+    /// Other formats are named, and what is no image is said to be none.
+    #[test]
+    fn sniffs_formats() {
+        assert_eq!(sniff(b"GIF89a..."), Err(DecodeError::Unsupported("GIF")));
+        assert_eq!(sniff(b"hello"), Err(DecodeError::NotAnImage));
+        assert_eq!(sniff(b""), Err(DecodeError::NotAnImage));
+        assert!(matches!(
+            decode(b"\x89PNG\r\n\x1a\nbroken", LIMITS, false),
+            Err(DecodeError::Corrupt(_))
+        ));
+    }
+}

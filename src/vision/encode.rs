@@ -1,0 +1,242 @@
+//! Writing disparity and depth maps in the formats their users' tools read: Middlebury's PFM,
+//! NumPy's NPY, KITTI's and ROS's 16-bit PNG, a colour preview PNG and a binary PLY point cloud.
+
+use std::io::Cursor;
+
+use image::codecs::png::{CompressionType, FilterType, PngEncoder};
+use image::{ExtendedColorType, ImageEncoder};
+
+/// Middlebury's PFM of a one-channel float image: `Pf`, the size, scale −1 (little-endian), then
+/// the rows from the bottom up. Invalid (NaN) pixels are written as +inf, as Middlebury's
+/// ground truth marks unknown disparities.
+pub fn pfm(width: usize, height: usize, data: &[f32]) -> Vec<u8> {
+    let header = format!("Pf\n{width} {height}\n-1\n");
+    let mut out = Vec::with_capacity(header.len() + data.len() * 4);
+    out.extend_from_slice(header.as_bytes());
+    for row in data.chunks_exact(width.max(1)).rev() {
+        for &v in row {
+            let v = if v.is_nan() { f32::INFINITY } else { v };
+            out.extend_from_slice(&v.to_le_bytes());
+        }
+    }
+    out
+}
+
+/// NumPy's NPY (version 1.0) of a `height × width` float32 array, C order; `numpy.load` reads
+/// it. Invalid pixels stay NaN.
+pub fn npy(width: usize, height: usize, data: &[f32]) -> Vec<u8> {
+    let dict =
+        format!("{{'descr': '<f4', 'fortran_order': False, 'shape': ({height}, {width}), }}");
+    // Magic (6) + version (2) + length (2) + dict + padding + '\n', a multiple of 64.
+    let unpadded = 10 + dict.len() + 1;
+    let padding = unpadded.next_multiple_of(64) - unpadded;
+    let header_len = dict.len() + padding + 1;
+    let mut out = Vec::with_capacity(10 + header_len + data.len() * 4);
+    out.extend_from_slice(b"\x93NUMPY\x01\x00");
+    out.extend_from_slice(&(header_len as u16).to_le_bytes());
+    out.extend_from_slice(dict.as_bytes());
+    out.extend(std::iter::repeat_n(b' ', padding));
+    out.push(b'\n');
+    for &v in data {
+        out.extend_from_slice(&v.to_le_bytes());
+    }
+    out
+}
+
+/// A 16-bit grey PNG (the encoder takes native-endian samples and stores them big-endian, as
+/// PNG does).
+pub fn png16(width: usize, height: usize, data: &[u16]) -> Vec<u8> {
+    let bytes: Vec<u8> = data.iter().flat_map(|v| v.to_ne_bytes()).collect();
+    png(width, height, &bytes, ExtendedColorType::L16)
+}
+
+/// An 8-bit RGB PNG.
+pub fn png_rgb(width: usize, height: usize, rgb: &[u8]) -> Vec<u8> {
+    png(width, height, rgb, ExtendedColorType::Rgb8)
+}
+
+fn png(width: usize, height: usize, bytes: &[u8], colour: ExtendedColorType) -> Vec<u8> {
+    let mut out = Vec::new();
+    // Fast compression: these answers are made for one request, and deflate's best effort
+    // would cost more time than the bytes it saves on a local network.
+    PngEncoder::new_with_quality(
+        Cursor::new(&mut out),
+        CompressionType::Fast,
+        FilterType::Adaptive,
+    )
+    .write_image(bytes, width as u32, height as u32, colour)
+    .expect("a PNG of a valid size encodes into memory");
+    out
+}
+
+/// KITTI's disparity PNG values: `round(d · 256)`, 0 where invalid (and where d ≤ 0 or too
+/// large for 16 bits, which the format cannot hold).
+pub fn kitti_disparity(data: &[f32]) -> Vec<u16> {
+    data.iter()
+        .map(|&d| {
+            let v = (d * 256.0).round();
+            if v.is_nan() || v < 1.0 || v > f32::from(u16::MAX) {
+                0
+            } else {
+                v as u16
+            }
+        })
+        .collect()
+}
+
+/// Depth in millimetres for a 16-bit PNG (ROS `16UC1`, RealSense): 0 where invalid or beyond
+/// 65.535 m.
+pub fn millimetres(depth_mm: &[f32]) -> Vec<u16> {
+    depth_mm
+        .iter()
+        .map(|&z| {
+            let v = z.round();
+            if v.is_nan() || v < 1.0 || v > f32::from(u16::MAX) {
+                0
+            } else {
+                v as u16
+            }
+        })
+        .collect()
+}
+
+/// Google's Turbo colour map (Mikhailov 2019, its published polynomial fit), `t` in [0, 1]
+/// from blue to red.
+pub fn turbo(t: f32) -> [u8; 3] {
+    let x = t.clamp(0.0, 1.0) as f64;
+    let v4 = [1.0, x, x * x, x * x * x];
+    let v2 = [v4[2] * v4[2], v4[3] * v4[2]];
+    let channel = |c4: [f64; 4], c2: [f64; 2]| {
+        let v = c4.iter().zip(v4).map(|(c, v)| c * v).sum::<f64>() + c2[0] * v2[0] + c2[1] * v2[1];
+        (v.clamp(0.0, 1.0) * 255.0).round() as u8
+    };
+    [
+        channel(
+            [0.13572138, 4.61539260, -42.66032258, 132.13108234],
+            [-152.94239396, 59.28637943],
+        ),
+        channel(
+            [0.09140261, 2.19418839, 4.84296658, -14.18503333],
+            [4.27729857, 2.82956604],
+        ),
+        channel(
+            [0.10667330, 12.64194608, -60.58204836, 110.36276771],
+            [-89.90310912, 27.34824973],
+        ),
+    ]
+}
+
+/// The depth map coloured for people: near is warm (red), far is cool (blue), on a scale of
+/// inverse depth (disparity) from `near` to `far` so the near field gets the colours; invalid
+/// pixels are black.
+pub fn preview(depth: &[f32], near: f32, far: f32) -> Vec<u8> {
+    let (a, b) = (
+        1.0 / far.max(f32::MIN_POSITIVE),
+        1.0 / near.max(f32::MIN_POSITIVE),
+    );
+    let span = (b - a).max(f32::MIN_POSITIVE);
+    depth
+        .iter()
+        .flat_map(|&z| {
+            if z.is_nan() || z <= 0.0 {
+                [0, 0, 0]
+            } else {
+                turbo((1.0 / z - a) / span)
+            }
+        })
+        .collect()
+}
+
+/// One point of a cloud, in the left camera's frame, with its colour.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ColouredPoint {
+    pub xyz: [f32; 3],
+    pub rgb: [u8; 3],
+}
+
+/// A binary little-endian PLY of coloured points (Open3D, CloudCompare, MeshLab read it).
+pub fn ply(points: &[ColouredPoint]) -> Vec<u8> {
+    let header = format!(
+        "ply\nformat binary_little_endian 1.0\ncomment stereo-distance depth map, left camera frame\n\
+         element vertex {}\nproperty float x\nproperty float y\nproperty float z\n\
+         property uchar red\nproperty uchar green\nproperty uchar blue\nend_header\n",
+        points.len()
+    );
+    let mut out = Vec::with_capacity(header.len() + points.len() * 15);
+    out.extend_from_slice(header.as_bytes());
+    for p in points {
+        for v in p.xyz {
+            out.extend_from_slice(&v.to_le_bytes());
+        }
+        out.extend_from_slice(&p.rgb);
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The NPY header is padded to 64 bytes and ends in a newline; the data follow it.
+    #[test]
+    fn npy_header_is_aligned() {
+        let out = npy(3, 2, &[0.0, 1.0, 2.0, 3.0, 4.0, f32::NAN]);
+        let header_len = u16::from_le_bytes([out[8], out[9]]) as usize;
+        assert_eq!((10 + header_len) % 64, 0);
+        assert_eq!(out[10 + header_len - 1], b'\n');
+        assert_eq!(out.len(), 10 + header_len + 24);
+        assert_eq!(
+            &out[10 + header_len + 4..10 + header_len + 8],
+            &1f32.to_le_bytes()
+        );
+    }
+
+    /// PFM rows run bottom to top and NaN becomes +inf.
+    #[test]
+    fn pfm_is_bottom_up() {
+        let out = pfm(2, 2, &[1.0, 2.0, 3.0, f32::NAN]);
+        let body = &out[b"Pf\n2 2\n-1\n".len()..];
+        let values: Vec<f32> = body
+            .chunks_exact(4)
+            .map(|c| f32::from_le_bytes(c.try_into().unwrap()))
+            .collect();
+        assert_eq!(values, vec![3.0, f32::INFINITY, 1.0, 2.0]);
+    }
+
+    /// A 16-bit PNG decodes to the values written.
+    #[test]
+    fn png16_round_trips() {
+        let values = [0u16, 1, 256, 384, 65535, 4097];
+        let png = png16(3, 2, &values);
+        let back = image::load_from_memory(&png)
+            .unwrap()
+            .into_luma16()
+            .into_raw();
+        assert_eq!(back, values);
+    }
+
+    /// KITTI and millimetre encodings keep 0 for invalid and out-of-range values.
+    #[test]
+    fn sixteen_bit_encodings() {
+        assert_eq!(
+            kitti_disparity(&[1.5, f32::NAN, 0.0, 300.0]),
+            vec![384, 0, 0, 0]
+        );
+        assert_eq!(millimetres(&[1234.4, f32::NAN, 70_000.0]), vec![1234, 0, 0]);
+    }
+
+    /// Turbo runs from blue through green to red.
+    #[test]
+    fn turbo_ends() {
+        let [r0, _, b0] = turbo(0.15);
+        let [r1, _, b1] = turbo(0.9);
+        assert!(
+            b0 > 2 * r0 && r1 > 2 * b1,
+            "{:?} {:?}",
+            turbo(0.15),
+            turbo(0.9)
+        );
+        let [_, g, _] = turbo(0.5);
+        assert!(g > 200);
+    }
+}

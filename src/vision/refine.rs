@@ -1,0 +1,419 @@
+//! From aggregated costs to disparities: winner-takes-all with a uniqueness test and a sub-pixel
+//! fit, the right image's disparities from the same volume for the left-right check, then
+//! speckle removal, a median filter and, when asked, hole filling.
+//!
+//! Invalid pixels are `f32::NAN` throughout.
+
+use rayon::prelude::*;
+
+use super::Subpixel;
+
+/// The winners of one row of the volume.
+pub struct Winners {
+    /// The left image's disparity of each pixel (index into the range, sub-pixel), or NaN when
+    /// it is not unique enough.
+    pub left: Vec<f32>,
+    /// The right image's integer disparity of each pixel (index into the range), or `u16::MAX`.
+    pub right: Vec<u16>,
+}
+
+crate::dispatch! {
+    /// Winner-takes-all over one row: `forward + backward` per cell. `uniqueness` is in
+    /// percent: the best cost must beat every disparity more than one step away by that margin.
+    pub fn winners(
+        forward: &[u16],
+        backward: &[u16],
+        width: usize,
+        stride: usize,
+        count: usize,
+        uniqueness: u32,
+        subpixel: Subpixel,
+    ) -> Winners {
+        let mut left = vec![f32::NAN; width];
+        // The right image's winners, kept in reverse order of x: the cells of left pixel x run
+        // over right pixels x, x − 1, …, which is then one forward contiguous run.
+        let mut right_rev = vec![u16::MAX; width];
+        let mut right_cost_rev = vec![u16::MAX; width];
+        let mut total = vec![0u16; stride];
+        for x in 0..width {
+            let f = &forward[x * stride..(x + 1) * stride];
+            let b = &backward[x * stride..(x + 1) * stride];
+            for ((t, &f), &b) in total.iter_mut().zip(f).zip(b) {
+                *t = f.saturating_add(b);
+            }
+            let total = &total[..count];
+            let (best, best_k) = argmin(total);
+            let reach = count.min(x + 1);
+            let start = width - 1 - x;
+            keep_smaller(
+                &mut right_cost_rev[start..start + reach],
+                &mut right_rev[start..start + reach],
+                &total[..reach],
+            );
+            let below = total[..best_k.saturating_sub(1)].iter().copied().fold(u16::MAX, u16::min);
+            let above = total[(best_k + 2).min(count)..].iter().copied().fold(u16::MAX, u16::min);
+            let second = below.min(above);
+            if u32::from(second) * 100 < u32::from(best) * (100 + uniqueness) {
+                continue;
+            }
+            let mut d = best_k as f32;
+            if subpixel != Subpixel::Off && best_k > 0 && best_k + 1 < count {
+                d += offset(
+                    f32::from(total[best_k - 1]),
+                    f32::from(best),
+                    f32::from(total[best_k + 1]),
+                    subpixel,
+                );
+            }
+            left[x] = d;
+        }
+        right_rev.reverse();
+        Winners {
+            left,
+            right: right_rev,
+        }
+    }
+}
+
+/// The smallest value and its first index, in whole SIMD registers (`(u16::MAX, 0)` when
+/// empty).
+#[inline(always)]
+fn argmin(values: &[u16]) -> (u16, usize) {
+    const L: usize = super::cost::LANES;
+    let mut best = [u16::MAX; L];
+    let mut at = [0u16; L];
+    let mut index = [0u16; L];
+    for (i, v) in index.iter_mut().enumerate() {
+        *v = i as u16;
+    }
+    let whole = values.len() / L * L;
+    for chunk in values[..whole].chunks_exact(L) {
+        for i in 0..L {
+            let better = chunk[i] < best[i];
+            best[i] = if better { chunk[i] } else { best[i] };
+            at[i] = if better { index[i] } else { at[i] };
+        }
+        for v in &mut index {
+            *v += L as u16;
+        }
+    }
+    let mut value = best.iter().copied().fold(u16::MAX, u16::min);
+    let mut first = [u16::MAX; L];
+    for i in 0..L {
+        first[i] = if best[i] == value { at[i] } else { u16::MAX };
+    }
+    let k = first.iter().copied().fold(u16::MAX, u16::min);
+    let mut k = if whole == 0 {
+        usize::MAX
+    } else {
+        usize::from(k)
+    };
+    for (i, &v) in values.iter().enumerate().skip(whole) {
+        if v < value {
+            (value, k) = (v, i);
+        }
+    }
+    (value, if k == usize::MAX { 0 } else { k })
+}
+
+/// `costs[k] = min(costs[k], totals[k])`, and `winners[k] = k` where the total won, in whole
+/// SIMD registers.
+#[inline(always)]
+fn keep_smaller(costs: &mut [u16], winners: &mut [u16], totals: &[u16]) {
+    const L: usize = super::cost::LANES;
+    let mut index = [0u16; L];
+    for (i, v) in index.iter_mut().enumerate() {
+        *v = i as u16;
+    }
+    let whole = totals.len() / L * L;
+    for ((c, w), t) in costs[..whole]
+        .chunks_exact_mut(L)
+        .zip(winners[..whole].chunks_exact_mut(L))
+        .zip(totals[..whole].chunks_exact(L))
+    {
+        for i in 0..L {
+            let better = t[i] < c[i];
+            c[i] = if better { t[i] } else { c[i] };
+            w[i] = if better { index[i] } else { w[i] };
+        }
+        for v in &mut index {
+            *v += L as u16;
+        }
+    }
+    for k in whole..totals.len() {
+        if totals[k] < costs[k] {
+            costs[k] = totals[k];
+            winners[k] = k as u16;
+        }
+    }
+}
+
+/// The sub-pixel offset of the minimum of three costs at −1, 0, +1, in (−0.5, 0.5).
+pub fn offset(before: f32, at: f32, after: f32, how: Subpixel) -> f32 {
+    let o = match how {
+        Subpixel::Off => 0.0,
+        Subpixel::Parabola => {
+            let denom = before - 2.0 * at + after;
+            if denom <= 0.0 {
+                0.0
+            } else {
+                0.5 * (before - after) / denom
+            }
+        }
+        // The equiangular (V) fit: the lines through the minimum and its higher neighbour
+        // mirrored, which does not lock to whole pixels the way a parabola does on
+        // absolute-difference-like costs.
+        Subpixel::Equiangular => {
+            let rise = (before - at).max(after - at);
+            if rise <= 0.0 {
+                0.0
+            } else {
+                0.5 * (before - after) / rise
+            }
+        }
+    };
+    o.clamp(-0.5, 0.5)
+}
+
+/// Invalidates the pixels whose disparity disagrees with the right image's by more than
+/// `tolerance` pixels (occlusions, mismatches). Disparities are indices into the range.
+pub fn left_right(left: &mut [f32], right: &[u16], tolerance: f32) {
+    for (x, d) in left.iter_mut().enumerate() {
+        if d.is_nan() {
+            continue;
+        }
+        let xr = x as f32 - *d;
+        let xr = xr.round();
+        let keep = xr >= 0.0
+            && (xr as usize) < right.len()
+            && right[xr as usize] != u16::MAX
+            && (f32::from(right[xr as usize]) - *d).abs() <= tolerance;
+        if !keep {
+            *d = f32::NAN;
+        }
+    }
+}
+
+/// Invalidates the connected regions of fewer than `max_size` pixels whose neighbours differ by
+/// at most `range` (OpenCV's `filterSpeckles`): small islands are usually mismatches.
+pub fn speckles(disparity: &mut [f32], width: usize, max_size: usize, range: f32) {
+    if max_size == 0 || disparity.is_empty() {
+        return;
+    }
+    let height = disparity.len() / width;
+    let mut label = vec![0u32; disparity.len()];
+    let mut stack = Vec::new();
+    let mut members = Vec::new();
+    let mut next = 1u32;
+    for start in 0..disparity.len() {
+        if label[start] != 0 || disparity[start].is_nan() {
+            continue;
+        }
+        label[start] = next;
+        stack.push(start);
+        members.clear();
+        while let Some(p) = stack.pop() {
+            members.push(p);
+            let (x, y) = (p % width, p / width);
+            let d = disparity[p];
+            let mut visit = |q: usize| {
+                if label[q] == 0 && !disparity[q].is_nan() && (disparity[q] - d).abs() <= range {
+                    label[q] = next;
+                    stack.push(q);
+                }
+            };
+            if x > 0 {
+                visit(p - 1);
+            }
+            if x + 1 < width {
+                visit(p + 1);
+            }
+            if y > 0 {
+                visit(p - width);
+            }
+            if y + 1 < height {
+                visit(p + width);
+            }
+        }
+        if members.len() < max_size {
+            for &p in &members {
+                disparity[p] = f32::NAN;
+            }
+        }
+        next += 1;
+    }
+}
+
+/// A 3 × 3 median of the valid pixels around each valid pixel (invalid ones stay invalid and
+/// are not counted), which removes single-pixel outliers and keeps edges.
+pub fn median(disparity: &[f32], width: usize) -> Vec<f32> {
+    let height = disparity.len() / width;
+    let mut out = disparity.to_vec();
+    out.par_chunks_mut(width).enumerate().for_each(|(y, row)| {
+        let mut window = [0f32; 9];
+        for (x, out) in row.iter_mut().enumerate() {
+            if out.is_nan() {
+                continue;
+            }
+            let mut n = 0;
+            for yy in y.saturating_sub(1)..(y + 2).min(height) {
+                for &v in
+                    &disparity[yy * width + x.saturating_sub(1)..yy * width + (x + 2).min(width)]
+                {
+                    if !v.is_nan() {
+                        window[n] = v;
+                        n += 1;
+                    }
+                }
+            }
+            *out = if n == 9 {
+                median9(window)
+            } else {
+                let w = &mut window[..n];
+                w.sort_unstable_by(f32::total_cmp);
+                if n % 2 == 1 {
+                    w[n / 2]
+                } else {
+                    0.5 * (w[n / 2 - 1] + w[n / 2])
+                }
+            };
+        }
+    });
+    out
+}
+
+/// The median of 9 values (none NaN) by the 19-exchange network of Paeth's "Median finding on
+/// a 3 × 3 grid" (Graphics Gems, 1990).
+fn median9(mut p: [f32; 9]) -> f32 {
+    let mut sort = |a: usize, b: usize| {
+        let (lo, hi) = (p[a].min(p[b]), p[a].max(p[b]));
+        p[a] = lo;
+        p[b] = hi;
+    };
+    for (a, b) in [
+        (1, 2),
+        (4, 5),
+        (7, 8),
+        (0, 1),
+        (3, 4),
+        (6, 7),
+        (1, 2),
+        (4, 5),
+        (7, 8),
+        (0, 3),
+        (5, 8),
+        (4, 7),
+        (3, 6),
+        (1, 4),
+        (2, 5),
+        (4, 7),
+        (4, 2),
+        (6, 4),
+        (4, 2),
+    ] {
+        sort(a, b);
+    }
+    p[4]
+}
+
+/// Fills each invalid pixel with the smaller of the nearest valid disparities to its left and
+/// right on its row (the background, in an occlusion), as Middlebury's evaluation does. A row
+/// with no valid pixel stays invalid.
+pub fn fill(disparity: &mut [f32], width: usize) {
+    for row in disparity.chunks_exact_mut(width) {
+        let mut left_valid = vec![f32::NAN; width];
+        let mut last = f32::NAN;
+        for (x, &d) in row.iter().enumerate() {
+            if !d.is_nan() {
+                last = d;
+            }
+            left_valid[x] = last;
+        }
+        let mut next = f32::NAN;
+        for x in (0..width).rev() {
+            if !row[x].is_nan() {
+                next = row[x];
+                continue;
+            }
+            row[x] = match (left_valid[x].is_nan(), next.is_nan()) {
+                (false, false) => left_valid[x].min(next),
+                (false, true) => left_valid[x],
+                (true, false) => next,
+                (true, true) => f32::NAN,
+            };
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Both fits find the exact minimum of a symmetric curve and stay within half a pixel.
+    #[test]
+    fn subpixel_fits() {
+        for how in [Subpixel::Parabola, Subpixel::Equiangular] {
+            assert_eq!(offset(10.0, 2.0, 10.0, how), 0.0);
+            assert!(offset(4.0, 2.0, 10.0, how) < 0.0);
+            assert!(offset(0.0, 0.0, 100.0, how).abs() <= 0.5);
+        }
+        // A V of slope 4 with its minimum at +0.25 has costs 5, 1, 3: the V fit is exact.
+        assert!((offset(5.0, 1.0, 3.0, Subpixel::Equiangular) - 0.25).abs() < 1e-6);
+    }
+
+    /// The network finds the median of every arrangement of distinct values.
+    #[test]
+    fn median_of_nine() {
+        let mut rng = crate::vision::synthetic::Rng::new(3);
+        for _ in 0..2000 {
+            let mut v = [0f32; 9];
+            for x in &mut v {
+                *x = rng.unit();
+            }
+            let mut sorted = v;
+            sorted.sort_by(f32::total_cmp);
+            assert_eq!(median9(v), sorted[4]);
+        }
+    }
+
+    /// The vectorised argmin finds the first smallest value, past whole registers too.
+    #[test]
+    fn argmin_finds_the_first_minimum() {
+        let mut v: Vec<u16> = (0..40).map(|i| 100 - i).collect();
+        assert_eq!(argmin(&v), (61, 39));
+        v[17] = 3;
+        v[33] = 3;
+        assert_eq!(argmin(&v), (3, 17));
+        assert_eq!(argmin(&[]), (u16::MAX, 0));
+    }
+
+    /// An island smaller than the window is removed, a large region is kept.
+    #[test]
+    fn speckles_remove_small_islands() {
+        let mut d = vec![10.0f32; 100];
+        d[55] = 30.0;
+        speckles(&mut d, 10, 5, 1.0);
+        assert!(d[55].is_nan());
+        assert_eq!(d.iter().filter(|v| v.is_nan()).count(), 1);
+    }
+
+    /// Holes take the smaller of their row neighbours, and row ends the only one they have.
+    #[test]
+    fn fill_takes_the_background() {
+        let mut d = vec![f32::NAN, 5.0, f32::NAN, f32::NAN, 9.0, f32::NAN];
+        fill(&mut d, 6);
+        assert_eq!(d, vec![5.0, 5.0, 5.0, 5.0, 9.0, 9.0]);
+    }
+
+    /// The left-right check keeps agreeing pixels and drops the others.
+    #[test]
+    fn left_right_drops_disagreement() {
+        // x = 1 (d 1.2) lands on right pixel 0, which says 1: kept. x = 2 (d 1) lands on
+        // right pixel 1, which says 3: dropped. x = 3 (d 5) lands outside: dropped.
+        let mut left = vec![0.0, 1.2, 1.0, 5.0];
+        let right = vec![1, 3, 1, 0];
+        left_right(&mut left, &right, 1.0);
+        assert_eq!(&left[..2], &[0.0, 1.2]);
+        assert!(left[2].is_nan() && left[3].is_nan());
+    }
+}
