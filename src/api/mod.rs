@@ -83,7 +83,11 @@ impl FromRef<HeavyState> for BodyLimit {
     servers((url = "/", description = "The server that serves this document")),
     // No operation needs credentials: stated, not left out.
     security(),
-    components(schemas(error::Problem, error::FieldError)),
+    components(schemas(
+        error::Problem,
+        error::FieldError,
+        routes::depth_map::types::DepthMapOutput
+    )),
     tags(
         (name = "calibration", description = "Calibration files read into a rig"),
         (name = "distance", description = "Distance to one feature"),

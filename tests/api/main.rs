@@ -4,6 +4,7 @@
 mod batch;
 mod calibration;
 mod chart;
+mod depth_map;
 mod disparity;
 mod distance;
 mod errors;

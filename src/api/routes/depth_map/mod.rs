@@ -17,7 +17,8 @@ use utoipa::ToSchema;
 use utoipa_axum::{router::OpenApiRouter, routes};
 
 use self::types::{
-    DepthMapForm, DepthMapQuery, DepthMapSummary, MatcherParameters, Output, Spread, StageTimes,
+    DepthMapForm, DepthMapOutput, DepthMapQuery, DepthMapSummary, MatcherParameters, Spread,
+    StageTimes,
 };
 use super::images::{self, GivenRig, MAX_DISPARITIES, Parts};
 use crate::api::HeavyState;
@@ -110,7 +111,7 @@ pub async fn post_depth_map(
         headers
             .get(header::ACCEPT)
             .and_then(|a| a.to_str().ok())
-            .and_then(Output::from_accept)
+            .and_then(DepthMapOutput::from_accept)
             .unwrap_or_default()
     });
     let left = images::image_size(&parts, "left", &mut problems);
@@ -275,16 +276,26 @@ fn settings(q: &DepthMapQuery, ndisp: Option<u32>, problems: &mut FieldErrors) -
 /// The bytes a request holds at its peak: the decoded images (the decoder's buffer at up to 8
 /// bytes a pixel, the grey levels, the colours for a point cloud), the matcher's, and the
 /// answer's per-pixel buffers.
-fn bytes_needed(w: usize, h: usize, count: usize, output: Output) -> usize {
+fn bytes_needed(w: usize, h: usize, count: usize, output: DepthMapOutput) -> usize {
     let pixels = w.saturating_mul(h);
-    let colour = if output == Output::PointsPly { 3 } else { 0 };
+    let colour = if output == DepthMapOutput::PointsPly {
+        3
+    } else {
+        0
+    };
     pixels
         .saturating_mul(2 * (8 + 2) + colour + 24)
         .saturating_add(vision::bytes_needed(w, h, count))
 }
 
 /// What to shrink so that the request fits in a budget of `total` bytes.
-fn shrink(w: usize, h: usize, count: usize, output: Output, total: usize) -> Vec<FieldError> {
+fn shrink(
+    w: usize,
+    h: usize,
+    count: usize,
+    output: DepthMapOutput,
+    total: usize,
+) -> Vec<FieldError> {
     let need = bytes_needed(w, h, count, output);
     let per_pixel = need / (w * h).max(1);
     let max_pixels = total / per_pixel.max(1);
@@ -318,11 +329,11 @@ fn compute(
     parts: &Parts,
     params: &Params,
     given: Option<GivenRig>,
-    output: Output,
+    output: DepthMapOutput,
     cancel: &AtomicBool,
 ) -> Result<Response, ApiError> {
     let started = Instant::now();
-    let colour = output == Output::PointsPly;
+    let colour = output == DepthMapOutput::PointsPly;
     let decoded = ["left", "right"].map(|name| {
         let bytes = parts.get(name).map_or(&[][..], Bytes::as_ref);
         decode::decode(bytes, images::LIMITS, colour && name == "left")
@@ -346,18 +357,20 @@ fn compute(
     let depth = rig.map(|rig| depths(&map, rig.fb() as f32, rig.doffs as f32));
     let (w, h) = (map.width, map.height);
     let body: Result<Vec<u8>, DepthMapSummary> = match output {
-        Output::Summary => Err(summary(
+        DepthMapOutput::Summary => Err(summary(
             &map,
             depth.as_deref(),
             params,
             given,
             [decode_time, timings.cost, timings.aggregate, timings.refine],
         )),
-        Output::DisparityPfm => Ok(encode::pfm(w, h, &map.data)),
-        Output::DisparityPng => Ok(encode::png16(w, h, &encode::kitti_disparity(&map.data))),
-        Output::DisparityNpy => Ok(encode::npy(w, h, &map.data)),
-        Output::DepthNpy => Ok(encode::npy(w, h, depth.as_deref().unwrap_or_default())),
-        Output::DepthPng => {
+        DepthMapOutput::DisparityPfm => Ok(encode::pfm(w, h, &map.data)),
+        DepthMapOutput::DisparityPng => {
+            Ok(encode::png16(w, h, &encode::kitti_disparity(&map.data)))
+        }
+        DepthMapOutput::DisparityNpy => Ok(encode::npy(w, h, &map.data)),
+        DepthMapOutput::DepthNpy => Ok(encode::npy(w, h, depth.as_deref().unwrap_or_default())),
+        DepthMapOutput::DepthPng => {
             let unit = rig.map_or(LengthUnit::Millimetre, |r| r.unit);
             let mm: Vec<f32> = depth
                 .as_deref()
@@ -367,8 +380,8 @@ fn compute(
                 .collect();
             Ok(encode::png16(w, h, &encode::millimetres(&mm)))
         }
-        Output::PreviewPng => Ok(encode::png_rgb(w, h, &preview(&map))),
-        Output::PointsPly => Ok(encode::ply(&points(
+        DepthMapOutput::PreviewPng => Ok(encode::png_rgb(w, h, &preview(&map))),
+        DepthMapOutput::PointsPly => Ok(encode::ply(&points(
             &map,
             depth.as_deref().unwrap_or_default(),
             rig,
@@ -393,7 +406,7 @@ fn compute(
             );
             if let Ok(v) = HeaderValue::from_str(&format!(
                 "{}; filename=\"{}\"",
-                if output == Output::PreviewPng {
+                if output == DepthMapOutput::PreviewPng {
                     "inline"
                 } else {
                     "attachment"

@@ -12,7 +12,7 @@ use crate::vision::Subpixel;
 
 /// What `/depth-map` answers.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize, Serialize, ToSchema)]
-pub enum Output {
+pub enum DepthMapOutput {
     /// JSON: the size, the range searched, the valid fraction, disparity and depth statistics,
     /// the rig, the parameters and the stage times.
     #[default]
@@ -42,29 +42,31 @@ pub enum Output {
     PointsPly,
 }
 
-impl Output {
+impl DepthMapOutput {
     /// The name, as the query takes it and as the file is called.
     pub fn name(self) -> &'static str {
         match self {
-            Output::Summary => "summary",
-            Output::DisparityPfm => "disparity.pfm",
-            Output::DisparityPng => "disparity.png",
-            Output::DisparityNpy => "disparity.npy",
-            Output::DepthNpy => "depth.npy",
-            Output::DepthPng => "depth.png",
-            Output::PreviewPng => "preview.png",
-            Output::PointsPly => "points.ply",
+            DepthMapOutput::Summary => "summary",
+            DepthMapOutput::DisparityPfm => "disparity.pfm",
+            DepthMapOutput::DisparityPng => "disparity.png",
+            DepthMapOutput::DisparityNpy => "disparity.npy",
+            DepthMapOutput::DepthNpy => "depth.npy",
+            DepthMapOutput::DepthPng => "depth.png",
+            DepthMapOutput::PreviewPng => "preview.png",
+            DepthMapOutput::PointsPly => "points.ply",
         }
     }
 
     /// The media type of the answer.
     pub fn media_type(self) -> &'static str {
         match self {
-            Output::Summary => "application/json",
-            Output::DisparityPfm => PFM,
-            Output::DisparityPng | Output::DepthPng | Output::PreviewPng => "image/png",
-            Output::DisparityNpy | Output::DepthNpy => NPY,
-            Output::PointsPly => PLY,
+            DepthMapOutput::Summary => "application/json",
+            DepthMapOutput::DisparityPfm => PFM,
+            DepthMapOutput::DisparityPng
+            | DepthMapOutput::DepthPng
+            | DepthMapOutput::PreviewPng => "image/png",
+            DepthMapOutput::DisparityNpy | DepthMapOutput::DepthNpy => NPY,
+            DepthMapOutput::PointsPly => PLY,
         }
     }
 
@@ -72,12 +74,12 @@ impl Output {
     pub fn needs_rig(self) -> bool {
         matches!(
             self,
-            Output::DepthNpy | Output::DepthPng | Output::PointsPly
+            DepthMapOutput::DepthNpy | DepthMapOutput::DepthPng | DepthMapOutput::PointsPly
         )
     }
 
     /// The output an `Accept` header asks for, when one of its media types names exactly one.
-    pub fn from_accept(accept: &str) -> Option<Output> {
+    pub fn from_accept(accept: &str) -> Option<DepthMapOutput> {
         accept
             .split(',')
             .map(|m| {
@@ -88,9 +90,9 @@ impl Output {
                     .to_ascii_lowercase()
             })
             .find_map(|m| match m.as_str() {
-                "application/json" => Some(Output::Summary),
-                PFM => Some(Output::DisparityPfm),
-                PLY => Some(Output::PointsPly),
+                "application/json" => Some(DepthMapOutput::Summary),
+                PFM => Some(DepthMapOutput::DisparityPfm),
+                PLY => Some(DepthMapOutput::PointsPly),
                 _ => None,
             })
     }
@@ -135,7 +137,7 @@ impl From<Subpixel> for SubpixelChoice {
     }
 }
 
-choice_members!(Output, SubpixelChoice);
+choice_members!(DepthMapOutput, SubpixelChoice);
 
 request! {
     /// The options of `/depth-map`, in the query string.
@@ -150,7 +152,7 @@ request! {
         max_disparity: i32,
         /// What to answer (default `summary`); also chosen by `Accept` for
         /// `application/json`, `image/x-portable-floatmap` and `application/x-ply`.
-        output: Output,
+        output: DepthMapOutput,
         /// Fill invalid pixels from their row's background (the smaller of the nearest valid
         /// disparities left and right) instead of leaving them invalid. Default false.
         fill: bool,
@@ -194,6 +196,7 @@ impl QueryForm for DepthMapQuery {}
 /// The `multipart/form-data` parts of `/depth-map` (for the documentation: the handler reads
 /// the parts itself, to name each one in its errors).
 #[derive(ToSchema)]
+#[serde(deny_unknown_fields)]
 #[allow(dead_code)]
 pub struct DepthMapForm {
     /// The left image of the rectified pair: PNG or JPEG, 8 or 16 bits, grey, RGB or RGBA.

@@ -1,0 +1,450 @@
+//! `POST /depth-map` over a real socket, on the project's own synthetic pair (known ground
+//! truth): the summary's numbers, every output read back as its users' tools read it, the
+//! calibration part, content negotiation, and every kind of bad input named.
+
+use reqwest::multipart::{Form, Part};
+use reqwest::{Response, header::ACCEPT};
+use serde_json::{Value, json};
+use stereo_distance::{
+    Config,
+    config::HeavyLimits,
+    vision::{
+        encode,
+        synthetic::{self, Pair},
+    },
+};
+
+use crate::helpers::{TestApp, fields, message_for, ok_json, problem, spawn_app, spawn_app_with};
+
+const W: usize = 160;
+const H: usize = 120;
+
+/// The synthetic scene (planes at 6–38 px of disparity, occluding one another), rendered.
+fn pair() -> Pair {
+    synthetic::render(&synthetic::layered(W, H))
+}
+
+fn png(rgb: &[u8], w: usize, h: usize) -> Vec<u8> {
+    encode::png_rgb(w, h, rgb)
+}
+
+/// The rig of the synthetic pair: f = 500 px, B = 100 mm, principal point at the centre.
+fn rig() -> Value {
+    json!({"focal_length_px": 500, "baseline": 100, "unit": "mm"})
+}
+
+/// A form with the pair, and `extra` parts as text.
+fn form(pair: &Pair, extra: &[(&str, String)]) -> Form {
+    let mut form = Form::new()
+        .part("left", image_part(png(&pair.left_rgb, W, H)))
+        .part("right", image_part(png(&pair.right_rgb, W, H)));
+    for (name, text) in extra {
+        form = form.text(name.to_string(), text.clone());
+    }
+    form
+}
+
+fn image_part(bytes: Vec<u8>) -> Part {
+    Part::bytes(bytes)
+        .file_name("image.png")
+        .mime_str("image/png")
+        .unwrap()
+}
+
+async fn depth_map(app: &TestApp, query: &str, form: Form) -> Response {
+    app.client
+        .post(format!("{}/depth-map{query}", app.address))
+        .multipart(form)
+        .send()
+        .await
+        .expect("request is sent")
+}
+
+fn floats(bytes: &[u8]) -> Vec<f32> {
+    bytes
+        .chunks_exact(4)
+        .map(|c| f32::from_le_bytes(c.try_into().unwrap()))
+        .collect()
+}
+
+/// The float32 data of an NPY file, after checking its header says `(H, W)` little-endian
+/// float32 in C order.
+fn npy(bytes: &[u8]) -> Vec<f32> {
+    assert_eq!(&bytes[..8], b"\x93NUMPY\x01\x00");
+    let len = u16::from_le_bytes([bytes[8], bytes[9]]) as usize;
+    let header = std::str::from_utf8(&bytes[10..10 + len]).unwrap();
+    assert!(header.contains("'descr': '<f4'") && header.contains("'fortran_order': False"));
+    assert!(header.contains(&format!("'shape': ({H}, {W})")), "{header}");
+    floats(&bytes[10 + len..])
+}
+
+/// The summary states the size, the range, the rig, and disparities and depths that agree
+/// with the truth and with Z = B·f / d; `Server-Timing` names the five stages.
+#[tokio::test]
+async fn the_summary_agrees_with_the_truth() {
+    // Arrange
+    let app = spawn_app().await;
+    let pair = pair();
+    // Act
+    let response = depth_map(
+        &app,
+        "?max_disparity=48",
+        form(&pair, &[("rig", rig().to_string())]),
+    )
+    .await;
+    // Assert
+    let timing = response.headers()["server-timing"]
+        .to_str()
+        .unwrap()
+        .to_owned();
+    for stage in ["decode", "cost", "aggregate", "refine", "encode"] {
+        assert!(timing.contains(&format!("{stage};dur=")), "{timing}");
+    }
+    let body = ok_json(response).await;
+    assert_eq!(
+        (body["width"].as_u64(), body["height"].as_u64()),
+        (Some(160), Some(120))
+    );
+    assert_eq!(
+        (
+            body["min_disparity"].as_i64(),
+            body["max_disparity"].as_i64()
+        ),
+        (Some(0), Some(48))
+    );
+    // The 28 px band on the left that the right camera cannot see, and the occlusions.
+    assert!(body["valid_fraction"].as_f64().unwrap() > 0.8, "{body}");
+    let mut truth: Vec<f32> = pair
+        .truth
+        .iter()
+        .zip(&pair.visible)
+        .filter(|(_, seen)| **seen)
+        .map(|(d, _)| *d)
+        .collect();
+    truth.sort_by(f32::total_cmp);
+    let median = f64::from(truth[truth.len() / 2]);
+    let got = body["disparity_px"]["median"].as_f64().unwrap();
+    assert!((got - median).abs() < 0.5, "median {got}, truth {median}");
+    let (dmin, dmax) = (
+        body["disparity_px"]["min"].as_f64().unwrap(),
+        body["disparity_px"]["max"].as_f64().unwrap(),
+    );
+    // Z = B·f / d for the extremes: the nearest depth is the largest disparity's.
+    let zmin = body["distance"]["min"].as_f64().unwrap();
+    let zmax = body["distance"]["max"].as_f64().unwrap();
+    assert!((zmin - 50_000.0 / dmax).abs() < 0.01 * zmin, "{body}");
+    assert!((zmax - 50_000.0 / dmin).abs() < 0.01 * zmax, "{body}");
+    assert_eq!(body["rig"]["cx"], 80.0);
+    assert_eq!(body["rig"]["image_width"], 160);
+    assert_eq!(body["parameters"]["p1"], 12);
+}
+
+/// Each output is what its tools read: PFM bottom-up with +inf holes, NPY (the same values),
+/// KITTI's round(d·256), depth NPY and millimetre PNG (Z = B·f / d), a preview the size of the
+/// images, and a PLY with one vertex per valid depth.
+#[tokio::test]
+async fn every_output_reads_back() {
+    let app = spawn_app().await;
+    let pair = pair();
+    let mut files = std::collections::HashMap::new();
+    for output in [
+        "disparity.pfm",
+        "disparity.npy",
+        "disparity.png",
+        "depth.npy",
+        "depth.png",
+        "preview.png",
+        "points.ply",
+    ] {
+        let response = depth_map(
+            &app,
+            &format!("?max_disparity=48&output={output}"),
+            form(&pair, &[("rig", rig().to_string())]),
+        )
+        .await;
+        assert_eq!(response.status(), 200, "{output}");
+        let disposition = response.headers()["content-disposition"].to_str().unwrap();
+        assert!(
+            disposition.contains(&format!("filename=\"{output}\"")),
+            "{disposition}"
+        );
+        files.insert(output, response.bytes().await.unwrap().to_vec());
+    }
+    let disparity = npy(&files["disparity.npy"]);
+    assert_eq!(disparity.len(), W * H);
+    let valid = disparity.iter().filter(|d| !d.is_nan()).count();
+    assert!(valid > W * H * 4 / 5);
+
+    // PFM: header, then rows bottom to top, NaN written as +inf.
+    let pfm = &files["disparity.pfm"];
+    let header = format!("Pf\n{W} {H}\n-1\n");
+    assert_eq!(&pfm[..header.len()], header.as_bytes());
+    let rows = floats(&pfm[header.len()..]);
+    for y in 0..H {
+        for x in 0..W {
+            let (p, n) = (rows[(H - 1 - y) * W + x], disparity[y * W + x]);
+            assert!(p == n || (p.is_infinite() && n.is_nan()), "({x}, {y})");
+        }
+    }
+
+    // KITTI: 16-bit, round(d·256), 0 where invalid.
+    let kitti = image::load_from_memory(&files["disparity.png"])
+        .unwrap()
+        .into_luma16();
+    for (k, d) in kitti.as_raw().iter().zip(&disparity) {
+        let expected = if d.is_nan() {
+            0
+        } else {
+            (d * 256.0).round() as u16
+        };
+        assert_eq!(*k, expected);
+    }
+
+    // Depth: Z = B·f / d in mm, in the NPY and, rounded, in the PNG.
+    let depth = npy(&files["depth.npy"]);
+    let depth_png = image::load_from_memory(&files["depth.png"])
+        .unwrap()
+        .into_luma16();
+    for ((z, d), mm) in depth.iter().zip(&disparity).zip(depth_png.as_raw()) {
+        if d.is_nan() {
+            assert!(z.is_nan());
+            assert_eq!(*mm, 0);
+        } else {
+            assert!((z - 50_000.0 / d).abs() <= 1e-3 * z);
+            assert_eq!(f32::from(*mm), z.round());
+        }
+    }
+
+    let preview = image::load_from_memory(&files["preview.png"])
+        .unwrap()
+        .into_rgb8();
+    assert_eq!(preview.dimensions(), (W as u32, H as u32));
+
+    // PLY: binary little-endian, x y z float and colour, one vertex per valid depth; the
+    // first vertex is the first valid pixel, placed as /distance places points.
+    let ply = &files["points.ply"];
+    let end = b"end_header\n";
+    let at = ply.windows(end.len()).position(|w| w == end).unwrap() + end.len();
+    let head = std::str::from_utf8(&ply[..at]).unwrap();
+    assert!(head.starts_with("ply\nformat binary_little_endian 1.0\n"));
+    assert!(
+        head.contains(&format!("element vertex {valid}\n")),
+        "{head}"
+    );
+    assert_eq!(ply.len() - at, valid * 15);
+    let first = disparity.iter().position(|d| !d.is_nan()).unwrap();
+    let xyz = floats(&ply[at..at + 12]);
+    let z = 50_000.0 / disparity[first];
+    let (x, y) = ((first % W) as f32, (first / W) as f32);
+    assert!((xyz[2] - z).abs() < 1e-3 * z);
+    assert!((xyz[0] - (x - 80.0) * z / 500.0).abs() < 1e-2);
+    assert!((xyz[1] - (y - 60.0) * z / 500.0).abs() < 1e-2);
+}
+
+/// A Middlebury calib.txt gives the rig and, by its ndisp, the search range.
+#[tokio::test]
+async fn a_calibration_file_gives_the_rig_and_the_range() {
+    let app = spawn_app().await;
+    let calib = "cam0=[500 0 80; 0 500 60; 0 0 1]\ncam1=[500 0 80; 0 500 60; 0 0 1]\n\
+                 doffs=0\nbaseline=100\nwidth=160\nheight=120\nndisp=48\n";
+    let response = depth_map(
+        &app,
+        "",
+        form(&pair(), &[("calibration", calib.to_owned())]),
+    )
+    .await;
+    let body = ok_json(response).await;
+    assert_eq!(body["max_disparity"], 48);
+    assert_eq!(body["rig"]["focal_length_px"], 500.0);
+    assert_eq!(body["rig"]["baseline"], 100.0);
+    assert!(body["distance"]["median"].as_f64().unwrap() > 1000.0);
+}
+
+/// `Accept: image/x-portable-floatmap` answers the PFM; an explicit `output` wins.
+#[tokio::test]
+async fn accept_chooses_the_output() {
+    let app = spawn_app().await;
+    let response = app
+        .client
+        .post(format!("{}/depth-map?max_disparity=48", app.address))
+        .header(ACCEPT, "image/x-portable-floatmap")
+        .multipart(form(&pair(), &[]))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(
+        response.headers()["content-type"],
+        "image/x-portable-floatmap"
+    );
+    assert!(
+        response
+            .bytes()
+            .await
+            .unwrap()
+            .starts_with(b"Pf\n160 120\n")
+    );
+}
+
+/// A missing image, a part that is no image, an unknown part and a bad option are all named
+/// in one 422.
+#[tokio::test]
+async fn every_bad_part_is_named() {
+    let app = spawn_app().await;
+    let form = Form::new()
+        .part("left", Part::bytes(b"hello, not an image".to_vec()))
+        .text("rigg", "{}")
+        .text("rig", r#"{"focal_length_px": 500, "baseline": 0}"#);
+    let body = problem(depth_map(&app, "?p1=20&p2=10", form).await, 422).await;
+    let named = fields(&body);
+    for field in ["left", "right", "rigg", "rig.baseline", "p2"] {
+        assert!(
+            named.contains(&field.to_owned()),
+            "{field} not in {named:?}"
+        );
+    }
+    assert!(message_for(&body, "left").contains("not an image"));
+    assert!(message_for(&body, "right").contains("is required"));
+    assert!(message_for(&body, "rigg").contains("not a part of this request"));
+}
+
+/// Two images of different sizes: the right one is named, with both sizes.
+#[tokio::test]
+async fn a_pair_of_two_sizes_names_the_right_image() {
+    let app = spawn_app().await;
+    let pair = pair();
+    let small = synthetic::render(&synthetic::layered(150, H));
+    let form = Form::new()
+        .part("left", image_part(png(&pair.left_rgb, W, H)))
+        .part("right", image_part(png(&small.right_rgb, 150, H)));
+    let body = problem(depth_map(&app, "", form).await, 422).await;
+    assert_eq!(fields(&body), vec!["right"]);
+    assert!(message_for(&body, "right").contains("150 × 120"), "{body}");
+}
+
+/// Depth outputs need a rig; a rig for other images, or both a rig and a calibration, is
+/// refused naming the parts.
+#[tokio::test]
+async fn rigs_are_checked_against_the_images() {
+    let app = spawn_app().await;
+    let pair = pair();
+    let body = problem(
+        depth_map(&app, "?output=depth.npy", form(&pair, &[])).await,
+        422,
+    )
+    .await;
+    assert_eq!(fields(&body), vec!["rig"]);
+    let wrong = json!({"focal_length_px": 500, "baseline": 100, "image_width": 640});
+    let body = problem(
+        depth_map(&app, "", form(&pair, &[("rig", wrong.to_string())])).await,
+        422,
+    )
+    .await;
+    assert_eq!(fields(&body), vec!["rig.image_width"]);
+    let body = problem(
+        depth_map(
+            &app,
+            "",
+            form(
+                &pair,
+                &[("rig", rig().to_string()), ("calibration", "x".into())],
+            ),
+        )
+        .await,
+        422,
+    )
+    .await;
+    assert_eq!(fields(&body), vec!["rig", "calibration"]);
+}
+
+/// The search range and the matcher's options are checked and named.
+#[tokio::test]
+async fn options_out_of_range_are_named() {
+    let app = spawn_app().await;
+    let body = problem(
+        depth_map(
+            &app,
+            "?min_disparity=10&max_disparity=5&uniqueness=300&subpixel=cubic&fill=yes",
+            form(&pair(), &[]),
+        )
+        .await,
+        422,
+    )
+    .await;
+    let named = fields(&body);
+    for field in ["max_disparity", "uniqueness", "subpixel", "fill"] {
+        assert!(
+            named.contains(&field.to_owned()),
+            "{field} not in {named:?}"
+        );
+    }
+    let body = problem(
+        depth_map(&app, "?max_disparity=1000", form(&pair(), &[])).await,
+        422,
+    )
+    .await;
+    assert!(message_for(&body, "max_disparity").contains("at most 512"));
+}
+
+/// A JSON body is not a form: 415 naming the media type to send.
+#[tokio::test]
+async fn a_json_body_is_415() {
+    let app = spawn_app().await;
+    let response = app
+        .post_raw("/depth-map", Some("application/json"), b"{}".to_vec())
+        .await;
+    let body = problem(response, 415).await;
+    assert!(message_for(&body, "content-type").contains("multipart/form-data"));
+}
+
+/// A small PNG whose header claims 20 000 × 20 000 pixels is a 413 naming the image, found
+/// from the header alone; the service then answers normally.
+#[tokio::test]
+async fn an_image_claiming_too_many_pixels_is_413() {
+    let app = spawn_app().await;
+    let mut bytes = png(&[0, 0, 0], 1, 1);
+    bytes[16..20].copy_from_slice(&20_000u32.to_be_bytes());
+    bytes[20..24].copy_from_slice(&20_000u32.to_be_bytes());
+    let mut crc = flate2::Crc::new();
+    crc.update(&bytes[12..29]);
+    bytes[29..33].copy_from_slice(&crc.sum().to_be_bytes());
+    let form = Form::new()
+        .part("left", image_part(bytes.clone()))
+        .part("right", image_part(bytes));
+    let body = problem(depth_map(&app, "", form).await, 413).await;
+    assert_eq!(fields(&body), vec!["left", "right"]);
+    assert!(message_for(&body, "left").contains("20000 × 20000"));
+    let again = depth_map(&app, "?max_disparity=48", form_of_pair()).await;
+    assert_eq!(again.status(), 200);
+}
+
+fn form_of_pair() -> Form {
+    form(&pair(), &[])
+}
+
+/// A request that could never fit in the memory budget is a 413 naming the image and the
+/// range, with the largest range that would fit.
+#[tokio::test]
+async fn a_request_beyond_the_memory_budget_names_what_to_shrink() {
+    let app = spawn_app_with(Config {
+        port: 0,
+        heavy: HeavyLimits {
+            memory_budget: 8 << 20,
+            body_bytes: 1 << 20,
+            ..HeavyLimits::default()
+        },
+        ..Config::default()
+    })
+    .await;
+    let body = problem(
+        depth_map(&app, "?max_disparity=512", form_of_pair()).await,
+        413,
+    )
+    .await;
+    assert_eq!(fields(&body), vec!["left", "max_disparity"]);
+    assert!(
+        message_for(&body, "max_disparity").contains("at most"),
+        "{body}"
+    );
+    let fits = depth_map(&app, "?max_disparity=32", form_of_pair()).await;
+    assert_eq!(fits.status(), 200);
+}
