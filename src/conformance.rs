@@ -4,7 +4,8 @@
 //!
 //! For every operation that reads input, the bytes are sent as a JSON body (`POST`) and as a
 //! query string (`GET`), and to `/calibration` as a text body, through the full router,
-//! middleware included. The promises:
+//! middleware included. `/depth-map` gets them as a whole multipart body, and as both images
+//! of a well-formed form (the image decoders' input). The promises:
 //! - no 5xx, and no panic (a panic would surface as a 500 from the edge layer);
 //! - a 4xx is `application/problem+json` whose `status` is the HTTP status and whose
 //!   `errors` names at least one field;
@@ -41,6 +42,55 @@ const QUERY_PATHS: [&str; 8] = [
     "/rig",
     "/baseline",
 ];
+
+/// The media types of the answers that are not JSON.
+const FILE_TYPES: [&str; 6] = [
+    "text/csv",
+    "image/svg+xml",
+    "image/png",
+    "image/x-portable-floatmap",
+    "application/x-npy",
+    "application/x-ply",
+];
+
+/// Every output of `/depth-map`.
+const OUTPUTS: [&str; 8] = [
+    "summary",
+    "disparity.pfm",
+    "disparity.png",
+    "disparity.npy",
+    "depth.npy",
+    "depth.png",
+    "preview.png",
+    "points.ply",
+];
+
+/// The multipart boundary of the forms sent.
+const BOUNDARY: &str = "conformance-boundary";
+
+/// A well-formed `/depth-map` form whose two images are `image`, with a rig.
+pub fn image_form(image: &[u8]) -> Vec<u8> {
+    let mut body = Vec::new();
+    for name in ["left", "right"] {
+        body.extend_from_slice(
+            format!(
+                "--{BOUNDARY}\r\nContent-Disposition: form-data; name=\"{name}\"; \
+                 filename=\"{name}.png\"\r\nContent-Type: image/png\r\n\r\n"
+            )
+            .as_bytes(),
+        );
+        body.extend_from_slice(image);
+        body.extend_from_slice(b"\r\n");
+    }
+    body.extend_from_slice(
+        format!(
+            "--{BOUNDARY}\r\nContent-Disposition: form-data; name=\"rig\"\r\n\r\n\
+             {{\"focal_length_px\": 500, \"baseline\": 100}}\r\n--{BOUNDARY}--\r\n"
+        )
+        .as_bytes(),
+    );
+    body
+}
 
 /// The application with its default configuration, on a single-threaded runtime.
 pub struct Harness {
@@ -86,6 +136,21 @@ impl Harness {
                 .body(Body::from(input.to_vec()))
                 .map_err(|e| format!("building POST /calibration: {e}"))?;
             statuses.push(self.exchange(request).await?);
+            // The image route: the bytes as the multipart body itself, and as both images of a
+            // form with a rig, asking for the output the first byte picks (every encoder runs).
+            let output = OUTPUTS[usize::from(input.first().copied().unwrap_or(0)) % OUTPUTS.len()];
+            for body in [input.to_vec(), image_form(input)] {
+                let request = Request::builder()
+                    .method(Method::POST)
+                    .uri(format!("/depth-map?max_disparity=16&output={output}"))
+                    .header(
+                        header::CONTENT_TYPE,
+                        format!("multipart/form-data; boundary={BOUNDARY}"),
+                    )
+                    .body(Body::from(body))
+                    .map_err(|e| format!("building POST /depth-map: {e}"))?;
+                statuses.push(self.exchange(request).await?);
+            }
             let query = as_query(input);
             for path in QUERY_PATHS {
                 let Ok(request) = Request::get(format!("{path}?{query}")).body(Body::empty())
@@ -131,7 +196,7 @@ impl Harness {
             if contains_null(&value) {
                 return Err(format!("{what}: {status} holds a null: {text}"));
             }
-        } else if !(content_type.starts_with("text/csv") || content_type.starts_with("image/svg")) {
+        } else if !FILE_TYPES.iter().any(|t| content_type.starts_with(t)) {
             return Err(format!(
                 "{what}: {status} with content type {content_type:?}"
             ));

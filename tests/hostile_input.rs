@@ -180,6 +180,47 @@ fn mutated_example() -> impl Strategy<Value = Vec<u8>> {
         })
 }
 
+/// Small valid images of the project's own synthetic scene (a PNG, and a JPEG encoded by the
+/// `image` crate): the starting points of the image mutations.
+fn images() -> &'static [Vec<u8>] {
+    static IMAGES: OnceLock<Vec<Vec<u8>>> = OnceLock::new();
+    IMAGES.get_or_init(|| {
+        use stereo_distance::vision::{encode, synthetic};
+        let pair = synthetic::render(&synthetic::layered(24, 16));
+        let png = encode::png_rgb(24, 16, &pair.left_rgb);
+        let mut jpeg = Vec::new();
+        image::RgbImage::from_raw(24, 16, pair.left_rgb.clone())
+            .unwrap()
+            .write_to(
+                &mut std::io::Cursor::new(&mut jpeg),
+                image::ImageFormat::Jpeg,
+            )
+            .unwrap();
+        vec![png, jpeg]
+    })
+}
+
+/// A valid image with a few bytes overwritten, inserted or cut: deep into the decoders.
+fn mutated_image() -> impl Strategy<Value = Vec<u8>> {
+    (
+        0..2usize,
+        vec((any::<prop::sample::Index>(), any::<u8>()), 1..6),
+        0u8..3,
+    )
+        .prop_map(|(which, edits, how)| {
+            let mut bytes = images()[which].clone();
+            for (at, byte) in edits {
+                let i = at.index(bytes.len());
+                match how {
+                    0 => bytes[i] = byte,
+                    1 => bytes.insert(i, byte),
+                    _ => bytes.truncate(i.max(8)),
+                }
+            }
+            bytes
+        })
+}
+
 /// A query string of API member names and number spellings, with some raw noise.
 fn query() -> impl Strategy<Value = Vec<u8>> {
     vec(
@@ -224,6 +265,13 @@ proptest! {
         harness().check(&input).map_err(TestCaseError::fail)?;
     }
 
+    /// Valid PNG and JPEG images with a few bytes changed, as both images of a form (and as
+    /// everything else).
+    #[test]
+    fn mutated_images(input in mutated_image()) {
+        harness().check(&input).map_err(TestCaseError::fail)?;
+    }
+
     /// Query strings of the API's member names and hostile number spellings.
     #[test]
     fn random_queries(input in query()) {
@@ -237,6 +285,11 @@ proptest! {
 fn examples_pass_the_oracle() {
     for example in examples() {
         let statuses = harness().check(example).unwrap();
+        assert!(statuses.contains(&StatusCode::OK), "{statuses:?}");
+    }
+    // A valid image is matched: both images of the form are it, so /depth-map answers 200.
+    for image in images() {
+        let statuses = harness().check(image).unwrap();
         assert!(statuses.contains(&StatusCode::OK), "{statuses:?}");
     }
     let statuses = harness().check(b"{not json").unwrap();

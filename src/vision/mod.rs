@@ -10,9 +10,12 @@
 //! The matcher, stage by stage ([`disparity`]):
 //! - [`census`]: a 9 × 7 census transform of both images (62 bits a pixel);
 //! - [`cost`]: the Hamming cost volume, `[y][x][d]`, one byte a cell;
-//! - [`sgm`]: semi-global aggregation along 8 paths, two passes on two cores;
-//! - [`refine`]: winner-takes-all with uniqueness and a sub-pixel fit, the left-right check,
-//!   speckle removal, a 3 × 3 median and optional filling.
+//! - [`sgm`]: semi-global aggregation along 8 paths in two passes, the second handing each
+//!   finished row to
+//! - [`refine`]: winner-takes-all with uniqueness and a sub-pixel fit, the left-right check;
+//!   then, over the whole map, speckle removal, a 3 × 3 median and optional filling.
+//!
+//! The image is matched in horizontal stripes ([`stripes`]), side by side on the cores.
 //!
 //! Around it: [`decode`] reads PNG and JPEG under limits, [`encode`] writes PFM, NPY, 16-bit
 //! PNG, the colour preview and PLY, and [`synthetic`] renders pairs with exact ground truth.
@@ -26,6 +29,7 @@ pub mod sgm;
 pub mod simd;
 pub mod synthetic;
 
+use std::ops::Range;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
@@ -130,19 +134,58 @@ pub struct Timings {
     pub refine: Duration,
 }
 
+/// Rows of a stripe: the image is matched in horizontal stripes of this many rows, side by
+/// side on the cores. The count depends on the image alone, so a pair gives the same map on any
+/// machine.
+pub const STRIPE_ROWS: usize = 256;
+/// Rows of context above and below a stripe, matched but not kept, so that the vertical and
+/// diagonal paths reach a stripe's edge rows from outside it (their influence fades within a
+/// few dozen rows).
+pub const STRIPE_MARGIN: usize = 24;
+
+/// The stripes of an image `height` rows tall: `(rows kept, rows matched)`, the second
+/// containing the first. A last stripe shorter than a quarter of [`STRIPE_ROWS`] joins the one
+/// before it.
+pub fn stripes(height: usize) -> Vec<(Range<usize>, Range<usize>)> {
+    let mut kept: Vec<Range<usize>> = (0..height)
+        .step_by(STRIPE_ROWS)
+        .map(|r0| r0..(r0 + STRIPE_ROWS).min(height))
+        .collect();
+    if kept.len() > 1 && kept[kept.len() - 1].len() < STRIPE_ROWS / 4 {
+        let last = kept.pop().unwrap_or_default();
+        if let Some(before) = kept.last_mut() {
+            before.end = last.end;
+        }
+    }
+    kept.into_iter()
+        .map(|r| {
+            let context =
+                r.start.saturating_sub(STRIPE_MARGIN)..(r.end + STRIPE_MARGIN).min(height);
+            (r, context)
+        })
+        .collect()
+}
+
 /// The bytes the matcher holds at its peak for a `width × height` pair searching `count`
-/// disparities: the cost volume (one byte a cell) and the two passes' sums (two bytes a cell
-/// each), plus per-pixel buffers (census signatures, grey images, the disparity maps).
+/// disparities: for each stripe in flight at once (one a core), its cost volume (one byte a
+/// cell) and the first pass's sums (two bytes a cell); and per-pixel buffers (census
+/// signatures, grey images, the disparity maps).
 pub fn bytes_needed(width: usize, height: usize, count: usize) -> usize {
+    let stripes = stripes(height);
+    let in_flight = stripes.len().min(rayon::current_num_threads()).max(1);
+    let tallest = stripes.iter().map(|(_, c)| c.len()).max().unwrap_or(0);
     let pixels = width.saturating_mul(height);
-    pixels
+    width
+        .saturating_mul(tallest)
         .saturating_mul(cost::stride(count))
-        .saturating_mul(5)
+        .saturating_mul(3)
+        .saturating_mul(in_flight)
         .saturating_add(pixels.saturating_mul(48))
 }
 
 /// The disparity map of a rectified pair (the same size), or [`Cancelled`] when `cancel` was set
-/// before the matcher finished; it is checked between stages and between rows.
+/// before the matcher finished; it is checked between stages and between rows. Stage times are
+/// those of the slowest stripe.
 pub fn disparity(
     left: &Gray,
     right: &Gray,
@@ -157,47 +200,30 @@ pub fn disparity(
             Ok(())
         }
     };
-    let mut timings = Timings::default();
-
     let started = Instant::now();
     let (cl, cr) = rayon::join(|| census::transform(left), || census::transform(right));
-    checkpoint()?;
-    let volume = cost::volume(&cl, &cr, w, h, params.min_disparity, params.count);
-    drop((cl, cr));
-    timings.cost = started.elapsed();
+    let census_time = started.elapsed();
     checkpoint()?;
 
-    let started = Instant::now();
-    let sums = sgm::aggregate(&volume, left, params.penalties, cancel)?;
-    let stride = volume.stride;
-    drop(volume);
-    timings.aggregate = started.elapsed();
-    checkpoint()?;
-
-    let started = Instant::now();
-    let row = w * stride;
-    let mut data: Vec<f32> = sums
-        .forward
-        .par_chunks(row)
-        .zip(sums.backward.par_chunks(row))
-        .flat_map_iter(|(f, b)| {
-            let mut won = refine::winners(
-                f,
-                b,
-                w,
-                stride,
-                params.count,
-                params.uniqueness,
-                params.subpixel,
-            );
-            if let Some(tolerance) = params.lr_tolerance {
-                refine::left_right(&mut won.left, &won.right, tolerance);
-            }
-            won.left
-        })
+    let stripes = stripes(h);
+    let matched: Vec<Result<(Vec<f32>, Timings), Cancelled>> = stripes
+        .par_iter()
+        .map(|(kept, context)| match_stripe(&cl, &cr, left, kept, context, params, cancel))
         .collect();
-    drop(sums);
+    let mut data = Vec::with_capacity(w * h);
+    let mut timings = Timings::default();
+    for stripe in matched {
+        let (rows, t) = stripe?;
+        data.extend_from_slice(&rows);
+        timings.cost = timings.cost.max(t.cost);
+        timings.aggregate = timings.aggregate.max(t.aggregate);
+        timings.refine = timings.refine.max(t.refine);
+    }
+    drop((cl, cr));
+    timings.cost += census_time;
     checkpoint()?;
+
+    let started = Instant::now();
     refine::speckles(&mut data, w, params.speckle_size, params.speckle_range);
     if params.median {
         data = refine::median(&data, w);
@@ -209,7 +235,7 @@ pub fn disparity(
     for d in &mut data {
         *d += min;
     }
-    timings.refine = started.elapsed();
+    timings.refine += started.elapsed();
     Ok((
         Disparity {
             width: w,
@@ -218,4 +244,66 @@ pub fn disparity(
         },
         timings,
     ))
+}
+
+/// One stripe: the cost volume and the two passes over its `context` rows, the winners and the
+/// left-right check of its `kept` rows (disparities as indices into the range).
+fn match_stripe(
+    cl: &[u64],
+    cr: &[u64],
+    left: &Gray,
+    kept: &Range<usize>,
+    context: &Range<usize>,
+    params: &Params,
+    cancel: &AtomicBool,
+) -> Result<(Vec<f32>, Timings), Cancelled> {
+    let w = left.width;
+    let mut timings = Timings::default();
+    let started = Instant::now();
+    let rows = context.start * w..context.end * w;
+    let volume = cost::volume(
+        &cl[rows.clone()],
+        &cr[rows.clone()],
+        w,
+        context.len(),
+        params.min_disparity,
+        params.count,
+    );
+    timings.cost = started.elapsed();
+    if cancel.load(Ordering::Relaxed) {
+        return Err(Cancelled);
+    }
+
+    let started = Instant::now();
+    let mut out = vec![f32::NAN; kept.len() * w];
+    let mut choosing = Duration::ZERO;
+    let first = kept.start - context.start;
+    sgm::aggregate(
+        &volume,
+        &left.data[rows],
+        params.penalties,
+        cancel,
+        &mut |y, totals| {
+            if !(first..first + kept.len()).contains(&y) {
+                return;
+            }
+            let chose = Instant::now();
+            let mut won = refine::winners(
+                totals,
+                w,
+                volume.stride,
+                params.count,
+                params.uniqueness,
+                params.subpixel,
+            );
+            if let Some(tolerance) = params.lr_tolerance {
+                refine::left_right(&mut won.left, &won.right, tolerance);
+            }
+            out[(y - first) * w..(y - first + 1) * w].copy_from_slice(&won.left);
+            choosing += chose.elapsed();
+        },
+    )?;
+    timings.aggregate = started.elapsed().saturating_sub(choosing);
+    timings.refine = choosing;
+    Ok((out, timings))
 }

@@ -18,11 +18,11 @@ pub struct Winners {
 }
 
 crate::dispatch! {
-    /// Winner-takes-all over one row: `forward + backward` per cell. `uniqueness` is in
-    /// percent: the best cost must beat every disparity more than one step away by that margin.
+    /// Winner-takes-all over one row of aggregated costs (`width × stride`). `uniqueness` is
+    /// in percent: the best cost must beat every disparity more than one step away by that
+    /// margin.
     pub fn winners(
-        forward: &[u16],
-        backward: &[u16],
+        totals: &[u16],
         width: usize,
         stride: usize,
         count: usize,
@@ -34,14 +34,8 @@ crate::dispatch! {
         // over right pixels x, x − 1, …, which is then one forward contiguous run.
         let mut right_rev = vec![u16::MAX; width];
         let mut right_cost_rev = vec![u16::MAX; width];
-        let mut total = vec![0u16; stride];
         for x in 0..width {
-            let f = &forward[x * stride..(x + 1) * stride];
-            let b = &backward[x * stride..(x + 1) * stride];
-            for ((t, &f), &b) in total.iter_mut().zip(f).zip(b) {
-                *t = f.saturating_add(b);
-            }
-            let total = &total[..count];
+            let total = &totals[x * stride..x * stride + count];
             let (best, best_k) = argmin(total);
             let reach = count.min(x + 1);
             let start = width - 1 - x;
@@ -131,11 +125,16 @@ fn keep_smaller(costs: &mut [u16], winners: &mut [u16], totals: &[u16]) {
         .zip(winners[..whole].chunks_exact_mut(L))
         .zip(totals[..whole].chunks_exact(L))
     {
+        // Branch-free, on whole registers: a mask of the lanes where the total won.
+        let mut kept = [0u16; L];
+        let mut won = [0u16; L];
         for i in 0..L {
-            let better = t[i] < c[i];
-            c[i] = if better { t[i] } else { c[i] };
-            w[i] = if better { index[i] } else { w[i] };
+            let mask = 0u16.wrapping_sub(u16::from(t[i] < c[i]));
+            kept[i] = c[i].min(t[i]);
+            won[i] = (index[i] & mask) | (w[i] & !mask);
         }
+        c.copy_from_slice(&kept);
+        w.copy_from_slice(&won);
         for v in &mut index {
             *v += L as u16;
         }

@@ -6,14 +6,15 @@
 //! Layout, as OpenCV's `MODE_HH`: the 8 paths run in two passes, the 4 that come from above and
 //! the left (top to bottom, left to right) and the 4 that come from below and the right. Each
 //! pass keeps line buffers only (the previous row's path costs for its three vertical and
-//! diagonal paths, the previous pixel's for its horizontal one) and writes its sum over its 4
-//! paths into a `u16` volume of its own, so the two passes run on two cores at once; the
-//! winner-takes-all adds the two volumes.
+//! diagonal paths, the previous pixel's for its horizontal one). The first pass stores its sums
+//! in a `u16` volume; the second adds its own to them one row at a time and hands each finished
+//! row of totals to the winner-takes-all, so no second volume is written or read back. The
+//! matcher runs this on horizontal stripes of the image, one per core (see [`super::disparity`]).
 
 use std::sync::atomic::{AtomicBool, Ordering};
 
+use super::Cancelled;
 use super::cost::Volume;
-use super::{Cancelled, Gray};
 
 /// The smoothness penalties.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -31,28 +32,39 @@ pub struct Penalties {
 /// disparities just outside the padded range so the inner loop needs no bounds.
 const FAR: u16 = 8192;
 
-/// The two passes' sums, each `width × height × stride` cells in the cost volume's layout.
-pub struct Aggregated {
-    pub forward: Vec<u16>,
-    pub backward: Vec<u16>,
-}
-
-/// Aggregates `cost` along 8 paths, guided by the left image's intensities.
+/// Aggregates `cost` along 8 paths, guided by the grey levels of the volume's rows (`grey`,
+/// `width × height` of them), and calls `on_row(y, totals)` for each row from the bottom up with
+/// the sum of the 8 paths' costs of its pixels (`width × stride`, the volume's layout).
 pub fn aggregate(
     cost: &Volume,
-    left: &Gray,
+    grey: &[u16],
     penalties: Penalties,
     cancel: &AtomicBool,
-) -> Result<Aggregated, Cancelled> {
-    let table = p2_table(penalties);
-    let (forward, backward) = rayon::join(
-        || pass(cost, left, penalties.p1, &table, true, cancel),
-        || pass(cost, left, penalties.p1, &table, false, cancel),
-    );
-    Ok(Aggregated {
-        forward: forward?,
-        backward: backward?,
-    })
+    on_row: &mut dyn FnMut(usize, &[u16]),
+) -> Result<(), Cancelled> {
+    let table = Table {
+        p1: penalties.p1,
+        p2: p2_table(penalties),
+    };
+    let (w, h, n) = (cost.width, cost.height, cost.stride);
+    let mut forward = vec![0u16; w * h * n];
+    pass(
+        cost,
+        grey,
+        &table,
+        None,
+        &mut forward,
+        &mut |_, _| {},
+        cancel,
+    )?;
+    let mut row = vec![0u16; w * n];
+    pass(cost, grey, &table, Some(&forward), &mut row, on_row, cancel)
+}
+
+/// The penalties as a pass uses them: `P1`, and `P2` for each intensity step 0..=255.
+struct Table {
+    p1: u16,
+    p2: [u16; 256],
 }
 
 /// `P2` for each intensity step 0..=255.
@@ -68,19 +80,23 @@ fn p2_table(p: Penalties) -> [u16; 256] {
 }
 
 crate::dispatch! {
-    /// One pass: the 4 paths arriving from the previous row and the previous pixel, with rows
-    /// and pixels visited in order (`forward`) or in reverse.
+    /// One pass: the 4 paths arriving from the previous row and the previous pixel. The first
+    /// pass (`stored` is `None`) visits rows and pixels in order and stores its sums in `sums`,
+    /// the whole volume. The second visits them in reverse, and for each row adds its sums to
+    /// the first pass's (`stored`) in `sums`, one row, then calls `on_row`.
     fn pass(
         cost: &Volume,
-        left: &Gray,
-        p1: u16,
-        p2: &[u16; 256],
-        forward: bool,
+        grey: &[u16],
+        table: &Table,
+        stored: Option<&[u16]>,
+        sums: &mut [u16],
+        on_row: &mut dyn FnMut(usize, &[u16]),
         cancel: &AtomicBool,
-    ) -> Result<Vec<u16>, Cancelled> {
+    ) -> Result<(), Cancelled> {
         let (w, h, n) = (cost.width, cost.height, cost.stride);
+        let (p1, p2) = (table.p1, &table.p2);
+        let forward = stored.is_none();
         let slot = n + 2;
-        let mut sum = vec![0u16; w * h * n];
         // Path costs of the previous and current rows, for the three paths that come from the
         // previous row: from the pixel before (diagonal), above, and after (other diagonal).
         // Each pixel's slot holds its n costs between two FAR sentinels.
@@ -107,18 +123,21 @@ crate::dispatch! {
             }
             let y = if forward { i } else { h - 1 - i };
             let first_row = i == 0;
-            let grey = &left.data[y * w..(y + 1) * w];
+            let grey_row = &grey[y * w..(y + 1) * w];
             let grey_prev = if first_row {
-                grey
+                grey_row
             } else {
                 let yp = if forward { y - 1 } else { y + 1 };
-                &left.data[yp * w..(yp + 1) * w]
+                &grey[yp * w..(yp + 1) * w]
             };
+            if let Some(stored) = stored {
+                sums.copy_from_slice(&stored[y * w * n..(y + 1) * w * n]);
+            }
             let mut along_min = 0u16;
             let [cur0, cur1, cur2] = &mut cur;
             for j in 0..w {
                 let x = if forward { j } else { w - 1 - j };
-                let here = grey[x] >> 8;
+                let here = grey_row[x] >> 8;
                 let jump = |other: u16| p2[usize::from(here.abs_diff(other >> 8))];
                 let mut srcs: [&[u16]; 4] = [&start; 4];
                 let mut mins = [0u16; 4];
@@ -128,7 +147,7 @@ crate::dispatch! {
                     let xp = (x as isize - step) as usize;
                     srcs[0] = &along;
                     mins[0] = along_min;
-                    p2s[0] = jump(grey[xp]);
+                    p2s[0] = jump(grey_row[xp]);
                 }
                 // From the previous row: the pixel before, above, and after.
                 if !first_row {
@@ -142,6 +161,8 @@ crate::dispatch! {
                         }
                     }
                 }
+                let at = if forward { y * w + x } else { x };
+                let sum = &mut sums[at * n..(at + 1) * n];
                 let least = step4(
                     cost.at(x, y),
                     srcs,
@@ -154,7 +175,7 @@ crate::dispatch! {
                         &mut cur1[x * slot..(x + 1) * slot],
                         &mut cur2[x * slot..(x + 1) * slot],
                     ],
-                    &mut sum[(y * w + x) * n..(y * w + x + 1) * n],
+                    sum,
                 );
                 along_min = least[0];
                 for k in 0..3 {
@@ -164,8 +185,11 @@ crate::dispatch! {
             }
             std::mem::swap(&mut prev, &mut cur);
             std::mem::swap(&mut prev_min, &mut cur_min);
+            if !forward {
+                on_row(y, sums);
+            }
         }
-        Ok(sum)
+        Ok(())
     }
 }
 
@@ -174,8 +198,8 @@ const LANES: usize = super::cost::LANES;
 
 /// One step of the 4 paths of a pass at one pixel: for each path,
 /// `L(p, d) = C(p, d) + min(L(p−r, d), L(p−r, d±1) + P1, min L(p−r) + P2) − min L(p−r)`,
-/// written between the sentinels of its `out` slot; `sum` gets the 4 paths' total. Returns each
-/// path's `min L(p)`.
+/// written between the sentinels of its `out` slot; the 4 paths' total is added to `sum` (zero
+/// in the first pass, the first pass's sums in the second). Returns each path's `min L(p)`.
 #[inline(always)]
 fn step4(
     cost: &[u8],
@@ -187,28 +211,67 @@ fn step4(
     sum: &mut [u16],
 ) -> [u16; 4] {
     let n = cost.len();
-    let mut least = [[u16::MAX; LANES]; 4];
+    let [s0, s1, s2, s3] = srcs;
+    let [o0, o1, o2, o3] = outs;
+    let (s0, s1, s2, s3) = (&s0[..n + 2], &s1[..n + 2], &s2[..n + 2], &s3[..n + 2]);
+    let (o0, o1, o2, o3) = (
+        &mut o0[1..n + 1],
+        &mut o1[1..n + 1],
+        &mut o2[1..n + 1],
+        &mut o3[1..n + 1],
+    );
+    let sum = &mut sum[..n];
+    let jumps = [
+        mins[0] + p2[0],
+        mins[1] + p2[1],
+        mins[2] + p2[2],
+        mins[3] + p2[3],
+    ];
+    let mut l0 = [u16::MAX; LANES];
+    let mut l1 = [u16::MAX; LANES];
+    let mut l2 = [u16::MAX; LANES];
+    let mut l3 = [u16::MAX; LANES];
     for base in (0..n).step_by(LANES) {
-        let c = &cost[base..base + LANES];
-        let mut total = [0u16; LANES];
-        for dir in 0..4 {
-            let prev = &srcs[dir][base..base + LANES + 2];
-            let out = &mut outs[dir][base + 1..base + 1 + LANES];
-            let jump = mins[dir] + p2[dir];
-            for i in 0..LANES {
-                let best = prev[i + 1]
-                    .min(prev[i] + p1)
-                    .min(prev[i + 2] + p1)
-                    .min(jump);
-                let v = u16::from(c[i]) + best - mins[dir];
-                out[i] = v;
-                total[i] += v;
-                least[dir][i] = least[dir][i].min(v);
-            }
+        let mut c = [0u16; LANES];
+        for (c, &v) in c.iter_mut().zip(&cost[base..base + LANES]) {
+            *c = u16::from(v);
         }
-        sum[base..base + LANES].copy_from_slice(&total);
+        let v0 = path(&c, &s0[base..base + LANES + 2], mins[0], p1, jumps[0]);
+        let v1 = path(&c, &s1[base..base + LANES + 2], mins[1], p1, jumps[1]);
+        let v2 = path(&c, &s2[base..base + LANES + 2], mins[2], p1, jumps[2]);
+        let v3 = path(&c, &s3[base..base + LANES + 2], mins[3], p1, jumps[3]);
+        o0[base..base + LANES].copy_from_slice(&v0);
+        o1[base..base + LANES].copy_from_slice(&v1);
+        o2[base..base + LANES].copy_from_slice(&v2);
+        o3[base..base + LANES].copy_from_slice(&v3);
+        let total = &mut sum[base..base + LANES];
+        for i in 0..LANES {
+            let here = v0[i] + v1[i] + v2[i] + v3[i];
+            total[i] = total[i].saturating_add(here);
+            l0[i] = l0[i].min(v0[i]);
+            l1[i] = l1[i].min(v1[i]);
+            l2[i] = l2[i].min(v2[i]);
+            l3[i] = l3[i].min(v3[i]);
+        }
     }
-    least.map(|l| l.into_iter().min().unwrap_or(0))
+    let least = |l: [u16; LANES]| l.into_iter().fold(u16::MAX, u16::min);
+    [least(l0), least(l1), least(l2), least(l3)]
+}
+
+/// One register of one path's step: `C + min(L(d), L(d ± 1) + P1, jump) − min`, where `prev`
+/// holds the previous costs from d − 1 to d + LANES.
+#[inline(always)]
+fn path(c: &[u16; LANES], prev: &[u16], prev_min: u16, p1: u16, jump: u16) -> [u16; LANES] {
+    let prev = &prev[..LANES + 2];
+    let mut out = [0u16; LANES];
+    for i in 0..LANES {
+        let best = prev[i + 1]
+            .min(prev[i] + p1)
+            .min(prev[i + 2] + p1)
+            .min(jump);
+        out[i] = c[i] + best - prev_min;
+    }
+    out
 }
 
 #[cfg(test)]

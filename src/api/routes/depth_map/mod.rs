@@ -334,12 +334,13 @@ fn compute(
 ) -> Result<Response, ApiError> {
     let started = Instant::now();
     let colour = output == DepthMapOutput::PointsPly;
-    let decoded = ["left", "right"].map(|name| {
+    let read = |name: &str| {
         let bytes = parts.get(name).map_or(&[][..], Bytes::as_ref);
         decode::decode(bytes, images::LIMITS, colour && name == "left")
             .map_err(|e| FieldError::new(name, images::describe(&e)))
-    });
-    let [left, right] = decoded;
+    };
+    // Both images at once, on the matcher's pool.
+    let (left, right) = rayon::join(|| read("left"), || read("right"));
     let (left, right) = match (left, right) {
         (Ok(l), Ok(r)) => (l, r),
         (l, r) => {

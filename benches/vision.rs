@@ -1,0 +1,100 @@
+//! Criterion benchmarks of the matcher's stages on a synthetic 741 × 500 pair (Motorcycle's
+//! quarter size, no download), 64 disparities: census, cost volume, aggregation, the
+//! winner-takes-all of a row, and the whole `vision::disparity`, with the AVX2 build and the
+//! portable one. The comparison with OpenCV is `scripts/eval-stereo` (README, Performance).
+//!
+//! ```text
+//! cargo bench --bench vision
+//! ```
+
+use std::hint::black_box;
+use std::sync::atomic::AtomicBool;
+
+use criterion::{Criterion, criterion_group, criterion_main};
+use stereo_distance::vision::{self, Params, census, cost, refine, sgm, simd, synthetic};
+
+fn stages(c: &mut Criterion) {
+    let pair = synthetic::render(&synthetic::Scene {
+        noise: 0.01,
+        ..synthetic::layered(741, 500)
+    });
+    let params = Params::default();
+    let params = Params {
+        count: 64,
+        ..params
+    };
+    let never = AtomicBool::new(false);
+    let (w, h) = (pair.left.width, pair.left.height);
+    let cl = census::transform(&pair.left);
+    let cr = census::transform(&pair.right);
+    let volume = cost::volume(&cl, &cr, w, h, 0, params.count);
+    let mut totals = Vec::new();
+    sgm::aggregate(
+        &volume,
+        &pair.left.data,
+        params.penalties,
+        &never,
+        &mut |y, row| {
+            if y == h / 2 {
+                totals = row.to_vec();
+            }
+        },
+    )
+    .unwrap();
+
+    let mut group = c.benchmark_group("matcher 741x500x64");
+    group.sample_size(20);
+    group.bench_function("census (both images)", |b| {
+        b.iter(|| {
+            (
+                census::transform(black_box(&pair.left)),
+                census::transform(black_box(&pair.right)),
+            )
+        })
+    });
+    group.bench_function("cost volume", |b| {
+        b.iter(|| cost::volume(black_box(&cl), black_box(&cr), w, h, 0, params.count))
+    });
+    group.bench_function(
+        "aggregate (8 paths, 2 passes, whole image, 1 thread)",
+        |b| {
+            b.iter(|| {
+                sgm::aggregate(
+                    black_box(&volume),
+                    &pair.left.data,
+                    params.penalties,
+                    &never,
+                    &mut |_, row| {
+                        black_box(row);
+                    },
+                )
+            })
+        },
+    );
+    group.bench_function("winner-takes-all (one row)", |b| {
+        b.iter(|| {
+            refine::winners(
+                black_box(&totals),
+                w,
+                volume.stride,
+                params.count,
+                params.uniqueness,
+                params.subpixel,
+            )
+        })
+    });
+    for (name, simd_on) in [
+        ("whole matcher, AVX2 if present", true),
+        ("whole matcher, portable", false),
+    ] {
+        simd::use_simd(simd_on);
+        group.bench_function(name, |b| {
+            b.iter(|| vision::disparity(&pair.left, &pair.right, &params, &never).unwrap())
+        });
+    }
+    simd::use_simd(true);
+    group.finish();
+}
+
+criterion_group!(benches, stages);
+criterion_main!(benches);
