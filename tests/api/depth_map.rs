@@ -448,3 +448,48 @@ async fn a_request_beyond_the_memory_budget_names_what_to_shrink() {
     let fits = depth_map(&app, "?max_disparity=32", form_of_pair()).await;
     assert_eq!(fits.status(), 200);
 }
+
+/// While another upload holds nearly all of the memory budget (its declared body is reserved on
+/// admission), a pair that needs more than is left is a 503 with `Retry-After`; once that
+/// upload is gone the same request is answered.
+#[tokio::test]
+async fn a_held_memory_budget_is_503_and_then_served() {
+    // Arrange: a 64 MiB budget, and a connection declaring a 62 MiB form that never comes.
+    let app = spawn_app_with(Config {
+        port: 0,
+        heavy: HeavyLimits {
+            memory_budget: 64 << 20,
+            body_bytes: 63 << 20,
+            ..HeavyLimits::default()
+        },
+        ..Config::default()
+    })
+    .await;
+    let head = format!(
+        "POST /depth-map HTTP/1.1\r\nHost: test\r\nContent-Type: multipart/form-data; \
+         boundary=x\r\nContent-Length: {}\r\n\r\n",
+        62 << 20
+    );
+    let held = app.raw_partial(&head, b"--x\r\n").await;
+    app.wait_in_flight(2.0).await;
+    // Act
+    let refused = depth_map(&app, "?max_disparity=48", form_of_pair()).await;
+    // Assert
+    assert!(refused.headers().contains_key("retry-after"));
+    let body = problem(refused, 503).await;
+    assert!(
+        body["detail"].as_str().unwrap().contains("memory budget"),
+        "{body}"
+    );
+    drop(held);
+    let mut served = depth_map(&app, "?max_disparity=48", form_of_pair()).await;
+    for _ in 0..50 {
+        if served.status() == 200 {
+            break;
+        }
+        // The held connection's reservation is given back when the server sees it close.
+        tokio::time::sleep(std::time::Duration::from_millis(20)).await;
+        served = depth_map(&app, "?max_disparity=48", form_of_pair()).await;
+    }
+    assert_eq!(served.status(), 200);
+}
