@@ -1,7 +1,8 @@
 //! Criterion benchmarks of the matcher's stages on a synthetic 741 × 500 pair (Motorcycle's
 //! quarter size, no download), 64 disparities: census, cost volume, aggregation, the
-//! winner-takes-all of a row, and the whole `vision::disparity`, with the AVX2 build and the
-//! portable one. The comparison with OpenCV is `scripts/eval-stereo` (README, Performance).
+//! winner-takes-all of a row, and the whole `vision::disparity`, at each SIMD level the CPU
+//! has (AVX2, portable). The comparison with OpenCV is `scripts/eval-stereo` (README,
+//! Performance).
 //!
 //! ```text
 //! cargo bench --bench vision
@@ -83,16 +84,13 @@ fn stages(c: &mut Criterion) {
             )
         })
     });
-    for (name, simd_on) in [
-        ("whole matcher, AVX2 if present", true),
-        ("whole matcher, portable", false),
-    ] {
-        simd::use_simd(simd_on);
-        group.bench_function(name, |b| {
+    for level in simd::available().into_iter().rev() {
+        simd::set_level(level);
+        group.bench_function(format!("whole matcher, {level:?}"), |b| {
             b.iter(|| vision::disparity(&pair.left, &pair.right, &params, &never).unwrap())
         });
     }
-    simd::use_simd(true);
+    simd::set_level(simd::Level::Avx2);
     group.finish();
 }
 

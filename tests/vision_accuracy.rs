@@ -7,6 +7,7 @@ use std::sync::atomic::AtomicBool;
 
 use stereo_distance::vision::{
     self, Params, Subpixel,
+    simd::Level,
     synthetic::{self, Pair, Plane, Region, Scene},
 };
 
@@ -114,28 +115,39 @@ fn subpixel_follows_a_slanted_plane() {
     assert!(fitted.density > 0.9, "{fitted:?}");
 }
 
-/// The AVX2 build of the hot loops and the portable build give bit-identical maps.
+/// The AVX2 build of the hot loops, where the CPU has it, gives a map bit-identical to the
+/// portable build's, with a disparity count that fills whole registers (64) and one that leaves
+/// padded lanes (40).
 #[test]
 fn simd_and_portable_builds_agree() {
     let pair = synthetic::render(&Scene {
         noise: 0.01,
         ..synthetic::layered(200, 120)
     });
-    let run = || {
-        vision::disparity(&pair.left, &pair.right, &params(), &AtomicBool::new(false))
-            .unwrap()
-            .0
-    };
-    vision::simd::use_simd(false);
-    let portable = run();
-    vision::simd::use_simd(true);
-    let fast = run();
-    let same = portable
-        .data
-        .iter()
-        .zip(&fast.data)
-        .all(|(a, b)| a.to_bits() == b.to_bits());
-    assert!(same, "the two builds disagree");
+    for count in [40, 64] {
+        let params = Params { count, ..params() };
+        let run = |level| {
+            assert_eq!(vision::simd::set_level(level), level);
+            vision::disparity(&pair.left, &pair.right, &params, &AtomicBool::new(false))
+                .unwrap()
+                .0
+        };
+        let portable = run(Level::Portable);
+        for level in vision::simd::available() {
+            let fast = run(level);
+            let same = portable
+                .data
+                .iter()
+                .zip(&fast.data)
+                .all(|(a, b)| a.to_bits() == b.to_bits());
+            assert!(
+                same,
+                "{level:?} and the portable build disagree with {count} disparities"
+            );
+        }
+        assert!(portable.data.iter().filter(|d| d.is_finite()).count() > 200 * 120 / 2);
+    }
+    vision::simd::set_level(Level::Avx2);
 }
 
 /// A cancelled search stops with `Cancelled` instead of an answer.

@@ -57,7 +57,7 @@ pub fn volume(
     count: usize,
 ) -> Volume {
     let stride = stride(count);
-    let mut data = vec![PAD; width * height * stride];
+    let mut data = super::pages::filled(width * height * stride, PAD);
     data.par_chunks_mut(width * stride)
         .enumerate()
         .for_each(|(y, row)| {

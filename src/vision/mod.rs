@@ -24,6 +24,7 @@ pub mod census;
 pub mod cost;
 pub mod decode;
 pub mod encode;
+pub mod pages;
 pub mod refine;
 pub mod sgm;
 pub mod simd;

@@ -44,9 +44,7 @@ crate::dispatch! {
                 &mut right_rev[start..start + reach],
                 &total[..reach],
             );
-            let below = total[..best_k.saturating_sub(1)].iter().copied().fold(u16::MAX, u16::min);
-            let above = total[(best_k + 2).min(count)..].iter().copied().fold(u16::MAX, u16::min);
-            let second = below.min(above);
+            let second = min_away_from(total, best_k);
             if u32::from(second) * 100 < u32::from(best) * (100 + uniqueness) {
                 continue;
             }
@@ -108,6 +106,38 @@ fn argmin(values: &[u16]) -> (u16, usize) {
         }
     }
     (value, if k == usize::MAX { 0 } else { k })
+}
+
+/// The smallest value more than one index away from `k`, in whole SIMD registers
+/// (`u16::MAX` when there is none).
+#[inline(always)]
+fn min_away_from(values: &[u16], k: usize) -> u16 {
+    const L: usize = super::cost::LANES;
+    // `i` is within one of `k` when `i − (k − 1)` (wrapping) is at most 2.
+    let near = (k as u16).wrapping_sub(1);
+    let mut least = [u16::MAX; L];
+    let mut index = [0u16; L];
+    for (i, v) in index.iter_mut().enumerate() {
+        *v = i as u16;
+    }
+    let whole = values.len() / L * L;
+    for chunk in values[..whole].chunks_exact(L) {
+        for i in 0..L {
+            // All ones for the three cells around `k`, which then cannot be the least.
+            let hide = 0u16.wrapping_sub(u16::from(index[i].wrapping_sub(near) <= 2));
+            least[i] = least[i].min(chunk[i] | hide);
+        }
+        for v in &mut index {
+            *v += L as u16;
+        }
+    }
+    let mut second = least.iter().copied().fold(u16::MAX, u16::min);
+    for (i, &v) in values.iter().enumerate().skip(whole) {
+        if i.abs_diff(k) > 1 {
+            second = second.min(v);
+        }
+    }
+    second
 }
 
 /// `costs[k] = min(costs[k], totals[k])`, and `winners[k] = k` where the total won, in whole
@@ -200,46 +230,42 @@ pub fn speckles(disparity: &mut [f32], width: usize, max_size: usize, range: f32
         return;
     }
     let height = disparity.len() / width;
-    let mut label = vec![0u32; disparity.len()];
-    let mut stack = Vec::new();
-    let mut members = Vec::new();
-    let mut next = 1u32;
-    for start in 0..disparity.len() {
-        if label[start] != 0 || disparity[start].is_nan() {
+    // A copy framed by one invalid pixel on every side: the four neighbours of any inner
+    // pixel are then plain offsets, with no bounds to check and no division to find x and y.
+    let pw = width + 2;
+    let mut framed = vec![f32::NAN; pw * (height + 2)];
+    for (y, row) in disparity.chunks_exact(width).enumerate() {
+        framed[(y + 1) * pw + 1..(y + 1) * pw + 1 + width].copy_from_slice(row);
+    }
+    let mut seen = vec![false; framed.len()];
+    let mut stack: Vec<usize> = Vec::new();
+    let mut members: Vec<usize> = Vec::new();
+    for start in pw..framed.len() - pw {
+        if seen[start] || framed[start].is_nan() {
             continue;
         }
-        label[start] = next;
+        seen[start] = true;
         stack.push(start);
         members.clear();
         while let Some(p) = stack.pop() {
             members.push(p);
-            let (x, y) = (p % width, p / width);
-            let d = disparity[p];
-            let mut visit = |q: usize| {
-                if label[q] == 0 && !disparity[q].is_nan() && (disparity[q] - d).abs() <= range {
-                    label[q] = next;
+            let d = framed[p];
+            for q in [p - 1, p + 1, p - pw, p + pw] {
+                // NaN (the frame, an invalid pixel) fails the comparison.
+                if !seen[q] && (framed[q] - d).abs() <= range {
+                    seen[q] = true;
                     stack.push(q);
                 }
-            };
-            if x > 0 {
-                visit(p - 1);
-            }
-            if x + 1 < width {
-                visit(p + 1);
-            }
-            if y > 0 {
-                visit(p - width);
-            }
-            if y + 1 < height {
-                visit(p + width);
             }
         }
         if members.len() < max_size {
             for &p in &members {
-                disparity[p] = f32::NAN;
+                framed[p] = f32::NAN;
             }
         }
-        next += 1;
+    }
+    for (y, row) in disparity.chunks_exact_mut(width).enumerate() {
+        row.copy_from_slice(&framed[(y + 1) * pw + 1..(y + 1) * pw + 1 + width]);
     }
 }
 
@@ -248,69 +274,126 @@ pub fn speckles(disparity: &mut [f32], width: usize, max_size: usize, range: f32
 pub fn median(disparity: &[f32], width: usize) -> Vec<f32> {
     let height = disparity.len() / width;
     let mut out = disparity.to_vec();
-    out.par_chunks_mut(width).enumerate().for_each(|(y, row)| {
-        let mut window = [0f32; 9];
-        for (x, out) in row.iter_mut().enumerate() {
-            if out.is_nan() {
-                continue;
+    out.par_chunks_mut(width).enumerate().for_each_init(
+        || vec![true; width],
+        |slow, (y, row)| {
+            slow.fill(true);
+            if y > 0 && y + 1 < height {
+                let at = |yy: usize| &disparity[yy * width..(yy + 1) * width];
+                median_interior([at(y - 1), at(y), at(y + 1)], row, slow);
             }
-            let mut n = 0;
-            for yy in y.saturating_sub(1)..(y + 2).min(height) {
-                for &v in
-                    &disparity[yy * width + x.saturating_sub(1)..yy * width + (x + 2).min(width)]
-                {
-                    if !v.is_nan() {
-                        window[n] = v;
-                        n += 1;
+            let mut window = [0f32; 9];
+            for x in (0..width).filter(|&x| slow[x]) {
+                if row[x].is_nan() {
+                    continue;
+                }
+                let mut n = 0;
+                for yy in y.saturating_sub(1)..(y + 2).min(height) {
+                    for &v in &disparity
+                        [yy * width + x.saturating_sub(1)..yy * width + (x + 2).min(width)]
+                    {
+                        if !v.is_nan() {
+                            window[n] = v;
+                            n += 1;
+                        }
                     }
                 }
-            }
-            *out = if n == 9 {
-                median9(window)
-            } else {
-                let w = &mut window[..n];
-                w.sort_unstable_by(f32::total_cmp);
-                if n % 2 == 1 {
-                    w[n / 2]
+                row[x] = if n == 9 {
+                    median9(window)
                 } else {
-                    0.5 * (w[n / 2 - 1] + w[n / 2])
-                }
-            };
-        }
-    });
+                    let w = &mut window[..n];
+                    w.sort_unstable_by(f32::total_cmp);
+                    if n % 2 == 1 {
+                        w[n / 2]
+                    } else {
+                        0.5 * (w[n / 2 - 1] + w[n / 2])
+                    }
+                };
+            }
+        },
+    );
     out
 }
+
+/// Lanes of the vectorised median.
+const MEDIAN_LANES: usize = 16;
+
+crate::dispatch! {
+    /// The 3 × 3 median of a row's inner pixels whose nine neighbours (`rows`: above, the row,
+    /// below) are all valid, [`MEDIAN_LANES`] pixels at a time through the same exchange
+    /// network as [`median9`], written to `out`. Clears `slow` for the pixels it did; the
+    /// others (a NaN among the nine, the row's ends, a last partial chunk) are left to the
+    /// caller.
+    fn median_interior(rows: [&[f32]; 3], out: &mut [f32], slow: &mut [bool]) {
+        const M: usize = MEDIAN_LANES;
+        let inner = out.len().saturating_sub(2);
+        for base in (0..inner / M * M).step_by(M) {
+            let mut p = [[0f32; M]; 9];
+            for (k, row) in rows.iter().enumerate() {
+                for dx in 0..3 {
+                    p[k * 3 + dx].copy_from_slice(&row[base + dx..base + dx + M]);
+                }
+            }
+            // A NaN among the nine makes their sum NaN (the values are finite otherwise).
+            let mut sum = [0f32; M];
+            for q in &p {
+                for i in 0..M {
+                    sum[i] += q[i];
+                }
+            }
+            // NETWORK, spelt out so that every index is a constant.
+            macro_rules! exchange {
+                ($(($a:literal, $b:literal)),*) => {$(
+                    let (x, y) = (p[$a], p[$b]);
+                    p[$a] = std::array::from_fn(|i| if x[i] < y[i] { x[i] } else { y[i] });
+                    p[$b] = std::array::from_fn(|i| if x[i] < y[i] { y[i] } else { x[i] });
+                )*};
+            }
+            exchange!(
+                (1, 2), (4, 5), (7, 8), (0, 1), (3, 4), (6, 7), (1, 2), (4, 5), (7, 8), (0, 3),
+                (5, 8), (4, 7), (3, 6), (1, 4), (2, 5), (4, 7), (4, 2), (6, 4), (4, 2)
+            );
+            let slow = &mut slow[base + 1..base + 1 + M];
+            let out = &mut out[base + 1..base + 1 + M];
+            for i in 0..M {
+                let ok = !sum[i].is_nan();
+                out[i] = if ok { p[4][i] } else { out[i] };
+                slow[i] = !ok;
+            }
+        }
+    }
+}
+
+/// The exchanges of the 9-input median network (Paeth): after them, element 4 is the median.
+const NETWORK: [(usize, usize); 19] = [
+    (1, 2),
+    (4, 5),
+    (7, 8),
+    (0, 1),
+    (3, 4),
+    (6, 7),
+    (1, 2),
+    (4, 5),
+    (7, 8),
+    (0, 3),
+    (5, 8),
+    (4, 7),
+    (3, 6),
+    (1, 4),
+    (2, 5),
+    (4, 7),
+    (4, 2),
+    (6, 4),
+    (4, 2),
+];
 
 /// The median of 9 values (none NaN) by the 19-exchange network of Paeth's "Median finding on
 /// a 3 × 3 grid" (Graphics Gems, 1990).
 fn median9(mut p: [f32; 9]) -> f32 {
-    let mut sort = |a: usize, b: usize| {
+    for (a, b) in NETWORK {
         let (lo, hi) = (p[a].min(p[b]), p[a].max(p[b]));
         p[a] = lo;
         p[b] = hi;
-    };
-    for (a, b) in [
-        (1, 2),
-        (4, 5),
-        (7, 8),
-        (0, 1),
-        (3, 4),
-        (6, 7),
-        (1, 2),
-        (4, 5),
-        (7, 8),
-        (0, 3),
-        (5, 8),
-        (4, 7),
-        (3, 6),
-        (1, 4),
-        (2, 5),
-        (4, 7),
-        (4, 2),
-        (6, 4),
-        (4, 2),
-    ] {
-        sort(a, b);
     }
     p[4]
 }
@@ -360,6 +443,71 @@ mod tests {
         assert!((offset(5.0, 1.0, 3.0, Subpixel::Equiangular) - 0.25).abs() < 1e-6);
     }
 
+    /// The filter, vectorised or not, gives each valid pixel the median of the valid values
+    /// around it (the mean of the middle two for an even count) and leaves invalid ones
+    /// invalid, on a map with holes, at every SIMD level.
+    #[test]
+    fn median_filter_matches_its_definition() {
+        let (w, h) = (53, 9);
+        let mut state = 12345u32;
+        let map: Vec<f32> = (0..w * h)
+            .map(|_| {
+                state = state.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+                if state >> 28 == 0 {
+                    f32::NAN
+                } else {
+                    (state >> 16) as f32 / 512.0
+                }
+            })
+            .collect();
+        let expected: Vec<f32> = (0..w * h)
+            .map(|i| {
+                let (x, y) = (i % w, i / w);
+                if map[i].is_nan() {
+                    return f32::NAN;
+                }
+                let mut v: Vec<f32> = (y.saturating_sub(1)..(y + 2).min(h))
+                    .flat_map(|yy| (x.saturating_sub(1)..(x + 2).min(w)).map(move |xx| (xx, yy)))
+                    .map(|(xx, yy)| map[yy * w + xx])
+                    .filter(|v| !v.is_nan())
+                    .collect();
+                v.sort_by(f32::total_cmp);
+                let n = v.len();
+                if n % 2 == 1 {
+                    v[n / 2]
+                } else {
+                    0.5 * (v[n / 2 - 1] + v[n / 2])
+                }
+            })
+            .collect();
+        assert!(map.iter().filter(|v| v.is_nan()).count() > 10);
+        for level in crate::vision::simd::available() {
+            crate::vision::simd::set_level(level);
+            let got = median(&map, w);
+            for (i, (g, e)) in got.iter().zip(&expected).enumerate() {
+                assert_eq!(g.to_bits(), e.to_bits(), "{level:?} pixel {i}");
+            }
+        }
+        crate::vision::simd::set_level(crate::vision::simd::Level::Avx2);
+    }
+
+    /// The uniqueness test's runner-up skips the winner and its two neighbours, whatever the
+    /// length (whole registers and a tail) and wherever the winner is.
+    #[test]
+    fn runner_up_skips_the_winners_neighbours() {
+        for len in [3usize, 16, 40, 64] {
+            let values: Vec<u16> = (0..len).map(|i| (1000 - 7 * i) as u16).collect();
+            for k in 0..len {
+                let expected = (0..len)
+                    .filter(|i| i.abs_diff(k) > 1)
+                    .map(|i| values[i])
+                    .min()
+                    .unwrap_or(u16::MAX);
+                assert_eq!(min_away_from(&values, k), expected, "len {len} k {k}");
+            }
+        }
+    }
+
     /// The network finds the median of every arrangement of distinct values.
     #[test]
     fn median_of_nine() {
@@ -394,6 +542,24 @@ mod tests {
         speckles(&mut d, 10, 5, 1.0);
         assert!(d[55].is_nan());
         assert_eq!(d.iter().filter(|v| v.is_nan()).count(), 1);
+    }
+
+    /// Islands on the image's edges are measured like any other: a 2-pixel one in a corner
+    /// goes, a 6-pixel one along the right edge stays, and holes stay holes.
+    #[test]
+    fn speckles_at_the_edges() {
+        let (w, h) = (12, 7);
+        let mut d = vec![10.0f32; w * h];
+        (d[6 * w], d[6 * w + 1]) = (40.0, 40.5);
+        for y in 1..4 {
+            (d[y * w + w - 2], d[y * w + w - 1]) = (25.0, 25.0);
+        }
+        d[3 * w + 4] = f32::NAN;
+        speckles(&mut d, w, 5, 1.0);
+        assert!(d[6 * w].is_nan() && d[6 * w + 1].is_nan());
+        assert_eq!(d[2 * w + w - 1], 25.0);
+        assert!(d[3 * w + 4].is_nan());
+        assert_eq!(d.iter().filter(|v| v.is_nan()).count(), 3);
     }
 
     /// Holes take the smaller of their row neighbours, and row ends the only one they have.
