@@ -57,7 +57,8 @@ pub fn volume(
     count: usize,
 ) -> Volume {
     let stride = stride(count);
-    let mut data = super::pages::filled(width * height * stride, PAD);
+    // Every cell is written below, the padding past `count` included.
+    let mut data = super::pages::zeroed(width * height * stride);
     data.par_chunks_mut(width * stride)
         .enumerate()
         .for_each(|(y, row)| {
@@ -87,7 +88,8 @@ crate::dispatch! {
         let width = left.len() as i64;
         let stride = row.len() / left.len();
         for (x, cells) in row.chunks_exact_mut(stride).enumerate() {
-            let cells = &mut cells[..count];
+            let (cells, padding) = cells.split_at_mut(count);
+            padding.fill(PAD);
             let sig = left[x];
             // k such that 0 <= x - min - k < width.
             let first = (x as i64 - min - width + 1).clamp(0, count as i64) as usize;

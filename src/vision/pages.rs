@@ -5,11 +5,13 @@
 //! 47 ms with huge pages). Where the kernel has THP off (`never`), or off Linux, the advice is
 //! a no-op and the buffers are ordinary ones.
 
-/// A `Vec` of `len` copies of `value`, huge-page backed where the kernel allows.
-pub fn filled<T: Copy>(len: usize, value: T) -> Vec<T> {
-    let mut v: Vec<T> = Vec::with_capacity(len);
+/// A `Vec` of `len` zeros, huge-page backed where the kernel allows. A large one comes
+/// straight from the kernel already zeroed, so it is not written here at all.
+pub fn zeroed<T: Copy + Default>(len: usize) -> Vec<T> {
+    // `vec![0; n]` asks the allocator for zeroed memory (`calloc`), which maps fresh pages
+    // for a large buffer and leaves them untouched until first written, after the advice.
+    let mut v = vec![T::default(); len];
     advise(v.as_mut_ptr().cast(), len.saturating_mul(size_of::<T>()));
-    v.resize(len, value);
     v
 }
 
@@ -41,12 +43,12 @@ fn advise(_start: *mut u8, _bytes: usize) {}
 mod tests {
     use super::*;
 
-    /// A large buffer and a small one hold exactly what was asked for.
+    /// A large buffer and a small one hold zeros, as many as asked for.
     #[test]
     fn buffers_hold_their_values() {
-        let big = filled(5 << 20, 7u16);
-        assert_eq!(big.len(), 5 << 20);
-        assert!(big.iter().all(|&v| v == 7));
-        assert_eq!(filled(3, 0u8), vec![0, 0, 0]);
+        assert_eq!(zeroed::<u8>(3), vec![0, 0, 0]);
+        let zeros: Vec<u16> = zeroed(5 << 20);
+        assert_eq!(zeros.len(), 5 << 20);
+        assert!(zeros.iter().all(|&v| v == 0));
     }
 }

@@ -47,7 +47,7 @@ pub fn aggregate(
         p2: p2_table(penalties),
     };
     let (w, h, n) = (cost.width, cost.height, cost.stride);
-    let mut forward = super::pages::filled(w * h * n, 0u16);
+    let mut forward = super::pages::zeroed(w * h * n);
     pass(
         cost,
         grey,
