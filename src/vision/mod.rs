@@ -15,7 +15,9 @@
 //! - [`refine`]: winner-takes-all with uniqueness and a sub-pixel fit, the left-right check;
 //!   then, over the whole map, speckle removal, a 3 × 3 median and optional filling.
 //!
-//! The image is matched in horizontal stripes ([`stripes`]), side by side on the cores.
+//! The image is matched in horizontal stripes ([`stripes`]), side by side on the cores. The hot
+//! loops are dispatched between a portable and an AVX2 build by [`simd`], and the large
+//! buffers come from [`pages`] (zeroed, on transparent huge pages where the kernel allows).
 //!
 //! Around it: [`decode`] reads PNG and JPEG under limits, [`encode`] writes PFM, NPY, 16-bit
 //! PNG, the colour preview and PLY, and [`synthetic`] renders pairs with exact ground truth.
