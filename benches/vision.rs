@@ -1,8 +1,7 @@
 //! Criterion benchmarks of the matcher's stages on a synthetic 741 × 500 pair (Motorcycle's
 //! quarter size, no download), 64 disparities: census, cost volume, aggregation, the
-//! winner-takes-all of a row, and the whole `vision::disparity`, at each SIMD level the CPU
-//! has (AVX2, portable). The comparison with OpenCV is `scripts/eval-stereo` (README,
-//! Performance).
+//! winner-takes-all of a row, and the whole `vision::disparity`, with the AVX2 build and the
+//! portable one. The comparison with OpenCV is `scripts/eval-stereo` (README, Performance).
 //!
 //! ```text
 //! cargo bench --bench vision
@@ -84,13 +83,16 @@ fn stages(c: &mut Criterion) {
             )
         })
     });
-    for level in simd::available().into_iter().rev() {
-        simd::set_level(level);
-        group.bench_function(format!("whole matcher, {level:?}"), |b| {
+    for (name, simd_on) in [
+        ("whole matcher, AVX2 if present", true),
+        ("whole matcher, portable", false),
+    ] {
+        simd::use_simd(simd_on);
+        group.bench_function(name, |b| {
             b.iter(|| vision::disparity(&pair.left, &pair.right, &params, &never).unwrap())
         });
     }
-    simd::set_level(simd::Level::Avx2);
+    simd::use_simd(true);
     group.finish();
 }
 

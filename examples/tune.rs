@@ -7,22 +7,17 @@
 //! ```
 //! `TRUTH.f32` is the ground truth as raw little-endian float32, row-major, +inf where unknown.
 //! Keys: p1, p2, edge, uniq, lr, speckle, median (0/1), sub (off/parabola/equiangular).
-//! `TUNE_SIMD=portable|avx2` runs the hot loops at that level (at most the CPU's).
+//! `TUNE_SIMD=portable` runs the portable build of the hot loops instead of AVX2.
 
 use std::sync::atomic::AtomicBool;
 use std::time::Instant;
 
-use stereo_distance::vision::simd::{self, Level};
-use stereo_distance::vision::{self, Params, Subpixel, decode, refine};
+use stereo_distance::vision::{self, Params, Subpixel, decode, refine, simd};
 
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
-    if let Ok(level) = std::env::var("TUNE_SIMD") {
-        let level = match level.as_str() {
-            "portable" => Level::Portable,
-            _ => Level::Avx2,
-        };
-        eprintln!("SIMD level {:?}", simd::set_level(level));
+    if std::env::var("TUNE_SIMD").as_deref() == Ok("portable") {
+        simd::use_simd(false);
     }
     let limits = decode::Limits {
         max_side: 8192,

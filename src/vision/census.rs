@@ -36,9 +36,10 @@ pub fn transform(image: &Gray) -> Vec<u64> {
 
 crate::dispatch! {
     /// The signatures of row `y`, one window offset at a time across the whole row, so that
-    /// the comparisons run on whole vectors of pixels. The first 31 bits are gathered in one
-    /// `u32` a pixel and the other 31 in another (twice the lanes of a `u64`), then joined.
+    /// the comparisons run on whole vectors of pixels. The first half of the bits (31) is
+    /// gathered in one `u32` a pixel and the other half in another (twice the lanes of a `u64`), then joined.
     fn signatures(padded: &[u16], pw: usize, y: usize, row: &mut [u64]) {
+        const HALF: usize = BITS as usize / 2;
         let (rx, ry) = (WIDTH / 2, HEIGHT / 2);
         let w = row.len();
         let centre = &padded[(y + ry) * pw + rx..(y + ry) * pw + rx + w];
@@ -47,14 +48,14 @@ crate::dispatch! {
             .filter(|&(wy, wx)| (wy, wx) != (ry, rx));
         let mut halves = [vec![0u32; w], vec![0u32; w]];
         for (i, (wy, wx)) in offsets.enumerate() {
-            let half = &mut halves[i / 31];
+            let half = &mut halves[i / HALF];
             let line = &padded[(y + wy) * pw + wx..(y + wy) * pw + wx + w];
             for ((bits, &v), &c) in half.iter_mut().zip(line).zip(centre) {
                 *bits = (*bits << 1) | u32::from(v < c);
             }
         }
         for ((sig, &hi), &lo) in row.iter_mut().zip(&halves[0]).zip(&halves[1]) {
-            *sig = (u64::from(hi) << 31) | u64::from(lo);
+            *sig = (u64::from(hi) << HALF) | u64::from(lo);
         }
     }
 }

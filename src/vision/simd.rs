@@ -1,85 +1,55 @@
 //! Runtime dispatch between the portable build and an AVX2 build of the same code: the hot
 //! loops are written once, as plain loops over fixed-size chunks that the compiler vectorises,
 //! and [`dispatch!`](crate::dispatch) compiles each twice, once with AVX2 enabled. The CPU is
-//! asked once; tests force each level in turn and check the answers are identical.
+//! asked once; tests force the portable path and check the answers are identical.
 //!
-//! An AVX-512 level (32 lanes of `u16`, 32 registers) was built and measured: the aggregation
+//! An AVX-512 build (32 lanes of `u16`, 32 registers) was tried and measured: the aggregation
 //! took the same 26.5 ms a stripe on Motorcycle, being bound by the work around each pixel
 //! rather than by the lane width, so it is not kept.
 
 use std::sync::atomic::{AtomicU8, Ordering};
 
-/// A build of the hot loops.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
-pub enum Level {
-    /// Whatever the compile target allows (SSE2 on a default x86-64 build).
-    Portable = 1,
-    /// AVX2 with POPCNT, BMI and LZCNT: 16 lanes of `u16`.
-    Avx2 = 2,
-}
-
 const UNKNOWN: u8 = 0;
+const PORTABLE: u8 = 1;
+const AVX2: u8 = 2;
 
 static LEVEL: AtomicU8 = AtomicU8::new(UNKNOWN);
 
-/// The level the hot loops run at: the best this CPU has, unless [`set_level`] lowered it.
-pub fn level() -> Level {
+/// Whether the AVX2 build of the hot loops runs on this CPU.
+pub fn avx2() -> bool {
     match LEVEL.load(Ordering::Relaxed) {
         UNKNOWN => {
-            // A concurrent `set_level` wins: only replace the unknown state.
-            let _ = LEVEL.compare_exchange(
-                UNKNOWN,
-                detect() as u8,
-                Ordering::Relaxed,
-                Ordering::Relaxed,
-            );
-            from_u8(LEVEL.load(Ordering::Relaxed))
+            let level = if detect() { AVX2 } else { PORTABLE };
+            // A concurrent `force_portable` wins: only replace the unknown state.
+            let _ = LEVEL.compare_exchange(UNKNOWN, level, Ordering::Relaxed, Ordering::Relaxed);
+            LEVEL.load(Ordering::Relaxed) == AVX2
         }
-        level => from_u8(level),
+        level => level == AVX2,
     }
 }
 
-fn from_u8(level: u8) -> Level {
-    match level {
-        2 => Level::Avx2,
-        _ => Level::Portable,
-    }
+/// Makes every later call take the portable path (`false`) or the best one the CPU has
+/// (`true`): for the tests that compare the two, and for benchmarks.
+pub fn use_simd(enabled: bool) {
+    let level = if enabled && detect() { AVX2 } else { PORTABLE };
+    LEVEL.store(level, Ordering::Relaxed);
 }
 
-/// Makes every later call run at `wanted`, or at the best this CPU has if that is lower
-/// (for the tests that compare the levels, and for benchmarks); returns the level set.
-pub fn set_level(wanted: Level) -> Level {
-    let level = wanted.min(detect());
-    LEVEL.store(level as u8, Ordering::Relaxed);
-    level
-}
-
-/// The levels this CPU can run, from [`Level::Portable`] up.
-pub fn available() -> Vec<Level> {
-    [Level::Portable, Level::Avx2]
-        .into_iter()
-        .filter(|&l| l <= detect())
-        .collect()
-}
-
-fn detect() -> Level {
+/// Whether this CPU has every feature the AVX2 build enables.
+fn detect() -> bool {
     #[cfg(target_arch = "x86_64")]
     {
         use std::is_x86_feature_detected as has;
-        if has!("avx2") && has!("popcnt") && has!("bmi1") && has!("bmi2") && has!("lzcnt") {
-            Level::Avx2
-        } else {
-            Level::Portable
-        }
+        has!("avx2") && has!("popcnt") && has!("bmi1") && has!("bmi2") && has!("lzcnt")
     }
     #[cfg(not(target_arch = "x86_64"))]
     {
-        Level::Portable
+        false
     }
 }
 
 /// Defines a function whose body is compiled twice, for the portable target and with AVX2,
-/// and called through [`level`] at run time.
+/// and called through [`avx2`] at run time.
 #[macro_export]
 #[doc(hidden)]
 macro_rules! dispatch {
@@ -94,8 +64,8 @@ macro_rules! dispatch {
                 fn fast $(<$($lt),*>)? ($($arg: $ty),*) $(-> $ret)? {
                     body($($arg),*)
                 }
-                if $crate::vision::simd::level() == $crate::vision::simd::Level::Avx2 {
-                    // SAFETY: `level()` checked that this CPU has every feature `fast` enables.
+                if $crate::vision::simd::avx2() {
+                    // SAFETY: `avx2()` checked that this CPU has every feature `fast` enables.
                     return unsafe { fast($($arg),*) };
                 }
             }
