@@ -94,7 +94,8 @@ impl FromRef<HeavyState> for BodyLimit {
         (name = "table", description = "Sample tables for a rig"),
         (name = "chart", description = "Chart data and the chart as SVG for a rig"),
         (name = "planning", description = "Rig planning: depth range, error budget, baseline"),
-        (name = "images", description = "Rectified stereo pairs: dense disparity and depth maps"),
+        (name = "images", description = "Rectified stereo pairs: dense disparity and depth maps, \
+                                          points matched and regions measured"),
         (name = "operations", description = "Liveness, readiness and metrics")
     )
 )]

@@ -23,6 +23,7 @@
 //! PNG, the colour preview and PLY, and [`synthetic`] renders pairs with exact ground truth.
 
 pub mod census;
+pub mod correspond;
 pub mod cost;
 pub mod decode;
 pub mod encode;
@@ -195,6 +196,41 @@ pub fn disparity(
     params: &Params,
     cancel: &AtomicBool,
 ) -> Result<(Disparity, Timings), Cancelled> {
+    disparity_probed(left, right, params, cancel, &[]).map(|(map, timings, _)| (map, timings))
+}
+
+/// What the matcher saw at one pixel before its checks: the basis of a point's status in
+/// [`correspond`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Probe {
+    /// The winner's index into the range, whatever the checks say.
+    pub index: usize,
+    /// The winner with its sub-pixel offset, as an index into the range.
+    pub subpixel: f32,
+    /// The winner's aggregated cost, and the least cost more than one index away from it.
+    pub best: u16,
+    pub second: u16,
+    /// Whether the winner passes the uniqueness test.
+    pub unique: bool,
+    /// Whether the winner passes the left-right check (true when the check is off).
+    pub consistent: bool,
+    /// The raw census cost (bits) at the winner, averaged over the 5 × 5 window around the
+    /// pixel; and the window's own least average cost, and its least more than one index away.
+    pub window_cost: f32,
+    pub window_best: f32,
+    pub window_second: f32,
+}
+
+/// [`disparity`], also probing the pixels `wanted[y]` (the x of each, any order) of each row
+/// `y`: the answer holds, for each row, one [`Probe`] per wanted pixel in the order given.
+/// Rows past `wanted.len()` are probed nowhere.
+pub fn disparity_probed(
+    left: &Gray,
+    right: &Gray,
+    params: &Params,
+    cancel: &AtomicBool,
+    wanted: &[Vec<usize>],
+) -> Result<(Disparity, Timings, Vec<Vec<Probe>>), Cancelled> {
     let (w, h) = (left.width, left.height);
     let checkpoint = || {
         if cancel.load(Ordering::Relaxed) {
@@ -209,15 +245,20 @@ pub fn disparity(
     checkpoint()?;
 
     let stripes = stripes(h);
-    let matched: Vec<Result<(Vec<f32>, Timings), Cancelled>> = stripes
+    let matched: Vec<Result<Stripe, Cancelled>> = stripes
         .par_iter()
-        .map(|(kept, context)| match_stripe(&cl, &cr, left, kept, context, params, cancel))
+        .map(|(kept, context)| {
+            let probe = Probing { wanted, rows: kept };
+            match_stripe(&cl, &cr, left, context, params, probe, cancel)
+        })
         .collect();
     let mut data = Vec::with_capacity(w * h);
     let mut timings = Timings::default();
+    let mut probes = Vec::with_capacity(wanted.len());
     for stripe in matched {
-        let (rows, t) = stripe?;
+        let (rows, t, found) = stripe?;
         data.extend_from_slice(&rows);
+        probes.extend(found);
         timings.cost = timings.cost.max(t.cost);
         timings.aggregate = timings.aggregate.max(t.aggregate);
         timings.refine = timings.refine.max(t.refine);
@@ -239,6 +280,7 @@ pub fn disparity(
         *d += min;
     }
     timings.refine += started.elapsed();
+    probes.truncate(wanted.len());
     Ok((
         Disparity {
             width: w,
@@ -246,7 +288,18 @@ pub fn disparity(
             data,
         },
         timings,
+        probes,
     ))
+}
+
+/// A matched stripe: its kept rows' disparities, its stage times, and its rows' probes.
+type Stripe = (Vec<f32>, Timings, Vec<Vec<Probe>>);
+
+/// The pixels to probe (`wanted[y]`, by image row) and the rows a stripe keeps.
+#[derive(Clone, Copy)]
+struct Probing<'a> {
+    wanted: &'a [Vec<usize>],
+    rows: &'a Range<usize>,
 }
 
 /// One stripe: the cost volume and the two passes over its `context` rows, the winners and the
@@ -255,11 +308,12 @@ fn match_stripe(
     cl: &[u64],
     cr: &[u64],
     left: &Gray,
-    kept: &Range<usize>,
     context: &Range<usize>,
     params: &Params,
+    probing: Probing,
     cancel: &AtomicBool,
-) -> Result<(Vec<f32>, Timings), Cancelled> {
+) -> Result<Stripe, Cancelled> {
+    let kept = probing.rows;
     let w = left.width;
     let mut timings = Timings::default();
     let started = Instant::now();
@@ -279,6 +333,7 @@ fn match_stripe(
 
     let started = Instant::now();
     let mut out = vec![f32::NAN; kept.len() * w];
+    let mut probes = vec![Vec::new(); kept.len()];
     let mut choosing = Duration::ZERO;
     let first = kept.start - context.start;
     sgm::aggregate(
@@ -299,6 +354,12 @@ fn match_stripe(
                 params.uniqueness,
                 params.subpixel,
             );
+            if let Some(xs) = probing.wanted.get(kept.start + y - first) {
+                probes[y - first] = xs
+                    .iter()
+                    .map(|&x| refine::probe(totals, &volume, (x, y), params, &won.right))
+                    .collect();
+            }
             if let Some(tolerance) = params.lr_tolerance {
                 refine::left_right(&mut won.left, &won.right, tolerance);
             }
@@ -308,5 +369,5 @@ fn match_stripe(
     )?;
     timings.aggregate = started.elapsed().saturating_sub(choosing);
     timings.refine = choosing;
-    Ok((out, timings))
+    Ok((out, timings, probes))
 }

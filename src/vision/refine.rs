@@ -204,6 +204,75 @@ pub fn offset(before: f32, at: f32, after: f32, how: Subpixel) -> f32 {
     o.clamp(-0.5, 0.5)
 }
 
+/// What the winner-takes-all saw at pixel `x` of a row of aggregated costs (`totals`, `stride`
+/// cells a pixel), judged by `params`' uniqueness and left-right tests against the row's
+/// right-image winners `right`, as [`winners`] and [`left_right`] judge it.
+pub fn probe(
+    totals: &[u16],
+    volume: &super::cost::Volume,
+    (x, y): (usize, usize),
+    params: &super::Params,
+    right: &[u16],
+) -> super::Probe {
+    let count = params.count;
+    let stride = volume.stride;
+    let total = &totals[x * stride..x * stride + count];
+    let (best, index) = argmin(total);
+    let second = min_away_from(total, index);
+    let unique = u32::from(second) * 100 >= u32::from(best) * (100 + params.uniqueness);
+    let mut subpixel = index as f32;
+    if params.subpixel != Subpixel::Off && index > 0 && index + 1 < count {
+        subpixel += offset(
+            f32::from(total[index - 1]),
+            f32::from(best),
+            f32::from(total[index + 1]),
+            params.subpixel,
+        );
+    }
+    let consistent = params.lr_tolerance.is_none_or(|tolerance| {
+        let xr = (x as f32 - subpixel).round();
+        xr >= 0.0
+            && right
+                .get(xr as usize)
+                .is_some_and(|&r| r != u16::MAX && (f32::from(r) - subpixel).abs() <= tolerance)
+    });
+    // The raw costs summed over the 5 × 5 window around the pixel, for each disparity.
+    let mut window = vec![0u32; count];
+    let mut cells = 0u32;
+    for yy in y.saturating_sub(2)..(y + 3).min(volume.height) {
+        for xx in x.saturating_sub(2)..(x + 3).min(volume.width) {
+            for (sum, &c) in window.iter_mut().zip(&volume.at(xx, yy)[..count]) {
+                *sum += u32::from(c);
+            }
+            cells += 1;
+        }
+    }
+    let mean = |sum: u32| sum as f32 / cells.max(1) as f32;
+    let (local, local_index) =
+        window.iter().enumerate().fold(
+            (u32::MAX, 0),
+            |(b, k), (i, &v)| if v < b { (v, i) } else { (b, k) },
+        );
+    let local_second = window
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| i.abs_diff(local_index) > 1)
+        .map(|(_, &v)| v)
+        .min()
+        .unwrap_or(u32::MAX);
+    super::Probe {
+        index,
+        subpixel,
+        best,
+        second,
+        unique,
+        consistent,
+        window_cost: mean(window[index]),
+        window_best: mean(local),
+        window_second: mean(local_second),
+    }
+}
+
 /// Invalidates the pixels whose disparity disagrees with the right image's by more than
 /// `tolerance` pixels (occlusions, mismatches). Disparities are indices into the range.
 pub fn left_right(left: &mut [f32], right: &[u16], tolerance: f32) {

@@ -16,20 +16,20 @@ use stereo_distance::{
 
 use crate::helpers::{TestApp, fields, message_for, ok_json, problem, spawn_app, spawn_app_with};
 
-const W: usize = 160;
-const H: usize = 120;
+pub(crate) const W: usize = 160;
+pub(crate) const H: usize = 120;
 
 /// The synthetic scene (planes at 6–38 px of disparity, occluding one another), rendered.
-fn pair() -> Pair {
+pub(crate) fn pair() -> Pair {
     synthetic::render(&synthetic::layered(W, H))
 }
 
-fn png(rgb: &[u8], w: usize, h: usize) -> Vec<u8> {
+pub(crate) fn png(rgb: &[u8], w: usize, h: usize) -> Vec<u8> {
     encode::png_rgb(w, h, rgb)
 }
 
 /// The rig of the synthetic pair: f = 500 px, B = 100 mm, principal point at the centre.
-fn rig() -> Value {
+pub(crate) fn rig() -> Value {
     json!({"focal_length_px": 500, "baseline": 100, "unit": "mm"})
 }
 
@@ -44,7 +44,7 @@ fn form(pair: &Pair, extra: &[(&str, String)]) -> Form {
     form
 }
 
-fn image_part(bytes: Vec<u8>) -> Part {
+pub(crate) fn image_part(bytes: Vec<u8>) -> Part {
     Part::bytes(bytes)
         .file_name("image.png")
         .mime_str("image/png")

@@ -12,6 +12,7 @@ mod faults;
 mod fixtures;
 mod heavy;
 mod helpers;
+mod matching;
 mod openapi;
 mod operations;
 mod planning;

@@ -196,6 +196,49 @@ pub fn check_pair(
     Ok(())
 }
 
+/// The disparity search range from the query's `min_disparity` and `max_disparity`, with the
+/// calibration's `ndisp` as the default end: `(min, count)`, or `None` with the fault named.
+pub fn disparity_range(
+    min: Option<i32>,
+    max: Option<i32>,
+    ndisp: Option<u32>,
+    problems: &mut FieldErrors,
+) -> Option<(i32, usize)> {
+    let min = min.unwrap_or(0);
+    let mut ok = true;
+    if !(-4096..=4096).contains(&min) {
+        problems.add(
+            "min_disparity",
+            format!("must lie in [-4096, 4096], got {min}"),
+        );
+        ok = false;
+    }
+    let max = max.unwrap_or_else(|| {
+        ndisp.map_or(DEFAULT_MAX_DISPARITY, |n| {
+            i32::try_from(n.min(MAX_DISPARITIES as u32)).unwrap_or(DEFAULT_MAX_DISPARITY)
+        })
+    });
+    let count = i64::from(max) - i64::from(min);
+    if count < 1 {
+        problems.add(
+            "max_disparity",
+            format!("must be greater than min_disparity ({min}), got {max}"),
+        );
+    } else if count > MAX_DISPARITIES as i64 {
+        problems.add(
+            "max_disparity",
+            format!(
+                "searches {count} disparities from min_disparity {min}; at most \
+                 {MAX_DISPARITIES} fit: narrow the range"
+            ),
+        );
+    }
+    let count = usize::try_from(count)
+        .ok()
+        .filter(|c| (1..=MAX_DISPARITIES).contains(c))?;
+    ok.then_some((min, count))
+}
+
 /// The rig of a request, and what its calibration file adds.
 #[derive(Debug, Clone, PartialEq)]
 pub struct GivenRig {
@@ -451,4 +494,13 @@ pub async fn blocking<T: Send + 'static>(
             ApiError::Internal("the image work was stopped".to_owned())
         }
     })
+}
+
+/// `Server-Timing: decode;dur=12.3, cost;dur=…`, in milliseconds.
+pub fn server_timing(stages: &[(&str, std::time::Duration)]) -> String {
+    stages
+        .iter()
+        .map(|(name, d)| format!("{name};dur={:.1}", d.as_secs_f64() * 1e3))
+        .collect::<Vec<_>>()
+        .join(", ")
 }

@@ -8,6 +8,7 @@ pub mod chart;
 pub mod depth_map;
 pub mod distance;
 pub mod images;
+pub mod matching;
 pub mod ops;
 pub mod planning;
 pub mod table;
@@ -148,7 +149,9 @@ pub fn light() -> OpenApiRouter<AppState> {
 /// The image requests: megabytes in, milliseconds to seconds of CPU each (tests mount a route
 /// of their own here too, see [`crate::startup::app_with`]).
 pub fn heavy() -> OpenApiRouter<HeavyState> {
-    OpenApiRouter::new().merge(depth_map::router())
+    OpenApiRouter::new()
+        .merge(depth_map::router())
+        .merge(matching::router())
 }
 
 /// Answers any path the API does not have.

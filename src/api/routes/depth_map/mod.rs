@@ -20,7 +20,7 @@ use self::types::{
     DepthMapForm, DepthMapOutput, DepthMapQuery, DepthMapSummary, MatcherParameters, Spread,
     StageTimes,
 };
-use super::images::{self, GivenRig, MAX_DISPARITIES, Parts};
+use super::images::{self, GivenRig, Parts};
 use crate::api::HeavyState;
 use crate::api::error::{ApiError, FieldError, FieldErrors};
 use crate::api::extract::{BodyLimit, QueryParams};
@@ -154,33 +154,7 @@ pub async fn post_depth_map(
 /// `ndisp` as the default end of the range.
 fn settings(q: &DepthMapQuery, ndisp: Option<u32>, problems: &mut FieldErrors) -> Option<Params> {
     let defaults = Params::default();
-    let min = q.min_disparity.unwrap_or(0);
-    if !(-4096..=4096).contains(&min) {
-        problems.add(
-            "min_disparity",
-            format!("must lie in [-4096, 4096], got {min}"),
-        );
-    }
-    let max = q.max_disparity.unwrap_or_else(|| {
-        ndisp.map_or(images::DEFAULT_MAX_DISPARITY, |n| {
-            i32::try_from(n.min(MAX_DISPARITIES as u32)).unwrap_or(128)
-        })
-    });
-    let count = i64::from(max) - i64::from(min);
-    if count < 1 {
-        problems.add(
-            "max_disparity",
-            format!("must be greater than min_disparity ({min}), got {max}"),
-        );
-    } else if count > MAX_DISPARITIES as i64 {
-        problems.add(
-            "max_disparity",
-            format!(
-                "searches {count} disparities from min_disparity {min}; at most \
-                 {MAX_DISPARITIES} fit: narrow the range"
-            ),
-        );
-    }
+    let range = images::disparity_range(q.min_disparity, q.max_disparity, ndisp, problems);
     let whole =
         |field: &str, value: Option<u32>, default: u32, lo: u32, hi: u32, p: &mut FieldErrors| {
             let v = value.unwrap_or(default);
@@ -249,11 +223,10 @@ fn settings(q: &DepthMapQuery, ndisp: Option<u32>, problems: &mut FieldErrors) -
     if q.lr_check == Some(false) && q.lr_tolerance.is_some() {
         problems.add("lr_tolerance", "applies only when lr_check is true");
     }
+    let (min_disparity, count) = range?;
     Some(Params {
-        min_disparity: min,
-        count: usize::try_from(count)
-            .ok()
-            .filter(|c| (1..=MAX_DISPARITIES).contains(c))?,
+        min_disparity,
+        count,
         penalties: sgm::Penalties {
             p1: p1? as u16,
             p2: p2? as u16,
@@ -420,19 +393,10 @@ fn compute(
         }
         Err(summary) => Json(summary).into_response(),
     };
-    if let Ok(v) = HeaderValue::from_str(&server_timing(&stages)) {
+    if let Ok(v) = HeaderValue::from_str(&images::server_timing(&stages)) {
         response.headers_mut().insert("server-timing", v);
     }
     Ok(response)
-}
-
-/// `Server-Timing: decode;dur=12.3, cost;dur=…`, in milliseconds.
-fn server_timing(stages: &[(&str, Duration)]) -> String {
-    stages
-        .iter()
-        .map(|(name, d)| format!("{name};dur={:.1}", d.as_secs_f64() * 1e3))
-        .collect::<Vec<_>>()
-        .join(", ")
 }
 
 /// Depth Z = f·B / (d + doffs) of each pixel, NaN where the disparity is invalid or the point

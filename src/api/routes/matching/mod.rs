@@ -1,0 +1,508 @@
+//! `/match`: a rectified pair and points (or boxes) in the left image in, each point's match in
+//! the right image with a status and a confidence, and each box's robust distance, out. The
+//! engine is [`crate::vision::correspond`]; the distances are `/distance`'s own
+//! ([`crate::physics::measure`] through [`Measured`]), so the two never disagree.
+
+pub mod types;
+
+use std::sync::atomic::AtomicBool;
+use std::time::Instant;
+
+use axum::Extension;
+use axum::body::Bytes;
+use axum::extract::multipart::MultipartRejection;
+use axum::extract::{Multipart, State};
+use axum::http::HeaderValue;
+use axum::response::{IntoResponse, Response};
+use serde::de::DeserializeOwned;
+use serde_json::Value;
+use utoipa_axum::{router::OpenApiRouter, routes};
+
+use self::types::{
+    MatchForm, MatchPoint, MatchQuery, MatchRegion, MatchResponse, MatchStatus, PointMatch,
+    RegionMatch, RegionStatus,
+};
+use super::depth_map::types::StageTimes;
+use super::images::{self, GivenRig, Parts};
+use crate::api::HeavyState;
+use crate::api::error::{ApiError, FieldError, FieldErrors};
+use crate::api::extract::{BodyLimit, QueryParams, decode_object};
+use crate::api::respond::Json;
+use crate::api::wire::measured::{Measured, Point};
+use crate::api::wire::openapi::ImageErrors;
+use crate::budget::Reservation;
+use crate::physics::{self, Correspondence, Rig};
+use crate::vision::correspond::{self, Found, Rect, Status};
+use crate::vision::{self, Cancelled, Params, decode};
+
+/// `POST /match`.
+pub fn router() -> OpenApiRouter<HeavyState> {
+    OpenApiRouter::new().routes(routes!(post_match))
+}
+
+/// The most points one request may carry.
+pub const MAX_POINTS: usize = 10_000;
+/// The most regions one request may carry.
+pub const MAX_REGIONS: usize = 1_000;
+
+/// The parts `/match` reads.
+const PARTS: [&str; 10] = [
+    "left",
+    "right",
+    "points",
+    "regions",
+    "rig",
+    "calibration",
+    "calibration_format",
+    "right_calibration",
+    "calibration_unit",
+    "calibration_cameras",
+];
+
+#[utoipa::path(
+    post,
+    path = "/match",
+    tag = "images",
+    summary = "A point's match in the right image and its distance; a region's distance",
+    description = "For each point of the left image, finds its match in the right image with \
+                   the dense matcher of `/depth-map` (census costs, 8-path semi-global \
+                   aggregation, sub-pixel fit, left-right check, uniqueness, speckle and median \
+                   filters) and answers `x_right`, `disparity_px`, a `status` that says \
+                   whether to trust it (`ok`, `occluded`, `ambiguous`, `textureless`, \
+                   `out_of_range`, `inconsistent`, `outside_image`), a `confidence` in [0, 1], \
+                   and, whenever it has a disparity, the `/distance` answer for it (`distance`, \
+                   `range`, `depth_error`, `relative_error`, `point`). For each box, answers \
+                   the median depth of its valid pixels with the 10th and 90th percentiles.\n\n\
+                   Send `multipart/form-data` with parts `left` and `right` (PNG or JPEG, one \
+                   size), `points` (a JSON array of `{\"x\", \"y\"}`, at most 10 000) and/or \
+                   `regions` (a JSON array of `{\"x\", \"y\", \"width\", \"height\"}`, at most \
+                   1 000), and `rig` (JSON with the members of `/distance`) or `calibration` \
+                   (a calibration file, with the `calibration_*` parts of `/depth-map`). Only \
+                   the image rows the points and boxes need are matched (with 32 rows of \
+                   context each side) when they are a small part of the image.\n\n\
+                   A point off the left image is that point's `status: outside_image`; a \
+                   `points` or `regions` part that is not an array of such objects is a 422 \
+                   naming the member, such as `points[3].x`. Limits as `/depth-map`.",
+    params(MatchQuery),
+    request_body(
+        content = MatchForm,
+        content_type = "multipart/form-data",
+        description = "The rectified pair, the points and boxes, and the rig or a calibration \
+                       file."
+    ),
+    responses(
+        (status = 200, description = "Each point's match and each region's distance.",
+         headers(("Server-Timing" = String, description = "Stage times in milliseconds.")),
+         body = MatchResponse),
+        ImageErrors
+    )
+)]
+pub async fn post_match(
+    State(state): State<HeavyState>,
+    Extension(reservation): Extension<Reservation>,
+    QueryParams(query, mut problems): QueryParams<MatchQuery>,
+    form: Result<Multipart, MultipartRejection>,
+) -> Result<Response, ApiError> {
+    let BodyLimit(limit) = state.body_limit;
+    let parts = images::read_parts(form, &PARTS, limit, &mut problems).await?;
+    let left = images::image_size(&parts, "left", &mut problems);
+    let right = images::image_size(&parts, "right", &mut problems);
+    if let (Some(l), Some(r)) = (left, right) {
+        images::check_pair(l, r, &mut problems)?;
+    }
+    let given = images::rig(&parts, left, &mut problems);
+    if given.is_none() && !problems.has("rig") && !problems.has("calibration") {
+        problems.add(
+            "rig",
+            "is required: give a rig part (the members of /distance) or a calibration part, \
+             for the distances",
+        );
+    }
+    let points = list::<MatchPoint>(&parts, "points", MAX_POINTS, &mut problems);
+    let regions = list::<MatchRegion>(&parts, "regions", MAX_REGIONS, &mut problems);
+    let points = points.map(|ps| check_points(ps, &mut problems));
+    let regions = regions.map(|rs| check_regions(rs, &mut problems));
+    if parts.get("points").is_none() && parts.get("regions").is_none() {
+        problems.add(
+            "points",
+            "is required unless regions are given: a JSON array of {\"x\", \"y\"} in the left \
+             image",
+        );
+    }
+    let ndisp = given.as_ref().and_then(|g| g.max_disparity);
+    let range = images::disparity_range(
+        query.min_disparity,
+        query.max_disparity,
+        ndisp,
+        &mut problems,
+    );
+    let (Some((width, height)), Some(given), Some((min_disparity, count))) = (left, given, range)
+    else {
+        return Err(problems.into_error());
+    };
+    if !problems.is_empty() {
+        return Err(problems.into_error());
+    }
+    let params = Params {
+        min_disparity,
+        count,
+        ..Params::default()
+    };
+    let (w, h) = (width as usize, height as usize);
+    let need = bytes_needed(w, h, count);
+    images::reserve(&reservation, need, |total| {
+        vec![FieldError::new(
+            "left",
+            format!(
+                "a {w} × {h} pair searching {count} disparities needs {} MiB, more than the {} \
+                 MiB this server has for image requests: send smaller images or a narrower \
+                 disparity range",
+                need >> 20,
+                total >> 20
+            ),
+        )]
+    })?;
+    let points = points.unwrap_or_default();
+    let regions = regions.unwrap_or_default();
+    images::blocking(reservation, move |cancel| {
+        compute(&parts, &params, &given, &points, &regions, cancel)
+    })
+    .await?
+}
+
+/// The bytes a request holds at its peak: the decoded images (the decoder's buffer at up to 8
+/// bytes a pixel, the grey levels), the matcher's as for the whole image, and the map.
+fn bytes_needed(w: usize, h: usize, count: usize) -> usize {
+    w.saturating_mul(h)
+        .saturating_mul(2 * (8 + 2) + 8)
+        .saturating_add(vision::bytes_needed(w, h, count))
+}
+
+/// A part holding a JSON array of objects `T`, each member's fault named `name[i].member`;
+/// `None` when the part is absent or at fault.
+fn list<T: DeserializeOwned + Default>(
+    parts: &Parts,
+    name: &str,
+    cap: usize,
+    problems: &mut FieldErrors,
+) -> Option<Vec<(T, FieldErrors)>> {
+    let bytes: &Bytes = parts.get(name)?;
+    let items = match serde_json::from_slice::<Value>(bytes) {
+        Ok(Value::Array(items)) => items,
+        Ok(other) => {
+            problems.add(
+                name,
+                format!(
+                    "must be a JSON array of objects, got {}",
+                    crate::api::wording::describe(&other)
+                ),
+            );
+            return None;
+        }
+        Err(e) => {
+            problems.add(name, format!("must be a JSON array of objects: {e}"));
+            return None;
+        }
+    };
+    if items.is_empty() {
+        problems.add(
+            name,
+            "must hold at least one item; leave the part out instead",
+        );
+        return None;
+    }
+    if items.len() > cap {
+        problems.add(
+            name,
+            format!(
+                "holds {} items; at most {cap} (the server's cap) are allowed in one request",
+                items.len()
+            ),
+        );
+        return None;
+    }
+    let mut decoded = Vec::with_capacity(items.len());
+    for (index, item) in items.into_iter().enumerate() {
+        let prefix = format!("{name}[{index}]");
+        match item {
+            Value::Object(map) => {
+                let (value, refused) = decode_object::<T>(map);
+                for e in refused.iter() {
+                    problems.add_new(format!("{prefix}.{}", e.field), e.message.clone());
+                }
+                decoded.push((value, refused));
+            }
+            other => problems.add_new(
+                prefix,
+                format!(
+                    "must be an object, got {}",
+                    crate::api::wording::describe(&other)
+                ),
+            ),
+        }
+    }
+    Some(decoded)
+}
+
+/// The points, each with both coordinates (a missing one is named).
+fn check_points(
+    points: Vec<(MatchPoint, FieldErrors)>,
+    problems: &mut FieldErrors,
+) -> Vec<(f64, f64)> {
+    let mut out = Vec::with_capacity(points.len());
+    for (index, (point, refused)) in points.into_iter().enumerate() {
+        let mut need = |field: &str, value: Option<f64>| {
+            if value.is_none() && !refused.has(field) {
+                problems.add_new(
+                    format!("points[{index}].{field}"),
+                    "is required: a number of pixels",
+                );
+            }
+            value
+        };
+        let x = need("x", point.x);
+        let y = need("y", point.y);
+        if let (Some(x), Some(y)) = (x, y) {
+            out.push((x, y));
+        }
+    }
+    out
+}
+
+/// The regions, each with its four members and a positive size (a fault is named).
+fn check_regions(
+    regions: Vec<(MatchRegion, FieldErrors)>,
+    problems: &mut FieldErrors,
+) -> Vec<[f64; 4]> {
+    let mut out = Vec::with_capacity(regions.len());
+    for (index, (region, refused)) in regions.into_iter().enumerate() {
+        let mut need = |field: &str, value: Option<f64>, positive: bool| {
+            let name = format!("regions[{index}].{field}");
+            match value {
+                None if !refused.has(field) => {
+                    problems.add_new(name, "is required: a number of pixels");
+                    None
+                }
+                Some(v) if positive && v <= 0.0 => {
+                    problems.add_new(
+                        name,
+                        format!("must be greater than 0, got {}", crate::numbers::Num(v)),
+                    );
+                    None
+                }
+                other => other,
+            }
+        };
+        let x = need("x", region.x, false);
+        let y = need("y", region.y, false);
+        let width = need("width", region.width, true);
+        let height = need("height", region.height, true);
+        if let (Some(x), Some(y), Some(width), Some(height)) = (x, y, width, height) {
+            out.push([x, y, width, height]);
+        }
+    }
+    out
+}
+
+/// The pixels a box `[x, y, width, height]` covers on a `w × h` image (at least one pixel
+/// across and down), or `None` when it is wholly off the image.
+fn rect(b: [f64; 4], w: usize, h: usize) -> Option<Rect> {
+    let span = |start: f64, size: f64, n: usize| {
+        let a = start.round();
+        let b = (start + size).round().max(a + 1.0);
+        let (a, b) = (a.clamp(0.0, n as f64), b.clamp(0.0, n as f64));
+        (a < b).then_some((a as usize, b as usize))
+    };
+    let (x0, x1) = span(b[0], b[2], w)?;
+    let (y0, y1) = span(b[1], b[3], h)?;
+    Some(Rect { x0, y0, x1, y1 })
+}
+
+/// Decodes, matches and answers, on a blocking thread.
+fn compute(
+    parts: &Parts,
+    params: &Params,
+    given: &GivenRig,
+    points: &[(f64, f64)],
+    regions: &[[f64; 4]],
+    cancel: &AtomicBool,
+) -> Result<Response, ApiError> {
+    let started = Instant::now();
+    let read = |name: &str| {
+        let bytes = parts.get(name).map_or(&[][..], Bytes::as_ref);
+        decode::decode(bytes, images::LIMITS, false)
+            .map_err(|e| FieldError::new(name, images::describe(&e)))
+    };
+    let (left, right) = rayon::join(|| read("left"), || read("right"));
+    let (left, right) = match (left, right) {
+        (Ok(l), Ok(r)) => (l, r),
+        (l, r) => {
+            return Err(ApiError::Invalid(
+                [l.err(), r.err()].into_iter().flatten().collect(),
+            ));
+        }
+    };
+    let decode_time = started.elapsed();
+    let (w, h) = (left.grey.width, left.grey.height);
+    let boxes: Vec<Option<Rect>> = regions.iter().map(|&b| rect(b, w, h)).collect();
+    let wanted: Vec<Rect> = boxes.iter().flatten().copied().collect();
+    let found = correspond::correspond(&left.grey, &right.grey, params, points, &wanted, cancel)
+        .map_err(|Cancelled| ApiError::Internal("cancelled".to_owned()))?;
+    let rig = &given.rig;
+    let matches: Vec<PointMatch> = points
+        .iter()
+        .zip(&found.found)
+        .map(|(&(x, y), f)| point_match(rig, x, y, f))
+        .collect();
+    let regions: Vec<RegionMatch> = regions
+        .iter()
+        .zip(&boxes)
+        .map(|(&b, r)| region_match(rig, &found.map, b, *r))
+        .collect();
+    let ms = |d: std::time::Duration| (d.as_secs_f64() * 1e4).round() / 10.0;
+    let t = found.timings;
+    let answer = MatchResponse {
+        width: w,
+        height: h,
+        min_disparity: params.min_disparity,
+        max_disparity: params.min_disparity + params.count as i32,
+        unit: given.echo.unit,
+        ok: matches
+            .iter()
+            .filter(|m| m.status == MatchStatus::Ok)
+            .count(),
+        matches,
+        regions,
+        rig: given.echo.clone(),
+        rows_matched: found.rows_matched,
+        timings_ms: StageTimes {
+            decode: ms(decode_time),
+            cost: ms(t.cost),
+            aggregate: ms(t.aggregate),
+            refine: ms(t.refine),
+        },
+        warnings: given.warnings.clone(),
+    };
+    let mut response = Json(answer).into_response();
+    let timing = images::server_timing(&[
+        ("decode", decode_time),
+        ("cost", t.cost),
+        ("aggregate", t.aggregate),
+        ("refine", t.refine),
+    ]);
+    if let Ok(v) = HeaderValue::from_str(&timing) {
+        response.headers_mut().insert("server-timing", v);
+    }
+    Ok(response)
+}
+
+/// Rounds to `places` decimals.
+fn round(v: f64, places: i32) -> f64 {
+    let scale = 10f64.powi(places);
+    (v * scale).round() / scale
+}
+
+/// A point's answer: its status and confidence, and with a disparity (to 1/1000 px, the value
+/// the distance is computed from) its match and its `/distance` answer.
+fn point_match(rig: &Rig, x: f64, y: f64, found: &Found) -> PointMatch {
+    let mut answer = PointMatch {
+        x,
+        y,
+        status: found.status.into(),
+        confidence: round(f64::from(found.confidence), 3),
+        x_right: None,
+        disparity_px: None,
+        distance: None,
+        range: None,
+        depth_error: None,
+        relative_error: None,
+        point: None,
+        warnings: None,
+        error: None,
+    };
+    if let Some(d) = found.disparity {
+        let d = round(f64::from(d), 3);
+        answer.x_right = Some(round(x - d, 3));
+        answer.disparity_px = Some(d);
+        let c = Correspondence {
+            x_left: x,
+            disparity_px: d,
+            y,
+        };
+        match physics::measure(rig, c) {
+            Ok(m) => {
+                // Mapped as `/distance` maps it.
+                let m = Measured::from(&m);
+                answer.distance = Some(m.distance);
+                answer.range = Some(m.range);
+                answer.depth_error = Some(m.depth_error);
+                answer.relative_error = Some(m.relative_error);
+                answer.point = Some(m.point);
+                answer.warnings = Some(m.warnings);
+            }
+            Err(e) => answer.error = Some(e.to_string()),
+        }
+    }
+    debug_assert!(found.status != Status::Ok || found.disparity.is_some());
+    answer
+}
+
+/// A region's answer: the median, 10th and 90th percentile depths of its valid pixels, and the
+/// `/distance` answer at its centre for the median.
+fn region_match(rig: &Rig, map: &vision::Disparity, b: [f64; 4], r: Option<Rect>) -> RegionMatch {
+    let mut answer = RegionMatch {
+        x: b[0],
+        y: b[1],
+        width: b[2],
+        height: b[3],
+        status: RegionStatus::OutsideImage,
+        valid_fraction: 0.0,
+        disparity_px: None,
+        distance: None,
+        distance_p10: None,
+        distance_p90: None,
+        range: None,
+        depth_error: None,
+        point: None,
+    };
+    let Some(r) = r else {
+        return answer;
+    };
+    let (values, pixels) = correspond::in_box(map, r);
+    // Only disparities in front of the cameras have a depth.
+    let mut values: Vec<f64> = values
+        .into_iter()
+        .map(f64::from)
+        .filter(|d| d + rig.doffs > 0.0)
+        .collect();
+    values.sort_by(f64::total_cmp);
+    answer.valid_fraction = round(values.len() as f64 / pixels.max(1) as f64, 4);
+    answer.status = RegionStatus::NoValidPixels;
+    // Nearest rank on the disparities, largest first: depth falls as disparity grows.
+    let at = |q: f64| values[((1.0 - q) * (values.len() - 1) as f64).round() as usize];
+    if values.is_empty() {
+        return answer;
+    }
+    let median = round(at(0.5), 3);
+    let centre = (
+        (r.x0 + r.x1 - 1) as f64 / 2.0,
+        (r.y0 + r.y1 - 1) as f64 / 2.0,
+    );
+    let c = Correspondence {
+        x_left: centre.0,
+        disparity_px: median,
+        y: centre.1,
+    };
+    let Ok(m) = physics::measure(rig, c) else {
+        return answer;
+    };
+    answer.status = RegionStatus::Ok;
+    answer.disparity_px = Some(median);
+    answer.distance = Some(m.distance);
+    answer.distance_p10 = rig.distance_at(at(0.1)).ok();
+    answer.distance_p90 = rig.distance_at(at(0.9)).ok();
+    answer.range = Some(m.range);
+    answer.depth_error = Some(m.depth_error);
+    answer.point = Some(Point::from(m.point));
+    answer
+}

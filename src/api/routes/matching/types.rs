@@ -1,0 +1,288 @@
+//! The wire types of `/match`: the multipart form (documentation), the points and regions it
+//! carries, the query's range, and the answer per point and per region.
+
+use serde::{Deserialize, Serialize};
+use utoipa::ToSchema;
+
+use crate::api::extract::QueryForm;
+use crate::api::routes::calibration::types::CalibratedRig;
+use crate::api::routes::depth_map::types::StageTimes;
+use crate::api::routes::distance::types::StereoRig;
+use crate::api::wire::de::request;
+use crate::api::wire::measured::{Point, Warning};
+use crate::api::wire::params::Unit;
+use crate::vision::correspond::Status;
+
+request! {
+    /// The disparity range of `/match`, in the query string.
+    pub struct MatchQuery {
+        /// The smallest disparity searched, in pixels. Default 0.
+        #[schema(minimum = -4096, maximum = 4096, example = 0)]
+        min_disparity: i32,
+        /// The search stops before this disparity: `min_disparity ≤ d < max_disparity`, at
+        /// most 512 disparities. Default: the calibration file's `ndisp` when one is given,
+        /// else 128.
+        #[schema(minimum = -4095, maximum = 4608, example = 64)]
+        max_disparity: i32,
+    }
+}
+
+impl QueryForm for MatchQuery {}
+
+request! {
+    /// A point in the left image, in pixels (pixel centres at whole numbers, y down). A point
+    /// off the image is answered with `status: outside_image`.
+    #[schema(example = json!({"x": 412, "y": 230}))]
+    pub struct MatchPoint {
+        /// Column in the left image, in pixels. Required.
+        x: f64,
+        /// Row in the left image, in pixels. Required.
+        y: f64,
+    }
+}
+
+request! {
+    /// A box in the left image, in pixels: from (`x`, `y`), its top-left corner, `width`
+    /// across and `height` down. The part on the image is used; a box wholly off the image is
+    /// answered with `status: outside_image`.
+    #[schema(example = json!({"x": 380, "y": 200, "width": 60, "height": 60}))]
+    pub struct MatchRegion {
+        /// Left edge, in pixels. Required.
+        x: f64,
+        /// Top edge, in pixels. Required.
+        y: f64,
+        /// Width, in pixels, greater than 0. Required.
+        #[schema(exclusive_minimum = 0.0)]
+        width: f64,
+        /// Height, in pixels, greater than 0. Required.
+        #[schema(exclusive_minimum = 0.0)]
+        height: f64,
+    }
+}
+
+/// The `multipart/form-data` parts of `/match` (for the documentation: the handler reads the
+/// parts itself, to name each one in its errors).
+#[derive(ToSchema)]
+#[serde(deny_unknown_fields)]
+#[allow(dead_code)]
+pub struct MatchForm {
+    /// The left image of the rectified pair: PNG or JPEG, 8 or 16 bits, grey, RGB or RGBA.
+    #[schema(value_type = String, format = Binary)]
+    left: Vec<u8>,
+    /// The right image, the same size as the left.
+    #[schema(value_type = String, format = Binary)]
+    right: Vec<u8>,
+    /// The points to match, a JSON array of `{"x", "y"}` in the left image: at most 10 000.
+    /// Give `points`, `regions` or both.
+    #[schema(nullable = false, max_items = 10000)]
+    points: Option<Vec<MatchPoint>>,
+    /// The boxes to measure, a JSON array of `{"x", "y", "width", "height"}`: at most 1 000.
+    #[schema(nullable = false, max_items = 1000)]
+    regions: Option<Vec<MatchRegion>>,
+    /// The rig, with the members of `/distance` (what `/calibration` answers as `rig`). The
+    /// image size defaults to the images'. Give `rig` or `calibration`.
+    #[schema(nullable = false)]
+    rig: Option<StereoRig>,
+    /// A calibration file as `/calibration` reads it (Middlebury, KITTI, ROS, OpenCV).
+    #[schema(value_type = Option<String>, format = Binary, nullable = false)]
+    calibration: Option<Vec<u8>>,
+    /// The calibration's format, or `auto` (the default).
+    #[schema(nullable = false)]
+    calibration_format: Option<String>,
+    /// The right camera's ROS `CameraInfo`, for ROS calibrations.
+    #[schema(value_type = Option<String>, format = Binary, nullable = false)]
+    right_calibration: Option<Vec<u8>>,
+    /// The unit of the calibration's lengths (required for OpenCV files).
+    #[schema(nullable = false)]
+    calibration_unit: Option<String>,
+    /// KITTI only: the camera pair, `2-3` (the default) or `0-1`.
+    #[schema(nullable = false)]
+    calibration_cameras: Option<String>,
+}
+
+/// Whether to trust a point's match, or why not.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum MatchStatus {
+    /// The match passed every check.
+    Ok,
+    /// It fails the left-right check: the right image's best match for its partner points
+    /// elsewhere, as where the point is hidden from the right camera.
+    Occluded,
+    /// Another disparity more than a pixel away matches nearly as well (repeated texture).
+    Ambiguous,
+    /// The point's neighbourhood has no texture of its own (its grey levels vary by less than
+    /// one level of 255): its disparity was carried in from around it.
+    Textureless,
+    /// No right pixel lies in the disparity range, or the best match is at the end of what
+    /// the range and the right image allow: the true one may lie beyond.
+    OutOfRange,
+    /// Its neighbourhood disagrees: a depth edge, the border of an occlusion, or an isolated
+    /// patch the speckle filter removed.
+    Inconsistent,
+    /// The point is not on the left image.
+    OutsideImage,
+}
+
+impl From<Status> for MatchStatus {
+    fn from(s: Status) -> Self {
+        match s {
+            Status::Ok => MatchStatus::Ok,
+            Status::Occluded => MatchStatus::Occluded,
+            Status::Ambiguous => MatchStatus::Ambiguous,
+            Status::Textureless => MatchStatus::Textureless,
+            Status::OutOfRange => MatchStatus::OutOfRange,
+            Status::Inconsistent => MatchStatus::Inconsistent,
+            Status::OutsideImage => MatchStatus::OutsideImage,
+        }
+    }
+}
+
+/// One point's match, in the order of `points`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct PointMatch {
+    /// The point, as given.
+    pub x: f64,
+    pub y: f64,
+    pub status: MatchStatus,
+    /// How sure the match is, in [0, 1]: the margin of the best match over the next one more
+    /// than a pixel away, times the share of the 5 × 5 neighbourhood within a pixel of it,
+    /// times the texture; halved when `status` is not `ok`, 0 without a disparity.
+    pub confidence: f64,
+    /// x of the match in the right image, `x − disparity_px`, in pixels; absent without a
+    /// disparity.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub x_right: Option<f64>,
+    /// The disparity `x − x_right` at the point's pixel, in pixels (to 1/1000 px: the value
+    /// the distance below is computed from); absent without one.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub disparity_px: Option<f64>,
+    /// From here on, the `/distance` answer for `x`, `disparity_px` and `y` with the
+    /// request's rig, computed by the same code, present whenever the point has a disparity
+    /// (whatever its status). Depth Z along the optical axis, in `unit`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub distance: Option<f64>,
+    /// The straight-line distance √(X² + Y² + Z²) to the point, in `unit`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub range: Option<f64>,
+    /// Expected depth error ΔZ = Z²·Δd/(f·B), in `unit`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub depth_error: Option<f64>,
+    /// depth_error / distance.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub relative_error: Option<f64>,
+    /// The point in the left camera's frame.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub point: Option<Point>,
+    /// Caveats about the distance, as `/distance` gives them.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub warnings: Option<Vec<Warning>>,
+    /// Why a point with a disparity has no distance (it triangulates at infinity).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub error: Option<String>,
+}
+
+/// Whether a region has a distance, or why not.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum RegionStatus {
+    /// At least one pixel in the box has a depth.
+    Ok,
+    /// No pixel in the box has a depth.
+    NoValidPixels,
+    /// The box is wholly off the left image.
+    OutsideImage,
+}
+
+/// One region's distance, in the order of `regions`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct RegionMatch {
+    /// The box, as given.
+    pub x: f64,
+    pub y: f64,
+    pub width: f64,
+    pub height: f64,
+    pub status: RegionStatus,
+    /// The share of the box's pixels (on the image) with a depth, in [0, 1].
+    pub valid_fraction: f64,
+    /// The median disparity of those pixels, in pixels.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub disparity_px: Option<f64>,
+    /// The median depth Z of those pixels, in `unit`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub distance: Option<f64>,
+    /// The 10th percentile of their depths (the near side), in `unit`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub distance_p10: Option<f64>,
+    /// The 90th percentile of their depths (the far side), in `unit`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub distance_p90: Option<f64>,
+    /// The straight-line distance to `point`, in `unit`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub range: Option<f64>,
+    /// Expected error of `distance`, ΔZ = Z²·Δd/(f·B), in `unit`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub depth_error: Option<f64>,
+    /// The box's centre (on the image) at the median depth, in the left camera's frame.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub point: Option<Point>,
+}
+
+/// The answer of `/match`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+#[schema(example = json!({
+    "width": 741, "height": 500, "min_disparity": 0, "max_disparity": 64, "unit": "mm",
+    "ok": 1,
+    "matches": [{"x": 420, "y": 260, "status": "ok", "confidence": 0.81, "x_right": 391.642,
+                 "disparity_px": 28.358, "distance": 3221.3, "range": 3282.9,
+                 "depth_error": 10.795, "relative_error": 0.00335,
+                 "point": {"x": 352.5, "y": 16.8, "z": 3221.3}, "warnings": []}],
+    "regions": [],
+    "rig": {"focal_length_px": 994.978, "baseline": 193.001, "unit": "mm", "cx": 311.193,
+            "cy": 254.877, "doffs": 31.086, "image_width": 741, "image_height": 500},
+    "rows_matched": 69,
+    "timings_ms": {"decode": 4.6, "cost": 2.1, "aggregate": 3.9, "refine": 1.2},
+    "warnings": []
+}))]
+pub struct MatchResponse {
+    /// Image width in pixels.
+    pub width: usize,
+    /// Image height in pixels.
+    pub height: usize,
+    /// The smallest disparity searched.
+    pub min_disparity: i32,
+    /// The search stopped before this disparity.
+    pub max_disparity: i32,
+    /// The unit of every length in the answer: the rig's.
+    pub unit: Unit,
+    /// How many points are `ok`.
+    pub ok: usize,
+    /// One per point, in order.
+    pub matches: Vec<PointMatch>,
+    /// One per region, in order.
+    pub regions: Vec<RegionMatch>,
+    /// The rig used.
+    pub rig: CalibratedRig,
+    /// How many image rows were matched: only those the points and regions need, with context,
+    /// unless they cover most of the image.
+    pub rows_matched: usize,
+    pub timings_ms: StageTimes,
+    /// Things to know about the answer (such as a calibration option that did not apply).
+    pub warnings: Vec<String>,
+}

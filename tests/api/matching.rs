@@ -1,0 +1,452 @@
+//! `POST /match` over a real socket, on the project's own synthetic pairs (known ground
+//! truth): each status where the scene makes it, the distances `/distance` gives, regions, and
+//! bad points and regions named.
+
+use reqwest::Response;
+use reqwest::multipart::Form;
+use serde_json::{Value, json};
+use stereo_distance::vision::synthetic::{self, Pair, Plane, Region, Scene};
+
+use crate::depth_map::{H, W, image_part, pair, png, rig};
+use crate::helpers::{TestApp, fields, message_for, ok_json, problem, spawn_app};
+
+/// A form with the pair, the rig, and `extra` parts as text.
+fn form(pair: &Pair, extra: &[(&str, String)]) -> Form {
+    let mut form = Form::new()
+        .part("left", image_part(png(&pair.left_rgb, W, H)))
+        .part("right", image_part(png(&pair.right_rgb, W, H)))
+        .text("rig", rig().to_string());
+    for (name, text) in extra {
+        form = form.text(name.to_string(), text.clone());
+    }
+    form
+}
+
+async fn post_match(app: &TestApp, query: &str, form: Form) -> Response {
+    app.client
+        .post(format!("{}/match{query}", app.address))
+        .multipart(form)
+        .send()
+        .await
+        .expect("request is sent")
+}
+
+/// The matches of `points` ((x, y) pixels) on `pair`, with the query `query`.
+async fn matches(app: &TestApp, pair: &Pair, query: &str, points: &[(usize, usize)]) -> Vec<Value> {
+    let points: Vec<Value> = points
+        .iter()
+        .map(|&(x, y)| json!({"x": x, "y": y}))
+        .collect();
+    let body = ok_json(
+        post_match(
+            app,
+            query,
+            form(pair, &[("points", Value::from(points).to_string())]),
+        )
+        .await,
+    )
+    .await;
+    body["matches"].as_array().expect("matches").clone()
+}
+
+fn status(m: &Value) -> &str {
+    m["status"].as_str().expect("status")
+}
+
+/// A point every 4 px across and 8 px down the image.
+fn grid() -> Vec<(usize, usize)> {
+    (4..H)
+        .step_by(8)
+        .flat_map(|y| (0..W).step_by(4).map(move |x| (x, y)))
+        .collect()
+}
+
+/// On the layered scene: most visible points are `ok`, every `ok` point is visible and within
+/// half a pixel of the truth, points the right camera cannot see are never `ok` and mostly
+/// `occluded`, and the left edge, whose matches would lie left of the right image, is
+/// `out_of_range`.
+#[tokio::test]
+async fn statuses_follow_the_scene() {
+    // Arrange
+    let app = spawn_app().await;
+    let pair = pair();
+    let points = grid();
+    // Act
+    let found = matches(&app, &pair, "?max_disparity=48", &points).await;
+    // Assert
+    let (mut visible, mut visible_ok, mut hidden, mut hidden_occluded) = (0, 0, 0, 0);
+    let mut errors = Vec::new();
+    for (&(x, y), m) in points.iter().zip(&found) {
+        let i = y * W + x;
+        assert_eq!(
+            (m["x"].as_f64(), m["y"].as_f64()),
+            (Some(x as f64), Some(y as f64))
+        );
+        let c = m["confidence"].as_f64().unwrap();
+        assert!((0.0..=1.0).contains(&c), "{m}");
+        if x == 0 {
+            assert_eq!(status(m), "out_of_range", "{m}");
+        }
+        if pair.visible[i] {
+            visible += 1;
+            if status(m) == "ok" {
+                visible_ok += 1;
+                let d = m["disparity_px"].as_f64().unwrap();
+                errors.push((d - f64::from(pair.truth[i])).abs());
+                assert!((m["x_right"].as_f64().unwrap() - (x as f64 - d)).abs() < 1e-9);
+            }
+        } else if x >= 8 {
+            hidden += 1;
+            assert_ne!(
+                status(m),
+                "ok",
+                "({x}, {y}) is hidden from the right camera: {m}"
+            );
+            if status(m) == "occluded" {
+                hidden_occluded += 1;
+            }
+        }
+    }
+    assert!(
+        visible_ok * 10 >= visible * 8,
+        "{visible_ok} of {visible} visible points ok"
+    );
+    let worst = errors.iter().copied().fold(0.0, f64::max);
+    assert!(worst < 0.5, "an ok point is off by {worst} px");
+    errors.sort_by(f64::total_cmp);
+    assert!(
+        errors[errors.len() / 2] < 0.15,
+        "median error {}",
+        errors[errors.len() / 2]
+    );
+    assert!(
+        hidden >= 20 && hidden_occluded * 2 > hidden,
+        "{hidden_occluded} of {hidden}"
+    );
+}
+
+/// A flat patch has no texture of its own: its centre is `textureless`, with the disparity
+/// carried in from around it; textured points of the same plane are `ok`.
+#[tokio::test]
+async fn a_flat_patch_is_textureless() {
+    // Arrange: a plane at 10 px, with a 40 × 40 grey square painted on it in both images.
+    let app = spawn_app().await;
+    let mut pair = plane_pair(10.0);
+    for y in 40..80 {
+        for x in 60..100 {
+            let (l, r) = ((y * W + x) * 3, (y * W + x - 10) * 3);
+            pair.left_rgb[l..l + 3].copy_from_slice(&[128; 3]);
+            pair.right_rgb[r..r + 3].copy_from_slice(&[128; 3]);
+        }
+    }
+    // Act
+    let found = matches(&app, &pair, "?max_disparity=32", &[(80, 60), (130, 60)]).await;
+    // Assert
+    assert_eq!(status(&found[0]), "textureless", "{}", found[0]);
+    assert!(found[0]["disparity_px"].is_number(), "{}", found[0]);
+    assert_eq!(status(&found[1]), "ok", "{}", found[1]);
+    assert!(found[0]["confidence"].as_f64() < found[1]["confidence"].as_f64());
+}
+
+/// Stripes that repeat every 7 px match equally well 7 px apart: `ambiguous`.
+#[tokio::test]
+async fn repeated_stripes_are_ambiguous() {
+    // Arrange: the same column pattern on every row (its contrast varying by row), shifted by
+    // 10 px.
+    let app = spawn_app().await;
+    const PATTERN: [u8; 7] = [30, 200, 90, 250, 10, 160, 120];
+    let image = |shift: usize| -> Vec<u8> {
+        (0..H)
+            .flat_map(|y| {
+                (0..W).map(move |x| {
+                    let v = f32::from(PATTERN[(x + shift) % 7]);
+                    let contrast = 0.6 + 0.4 * ((y % 5) as f32 / 4.0);
+                    (128.0 + (v - 128.0) * contrast) as u8
+                })
+            })
+            .flat_map(|v| [v; 3])
+            .collect()
+    };
+    let mut pair = plane_pair(10.0);
+    pair.left_rgb = image(0);
+    pair.right_rgb = image(10);
+    // Act
+    let found = matches(&app, &pair, "?max_disparity=32", &[(80, 60), (100, 30)]).await;
+    // Assert
+    for m in &found {
+        assert_eq!(status(m), "ambiguous", "{m}");
+        assert!(m["confidence"].as_f64().unwrap() <= 0.5, "{m}");
+    }
+}
+
+/// A point with no right pixel in the range has no disparity and is `out_of_range`. A surface
+/// nearer than the range allows is mostly `occluded` or `out_of_range`, and seldom `ok` (the
+/// aggregation can carry a wrong but smooth match into it: set the range from the rig).
+#[tokio::test]
+async fn matches_beyond_the_range_are_flagged() {
+    let app = spawn_app().await;
+    let pair = pair();
+    // x = 10 with min_disparity 20: every right pixel would be left of the image.
+    let found = matches(
+        &app,
+        &pair,
+        "?min_disparity=20&max_disparity=40",
+        &[(10, 60)],
+    )
+    .await;
+    assert_eq!(status(&found[0]), "out_of_range", "{}", found[0]);
+    assert_eq!(found[0]["confidence"], 0.0);
+    assert!(found[0].get("disparity_px").is_none() && found[0].get("x_right").is_none());
+    // The disc (centre (112, 60), radius 26) is at 26–30 px; the search stops at 20.
+    let disc: Vec<(usize, usize)> = (36..86)
+        .step_by(6)
+        .flat_map(|y| (90..136).step_by(4).map(move |x| (x, y)))
+        .filter(|&(x, y)| (x as f32 - 112.0).powi(2) + (y as f32 - 60.0).powi(2) < 400.0)
+        .collect();
+    let found = matches(&app, &pair, "?max_disparity=20", &disc).await;
+    let count = |s: &str| found.iter().filter(|m| status(m) == s).count();
+    assert!(
+        count("ok") * 5 <= disc.len(),
+        "{} of {} ok",
+        count("ok"),
+        disc.len()
+    );
+    assert!(
+        (count("occluded") + count("out_of_range")) * 2 > disc.len(),
+        "{found:?}"
+    );
+}
+
+/// Points off the left image are answered in their place as `outside_image`, and the points
+/// between them are still matched.
+#[tokio::test]
+async fn points_off_the_image_are_their_own_status() {
+    let app = spawn_app().await;
+    let pair = pair();
+    let points = json!([{"x": -3, "y": 10}, {"x": 100, "y": 100}, {"x": 160, "y": 10},
+                        {"x": 5.5, "y": 119.6}]);
+    let body = ok_json(
+        post_match(
+            &app,
+            "?max_disparity=48",
+            form(&pair, &[("points", points.to_string())]),
+        )
+        .await,
+    )
+    .await;
+    let found = body["matches"].as_array().unwrap();
+    let statuses: Vec<&str> = found.iter().map(status).collect();
+    assert_eq!(statuses[0], "outside_image");
+    assert_eq!(statuses[2], "outside_image");
+    assert_eq!(statuses[3], "outside_image");
+    assert_eq!(statuses[1], "ok", "{}", found[1]);
+    assert_eq!(body["ok"], 1);
+    assert!(found[0].get("distance").is_none());
+}
+
+/// A depth edge: points within the census window of a box's right edge, on either side, are
+/// `inconsistent`; the box's middle is `ok`.
+#[tokio::test]
+async fn points_at_a_depth_edge_are_inconsistent() {
+    // Arrange: a background at 8 px, a box at 20 px over columns 40..100, rows 20..100.
+    let app = spawn_app().await;
+    let mut scene = plane_scene(8.0);
+    scene.planes.push(Plane {
+        disparity: [20.0, 0.0, 0.0],
+        region: Region::Rect {
+            x0: 40.0,
+            y0: 20.0,
+            x1: 100.0,
+            y1: 100.0,
+        },
+        seed: 9,
+        tint: [1.0, 0.8, 0.7],
+    });
+    let pair = synthetic::render(&scene);
+    // Act
+    let found = matches(
+        &app,
+        &pair,
+        "?max_disparity=32",
+        &[(98, 60), (102, 60), (70, 60)],
+    )
+    .await;
+    // Assert
+    assert_eq!(status(&found[0]), "inconsistent", "{}", found[0]);
+    assert_eq!(status(&found[1]), "inconsistent", "{}", found[1]);
+    assert_eq!(status(&found[2]), "ok", "{}", found[2]);
+}
+
+/// Each match's distance is `/distance`'s for the same x, disparity and y with the same rig,
+/// to the last digit.
+#[tokio::test]
+async fn distances_are_those_of_distance() {
+    let app = spawn_app().await;
+    let pair = pair();
+    let found = matches(&app, &pair, "?max_disparity=48", &[(50, 60), (130, 100)]).await;
+    for m in &found {
+        let d = m["disparity_px"].as_f64().expect("a disparity");
+        let distance = ok_json(
+            app.post(
+                "/distance",
+                &json!({"focal_length_px": 500, "baseline": 100, "unit": "mm",
+                        "image_width": W, "image_height": H,
+                        "x_left": m["x"], "disparity_px": d, "y": m["y"]}),
+            )
+            .await,
+        )
+        .await;
+        for field in [
+            "distance",
+            "range",
+            "depth_error",
+            "relative_error",
+            "point",
+        ] {
+            assert_eq!(m[field], distance[field], "{field}: {m} against {distance}");
+        }
+        // Z = B·f / d with f = 500 px and B = 100 mm.
+        let z = m["distance"].as_f64().unwrap();
+        assert!((z - 50_000.0 / d).abs() < 1e-6 * z);
+    }
+}
+
+/// A box on the box plane (22 px) answers its depth, B·f / 22, with p10 ≤ median ≤ p90 and the
+/// point at the box's centre; a box off the image is `outside_image`; regions alone are a
+/// request.
+#[tokio::test]
+async fn regions_answer_a_robust_distance() {
+    // Arrange
+    let app = spawn_app().await;
+    let pair = pair();
+    let regions = json!([{"x": 32, "y": 35, "width": 30, "height": 40},
+                         {"x": 500, "y": 10, "width": 20, "height": 20}]);
+    // Act
+    let body = ok_json(
+        post_match(
+            &app,
+            "?max_disparity=48",
+            form(&pair, &[("regions", regions.to_string())]),
+        )
+        .await,
+    )
+    .await;
+    // Assert
+    assert_eq!(body["matches"], json!([]));
+    let on = &body["regions"][0];
+    assert_eq!(on["status"], "ok");
+    let z = on["distance"].as_f64().unwrap();
+    let truth = 50_000.0 / 22.0;
+    assert!((z - truth).abs() < 0.01 * truth, "{on}");
+    let (p10, p90) = (
+        on["distance_p10"].as_f64().unwrap(),
+        on["distance_p90"].as_f64().unwrap(),
+    );
+    assert!(p10 <= z && z <= p90 && p90 - p10 < 0.05 * truth, "{on}");
+    assert!(on["valid_fraction"].as_f64().unwrap() > 0.9, "{on}");
+    assert_eq!(on["point"]["z"], on["distance"]);
+    // The box's centre: pixels 32..62 and 35..75, so (46.5, 54.5), and cx = 80.
+    let x = on["point"]["x"].as_f64().unwrap();
+    assert!((x - (46.5 - 80.0) * z / 500.0).abs() < 1e-9, "{on}");
+    assert!(on["range"].as_f64().unwrap() > z);
+    assert!(on["depth_error"].as_f64().unwrap() > 0.0);
+    let off = &body["regions"][1];
+    assert_eq!(off["status"], "outside_image");
+    assert!(off.get("distance").is_none());
+}
+
+/// Malformed points and regions are one 422 naming each member: a missing coordinate, a wrong
+/// type, an unknown member, a box of no width, an item that is no object.
+#[tokio::test]
+async fn bad_points_and_regions_are_named() {
+    let app = spawn_app().await;
+    let pair = pair();
+    let points = r#"[{"x": 1, "y": 2}, {"x": 1}, {"x": "a", "y": 2}, {"x": 1, "y": 2, "z": 3}, 7]"#;
+    let regions = r#"[{"x": 0, "y": 0, "width": 0, "height": 5}]"#;
+    let body = problem(
+        post_match(
+            &app,
+            "",
+            form(
+                &pair,
+                &[("points", points.into()), ("regions", regions.into())],
+            ),
+        )
+        .await,
+        422,
+    )
+    .await;
+    let named = fields(&body);
+    for field in [
+        "points[1].y",
+        "points[2].x",
+        "points[3].z",
+        "points[4]",
+        "regions[0].width",
+    ] {
+        assert!(
+            named.contains(&field.to_owned()),
+            "{field} not in {named:?}"
+        );
+    }
+    assert_eq!(named.len(), 5, "{named:?}");
+    assert!(message_for(&body, "points[1].y").contains("required"));
+    assert!(message_for(&body, "regions[0].width").contains("greater than 0"));
+}
+
+/// No points and no regions, points that are no array, too many points, and no rig: each
+/// named.
+#[tokio::test]
+async fn the_form_itself_is_checked() {
+    let app = spawn_app().await;
+    let pair = pair();
+    let body = problem(post_match(&app, "", form(&pair, &[])).await, 422).await;
+    assert_eq!(fields(&body), vec!["points"]);
+    let body = problem(
+        post_match(
+            &app,
+            "",
+            form(&pair, &[("points", r#"{"x": 1, "y": 2}"#.into())]),
+        )
+        .await,
+        422,
+    )
+    .await;
+    assert!(message_for(&body, "points").contains("array"), "{body}");
+    let many = Value::from(vec![json!({"x": 1, "y": 1}); 10_001]).to_string();
+    let body = problem(
+        post_match(&app, "", form(&pair, &[("points", many)])).await,
+        422,
+    )
+    .await;
+    assert!(message_for(&body, "points").contains("10000"), "{body}");
+    let no_rig = Form::new()
+        .part("left", image_part(png(&pair.left_rgb, W, H)))
+        .part("right", image_part(png(&pair.right_rgb, W, H)))
+        .text("points", r#"[{"x": 1, "y": 2}]"#);
+    let body = problem(post_match(&app, "", no_rig).await, 422).await;
+    assert_eq!(fields(&body), vec!["rig"]);
+}
+
+/// One fronto-parallel textured plane at disparity `d` over the whole image, rendered.
+fn plane_pair(d: f32) -> Pair {
+    synthetic::render(&plane_scene(d))
+}
+
+/// One fronto-parallel textured plane at disparity `d` over the whole image.
+fn plane_scene(d: f32) -> Scene {
+    Scene {
+        width: W,
+        height: H,
+        planes: vec![Plane {
+            disparity: [d, 0.0, 0.0],
+            region: Region::Everywhere,
+            seed: 5,
+            tint: [1.0, 1.0, 1.0],
+        }],
+        gain: 1.0,
+        offset: 0.0,
+        noise: 0.0,
+        seed: 3,
+    }
+}
