@@ -5,7 +5,9 @@
 //! For every operation that reads input, the bytes are sent as a JSON body (`POST`) and as a
 //! query string (`GET`), and to `/calibration` as a text body, through the full router,
 //! middleware included. `/depth-map` gets them as a whole multipart body, and as both images
-//! of a well-formed form (the image decoders' input). The promises:
+//! of a well-formed form (the image decoders' input); `/match` gets them as its body, as both
+//! images, and as the `points` and the `regions` part of a synthetic pair's form. The
+//! promises:
 //! - no 5xx, and no panic (a panic would surface as a 500 from the edge layer);
 //! - a 4xx is `application/problem+json` whose `status` is the HTTP status and whose
 //!   `errors` names at least one field;
@@ -19,6 +21,7 @@ use axum::{
 };
 use tower::ServiceExt;
 
+use crate::vision::{encode, synthetic};
 use crate::{Config, api::routes::ops::OpsState, app};
 
 /// The operations that read a body (`POST`) and a query (`GET`).
@@ -68,34 +71,57 @@ const OUTPUTS: [&str; 8] = [
 /// The multipart boundary of the forms sent.
 const BOUNDARY: &str = "conformance-boundary";
 
-/// A well-formed `/depth-map` form whose two images are `image`, with a rig.
-pub fn image_form(image: &[u8]) -> Vec<u8> {
+/// A multipart form of `parts`: each a name, a file name for files, and the bytes.
+fn form(parts: &[(&str, Option<&str>, &[u8])]) -> Vec<u8> {
     let mut body = Vec::new();
-    for name in ["left", "right"] {
+    for (name, file, bytes) in parts {
+        let file = file.map_or(String::new(), |f| format!("; filename=\"{f}\""));
         body.extend_from_slice(
             format!(
-                "--{BOUNDARY}\r\nContent-Disposition: form-data; name=\"{name}\"; \
-                 filename=\"{name}.png\"\r\nContent-Type: image/png\r\n\r\n"
+                "--{BOUNDARY}\r\nContent-Disposition: form-data; name=\"{name}\"{file}\r\n\r\n"
             )
             .as_bytes(),
         );
-        body.extend_from_slice(image);
+        body.extend_from_slice(bytes);
         body.extend_from_slice(b"\r\n");
     }
-    body.extend_from_slice(
-        format!(
-            "--{BOUNDARY}\r\nContent-Disposition: form-data; name=\"rig\"\r\n\r\n\
-             {{\"focal_length_px\": 500, \"baseline\": 100}}\r\n--{BOUNDARY}--\r\n"
-        )
-        .as_bytes(),
-    );
+    body.extend_from_slice(format!("--{BOUNDARY}--\r\n").as_bytes());
     body
 }
+
+/// The rig part of every form sent.
+const RIG: &[u8] = br#"{"focal_length_px": 500, "baseline": 100}"#;
+
+/// A well-formed `/depth-map` form whose two images are `image`, with a rig.
+pub fn image_form(image: &[u8]) -> Vec<u8> {
+    form(&[
+        ("left", Some("left.png"), image),
+        ("right", Some("right.png"), image),
+        ("rig", None, RIG),
+    ])
+}
+
+/// A `/match` form of a pair, points and regions, with a rig.
+fn match_form(left: &[u8], right: &[u8], points: &[u8], regions: &[u8]) -> Vec<u8> {
+    form(&[
+        ("left", Some("left.png"), left),
+        ("right", Some("right.png"), right),
+        ("points", None, points),
+        ("regions", None, regions),
+        ("rig", None, RIG),
+    ])
+}
+
+/// Points and regions that a small image answers: on it, off it, and at its edge.
+const POINTS: &[u8] = br#"[{"x": 3, "y": 2}, {"x": -1, "y": 0}, {"x": 31.5, "y": 23.4}]"#;
+const REGIONS: &[u8] = br#"[{"x": 0, "y": 0, "width": 4, "height": 4}, {"x": 30, "y": 20, "width": 90, "height": 1e9}]"#;
 
 /// The application with its default configuration, on a single-threaded runtime.
 pub struct Harness {
     runtime: tokio::runtime::Runtime,
     router: Router,
+    /// A small synthetic pair, as PNG, for the forms whose other parts are the input.
+    pair: [Vec<u8>; 2],
 }
 
 impl Default for Harness {
@@ -111,7 +137,17 @@ impl Harness {
             .build()
             .expect("a current-thread runtime");
         let router = app(&Config::default(), OpsState::default());
-        Self { runtime, router }
+        let (w, h) = (32, 24);
+        let rendered = synthetic::render(&synthetic::layered(w, h));
+        let pair = [
+            encode::png_rgb(w, h, &rendered.left_rgb),
+            encode::png_rgb(w, h, &rendered.right_rgb),
+        ];
+        Self {
+            runtime,
+            router,
+            pair,
+        }
     }
 
     /// Sends `input` to every operation, as a JSON body and as a query string, and returns the
@@ -149,6 +185,26 @@ impl Harness {
                     )
                     .body(Body::from(body))
                     .map_err(|e| format!("building POST /depth-map: {e}"))?;
+                statuses.push(self.exchange(request).await?);
+            }
+            // `/match`: the bytes as the body, as both images, and as the points and the regions
+            // of a synthetic pair.
+            let [left, right] = &self.pair;
+            for body in [
+                input.to_vec(),
+                match_form(input, input, POINTS, REGIONS),
+                match_form(left, right, input, REGIONS),
+                match_form(left, right, POINTS, input),
+            ] {
+                let request = Request::builder()
+                    .method(Method::POST)
+                    .uri("/match?max_disparity=8")
+                    .header(
+                        header::CONTENT_TYPE,
+                        format!("multipart/form-data; boundary={BOUNDARY}"),
+                    )
+                    .body(Body::from(body))
+                    .map_err(|e| format!("building POST /match: {e}"))?;
                 statuses.push(self.exchange(request).await?);
             }
             let query = as_query(input);

@@ -280,7 +280,8 @@ proptest! {
 }
 
 /// The oracle is not blind: every example passes it as it is, each is answered 200 by the
-/// operation it belongs to, and a body that is not JSON is refused everywhere.
+/// operation it belongs to, a list of points is matched, and a body that is not JSON is refused
+/// everywhere.
 #[test]
 fn examples_pass_the_oracle() {
     for example in examples() {
@@ -292,6 +293,9 @@ fn examples_pass_the_oracle() {
         let statuses = harness().check(image).unwrap();
         assert!(statuses.contains(&StatusCode::OK), "{statuses:?}");
     }
+    // A list of points is matched: /match takes it as the points (or the regions) of a pair.
+    let statuses = harness().check(br#"[{"x": 5, "y": 4}]"#).unwrap();
+    assert!(statuses.contains(&StatusCode::OK), "{statuses:?}");
     let statuses = harness().check(b"{not json").unwrap();
     assert!(statuses.iter().all(|s| s.is_client_error()), "{statuses:?}");
 }

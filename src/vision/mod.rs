@@ -19,6 +19,10 @@
 //! loops are dispatched between a portable and an AVX2 build by [`simd`], and the large
 //! buffers come from [`pages`] (zeroed, on transparent huge pages where the kernel allows).
 //!
+//! [`correspond`] (the `/match` engine) runs the same matcher on the rows some points need,
+//! [`disparity_probed`] telling it what the matcher saw at each point, and judges each point's
+//! match into a status and a confidence.
+//!
 //! Around it: [`decode`] reads PNG and JPEG under limits, [`encode`] writes PFM, NPY, 16-bit
 //! PNG, the colour preview and PLY, and [`synthetic`] renders pairs with exact ground truth.
 
@@ -219,6 +223,8 @@ pub struct Probe {
     pub window_cost: f32,
     pub window_best: f32,
     pub window_second: f32,
+    /// The window's average cost over every disparity searched: what no match costs.
+    pub window_mean: f32,
 }
 
 /// [`disparity`], also probing the pixels `wanted[y]` (the x of each, any order) of each row

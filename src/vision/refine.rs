@@ -268,6 +268,7 @@ pub fn probe(
         unique,
         consistent,
         window_cost: mean(window[index]),
+        window_mean: mean(window.iter().sum::<u32>() / count.max(1) as u32),
         window_best: mean(local),
         window_second: mean(local_second),
     }

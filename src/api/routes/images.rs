@@ -20,7 +20,7 @@ use crate::api::validate::{self, Use};
 use crate::api::wire::params::Unit;
 use crate::budget::{Refusal, Reservation};
 use crate::physics::{DEFAULT_DISPARITY_ERROR_PX, LengthUnit, Rig};
-use crate::vision::decode::{self, DecodeError, Limits};
+use crate::vision::decode::{self, DecodeError, Decoded, Limits};
 
 /// The widest or tallest image accepted, in pixels.
 pub const MAX_SIDE: u32 = 8192;
@@ -494,6 +494,22 @@ pub async fn blocking<T: Send + 'static>(
             ApiError::Internal("the image work was stopped".to_owned())
         }
     })
+}
+
+/// Both images of the pair decoded at once (on the matcher's pool), the left in colour too
+/// when `colour`; a 422 naming each image that cannot be decoded.
+pub fn decode_pair(parts: &Parts, colour: bool) -> Result<(Decoded, Decoded), ApiError> {
+    let read = |name: &str| {
+        let bytes = parts.get(name).map_or(&[][..], Bytes::as_ref);
+        decode::decode(bytes, LIMITS, colour && name == "left")
+            .map_err(|e| FieldError::new(name, describe(&e)))
+    };
+    match rayon::join(|| read("left"), || read("right")) {
+        (Ok(l), Ok(r)) => Ok((l, r)),
+        (l, r) => Err(ApiError::Invalid(
+            [l.err(), r.err()].into_iter().flatten().collect(),
+        )),
+    }
 }
 
 /// `Server-Timing: decode;dur=12.3, cost;dur=…`, in milliseconds.

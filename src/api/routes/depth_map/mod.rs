@@ -8,11 +8,11 @@ pub mod types;
 use std::sync::atomic::AtomicBool;
 use std::time::{Duration, Instant};
 
+use axum::Extension;
 use axum::extract::multipart::MultipartRejection;
 use axum::extract::{Multipart, State};
 use axum::http::{HeaderMap, HeaderValue, header};
 use axum::response::{IntoResponse, Response};
-use axum::{Extension, body::Bytes};
 use utoipa::ToSchema;
 use utoipa_axum::{router::OpenApiRouter, routes};
 
@@ -28,24 +28,12 @@ use crate::api::respond::Json;
 use crate::api::wire::openapi::ImageErrors;
 use crate::budget::Reservation;
 use crate::physics::LengthUnit;
-use crate::vision::{self, Cancelled, Disparity, Params, decode, encode, sgm};
+use crate::vision::{self, Cancelled, Disparity, Params, encode, sgm};
 
 /// `POST /depth-map`.
 pub fn router() -> OpenApiRouter<HeavyState> {
     OpenApiRouter::new().routes(routes!(post_depth_map))
 }
-
-/// The parts `/depth-map` reads.
-const PARTS: [&str; 8] = [
-    "left",
-    "right",
-    "rig",
-    "calibration",
-    "calibration_format",
-    "right_calibration",
-    "calibration_unit",
-    "calibration_cameras",
-];
 
 /// A file answer's bytes, documented as binary.
 #[derive(ToSchema)]
@@ -106,7 +94,8 @@ pub async fn post_depth_map(
     form: Result<Multipart, MultipartRejection>,
 ) -> Result<Response, ApiError> {
     let BodyLimit(limit) = state.body_limit;
-    let parts = images::read_parts(form, &PARTS, limit, &mut problems).await?;
+    let known = [&["left", "right"][..], &images::RIG_PARTS[..]].concat();
+    let parts = images::read_parts(form, &known, limit, &mut problems).await?;
     let output = query.output.unwrap_or_else(|| {
         headers
             .get(header::ACCEPT)
@@ -306,22 +295,7 @@ fn compute(
     cancel: &AtomicBool,
 ) -> Result<Response, ApiError> {
     let started = Instant::now();
-    let colour = output == DepthMapOutput::PointsPly;
-    let read = |name: &str| {
-        let bytes = parts.get(name).map_or(&[][..], Bytes::as_ref);
-        decode::decode(bytes, images::LIMITS, colour && name == "left")
-            .map_err(|e| FieldError::new(name, images::describe(&e)))
-    };
-    // Both images at once, on the matcher's pool.
-    let (left, right) = rayon::join(|| read("left"), || read("right"));
-    let (left, right) = match (left, right) {
-        (Ok(l), Ok(r)) => (l, r),
-        (l, r) => {
-            return Err(ApiError::Invalid(
-                [l.err(), r.err()].into_iter().flatten().collect(),
-            ));
-        }
-    };
+    let (left, right) = images::decode_pair(parts, output == DepthMapOutput::PointsPly)?;
     let decode_time = started.elapsed();
     let (map, timings) = vision::disparity(&left.grey, &right.grey, params, cancel)
         .map_err(|Cancelled| ApiError::Internal("cancelled".to_owned()))?;

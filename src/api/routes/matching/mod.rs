@@ -33,7 +33,7 @@ use crate::api::wire::openapi::ImageErrors;
 use crate::budget::Reservation;
 use crate::physics::{self, Correspondence, Rig};
 use crate::vision::correspond::{self, Found, Rect, Status};
-use crate::vision::{self, Cancelled, Params, decode};
+use crate::vision::{self, Cancelled, Params};
 
 /// `POST /match`.
 pub fn router() -> OpenApiRouter<HeavyState> {
@@ -45,19 +45,8 @@ pub const MAX_POINTS: usize = 10_000;
 /// The most regions one request may carry.
 pub const MAX_REGIONS: usize = 1_000;
 
-/// The parts `/match` reads.
-const PARTS: [&str; 10] = [
-    "left",
-    "right",
-    "points",
-    "regions",
-    "rig",
-    "calibration",
-    "calibration_format",
-    "right_calibration",
-    "calibration_unit",
-    "calibration_cameras",
-];
+/// The parts `/match` reads besides the rig's ([`images::RIG_PARTS`]).
+const PARTS: [&str; 4] = ["left", "right", "points", "regions"];
 
 #[utoipa::path(
     post,
@@ -104,7 +93,8 @@ pub async fn post_match(
     form: Result<Multipart, MultipartRejection>,
 ) -> Result<Response, ApiError> {
     let BodyLimit(limit) = state.body_limit;
-    let parts = images::read_parts(form, &PARTS, limit, &mut problems).await?;
+    let known = [&PARTS[..], &images::RIG_PARTS[..]].concat();
+    let parts = images::read_parts(form, &known, limit, &mut problems).await?;
     let left = images::image_size(&parts, "left", &mut problems);
     let right = images::image_size(&parts, "right", &mut problems);
     if let (Some(l), Some(r)) = (left, right) {
@@ -328,20 +318,7 @@ fn compute(
     cancel: &AtomicBool,
 ) -> Result<Response, ApiError> {
     let started = Instant::now();
-    let read = |name: &str| {
-        let bytes = parts.get(name).map_or(&[][..], Bytes::as_ref);
-        decode::decode(bytes, images::LIMITS, false)
-            .map_err(|e| FieldError::new(name, images::describe(&e)))
-    };
-    let (left, right) = rayon::join(|| read("left"), || read("right"));
-    let (left, right) = match (left, right) {
-        (Ok(l), Ok(r)) => (l, r),
-        (l, r) => {
-            return Err(ApiError::Invalid(
-                [l.err(), r.err()].into_iter().flatten().collect(),
-            ));
-        }
-    };
+    let (left, right) = images::decode_pair(parts, false)?;
     let decode_time = started.elapsed();
     let (w, h) = (left.grey.width, left.grey.height);
     let boxes: Vec<Option<Rect>> = regions.iter().map(|&b| rect(b, w, h)).collect();
