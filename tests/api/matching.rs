@@ -1,14 +1,16 @@
 //! `POST /match` over a real socket, on the project's own synthetic pairs (known ground
-//! truth): each status where the scene makes it, the distances `/distance` gives, regions, and
-//! bad points and regions named.
+//! truth): each status where the scene makes it, the distances `/distance` gives, regions, bad
+//! points and regions named, and the memory budget.
 
 use reqwest::Response;
 use reqwest::multipart::Form;
 use serde_json::{Value, json};
+use stereo_distance::Config;
+use stereo_distance::config::HeavyLimits;
 use stereo_distance::vision::synthetic::{self, Pair, Plane, Region, Scene};
 
 use crate::depth_map::{H, W, image_part, pair, png, rig};
-use crate::helpers::{TestApp, fields, message_for, ok_json, problem, spawn_app};
+use crate::helpers::{TestApp, fields, message_for, ok_json, problem, spawn_app, spawn_app_with};
 
 /// A form with the pair, the rig, and `extra` parts as text.
 fn form(pair: &Pair, extra: &[(&str, String)]) -> Form {
@@ -426,6 +428,33 @@ async fn the_form_itself_is_checked() {
         .text("points", r#"[{"x": 1, "y": 2}]"#);
     let body = problem(post_match(&app, "", no_rig).await, 422).await;
     assert_eq!(fields(&body), vec!["rig"]);
+}
+
+/// A request that could never fit in the heavy group's memory budget is a 413 naming the image
+/// and saying what to shrink; a narrower range that fits is answered.
+#[tokio::test]
+async fn a_request_beyond_the_memory_budget_is_413() {
+    let app = spawn_app_with(Config {
+        port: 0,
+        heavy: HeavyLimits {
+            memory_budget: 8 << 20,
+            body_bytes: 1 << 20,
+            ..HeavyLimits::default()
+        },
+        ..Config::default()
+    })
+    .await;
+    let pair = pair();
+    let points = || vec![("points", r#"[{"x": 50, "y": 60}]"#.to_owned())];
+    let body = problem(
+        post_match(&app, "?max_disparity=512", form(&pair, &points())).await,
+        413,
+    )
+    .await;
+    assert_eq!(fields(&body), vec!["left"]);
+    assert!(message_for(&body, "left").contains("narrower"), "{body}");
+    let fits = post_match(&app, "?max_disparity=32", form(&pair, &points())).await;
+    assert_eq!(fits.status(), 200);
 }
 
 /// One fronto-parallel textured plane at disparity `d` over the whole image, rendered.
