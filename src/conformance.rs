@@ -89,6 +89,19 @@ fn form(parts: &[(&str, Option<&str>, &[u8])]) -> Vec<u8> {
     body
 }
 
+/// A `POST` of a multipart `body` (parts separated by [`BOUNDARY`]) to `uri`.
+fn multipart(uri: &str, body: Vec<u8>) -> Result<Request<Body>, String> {
+    Request::builder()
+        .method(Method::POST)
+        .uri(uri)
+        .header(
+            header::CONTENT_TYPE,
+            format!("multipart/form-data; boundary={BOUNDARY}"),
+        )
+        .body(Body::from(body))
+        .map_err(|e| format!("building POST {uri}: {e}"))
+}
+
 /// The rig part of every form sent.
 const RIG: &[u8] = br#"{"focal_length_px": 500, "baseline": 100}"#;
 
@@ -176,16 +189,8 @@ impl Harness {
             // form with a rig, asking for the output the first byte picks (every encoder runs).
             let output = OUTPUTS[usize::from(input.first().copied().unwrap_or(0)) % OUTPUTS.len()];
             for body in [input.to_vec(), image_form(input)] {
-                let request = Request::builder()
-                    .method(Method::POST)
-                    .uri(format!("/depth-map?max_disparity=16&output={output}"))
-                    .header(
-                        header::CONTENT_TYPE,
-                        format!("multipart/form-data; boundary={BOUNDARY}"),
-                    )
-                    .body(Body::from(body))
-                    .map_err(|e| format!("building POST /depth-map: {e}"))?;
-                statuses.push(self.exchange(request).await?);
+                let uri = format!("/depth-map?max_disparity=16&output={output}");
+                statuses.push(self.exchange(multipart(&uri, body)?).await?);
             }
             // `/match`: the bytes as the body, as both images, and as the points and the regions
             // of a synthetic pair.
@@ -196,16 +201,10 @@ impl Harness {
                 match_form(left, right, input, REGIONS),
                 match_form(left, right, POINTS, input),
             ] {
-                let request = Request::builder()
-                    .method(Method::POST)
-                    .uri("/match?max_disparity=8")
-                    .header(
-                        header::CONTENT_TYPE,
-                        format!("multipart/form-data; boundary={BOUNDARY}"),
-                    )
-                    .body(Body::from(body))
-                    .map_err(|e| format!("building POST /match: {e}"))?;
-                statuses.push(self.exchange(request).await?);
+                statuses.push(
+                    self.exchange(multipart("/match?max_disparity=8", body)?)
+                        .await?,
+                );
             }
             let query = as_query(input);
             for path in QUERY_PATHS {

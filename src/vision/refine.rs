@@ -45,19 +45,10 @@ crate::dispatch! {
                 &total[..reach],
             );
             let second = min_away_from(total, best_k);
-            if u32::from(second) * 100 < u32::from(best) * (100 + uniqueness) {
+            if !unique(best, second, uniqueness) {
                 continue;
             }
-            let mut d = best_k as f32;
-            if subpixel != Subpixel::Off && best_k > 0 && best_k + 1 < count {
-                d += offset(
-                    f32::from(total[best_k - 1]),
-                    f32::from(best),
-                    f32::from(total[best_k + 1]),
-                    subpixel,
-                );
-            }
-            left[x] = d;
+            left[x] = fit(total, best_k, subpixel);
         }
         right_rev.reverse();
         Winners {
@@ -219,23 +210,10 @@ pub fn probe(
     let total = &totals[x * stride..x * stride + count];
     let (best, index) = argmin(total);
     let second = min_away_from(total, index);
-    let unique = u32::from(second) * 100 >= u32::from(best) * (100 + params.uniqueness);
-    let mut subpixel = index as f32;
-    if params.subpixel != Subpixel::Off && index > 0 && index + 1 < count {
-        subpixel += offset(
-            f32::from(total[index - 1]),
-            f32::from(best),
-            f32::from(total[index + 1]),
-            params.subpixel,
-        );
-    }
-    let consistent = params.lr_tolerance.is_none_or(|tolerance| {
-        let xr = (x as f32 - subpixel).round();
-        xr >= 0.0
-            && right
-                .get(xr as usize)
-                .is_some_and(|&r| r != u16::MAX && (f32::from(r) - subpixel).abs() <= tolerance)
-    });
+    let subpixel = fit(total, index, params.subpixel);
+    let consistent = params
+        .lr_tolerance
+        .is_none_or(|tolerance| agrees(right, x, subpixel, tolerance));
     // The raw costs summed over the 5 × 5 window around the pixel, for each disparity.
     let mut window = vec![0u32; count];
     let mut cells = 0u32;
@@ -265,7 +243,7 @@ pub fn probe(
         subpixel,
         best,
         second,
-        unique,
+        unique: unique(best, second, params.uniqueness),
         consistent,
         window_cost: mean(window[index]),
         window_mean: mean(window.iter().sum::<u32>() / count.max(1) as u32),
@@ -281,16 +259,44 @@ pub fn left_right(left: &mut [f32], right: &[u16], tolerance: f32) {
         if d.is_nan() {
             continue;
         }
-        let xr = x as f32 - *d;
-        let xr = xr.round();
-        let keep = xr >= 0.0
-            && (xr as usize) < right.len()
-            && right[xr as usize] != u16::MAX
-            && (f32::from(right[xr as usize]) - *d).abs() <= tolerance;
-        if !keep {
+        if !agrees(right, x, *d, tolerance) {
             *d = f32::NAN;
         }
     }
+}
+
+/// Whether the right image's winner at the match of left pixel `x` (disparity `d`) agrees
+/// with `d` within `tolerance` (disparities as indices into the range).
+#[inline(always)]
+fn agrees(right: &[u16], x: usize, d: f32, tolerance: f32) -> bool {
+    let xr = (x as f32 - d).round();
+    xr >= 0.0
+        && right
+            .get(xr as usize)
+            .is_some_and(|&r| r != u16::MAX && (f32::from(r) - d).abs() <= tolerance)
+}
+
+/// The uniqueness test: the best cost beats `second` (the least more than one index away) by
+/// `uniqueness` percent.
+#[inline(always)]
+fn unique(best: u16, second: u16, uniqueness: u32) -> bool {
+    u32::from(second) * 100 >= u32::from(best) * (100 + uniqueness)
+}
+
+/// The winner `k` of a pixel's costs `total` with its sub-pixel offset, as an index into the
+/// range (no offset at the range's ends).
+#[inline(always)]
+fn fit(total: &[u16], k: usize, how: Subpixel) -> f32 {
+    if how == Subpixel::Off || k == 0 || k + 1 >= total.len() {
+        return k as f32;
+    }
+    k as f32
+        + offset(
+            f32::from(total[k - 1]),
+            f32::from(total[k]),
+            f32::from(total[k + 1]),
+            how,
+        )
 }
 
 /// Invalidates the connected regions of fewer than `max_size` pixels whose neighbours differ by

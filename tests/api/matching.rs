@@ -33,19 +33,22 @@ async fn post_match(app: &TestApp, query: &str, form: Form) -> Response {
         .expect("request is sent")
 }
 
+/// The 200 answer of `/match` on `pair` with the query `query` and `extra` parts.
+async fn answer(app: &TestApp, pair: &Pair, query: &str, extra: &[(&str, String)]) -> Value {
+    ok_json(post_match(app, query, form(pair, extra)).await).await
+}
+
 /// The matches of `points` ((x, y) pixels) on `pair`, with the query `query`.
 async fn matches(app: &TestApp, pair: &Pair, query: &str, points: &[(usize, usize)]) -> Vec<Value> {
     let points: Vec<Value> = points
         .iter()
         .map(|&(x, y)| json!({"x": x, "y": y}))
         .collect();
-    let body = ok_json(
-        post_match(
-            app,
-            query,
-            form(pair, &[("points", Value::from(points).to_string())]),
-        )
-        .await,
+    let body = answer(
+        app,
+        pair,
+        query,
+        &[("points", Value::from(points).to_string())],
     )
     .await;
     body["matches"].as_array().expect("matches").clone()
@@ -227,13 +230,11 @@ async fn points_off_the_image_are_their_own_status() {
     let pair = pair();
     let points = json!([{"x": -3, "y": 10}, {"x": 100, "y": 100}, {"x": 160, "y": 10},
                         {"x": 5.5, "y": 119.6}]);
-    let body = ok_json(
-        post_match(
-            &app,
-            "?max_disparity=48",
-            form(&pair, &[("points", points.to_string())]),
-        )
-        .await,
+    let body = answer(
+        &app,
+        &pair,
+        "?max_disparity=48",
+        &[("points", points.to_string())],
     )
     .await;
     let found = body["matches"].as_array().unwrap();
@@ -324,13 +325,11 @@ async fn regions_answer_a_robust_distance() {
     let regions = json!([{"x": 32, "y": 35, "width": 30, "height": 40},
                          {"x": 500, "y": 10, "width": 20, "height": 20}]);
     // Act
-    let body = ok_json(
-        post_match(
-            &app,
-            "?max_disparity=48",
-            form(&pair, &[("regions", regions.to_string())]),
-        )
-        .await,
+    let body = answer(
+        &app,
+        &pair,
+        "?max_disparity=48",
+        &[("regions", regions.to_string())],
     )
     .await;
     // Assert
@@ -396,8 +395,8 @@ async fn bad_points_and_regions_are_named() {
     assert!(message_for(&body, "regions[0].width").contains("greater than 0"));
 }
 
-/// No points and no regions, points that are no array, too many points, and no rig: each
-/// named.
+/// No points and no regions, points that are no array, too many points, no rig and a wrong
+/// rig: each named, once.
 #[tokio::test]
 async fn the_form_itself_is_checked() {
     let app = spawn_app().await;
@@ -428,6 +427,14 @@ async fn the_form_itself_is_checked() {
         .text("points", r#"[{"x": 1, "y": 2}]"#);
     let body = problem(post_match(&app, "", no_rig).await, 422).await;
     assert_eq!(fields(&body), vec!["rig"]);
+    // A rig that is there but wrong is named by its member alone, not as missing.
+    let bad_rig = Form::new()
+        .part("left", image_part(png(&pair.left_rgb, W, H)))
+        .part("right", image_part(png(&pair.right_rgb, W, H)))
+        .text("rig", r#"{"focal_length_px": 500, "baseline": 0}"#)
+        .text("points", r#"[{"x": 1, "y": 2}]"#);
+    let body = problem(post_match(&app, "", bad_rig).await, 422).await;
+    assert_eq!(fields(&body), vec!["rig.baseline"]);
 }
 
 /// A request that could never fit in the heavy group's memory budget is a 413 naming the image

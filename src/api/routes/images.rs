@@ -287,6 +287,20 @@ pub fn rig(
     }
 }
 
+/// Names `rig` as required, saying `why`, when the form has neither a `rig` nor a
+/// `calibration` part (a part that is there but at fault is named by [`rig`] itself).
+pub fn require_rig(parts: &Parts, why: &str, problems: &mut FieldErrors) {
+    if parts.get("rig").is_none() && parts.get("calibration").is_none() {
+        problems.add(
+            "rig",
+            format!(
+                "is required {why}: give a rig part (the members of /distance) or a \
+                 calibration part"
+            ),
+        );
+    }
+}
+
 /// The `rig` part: a JSON object with the members of `/distance`.
 fn rig_part(
     json: &Bytes,
@@ -510,6 +524,12 @@ pub fn decode_pair(parts: &Parts, colour: bool) -> Result<(Decoded, Decoded), Ap
             [l.err(), r.err()].into_iter().flatten().collect(),
         )),
     }
+}
+
+/// The bytes the decoded pair holds: for each image, the decoder's buffer at up to 8 bytes a
+/// pixel and the grey levels at 2.
+pub fn decoded_bytes(width: usize, height: usize) -> usize {
+    width.saturating_mul(height).saturating_mul(2 * (8 + 2))
 }
 
 /// `Server-Timing: decode;dur=12.3, cost;dur=…`, in milliseconds.

@@ -109,14 +109,11 @@ pub async fn post_depth_map(
         images::check_pair(l, r, &mut problems)?;
     }
     let given = images::rig(&parts, left, &mut problems);
-    if output.needs_rig() && given.is_none() && !problems.has("rig") && !problems.has("calibration")
-    {
-        problems.add(
-            "rig",
-            format!(
-                "is required for output={}: give a rig part or a calibration part",
-                output.name()
-            ),
+    if output.needs_rig() {
+        images::require_rig(
+            &parts,
+            &format!("for output={}", output.name()),
+            &mut problems,
         );
     }
     let ndisp = given.as_ref().and_then(|g| g.max_disparity);
@@ -235,18 +232,16 @@ fn settings(q: &DepthMapQuery, ndisp: Option<u32>, problems: &mut FieldErrors) -
     })
 }
 
-/// The bytes a request holds at its peak: the decoded images (the decoder's buffer at up to 8
-/// bytes a pixel, the grey levels, the colours for a point cloud), the matcher's, and the
-/// answer's per-pixel buffers.
+/// The bytes a request holds at its peak: the decoded pair, the colours for a point cloud, the
+/// matcher's, and the answer's per-pixel buffers.
 fn bytes_needed(w: usize, h: usize, count: usize, output: DepthMapOutput) -> usize {
-    let pixels = w.saturating_mul(h);
     let colour = if output == DepthMapOutput::PointsPly {
         3
     } else {
         0
     };
-    pixels
-        .saturating_mul(2 * (8 + 2) + colour + 24)
+    images::decoded_bytes(w, h)
+        .saturating_add(w.saturating_mul(h).saturating_mul(colour + 24))
         .saturating_add(vision::bytes_needed(w, h, count))
 }
 

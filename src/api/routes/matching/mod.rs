@@ -32,7 +32,7 @@ use crate::api::wire::measured::{Measured, Point};
 use crate::api::wire::openapi::ImageErrors;
 use crate::budget::Reservation;
 use crate::physics::{self, Correspondence, Rig};
-use crate::vision::correspond::{self, Found, Rect, Status};
+use crate::vision::correspond::{self, Found, Rect};
 use crate::vision::{self, Cancelled, Params};
 
 /// `POST /match`.
@@ -101,13 +101,7 @@ pub async fn post_match(
         images::check_pair(l, r, &mut problems)?;
     }
     let given = images::rig(&parts, left, &mut problems);
-    if given.is_none() && !problems.has("rig") && !problems.has("calibration") {
-        problems.add(
-            "rig",
-            "is required: give a rig part (the members of /distance) or a calibration part, \
-             for the distances",
-        );
-    }
+    images::require_rig(&parts, "for the distances", &mut problems);
     let points = list::<MatchPoint>(&parts, "points", MAX_POINTS, &mut problems);
     let regions = list::<MatchRegion>(&parts, "regions", MAX_REGIONS, &mut problems);
     let points = points.map(|ps| check_points(ps, &mut problems));
@@ -160,11 +154,11 @@ pub async fn post_match(
     .await?
 }
 
-/// The bytes a request holds at its peak: the decoded images (the decoder's buffer at up to 8
-/// bytes a pixel, the grey levels), the matcher's as for the whole image, and the map.
+/// The bytes a request holds at its peak: the decoded pair, the matcher's as for the whole
+/// image, and the map.
 fn bytes_needed(w: usize, h: usize, count: usize) -> usize {
-    w.saturating_mul(h)
-        .saturating_mul(2 * (8 + 2) + 8)
+    images::decoded_bytes(w, h)
+        .saturating_add(w.saturating_mul(h).saturating_mul(8))
         .saturating_add(vision::bytes_needed(w, h, count))
 }
 
@@ -420,7 +414,6 @@ fn point_match(rig: &Rig, x: f64, y: f64, found: &Found) -> PointMatch {
             Err(e) => answer.error = Some(e.to_string()),
         }
     }
-    debug_assert!(found.status != Status::Ok || found.disparity.is_some());
     answer
 }
 
@@ -455,11 +448,11 @@ fn region_match(rig: &Rig, map: &vision::Disparity, b: [f64; 4], r: Option<Rect>
     values.sort_by(f64::total_cmp);
     answer.valid_fraction = round(values.len() as f64 / pixels.max(1) as f64, 4);
     answer.status = RegionStatus::NoValidPixels;
-    // Nearest rank on the disparities, largest first: depth falls as disparity grows.
-    let at = |q: f64| values[((1.0 - q) * (values.len() - 1) as f64).round() as usize];
     if values.is_empty() {
         return answer;
     }
+    // Nearest rank on the disparities, largest first: depth falls as disparity grows.
+    let at = |q: f64| values[((1.0 - q) * (values.len() - 1) as f64).round() as usize];
     let median = round(at(0.5), 3);
     let centre = (
         (r.x0 + r.x1 - 1) as f64 / 2.0,
