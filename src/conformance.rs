@@ -57,12 +57,13 @@ const FILE_TYPES: [&str; 6] = [
 ];
 
 /// Every output of `/depth-map`.
-const OUTPUTS: [&str; 8] = [
+const OUTPUTS: [&str; 9] = [
     "summary",
     "disparity.pfm",
     "disparity.png",
     "disparity.npy",
     "depth.npy",
+    "arrays.npz",
     "depth.png",
     "preview.png",
     "points.ply",

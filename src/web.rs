@@ -1,16 +1,20 @@
 //! The web calculator at `/`: one HTML page with its script, style sheet and icon, embedded in
 //! the binary (`include_str!`), so nothing is read from disk or fetched from a CDN at run time.
 //!
-//! The page is a client of the public API (`/distance`, `/table`, `/chart-data`) and holds no
-//! physics. Each asset is answered with an `ETag` (a hash of its bytes, so a new build is a new
+//! The page is a client of the public API (`/distance`, `/table`, `/chart-data`,
+//! `/calibration`, `/depth-map`, `/match`) and holds no physics or stereo. Its sample pair
+//! (`/sample/left.png`, `/sample/right.png` and `/sample/sample.json`, the rig and search range)
+//! is rendered by [`crate::vision::synthetic`] on first request, so the binary holds code, not
+//! a picture. Each asset is answered with an `ETag` (a hash of its bytes, so a new build is a new
 //! tag) and `Cache-Control: no-cache`, so browsers revalidate and get a 304 until the binary
 //! changes. The tag is weak because the compression layer may send the same asset gzip- or
 //! br-encoded, and a strong tag must differ between such representations. The page carries a Content-Security-Policy that allows only this origin.
 
-use std::sync::Arc;
+use std::sync::{Arc, OnceLock};
 
 use axum::{
     Router,
+    body::Bytes,
     http::{
         HeaderMap, HeaderName, HeaderValue, StatusCode,
         header::{CACHE_CONTROL, CONTENT_TYPE, ETAG, IF_NONE_MATCH},
@@ -18,6 +22,8 @@ use axum::{
     response::{IntoResponse, Response},
     routing::get,
 };
+
+use crate::vision::{encode, synthetic};
 
 /// One embedded file and how it is served.
 #[derive(Debug, Clone, Copy)]
@@ -39,6 +45,8 @@ pub const ASSETS: [Asset; 4] = [
 const HTML: &str = "text/html; charset=utf-8";
 const CSS: &str = "text/css; charset=utf-8";
 const SVG: &str = "image/svg+xml";
+const PNG: &str = "image/png";
+const JSON: &str = "application/json";
 const JAVASCRIPT: &str = "text/javascript; charset=utf-8";
 
 const fn asset(path: &'static str, content_type: &'static str, body: &'static str) -> Asset {
@@ -63,7 +71,11 @@ fn fnv1a(bytes: &[u8]) -> u64 {
 
 /// The weak entity tag of an asset, as HTTP writes it: `W/"…"`.
 pub fn etag(asset: &Asset) -> String {
-    format!("W/\"{:016x}\"", fnv1a(asset.body.as_bytes()))
+    tag_of(asset.body.as_bytes())
+}
+
+fn tag_of(bytes: &[u8]) -> String {
+    format!("W/\"{:016x}\"", fnv1a(bytes))
 }
 
 /// Whether an `If-None-Match` header names `tag` (or is `*`), by weak comparison: `W/` is
@@ -83,7 +95,7 @@ fn matches(if_none_match: Option<&HeaderValue>, tag: &str) -> bool {
 /// The headers of one asset's answers, built once when the router is.
 #[derive(Debug, Clone)]
 struct Served {
-    body: &'static str,
+    body: Bytes,
     /// The tag as text, for comparing with `If-None-Match`.
     tag: String,
     /// What a 304 carries: the tag, the caching rule and `nosniff`.
@@ -94,7 +106,14 @@ struct Served {
 
 impl Served {
     fn new(asset: Asset) -> Self {
-        let tag = etag(&asset);
+        Self::of(
+            asset.content_type,
+            Bytes::from_static(asset.body.as_bytes()),
+        )
+    }
+
+    fn of(content_type: &'static str, body: Bytes) -> Self {
+        let tag = tag_of(&body);
         let mut not_modified = HeaderMap::new();
         not_modified.insert(
             ETAG,
@@ -106,8 +125,8 @@ impl Served {
             HeaderValue::from_static("nosniff"),
         );
         let mut ok = not_modified.clone();
-        ok.insert(CONTENT_TYPE, HeaderValue::from_static(asset.content_type));
-        if asset.content_type.starts_with("text/html") {
+        ok.insert(CONTENT_TYPE, HeaderValue::from_static(content_type));
+        if content_type.starts_with("text/html") {
             ok.insert(
                 HeaderName::from_static("content-security-policy"),
                 HeaderValue::from_static(CONTENT_SECURITY_POLICY),
@@ -118,7 +137,7 @@ impl Served {
             );
         }
         Self {
-            body: asset.body,
+            body,
             tag,
             not_modified,
             ok,
@@ -129,20 +148,67 @@ impl Served {
         if matches(request.get(IF_NONE_MATCH), &self.tag) {
             (StatusCode::NOT_MODIFIED, self.not_modified.clone()).into_response()
         } else {
-            (self.ok.clone(), self.body).into_response()
+            (self.ok.clone(), self.body.clone()).into_response()
         }
     }
 }
 
+/// The sample pair's size: small enough to match in a few milliseconds and to show at its own
+/// size beside its depth map.
+pub const SAMPLE_SIZE: (usize, usize) = (320, 240);
+/// The sample rig: f = 400 px and B = 120 mm, so the scene's disparities of 6 to 36 px are
+/// 1.3 to 8 m away.
+pub const SAMPLE_RIG: (f64, f64) = (400.0, 120.0);
+/// The sample's search range, above the scene's largest disparity.
+pub const SAMPLE_MAX_DISPARITY: u32 = 48;
+
+/// The sample's files, in [`SAMPLE_FILES`] order, rendered once per process.
+fn sample() -> &'static [Served; 3] {
+    static SAMPLE: OnceLock<[Served; 3]> = OnceLock::new();
+    SAMPLE.get_or_init(|| {
+        let (w, h) = SAMPLE_SIZE;
+        let pair = synthetic::render(&synthetic::layered(w, h));
+        let (f, b) = SAMPLE_RIG;
+        let about = serde_json::json!({
+            "description": "The project's own rendered scene: a slanted textured wall, a box \
+                            and a disc in front of it; the disparities are known exactly.",
+            "rig": {"focal_length_px": f, "baseline": b, "unit": "mm",
+                    "image_width": w, "image_height": h},
+            "max_disparity": SAMPLE_MAX_DISPARITY,
+        });
+        [
+            Served::of(PNG, encode::png_rgb(w, h, &pair.left_rgb).into()),
+            Served::of(PNG, encode::png_rgb(w, h, &pair.right_rgb).into()),
+            Served::of(JSON, about.to_string().into()),
+        ]
+    })
+}
+
+/// Where the sample's files are served.
+pub const SAMPLE_FILES: [&str; 3] = [
+    "/sample/left.png",
+    "/sample/right.png",
+    "/sample/sample.json",
+];
+
 /// The page's routes (GET and HEAD).
 pub fn router() -> Router {
-    ASSETS.into_iter().fold(Router::new(), |router, asset| {
+    let router = ASSETS.into_iter().fold(Router::new(), |router, asset| {
         let served = Arc::new(Served::new(asset));
         router.route(
             asset.path,
             get(move |headers: HeaderMap| async move { served.answer(&headers) }),
         )
-    })
+    });
+    SAMPLE_FILES
+        .into_iter()
+        .enumerate()
+        .fold(router, |router, (i, path)| {
+            router.route(
+                path,
+                get(move |headers: HeaderMap| async move { sample()[i].answer(&headers) }),
+            )
+        })
 }
 
 #[cfg(test)]

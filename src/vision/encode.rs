@@ -1,5 +1,6 @@
 //! Writing disparity and depth maps in the formats their users' tools read: Middlebury's PFM,
-//! NumPy's NPY, KITTI's and ROS's 16-bit PNG, a colour preview PNG and a binary PLY point cloud.
+//! NumPy's NPY and NPZ, KITTI's and ROS's 16-bit PNG, a colour preview PNG and a binary PLY
+//! point cloud.
 
 use std::io::Cursor;
 
@@ -40,6 +41,62 @@ pub fn npy(width: usize, height: usize, data: &[f32]) -> Vec<u8> {
     for &v in data {
         out.extend_from_slice(&v.to_le_bytes());
     }
+    out
+}
+
+/// NumPy's NPZ: named NPY files in a zip archive, stored (not deflated: float maps hardly
+/// compress, and this answer is made for one request). `numpy.load(p)["depth"]` reads an
+/// entry; a name gets `.npy` appended, as `numpy.savez` does.
+pub fn npz(entries: &[(&str, Vec<u8>)]) -> Vec<u8> {
+    // Every header field is little-endian; 1980-01-01 00:00 is zip's zero date.
+    const DATE: u16 = 0x21;
+    let mut out = Vec::with_capacity(
+        entries
+            .iter()
+            .map(|(n, b)| 100 + 2 * n.len() + b.len())
+            .sum(),
+    );
+    let mut central = Vec::new();
+    for (name, bytes) in entries {
+        let name = format!("{name}.npy");
+        let crc = crc32fast::hash(bytes);
+        let (size, offset) = (bytes.len() as u32, out.len() as u32);
+        let common = |to: &mut Vec<u8>| {
+            for v in [20u16, 0, 0, 0, DATE] {
+                to.extend_from_slice(&v.to_le_bytes());
+            }
+            for v in [crc, size, size] {
+                to.extend_from_slice(&v.to_le_bytes());
+            }
+            to.extend_from_slice(&(name.len() as u16).to_le_bytes());
+            to.extend_from_slice(&0u16.to_le_bytes());
+        };
+        out.extend_from_slice(&0x0403_4b50u32.to_le_bytes());
+        common(&mut out);
+        out.extend_from_slice(name.as_bytes());
+        out.extend_from_slice(bytes);
+        central.extend_from_slice(&0x0201_4b50u32.to_le_bytes());
+        central.extend_from_slice(&20u16.to_le_bytes());
+        common(&mut central);
+        // Comment length, disk, internal and external attributes, then the local header.
+        for v in [0u16, 0, 0] {
+            central.extend_from_slice(&v.to_le_bytes());
+        }
+        central.extend_from_slice(&0u32.to_le_bytes());
+        central.extend_from_slice(&offset.to_le_bytes());
+        central.extend_from_slice(name.as_bytes());
+    }
+    let (at, length) = (out.len() as u32, central.len() as u32);
+    out.extend_from_slice(&central);
+    out.extend_from_slice(&0x0605_4b50u32.to_le_bytes());
+    let count = entries.len() as u16;
+    for v in [0u16, 0, count, count] {
+        out.extend_from_slice(&v.to_le_bytes());
+    }
+    for v in [length, at] {
+        out.extend_from_slice(&v.to_le_bytes());
+    }
+    out.extend_from_slice(&0u16.to_le_bytes());
     out
 }
 
@@ -189,6 +246,36 @@ mod tests {
             &out[10 + header_len + 4..10 + header_len + 8],
             &1f32.to_le_bytes()
         );
+    }
+
+    /// The NPZ is a stored zip: each local header names the entry `….npy`, carries its
+    /// CRC-32 and size and is followed by the bytes; the central directory, found from the
+    /// end record, points back at each local header.
+    #[test]
+    fn npz_is_a_stored_zip_of_npy_files() {
+        let a = npy(2, 1, &[1.0, 2.0]);
+        let b = npy(1, 1, &[f32::NAN]);
+        let out = npz(&[("disparity", a.clone()), ("depth", b.clone())]);
+        let u16_at = |i: usize| usize::from(u16::from_le_bytes([out[i], out[i + 1]]));
+        let u32_at = |i: usize| u32::from_le_bytes(out[i..i + 4].try_into().unwrap());
+        let end = out.len() - 22;
+        assert_eq!(u32_at(end), 0x0605_4b50);
+        assert_eq!(u16_at(end + 10), 2);
+        let mut at = u32_at(end + 16) as usize;
+        for (name, bytes) in [("disparity.npy", &a), ("depth.npy", &b)] {
+            assert_eq!(u32_at(at), 0x0201_4b50);
+            let name_len = u16_at(at + 28);
+            assert_eq!(&out[at + 46..at + 46 + name_len], name.as_bytes());
+            let local = u32_at(at + 42) as usize;
+            assert_eq!(u32_at(local), 0x0403_4b50);
+            assert_eq!(u16_at(local + 8), 0, "stored");
+            assert_eq!(u32_at(local + 14), crc32fast::hash(bytes));
+            assert_eq!(u32_at(local + 18) as usize, bytes.len());
+            let data = local + 30 + u16_at(local + 26);
+            assert_eq!(&out[data..data + bytes.len()], &bytes[..]);
+            at += 46 + name_len;
+        }
+        assert_eq!(at, end);
     }
 
     /// PFM rows run bottom to top and NaN becomes +inf.

@@ -1,7 +1,8 @@
-// The calculator page: a client of the service's public API (/distance, /table, /chart-data).
-// It holds no physics: it sends what the person typed, shows the answers, draws the chart from
-// /chart-data and puts the API's problem+json errors next to the fields they name. The page's
-// state lives in its query string, so the address is a permalink.
+// The calculator page: a client of the service's public API (/distance, /table, /chart-data,
+// /calibration, /depth-map, /match). It holds no physics and no stereo: it sends what the
+// person typed, chose or clicked, shows the answers, draws the chart from /chart-data and the
+// depth map from /depth-map's arrays, and puts the API's problem+json errors next to the fields
+// they name. The page's state lives in its query string, so the address is a permalink.
 'use strict';
 
 (() => {
@@ -40,7 +41,7 @@
   /** Text inputs named as the API names them (the focal field is `focal`). */
   const TEXT_FIELDS = [
     'focal', 'sensor_width_mm', 'pixel_size_um', 'image_width', 'image_height', 'baseline',
-    'x_left', 'x_right', 'y', 'disparity_error_px', 'doffs', 'cx', 'cy',
+    'x_left', 'x_right', 'y', 'disparity_error_px', 'doffs', 'cx', 'cy', 'min_disparity', 'max_disparity',
   ];
   /** Members every request carries, as they are in the form. */
   const RIG_FIELDS = ['baseline', 'image_width', 'image_height', 'disparity_error_px', 'doffs', 'cx', 'cy'];
@@ -63,6 +64,8 @@
     doffs: '',
     cx: '',
     cy: '',
+    min_disparity: '',
+    max_disparity: '',
     rows: '10',
     scale: 'log',
   });
@@ -191,8 +194,12 @@
 
   /** The page's own address for a state: the API's members plus the view settings. */
   function permalink(state) {
-    const params = new URLSearchParams({ focal_mode: state.focal_mode });
-    for (const [key, value] of withMembers(rigParams(state), state, ['x_left', 'x_right', 'y'])) {
+    const params = new URLSearchParams();
+    if (mode === 'images') params.set('mode', 'images');
+    if (mode === 'images' && pair.sample) params.set('sample', '1');
+    params.set('focal_mode', state.focal_mode);
+    const feature = mode === 'images' ? ['min_disparity', 'max_disparity'] : ['x_left', 'x_right', 'y'];
+    for (const [key, value] of withMembers(rigParams(state), state, feature)) {
       params.set(key, value);
     }
     params.set('rows', state.rows);
@@ -235,6 +242,8 @@
 
   /** The input a member of the API refers to, or null if the page has none for it. */
   function inputFor(member, state) {
+    // The image endpoints name the rig's members inside their `rig` part.
+    if (member.startsWith('rig.')) return inputFor(member.slice(4), state);
     if (FOCAL_MEMBERS.includes(member)) return 'focal';
     if (COMPANIONS.includes(member)) return FOCAL_MODES[state.focal_mode].companion === member ? member : null;
     if (member === 'steps') return 'rows';
@@ -343,22 +352,35 @@
     document.body.dataset.state = 'computing';
     try {
       const rig = rigParams(state);
-      const distance = await call('/distance', withMembers(rig, state, ['x_left', 'x_right', 'y']), signal);
+      // In Images mode the feature is the last click's match; until there is one, only the
+      // rig's chart and table are asked for.
+      const measuring = mode === 'numbers' || matched();
+      const distance = measuring
+        ? await call('/distance', withMembers(rig, state, ['x_left', 'x_right', 'y']), signal)
+        : { ok: false, status: 0, body: null, unasked: true };
       // The chart marks, and the table follows, the measured feature only when it is valid.
       const measured = distance.ok ? ['x_left', 'x_right'] : [];
       const chartParams = withMembers(rig, state, measured);
       chartParams.set('points', String(CHART_POINTS));
       const tableParams = withMembers(rig, state, measured.slice(0, 1));
       tableParams.set('steps', state.rows);
-      const [chart, table] = await Promise.all([
-        call('/chart-data', chartParams, signal),
-        call('/table', tableParams, signal),
-      ]);
+      // In Images mode the image size comes with the pair: until then the rig's chart and
+      // table (which need it) are not asked for.
+      const sized = mode === 'numbers' || (state.image_width !== '' && state.image_height !== '');
+      const unasked = { ok: false, status: 0, body: null, unasked: true };
+      const [chart, table] = sized
+        ? await Promise.all([call('/chart-data', chartParams, signal), call('/table', tableParams, signal)])
+        : [unasked, unasked];
       if (token !== generation) return;
       clearErrors();
-      const errors = [distance, chart, table].filter((a) => !a.ok).flatMap(problemsOf);
+      const errors = [distance, chart, table].filter((a) => !a.ok && !a.unasked).flatMap(problemsOf);
       const fields = showErrors(errors, state);
       showDistance(distance.ok ? distance.body : null, state);
+      if (distance.unasked) {
+        $('mini-result').textContent = pair.match
+          ? `No distance: ${pair.match.status.replace('_', ' ')}.`
+          : 'Click the left image for a distance.';
+      }
       showChart(chart.ok ? chart.body : null, state.scale === 'log');
       showTable(table.ok ? table.body : null, tableParams);
       const chartSvg = new URLSearchParams(chartParams);
@@ -366,7 +388,9 @@
       $('chart-svg-link').href = `/chart.svg?${chartSvg}`;
       status.textContent = (note ? `${note} ` : '') + (distance.ok
         ? `Distance ${fmt(distance.body.distance)} ${distance.body.unit} ± ${fmt(distance.body.depth_error)} ${distance.body.unit}.`
-        : `No distance: ${fields} ${fields === 1 ? 'field needs' : 'fields need'} attention.`);
+        : distance.unasked && fields === 0
+          ? 'Rig ready; click the left image for a distance.'
+          : `No distance: ${fields} ${fields === 1 ? 'field needs' : 'fields need'} attention.`);
     } catch (error) {
       if (error.name === 'AbortError' || token !== generation) return;
       clearErrors();
@@ -392,6 +416,13 @@
 
   function showDistance(answer, state) {
     lastResult = answer;
+    // Images mode: the clicked point's distance card, in short, beside its match.
+    const short = $('match-distance');
+    short.hidden = !(mode === 'images' && answer !== null && pair.match !== null);
+    if (!short.hidden) {
+      short.textContent = `Distance ${fmt(answer.distance)} ${answer.unit} ± ${fmt(answer.depth_error)} ${answer.unit}, ` +
+        `range ${fmt(answer.range)} ${answer.unit} (the Distance card below has the rest).`;
+    }
     results.classList.toggle('invalid', answer === null);
     const mini = $('mini-result');
     mini.classList.toggle('invalid', answer === null);
@@ -454,6 +485,7 @@
       `Range (straight line to the point): ${fmt(answer.range)} ${u}`,
       `Formula: ${answer.formula}`,
       `Warnings: ${answer.warnings.length > 0 ? answer.warnings.map((w) => w.message).join('; ') : 'none'}`,
+      ...(mode === 'images' ? findings() : []),
       `Permalink: ${location.href}`,
     ];
     return `${lines.join('\n')}\n`;
@@ -705,16 +737,868 @@
   }
 
   // ---------------------------------------------------------------------------------------
+  // Modes: Numbers (the calculator) and Images (a pair, its depth map, clicks and boxes).
+
+  let mode = 'numbers';
+
+  function modeFromQuery(search) {
+    return new URLSearchParams(search).get('mode') === 'images' ? 'images' : 'numbers';
+  }
+
+  function setMode(next) {
+    mode = next;
+    document.body.dataset.mode = next;
+    $('images').hidden = next !== 'images';
+    for (const name of ['numbers', 'images']) {
+      const link = $(`mode-${name}`);
+      if (name === next) link.setAttribute('aria-current', 'page');
+      else link.removeAttribute('aria-current');
+    }
+  }
+
+  // ---------------------------------------------------------------------------------------
+  // Importing a calibration file through /calibration.
+
+  /** Whether the image size in the fields came from an imported calibration (then a pair of
+   * another size is the API's error to show, not something to paper over). */
+  let sizeFromCalibration = false;
+
+  const FORMAT_NAMES = { middlebury: 'Middlebury', kitti: 'KITTI', ros: 'ROS', opencv: 'OpenCV' };
+
+  async function importCalibration() {
+    const errors = $('import-errors');
+    errors.hidden = true;
+    errors.replaceChildren();
+    const text = $('calibration_text').value;
+    if (text.trim() === '') {
+      errors.replaceChildren(listItem('text: choose or paste a calibration file first.'));
+      errors.hidden = false;
+      $('import-status').textContent = 'Nothing imported.';
+      return;
+    }
+    const request = { text };
+    if ($('calibration_right_text').value.trim() !== '') request.right_text = $('calibration_right_text').value;
+    if ($('calibration_unit').value !== '') request.calibration_unit = $('calibration_unit').value;
+    $('import-status').textContent = 'Reading the calibration…';
+    document.body.dataset.import = 'reading';
+    try {
+      const response = await fetch('/calibration', {
+        method: 'POST',
+        headers: { 'content-type': 'application/json', accept: 'application/json' },
+        body: JSON.stringify(request),
+      });
+      const type = response.headers.get('content-type') || '';
+      const body = type.includes('json') ? await response.json() : null;
+      if (!response.ok) {
+        errors.replaceChildren(...problemsOf({ status: response.status, body })
+          .map(({ field, message }) => listItem(`${field}: ${message}`)));
+        errors.hidden = false;
+        $('import-status').textContent = 'Not imported: the service could not read the file.';
+        return;
+      }
+      const rig = body.rig;
+      const state = readForm();
+      Object.assign(state, {
+        focal_mode: 'px',
+        focal_shown: 'px',
+        focal: String(rig.focal_length_px),
+        baseline: String(rig.baseline),
+        unit: rig.unit,
+        doffs: String(rig.doffs),
+        cx: String(rig.cx),
+        cy: String(rig.cy),
+      });
+      sizeFromCalibration = rig.image_width !== undefined;
+      if (rig.image_width !== undefined) state.image_width = String(rig.image_width);
+      if (rig.image_height !== undefined) state.image_height = String(rig.image_height);
+      if (body.max_disparity_px !== undefined) state.max_disparity = String(body.max_disparity_px);
+      writeForm(state);
+      $('optional').open = true;
+      const warnings = body.warnings.length > 0 ? ` Warnings: ${body.warnings.join(' ')}` : ' No warnings.';
+      $('import-status').textContent =
+        `Read as a ${FORMAT_NAMES[body.format] ?? body.format} calibration: f = ${fmt(rig.focal_length_px)} px, ` +
+        `B = ${fmt(rig.baseline)} ${rig.unit}.${warnings}`;
+      $('import-status').dataset.format = body.format;
+      compute(`Imported a ${FORMAT_NAMES[body.format] ?? body.format} calibration.`);
+      if (mode === 'images') requestDepth();
+    } catch (error) {
+      errors.replaceChildren(listItem(`service: could not be reached (${error.message}).`));
+      errors.hidden = false;
+    } finally {
+      document.body.dataset.import = 'done';
+    }
+  }
+
+  // ---------------------------------------------------------------------------------------
+  // The pair, its depth map (/depth-map, as NumPy arrays), and what was found on it (/match).
+
+  const pair = {
+    files: { left: null, right: null },
+    bitmaps: { left: null, right: null },
+    width: 0,
+    height: 0,
+    /** The depth map: { width, height, disparity, depth, depth_error } (Float32Array, NaN
+     * where invalid) and the unit of the depths. */
+    arrays: null,
+    unit: 'mm',
+    match: null,
+    region: null,
+    crosshair: { x: 0, y: 0 },
+    anchor: null,
+    sample: false,
+  };
+
+  function matched() {
+    return pair.match !== null && pair.match.x_right !== undefined;
+  }
+
+  /** The rig part of an image request: the form's rig members, numbers as numbers. */
+  function rigPart(state) {
+    const rig = {};
+    for (const [key, value] of rigParams(state)) {
+      const number = Number(value);
+      rig[key] = key !== 'unit' && value.trim() !== '' && Number.isFinite(number) ? number : value;
+    }
+    return JSON.stringify(rig);
+  }
+
+  function pairForm(state) {
+    const body = new FormData();
+    body.append('left', pair.files.left);
+    body.append('right', pair.files.right);
+    body.append('rig', rigPart(state));
+    return body;
+  }
+
+  function rangeQuery(state, output = null) {
+    const query = new URLSearchParams();
+    if (output) query.set('output', output);
+    for (const name of ['min_disparity', 'max_disparity']) if (state[name] !== '') query.set(name, state[name]);
+    return query;
+  }
+
+  /** Where an image request's problem is shown: next to the file input or range field it
+   * names, or in the list under the inputs. */
+  const IMAGE_INPUTS = { left: 'left_image', right: 'right_image', min_disparity: 'min_disparity', max_disparity: 'max_disparity' };
+
+  function clearImageErrors() {
+    for (const input of Object.values(IMAGE_INPUTS)) {
+      $(input).removeAttribute('aria-invalid');
+      $(`${input}-error`).hidden = true;
+      $(`${input}-error`).textContent = '';
+    }
+    $('images-errors').hidden = true;
+    $('images-errors-list').replaceChildren();
+  }
+
+  function showImageErrors(errors) {
+    const general = [];
+    for (const { field, message } of errors) {
+      const input = IMAGE_INPUTS[field];
+      if (input) {
+        const slot = $(`${input}-error`);
+        slot.textContent = slot.textContent ? `${slot.textContent} ${message}` : message;
+        slot.hidden = false;
+        $(input).setAttribute('aria-invalid', 'true');
+      } else {
+        general.push(listItem(`${field}: ${message}`));
+      }
+    }
+    if (general.length > 0) {
+      $('images-errors-list').replaceChildren(...general);
+      $('images-errors').hidden = false;
+    }
+  }
+
+  /** Sends an image request, with the answer's problem as `{ errors }`. */
+  async function post(path, query, body, signal) {
+    const response = await fetch(`${path}?${query}`, { method: 'POST', body, signal });
+    if (response.ok) return { response, errors: null };
+    const type = response.headers.get('content-type') || '';
+    const problem = type.includes('json') ? await response.json() : null;
+    return { response, errors: problemsOf({ status: response.status, body: problem }) };
+  }
+
+  async function chooseImage(side, file) {
+    pair.files[side] = file;
+    pair.bitmaps[side] = null;
+    if (file) {
+      try {
+        pair.bitmaps[side] = await createImageBitmap(file);
+      } catch {
+        // Not an image the browser can show; the service will say what it is.
+      }
+    }
+    drawImage(side);
+  }
+
+  /** A new pair (or one new image): forget the old findings, show the images, and match. */
+  async function loadPair(files) {
+    for (const [side, file] of Object.entries(files)) await chooseImage(side, file);
+    pair.match = null;
+    pair.region = null;
+    pair.anchor = null;
+    pair.arrays = null;
+    clearDepth();
+    showMatch(null);
+    showRegion(null);
+    const { left, right } = pair.bitmaps;
+    if (left) {
+      pair.width = left.width;
+      pair.height = left.height;
+      pair.crosshair = { x: Math.floor(left.width / 2), y: Math.floor(left.height / 2) };
+      if (right && right.width === left.width && right.height === left.height && !sizeFromCalibration) {
+        const state = readForm();
+        state.image_width = String(left.width);
+        state.image_height = String(left.height);
+        writeForm(state);
+      }
+    }
+    drawMarkers();
+    compute();
+    await requestDepth();
+  }
+
+  function sizeCanvas(canvas, width, height) {
+    if (canvas.width !== width) canvas.width = width;
+    if (canvas.height !== height) canvas.height = height;
+  }
+
+  function drawImage(side) {
+    const bitmap = pair.bitmaps[side];
+    const canvas = $(`${side}-canvas`);
+    const width = bitmap ? bitmap.width : 320;
+    const height = bitmap ? bitmap.height : 240;
+    sizeCanvas(canvas, width, height);
+    const context = canvas.getContext('2d');
+    context.clearRect(0, 0, width, height);
+    if (bitmap) context.drawImage(bitmap, 0, 0);
+    $(`${side}-overlay`).setAttribute('viewBox', `0 0 ${width} ${height}`);
+    $(`${side}-caption`).textContent = bitmap
+      ? `${side === 'left' ? 'Left' : 'Right'} image, ${width} × ${height}`
+      : `${side === 'left' ? 'Left' : 'Right'} image`;
+    if (side === 'left') {
+      sizeCanvas($('depth-canvas'), width, height);
+      sizeCanvas($('blend-canvas'), width, height);
+      $('depth-overlay').setAttribute('viewBox', `0 0 ${width} ${height}`);
+    }
+  }
+
+  // NumPy's NPZ as /depth-map writes it: a zip of stored (uncompressed) NPY files.
+  function readNpz(buffer) {
+    const view = new DataView(buffer);
+    const arrays = {};
+    let at = 0;
+    while (at + 30 <= buffer.byteLength && view.getUint32(at, true) === 0x04034b50) {
+      const method = view.getUint16(at + 8, true);
+      const size = view.getUint32(at + 18, true);
+      const nameLength = view.getUint16(at + 26, true);
+      const extra = view.getUint16(at + 28, true);
+      const name = new TextDecoder().decode(new Uint8Array(buffer, at + 30, nameLength));
+      const start = at + 30 + nameLength + extra;
+      if (method !== 0) throw new Error(`${name} is compressed`);
+      arrays[name.replace(/\.npy$/, '')] = readNpy(buffer.slice(start, start + size));
+      at = start + size;
+    }
+    return arrays;
+  }
+
+  function readNpy(buffer) {
+    const headerLength = new DataView(buffer).getUint16(8, true);
+    const header = new TextDecoder().decode(new Uint8Array(buffer, 10, headerLength));
+    const shape = /'shape': \((\d+), (\d+)\)/.exec(header);
+    if (!header.includes("'<f4'") || !shape) throw new Error('an array that is not a float32 image');
+    return { height: Number(shape[1]), width: Number(shape[2]), data: new Float32Array(buffer, 10 + headerLength) };
+  }
+
+  let depthController = null;
+  let depthToken = 0;
+  let depthDebounce = null;
+
+  function scheduleDepth() {
+    clearTimeout(depthDebounce);
+    if (mode !== 'images' || !pair.files.left || !pair.files.right) return;
+    depthDebounce = setTimeout(() => requestDepth(), DEBOUNCE_MS);
+  }
+
+  /** Asks /depth-map for the pair's arrays (disparity, depth and its error) once; hovering
+   * reads them, so no pixel costs a request. */
+  async function requestDepth() {
+    clearTimeout(depthDebounce);
+    if (!pair.files.left || !pair.files.right) return;
+    const state = readForm();
+    const token = ++depthToken;
+    if (depthController) depthController.abort();
+    depthController = new AbortController();
+    document.body.dataset.depth = 'computing';
+    $('depth-status').textContent = 'Matching the pair…';
+    const started = performance.now();
+    try {
+      const { response, errors } = await post('/depth-map', rangeQuery(state, 'arrays.npz'), pairForm(state), depthController.signal);
+      if (token !== depthToken) return;
+      clearImageErrors();
+      if (errors) {
+        showImageErrors(errors);
+        pair.arrays = null;
+        clearDepth();
+        $('depth-status').textContent = `No depth map: the service refused the request (${errors.length} ${errors.length === 1 ? 'problem' : 'problems'}).`;
+        return;
+      }
+      const arrays = readNpz(await response.arrayBuffer());
+      if (token !== depthToken) return;
+      const { width, height } = arrays.disparity;
+      pair.width = width;
+      pair.height = height;
+      pair.unit = state.unit;
+      pair.arrays = {
+        width,
+        height,
+        disparity: arrays.disparity.data,
+        depth: arrays.depth ? arrays.depth.data : null,
+        depth_error: arrays.depth_error ? arrays.depth_error.data : null,
+      };
+      const elapsed = performance.now() - started;
+      const server = (response.headers.get('server-timing') || '').split(',')
+        .map((entry) => Number((/dur=([\d.]+)/.exec(entry) || [])[1] || 0))
+        .reduce((a, b) => a + b, 0);
+      let valid = 0;
+      for (const d of pair.arrays.disparity) if (!Number.isNaN(d)) valid += 1;
+      const fraction = valid / (width * height);
+      drawDepth();
+      $('downloads').hidden = false;
+      $('depth-status').dataset.valid = String(fraction);
+      $('depth-status').textContent =
+        `Depth map ${width} × ${height}: ${percent(fraction)} of the pixels matched, in ${fmt(elapsed, 3)} ms ` +
+        `(${fmt(server, 3)} ms of it on the server).`;
+    } catch (error) {
+      if (error.name === 'AbortError' || token !== depthToken) return;
+      $('depth-status').textContent = `No depth map: ${error.message}.`;
+    } finally {
+      if (token === depthToken) document.body.dataset.depth = 'done';
+    }
+  }
+
+  // Google's Turbo colour map (Mikhailov 2019), its published polynomial: t in [0, 1], blue
+  // to red, as the service's own preview.png.
+  const TURBO = [
+    [0.13572138, 4.6153926, -42.66032258, 132.13108234, -152.94239396, 59.28637943],
+    [0.09140261, 2.19418839, 4.84296658, -14.18503333, 4.27729857, 2.82956604],
+    [0.1066733, 12.64194608, -60.58204836, 110.36276771, -89.90310912, 27.34824973],
+  ];
+
+  function turbo(t) {
+    const x = Math.min(1, Math.max(0, t));
+    return TURBO.map((c) => {
+      const v = c[0] + x * (c[1] + x * (c[2] + x * (c[3] + x * (c[4] + x * c[5]))));
+      return Math.round(Math.min(1, Math.max(0, v)) * 255);
+    });
+  }
+
+  function clearDepth() {
+    for (const id of ['depth-canvas', 'blend-canvas']) {
+      const canvas = $(id);
+      canvas.getContext('2d').clearRect(0, 0, canvas.width, canvas.height);
+    }
+    const bar = $('colour-bar');
+    $('colour-bar-title').textContent = 'No depth map yet.';
+    bar.replaceChildren($('colour-bar-title'));
+    $('downloads').hidden = true;
+    delete $('depth-status').dataset.valid;
+  }
+
+  /** The near and far ends of the colours: the 1st and 99th percentiles of the valid values. */
+  function colourRange(values) {
+    const valid = values.filter((v) => Number.isFinite(v) && v > 0).sort((a, b) => a - b);
+    if (valid.length === 0) return null;
+    const at = (q) => valid[Math.min(valid.length - 1, Math.floor(q * valid.length))];
+    const [near, far] = [at(0.01), at(0.99)];
+    return far > near ? [near, far] : [near, near * 1.01 + 1e-9];
+  }
+
+  /** The depth map in Turbo on inverse depth, near warm, beside the left image and in the
+   * blend layer over it (where invalid pixels are clear). */
+  function drawDepth() {
+    const a = pair.arrays;
+    const values = a.depth ?? a.disparity.map((d) => (d > 0 ? 1 / d : NaN));
+    const range = colourRange(Array.from(values));
+    const depthImage = new ImageData(a.width, a.height);
+    const blendImage = new ImageData(a.width, a.height);
+    if (range) {
+      const [near, far] = range;
+      const span = 1 / near - 1 / far;
+      for (let i = 0; i < values.length; i += 1) {
+        const z = values[i];
+        const o = i * 4;
+        depthImage.data[o + 3] = 255;
+        if (!(z > 0)) continue;
+        const [r, g, b] = turbo((1 / z - 1 / far) / span);
+        depthImage.data.set([r, g, b], o);
+        blendImage.data.set([r, g, b, 255], o);
+      }
+    }
+    $('depth-canvas').getContext('2d').putImageData(depthImage, 0, 0);
+    $('blend-canvas').getContext('2d').putImageData(blendImage, 0, 0);
+    drawColourBar(range, a.depth ? pair.unit : null);
+    drawMarkers();
+  }
+
+  function drawColourBar(range, unit) {
+    const bar = $('colour-bar');
+    const title = $('colour-bar-title');
+    bar.replaceChildren(title);
+    if (!range || !unit) {
+      title.textContent = 'No depths: the rig is not valid.';
+      return;
+    }
+    const [near, far] = range;
+    const [left, right] = [10, 310];
+    const at = (z) => left + ((1 / z - 1 / far) / (1 / near - 1 / far)) * (right - left);
+    const gradient = svg('linearGradient', { id: 'turbo-gradient', x1: 0, x2: 1, y1: 0, y2: 0 });
+    for (let i = 0; i <= 16; i += 1) {
+      const [r, g, b] = turbo(i / 16);
+      gradient.append(svg('stop', { offset: i / 16, 'stop-color': `rgb(${r},${g},${b})` }));
+    }
+    const defs = svg('defs');
+    defs.append(gradient);
+    bar.append(defs, svg('rect', { x: left, y: 2, width: right - left, height: 12, fill: 'url(#turbo-gradient)' }));
+    for (const z of linearTicks(near, far, 5)) {
+      const x = at(z);
+      bar.append(svg('line', { class: 'tick', x1: x, x2: x, y1: 14, y2: 18 }));
+      bar.append(svg('text', { x, y: 28, 'text-anchor': 'middle' }, fmt(z, 4)));
+    }
+    bar.append(svg('text', { x: (left + right) / 2, y: 42, 'text-anchor': 'middle' }, `Depth (${unit}), far = blue, near = red`));
+    title.textContent = `Depth colour bar: ${fmt(far, 4)} ${unit} (blue) to ${fmt(near, 4)} ${unit} (red).`;
+    bar.dataset.unit = unit;
+  }
+
+  /** The image pixel under a pointer event in `frame`. */
+  function pixelAt(event, frame) {
+    const rect = frame.getBoundingClientRect();
+    const x = Math.floor(((event.clientX - rect.left) * pair.width) / rect.width);
+    const y = Math.floor(((event.clientY - rect.top) * pair.height) / rect.height);
+    return { x: Math.min(pair.width - 1, Math.max(0, x)), y: Math.min(pair.height - 1, Math.max(0, y)) };
+  }
+
+  /** The distance under the pointer, from the arrays fetched once. */
+  function showHover({ x, y }) {
+    const a = pair.arrays;
+    const hover = $('hover');
+    if (!a) return;
+    const i = y * a.width + x;
+    const d = a.disparity[i];
+    const z = a.depth ? a.depth[i] : NaN;
+    hover.dataset.x = String(x);
+    hover.dataset.y = String(y);
+    if (Number.isFinite(z)) {
+      hover.textContent = `(${x}, ${y}): ${fmt(z, 5)} ${pair.unit} ± ${fmt(a.depth_error[i], 3)} ${pair.unit}, d = ${fmt(d, 4)} px`;
+    } else if (Number.isFinite(d)) {
+      hover.textContent = `(${x}, ${y}): d = ${fmt(d, 4)} px, no depth (check the rig)`;
+    } else {
+      hover.textContent = `(${x}, ${y}): no reliable match here; click for /match's best guess and why`;
+    }
+  }
+
+  function overlayShapes(id, shapes) {
+    $(id).replaceChildren(...shapes);
+  }
+
+  /** Markers in image pixels: the match on the left image and the depth map, its partner and
+   * row (the epipolar line) on the right image, the box, and the keyboard's crosshair. */
+  function drawMarkers() {
+    const r = Math.max(4, Math.max(pair.width, pair.height) / 60);
+    const left = [];
+    const right = [];
+    const c = pair.crosshair;
+    const crosshair = svg('g', { class: 'crosshair', id: 'crosshair', 'data-x': c.x, 'data-y': c.y });
+    crosshair.append(
+      svg('line', { x1: c.x + 0.5, x2: c.x + 0.5, y1: c.y + 0.5 - 2 * r, y2: c.y + 0.5 + 2 * r }),
+      svg('line', { y1: c.y + 0.5, y2: c.y + 0.5, x1: c.x + 0.5 - 2 * r, x2: c.x + 0.5 + 2 * r }),
+    );
+    const box = pair.region ?? (pair.anchor ? boxOf(pair.anchor, c) : null);
+    const shapes = [];
+    if (box) {
+      const attributes = { x: box.x, y: box.y, width: box.width, height: box.height };
+      shapes.push(svg('rect', { ...attributes, class: 'box' }), svg('rect', { ...attributes, class: 'box-core', id: 'box' }));
+    }
+    const m = pair.match;
+    if (m) {
+      const at = { cx: m.x + 0.5, cy: m.y + 0.5, r };
+      shapes.push(svg('circle', { ...at, class: 'marker' }), svg('circle', { ...at, class: 'marker-core', id: 'left-marker' }));
+      right.push(svg('line', { class: 'epipolar', id: 'epipolar', x1: 0, x2: pair.width, y1: m.y + 0.5, y2: m.y + 0.5 }));
+      if (m.x_right !== undefined) {
+        const there = { cx: m.x_right + 0.5, cy: m.y + 0.5, r, 'data-x': m.x_right, 'data-y': m.y };
+        right.push(svg('circle', { ...there, class: 'marker' }), svg('circle', { ...there, class: 'marker-core', id: 'right-marker' }));
+      }
+    }
+    left.push(...shapes, crosshair);
+    overlayShapes('left-overlay', left);
+    overlayShapes('depth-overlay', shapes.map((s) => s.cloneNode(true)).map((s) => {
+      s.removeAttribute('id');
+      return s;
+    }));
+    overlayShapes('right-overlay', right);
+  }
+
+  function boxOf(a, b) {
+    const x = Math.min(a.x, b.x);
+    const y = Math.min(a.y, b.y);
+    return { x, y, width: Math.abs(a.x - b.x) + 1, height: Math.abs(a.y - b.y) + 1 };
+  }
+
+  const STATUS_MEANING = {
+    ok: 'a reliable match',
+    occluded: 'hidden from the right camera (the left-right check failed)',
+    ambiguous: 'several places in the right image match as well',
+    textureless: 'too little texture to match',
+    out_of_range: 'the match lies outside the disparity search range',
+    inconsistent: 'disagrees with its neighbours (often a depth edge)',
+    outside_image: 'outside the image',
+  };
+
+  function showMatch(m) {
+    const values = $('match-values');
+    if (m === null) {
+      $('match-summary').textContent = 'Click the left image (or press Enter on it) for a match.';
+      values.hidden = true;
+      return;
+    }
+    const meaning = STATUS_MEANING[m.status] ?? m.status;
+    $('match-summary').textContent = m.x_right !== undefined
+      ? `(${m.x}, ${m.y}) in the left image is at x = ${fmt(m.x_right, 7)} px in the right image: ${m.status}, ${meaning}.`
+      : `(${m.x}, ${m.y}): no match, ${m.status}: ${meaning}.`;
+    $('match-left').textContent = `(${m.x}, ${m.y}) px`;
+    $('match-x-right').textContent = m.x_right !== undefined ? `${fmt(m.x_right, 7)} px` : '–';
+    $('match-disparity').textContent = m.disparity_px !== undefined ? `${fmt(m.disparity_px, 6)} px` : '–';
+    const statusCell = $('match-status');
+    statusCell.textContent = m.status;
+    statusCell.className = m.status === 'ok' ? 'status-ok' : 'status-other';
+    $('match-confidence').textContent = fmt(m.confidence, 3);
+    values.hidden = false;
+  }
+
+  function showRegion(r) {
+    const summaryLine = $('region-summary');
+    if (r === null) {
+      summaryLine.textContent = 'Drag a box on the left image for its median distance.';
+      delete summaryLine.dataset.distance;
+      return;
+    }
+    const where = `Box at (${r.x}, ${r.y}), ${r.width} × ${r.height} px`;
+    if (r.status !== 'ok' || r.distance === undefined) {
+      summaryLine.textContent = `${where}: ${r.status === 'outside_image' ? 'outside the image' : 'no valid pixel'}.`;
+      delete summaryLine.dataset.distance;
+      return;
+    }
+    const u = r.unit;
+    summaryLine.dataset.distance = String(r.distance);
+    summaryLine.textContent =
+      `${where}: median ${fmt(r.distance, 5)} ${u} (p10–p90 ${fmt(r.distance_p10, 5)}–${fmt(r.distance_p90, 5)} ${u}), ` +
+      `± ${fmt(r.depth_error, 3)} ${u} at its centre, d = ${fmt(r.disparity_px, 5)} px, ${percent(r.valid_fraction)} of its pixels valid.`;
+  }
+
+  /** The lines "Copy results" adds in Images mode. */
+  function findings() {
+    const lines = [];
+    const m = pair.match;
+    if (m) {
+      lines.push(`Match: left (${m.x}, ${m.y}) px -> right x ${m.x_right !== undefined ? `${fmt(m.x_right, 7)} px` : 'none'}; ` +
+        `status ${m.status}; confidence ${fmt(m.confidence, 3)}`);
+    }
+    const r = pair.region;
+    if (r && r.distance !== undefined) {
+      lines.push(`Region: (${r.x}, ${r.y}) ${r.width} x ${r.height} px, median ${fmt(r.distance)} ${r.unit} ` +
+        `(p10 ${fmt(r.distance_p10)}, p90 ${fmt(r.distance_p90)}), ${percent(r.valid_fraction)} valid`);
+    }
+    return lines;
+  }
+
+  let findController = null;
+
+  /** Asks /match for the points or regions in `parts`. */
+  async function find(parts, what) {
+    const state = readForm();
+    const body = pairForm(state);
+    for (const [name, value] of Object.entries(parts)) body.append(name, JSON.stringify(value));
+    if (findController) findController.abort();
+    findController = new AbortController();
+    document.body.dataset.match = 'computing';
+    try {
+      const { response, errors } = await post('/match', rangeQuery(state), body, findController.signal);
+      clearImageErrors();
+      if (errors) {
+        showImageErrors(errors);
+        status.textContent = `No ${what}: the service refused the request.`;
+        return null;
+      }
+      return { answer: await response.json(), state };
+    } catch (error) {
+      if (error.name !== 'AbortError') status.textContent = `No ${what}: ${error.message}.`;
+      return null;
+    } finally {
+      document.body.dataset.match = 'done';
+    }
+  }
+
+  async function matchAt(x, y) {
+    if (!pair.files.left || !pair.files.right) return;
+    pair.crosshair = { x, y };
+    $('match-summary').textContent = `Matching (${x}, ${y})…`;
+    const found = await find({ points: [{ x, y }] }, 'match');
+    if (!found) return;
+    const m = found.answer.matches[0];
+    pair.match = m;
+    showMatch(m);
+    drawMarkers();
+    if (m.x_right !== undefined) {
+      $('x_left').value = String(m.x);
+      $('x_right').value = String(m.x_right);
+      $('y').value = String(m.y);
+    }
+    await compute(`Matched (${x}, ${y}): ${m.status}.`);
+  }
+
+  async function measureRegion(a, b) {
+    if (!pair.files.left || !pair.files.right) return;
+    const box = boxOf(a, b);
+    pair.region = box;
+    pair.anchor = null;
+    drawMarkers();
+    $('region-summary').textContent = `Measuring the box at (${box.x}, ${box.y}), ${box.width} × ${box.height} px…`;
+    const found = await find({ regions: [box] }, 'region');
+    if (!found) return;
+    pair.region = { ...found.answer.regions[0], unit: found.answer.unit };
+    showRegion(pair.region);
+    drawMarkers();
+    status.textContent = pair.region.distance !== undefined
+      ? `Region: median ${fmt(pair.region.distance)} ${pair.region.unit}.`
+      : 'Region: no distance.';
+  }
+
+  async function download(output) {
+    const line = $('download-status');
+    if (!pair.files.left || !pair.files.right) return;
+    line.textContent = `Preparing ${output}…`;
+    const state = readForm();
+    try {
+      const { response, errors } = await post('/depth-map', rangeQuery(state, output), pairForm(state));
+      if (errors) {
+        line.textContent = `No ${output}: ${errors.map((e) => `${e.field}: ${e.message}`).join(' ')}`;
+        return;
+      }
+      const blob = await response.blob();
+      const url = URL.createObjectURL(blob);
+      const link = document.createElement('a');
+      link.href = url;
+      link.download = output;
+      document.body.append(link);
+      link.click();
+      link.remove();
+      setTimeout(() => URL.revokeObjectURL(url), 60000);
+      line.textContent = `Saved ${output} (${fmt(blob.size / 1024, 3)} KiB).`;
+    } catch (error) {
+      line.textContent = `No ${output}: ${error.message}.`;
+    }
+  }
+
+  /** `/?mode=images&sample=1`: the project's own rendered pair and its rig, matched at once. */
+  async function openSample() {
+    try {
+      const about = await (await fetch('/sample/sample.json')).json();
+      const files = {};
+      for (const side of ['left', 'right']) {
+        const blob = await (await fetch(`/sample/${side}.png`)).blob();
+        files[side] = new File([blob], `sample-${side}.png`, { type: 'image/png' });
+        const transfer = new DataTransfer();
+        transfer.items.add(files[side]);
+        $(`${side}_image`).files = transfer.files;
+      }
+      const state = readForm();
+      Object.assign(state, {
+        focal_mode: 'px',
+        focal_shown: 'px',
+        focal: String(about.rig.focal_length_px),
+        baseline: String(about.rig.baseline),
+        unit: about.rig.unit,
+        image_width: String(about.rig.image_width),
+        image_height: String(about.rig.image_height),
+        max_disparity: String(about.max_disparity),
+        doffs: '',
+        cx: '',
+        cy: '',
+      });
+      writeForm(state);
+      sizeFromCalibration = false;
+      pair.sample = true;
+      $('depth-status').textContent = about.description;
+      await loadPair(files);
+    } catch (error) {
+      $('depth-status').textContent = `The sample could not be loaded (${error.message}).`;
+      compute();
+    }
+  }
+
+  // Wiring of the Images mode.
+
+  for (const name of ['numbers', 'images']) {
+    $(`mode-${name}`).addEventListener('click', (event) => {
+      if (event.ctrlKey || event.metaKey || event.shiftKey || event.button !== 0) return;
+      event.preventDefault();
+      setMode(name);
+      compute();
+      if (name === 'images' && pair.files.left && pair.files.right && !pair.arrays) requestDepth();
+    });
+  }
+  $('sample-link').addEventListener('click', (event) => {
+    if (event.ctrlKey || event.metaKey || event.shiftKey || event.button !== 0) return;
+    event.preventDefault();
+    openSample();
+  });
+  $('import-button').addEventListener('click', importCalibration);
+  $('calibration_file').addEventListener('change', async (event) => {
+    const file = event.target.files[0];
+    if (!file) return;
+    $('calibration_text').value = await file.text();
+    importCalibration();
+  });
+  for (const side of ['left', 'right']) {
+    $(`${side}_image`).addEventListener('change', (event) => {
+      pair.sample = false;
+      loadPair({ [side]: event.target.files[0] ?? null });
+    });
+  }
+  // Drops: one file on an input's box is that image; two files anywhere are the pair, in the
+  // order of their names (left before right, im0 before im1).
+  const imagesSection = $('images');
+  imagesSection.addEventListener('dragover', (event) => {
+    event.preventDefault();
+    const zone = event.target.closest('.drop');
+    for (const drop of imagesSection.querySelectorAll('.drop')) drop.classList.toggle('over', drop === zone);
+  });
+  imagesSection.addEventListener('dragleave', (event) => {
+    if (event.target.closest('.drop')) event.target.closest('.drop').classList.remove('over');
+  });
+  imagesSection.addEventListener('drop', (event) => {
+    event.preventDefault();
+    for (const drop of imagesSection.querySelectorAll('.drop')) drop.classList.remove('over');
+    const files = [...event.dataTransfer.files];
+    if (files.length === 0) return;
+    pair.sample = false;
+    if (files.length >= 2) {
+      const [left, right] = files.slice(0, 2).sort((a, b) => a.name.localeCompare(b.name));
+      loadPair({ left, right });
+      return;
+    }
+    const zone = event.target.closest('.drop');
+    const side = zone && zone.id === 'right_image-field' ? 'right' : 'left';
+    loadPair({ [side]: files[0] });
+  });
+  for (const name of ['min_disparity', 'max_disparity']) {
+    $(name).addEventListener('input', () => {
+      scheduleDepth();
+      schedule();
+    });
+  }
+  $('blend').addEventListener('change', () => {
+    const on = $('blend').checked;
+    $('views').dataset.blend = String(on);
+    $('opacity').disabled = !on;
+    $('blend-canvas').style.opacity = on ? String(Number($('opacity').value) / 100) : '0';
+  });
+  $('opacity').addEventListener('input', () => {
+    $('blend-canvas').style.opacity = String(Number($('opacity').value) / 100);
+  });
+  $('downloads').addEventListener('click', (event) => {
+    const button = event.target.closest('button[data-output]');
+    if (button) download(button.dataset.output);
+  });
+
+  // Pointing: hover reads the arrays; a click matches; a drag measures a box.
+  let drag = null;
+  for (const frame of [$('left-frame'), $('depth-frame')]) {
+    frame.addEventListener('pointerdown', (event) => {
+      if (!pair.arrays || event.button !== 0) return;
+      event.preventDefault();
+      frame.setPointerCapture(event.pointerId);
+      const start = pixelAt(event, frame);
+      drag = { frame, start, startX: event.clientX, startY: event.clientY, moved: false };
+    });
+    frame.addEventListener('pointermove', (event) => {
+      if (!pair.arrays) return;
+      const at = pixelAt(event, frame);
+      showHover(at);
+      if (drag && drag.frame === frame) {
+        if (Math.hypot(event.clientX - drag.startX, event.clientY - drag.startY) > 6) drag.moved = true;
+        if (drag.moved) {
+          pair.region = boxOf(drag.start, at);
+          drawMarkers();
+        }
+      }
+    });
+    frame.addEventListener('pointerup', (event) => {
+      if (!drag || drag.frame !== frame) return;
+      const done = drag;
+      drag = null;
+      if (done.moved) measureRegion(done.start, pixelAt(event, frame));
+      else matchAt(done.start.x, done.start.y);
+    });
+    frame.addEventListener('pointercancel', () => {
+      drag = null;
+    });
+  }
+  $('left-frame').addEventListener('keydown', (event) => {
+    if (!pair.arrays) return;
+    const step = event.shiftKey ? 10 : 1;
+    const moves = { ArrowLeft: [-step, 0], ArrowRight: [step, 0], ArrowUp: [0, -step], ArrowDown: [0, step] };
+    const c = pair.crosshair;
+    if (event.key in moves) {
+      event.preventDefault();
+      const [dx, dy] = moves[event.key];
+      pair.crosshair = {
+        x: Math.min(pair.width - 1, Math.max(0, c.x + dx)),
+        y: Math.min(pair.height - 1, Math.max(0, c.y + dy)),
+      };
+      showHover(pair.crosshair);
+      drawMarkers();
+    } else if (event.key === 'Enter') {
+      event.preventDefault();
+      if (pair.anchor) measureRegion(pair.anchor, c);
+      else matchAt(c.x, c.y);
+    } else if (event.key === ' ') {
+      event.preventDefault();
+      pair.anchor = pair.anchor ? null : { ...c };
+      pair.region = null;
+      status.textContent = pair.anchor
+        ? `Box corner at (${c.x}, ${c.y}): move to the opposite corner and press Enter.`
+        : 'Box cancelled.';
+      drawMarkers();
+    } else if (event.key === 'Escape') {
+      pair.anchor = null;
+      pair.region = null;
+      drawMarkers();
+    }
+  });
+  $('left-frame').addEventListener('focus', () => {
+    if (pair.arrays) showHover(pair.crosshair);
+  });
+
+  // ---------------------------------------------------------------------------------------
   // Wiring.
 
   form.addEventListener('input', (event) => {
-    if (event.target.matches('input[type="text"]')) schedule();
+    if (event.target.matches('input[type="text"]')) {
+      schedule();
+      scheduleDepth();
+    }
   });
   form.addEventListener('change', (event) => {
+    if (event.target.id === 'calibration_unit') return;
     if (event.target.tagName === 'SELECT') forgetUnknown(event.target);
     if (event.target.id === 'focal_mode' && event.target.value in FOCAL_MODES) showFocalMode(event.target.value);
     if (event.target.id === 'unit') showUnit(event.target.value);
-    if (event.target.tagName === 'SELECT') compute();
+    if (event.target.tagName === 'SELECT') {
+      compute();
+      scheduleDepth();
+    }
   });
   form.addEventListener('submit', (event) => {
     event.preventDefault();
@@ -740,10 +1624,16 @@
       : 'The address bar holds the permalink.';
   });
   window.addEventListener('popstate', () => {
+    setMode(modeFromQuery(location.search));
     writeForm(stateFromQuery(location.search));
     compute();
   });
 
+  setMode(modeFromQuery(location.search));
   writeForm(stateFromQuery(location.search));
-  compute();
+  if (mode === 'images' && new URLSearchParams(location.search).get('sample') === '1') {
+    openSample();
+  } else {
+    compute();
+  }
 })();

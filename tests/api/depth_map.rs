@@ -67,6 +67,25 @@ fn floats(bytes: &[u8]) -> Vec<f32> {
         .collect()
 }
 
+/// The entries of a stored (uncompressed) zip, as `numpy.savez` writes NPZ files: each local
+/// header's name and bytes, in order, until the central directory.
+fn npz_entries(zip: &[u8]) -> Vec<(String, Vec<u8>)> {
+    let u16_at = |i: usize| usize::from(u16::from_le_bytes([zip[i], zip[i + 1]]));
+    let u32_at = |i: usize| u32::from_le_bytes(zip[i..i + 4].try_into().unwrap()) as usize;
+    let mut entries = Vec::new();
+    let mut at = 0;
+    while u32_at(at) == 0x0403_4b50 {
+        assert_eq!(u16_at(at + 8), 0, "stored, not deflated");
+        let (size, name_len, extra) = (u32_at(at + 18), u16_at(at + 26), u16_at(at + 28));
+        let name = String::from_utf8(zip[at + 30..at + 30 + name_len].to_vec()).unwrap();
+        let data = at + 30 + name_len + extra;
+        entries.push((name, zip[data..data + size].to_vec()));
+        at = data + size;
+    }
+    assert_eq!(u32_at(at), 0x0201_4b50, "the central directory follows");
+    entries
+}
+
 /// The float32 data of an NPY file, after checking its header says `(H, W)` little-endian
 /// float32 in C order.
 fn npy(bytes: &[u8]) -> Vec<f32> {
@@ -152,6 +171,7 @@ async fn every_output_reads_back() {
         "disparity.npy",
         "disparity.png",
         "depth.npy",
+        "arrays.npz",
         "depth.png",
         "preview.png",
         "points.ply",
@@ -212,6 +232,21 @@ async fn every_output_reads_back() {
         } else {
             assert!((z - 50_000.0 / d).abs() <= 1e-3 * z);
             assert_eq!(f32::from(*mm), z.round());
+        }
+    }
+
+    // NPZ: the same disparity and depth arrays, and the depth error Z²·Δd / (f·B) with the
+    // default Δd = 0.5 px (f·B = 50 000).
+    let arrays = npz_entries(&files["arrays.npz"]);
+    let names: Vec<&str> = arrays.iter().map(|(n, _)| n.as_str()).collect();
+    assert_eq!(names, ["disparity.npy", "depth.npy", "depth_error.npy"]);
+    assert_eq!(arrays[0].1, files["disparity.npy"]);
+    assert_eq!(arrays[1].1, files["depth.npy"]);
+    for (e, z) in npy(&arrays[2].1).iter().zip(&depth) {
+        if z.is_nan() {
+            assert!(e.is_nan());
+        } else {
+            assert!((e - z * z * 0.5 / 50_000.0).abs() <= 1e-4 * e, "{e} at {z}");
         }
     }
 

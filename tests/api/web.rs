@@ -100,7 +100,9 @@ async fn every_link_on_the_page_is_local_and_answers() {
 }
 
 /// The script calls only the public API's documented routes: the page is a client of
-/// `/distance`, `/table` and `/chart-data`, with no physics or private endpoint of its own.
+/// `/distance`, `/table` and `/chart-data` (GET), `/depth-map`, `/match` and `/calibration`
+/// (POST), with no physics or private endpoint of its own; besides them it fetches only the
+/// sample's files.
 #[tokio::test]
 async fn the_page_calls_only_the_public_api() {
     // Arrange
@@ -108,24 +110,44 @@ async fn the_page_calls_only_the_public_api() {
     let script = app.get("/app.js").await.text().await.unwrap();
     let spec = ok_json(app.get("/openapi.json").await).await;
 
-    // Act: every path the script calls.
-    let called: BTreeSet<&str> = script
-        .match_indices("call('")
-        .map(|(at, needle)| {
-            let rest = &script[at + needle.len()..];
-            &rest[..rest.find('\'').expect("a closing quote")]
-        })
-        .collect();
+    // Act: every path the script calls, by how it calls it.
+    let paths = |needle: &str| -> BTreeSet<&str> {
+        script
+            .match_indices(needle)
+            .map(|(at, needle)| {
+                let rest = &script[at + needle.len()..];
+                &rest[..rest.find(['\'', '`']).expect("a closing quote")]
+            })
+            .collect()
+    };
+    let got = paths("call('");
+    let posted = paths("post('");
+    // `call` and `post` fetch their path; the rest is the calibration and the sample.
+    let fetched: BTreeSet<&str> = paths("fetch('").union(&paths("fetch(`")).copied().collect();
 
     // Assert
+    assert_eq!(got, BTreeSet::from(["/chart-data", "/distance", "/table"]));
+    assert_eq!(posted, BTreeSet::from(["/depth-map", "/match"]));
     assert_eq!(
-        called,
-        BTreeSet::from(["/chart-data", "/distance", "/table"])
+        fetched,
+        BTreeSet::from([
+            "${path}?${params}",
+            "${path}?${query}",
+            "/calibration",
+            "/sample/${side}.png",
+            "/sample/sample.json"
+        ])
     );
-    for path in called {
+    for path in got {
         assert!(
             spec["paths"][path]["get"].is_object(),
-            "{path} is in the spec"
+            "GET {path} is in the spec"
+        );
+    }
+    for path in ["/depth-map", "/match", "/calibration"] {
+        assert!(
+            spec["paths"][path]["post"].is_object(),
+            "POST {path} is in the spec"
         );
     }
     assert!(!script.contains("fetch('http") && !script.contains("fetch(\"http"));
@@ -227,4 +249,41 @@ async fn the_worked_examples_agree_with_the_api() {
     assert!(html.contains("≈ 10 145 px"));
     assert_close(number_at(&answers[2], "distance"), 40.0, "example 2");
     assert_eq!(answers[2]["warnings"][0]["code"], "negative_disparity");
+}
+
+/// The sample pair is the project's own render of its layered scene (320 × 240, served as PNG
+/// from the binary, no image file in it), with the rig and range the page loads; the service
+/// matches it to the scene's known disparities.
+#[tokio::test]
+async fn the_sample_pair_is_rendered_by_the_project() {
+    // Arrange
+    let app = spawn_app().await;
+    let (w, h) = stereo_distance::web::SAMPLE_SIZE;
+    let scene = stereo_distance::vision::synthetic::render(
+        &stereo_distance::vision::synthetic::layered(w, h),
+    );
+
+    // Act
+    let left = app.get("/sample/left.png").await;
+    let right = app.get("/sample/right.png").await;
+    let about = ok_json(app.get("/sample/sample.json").await).await;
+
+    // Assert: the images are the render, pixel for pixel.
+    for (response, rgb) in [(left, &scene.left_rgb), (right, &scene.right_rgb)] {
+        assert_eq!(response.status(), StatusCode::OK);
+        assert_eq!(response.headers()[CONTENT_TYPE], "image/png");
+        assert!(response.headers().contains_key(ETAG));
+        let image = image::load_from_memory(&response.bytes().await.unwrap())
+            .unwrap()
+            .into_rgb8();
+        assert_eq!(image.dimensions(), (w as u32, h as u32));
+        assert_eq!(image.as_raw(), rgb);
+    }
+    assert_eq!(about["rig"]["focal_length_px"], 400.0);
+    assert_eq!(about["rig"]["baseline"], 120.0);
+    assert_eq!(about["rig"]["unit"], "mm");
+    assert_eq!(about["rig"]["image_width"], w);
+    assert_eq!(about["max_disparity"], 48);
+    let largest = scene.truth.iter().copied().fold(0.0f32, f32::max);
+    assert!(largest < 48.0, "the range covers the scene: {largest}");
 }

@@ -11,6 +11,7 @@ use std::{
 
 use fantoccini::{
     Client, ClientBuilder, Locator,
+    actions::{InputSource, MouseActions, PointerAction},
     elements::Element,
     wd::{Capabilities, WebDriverCompatibleCommand},
 };
@@ -60,6 +61,28 @@ impl WebDriverCompatibleCommand for SetPermission {
     fn method_and_body(&self, _: &url::Url) -> (axum::http::Method, Option<String>) {
         let body = json!({"descriptor": {"name": self.0}, "state": "granted"});
         (axum::http::Method::POST, Some(body.to_string()))
+    }
+}
+
+/// chromedriver's log command (`se/log`, type `browser`): the console's messages since the
+/// last call, CSP violations and uncaught errors among them (level `SEVERE`).
+#[derive(Debug)]
+pub struct BrowserLog;
+
+impl WebDriverCompatibleCommand for BrowserLog {
+    fn endpoint(
+        &self,
+        base_url: &url::Url,
+        session_id: Option<&str>,
+    ) -> Result<url::Url, url::ParseError> {
+        base_url.join(&format!("session/{}/se/log", session_id.unwrap_or("")))
+    }
+
+    fn method_and_body(&self, _: &url::Url) -> (axum::http::Method, Option<String>) {
+        (
+            axum::http::Method::POST,
+            Some(json!({"type": "browser"}).to_string()),
+        )
     }
 }
 
@@ -131,6 +154,7 @@ impl Browser {
             options["mobileEmulation"] = mobile;
         }
         capabilities.insert("goog:chromeOptions".into(), options);
+        capabilities.insert("goog:loggingPrefs".into(), json!({"browser": "ALL"}));
         // chromedriver needs a moment to listen; retry the session until it does.
         let started = Instant::now();
         let client = loop {
@@ -275,6 +299,65 @@ impl Browser {
         std::fs::write(&path, png).expect("screenshot written");
         eprintln!("screenshot: {}", path.display());
         path
+    }
+
+    /// The console's errors since the last call (CSP violations, uncaught exceptions, failed
+    /// loads), as chromedriver reports them.
+    pub async fn console_errors(&self) -> Vec<String> {
+        let log = self
+            .client
+            .issue_cmd(BrowserLog)
+            .await
+            .expect("chromedriver's browser log");
+        log.as_array()
+            .expect("a list of entries")
+            .iter()
+            .filter(|entry| entry["level"] == "SEVERE")
+            .map(|entry| entry["message"].as_str().unwrap_or_default().to_owned())
+            .collect()
+    }
+
+    /// The paths of every request the page made (the page itself, its assets and each API
+    /// call), from the Resource Timing entries, with the origin each was sent to.
+    pub async fn requests(&self) -> Vec<(String, String)> {
+        let entries = self
+            .script(
+                "return [location.href, ...performance.getEntriesByType('resource').map(e => e.name)]                   .map(u => new URL(u)).map(u => [u.origin, u.pathname])",
+            )
+            .await;
+        serde_json::from_value(entries).expect("origin and path pairs")
+    }
+
+    /// Moves the pointer over the image pixel (`x`, `y`) (its centre) of the element `#id`,
+    /// whose canvas holds the image at its own size and is shown scaled to the element.
+    pub async fn pointer_to(&self, id: &str, x: f64, y: f64) -> PointerAction {
+        let geometry = self
+            .script(&format!(
+                "const f = document.getElementById('{id}'); const c = f.querySelector('canvas');                 const r = f.getBoundingClientRect();                 return [r.width, r.height, c.width, c.height];"
+            ))
+            .await;
+        let [width, height, w, h]: [f64; 4] =
+            serde_json::from_value(geometry).expect("the element's geometry");
+        PointerAction::MoveToElement {
+            element: self.find(id).await,
+            duration: None,
+            x: ((x + 0.5) * width / w - width / 2.0).round(),
+            y: ((y + 0.5) * height / h - height / 2.0).round(),
+        }
+    }
+
+    /// Performs pointer `steps` with the mouse, then releases everything.
+    pub async fn mouse(&self, steps: Vec<PointerAction>) {
+        let actions = steps
+            .into_iter()
+            .fold(MouseActions::new("mouse".to_owned()), |a, step| {
+                a.then(step)
+            });
+        self.client
+            .perform_actions(actions)
+            .await
+            .expect("pointer actions");
+        self.client.release_actions().await.expect("release");
     }
 
     /// No alert box is open: the page reports errors inline only.

@@ -8,6 +8,7 @@
 //! `target/tmp/e2e/` (`E2E_ARTIFACTS` overrides), and kept as the run's artifacts.
 
 mod harness;
+mod images;
 
 use fantoccini::{Locator, key::Key};
 use serde_json::json;

@@ -58,7 +58,8 @@ pub struct FileBody(pub Vec<u8>);
                    Outputs (`output`): `summary` (JSON), `disparity.pfm` (Middlebury PFM, \
                    invalid = +inf), `disparity.png` (KITTI 16-bit, round(d·256), 0 = \
                    invalid), `disparity.npy` and `depth.npy` (float32, invalid = NaN, depth in \
-                   the rig's unit), `depth.png` (16-bit millimetres, 0 = invalid), \
+                   the rig's unit), `arrays.npz` (NumPy's NPZ of `disparity` and, with a rig, \
+                   `depth` and `depth_error`), `depth.png` (16-bit millimetres, 0 = invalid), \
                    `preview.png` (Turbo colours, near = warm) and `points.ply` (binary PLY, \
                    x y z in the rig's unit in the left camera's frame, coloured). Every answer \
                    carries `Server-Timing` with the stages decode, cost, aggregate, refine and \
@@ -81,7 +82,8 @@ pub struct FileBody(pub Vec<u8>);
             (FileBody = "image/png"),
             (FileBody = "image/x-portable-floatmap"),
             (FileBody = "application/x-npy"),
-            (FileBody = "application/x-ply")
+            (FileBody = "application/x-ply"),
+            (FileBody = "application/zip")
          )),
         ImageErrors
     )
@@ -235,13 +237,14 @@ fn settings(q: &DepthMapQuery, ndisp: Option<u32>, problems: &mut FieldErrors) -
 /// The bytes a request holds at its peak: the decoded pair, the colours for a point cloud, the
 /// matcher's, and the answer's per-pixel buffers.
 fn bytes_needed(w: usize, h: usize, count: usize, output: DepthMapOutput) -> usize {
-    let colour = if output == DepthMapOutput::PointsPly {
-        3
-    } else {
-        0
+    // A point cloud's colours, or the NPZ's two more arrays and the archive's copy of all three.
+    let extra = match output {
+        DepthMapOutput::PointsPly => 3,
+        DepthMapOutput::ArraysNpz => 20,
+        _ => 0,
     };
     images::decoded_bytes(w, h)
-        .saturating_add(w.saturating_mul(h).saturating_mul(colour + 24))
+        .saturating_add(w.saturating_mul(h).saturating_mul(extra + 24))
         .saturating_add(vision::bytes_needed(w, h, count))
 }
 
@@ -313,6 +316,7 @@ fn compute(
         }
         DepthMapOutput::DisparityNpy => Ok(encode::npy(w, h, &map.data)),
         DepthMapOutput::DepthNpy => Ok(encode::npy(w, h, depth.as_deref().unwrap_or_default())),
+        DepthMapOutput::ArraysNpz => Ok(arrays(&map, depth.as_deref(), rig)),
         DepthMapOutput::DepthPng => {
             let unit = rig.map_or(LengthUnit::Millimetre, |r| r.unit);
             let mm: Vec<f32> = depth
@@ -382,6 +386,21 @@ fn depths(map: &Disparity, fb: f32, doffs: f32) -> Vec<f32> {
             }
         })
         .collect()
+}
+
+/// The NPZ: the disparity and, with a rig, the depth and its error ΔZ = Z²·Δd / (f·B).
+fn arrays(map: &Disparity, depth: Option<&[f32]>, rig: Option<crate::physics::Rig>) -> Vec<u8> {
+    let (w, h) = (map.width, map.height);
+    let mut entries = vec![("disparity", encode::npy(w, h, &map.data))];
+    if let (Some(depth), Some(rig)) = (depth, rig) {
+        let error: Vec<f32> = depth
+            .iter()
+            .map(|&z| rig.depth_error_at(f64::from(z)) as f32)
+            .collect();
+        entries.push(("depth", encode::npy(w, h, depth)));
+        entries.push(("depth_error", encode::npy(w, h, &error)));
+    }
+    encode::npz(&entries)
 }
 
 /// The valid values' min, median and max.

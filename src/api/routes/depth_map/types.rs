@@ -30,6 +30,10 @@ pub enum DepthMapOutput {
     /// NumPy float32 array (height × width) of depths Z in the rig's unit, invalid = NaN.
     #[serde(rename = "depth.npy")]
     DepthNpy,
+    /// NumPy's NPZ (`numpy.load(p)`): `disparity` and, with a rig, `depth` and `depth_error`
+    /// (ΔZ = Z²·Δd / (f·B) for the rig's `disparity_error_px`), float32, invalid = NaN.
+    #[serde(rename = "arrays.npz")]
+    ArraysNpz,
     /// 16-bit PNG of depth in millimetres (ROS `16UC1`), 0 = invalid or beyond 65.535 m.
     #[serde(rename = "depth.png")]
     DepthPng,
@@ -51,6 +55,7 @@ impl DepthMapOutput {
             DepthMapOutput::DisparityPng => "disparity.png",
             DepthMapOutput::DisparityNpy => "disparity.npy",
             DepthMapOutput::DepthNpy => "depth.npy",
+            DepthMapOutput::ArraysNpz => "arrays.npz",
             DepthMapOutput::DepthPng => "depth.png",
             DepthMapOutput::PreviewPng => "preview.png",
             DepthMapOutput::PointsPly => "points.ply",
@@ -67,6 +72,7 @@ impl DepthMapOutput {
             | DepthMapOutput::PreviewPng => "image/png",
             DepthMapOutput::DisparityNpy | DepthMapOutput::DepthNpy => NPY,
             DepthMapOutput::PointsPly => PLY,
+            DepthMapOutput::ArraysNpz => NPZ,
         }
     }
 
@@ -93,6 +99,7 @@ impl DepthMapOutput {
                 "application/json" => Some(DepthMapOutput::Summary),
                 PFM => Some(DepthMapOutput::DisparityPfm),
                 PLY => Some(DepthMapOutput::PointsPly),
+                NPZ => Some(DepthMapOutput::ArraysNpz),
                 _ => None,
             })
     }
@@ -102,6 +109,8 @@ impl DepthMapOutput {
 pub const PFM: &str = "image/x-portable-floatmap";
 /// The media type of an NPY answer.
 pub const NPY: &str = "application/x-npy";
+/// The media type of an NPZ answer (a zip archive of NPY files).
+pub const NPZ: &str = "application/zip";
 /// The media type of a PLY answer.
 pub const PLY: &str = "application/x-ply";
 

@@ -1,0 +1,608 @@
+//! The page's Images mode in headless Chromium: a pair uploaded through the file inputs, its
+//! depth map, hover, click and box on the project's synthetic scene (whose disparities are
+//! known exactly), a calibration imported, the sample link, the keyboard, and a phone screen.
+//! Every test also checks that the console holds no error (CSP violations included) and that
+//! the page asked only this origin's documented paths.
+
+use std::path::PathBuf;
+
+use fantoccini::actions::{MOUSE_BUTTON_LEFT, PointerAction};
+use fantoccini::key::Key;
+use serde_json::{Value, json};
+use stereo_distance::vision::{encode, synthetic};
+
+use crate::harness::{Browser, SetPermission};
+
+/// The uploaded scene's size: not the sample's, so the page must take the pair's own size.
+const W: usize = 400;
+const H: usize = 300;
+/// The rig the tests type in: f·B = 48 000 px·mm.
+const RIG: &str = "focal_mode=px&focal_length_px=400&baseline=120&unit=mm&max_disparity=48";
+const FB: f64 = 48_000.0;
+
+/// Writes the layered synthetic pair (`W` × `H`) as PNG files and returns their paths.
+fn synthetic_pair() -> [PathBuf; 2] {
+    let pair = synthetic::render(&synthetic::layered(W, H));
+    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("e2e-pair");
+    std::fs::create_dir_all(&dir).expect("a folder for the pair");
+    let left = dir.join("synthetic-left.png");
+    let right = dir.join("synthetic-right.png");
+    std::fs::write(&left, encode::png_rgb(W, H, &pair.left_rgb)).expect("left written");
+    std::fs::write(&right, encode::png_rgb(W, H, &pair.right_rgb)).expect("right written");
+    [left, right]
+}
+
+/// The first number in `text` after `after`.
+fn number_after(text: &str, after: &str) -> f64 {
+    let rest = &text[text
+        .find(after)
+        .unwrap_or_else(|| panic!("{after:?} in {text:?}"))
+        + after.len()..];
+    let number: String = rest
+        .trim_start()
+        .chars()
+        .take_while(|c| c.is_ascii_digit() || *c == '.' || *c == '-')
+        .collect();
+    number
+        .parse()
+        .unwrap_or_else(|_| panic!("a number after {after:?} in {text:?}"))
+}
+
+impl Browser {
+    /// Waits until the depth map has been fetched and drawn, and returns the share of valid
+    /// pixels the page reports.
+    async fn depth_map_shown(&self) -> f64 {
+        self.until("the depth map", || async {
+            let valid = self
+                .script(
+                    "return document.body.dataset.depth === 'done' ? \
+                       (document.getElementById('depth-status').dataset.valid ?? null) : null",
+                )
+                .await;
+            valid.as_str().and_then(|v| v.parse().ok())
+        })
+        .await
+    }
+
+    /// Waits until no `/match` request is in flight and the page has settled.
+    async fn found(&self) {
+        self.until("the match to come back", || async {
+            let state = self
+                .script("return document.body.dataset.match || ''")
+                .await;
+            (state == "done").then_some(())
+        })
+        .await;
+        self.settled().await;
+    }
+
+    async fn upload(&self, left: &PathBuf, right: &PathBuf) {
+        for (id, path) in [("left_image", left), ("right_image", right)] {
+            self.find(id)
+                .await
+                .send_keys(path.to_str().expect("a UTF-8 path"))
+                .await
+                .expect("a file chosen");
+        }
+    }
+
+    /// Waits until the last depth-map request has come back, whatever its answer.
+    async fn depth_map_shown_or_refused(&self) {
+        self.until("the depth-map request to end", || async {
+            let state = self
+                .script("return document.body.dataset.depth || ''")
+                .await;
+            (state == "done").then_some(())
+        })
+        .await;
+    }
+
+    /// No console error or CSP violation, and every request went to this origin and to a
+    /// path the service documents: its OpenAPI paths, the page's assets and the sample.
+    async fn assert_clean(&self) {
+        self.assert_clean_but(&[]).await;
+    }
+
+    /// As [`Browser::assert_clean`], except the console's note of each refused request with
+    /// one of the `statuses` the test provoked.
+    async fn assert_clean_but(&self, statuses: &[&str]) {
+        let errors: Vec<String> = self
+            .console_errors()
+            .await
+            .into_iter()
+            .filter(|e| {
+                !statuses
+                    .iter()
+                    .any(|s| e.contains(&format!("status of {s}")))
+            })
+            .collect();
+        assert!(errors.is_empty(), "console errors: {errors:?}");
+        let spec: Value = reqwest::get(format!("{}/openapi.json", self.base))
+            .await
+            .expect("the spec")
+            .json()
+            .await
+            .expect("JSON");
+        let mut documented: Vec<String> = spec["paths"]
+            .as_object()
+            .expect("paths")
+            .keys()
+            .cloned()
+            .collect();
+        documented.extend(
+            stereo_distance::web::ASSETS
+                .iter()
+                .map(|a| a.path.to_owned()),
+        );
+        documented.extend(
+            stereo_distance::web::SAMPLE_FILES
+                .iter()
+                .map(|p| (*p).to_owned()),
+        );
+        for (origin, path) in self.requests().await {
+            assert_eq!(origin, self.base, "a request to another origin: {path}");
+            assert!(
+                documented.contains(&path),
+                "an undocumented request: {path}"
+            );
+        }
+    }
+}
+
+/// Upload the synthetic pair through the file inputs: the depth map comes back and is drawn
+/// with a colour bar in mm; hovering over the box (d = 22 px) reads B·f/22 ± its error from
+/// the arrays; a click there matches at x − 22 in the right image, marked on its row, and the
+/// distance card reads B·f/22; a box dragged on the disc reads its median; "Copy results"
+/// includes the match.
+#[tokio::test]
+#[ignore = "needs chromium and chromedriver; .ci/run runs it"]
+async fn an_uploaded_pair_is_matched_hovered_clicked_and_boxed() {
+    // Arrange
+    let [left, right] = synthetic_pair();
+    let browser = Browser::start(1280, 1500).await;
+    browser.open(&format!("/?mode=images&{RIG}")).await;
+    assert_eq!(
+        browser.attr("mode-images", "aria-current").await.as_deref(),
+        Some("page")
+    );
+
+    // Act: choose both files.
+    browser.upload(&left, &right).await;
+    let valid = browser.depth_map_shown().await;
+
+    // Assert: the depth map, its size taken from the pair, its colour bar in mm.
+    assert!(valid > 0.85, "{valid} of the pixels valid");
+    assert_eq!(browser.value("image_width").await, W.to_string());
+    assert_eq!(browser.value("image_height").await, H.to_string());
+    let status = browser.text("depth-status").await;
+    assert!(
+        status.starts_with(&format!("Depth map {W} × {H}:")),
+        "{status}"
+    );
+    assert_eq!(
+        browser.attr("colour-bar", "data-unit").await.as_deref(),
+        Some("mm")
+    );
+
+    // Act: hover over the box, whose disparity is 22 px everywhere.
+    let over_box = browser.pointer_to("left-frame", 120.0, 100.0).await;
+    browser.mouse(vec![over_box]).await;
+    let hover = browser
+        .until("the hover read-out", || async {
+            let text = browser.text("hover").await;
+            text.starts_with('(').then_some(text)
+        })
+        .await;
+
+    // Assert: B·f/22 within 1 %, and its error Z²·Δd/(f·B) with Δd = 0.5 px.
+    let z = number_after(&hover, ":");
+    let truth = FB / 22.0;
+    assert!((z - truth).abs() < 0.01 * truth, "{hover}");
+    let error = number_after(&hover, "±");
+    assert!(
+        (error - truth * truth * 0.5 / FB).abs() < 0.02 * error,
+        "{hover}"
+    );
+    assert!(hover.contains(" mm ± "), "{hover}");
+
+    // Act: click a pixel of the box.
+    let click_at = browser.pointer_to("left-frame", 120.0, 150.0).await;
+    browser
+        .mouse(vec![
+            click_at,
+            PointerAction::Down {
+                button: MOUSE_BUTTON_LEFT,
+            },
+            PointerAction::Up {
+                button: MOUSE_BUTTON_LEFT,
+            },
+        ])
+        .await;
+    browser.found().await;
+
+    // Assert: the match is ok, 22 px to the left on the same row, marked there and on its
+    // row; the distance card reads B·f/22 from /distance.
+    assert_eq!(browser.text("match-status").await, "ok");
+    let x = browser
+        .script("return Number(document.getElementById('left-marker').getAttribute('cx')) - 0.5")
+        .await
+        .as_f64()
+        .expect("the left marker");
+    assert!((x - 120.0).abs() <= 1.0, "clicked pixel {x}");
+    let marker = browser
+        .script(
+            "const m = document.getElementById('right-marker'); \
+             const e = document.getElementById('epipolar'); \
+             return [Number(m.dataset.x), Number(m.dataset.y), Number(e.getAttribute('y1'))]",
+        )
+        .await;
+    let [x_right, y, row]: [f64; 3] = serde_json::from_value(marker).expect("the right marker");
+    assert!(
+        (x - x_right - 22.0).abs() < 0.25,
+        "x_right {x_right} for x {x}"
+    );
+    assert!(
+        (y - 150.0).abs() <= 1.0 && row == y + 0.5,
+        "row {row}, y {y}"
+    );
+    let distance = browser.text("distance").await;
+    assert!(distance.ends_with(" mm"), "{distance}");
+    let z = number_after(&distance, "");
+    assert!((z - truth).abs() < 0.005 * truth, "{distance}");
+    let confidence: f64 = browser
+        .text("match-confidence")
+        .await
+        .parse()
+        .expect("a number");
+    assert!(confidence > 0.5, "{confidence}");
+    assert!(browser.text("range").await.ends_with(" mm"));
+
+    // Act: drag a box on the disc, d = 30 − 4x/400: 27.2 px at its centre x = 280.
+    let from = browser.pointer_to("left-frame", 265.0, 135.0).await;
+    let to = browser.pointer_to("left-frame", 295.0, 165.0).await;
+    browser
+        .mouse(vec![
+            from,
+            PointerAction::Down {
+                button: MOUSE_BUTTON_LEFT,
+            },
+            to,
+            PointerAction::Up {
+                button: MOUSE_BUTTON_LEFT,
+            },
+        ])
+        .await;
+    browser.found().await;
+
+    // Assert
+    let region = browser
+        .until("the region's distance", || async {
+            browser.attr("region-summary", "data-distance").await
+        })
+        .await;
+    let median: f64 = region.parse().expect("a number");
+    let disc = FB / 27.2;
+    assert!(
+        (median - disc).abs() < 0.01 * disc,
+        "median {median}, truth {disc}"
+    );
+    let summary = browser.text("region-summary").await;
+    assert!(summary.contains("p10–p90"), "{summary}");
+    let width: f64 = browser
+        .script("return Number(document.getElementById('box').getAttribute('width'))")
+        .await
+        .as_f64()
+        .expect("the box");
+    assert!((width - 31.0).abs() <= 2.0, "box width {width}");
+
+    // Act / Assert: "Copy results" includes the match and the region.
+    browser
+        .client
+        .issue_cmd(SetPermission("clipboard-read"))
+        .await
+        .expect("clipboard permission");
+    browser.find("copy").await.click().await.expect("click");
+    browser
+        .until_text("status", "Copied the results to the clipboard.")
+        .await;
+    let copied = browser
+        .client
+        .execute_async(
+            "const done = arguments[arguments.length - 1];\
+             navigator.clipboard.readText().then(done, e => done('error: ' + e));",
+            vec![],
+        )
+        .await
+        .expect("clipboard read");
+    let copied = copied.as_str().expect("text");
+    assert!(copied.contains("Match: left ("), "{copied}");
+    assert!(copied.contains("status ok"), "{copied}");
+    assert!(copied.contains("Region: ("), "{copied}");
+    assert!(copied.contains("mode=images"), "{copied}");
+
+    // Act / Assert: a download is the service's file, saved under its name.
+    browser
+        .client
+        .find(fantoccini::Locator::Css("button[data-output='points.ply']"))
+        .await
+        .expect("the PLY button")
+        .click()
+        .await
+        .expect("click");
+    let saved = browser
+        .until("the download", || async {
+            let text = browser.text("download-status").await;
+            text.starts_with("Saved").then_some(text)
+        })
+        .await;
+    assert!(saved.starts_with("Saved points.ply ("), "{saved}");
+
+    browser.assert_clean().await;
+    browser.assert_no_alert().await;
+    browser.screenshot("images-upload.png").await;
+    browser.close().await;
+}
+
+/// A pair of two sizes shows the API's error next to the right image's input, and a file
+/// that is not an image shows it next to the left one's.
+#[tokio::test]
+#[ignore = "needs chromium and chromedriver; .ci/run runs it"]
+async fn a_wrong_pair_is_refused_next_to_the_file_input() {
+    // Arrange
+    let [left, _] = synthetic_pair();
+    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("e2e-pair");
+    let small = synthetic::render(&synthetic::layered(200, 150));
+    let right = dir.join("small-right.png");
+    std::fs::write(&right, encode::png_rgb(200, 150, &small.right_rgb)).expect("written");
+    let text = dir.join("notes.png");
+    std::fs::write(&text, "not an image at all").expect("written");
+    let browser = Browser::start(1280, 1500).await;
+    browser.open(&format!("/?mode=images&{RIG}")).await;
+
+    // Act
+    browser.upload(&left, &right).await;
+    browser.depth_map_shown_or_refused().await;
+
+    // Assert
+    browser
+        .until("the right image's error", || async {
+            let hidden = browser.attr("right_image-error", "hidden").await;
+            hidden.is_none().then_some(())
+        })
+        .await;
+    let message = browser.text("right_image-error").await;
+    assert!(
+        message.contains("400") && message.contains("200"),
+        "{message}"
+    );
+    assert_eq!(
+        browser.attr("right_image", "aria-invalid").await.as_deref(),
+        Some("true")
+    );
+
+    // Act: a text file as the left image.
+    browser
+        .find("left_image")
+        .await
+        .send_keys(text.to_str().unwrap())
+        .await
+        .expect("chosen");
+    browser.depth_map_shown_or_refused().await;
+
+    // Assert
+    let message = browser
+        .until("the left image's error", || async {
+            let text = browser.text("left_image-error").await;
+            (!text.is_empty()).then_some(text)
+        })
+        .await;
+    assert!(message.contains("image"), "{message}");
+    browser.assert_clean_but(&["422", "413"]).await;
+    browser.close().await;
+}
+
+/// Importing Middlebury's `calib.txt` (Motorcycle's, full size) fills f, B, doffs, the
+/// principal point, the size and the search range, says it was read as Middlebury, and the
+/// Numbers mode computes with it; a damaged file shows the line the service names.
+#[tokio::test]
+#[ignore = "needs chromium and chromedriver; .ci/run runs it"]
+async fn an_imported_middlebury_calibration_fills_the_fields() {
+    // Arrange
+    let browser = Browser::at_defaults().await;
+    let calib = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/data/calibration/middlebury_motorcycle_calib.txt");
+    browser
+        .find("import")
+        .await
+        .click()
+        .await
+        .expect("open the import box");
+
+    // Act
+    browser
+        .find("calibration_file")
+        .await
+        .send_keys(calib.to_str().unwrap())
+        .await
+        .expect("a file chosen");
+    browser
+        .until("the import", || async {
+            let format = browser.attr("import-status", "data-format").await;
+            format.filter(|f| f == "middlebury")
+        })
+        .await;
+    browser.settled().await;
+
+    // Assert
+    for (id, value) in [
+        ("focal", "3979.911"),
+        ("baseline", "193.001"),
+        ("doffs", "124.343"),
+        ("cx", "1244.772"),
+        ("cy", "1019.507"),
+        ("image_width", "2964"),
+        ("image_height", "2000"),
+        ("max_disparity", "270"),
+    ] {
+        assert_eq!(browser.value(id).await, value, "#{id}");
+    }
+    assert_eq!(browser.value("focal_mode").await, "px");
+    let status = browser.text("import-status").await;
+    assert!(
+        status.starts_with("Read as a Middlebury calibration"),
+        "{status}"
+    );
+    // x_left 400, x_right 350: d = 50, Z = 193.001 × 3979.911 / (50 + 124.343).
+    let expected = 193.001 * 3979.911 / (50.0 + 124.343);
+    let distance = browser.text("distance").await;
+    let z = number_after(&distance, "");
+    assert!((z - expected).abs() < 1e-3 * expected, "{distance}");
+
+    // Act: a damaged file.
+    let text = browser.find("calibration_text").await;
+    text.clear().await.expect("clear");
+    text.send_keys("cam0=[3979.911 0 1244.772; 0 3979.911 1019.507; 0 0 1]\ncam1=[3979.911 0]\n")
+        .await
+        .expect("typed");
+    browser
+        .find("import-button")
+        .await
+        .click()
+        .await
+        .expect("click");
+    let errors = browser
+        .until("the import's error", || async {
+            let text = browser.text("import-errors").await;
+            (!text.is_empty()).then_some(text)
+        })
+        .await;
+
+    // Assert: the line is named, next to the import box; the fields keep the last rig.
+    assert!(errors.contains("text: line 2"), "{errors}");
+    assert_eq!(browser.value("focal").await, "3979.911");
+    browser.assert_clean_but(&["422"]).await;
+    browser.close().await;
+}
+
+/// `/?mode=images&sample=1` opens with the sample pair, its rig and its depth map; from the
+/// keyboard the crosshair moves and Enter matches, and Space, arrows and Enter measure a box.
+#[tokio::test]
+#[ignore = "needs chromium and chromedriver; .ci/run runs it"]
+async fn the_sample_link_opens_with_a_depth_map_and_works_from_the_keyboard() {
+    // Arrange / Act
+    let browser = Browser::start(1280, 1500).await;
+    browser.open("/?mode=images&sample=1").await;
+    let valid = browser.depth_map_shown().await;
+
+    // Assert: the sample's rig and its depth map.
+    assert!(valid > 0.85, "{valid}");
+    assert_eq!(browser.value("focal").await, "400");
+    assert_eq!(browser.value("baseline").await, "120");
+    assert_eq!(browser.value("max_disparity").await, "48");
+    let url = browser.client.current_url().await.expect("url");
+    assert!(url.as_str().contains("sample=1"), "{url}");
+    let bar = browser.text("colour-bar").await;
+    assert!(bar.contains("Depth (mm)"), "{bar}");
+
+    // Act / Assert: blended over the left image, at the slider's opacity.
+    browser.find("blend").await.click().await.expect("click");
+    let blend = browser
+        .script(
+            "return [document.getElementById('views').dataset.blend,                      document.getElementById('blend-canvas').style.opacity,                      getComputedStyle(document.getElementById('depth-frame')).display]",
+        )
+        .await;
+    assert_eq!(blend, json!(["true", "0.6", "none"]));
+    browser.find("blend").await.click().await.expect("click");
+
+    // Act: focus the left image, move the crosshair from the centre (160, 120) onto the box
+    // (x 48–144: d = 22), press Enter.
+    let frame = browser.find("left-frame").await;
+    frame.click().await.ok();
+    browser.found().await;
+    let shift_left = format!("{}{}", char::from(Key::Shift), char::from(Key::Left));
+    for _ in 0..6 {
+        frame.send_keys(&shift_left).await.expect("keys");
+    }
+    let crosshair = browser
+        .script("const c = document.getElementById('crosshair'); return [Number(c.dataset.x), Number(c.dataset.y)]")
+        .await;
+    let [cx, _]: [f64; 2] = serde_json::from_value(crosshair).expect("the crosshair");
+    frame
+        .send_keys(&char::from(Key::Enter).to_string())
+        .await
+        .expect("Enter");
+    browser.found().await;
+
+    // Assert: matched at the crosshair, 22 px to the left.
+    let marker = browser
+        .script("const m = document.getElementById('right-marker'); return [Number(m.dataset.x)]")
+        .await;
+    let [x_right]: [f64; 1] = serde_json::from_value(marker).expect("the right marker");
+    assert!((cx - x_right - 22.0).abs() < 0.25, "{cx} → {x_right}");
+    let z = number_after(&browser.text("distance").await, "");
+    assert!((z - FB / 22.0).abs() < 0.005 * FB / 22.0, "{z}");
+
+    // Act: a box from the keyboard: Space, 8 px right and down, Enter.
+    frame.send_keys(" ").await.expect("Space");
+    for _ in 0..8 {
+        frame
+            .send_keys(&format!(
+                "{}{}",
+                char::from(Key::Right),
+                char::from(Key::Down)
+            ))
+            .await
+            .expect("keys");
+    }
+    frame
+        .send_keys(&char::from(Key::Enter).to_string())
+        .await
+        .expect("Enter");
+    browser.found().await;
+    let median: f64 = browser
+        .until("the region", || async {
+            browser.attr("region-summary", "data-distance").await
+        })
+        .await
+        .parse()
+        .expect("a number");
+    assert!((median - FB / 22.0).abs() < 0.01 * FB / 22.0, "{median}");
+
+    browser.assert_clean().await;
+    browser.screenshot("images.png").await;
+    browser.close().await;
+}
+
+/// On a 390 px phone the sample's images stack, one above the other, and nothing scrolls
+/// sideways.
+#[tokio::test]
+#[ignore = "needs chromium and chromedriver; .ci/run runs it"]
+async fn the_images_stack_on_a_phone() {
+    // Arrange / Act
+    let browser = Browser::phone(390, 844).await;
+    browser.open("/?mode=images&sample=1").await;
+    browser.depth_map_shown().await;
+
+    // Assert
+    let overflow = browser
+        .script("return document.documentElement.scrollWidth - window.innerWidth")
+        .await;
+    assert!(
+        overflow.as_i64().is_some_and(|o| o <= 0),
+        "scrolls sideways by {overflow}"
+    );
+    let stacked = browser
+        .script(
+            "const r = ['left-frame', 'depth-frame', 'right-frame']\
+               .map(id => document.getElementById(id).getBoundingClientRect());\
+             return r[0].bottom <= r[1].top && r[1].bottom <= r[2].top && r.every(b => b.right <= 390)",
+        )
+        .await;
+    assert_eq!(stacked, json!(true), "the images stack within the screen");
+    browser.assert_clean().await;
+    browser
+        .script("document.getElementById('views').scrollIntoView()")
+        .await;
+    browser.screenshot("images-phone.png").await;
+    browser.close().await;
+}
