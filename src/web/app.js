@@ -420,8 +420,8 @@
     const short = $('match-distance');
     short.hidden = !(mode === 'images' && answer !== null && pair.match !== null);
     if (!short.hidden) {
-      short.textContent = `Distance ${fmt(answer.distance)} ${answer.unit} ± ${fmt(answer.depth_error)} ${answer.unit}, ` +
-        `range ${fmt(answer.range)} ${answer.unit} (the Distance card below has the rest).`;
+      short.textContent = `Distance ${fmt(answer.distance, 5)} ${answer.unit} ± ${fmt(answer.depth_error, 3)} ${answer.unit}, ` +
+        `range ${fmt(answer.range, 5)} ${answer.unit} (the Distance card below has the rest).`;
     }
     results.classList.toggle('invalid', answer === null);
     const mini = $('mini-result');
@@ -893,6 +893,9 @@
 
   function showImageErrors(errors) {
     const general = [];
+    // The rig's members are marked on their fields under Inputs too.
+    const rig = errors.filter(({ field }) => field.startsWith('rig.'));
+    if (rig.length > 0) showErrors(rig, readForm());
     for (const { field, message } of errors) {
       const input = IMAGE_INPUTS[field];
       if (input) {
@@ -1161,8 +1164,12 @@
     const defs = svg('defs');
     defs.append(gradient);
     bar.append(defs, svg('rect', { x: left, y: 2, width: right - left, height: 12, fill: 'url(#turbo-gradient)' }));
-    for (const z of linearTicks(near, far, 5)) {
+    // Inverse depth crowds the far ticks together: a label needs 34 units of its own.
+    let last = -Infinity;
+    for (const z of linearTicks(near, far, 7).sort((p, q) => at(p) - at(q))) {
       const x = at(z);
+      if (x - last < 34) continue;
+      last = x;
       bar.append(svg('line', { class: 'tick', x1: x, x2: x, y1: 14, y2: 18 }));
       bar.append(svg('text', { x, y: 28, 'text-anchor': 'middle' }, fmt(z, 4)));
     }
