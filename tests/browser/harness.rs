@@ -360,6 +360,27 @@ impl Browser {
         self.client.release_actions().await.expect("release");
     }
 
+    /// Clicks "Copy results" (with the clipboard allowed) and returns what it put there.
+    pub async fn copy_results(&self) -> String {
+        self.client
+            .issue_cmd(SetPermission("clipboard-read"))
+            .await
+            .expect("clipboard permission");
+        self.find("copy").await.click().await.expect("click");
+        self.until_text("status", "Copied the results to the clipboard.")
+            .await;
+        let copied = self
+            .client
+            .execute_async(
+                "const done = arguments[arguments.length - 1];\
+                 navigator.clipboard.readText().then(done, e => done('error: ' + e));",
+                vec![],
+            )
+            .await
+            .expect("clipboard read");
+        copied.as_str().expect("text").to_owned()
+    }
+
     /// No alert box is open: the page reports errors inline only.
     pub async fn assert_no_alert(&self) {
         assert!(

@@ -11,7 +11,7 @@ use fantoccini::key::Key;
 use serde_json::{Value, json};
 use stereo_distance::vision::{encode, synthetic};
 
-use crate::harness::{Browser, SetPermission};
+use crate::harness::Browser;
 
 /// The uploaded scene's size: not the sample's, so the page must take the pair's own size.
 const W: usize = 400;
@@ -296,25 +296,8 @@ async fn an_uploaded_pair_is_matched_hovered_clicked_and_boxed() {
     assert!((width - 31.0).abs() <= 2.0, "box width {width}");
 
     // Act / Assert: "Copy results" includes the match and the region.
-    browser
-        .client
-        .issue_cmd(SetPermission("clipboard-read"))
-        .await
-        .expect("clipboard permission");
-    browser.find("copy").await.click().await.expect("click");
-    browser
-        .until_text("status", "Copied the results to the clipboard.")
-        .await;
-    let copied = browser
-        .client
-        .execute_async(
-            "const done = arguments[arguments.length - 1];\
-             navigator.clipboard.readText().then(done, e => done('error: ' + e));",
-            vec![],
-        )
-        .await
-        .expect("clipboard read");
-    let copied = copied.as_str().expect("text");
+    let copied = browser.copy_results().await;
+    let copied = copied.as_str();
     assert!(copied.contains("Match: left ("), "{copied}");
     assert!(copied.contains("status ok"), "{copied}");
     assert!(copied.contains("Region: ("), "{copied}");

@@ -13,7 +13,7 @@ mod images;
 use fantoccini::{Locator, key::Key};
 use serde_json::json;
 
-use harness::{Browser, SetPermission, vertices};
+use harness::{Browser, vertices};
 
 /// The seed's example 1, with f read as pixels, as the form holds it.
 const EXAMPLE_ONE: [(&str, &str); 6] = [
@@ -319,25 +319,8 @@ async fn the_table_downloads_as_csv_and_results_copy_as_text() {
     assert_eq!(lines.len(), 6, "a header and 5 rows: {body}");
 
     // Act / Assert: Copy results.
-    browser
-        .client
-        .issue_cmd(SetPermission("clipboard-read"))
-        .await
-        .expect("clipboard permission");
-    browser.find("copy").await.click().await.expect("click");
-    browser
-        .until_text("status", "Copied the results to the clipboard.")
-        .await;
-    let copied = browser
-        .client
-        .execute_async(
-            "const done = arguments[arguments.length - 1];\
-             navigator.clipboard.readText().then(done, e => done('error: ' + e));",
-            vec![],
-        )
-        .await
-        .expect("clipboard read");
-    let copied = copied.as_str().expect("text");
+    let copied = browser.copy_results().await;
+    let copied = copied.as_str();
     assert!(
         copied.starts_with("Stereo distance: 105 mm ± 1.05 mm"),
         "{copied}"
