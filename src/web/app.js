@@ -731,9 +731,25 @@
   }
 
   function reset() {
-    writeForm(DEFAULTS);
+    const state = { ...DEFAULTS };
+    // A pair on the page keeps its own size, so that it can still be matched.
+    if (pair.bitmaps.left) {
+      state.image_width = String(pair.width);
+      state.image_height = String(pair.height);
+    }
+    sizeFromCalibration = false;
+    // The last click's match was made with the old rig and filled the feature's fields, which
+    // the defaults replace: it is forgotten with them.
+    pair.match = null;
+    pair.region = null;
+    pair.anchor = null;
+    showMatch(null);
+    showRegion(null);
+    drawMarkers();
+    writeForm(state);
     $('optional').open = false;
     compute('Defaults restored.');
+    scheduleDepth();
   }
 
   // ---------------------------------------------------------------------------------------
@@ -1111,7 +1127,11 @@
 
   /** The near and far ends of the colours: the 1st and 99th percentiles of the valid values. */
   function colourRange(values) {
-    const valid = values.filter((v) => Number.isFinite(v) && v > 0).sort((a, b) => a - b);
+    // Percentiles from at most about 200 000 pixels, evenly spread: enough for a colour scale.
+    const stride = Math.max(1, Math.floor(values.length / 200000));
+    const valid = [];
+    for (let i = 0; i < values.length; i += stride) if (Number.isFinite(values[i]) && values[i] > 0) valid.push(values[i]);
+    valid.sort((a, b) => a - b);
     if (valid.length === 0) return null;
     const at = (q) => valid[Math.min(valid.length - 1, Math.floor(q * valid.length))];
     const [near, far] = [at(0.01), at(0.99)];
@@ -1123,7 +1143,7 @@
   function drawDepth() {
     const a = pair.arrays;
     const values = a.depth ?? a.disparity.map((d) => (d > 0 ? 1 / d : NaN));
-    const range = colourRange(Array.from(values));
+    const range = colourRange(values);
     const depthImage = new ImageData(a.width, a.height);
     const blendImage = new ImageData(a.width, a.height);
     if (range) {

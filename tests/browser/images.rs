@@ -467,8 +467,10 @@ async fn an_imported_middlebury_calibration_fills_the_fields() {
     browser.close().await;
 }
 
-/// `/?mode=images&sample=1` opens with the sample pair, its rig and its depth map; from the
-/// keyboard the crosshair moves and Enter matches, and Space, arrows and Enter measure a box.
+/// `/?mode=images&sample=1` opens with the sample pair, its rig and its depth map, which
+/// blends over the left image; from the keyboard the crosshair moves and Enter matches, and
+/// Space, arrows and Enter measure a box; "Reset defaults" keeps the pair's size; and the
+/// console check used everywhere does catch a CSP violation.
 #[tokio::test]
 #[ignore = "needs chromium and chromedriver; .ci/run runs it"]
 async fn the_sample_link_opens_with_a_depth_map_and_works_from_the_keyboard() {
@@ -550,9 +552,36 @@ async fn the_sample_link_opens_with_a_depth_map_and_works_from_the_keyboard() {
         .parse()
         .expect("a number");
     assert!((median - FB / 22.0).abs() < 0.01 * FB / 22.0, "{median}");
-
-    browser.assert_clean().await;
     browser.screenshot("images.png").await;
+
+    // Act / Assert: "Reset defaults" restores the calculator's rig but keeps the pair's size,
+    // so the pair is matched again (with no error) rather than refused.
+    browser.find("reset").await.click().await.expect("click");
+    browser.settled().await;
+    assert_eq!(browser.value("focal").await, "35");
+    assert_eq!(browser.value("image_width").await, "320");
+    assert_eq!(browser.value("image_height").await, "240");
+    browser.depth_map_shown().await;
+    browser.assert_clean().await;
+
+    // The console check sees a CSP violation: an image from another origin is refused and
+    // reported.
+    browser
+        .script(
+            "const i = document.createElement('img'); i.src = 'http://192.0.2.1/x.png'; \
+             document.body.append(i);",
+        )
+        .await;
+    let errors = browser
+        .until("the CSP violation in the console", || async {
+            let errors = browser.console_errors().await;
+            (!errors.is_empty()).then_some(errors)
+        })
+        .await;
+    assert!(
+        errors.iter().any(|e| e.contains("Content Security Policy")),
+        "{errors:?}"
+    );
     browser.close().await;
 }
 
