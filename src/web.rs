@@ -162,9 +162,22 @@ pub const SAMPLE_RIG: (f64, f64) = (400.0, 120.0);
 /// The sample's search range, above the scene's largest disparity.
 pub const SAMPLE_MAX_DISPARITY: u32 = 48;
 
-/// The sample's files, in [`SAMPLE_FILES`] order, rendered once per process.
+static SAMPLE: OnceLock<[Served; 3]> = OnceLock::new();
+
+/// The sample's file `i` (in [`SAMPLE_FILES`] order). The first request renders the pair once
+/// per process, on a blocking thread, so the runtime's workers never wait on it.
+async fn sample_file(i: usize, headers: HeaderMap) -> Response {
+    if let Some(files) = SAMPLE.get() {
+        return files[i].answer(&headers);
+    }
+    match tokio::task::spawn_blocking(sample).await {
+        Ok(files) => files[i].answer(&headers),
+        Err(_) => StatusCode::INTERNAL_SERVER_ERROR.into_response(),
+    }
+}
+
+/// The sample's files, rendered on first use.
 fn sample() -> &'static [Served; 3] {
-    static SAMPLE: OnceLock<[Served; 3]> = OnceLock::new();
     SAMPLE.get_or_init(|| {
         let (w, h) = SAMPLE_SIZE;
         let pair = synthetic::render(&synthetic::layered(w, h));
@@ -204,10 +217,7 @@ pub fn router() -> Router {
         .into_iter()
         .enumerate()
         .fold(router, |router, (i, path)| {
-            router.route(
-                path,
-                get(move |headers: HeaderMap| async move { sample()[i].answer(&headers) }),
-            )
+            router.route(path, get(move |headers: HeaderMap| sample_file(i, headers)))
         })
 }
 

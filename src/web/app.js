@@ -1037,6 +1037,7 @@
   function scheduleDepth() {
     clearTimeout(depthDebounce);
     if (mode !== 'images' || !pair.files.left || !pair.files.right) return;
+    document.body.dataset.depth = 'pending';
     depthDebounce = setTimeout(() => requestDepth(), DEBOUNCE_MS);
   }
 

@@ -252,9 +252,15 @@ impl Browser {
 
     /// Waits until the page is not computing and no typing is pending.
     pub async fn settled(&self) {
-        self.until("the page to finish computing", || async {
+        self.until_done("state").await;
+    }
+
+    /// Waits until the page's `data-{flag}` on `<body>` reads `done`: the work it tracks (the
+    /// numbers, the depth map, a match) has come back and none is pending.
+    pub async fn until_done(&self, flag: &str) {
+        self.until(&format!("body's data-{flag} to be done"), || async {
             let state = self
-                .script("return document.body.dataset.state || ''")
+                .script(&format!("return document.body.dataset.{flag} || ''"))
                 .await;
             (state == "done").then_some(())
         })

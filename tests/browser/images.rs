@@ -66,13 +66,7 @@ impl Browser {
 
     /// Waits until no `/match` request is in flight and the page has settled.
     async fn found(&self) {
-        self.until("the match to come back", || async {
-            let state = self
-                .script("return document.body.dataset.match || ''")
-                .await;
-            (state == "done").then_some(())
-        })
-        .await;
+        self.until_done("match").await;
         self.settled().await;
     }
 
@@ -88,13 +82,7 @@ impl Browser {
 
     /// Waits until the last depth-map request has come back, whatever its answer.
     async fn depth_map_shown_or_refused(&self) {
-        self.until("the depth-map request to end", || async {
-            let state = self
-                .script("return document.body.dataset.depth || ''")
-                .await;
-            (state == "done").then_some(())
-        })
-        .await;
+        self.until_done("depth").await;
     }
 
     /// No console error or CSP violation, and every request went to this origin and to a
