@@ -781,6 +781,28 @@
 
   const FORMAT_NAMES = { middlebury: 'Middlebury', kitti: 'KITTI', ros: 'ROS', opencv: 'OpenCV' };
 
+  /** Fills the rig's fields from a rig in the API's members (what /calibration answers, or the
+   * sample's), f in pixels; doffs and the principal point the rig lacks are emptied (their
+   * defaults), the image size and the search range are kept unless it gives them. */
+  function applyRig(rig, maxDisparity) {
+    const text = (value) => (value === undefined ? '' : String(value));
+    const state = readForm();
+    Object.assign(state, {
+      focal_mode: 'px',
+      focal_shown: 'px',
+      focal: text(rig.focal_length_px),
+      baseline: text(rig.baseline),
+      unit: rig.unit,
+      doffs: text(rig.doffs),
+      cx: text(rig.cx),
+      cy: text(rig.cy),
+    });
+    if (rig.image_width !== undefined) state.image_width = text(rig.image_width);
+    if (rig.image_height !== undefined) state.image_height = text(rig.image_height);
+    if (maxDisparity !== undefined) state.max_disparity = text(maxDisparity);
+    writeForm(state);
+  }
+
   async function importCalibration() {
     const errors = $('import-errors');
     errors.hidden = true;
@@ -813,29 +835,14 @@
         return;
       }
       const rig = body.rig;
-      const state = readForm();
-      Object.assign(state, {
-        focal_mode: 'px',
-        focal_shown: 'px',
-        focal: String(rig.focal_length_px),
-        baseline: String(rig.baseline),
-        unit: rig.unit,
-        doffs: String(rig.doffs),
-        cx: String(rig.cx),
-        cy: String(rig.cy),
-      });
+      applyRig(rig, body.max_disparity_px);
       sizeFromCalibration = rig.image_width !== undefined;
-      if (rig.image_width !== undefined) state.image_width = String(rig.image_width);
-      if (rig.image_height !== undefined) state.image_height = String(rig.image_height);
-      if (body.max_disparity_px !== undefined) state.max_disparity = String(body.max_disparity_px);
-      writeForm(state);
-      $('optional').open = true;
+      const format = FORMAT_NAMES[body.format] ?? body.format;
       const warnings = body.warnings.length > 0 ? ` Warnings: ${body.warnings.join(' ')}` : ' No warnings.';
       $('import-status').textContent =
-        `Read as a ${FORMAT_NAMES[body.format] ?? body.format} calibration: f = ${fmt(rig.focal_length_px)} px, ` +
-        `B = ${fmt(rig.baseline)} ${rig.unit}.${warnings}`;
+        `Read as a ${format} calibration: f = ${fmt(rig.focal_length_px)} px, B = ${fmt(rig.baseline)} ${rig.unit}.${warnings}`;
       $('import-status').dataset.format = body.format;
-      compute(`Imported a ${FORMAT_NAMES[body.format] ?? body.format} calibration.`);
+      compute(`Imported a ${format} calibration.`);
       if (mode === 'images') requestDepth();
     } catch (error) {
       errors.replaceChildren(listItem(`service: could not be reached (${error.message}).`));
@@ -1440,21 +1447,7 @@
         transfer.items.add(files[side]);
         $(`${side}_image`).files = transfer.files;
       }
-      const state = readForm();
-      Object.assign(state, {
-        focal_mode: 'px',
-        focal_shown: 'px',
-        focal: String(about.rig.focal_length_px),
-        baseline: String(about.rig.baseline),
-        unit: about.rig.unit,
-        image_width: String(about.rig.image_width),
-        image_height: String(about.rig.image_height),
-        max_disparity: String(about.max_disparity),
-        doffs: '',
-        cx: '',
-        cy: '',
-      });
-      writeForm(state);
+      applyRig(about.rig, about.max_disparity);
       sizeFromCalibration = false;
       pair.sample = true;
       $('depth-status').textContent = about.description;

@@ -14,7 +14,9 @@ use stereo_distance::{
     },
 };
 
-use crate::helpers::{TestApp, fields, message_for, ok_json, problem, spawn_app, spawn_app_with};
+use crate::helpers::{
+    TestApp, assert_names, fields, message_for, ok_json, problem, spawn_app, spawn_app_with,
+};
 
 pub(crate) const W: usize = 160;
 pub(crate) const H: usize = 120;
@@ -330,13 +332,7 @@ async fn every_bad_part_is_named() {
         .text("rigg", "{}")
         .text("rig", r#"{"focal_length_px": 500, "baseline": 0}"#);
     let body = problem(depth_map(&app, "?p1=20&p2=10", form).await, 422).await;
-    let named = fields(&body);
-    for field in ["left", "right", "rigg", "rig.baseline", "p2"] {
-        assert!(
-            named.contains(&field.to_owned()),
-            "{field} not in {named:?}"
-        );
-    }
+    assert_names(&body, &["left", "right", "rigg", "rig.baseline", "p2"]);
     assert!(message_for(&body, "left").contains("not an image"));
     assert!(message_for(&body, "right").contains("is required"));
     assert!(message_for(&body, "rigg").contains("not a part of this request"));
@@ -405,13 +401,7 @@ async fn options_out_of_range_are_named() {
         422,
     )
     .await;
-    let named = fields(&body);
-    for field in ["max_disparity", "uniqueness", "subpixel", "fill"] {
-        assert!(
-            named.contains(&field.to_owned()),
-            "{field} not in {named:?}"
-        );
-    }
+    assert_names(&body, &["max_disparity", "uniqueness", "subpixel", "fill"]);
     let body = problem(
         depth_map(&app, "?max_disparity=1000", form(&pair(), &[])).await,
         422,

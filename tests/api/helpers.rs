@@ -272,6 +272,17 @@ pub fn fields(problem: &Value) -> Vec<String> {
 }
 
 /// The message given for `field` in a problem's `errors`.
+/// Asserts that the problem names each of `expected` among its fields.
+pub fn assert_names(problem: &Value, expected: &[&str]) {
+    let named = fields(problem);
+    for field in expected {
+        assert!(
+            named.contains(&(*field).to_owned()),
+            "{field} not in {named:?}"
+        );
+    }
+}
+
 pub fn message_for<'a>(problem: &'a Value, field: &str) -> &'a str {
     problem["errors"]
         .as_array()

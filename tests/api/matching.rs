@@ -10,7 +10,9 @@ use stereo_distance::config::HeavyLimits;
 use stereo_distance::vision::synthetic::{self, Pair, Plane, Region, Scene};
 
 use crate::depth_map::{H, W, image_part, pair, png, rig};
-use crate::helpers::{TestApp, fields, message_for, ok_json, problem, spawn_app, spawn_app_with};
+use crate::helpers::{
+    TestApp, assert_names, fields, message_for, ok_json, problem, spawn_app, spawn_app_with,
+};
 
 /// A form with the pair, the rig, and `extra` parts as text.
 fn form(pair: &Pair, extra: &[(&str, String)]) -> Form {
@@ -377,20 +379,17 @@ async fn bad_points_and_regions_are_named() {
         422,
     )
     .await;
-    let named = fields(&body);
-    for field in [
-        "points[1].y",
-        "points[2].x",
-        "points[3].z",
-        "points[4]",
-        "regions[0].width",
-    ] {
-        assert!(
-            named.contains(&field.to_owned()),
-            "{field} not in {named:?}"
-        );
-    }
-    assert_eq!(named.len(), 5, "{named:?}");
+    assert_names(
+        &body,
+        &[
+            "points[1].y",
+            "points[2].x",
+            "points[3].z",
+            "points[4]",
+            "regions[0].width",
+        ],
+    );
+    assert_eq!(fields(&body).len(), 5, "{body}");
     assert!(message_for(&body, "points[1].y").contains("required"));
     assert!(message_for(&body, "regions[0].width").contains("greater than 0"));
 }
