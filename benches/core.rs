@@ -17,24 +17,17 @@ use stereo_distance::{
     Config,
     api::{self, AppState, HeavyState, routes::ops::OpsState},
     app,
-    physics::{self, Correspondence, LengthUnit, Rig, SampleRange, Spacing, measure},
+    physics::{self, Correspondence, LengthUnit, Rig, RigSpec, SampleRange, Spacing, measure},
 };
 use tower::ServiceExt;
 
 /// The seed's example 1 (f = 35 px, B = 150 mm, 800×600), with a realistic Δd.
 fn rig() -> Rig {
-    Rig {
-        focal_px: 35.0,
-        focal_y_px: 35.0,
-        baseline: 150.0,
-        unit: LengthUnit::Millimetre,
-        image_width: Some(800.0),
-        image_height: Some(600.0),
-        cx: 400.0,
-        cy: 300.0,
-        doffs: 0.0,
-        disparity_error_px: 0.25,
-    }
+    let mut spec = RigSpec::pixels(35.0, 150.0, LengthUnit::Millimetre);
+    spec.camera.image_width = Some(800);
+    spec.camera.image_height = Some(600);
+    spec.camera.disparity_error_px = Some(0.25);
+    Rig::new(&spec).expect("the seed's rig is valid")
 }
 
 /// 10 000 correspondences spread over the image, as a feature matcher would produce them.

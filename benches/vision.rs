@@ -18,21 +18,17 @@ fn stages(c: &mut Criterion) {
         noise: 0.01,
         ..synthetic::layered(741, 500)
     });
-    let params = Params::default();
-    let params = Params {
-        count: 64,
-        ..params
-    };
+    let params = Params::range(0, 64).unwrap();
     let never = AtomicBool::new(false);
     let (w, h) = (pair.left.width, pair.left.height);
     let cl = census::transform(&pair.left);
     let cr = census::transform(&pair.right);
-    let volume = cost::volume(&cl, &cr, w, h, 0, params.count);
+    let volume = cost::volume(&cl, &cr, w, h, 0, params.count());
     let mut totals = Vec::new();
     sgm::aggregate(
         &volume,
         &pair.left.data,
-        params.penalties,
+        params.penalties(),
         &never,
         &mut |y, row| {
             if y == h / 2 {
@@ -53,7 +49,7 @@ fn stages(c: &mut Criterion) {
         })
     });
     group.bench_function("cost volume", |b| {
-        b.iter(|| cost::volume(black_box(&cl), black_box(&cr), w, h, 0, params.count))
+        b.iter(|| cost::volume(black_box(&cl), black_box(&cr), w, h, 0, params.count()))
     });
     group.bench_function(
         "aggregate (8 paths, 2 passes, whole image, 1 thread)",
@@ -62,7 +58,7 @@ fn stages(c: &mut Criterion) {
                 sgm::aggregate(
                     black_box(&volume),
                     &pair.left.data,
-                    params.penalties,
+                    params.penalties(),
                     &never,
                     &mut |_, row| {
                         black_box(row);
@@ -77,9 +73,9 @@ fn stages(c: &mut Criterion) {
                 black_box(&totals),
                 w,
                 volume.stride,
-                params.count,
-                params.uniqueness,
-                params.subpixel,
+                params.count(),
+                params.uniqueness(),
+                params.subpixel(),
             )
         })
     });

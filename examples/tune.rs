@@ -12,7 +12,7 @@
 use std::sync::atomic::AtomicBool;
 use std::time::Instant;
 
-use stereo_distance::vision::{self, Params, Subpixel, decode, refine, simd};
+use stereo_distance::vision::{self, Params, Settings, Subpixel, decode, refine, simd};
 
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -30,10 +30,10 @@ fn main() {
         .chunks_exact(4)
         .map(|c| f32::from_le_bytes(c.try_into().unwrap()))
         .collect();
-    let count: usize = args.get(3).map_or(64, |c| c.parse().unwrap());
-    let mut grid: Vec<Params> = vec![Params {
-        count,
-        ..Params::default()
+    let count: i32 = args.get(3).map_or(64, |c| c.parse().unwrap());
+    let mut grid: Vec<Settings> = vec![Settings {
+        max_disparity: Some(count),
+        ..Settings::default()
     }];
     for spec in args.iter().skip(4) {
         let (key, values) = spec.split_once('=').unwrap();
@@ -43,19 +43,23 @@ fn main() {
                 values.split(',').map(move |v| {
                     let mut p = p;
                     match key {
-                        "p1" => p.penalties.p1 = v.parse().unwrap(),
-                        "p2" => p.penalties.p2 = v.parse().unwrap(),
-                        "edge" => p.penalties.edge = v.parse().unwrap(),
-                        "uniq" => p.uniqueness = v.parse().unwrap(),
-                        "lr" => p.lr_tolerance = v.parse().ok().filter(|t: &f32| *t >= 0.0),
-                        "speckle" => p.speckle_size = v.parse().unwrap(),
-                        "median" => p.median = v == "1",
+                        "p1" => p.p1 = v.parse().ok(),
+                        "p2" => p.p2 = v.parse().ok(),
+                        "edge" => p.p2_edge = v.parse().ok(),
+                        "uniq" => p.uniqueness = v.parse().ok(),
+                        "lr" => {
+                            let t = v.parse().ok().filter(|t: &f64| *t >= 0.0);
+                            p.lr_check = Some(t.is_some());
+                            p.lr_tolerance = t;
+                        }
+                        "speckle" => p.speckle_size = v.parse().ok(),
+                        "median" => p.median = Some(v == "1"),
                         "sub" => {
-                            p.subpixel = match v {
+                            p.subpixel = Some(match v {
                                 "off" => Subpixel::Off,
                                 "parabola" => Subpixel::Parabola,
                                 _ => Subpixel::Equiangular,
-                            }
+                            })
                         }
                         other => panic!("unknown key {other}"),
                     }
@@ -65,7 +69,8 @@ fn main() {
             .collect();
     }
     let w = left.grey.width;
-    for params in grid {
+    for settings in grid {
+        let params = Params::new(&settings).expect("the grid's settings are within bounds");
         let started = Instant::now();
         let (map, t) =
             vision::disparity(&left.grey, &right.grey, &params, &AtomicBool::new(false)).unwrap();
@@ -93,14 +98,14 @@ fn main() {
         println!(
             "p1 {:3} p2 {:3} edge {:3} uniq {:2} lr {:?} speckle {:3} median {} sub {:?}: \
              bad0.5 {:5.2} bad1 {:5.2} bad2 {:5.2} dens {:5.1}  {:4.0} ms (cost {:.0} agg {:.0} refine {:.0})",
-            params.penalties.p1,
-            params.penalties.p2,
-            params.penalties.edge,
-            params.uniqueness,
-            params.lr_tolerance,
-            params.speckle_size,
-            u8::from(params.median),
-            params.subpixel,
+            params.penalties().p1,
+            params.penalties().p2,
+            params.penalties().edge,
+            params.uniqueness(),
+            params.lr_tolerance(),
+            params.speckle_size(),
+            u8::from(params.median()),
+            params.subpixel(),
             pct(bad[0]),
             pct(bad[1]),
             pct(bad[2]),

@@ -5,7 +5,7 @@
 
 use proptest::prelude::*;
 use stereo_distance::physics::{
-    self, Correspondence, FocalLength, LengthUnit, PhysicsError, Rig, SampleRange, Spacing,
+    self, Correspondence, FocalLength, LengthUnit, PhysicsError, Rig, RigSpec, SampleRange, Spacing,
 };
 
 /// `a` and `b` agree to `rel` relative (absolute below 1e-300).
@@ -41,25 +41,21 @@ fn rig() -> impl Strategy<Value = Rig> {
         -100.0..100.0f64,   // doffs
         decades(-3.0, 1.0), // Δd
     )
-        .prop_map(|(focal_px, baseline, unit, w, h, doffs, dd)| Rig {
-            focal_px,
-            focal_y_px: focal_px,
-            baseline,
-            unit,
-            image_width: Some(f64::from(w)),
-            image_height: Some(f64::from(h)),
-            cx: f64::from(w) / 2.0,
-            cy: f64::from(h) / 2.0,
-            doffs,
-            disparity_error_px: dd,
+        .prop_map(|(focal_px, baseline, unit, w, h, doffs, dd)| {
+            let mut spec = RigSpec::pixels(focal_px, baseline, unit);
+            spec.camera.image_width = Some(w);
+            spec.camera.image_height = Some(h);
+            spec.camera.disparity_error_px = Some(dd);
+            spec.doffs = Some(doffs);
+            Rig::new(&spec).expect("a sensible rig is a rig")
         })
 }
 
 /// A correspondence inside `rig`'s image.
 fn inside(rig: &Rig) -> impl Strategy<Value = Correspondence> + use<> {
     let (width, height) = (
-        rig.image_width.unwrap_or(1.0),
-        rig.image_height.unwrap_or(1.0),
+        rig.image_width().unwrap_or(1.0),
+        rig.image_height().unwrap_or(1.0),
     );
     (0.0..=width, 0.0..=width, 0.0..=height)
         .prop_map(|(x_left, x_right, y)| Correspondence::from_pair(x_left, x_right, y))
@@ -71,17 +67,18 @@ proptest! {
     fn depth_times_disparity_is_focal_times_baseline(
         (rig, c) in rig().prop_flat_map(|r| (Just(r), inside(&r)))
     ) {
-        let effective = c.disparity_px + rig.doffs;
+        let effective = c.disparity_px + rig.doffs();
         match physics::measure(&rig, c) {
             Ok(m) => {
                 prop_assert!(m.distance > 0.0);
-                prop_assert!(close(m.distance * effective.abs(), rig.focal_px * rig.baseline, 1e-12));
-                prop_assert_eq!(m.point.z, m.distance);
-                prop_assert!(close(m.distance_m, m.distance * rig.unit.metres(), 1e-12));
+                prop_assert!(close(m.distance * effective.abs(), rig.focal_px() * rig.baseline(), 1e-12));
+                // A rig with an image size has a principal point, so every point is placed.
+                let (p, range) = (m.point.unwrap(), m.range.unwrap());
+                prop_assert_eq!(p.z, m.distance);
+                prop_assert!(close(m.distance_m, m.distance * rig.unit().metres(), 1e-12));
                 // The range is the length of the point vector, never shorter than the depth.
-                let p = m.point;
-                prop_assert!(close(m.range * m.range, p.x * p.x + p.y * p.y + p.z * p.z, 1e-9));
-                prop_assert!(m.range >= m.distance);
+                prop_assert!(close(range * range, p.x * p.x + p.y * p.y + p.z * p.z, 1e-9));
+                prop_assert!(range >= m.distance);
             }
             Err(e) => prop_assert_eq!(e, PhysicsError::AtInfinity, "only d + doffs = 0 fails here"),
         }
@@ -124,8 +121,8 @@ proptest! {
     ) {
         let (near, far) = if a >= b { (a, b) } else { (b, a) };
         let sign = if negative { -1.0 } else { 1.0 };
-        let z_near = rig.distance_at(sign * near - rig.doffs).unwrap();
-        let z_far = rig.distance_at(sign * far - rig.doffs).unwrap();
+        let z_near = rig.distance_at(sign * near - rig.doffs()).unwrap();
+        let z_far = rig.distance_at(sign * far - rig.doffs()).unwrap();
         prop_assert!(z_near <= z_far, "Z({near}) = {z_near} > Z({far}) = {z_far}");
         if near > far * (1.0 + 1e-9) {
             prop_assert!(z_near < z_far);
@@ -144,10 +141,11 @@ proptest! {
         prop_assert!(close(b.convert(a.convert(value, b), c), a.convert(value, c), 1e-14));
         prop_assert!(close(b.convert(a.convert(value, b), a), value, 1e-14));
 
-        let other = Rig { baseline: rig.unit.convert(rig.baseline, b), unit: b, ..rig };
+        let other = rig.in_unit(b);
+        prop_assert!(close(other.baseline(), rig.unit().convert(rig.baseline(), b), 1e-14));
         if let (Ok(here), Ok(there)) = (physics::measure(&rig, corr), physics::measure(&other, corr)) {
-            prop_assert!(close(rig.unit.convert(here.distance, b), there.distance, 1e-12));
-            prop_assert!(close(rig.unit.convert(here.depth_error, b), there.depth_error, 1e-12));
+            prop_assert!(close(rig.unit().convert(here.distance, b), there.distance, 1e-12));
+            prop_assert!(close(rig.unit().convert(here.depth_error, b), there.depth_error, 1e-12));
             prop_assert!(close(here.distance_m, there.distance_m, 1e-12));
             prop_assert!(close(here.relative_error, there.relative_error, 1e-12));
         }
@@ -162,13 +160,13 @@ proptest! {
         k in 1.0..100.0f64,
     ) {
         let e = rig.depth_error_at(distance);
-        prop_assert!(close(e, distance * distance * rig.disparity_error_px / (rig.focal_px * rig.baseline), 1e-12));
+        prop_assert!(close(e, distance * distance * rig.disparity_error_px() / (rig.focal_px() * rig.baseline()), 1e-12));
         prop_assert!(close(rig.depth_error_at(k * distance), k * k * e, 1e-12));
-        let doubled = Rig { disparity_error_px: 2.0 * rig.disparity_error_px, ..rig };
+        let doubled = rig.with_disparity_error(2.0 * rig.disparity_error_px()).unwrap();
         prop_assert!(close(doubled.depth_error_at(distance), 2.0 * e, 1e-12));
         // The inverse problem gives back the baseline the error came from.
-        let baseline = physics::baseline_for(rig.focal_px, distance, e, rig.disparity_error_px).unwrap();
-        prop_assert!(close(baseline, rig.baseline, 1e-12));
+        let baseline = physics::baseline_for(rig.focal_px(), distance, e, rig.disparity_error_px()).unwrap();
+        prop_assert!(close(baseline, rig.baseline(), 1e-12));
     }
 
     /// Over any finite numbers at all, valid or not, the core never panics, and whatever it
@@ -182,42 +180,48 @@ proptest! {
         log in any::<bool>(), unit in unit(),
         focal_mm in any_finite(), per in any_finite(),
     ) {
-        let rig = Rig {
-            focal_px, focal_y_px: focal_mm, baseline, unit,
-            image_width: Some(width), image_height: Some(height),
-            cx: width / 2.0, cy: height / 2.0, doffs, disparity_error_px: dd,
-        };
-        let spacing = if log { Spacing::Log } else { Spacing::Linear };
-        if let Ok(m) = physics::measure(&rig, Correspondence::from_pair(x_left, x_right, y)) {
-            for v in [m.disparity_px, m.effective_disparity_px, m.distance, m.distance_m,
-                      m.depth_error, m.relative_error, m.normalized_x.unwrap_or(0.0),
-                      m.projection_factor, m.range, m.point.x, m.point.y, m.point.z] {
-                prop_assert!(v.is_finite(), "{m:?}");
-            }
-        }
-        for range in [SampleRange::Distance { min: lo, max: hi }, SampleRange::Disparity { min: lo, max: hi }] {
-            if let Ok(samples) = physics::sweep(&rig, range, count, spacing) {
-                prop_assert_eq!(samples.len(), count);
-                for s in samples {
-                    prop_assert!(s.disparity_px.is_finite() && s.distance.is_finite() && s.depth_error.is_finite());
+        // Whatever rig the constructor makes of any magnitudes (it refuses the ones whose
+        // product or ratio overflows, and zeros).
+        let mut spec = RigSpec::pixels(focal_px.abs(), baseline.abs(), unit);
+        spec.camera.focal_y_px = Some(focal_mm.abs());
+        spec.camera.image_width = Some(width.abs() as u32);
+        spec.camera.image_height = Some(height.abs() as u32);
+        spec.camera.disparity_error_px = Some(dd.abs());
+        spec.doffs = Some(doffs);
+        if let Ok(rig) = Rig::new(&spec) {
+            let spacing = if log { Spacing::Log } else { Spacing::Linear };
+            if let Ok(m) = physics::measure(&rig, Correspondence::from_pair(x_left, x_right, y)) {
+                let p = m.point.unwrap_or(physics::Point3 { x: 0.0, y: 0.0, z: 0.0 });
+                for v in [m.disparity_px, m.effective_disparity_px, m.distance, m.distance_m,
+                          m.depth_error, m.relative_error, m.normalized_x.unwrap_or(0.0),
+                          m.projection_factor, m.range.unwrap_or(0.0), p.x, p.y, p.z] {
+                    prop_assert!(v.is_finite(), "{m:?}");
                 }
             }
-            if let Ok(rows) = physics::table(&rig, range, count, spacing, x_left) {
-                for r in rows {
-                    prop_assert!([r.distance, r.disparity_px, r.normalized_x.unwrap_or(0.0), r.projection_factor, r.depth_error]
-                        .iter()
-                        .all(|v| v.is_finite()));
+            for range in [SampleRange::Distance { min: lo, max: hi }, SampleRange::Disparity { min: lo, max: hi }] {
+                if let Ok(samples) = physics::sweep(&rig, range, count, spacing) {
+                    prop_assert_eq!(samples.len(), count);
+                    for s in samples {
+                        prop_assert!(s.disparity_px.is_finite() && s.distance.is_finite() && s.depth_error.is_finite());
+                    }
+                }
+                if let Ok(rows) = physics::table(&rig, range, count, spacing, x_left) {
+                    for r in rows {
+                        prop_assert!([r.distance, r.disparity_px, r.normalized_x.unwrap_or(0.0), r.projection_factor, r.depth_error]
+                            .iter()
+                            .all(|v| v.is_finite()));
+                    }
                 }
             }
-        }
-        if let Ok((near, far)) = rig.depth_range(lo, hi) {
-            prop_assert!(near.is_finite() && far.is_finite());
+            if let Some(z) = rig.distance_at_relative_error(per) {
+                prop_assert!(z.is_finite());
+            }
+            if let Ok((near, far)) = rig.depth_range(lo, hi) {
+                prop_assert!(near.is_finite() && far.is_finite());
+            }
         }
         if let Ok(b) = physics::baseline_for(focal_px, lo, hi, dd) {
             prop_assert!(b.is_finite());
-        }
-        if let Some(z) = rig.distance_at_relative_error(per) {
-            prop_assert!(z.is_finite());
         }
         for focal in [
             FocalLength::Pixels(focal_px),

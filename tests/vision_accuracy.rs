@@ -6,7 +6,7 @@
 use std::sync::atomic::AtomicBool;
 
 use stereo_distance::vision::{
-    self, Params, Subpixel,
+    self, Params, Settings, Subpixel,
     synthetic::{self, Pair, Plane, Region, Scene},
 };
 
@@ -44,11 +44,15 @@ fn score(pair: &Pair, params: &Params) -> Score {
     }
 }
 
-fn params() -> Params {
-    Params {
-        count: 48,
-        ..Params::default()
+fn settings() -> Settings {
+    Settings {
+        max_disparity: Some(48),
+        ..Settings::default()
     }
+}
+
+fn params() -> Params {
+    Params::new(&settings()).unwrap()
 }
 
 /// Three planes, one slanted, two in front occluding it: nearly every visible pixel gets a
@@ -104,10 +108,11 @@ fn subpixel_follows_a_slanted_plane() {
     let fitted = score(&pair, &params());
     let whole = score(
         &pair,
-        &Params {
-            subpixel: Subpixel::Off,
-            ..params()
-        },
+        &Params::new(&Settings {
+            subpixel: Some(Subpixel::Off),
+            ..settings()
+        })
+        .unwrap(),
     );
     assert!(fitted.median_error < 0.1, "{fitted:?}");
     assert!(whole.median_error > 0.2, "{whole:?}");
@@ -124,7 +129,7 @@ fn simd_and_portable_builds_agree() {
         ..synthetic::layered(200, 120)
     });
     for count in [40, 64] {
-        let params = Params { count, ..params() };
+        let params = Params::range(0, count).unwrap();
         let run = |simd| {
             vision::simd::use_simd(simd);
             vision::disparity(&pair.left, &pair.right, &params, &AtomicBool::new(false))
@@ -161,11 +166,7 @@ fn degenerate_inputs_do_not_panic() {
     for (w, h) in [(1, 1), (5, 1), (1, 9), (3, 3)] {
         let pair = synthetic::render(&synthetic::layered(w, h));
         for (min, count) in [(0, 1), (0, 64), (-8, 16)] {
-            let p = Params {
-                min_disparity: min,
-                count,
-                ..Params::default()
-            };
+            let p = Params::range(min, min + count).unwrap();
             let (map, _) =
                 vision::disparity(&pair.left, &pair.right, &p, &AtomicBool::new(false)).unwrap();
             assert_eq!(map.data.len(), w * h);

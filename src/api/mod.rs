@@ -1,12 +1,15 @@
 //! The HTTP API. Its modules read one way, each using only those before it:
-//! [`error`] ← [`extract`] ← [`wire`] ← [`validate`] ← [`routes`].
+//! [`error`] ← [`extract`] ← [`wire`] ← [`validate`] ← [`images`] ← [`routes`].
 //!
 //! - [`error`]: [`error::ApiError`] rendered as problem+json, and [`error::FieldErrors`], the
 //!   collector that names every offending field.
 //! - [`extract`]: JSON-body and query-string extractors that record every refused member.
 //! - [`wire`]: what every request and answer shares: deserialization rules, the request macros,
 //!   the unvalidated members, the measured values, the OpenAPI glue.
-//! - [`validate`]: the caller's members turned into the physics module's types.
+//! - [`validate`]: the caller's members turned into the physics module's types, through their
+//!   checking constructors ([`crate::physics::Rig::new`]), the faults named as fields.
+//! - [`images`]: what the image routes share: the multipart form and the [`images::ImagePair`]
+//!   extractor, the rig from a part, the limits, the blocking work.
 //! - [`routes`]: one module per resource (handlers, wire types, `router()`), merged into the
 //!   route groups: light (JSON), heavy (images) and the probes.
 //! - [`respond`], [`format`]: JSON answers in one buffer; numbers written for people.
@@ -15,6 +18,7 @@ pub mod csv;
 pub mod error;
 pub mod extract;
 pub mod format;
+pub mod images;
 pub mod respond;
 pub mod routes;
 pub mod validate;

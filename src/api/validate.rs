@@ -5,7 +5,7 @@ use super::error::FieldErrors;
 use super::wire::params::{CameraParams, RangeParams, RigParams};
 use crate::numbers::Num;
 use crate::physics::{
-    Correspondence, DEFAULT_DISPARITY_ERROR_PX, FocalLength, LengthUnit, Rig, SampleRange, Spacing,
+    Camera, CameraSpec, Correspondence, Fault, Focal, Member, Rig, RigSpec, SampleRange, Spacing,
 };
 
 /// The range checks validation makes: each records its own error and returns the value only
@@ -77,158 +77,72 @@ impl FieldErrors {
     }
 }
 
-const FOCAL_OPTIONS: &str = "give focal_length_px; or focal_length_mm with sensor_width_mm or \
-                             pixel_size_um; or horizontal_fov_deg";
-
-/// Why a focal length in millimetres is not enough on its own.
-pub const MM_ALONE: &str = "a focal length in millimetres cannot be used on its own: \
-    Z = B·f/d needs f in pixels, because d is in pixels and mm × mm / px is not a length. \
-    Add sensor_width_mm (f_px = f_mm · image_width / sensor_width_mm) or pixel_size_um \
-    (f_px = f_mm · 1000 / pixel_size_um), or give focal_length_px or horizontal_fov_deg instead";
-
-/// Exactly one focal option, checked and converted to pixels. `width` is the image width when
-/// it was given and valid; only the sensor-width and field-of-view options need it.
-fn focal_length(p: &CameraParams, width: Option<f64>, problems: &mut FieldErrors) -> Option<f64> {
-    let modes: Vec<&str> = [
-        ("focal_length_px", p.focal_length_px.is_some()),
-        ("focal_length_mm", p.focal_length_mm.is_some()),
-        ("horizontal_fov_deg", p.horizontal_fov_deg.is_some()),
-    ]
-    .into_iter()
-    .filter_map(|(name, given)| given.then_some(name))
-    .collect();
-    if modes.len() > 1 {
-        for name in &modes {
-            problems.add(
-                name,
-                format!(
-                    "give exactly one focal option, but {} were given",
-                    modes.join(", ")
-                ),
-            );
-        }
-        return None;
-    }
-    for (name, value) in [
-        ("sensor_width_mm", p.sensor_width_mm),
-        ("pixel_size_um", p.pixel_size_um),
-    ] {
-        if value.is_some() && p.focal_length_mm.is_none() {
-            problems.add(name, "only converts focal_length_mm, which was not given");
-        }
-    }
-    let spec = if let Some(px) = p.focal_length_px {
-        FocalLength::Pixels(problems.positive("focal_length_px", px)?)
-    } else if let Some(mm) = p.focal_length_mm {
-        let focal_mm = problems.positive("focal_length_mm", mm);
-        match (p.sensor_width_mm, p.pixel_size_um) {
-            (None, None) => {
-                problems.add("focal_length_mm", MM_ALONE);
-                return None;
-            }
-            (Some(_), Some(_)) => {
-                for name in ["sensor_width_mm", "pixel_size_um"] {
-                    problems.add(name, "give sensor_width_mm or pixel_size_um, not both");
-                }
-                return None;
-            }
-            (Some(sensor), None) => FocalLength::MillimetresWithSensorWidth {
-                focal_mm: focal_mm?,
-                sensor_width_mm: problems.positive("sensor_width_mm", sensor)?,
-            },
-            (None, Some(pitch)) => FocalLength::MillimetresWithPixelPitch {
-                focal_mm: focal_mm?,
-                pixel_pitch_um: problems.positive("pixel_size_um", pitch)?,
-            },
-        }
-    } else if let Some(degrees) = p.horizontal_fov_deg {
-        if !(degrees > 0.0 && degrees < 180.0) {
-            problems.add(
-                "horizontal_fov_deg",
-                format!(
-                    "must lie strictly between 0 and 180 degrees, got {}",
-                    Num(degrees)
-                ),
-            );
-            return None;
-        }
-        FocalLength::HorizontalFov { degrees }
-    } else {
-        // A focal member refused while decoding was already reported; do not add "required".
-        let refused = [
-            "focal_length_px",
-            "focal_length_mm",
-            "horizontal_fov_deg",
-            "sensor_width_mm",
-            "pixel_size_um",
-        ];
-        if !refused.iter().any(|field| problems.has(field)) {
-            problems.add(
-                "focal_length_px",
-                format!("a focal length is required: {FOCAL_OPTIONS}"),
-            );
-        }
-        return None;
-    };
-    let width = match spec {
-        FocalLength::MillimetresWithSensorWidth { .. } => needed(
-            "image_width",
-            width,
-            "to convert focal_length_mm with sensor_width_mm (f_px = f_mm · image_width / \
-             sensor_width_mm)",
-            problems,
-        )?,
-        FocalLength::HorizontalFov { .. } => needed(
-            "image_width",
-            width,
-            "to convert horizontal_fov_deg (f_px = (image_width / 2) / tan(hfov / 2))",
-            problems,
-        )?,
-        FocalLength::Pixels(_) | FocalLength::MillimetresWithPixelPitch { .. } => 0.0,
-    };
-    match spec.to_pixels(width) {
-        Ok(focal_px) if focal_px > 0.0 => Some(focal_px),
-        Ok(focal_px) => {
-            problems.add(
-                focal_field(p),
-                format!(
-                    "converts to {} px, which is not a usable focal length",
-                    Num(focal_px)
-                ),
-            );
-            None
-        }
-        Err(_) => {
-            problems.add(
-                focal_field(p),
-                "converts to a focal length in pixels too large to represent",
-            );
-            None
-        }
+/// The caller's camera members as the physics states them; a member already refused while
+/// decoding (a wrong type) is marked unreadable, so its absence is not reported again.
+fn camera_spec(p: &CameraParams, problems: &FieldErrors) -> CameraSpec {
+    let members = [
+        Member::FocalLengthPx,
+        Member::FocalLengthMm,
+        Member::SensorWidthMm,
+        Member::PixelSizeUm,
+        Member::HorizontalFovDeg,
+        Member::FocalLengthYPx,
+        Member::ImageWidth,
+        Member::ImageHeight,
+        Member::DisparityErrorPx,
+    ];
+    CameraSpec {
+        focal: Focal {
+            px: p.focal_length_px,
+            mm: p.focal_length_mm,
+            sensor_width_mm: p.sensor_width_mm,
+            pixel_size_um: p.pixel_size_um,
+            horizontal_fov_deg: p.horizontal_fov_deg,
+        },
+        focal_y_px: p.focal_length_y_px,
+        unit: p.unit.unwrap_or_default().into(),
+        image_width: p.image_width,
+        image_height: p.image_height,
+        disparity_error_px: p.disparity_error_px,
+        unreadable: members
+            .into_iter()
+            .filter(|m| problems.has(m.name()))
+            .collect(),
     }
 }
 
-/// The member the focal length was given in.
-pub fn focal_field(p: &CameraParams) -> &'static str {
-    if p.focal_length_mm.is_some() {
-        "focal_length_mm"
-    } else if p.horizontal_fov_deg.is_some() {
-        "horizontal_fov_deg"
-    } else {
-        "focal_length_px"
+/// The caller's rig members as the physics states them.
+pub fn rig_spec(p: &RigParams, problems: &FieldErrors) -> RigSpec {
+    RigSpec {
+        camera: camera_spec(&p.camera, problems),
+        baseline: p.baseline,
+        cx: p.cx,
+        cy: p.cy,
+        doffs: p.doffs,
     }
 }
 
-/// An image extent when given: whole pixels of at least 1. `None` when absent or refused (the
-/// refusal is recorded).
-fn image_extent(field: &str, value: Option<u32>, problems: &mut FieldErrors) -> Option<f64> {
-    match value? {
-        0 => {
-            problems.add(field, "must be at least 1 pixel");
-            None
-        }
-        n => Some(f64::from(n)),
+/// Records what a rig or camera constructor refused, each member named behind `prefix` (such
+/// as `rig.`), with the constructor's own words.
+pub fn faults(faults: Vec<Fault>, prefix: &str, problems: &mut FieldErrors) {
+    for fault in faults {
+        problems.add(&format!("{prefix}{}", fault.member.name()), fault.message);
     }
+}
+
+/// The camera the members state, through [`Camera::new`].
+pub fn camera(p: &CameraParams, problems: &mut FieldErrors) -> Option<Camera> {
+    Camera::new(&camera_spec(p, problems))
+        .map_err(|f| faults(f, "", problems))
+        .ok()
+}
+
+/// The rig the members state, through [`Rig::new`], the one constructor every rig goes
+/// through.
+pub fn rig(p: &RigParams, problems: &mut FieldErrors) -> Option<Rig> {
+    Rig::new(&rig_spec(p, problems))
+        .map_err(|f| faults(f, "", problems))
+        .ok()
 }
 
 /// `value`, or an error saying `field` is required `why` (unless `field` was already refused).
@@ -242,138 +156,6 @@ pub fn needed<T>(
         problems.add(field, format!("is required {why}"));
     }
     value
-}
-
-/// A validated camera: the focal lengths in pixels and what goes with them.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Camera {
-    pub focal_px: f64,
-    pub focal_y_px: f64,
-    pub unit: LengthUnit,
-    pub image_width: Option<f64>,
-    pub image_height: Option<f64>,
-    pub disparity_error_px: f64,
-}
-
-impl Camera {
-    /// The rig this camera makes with a second one `baseline` away, principal points at the
-    /// image centre (at 0 when the image size is unknown: a rig made this way places no
-    /// points) and no doffs.
-    pub fn with_baseline(self, baseline: f64) -> Rig {
-        Rig {
-            focal_px: self.focal_px,
-            focal_y_px: self.focal_y_px,
-            baseline,
-            unit: self.unit,
-            image_width: self.image_width,
-            image_height: self.image_height,
-            cx: self.image_width.map_or(0.0, |w| w / 2.0),
-            cy: self.image_height.map_or(0.0, |h| h / 2.0),
-            doffs: 0.0,
-            disparity_error_px: self.disparity_error_px,
-        }
-    }
-}
-
-/// Validates the camera members shared by every request.
-pub fn camera(p: &CameraParams, problems: &mut FieldErrors) -> Option<Camera> {
-    let width = image_extent("image_width", p.image_width, problems);
-    let height = image_extent("image_height", p.image_height, problems);
-    let focal_px = focal_length(p, width, problems);
-    let focal_y_px = p
-        .focal_length_y_px
-        .map(|fy| problems.positive("focal_length_y_px", fy));
-    let disparity_error_px = problems.non_negative(
-        "disparity_error_px",
-        p.disparity_error_px.unwrap_or(DEFAULT_DISPARITY_ERROR_PX),
-    );
-    let focal_px = focal_px?;
-    Some(Camera {
-        focal_px,
-        focal_y_px: focal_y_px.unwrap_or(Some(focal_px))?,
-        unit: p.unit.unwrap_or_default().into(),
-        image_width: width,
-        image_height: height,
-        disparity_error_px: disparity_error_px?,
-    })
-}
-
-/// What a request does with its rig, which decides whether it needs the principal point.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Use {
-    /// Places 3D points (`/distance`): `cx` and `cy` are needed, given or from the image size.
-    Points,
-    /// Only relates disparity and depth (`/rig`, `/table`, `/chart-data`): the principal
-    /// point is checked when given, and is 0 when it is unknown, since nothing uses it.
-    Depths,
-}
-
-/// A principal-point coordinate: within `[0, extent]` when the extent is known, else at least
-/// 0; by default the image centre, which needs the extent when the rig places points.
-fn principal(
-    (field, extent_field): (&str, &str),
-    value: Option<f64>,
-    extent: Option<f64>,
-    usage: Use,
-    problems: &mut FieldErrors,
-) -> Option<f64> {
-    match (value, extent) {
-        (Some(c), Some(extent)) => problems.within(field, c, extent, extent_field),
-        (Some(c), None) => problems.non_negative(field, c),
-        (None, Some(extent)) => Some(extent / 2.0),
-        (None, None) if usage == Use::Depths => Some(0.0),
-        (None, None) => needed(
-            extent_field,
-            None,
-            &format!("for the default {field} (the image centre); or give {field}"),
-            problems,
-        ),
-    }
-}
-
-/// Validates the rig members: the camera, the baseline and the principal points.
-pub fn rig(p: &RigParams, usage: Use, problems: &mut FieldErrors) -> Option<Rig> {
-    let camera = camera(&p.camera, problems);
-    let bounds = Bounds::of(&p.camera);
-    let baseline = problems
-        .required("baseline", p.baseline)
-        .and_then(|b| problems.positive("baseline", b));
-    let cx = principal(("cx", "image_width"), p.cx, bounds.width, usage, problems);
-    let cy = principal(("cy", "image_height"), p.cy, bounds.height, usage, problems);
-    let doffs = p.doffs.unwrap_or(0.0);
-    let (camera, baseline) = (camera?, baseline?);
-    balanced(camera.focal_px, baseline, focal_field(&p.camera), problems)?;
-    Some(Rig {
-        cx: cx?,
-        cy: cy?,
-        doffs,
-        ..camera.with_baseline(baseline)
-    })
-}
-
-/// Refuses a focal length and baseline whose product or ratio leaves the range of an f64,
-/// blaming both.
-pub fn balanced(
-    focal_px: f64,
-    baseline: f64,
-    focal: &str,
-    problems: &mut FieldErrors,
-) -> Option<()> {
-    if (focal_px * baseline).is_normal() && (focal_px / baseline).is_normal() {
-        return Some(());
-    }
-    for field in [focal, "baseline"] {
-        problems.add(
-            field,
-            format!(
-                "focal length ({} px) and baseline ({}) are too far apart in magnitude: \
-                 their product or ratio leaves the range of a 64-bit float",
-                Num(focal_px),
-                Num(baseline)
-            ),
-        );
-    }
-    None
 }
 
 /// The image size as far as it is valid, so that coordinates are range-checked even when
@@ -423,14 +205,12 @@ pub const X_RIGHT_OR_DISPARITY: &str =
 
 /// The disparity the feature states, whichever way: `x_left − x_right` (each within the image
 /// width) or `disparity_px`; `x_left` is required with `x_right` and, with `disparity_px`,
-/// defaults to `cx_default` (the rig's `cx`, absent when the rig is invalid). Returns
-/// `(x_left, disparity_px)`.
+/// optional (the rig's `cx` by default). Returns `(x_left, disparity_px)`.
 pub fn disparity(
     feature: Feature,
     bounds: Bounds,
-    cx_default: Option<f64>,
     problems: &mut FieldErrors,
-) -> Option<(f64, f64)> {
+) -> Option<(Option<f64>, f64)> {
     let x_left = feature
         .x_left
         .and_then(|x| x_coordinate("x_left", x, bounds, problems));
@@ -445,11 +225,11 @@ pub fn disparity(
             let x_left = problems.required("x_left", feature.x_left).and(x_left);
             let x_right = x_coordinate("x_right", x_right, bounds, problems);
             let (x_left, x_right) = (x_left?, x_right?);
-            Some((x_left, x_left - x_right))
+            Some((Some(x_left), x_left - x_right))
         }
         (None, Some(d)) => match feature.x_left {
-            Some(_) => Some((x_left?, d)),
-            None => Some((cx_default?, d)),
+            Some(_) => Some((Some(x_left?), d)),
+            None => Some((None, d)),
         },
         (None, None) => {
             problems.required("x_left", feature.x_left);
@@ -462,19 +242,20 @@ pub fn disparity(
     }
 }
 
-/// One correspondence; `x_left` defaults to the rig's `cx` with a disparity, `y` to its `cy`
-/// (`rig_centre` is absent when the rig is invalid).
+/// One correspondence; a missing `x_left` (with a disparity) or `y` is the rig's principal
+/// point's, applied when the point is placed.
 pub fn correspondence(
     feature: Feature,
     bounds: Bounds,
-    rig_centre: Option<(f64, f64)>,
     problems: &mut FieldErrors,
 ) -> Option<Correspondence> {
-    let xd = disparity(feature, bounds, rig_centre.map(|c| c.0), problems);
+    let xd = disparity(feature, bounds, problems);
     let y = match (feature.y, bounds.height) {
-        (Some(y), Some(height)) => problems.within("y", y, height, "the image height"),
-        (Some(y), None) => problems.non_negative("y", y),
-        (None, _) => rig_centre.map(|c| c.1),
+        (Some(y), Some(height)) => problems
+            .within("y", y, height, "the image height")
+            .map(Some),
+        (Some(y), None) => problems.non_negative("y", y).map(Some),
+        (None, _) => Some(None),
     };
     let (x_left, disparity_px) = xd?;
     Some(Correspondence {
@@ -491,7 +272,7 @@ pub fn short_of_infinity(
     rig: &Rig,
     problems: &mut FieldErrors,
 ) -> Option<f64> {
-    if min + rig.doffs > 0.0 {
+    if min + rig.doffs() > 0.0 {
         return Some(min);
     }
     problems.add(
@@ -500,7 +281,7 @@ pub fn short_of_infinity(
             "{field} + doffs must be greater than 0 (at d + doffs = 0 the point is at \
              infinity), got {} + {}",
             Num(min),
-            Num(rig.doffs)
+            Num(rig.doffs())
         ),
     );
     None
@@ -567,7 +348,7 @@ pub fn range(
     } else {
         let width = needed(
             "image_width",
-            rig.image_width,
+            rig.image_width(),
             "for the default range (disparities across a quarter of the image width); or \
              give disparity_min and disparity_max, or distance_min and distance_max",
             problems,
@@ -580,7 +361,7 @@ pub fn range(
 /// The fields to blame when a correspondence has no finite distance: the disparity as the
 /// feature gave it, and `doffs` when it took part.
 pub fn disparity_fields(rig: &Rig, feature: &Feature) -> &'static [&'static str] {
-    match (feature.disparity_px.is_some(), rig.doffs == 0.0) {
+    match (feature.disparity_px.is_some(), rig.doffs() == 0.0) {
         (false, true) => &["x_left", "x_right"],
         (false, false) => &["x_left", "x_right", "doffs"],
         (true, true) => &["disparity_px"],

@@ -1,7 +1,8 @@
 //! Calibration files in, a rectified rig out: Middlebury 2014 `calib.txt`, KITTI's calibration
 //! files, a pair of ROS `CameraInfo`s and OpenCV's `stereoRectify` output (FileStorage YAML or
 //! XML). Pure functions on text, with no HTTP or serde in any signature; each error names the
-//! file (left or right) and the line.
+//! file (left or right) and the line. [`read`] turns a file into a checked
+//! [`crate::physics::Rig`] with its unit resolved and its warnings.
 //!
 //! Every format is reduced to the same numbers, with the conventions of [`crate::physics`]:
 //! `f` in pixels, the baseline `B` in the file's length unit, the left principal point and
@@ -10,8 +11,11 @@
 mod kitti;
 mod middlebury;
 mod opencv;
+mod read;
 mod ros;
 pub mod yaml;
+
+pub use read::{Fault, Input, Options, Read, UNIT_REQUIRED, read};
 
 use crate::numbers::{Num, clip};
 use std::fmt;

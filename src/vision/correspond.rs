@@ -401,10 +401,7 @@ mod tests {
     fn bands_answer_as_the_whole_image() {
         let (w, h) = (320, 480);
         let pair = super::super::synthetic::render(&super::super::synthetic::layered(w, h));
-        let params = Params {
-            count: 48,
-            ..Params::default()
-        };
+        let params = Params::range(0, 48).unwrap();
         let points: Vec<(f64, f64)> = (0..40)
             .map(|i| (f64::from(40 + i * 7), f64::from(30 + (i % 3) * 190)))
             .collect();

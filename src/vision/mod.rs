@@ -32,6 +32,7 @@ pub mod cost;
 pub mod decode;
 pub mod encode;
 pub mod pages;
+mod params;
 pub mod refine;
 pub mod sgm;
 pub mod simd;
@@ -42,6 +43,10 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use rayon::prelude::*;
+
+pub use params::{
+    DEFAULT_MAX_DISPARITY, MAX_DISPARITIES, MAX_P2, ParamFault, Params, Setting, Settings,
+};
 
 /// A grey image, 16 bits a pixel (8-bit sources are scaled by 257), row-major.
 #[derive(Debug, Clone, PartialEq)]
@@ -76,52 +81,6 @@ pub enum Subpixel {
     Parabola,
     /// The equiangular (V) fit, which locks less to whole pixels.
     Equiangular,
-}
-
-/// The matcher's parameters. [`Params::default`] holds the tuned defaults; the README's
-/// Performance section gives the measurements that chose them.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Params {
-    /// The smallest disparity searched, in pixels.
-    pub min_disparity: i32,
-    /// How many disparities are searched: `min_disparity .. min_disparity + count`.
-    pub count: usize,
-    pub penalties: sgm::Penalties,
-    /// How much better (in percent) the best cost must be than any other more than one pixel
-    /// away.
-    pub uniqueness: u32,
-    /// The left-right check's tolerance in pixels; `None` skips the check.
-    pub lr_tolerance: Option<f32>,
-    pub subpixel: Subpixel,
-    /// Regions smaller than this many pixels are removed (0: no speckle removal)…
-    pub speckle_size: usize,
-    /// … where neighbours within this many pixels of disparity are one region.
-    pub speckle_range: f32,
-    /// A 3 × 3 median filter of the result.
-    pub median: bool,
-    /// Fill invalid pixels from their row's background instead of leaving them invalid.
-    pub fill: bool,
-}
-
-impl Default for Params {
-    fn default() -> Self {
-        Self {
-            min_disparity: 0,
-            count: 64,
-            penalties: sgm::Penalties {
-                p1: 12,
-                p2: 64,
-                edge: 16,
-            },
-            uniqueness: 5,
-            lr_tolerance: Some(1.0),
-            subpixel: Subpixel::Equiangular,
-            speckle_size: 100,
-            speckle_range: 2.0,
-            median: true,
-            fill: false,
-        }
-    }
 }
 
 /// A dense disparity map: one value a pixel, in pixels (`x_left − x_right`), NaN where invalid.

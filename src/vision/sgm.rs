@@ -30,7 +30,7 @@ pub struct Penalties {
 
 /// A path cost far above any real one (real ones stay below `2 · PAD + P2`), used for the
 /// disparities just outside the padded range so the inner loop needs no bounds.
-const FAR: u16 = 8192;
+pub(crate) const FAR: u16 = 8192;
 
 /// Aggregates `cost` along 8 paths, guided by the grey levels of the volume's rows (`grey`,
 /// `width × height` of them), and calls `on_row(y, totals)` for each row from the bottom up with

@@ -133,11 +133,21 @@ async fn image_size_is_required_only_where_it_is_used() {
     let body = problem(app.post("/distance", &sensor).await, 422).await;
     assert_eq!(fields(&body), ["image_width"]);
 
+    // Without cy (or the image height) the depth is answered; the point and the range, which
+    // need the principal point, are left out and a warning says so.
     let no_cy = json!({"focal_length_px": 700, "baseline": 120, "cx": 640,
                        "x_left": 700, "x_right": 650});
-    let body = problem(app.post("/distance", &no_cy).await, 422).await;
-    assert_eq!(fields(&body), ["image_height"]);
-    assert!(message_for(&body, "image_height").contains("cy"));
+    let body = ok_json(app.post("/distance", &no_cy).await).await;
+    assert_close(
+        number_at(&body, "distance"),
+        700.0 * 120.0 / 50.0,
+        "distance",
+    );
+    assert!(
+        body.get("point").is_none() && body.get("range").is_none(),
+        "{body}"
+    );
+    assert_eq!(body["warnings"][0]["code"], "no_principal_point");
 
     // The pixel pitch needs no width: f = 3.6 mm · 1000 / 3 µm = 1200 px.
     let pitch = json!({"focal_length_mm": 3.6, "pixel_size_um": 3, "baseline": 0.12,

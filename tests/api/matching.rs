@@ -457,8 +457,13 @@ async fn a_request_beyond_the_memory_budget_is_413() {
         413,
     )
     .await;
-    assert_eq!(fields(&body), vec!["left"]);
+    // The same words as /depth-map's: the image, and the range that would fit.
+    assert_eq!(fields(&body), vec!["left", "max_disparity"]);
     assert!(message_for(&body, "left").contains("narrower"), "{body}");
+    assert!(
+        message_for(&body, "max_disparity").contains("at most"),
+        "{body}"
+    );
     let fits = post_match(&app, "?max_disparity=32", form(&pair, &points())).await;
     assert_eq!(fits.status(), 200);
 }

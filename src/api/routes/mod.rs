@@ -7,7 +7,6 @@ pub mod calibration;
 pub mod chart;
 pub mod depth_map;
 pub mod distance;
-pub mod images;
 pub mod matching;
 pub mod ops;
 pub mod planning;

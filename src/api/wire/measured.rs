@@ -27,7 +27,7 @@ impl From<physics::Point3> for Point {
 /// Something worth knowing about a result that was still computed.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
 pub struct Warning {
-    /// Stable code: `negative_disparity` or `large_relative_error`.
+    /// Stable code: `negative_disparity`, `large_relative_error` or `no_principal_point`.
     pub code: String,
     /// What it means and what to check.
     pub message: String,
@@ -51,15 +51,22 @@ pub struct Measured {
     pub distance: f64,
     /// Range: the straight-line distance √(X² + Y² + Z²) from the left camera's optical
     /// centre to the point, in `unit`. Equal to `distance` on the optical axis, longer off it.
-    pub range: f64,
+    /// Absent when the rig has no principal point (no `cx`, `cy` or image size; a
+    /// `no_principal_point` warning says so).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub range: Option<f64>,
     /// Expected depth error ΔZ = Z²·Δd/(f·B), in `unit`.
     pub depth_error: f64,
     /// depth_error / distance.
     pub relative_error: f64,
     /// Disparity d = x_left − x_right, in pixels (signed).
     pub disparity_px: f64,
-    /// The feature's 3D position in the left camera's frame.
-    pub point: Point,
+    /// The feature's 3D position in the left camera's frame; absent, as `range`, without a
+    /// principal point.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub point: Option<Point>,
     /// Caveats about this result; empty when there are none.
     pub warnings: Vec<Warning>,
 }
@@ -72,7 +79,7 @@ impl From<&physics::Measurement> for Measured {
             depth_error: m.depth_error,
             relative_error: m.relative_error,
             disparity_px: m.disparity_px,
-            point: m.point.into(),
+            point: m.point.map(Point::from),
             warnings: m.warnings.iter().map(Warning::from).collect(),
         }
     }

@@ -16,8 +16,7 @@ use crate::api::error::{ApiError, FieldErrors};
 use crate::api::extract::{self, BodyLimit, QueryParams};
 use crate::api::respond::Json;
 use crate::api::wire::openapi::BodyErrors;
-use crate::api::wire::params::Unit;
-use crate::calibration::{self, Format, Part, Source};
+use crate::calibration::{self, Input, Options, Source};
 use crate::physics::LengthUnit;
 
 /// `POST /calibration`.
@@ -149,8 +148,9 @@ pub async fn post_calibration(
     read(&request, problems).map(Json)
 }
 
-/// Reads the file and states the rig in the requested unit.
-pub(crate) fn read(
+/// Reads the file and states the rig in the requested unit; each fault named by its member
+/// (`text`, `right_text`, `calibration_unit`, or the rig's `rig.cx`…).
+fn read(
     request: &CalibrationRequest,
     mut problems: FieldErrors,
 ) -> Result<CalibrationResponse, ApiError> {
@@ -158,88 +158,34 @@ pub(crate) fn read(
     if !problems.is_empty() {
         return Err(problems.into_error());
     }
-    let text = text.unwrap_or_default();
     let source = Source {
-        text,
+        text: text.unwrap_or_default(),
         right_text: request.right_text.as_deref(),
         format: request.format.unwrap_or_default().format(),
         kitti_pair: request.cameras.map(Into::into),
     };
-    let (parsed, format) = match calibration::parse(source) {
-        Ok(calibration) => {
-            let format = calibration.format;
-            (Some(calibration), Some(format))
-        }
-        Err(rejected) => {
-            for error in &rejected.errors {
-                let field = match error.part {
-                    Part::Text => "text",
-                    Part::RightText => "right_text",
+    let options = Options {
+        calibration_unit: request.calibration_unit.map(LengthUnit::from),
+        unit: request.unit.map(LengthUnit::from),
+    };
+    match calibration::read(source, options) {
+        Ok(read) => Ok(CalibrationResponse {
+            format: read.format.into(),
+            rig: CalibratedRig::from(&read.rig),
+            max_disparity_px: read.max_disparity_px,
+            warnings: read.warnings,
+        }),
+        Err(faults) => {
+            for fault in faults {
+                let field = match fault.input() {
+                    Input::Text => "text".to_owned(),
+                    Input::RightText => "right_text".to_owned(),
+                    Input::CalibrationUnit => "calibration_unit".to_owned(),
+                    Input::Rig(member) => format!("rig.{}", member.name()),
                 };
-                problems.add(field, error.to_string());
+                problems.add(&field, fault.message());
             }
-            (None, rejected.format)
-        }
-    };
-    let mut warnings = Vec::new();
-    let file_unit = match (request.calibration_unit, format.and_then(Format::unit)) {
-        (Some(given), Some(own)) => {
-            let given = LengthUnit::from(given);
-            if given != own {
-                warnings.push(format!(
-                    "calibration_unit {} overrides this format's own unit, {}",
-                    given.symbol(),
-                    own.symbol()
-                ));
-            }
-            Some(given)
-        }
-        (Some(given), None) => Some(given.into()),
-        (None, Some(own)) => Some(own),
-        (None, None) if format == Some(Format::OpenCv) => {
-            problems.add(
-                "calibration_unit",
-                "is required for OpenCV files: their lengths (T, P2, Q) are in the unit the \
-                 calibration target's squares were measured in, which the file does not record; \
-                 give that unit (mm, cm, m, in or ft)",
-            );
-            None
-        }
-        (None, None) => None,
-    };
-    if let Some(format) = format {
-        if request.right_text.is_some() && format != Format::Ros {
-            warnings.push(format!(
-                "right_text is read only for ROS files; this is a {} file, so it was ignored",
-                format.name()
-            ));
-        }
-        if request.cameras.is_some() && format != Format::Kitti {
-            warnings.push(format!(
-                "cameras applies only to KITTI files; this is a {} file, so it was ignored",
-                format.name()
-            ));
+            Err(problems.into_error())
         }
     }
-    let (parsed, file_unit) = problems.finish(parsed.zip(file_unit))?;
-    let unit = request.unit.map_or(file_unit, LengthUnit::from);
-    let baseline = file_unit.convert(parsed.baseline, unit);
-    let (image_width, image_height) = parsed.image_size.unzip();
-    warnings.extend(parsed.warnings);
-    Ok(CalibrationResponse {
-        format: parsed.format.into(),
-        rig: CalibratedRig {
-            focal_length_px: parsed.focal_px,
-            focal_length_y_px: (parsed.focal_y_px != parsed.focal_px).then_some(parsed.focal_y_px),
-            baseline,
-            unit: Unit::from(unit),
-            cx: parsed.cx,
-            cy: parsed.cy,
-            doffs: parsed.doffs,
-            image_width,
-            image_height,
-        },
-        max_disparity_px: parsed.max_disparity_px,
-        warnings,
-    })
 }

@@ -5,83 +5,12 @@ use serde::{Deserialize, Serialize};
 use utoipa::{IntoParams, ToSchema};
 
 use crate::api::extract::QueryForm;
-use crate::api::wire::de::{choice_members, member, plain_members, request};
+pub use crate::api::wire::calibration::{CalibrationFormat, Cameras, FormatChoice};
+use crate::api::wire::de::{member, plain_members, request};
 use crate::api::wire::params::Unit;
-use crate::calibration::{Format, KittiPair};
-
-/// The calibration formats, or `auto` to detect the format from the file.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize, Serialize, ToSchema)]
-#[serde(rename_all = "lowercase")]
-pub enum FormatChoice {
-    /// Detect the format from the file's marks.
-    #[default]
-    Auto,
-    /// Middlebury 2014 `calib.txt` (lengths in mm).
-    Middlebury,
-    /// KITTI `calib_cam_to_cam.txt` or odometry `calib.txt` (lengths in m).
-    Kitti,
-    /// A ROS `CameraInfo` per camera, `text` and `right_text` (lengths in m).
-    Ros,
-    /// OpenCV FileStorage YAML or XML after `stereoRectify` (lengths in `calibration_unit`).
-    Opencv,
-}
-
-impl FormatChoice {
-    /// The format asked for, `None` for `auto`.
-    pub fn format(self) -> Option<Format> {
-        match self {
-            FormatChoice::Auto => None,
-            FormatChoice::Middlebury => Some(Format::Middlebury),
-            FormatChoice::Kitti => Some(Format::Kitti),
-            FormatChoice::Ros => Some(Format::Ros),
-            FormatChoice::Opencv => Some(Format::OpenCv),
-        }
-    }
-}
-
-/// The format a file was read as.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize, ToSchema)]
-#[serde(rename_all = "lowercase")]
-pub enum CalibrationFormat {
-    Middlebury,
-    Kitti,
-    Ros,
-    Opencv,
-}
-
-impl From<Format> for CalibrationFormat {
-    fn from(format: Format) -> Self {
-        match format {
-            Format::Middlebury => CalibrationFormat::Middlebury,
-            Format::Kitti => CalibrationFormat::Kitti,
-            Format::Ros => CalibrationFormat::Ros,
-            Format::OpenCv => CalibrationFormat::Opencv,
-        }
-    }
-}
-
-/// A KITTI camera pair.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize, ToSchema)]
-pub enum Cameras {
-    /// Cameras 2 and 3, the colour pair (the default).
-    #[serde(rename = "2-3")]
-    Colour,
-    /// Cameras 0 and 1, the grey pair.
-    #[serde(rename = "0-1")]
-    Grey,
-}
-
-impl From<Cameras> for KittiPair {
-    fn from(cameras: Cameras) -> Self {
-        match cameras {
-            Cameras::Colour => KittiPair::Colour,
-            Cameras::Grey => KittiPair::Grey,
-        }
-    }
-}
+pub use crate::api::wire::rig::CalibratedRig;
 
 plain_members!(String);
-choice_members!(FormatChoice, Cameras);
 
 request! {
     /// A calibration file to read, as text, with the options that some formats need.
@@ -137,37 +66,6 @@ pub struct CalibrationQuery {
 }
 
 impl QueryForm for CalibrationQuery {}
-
-/// The rig a calibration file describes, with the member names every other endpoint takes:
-/// add a correspondence or a `disparity_px` and send it to `/distance`. Members the file does
-/// not give are absent.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
-pub struct CalibratedRig {
-    /// Horizontal focal length fx, in pixels.
-    pub focal_length_px: f64,
-    /// Vertical focal length fy, in pixels; present only when it differs from fx.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    #[schema(nullable = false)]
-    pub focal_length_y_px: Option<f64>,
-    /// Distance between the optical centres, in `unit`.
-    pub baseline: f64,
-    /// Unit of `baseline`.
-    pub unit: Unit,
-    /// Left principal point x, in pixels.
-    pub cx: f64,
-    /// Left principal point y, in pixels.
-    pub cy: f64,
-    /// cx_right − cx_left in pixels, added to every disparity: Z = B·f / |d + doffs|.
-    pub doffs: f64,
-    /// Image width in pixels, when the file says.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    #[schema(nullable = false)]
-    pub image_width: Option<u32>,
-    /// Image height in pixels, when the file says.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    #[schema(nullable = false)]
-    pub image_height: Option<u32>,
-}
 
 /// A calibration file read.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]

@@ -132,7 +132,7 @@ fn chart(
     mut problems: FieldErrors,
 ) -> Result<ChartResponse, ApiError> {
     let params = request.rig_params();
-    let rig = validate::rig(&params, validate::Use::Depths, &mut problems);
+    let rig = validate::rig(&params, &mut problems);
     let feature = Feature {
         x_left: request.x_left,
         x_right: request.x_right,
@@ -143,13 +143,7 @@ fn chart(
         None
     } else {
         // The marker needs only the disparity: x_left places nothing here.
-        validate::disparity(
-            feature,
-            Bounds::of(&params.camera),
-            Some(0.0),
-            &mut problems,
-        )
-        .map(|(_, d)| d)
+        validate::disparity(feature, Bounds::of(&params.camera), &mut problems).map(|(_, d)| d)
     };
     let range = validate::range(
         &request.range_params(),
@@ -169,7 +163,7 @@ fn chart(
     let mut samples = physics::sweep(&rig, range, points, spacing)
         .map_err(|e| ApiError::from((e, validate::range_fields(request.range_params()))))?;
     samples.sort_by(|a, b| a.disparity_px.total_cmp(&b.disparity_px));
-    let unit = rig.unit.symbol();
+    let unit = rig.unit().symbol();
     let series = |name: &str, label: String, y: fn(&physics::Sample) -> f64| Series {
         name: name.to_owned(),
         label,
@@ -200,7 +194,7 @@ fn chart(
                 "depth_error",
                 format!(
                     "Depth error ΔZ ({unit}, Δd = {} px)",
-                    short(rig.disparity_error_px)
+                    short(rig.disparity_error_px())
                 ),
                 |s| s.depth_error,
             ),

@@ -8,9 +8,6 @@ pub mod types;
 use std::sync::atomic::AtomicBool;
 use std::time::{Duration, Instant};
 
-use axum::Extension;
-use axum::extract::multipart::MultipartRejection;
-use axum::extract::{Multipart, State};
 use axum::http::{HeaderMap, HeaderValue, header};
 use axum::response::{IntoResponse, Response};
 use utoipa::ToSchema;
@@ -20,19 +17,23 @@ use self::types::{
     DepthMapForm, DepthMapOutput, DepthMapQuery, DepthMapSummary, MatcherParameters, Spread,
     StageTimes,
 };
-use super::images::{self, GivenRig, Parts};
 use crate::api::HeavyState;
-use crate::api::error::{ApiError, FieldError, FieldErrors};
-use crate::api::extract::{BodyLimit, QueryParams};
+use crate::api::error::ApiError;
+use crate::api::extract::QueryParams;
+use crate::api::images::work::{self, Need};
+use crate::api::images::{GivenRig, ImageForm, ImagePair, Parts, limits, rig};
 use crate::api::respond::Json;
 use crate::api::wire::openapi::ImageErrors;
-use crate::budget::Reservation;
 use crate::physics::LengthUnit;
-use crate::vision::{self, Cancelled, Disparity, Params, encode, sgm};
+use crate::vision::{self, Cancelled, Disparity, Params, encode};
 
 /// `POST /depth-map`.
 pub fn router() -> OpenApiRouter<HeavyState> {
     OpenApiRouter::new().routes(routes!(post_depth_map))
+}
+
+impl ImageForm for DepthMapForm {
+    const PARTS: &'static [&'static str] = &[];
 }
 
 /// A file answer's bytes, documented as binary.
@@ -89,15 +90,20 @@ pub struct FileBody(pub Vec<u8>);
     )
 )]
 pub async fn post_depth_map(
-    State(state): State<HeavyState>,
-    Extension(reservation): Extension<Reservation>,
     headers: HeaderMap,
     QueryParams(query, mut problems): QueryParams<DepthMapQuery>,
-    form: Result<Multipart, MultipartRejection>,
+    pair: ImagePair<DepthMapForm>,
 ) -> Result<Response, ApiError> {
-    let BodyLimit(limit) = state.body_limit;
-    let known = [&["left", "right"][..], &images::RIG_PARTS[..]].concat();
-    let parts = images::read_parts(form, &known, limit, &mut problems).await?;
+    let ImagePair {
+        parts,
+        size,
+        rig: given,
+        problems: found,
+        reservation,
+        read,
+        ..
+    } = pair;
+    problems.extend(found);
     let output = query.output.unwrap_or_else(|| {
         headers
             .get(header::ACCEPT)
@@ -105,133 +111,37 @@ pub async fn post_depth_map(
             .and_then(DepthMapOutput::from_accept)
             .unwrap_or_default()
     });
-    let left = images::image_size(&parts, "left", &mut problems);
-    let right = images::image_size(&parts, "right", &mut problems);
-    if let (Some(l), Some(r)) = (left, right) {
-        images::check_pair(l, r, &mut problems)?;
-    }
-    let given = images::rig(&parts, left, &mut problems);
     if output.needs_rig() {
-        images::require_rig(
+        rig::require_rig(
             &parts,
             &format!("for output={}", output.name()),
             &mut problems,
         );
     }
     let ndisp = given.as_ref().and_then(|g| g.max_disparity);
-    let params = settings(&query, ndisp, &mut problems);
-    let (Some((width, height)), Some(params)) = (left, params) else {
+    let params = limits::params(query.settings(), ndisp, &mut problems);
+    let (Some((width, height)), Some(params)) = (size, params) else {
         return Err(problems.into_error());
     };
     if !problems.is_empty() {
         return Err(problems.into_error());
     }
-    let (w, h) = (width as usize, height as usize);
-    images::reserve(
-        &reservation,
-        bytes_needed(w, h, params.count, output),
-        |total| shrink(w, h, params.count, output, total),
-    )?;
-    images::blocking(reservation, move |cancel| {
-        compute(&parts, &params, given, output, cancel)
+    let need = Need {
+        size: (width as usize, height as usize),
+        count: params.count(),
+        need: move |count| bytes_needed(width as usize, height as usize, count, output),
+    };
+    work::run(reservation, need, move |cancel, started| {
+        compute(
+            &parts,
+            &params,
+            given,
+            output,
+            cancel,
+            [read, started.queue()],
+        )
     })
     .await?
-}
-
-/// The search range and the matcher's parameters from the query, with the calibration's
-/// `ndisp` as the default end of the range.
-fn settings(q: &DepthMapQuery, ndisp: Option<u32>, problems: &mut FieldErrors) -> Option<Params> {
-    let defaults = Params::default();
-    let range = images::disparity_range(q.min_disparity, q.max_disparity, ndisp, problems);
-    let whole =
-        |field: &str, value: Option<u32>, default: u32, lo: u32, hi: u32, p: &mut FieldErrors| {
-            let v = value.unwrap_or(default);
-            if (lo..=hi).contains(&v) {
-                Some(v)
-            } else {
-                p.add(field, format!("must be from {lo} to {hi}, got {v}"));
-                None
-            }
-        };
-    let p1 = whole("p1", q.p1, defaults.penalties.p1.into(), 1, 255, problems);
-    let p2 = whole("p2", q.p2, defaults.penalties.p2.into(), 2, 1024, problems);
-    if let (Some(p1), Some(p2)) = (p1, p2)
-        && p2 <= p1
-    {
-        problems.add("p2", format!("must be greater than p1 ({p1}), got {p2}"));
-    }
-    let edge = whole(
-        "p2_edge",
-        q.p2_edge,
-        defaults.penalties.edge.into(),
-        0,
-        255,
-        problems,
-    );
-    let uniqueness = whole(
-        "uniqueness",
-        q.uniqueness,
-        defaults.uniqueness,
-        0,
-        100,
-        problems,
-    );
-    let speckle_size = whole(
-        "speckle_size",
-        q.speckle_size,
-        defaults.speckle_size as u32,
-        0,
-        1_000_000,
-        problems,
-    );
-    let real = |field: &str,
-                value: Option<f64>,
-                default: f64,
-                open_low: bool,
-                hi: f64,
-                p: &mut FieldErrors| {
-        let v = value.unwrap_or(default);
-        let low_ok = if open_low { v > 0.0 } else { v >= 0.0 };
-        if v.is_finite() && low_ok && v <= hi {
-            Some(v)
-        } else {
-            let bracket = if open_low { "(" } else { "[" };
-            p.add(
-                field,
-                format!(
-                    "must lie in {bracket}0, {hi}], got {}",
-                    crate::numbers::Num(v)
-                ),
-            );
-            None
-        }
-    };
-    let tolerance = real("lr_tolerance", q.lr_tolerance, 1.0, false, 64.0, problems);
-    let speckle_range = real("speckle_range", q.speckle_range, 2.0, true, 64.0, problems);
-    if q.lr_check == Some(false) && q.lr_tolerance.is_some() {
-        problems.add("lr_tolerance", "applies only when lr_check is true");
-    }
-    let (min_disparity, count) = range?;
-    Some(Params {
-        min_disparity,
-        count,
-        penalties: sgm::Penalties {
-            p1: p1? as u16,
-            p2: p2? as u16,
-            edge: edge? as u16,
-        },
-        uniqueness: uniqueness?,
-        lr_tolerance: if q.lr_check.unwrap_or(true) {
-            Some(tolerance? as f32)
-        } else {
-            None
-        },
-        subpixel: q.subpixel.map_or(defaults.subpixel, Into::into),
-        speckle_size: speckle_size? as usize,
-        speckle_range: speckle_range? as f32,
-        median: q.median.unwrap_or(defaults.median),
-        fill: q.fill.unwrap_or(defaults.fill),
-    })
 }
 
 /// The bytes a request holds at its peak: the decoded pair, the colours for a point cloud, the
@@ -243,64 +153,30 @@ fn bytes_needed(w: usize, h: usize, count: usize, output: DepthMapOutput) -> usi
         DepthMapOutput::ArraysNpz => 20,
         _ => 0,
     };
-    images::decoded_bytes(w, h)
+    limits::decoded_bytes(w, h)
         .saturating_add(w.saturating_mul(h).saturating_mul(extra + 24))
         .saturating_add(vision::bytes_needed(w, h, count))
 }
 
-/// What to shrink so that the request fits in a budget of `total` bytes.
-fn shrink(
-    w: usize,
-    h: usize,
-    count: usize,
-    output: DepthMapOutput,
-    total: usize,
-) -> Vec<FieldError> {
-    let need = bytes_needed(w, h, count, output);
-    let per_pixel = need / (w * h).max(1);
-    let max_pixels = total / per_pixel.max(1);
-    let mut fits = count;
-    while fits > 16 && bytes_needed(w, h, fits, output) > total {
-        fits -= 16;
-    }
-    let mib = |b: usize| b / (1024 * 1024);
-    let mut errors = vec![FieldError::new(
-        "left",
-        format!(
-            "a {w} × {h} pair searching {count} disparities needs {} MiB, more than the {} MiB \
-             this server has for image requests: send smaller images (at most {:.1} megapixels \
-             at this range)",
-            mib(need),
-            mib(total),
-            max_pixels as f64 / 1e6
-        ),
-    )];
-    if bytes_needed(w, h, fits, output) <= total {
-        errors.push(FieldError::new(
-            "max_disparity",
-            format!("or search fewer disparities: at most {fits} fit at this size"),
-        ));
-    }
-    errors
-}
-
-/// Decodes, matches and encodes, on a blocking thread.
+/// Decodes, matches and encodes, on a blocking thread. `waited` is how long the body took to
+/// read and the work to get a thread, for `Server-Timing`.
 fn compute(
     parts: &Parts,
     params: &Params,
     given: Option<GivenRig>,
     output: DepthMapOutput,
     cancel: &AtomicBool,
+    [read, queue]: [Duration; 2],
 ) -> Result<Response, ApiError> {
     let started = Instant::now();
-    let (left, right) = images::decode_pair(parts, output == DepthMapOutput::PointsPly)?;
+    let (left, right) = work::decode_pair(parts, output == DepthMapOutput::PointsPly)?;
     let decode_time = started.elapsed();
     let (map, timings) = vision::disparity(&left.grey, &right.grey, params, cancel)
         .map_err(|Cancelled| ApiError::Internal("cancelled".to_owned()))?;
     drop(right);
     let started = Instant::now();
     let rig = given.as_ref().map(|g| g.rig);
-    let depth = rig.map(|rig| depths(&map, rig.fb() as f32, rig.doffs as f32));
+    let depth = rig.map(|rig| depths(&map, rig.fb() as f32, rig.doffs() as f32));
     let (w, h) = (map.width, map.height);
     let body: Result<Vec<u8>, DepthMapSummary> = match output {
         DepthMapOutput::Summary => Err(summary(
@@ -318,7 +194,7 @@ fn compute(
         DepthMapOutput::DepthNpy => Ok(encode::npy(w, h, depth.as_deref().unwrap_or_default())),
         DepthMapOutput::ArraysNpz => Ok(arrays(&map, depth.as_deref(), rig)),
         DepthMapOutput::DepthPng => {
-            let unit = rig.map_or(LengthUnit::Millimetre, |r| r.unit);
+            let unit = rig.map_or(LengthUnit::Millimetre, |r| r.unit());
             let mm: Vec<f32> = depth
                 .as_deref()
                 .unwrap_or_default()
@@ -336,12 +212,18 @@ fn compute(
         ))),
     };
     let encode_time = started.elapsed();
+    let started = Instant::now();
+    drop((left, map, depth));
+    let drop_time = started.elapsed();
     let stages = [
+        ("read", read),
+        ("queue", queue),
         ("decode", decode_time),
         ("cost", timings.cost),
         ("aggregate", timings.aggregate),
         ("refine", timings.refine),
         ("encode", encode_time),
+        ("drop", drop_time),
     ];
     let mut response = match body {
         Ok(bytes) => {
@@ -366,7 +248,7 @@ fn compute(
         }
         Err(summary) => Json(summary).into_response(),
     };
-    if let Ok(v) = HeaderValue::from_str(&images::server_timing(&stages)) {
+    if let Ok(v) = HeaderValue::from_str(&work::server_timing(&stages)) {
         response.headers_mut().insert("server-timing", v);
     }
     Ok(response)
@@ -433,27 +315,27 @@ fn summary(
 ) -> DepthMapSummary {
     let valid = map.data.iter().filter(|d| !d.is_nan()).count();
     let ms = |d: Duration| (d.as_secs_f64() * 1e4).round() / 10.0;
-    let (rig, warnings) = given.map_or((None, Vec::new()), |g| (Some(g.echo), g.warnings));
+    let (rig, warnings) = given.map_or((None, Vec::new()), |g| (Some(g.echo()), g.warnings));
     DepthMapSummary {
         width: map.width,
         height: map.height,
-        min_disparity: params.min_disparity,
-        max_disparity: params.min_disparity + params.count as i32,
+        min_disparity: params.min_disparity(),
+        max_disparity: params.max_disparity(),
         valid_fraction: (valid as f64 / map.data.len().max(1) as f64 * 1e4).round() / 1e4,
         disparity_px: spread(&map.data),
         distance: depth.and_then(spread),
         rig,
         parameters: MatcherParameters {
-            p1: params.penalties.p1.into(),
-            p2: params.penalties.p2.into(),
-            p2_edge: params.penalties.edge.into(),
-            uniqueness: params.uniqueness,
-            lr_tolerance: params.lr_tolerance.map(f64::from),
-            subpixel: params.subpixel.into(),
-            speckle_size: params.speckle_size as u32,
-            speckle_range: f64::from(params.speckle_range),
-            median: params.median,
-            fill: params.fill,
+            p1: params.penalties().p1.into(),
+            p2: params.penalties().p2.into(),
+            p2_edge: params.penalties().edge.into(),
+            uniqueness: params.uniqueness(),
+            lr_tolerance: params.lr_tolerance().map(f64::from),
+            subpixel: params.subpixel().into(),
+            speckle_size: params.speckle_size() as u32,
+            speckle_range: f64::from(params.speckle_range()),
+            median: params.median(),
+            fill: params.fill(),
         },
         timings_ms: StageTimes {
             decode: ms(decode),
@@ -505,7 +387,7 @@ fn points(
             continue;
         }
         let (x, y) = ((i % map.width) as f64, (i / map.width) as f64);
-        let Ok(p) = rig.point_at(x, y, f64::from(z)) else {
+        let Some(Ok(p)) = rig.point_at(x, y, f64::from(z)) else {
             continue;
         };
         let colour = rgb

@@ -8,7 +8,7 @@ use crate::api::extract::QueryForm;
 use crate::api::routes::calibration::types::CalibratedRig;
 use crate::api::routes::distance::types::StereoRig;
 use crate::api::wire::de::{choice_members, request};
-use crate::vision::Subpixel;
+use crate::vision::{Settings, Subpixel};
 
 /// What `/depth-map` answers.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize, Serialize, ToSchema)]
@@ -201,6 +201,27 @@ request! {
 }
 
 impl QueryForm for DepthMapQuery {}
+
+impl DepthMapQuery {
+    /// The matcher's settings the query asks for.
+    pub fn settings(&self) -> Settings {
+        Settings {
+            min_disparity: self.min_disparity,
+            max_disparity: self.max_disparity,
+            p1: self.p1,
+            p2: self.p2,
+            p2_edge: self.p2_edge,
+            uniqueness: self.uniqueness,
+            lr_check: self.lr_check,
+            lr_tolerance: self.lr_tolerance,
+            subpixel: self.subpixel.map(Into::into),
+            speckle_size: self.speckle_size,
+            speckle_range: self.speckle_range,
+            median: self.median,
+            fill: self.fill,
+        }
+    }
+}
 
 /// The `multipart/form-data` parts of `/depth-map` (for the documentation: the handler reads
 /// the parts itself, to name each one in its errors).

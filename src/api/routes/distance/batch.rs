@@ -191,7 +191,7 @@ pub fn answer(batch: Batch, limits: &Limits) -> Result<BatchDistanceResponse, Ap
         mut problems,
     } = batch;
     let rig = match &spec {
-        Some(spec) => validate::rig(&spec.rig_params(), validate::Use::Points, &mut rig_problems),
+        Some(spec) => validate::rig(&spec.rig_params(), &mut rig_problems),
         None => {
             if !problems.has("rig") {
                 problems.add("rig", "is required");
@@ -236,9 +236,9 @@ pub fn answer(batch: Batch, limits: &Limits) -> Result<BatchDistanceResponse, Ap
         .count();
     Ok(BatchDistanceResponse {
         unit: spec.unit.unwrap_or_default(),
-        focal_length_px: rig.focal_px,
-        baseline: rig.baseline,
-        disparity_error_px: rig.disparity_error_px,
+        focal_length_px: rig.focal_px(),
+        baseline: rig.baseline(),
+        disparity_error_px: rig.disparity_error_px(),
         count: results.len(),
         succeeded: results.len() - failed,
         failed,
@@ -295,8 +295,7 @@ fn measure(rig: &physics::Rig, bounds: Bounds, index: usize, point: BatchPoint) 
         disparity_px: point.disparity_px,
         y: point.y,
     };
-    let correspondence =
-        validate::correspondence(feature, bounds, Some((rig.cx, rig.cy)), &mut problems);
+    let correspondence = validate::correspondence(feature, bounds, &mut problems);
     let measured = match correspondence {
         Some(c) if problems.is_empty() => physics::measure(rig, c).map_err(|e| {
             let mut problems = FieldErrors::default();

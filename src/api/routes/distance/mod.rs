@@ -111,39 +111,35 @@ fn distance(
     mut problems: FieldErrors,
 ) -> Result<DistanceResponse, ApiError> {
     let params = request.rig_params();
-    let rig = validate::rig(&params, validate::Use::Points, &mut problems);
+    let rig = validate::rig(&params, &mut problems);
     let feature = Feature {
         x_left: request.x_left,
         x_right: request.x_right,
         disparity_px: request.disparity_px,
         y: request.y,
     };
-    let correspondence = validate::correspondence(
-        feature,
-        Bounds::of(&params.camera),
-        rig.map(|r| (r.cx, r.cy)),
-        &mut problems,
-    );
+    let correspondence =
+        validate::correspondence(feature, Bounds::of(&params.camera), &mut problems);
     let (rig, correspondence) = problems.finish(rig.zip(correspondence))?;
     let m = physics::measure(&rig, correspondence)
         .map_err(|e| ApiError::from((e, validate::disparity_fields(&rig, &feature))))?;
-    let unit = rig.unit.symbol();
+    let unit = rig.unit().symbol();
     Ok(DistanceResponse {
         formula: format!(
             "Z = B·f / |d + doffs| = {} {unit} × {} px / |{} px + {} px| = {} {unit}",
-            short(rig.baseline),
-            short(rig.focal_px),
+            short(rig.baseline()),
+            short(rig.focal_px()),
             short(m.disparity_px),
-            short(rig.doffs),
+            short(rig.doffs()),
             short(m.distance),
         ),
         measured: Measured::from(&m),
         unit: request.unit.unwrap_or_default(),
         distance_m: m.distance_m,
-        disparity_error_px: rig.disparity_error_px,
+        disparity_error_px: rig.disparity_error_px(),
         effective_disparity_px: m.effective_disparity_px,
-        focal_length_px: rig.focal_px,
-        baseline: rig.baseline,
+        focal_length_px: rig.focal_px(),
+        baseline: rig.baseline(),
         normalized_x: m.normalized_x,
         projection_factor: m.projection_factor,
     })

@@ -35,14 +35,7 @@ rig_request! {
     }
 }
 
-rig_request! {
-    /// The rig shared by every point of a batch.
-    #[schema(example = json!({
-        "focal_length_px": 35, "baseline": 150, "unit": "mm",
-        "image_width": 800, "image_height": 600
-    }))]
-    pub struct StereoRig {}
-}
+pub use crate::api::wire::rig::StereoRig;
 
 request! {
     /// One correspondence of a batch. Its shape is checked with the whole request (a wrong

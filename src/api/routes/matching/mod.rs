@@ -8,10 +8,7 @@ pub mod types;
 use std::sync::atomic::AtomicBool;
 use std::time::Instant;
 
-use axum::Extension;
 use axum::body::Bytes;
-use axum::extract::multipart::MultipartRejection;
-use axum::extract::{Multipart, State};
 use axum::http::HeaderValue;
 use axum::response::{IntoResponse, Response};
 use serde::de::DeserializeOwned;
@@ -23,17 +20,17 @@ use self::types::{
     RegionMatch, RegionStatus,
 };
 use super::depth_map::types::StageTimes;
-use super::images::{self, GivenRig, Parts};
 use crate::api::HeavyState;
-use crate::api::error::{ApiError, FieldError, FieldErrors};
-use crate::api::extract::{BodyLimit, QueryParams, decode_object};
+use crate::api::error::{ApiError, FieldErrors};
+use crate::api::extract::{QueryParams, decode_object};
+use crate::api::images::work::{self, Need};
+use crate::api::images::{GivenRig, ImageForm, ImagePair, Parts, limits, rig};
 use crate::api::respond::Json;
 use crate::api::wire::measured::{Measured, Point};
 use crate::api::wire::openapi::ImageErrors;
-use crate::budget::Reservation;
 use crate::physics::{self, Correspondence, Rig};
 use crate::vision::correspond::{self, Found, Rect};
-use crate::vision::{self, Cancelled, Params};
+use crate::vision::{self, Cancelled, Params, Settings};
 
 /// `POST /match`.
 pub fn router() -> OpenApiRouter<HeavyState> {
@@ -45,8 +42,9 @@ pub const MAX_POINTS: usize = 10_000;
 /// The most regions one request may carry.
 pub const MAX_REGIONS: usize = 1_000;
 
-/// The parts `/match` reads besides the rig's ([`images::RIG_PARTS`]).
-const PARTS: [&str; 4] = ["left", "right", "points", "regions"];
+impl ImageForm for MatchForm {
+    const PARTS: &'static [&'static str] = &["points", "regions"];
+}
 
 #[utoipa::path(
     post,
@@ -87,21 +85,20 @@ const PARTS: [&str; 4] = ["left", "right", "points", "regions"];
     )
 )]
 pub async fn post_match(
-    State(state): State<HeavyState>,
-    Extension(reservation): Extension<Reservation>,
     QueryParams(query, mut problems): QueryParams<MatchQuery>,
-    form: Result<Multipart, MultipartRejection>,
+    pair: ImagePair<MatchForm>,
 ) -> Result<Response, ApiError> {
-    let BodyLimit(limit) = state.body_limit;
-    let known = [&PARTS[..], &images::RIG_PARTS[..]].concat();
-    let parts = images::read_parts(form, &known, limit, &mut problems).await?;
-    let left = images::image_size(&parts, "left", &mut problems);
-    let right = images::image_size(&parts, "right", &mut problems);
-    if let (Some(l), Some(r)) = (left, right) {
-        images::check_pair(l, r, &mut problems)?;
-    }
-    let given = images::rig(&parts, left, &mut problems);
-    images::require_rig(&parts, "for the distances", &mut problems);
+    let ImagePair {
+        parts,
+        size,
+        rig: given,
+        problems: found,
+        reservation,
+        read,
+        ..
+    } = pair;
+    problems.extend(found);
+    rig::require_rig(&parts, "for the distances", &mut problems);
     let points = list::<MatchPoint>(&parts, "points", MAX_POINTS, &mut problems);
     let regions = list::<MatchRegion>(&parts, "regions", MAX_REGIONS, &mut problems);
     let points = points.map(|ps| check_points(ps, &mut problems));
@@ -114,42 +111,36 @@ pub async fn post_match(
         );
     }
     let ndisp = given.as_ref().and_then(|g| g.max_disparity);
-    let range = images::disparity_range(
-        query.min_disparity,
-        query.max_disparity,
-        ndisp,
-        &mut problems,
-    );
-    let (Some((width, height)), Some(given), Some((min_disparity, count))) = (left, given, range)
-    else {
+    let settings = Settings {
+        min_disparity: query.min_disparity,
+        max_disparity: query.max_disparity,
+        ..Settings::default()
+    };
+    let params = limits::params(settings, ndisp, &mut problems);
+    let (Some((width, height)), Some(given), Some(params)) = (size, given, params) else {
         return Err(problems.into_error());
     };
     if !problems.is_empty() {
         return Err(problems.into_error());
     }
-    let params = Params {
-        min_disparity,
-        count,
-        ..Params::default()
-    };
     let (w, h) = (width as usize, height as usize);
-    let need = bytes_needed(w, h, count);
-    images::reserve(&reservation, need, |total| {
-        vec![FieldError::new(
-            "left",
-            format!(
-                "a {w} × {h} pair searching {count} disparities needs {} MiB, more than the {} \
-                 MiB this server has for image requests: send smaller images or a narrower \
-                 disparity range",
-                need >> 20,
-                total >> 20
-            ),
-        )]
-    })?;
+    let need = Need {
+        size: (w, h),
+        count: params.count(),
+        need: move |count| bytes_needed(w, h, count),
+    };
     let points = points.unwrap_or_default();
     let regions = regions.unwrap_or_default();
-    images::blocking(reservation, move |cancel| {
-        compute(&parts, &params, &given, &points, &regions, cancel)
+    work::run(reservation, need, move |cancel, started| {
+        compute(
+            &parts,
+            &params,
+            &given,
+            &points,
+            &regions,
+            cancel,
+            [read, started.queue()],
+        )
     })
     .await?
 }
@@ -157,7 +148,7 @@ pub async fn post_match(
 /// The bytes a request holds at its peak: the decoded pair, the matcher's as for the whole
 /// image, and the map.
 fn bytes_needed(w: usize, h: usize, count: usize) -> usize {
-    images::decoded_bytes(w, h)
+    limits::decoded_bytes(w, h)
         .saturating_add(w.saturating_mul(h).saturating_mul(8))
         .saturating_add(vision::bytes_needed(w, h, count))
 }
@@ -310,9 +301,10 @@ fn compute(
     points: &[(f64, f64)],
     regions: &[[f64; 4]],
     cancel: &AtomicBool,
+    [read, queue]: [std::time::Duration; 2],
 ) -> Result<Response, ApiError> {
     let started = Instant::now();
-    let (left, right) = images::decode_pair(parts, false)?;
+    let (left, right) = work::decode_pair(parts, false)?;
     let decode_time = started.elapsed();
     let (w, h) = (left.grey.width, left.grey.height);
     let boxes: Vec<Option<Rect>> = regions.iter().map(|&b| rect(b, w, h)).collect();
@@ -335,16 +327,16 @@ fn compute(
     let answer = MatchResponse {
         width: w,
         height: h,
-        min_disparity: params.min_disparity,
-        max_disparity: params.min_disparity + params.count as i32,
-        unit: given.echo.unit,
+        min_disparity: params.min_disparity(),
+        max_disparity: params.max_disparity(),
+        unit: given.echo().unit,
         ok: matches
             .iter()
             .filter(|m| m.status == MatchStatus::Ok)
             .count(),
         matches,
         regions,
-        rig: given.echo.clone(),
+        rig: given.echo(),
         rows_matched: found.rows_matched,
         timings_ms: StageTimes {
             decode: ms(decode_time),
@@ -355,11 +347,17 @@ fn compute(
         warnings: given.warnings.clone(),
     };
     let mut response = Json(answer).into_response();
-    let timing = images::server_timing(&[
+    let started = Instant::now();
+    drop((left, right, found));
+    let drop_time = started.elapsed();
+    let timing = work::server_timing(&[
+        ("read", read),
+        ("queue", queue),
         ("decode", decode_time),
         ("cost", t.cost),
         ("aggregate", t.aggregate),
         ("refine", t.refine),
+        ("drop", drop_time),
     ]);
     if let Ok(v) = HeaderValue::from_str(&timing) {
         response.headers_mut().insert("server-timing", v);
@@ -395,20 +393,16 @@ fn point_match(rig: &Rig, x: f64, y: f64, found: &Found) -> PointMatch {
         let d = round(f64::from(d), 3);
         answer.x_right = Some(round(x - d, 3));
         answer.disparity_px = Some(d);
-        let c = Correspondence {
-            x_left: x,
-            disparity_px: d,
-            y,
-        };
+        let c = Correspondence::at(x, y, d);
         match physics::measure(rig, c) {
             Ok(m) => {
                 // Mapped as `/distance` maps it.
                 let m = Measured::from(&m);
                 answer.distance = Some(m.distance);
-                answer.range = Some(m.range);
+                answer.range = m.range;
                 answer.depth_error = Some(m.depth_error);
                 answer.relative_error = Some(m.relative_error);
-                answer.point = Some(m.point);
+                answer.point = m.point;
                 answer.warnings = Some(m.warnings);
             }
             Err(e) => answer.error = Some(e.to_string()),
@@ -443,7 +437,7 @@ fn region_match(rig: &Rig, map: &vision::Disparity, b: [f64; 4], r: Option<Rect>
     let mut values: Vec<f64> = values
         .into_iter()
         .map(f64::from)
-        .filter(|d| d + rig.doffs > 0.0)
+        .filter(|d| d + rig.doffs() > 0.0)
         .collect();
     values.sort_by(f64::total_cmp);
     answer.valid_fraction = round(values.len() as f64 / pixels.max(1) as f64, 4);
@@ -458,11 +452,7 @@ fn region_match(rig: &Rig, map: &vision::Disparity, b: [f64; 4], r: Option<Rect>
         (r.x0 + r.x1 - 1) as f64 / 2.0,
         (r.y0 + r.y1 - 1) as f64 / 2.0,
     );
-    let c = Correspondence {
-        x_left: centre.0,
-        disparity_px: median,
-        y: centre.1,
-    };
+    let c = Correspondence::at(centre.0, centre.1, median);
     let Ok(m) = physics::measure(rig, c) else {
         return answer;
     };
@@ -471,8 +461,8 @@ fn region_match(rig: &Rig, map: &vision::Disparity, b: [f64; 4], r: Option<Rect>
     answer.distance = Some(m.distance);
     answer.distance_p10 = rig.distance_at(at(0.1)).ok();
     answer.distance_p90 = rig.distance_at(at(0.9)).ok();
-    answer.range = Some(m.range);
+    answer.range = m.range;
     answer.depth_error = Some(m.depth_error);
-    answer.point = Some(Point::from(m.point));
+    answer.point = m.point.map(Point::from);
     answer
 }

@@ -95,13 +95,13 @@ fn rig(
     request: &RigRequest,
     mut problems: FieldErrors,
 ) -> Result<RigResponse, ApiError> {
-    let rig = validate::rig(&request.rig_params(), validate::Use::Depths, &mut problems);
+    let rig = validate::rig(&request.rig_params(), &mut problems);
     let max_disparity = problems
         .required("max_disparity_px", request.max_disparity_px)
         .and_then(|d| problems.positive("max_disparity_px", d));
     let min_disparity = match (request.min_disparity_px, rig) {
         (Some(d), _) => problems.positive("min_disparity_px", d),
-        (None, Some(r)) if r.disparity_error_px > 0.0 => Some(r.disparity_error_px),
+        (None, Some(r)) if r.disparity_error_px() > 0.0 => Some(r.disparity_error_px()),
         (None, Some(_)) => {
             problems.add(
                 "min_disparity_px",
@@ -131,7 +131,7 @@ fn rig(
         .max_relative_error
         .map(|r| budget("max_relative_error", r, &mut problems));
     if let (Some(Some(_)), Some(r)) = (max_relative_error, rig)
-        && r.disparity_error_px <= 0.0
+        && r.disparity_error_px() <= 0.0
     {
         problems.add(
             "disparity_error_px",
@@ -156,13 +156,13 @@ fn rig(
     let (horizontal_fov_deg, vertical_fov_deg) = rig.fields_of_view_deg();
     Ok(RigResponse {
         unit: request.unit.unwrap_or_default(),
-        focal_length_px: rig.focal_px,
+        focal_length_px: rig.focal_px(),
         horizontal_fov_deg,
         vertical_fov_deg,
-        baseline: rig.baseline,
+        baseline: rig.baseline(),
         fb: rig.fb(),
-        doffs: rig.doffs,
-        disparity_error_px: rig.disparity_error_px,
+        doffs: rig.doffs(),
+        disparity_error_px: rig.disparity_error_px(),
         min_disparity_px: min_disparity,
         max_disparity_px: max_disparity,
         min_distance,
@@ -220,7 +220,7 @@ fn depth_error_at(
 
 /// Where the budget is passed, said in words against the range the search can see.
 fn error_budget(rig: &Rig, budget: f64, at: f64, (near, far): (f64, f64)) -> ErrorBudget {
-    let unit = rig.unit.symbol();
+    let unit = rig.unit().symbol();
     let (r, z) = (percent(budget), |v: f64| format!("{} {unit}", short(v)));
     let summary = if at >= far {
         format!(
@@ -288,7 +288,7 @@ fn baseline(
         .max_disparity_px
         .map(|d| problems.positive("max_disparity_px", d));
     if let Some(c) = camera
-        && c.disparity_error_px <= 0.0
+        && c.disparity_error_px() <= 0.0
     {
         problems.add(
             "disparity_error_px",
@@ -299,33 +299,29 @@ fn baseline(
         problems.finish(camera.zip(target.zip(max_depth_error)))?;
     let max_disparity = max_disparity.flatten();
     let baseline = physics::baseline_for(
-        camera.focal_px,
+        camera.focal_px(),
         target,
         max_depth_error,
-        camera.disparity_error_px,
+        camera.disparity_error_px(),
     )
     .map_err(blame(&["target_distance", "max_depth_error"]))?;
-    let mut fields = FieldErrors::default();
-    validate::balanced(
-        camera.focal_px,
-        baseline,
-        validate::focal_field(&params),
-        &mut fields,
-    )
-    .ok_or_else(|| fields.into_error())?;
-    let rig = camera.with_baseline(baseline);
+    let rig = Rig::from_camera(camera, baseline).map_err(|faults| {
+        let mut fields = FieldErrors::default();
+        validate::faults(faults, "", &mut fields);
+        fields.into_error()
+    })?;
     let min_distance = max_disparity
         .map(|d| rig.distance_at(d))
         .transpose()
         .map_err(blame(&["max_disparity_px"]))?;
     let disparity_at_target_px =
         finite(rig.disparity_at(target)).map_err(blame(&["target_distance"]))?;
-    let unit = rig.unit.symbol();
+    let unit = rig.unit().symbol();
     Ok(BaselineResponse {
         unit: request.unit.unwrap_or_default(),
-        focal_length_px: camera.focal_px,
+        focal_length_px: camera.focal_px(),
         horizontal_fov_deg: rig.fields_of_view_deg().0,
-        disparity_error_px: camera.disparity_error_px,
+        disparity_error_px: camera.disparity_error_px(),
         target_distance: target,
         max_depth_error,
         max_relative_error: max_depth_error / target,
@@ -334,8 +330,8 @@ fn baseline(
         formula: format!(
             "B = Z²·Δd / (f·ΔZ) = ({} {unit})² × {} px / ({} px × {} {unit}) = {} {unit}",
             short(target),
-            short(camera.disparity_error_px),
-            short(camera.focal_px),
+            short(camera.disparity_error_px()),
+            short(camera.focal_px()),
             short(max_depth_error),
             short(baseline),
         ),

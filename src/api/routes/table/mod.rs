@@ -99,12 +99,12 @@ fn table(
     mut problems: FieldErrors,
 ) -> Result<TableResponse, ApiError> {
     let params = request.rig_params();
-    let rig = validate::rig(&params, validate::Use::Depths, &mut problems);
+    let rig = validate::rig(&params, &mut problems);
     let range = validate::range(&request.range_params(), rig.as_ref(), None, &mut problems);
     let steps = problems.count("steps", request.steps, 10, 1, state.limits.table_rows);
     let x_left = match request.x_left {
         Some(x) => validate::x_coordinate("x_left", x, Bounds::of(&params.camera), &mut problems),
-        None => rig.map(|r| r.image_width.map_or(r.cx, |w| w / 2.0)),
+        None => rig.map(|r| r.image_width().map_or(r.cx().unwrap_or(0.0), |w| w / 2.0)),
     };
     let (rig, ((range, spacing), (steps, x_left))) =
         problems.finish(rig.zip(range.zip(steps.zip(x_left))))?;
@@ -112,9 +112,9 @@ fn table(
         .map_err(|e| ApiError::from((e, validate::range_fields(request.range_params()))))?;
     Ok(TableResponse {
         unit: request.unit.unwrap_or_default(),
-        focal_length_px: rig.focal_px,
-        baseline: rig.baseline,
-        disparity_error_px: rig.disparity_error_px,
+        focal_length_px: rig.focal_px(),
+        baseline: rig.baseline(),
+        disparity_error_px: rig.disparity_error_px(),
         x_left,
         rows: rows
             .into_iter()

@@ -14,16 +14,19 @@
 
 use std::fmt;
 
-/// Default disparity uncertainty Δd, in pixels: the ±0.5 px quantisation of integer-pixel
-/// matching. Subpixel matchers reach about 0.1 px and should pass their own figure.
-pub const DEFAULT_DISPARITY_ERROR_PX: f64 = 0.5;
+mod rig;
+
+pub use rig::{
+    Camera, CameraSpec, DEFAULT_DISPARITY_ERROR_PX, Fault, Focal, MM_ALONE, Member, Rig, RigSpec,
+};
 
 /// Relative depth error above which a measurement carries a [`Warning::LargeRelativeError`].
 pub const LARGE_RELATIVE_ERROR: f64 = 0.1;
 
 /// A unit of length for the baseline and every length derived from it.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Hash)]
 pub enum LengthUnit {
+    #[default]
     Millimetre,
     Centimetre,
     Metre,
@@ -108,114 +111,6 @@ pub fn field_of_view_deg(focal_px: f64, extent_px: f64) -> f64 {
     (2.0 * (extent_px / 2.0 / focal_px).atan()).to_degrees()
 }
 
-/// A calibrated, rectified stereo rig. Lengths are in `unit`; pixel quantities in pixels.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Rig {
-    /// Horizontal focal length `fx`, the one every disparity is measured with.
-    pub focal_px: f64,
-    /// Vertical focal length `fy`, for the point's Y (equal to `fx` for square pixels).
-    pub focal_y_px: f64,
-    pub baseline: f64,
-    pub unit: LengthUnit,
-    /// The image size, when known: only the normalised x, the fields of view and the default
-    /// sample range need it.
-    pub image_width: Option<f64>,
-    pub image_height: Option<f64>,
-    /// Principal point of the left camera, in pixels.
-    pub cx: f64,
-    pub cy: f64,
-    /// Principal-point offset between the cameras, added to every disparity.
-    pub doffs: f64,
-    /// Disparity uncertainty Δd in pixels, for the depth error.
-    pub disparity_error_px: f64,
-}
-
-impl Rig {
-    /// `f_px·B`, the constant that turns an effective disparity into a depth.
-    pub fn fb(&self) -> f64 {
-        self.focal_px * self.baseline
-    }
-
-    /// The seed calculator's "projection factor", `f_px / B`, in pixels per unit of length.
-    pub fn projection_factor(&self) -> f64 {
-        self.focal_px / self.baseline
-    }
-
-    /// Depth for a raw disparity `d`: `Z = B·f_px / |d + doffs|`.
-    pub fn distance_at(&self, disparity_px: f64) -> Result<f64, PhysicsError> {
-        let effective = disparity_px + self.doffs;
-        if effective == 0.0 {
-            return Err(PhysicsError::AtInfinity);
-        }
-        finite(self.fb() / effective.abs())
-    }
-
-    /// The raw disparity `d` (positive effective disparity) at which a point lies at `distance`.
-    pub fn disparity_at(&self, distance: f64) -> f64 {
-        self.fb() / distance - self.doffs
-    }
-
-    /// Depth error at `distance`: `ΔZ = Z²·Δd / (f_px·B)`.
-    pub fn depth_error_at(&self, distance: f64) -> f64 {
-        distance * distance * self.disparity_error_px / self.fb()
-    }
-
-    /// Relative depth error `ΔZ / Z = Z·Δd / (f_px·B)` at `distance`.
-    pub fn relative_error_at(&self, distance: f64) -> f64 {
-        distance * self.disparity_error_px / self.fb()
-    }
-
-    /// The distance at which the relative error reaches `max_relative_error`:
-    /// `Z = r·f_px·B / Δd`. Closer points are better than `r`, farther ones worse. `None` when
-    /// `Δd` is zero (the error never grows) or the distance overflows.
-    pub fn distance_at_relative_error(&self, max_relative_error: f64) -> Option<f64> {
-        let distance = max_relative_error * self.fb() / self.disparity_error_px;
-        (distance.is_finite() && self.disparity_error_px > 0.0).then_some(distance)
-    }
-
-    /// The horizontal and vertical fields of view in degrees, for a principal point at the image
-    /// centre; each is `None` when its image extent is unknown.
-    pub fn fields_of_view_deg(&self) -> (Option<f64>, Option<f64>) {
-        (
-            self.image_width
-                .map(|w| field_of_view_deg(self.focal_px, w)),
-            self.image_height
-                .map(|h| field_of_view_deg(self.focal_y_px, h)),
-        )
-    }
-
-    /// The depth range a disparity search from `min_disparity_px` to `max_disparity_px` (raw
-    /// disparities, `doffs` is added) can see: `(f·B / (max + doffs), f·B / (min + doffs))`.
-    /// Callers guarantee `0 < min + doffs < max + doffs`.
-    pub fn depth_range(
-        &self,
-        min_disparity_px: f64,
-        max_disparity_px: f64,
-    ) -> Result<(f64, f64), PhysicsError> {
-        Ok((
-            self.distance_at(max_disparity_px)?,
-            self.distance_at(min_disparity_px)?,
-        ))
-    }
-
-    /// The seed's normalised coordinate: `(x − W/2) / (W/2)`, −1 at the left edge, +1 at the
-    /// right; `None` when the image width is unknown.
-    pub fn normalized_x(&self, x_px: f64) -> Option<f64> {
-        let half = self.image_width? / 2.0;
-        Some((x_px - half) / half)
-    }
-
-    /// The point in the left camera's frame at pixel `(x, y)` of the left image and depth `z`,
-    /// by the pinhole model around the principal point.
-    pub fn point_at(&self, x_px: f64, y_px: f64, z: f64) -> Result<Point3, PhysicsError> {
-        Ok(Point3 {
-            x: finite((x_px - self.cx) * z / self.focal_px)?,
-            y: finite((y_px - self.cy) * z / self.focal_y_px)?,
-            z,
-        })
-    }
-}
-
 /// The shortest baseline that keeps the depth error at `distance` within `max_depth_error`, for a
 /// focal length of `focal_px` and a disparity error `Δd`: `B = Z²·Δd / (f_px·ΔZ)`, the depth
 /// error formula solved for `B`. The result is in the unit of `distance` and `max_depth_error`.
@@ -228,22 +123,31 @@ pub fn baseline_for(
     finite(distance * distance * disparity_error_px / (focal_px * max_depth_error))
 }
 
-/// One feature seen in both images: where it is in the left image and its disparity
-/// `d = x_left − x_right`.
+/// One feature seen in both images: its disparity `d = x_left − x_right`, and where it is in
+/// the left image (`None`: at the principal point, the default).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Correspondence {
-    pub x_left: f64,
+    pub x_left: Option<f64>,
     pub disparity_px: f64,
-    pub y: f64,
+    pub y: Option<f64>,
 }
 
 impl Correspondence {
     /// The feature at `x_left` in the left image and `x_right` in the right one, on row `y`.
     pub fn from_pair(x_left: f64, x_right: f64, y: f64) -> Self {
         Self {
-            x_left,
+            x_left: Some(x_left),
             disparity_px: x_left - x_right,
-            y,
+            y: Some(y),
+        }
+    }
+
+    /// The feature at `(x, y)` in the left image with disparity `d`.
+    pub fn at(x: f64, y: f64, disparity_px: f64) -> Self {
+        Self {
+            x_left: Some(x),
+            disparity_px,
+            y: Some(y),
         }
     }
 }
@@ -271,6 +175,9 @@ pub enum Warning {
     NegativeDisparity { effective_disparity_px: f64 },
     /// The depth error is a large fraction of the distance.
     LargeRelativeError { relative_error: f64 },
+    /// The rig has no principal point (neither `cx`, `cy` nor the image size): the depth is
+    /// known, the 3D point and the range are not.
+    NoPrincipalPoint,
 }
 
 impl Warning {
@@ -279,6 +186,7 @@ impl Warning {
         match self {
             Warning::NegativeDisparity { .. } => "negative_disparity",
             Warning::LargeRelativeError { .. } => "large_relative_error",
+            Warning::NoPrincipalPoint => "no_principal_point",
         }
     }
 }
@@ -300,6 +208,11 @@ impl fmt::Display for Warning {
                 "the depth error is {:.1} % of the distance: the disparity is only a few times \
                  the matching error, so treat this distance as a rough estimate",
                 relative_error * 100.0
+            ),
+            Warning::NoPrincipalPoint => f.write_str(
+                "the depth needs only f, B and d; the 3D point, the range and normalized_x \
+                 also need the principal point: give cx and cy, or image_width and \
+                 image_height (the default principal point is the image centre)",
             ),
         }
     }
@@ -345,26 +258,33 @@ pub struct Measurement {
     pub effective_disparity_px: f64,
     /// Depth `Z` along the optical axis.
     pub distance: f64,
-    /// Straight-line distance `√(X² + Y² + Z²)` from the left optical centre to the point.
-    pub range: f64,
+    /// Straight-line distance `√(X² + Y² + Z²)` from the left optical centre to the point,
+    /// when the principal point is known.
+    pub range: Option<f64>,
     pub distance_m: f64,
     pub depth_error: f64,
     pub relative_error: f64,
     pub normalized_x: Option<f64>,
     pub projection_factor: f64,
-    pub point: Point3,
+    /// The point in the left camera's frame, when the principal point is known.
+    pub point: Option<Point3>,
     pub warnings: Vec<Warning>,
 }
 
 /// Triangulates one correspondence. Every number in an `Ok` result is finite.
 pub fn measure(rig: &Rig, c: Correspondence) -> Result<Measurement, PhysicsError> {
     let disparity_px = c.disparity_px;
-    let effective_disparity_px = disparity_px + rig.doffs;
+    let effective_disparity_px = disparity_px + rig.doffs();
     let distance = rig.distance_at(disparity_px)?;
     let depth_error = finite(rig.depth_error_at(distance))?;
     let relative_error = finite(depth_error / distance)?;
-    let point = rig.point_at(c.x_left, c.y, distance)?;
-    let range = finite(point.norm())?;
+    let x_left = c.x_left.or(rig.cx());
+    let y = c.y.or(rig.cy());
+    let point = match (x_left, y) {
+        (Some(x), Some(y)) => rig.point_at(x, y, distance).transpose()?,
+        _ => None,
+    };
+    let range = point.map(|p| finite(p.norm())).transpose()?;
     let mut warnings = Vec::new();
     if effective_disparity_px < 0.0 {
         warnings.push(Warning::NegativeDisparity {
@@ -374,15 +294,21 @@ pub fn measure(rig: &Rig, c: Correspondence) -> Result<Measurement, PhysicsError
     if relative_error > LARGE_RELATIVE_ERROR {
         warnings.push(Warning::LargeRelativeError { relative_error });
     }
+    if point.is_none() {
+        warnings.push(Warning::NoPrincipalPoint);
+    }
     Ok(Measurement {
         disparity_px,
         effective_disparity_px,
         distance,
         range,
-        distance_m: finite(distance * rig.unit.metres())?,
+        distance_m: finite(distance * rig.unit().metres())?,
         depth_error,
         relative_error,
-        normalized_x: rig.normalized_x(c.x_left).map(finite).transpose()?,
+        normalized_x: x_left
+            .and_then(|x| rig.normalized_x(x))
+            .map(finite)
+            .transpose()?,
         projection_factor: finite(rig.projection_factor())?,
         point,
         warnings,
@@ -417,10 +343,10 @@ impl SampleRange {
         image_width: f64,
         measured_disparity_px: Option<f64>,
     ) -> SampleRange {
-        let min = 1.0_f64.max(1.0 - rig.doffs);
+        let min = 1.0_f64.max(1.0 - rig.doffs());
         let mut max = min + (image_width / 4.0 - 1.0).max(1.0);
         if let Some(d) = measured_disparity_px
-            && d + rig.doffs > 0.0
+            && d + rig.doffs() > 0.0
             && d * 1.25 > max
         {
             max = d * 1.25;
@@ -475,9 +401,9 @@ pub fn sweep(
             .map(|z| sample_at(rig.disparity_at(z), z))
             .collect(),
         SampleRange::Disparity { min, max } => {
-            spaced(min + rig.doffs, max + rig.doffs, count, spacing)
+            spaced(min + rig.doffs(), max + rig.doffs(), count, spacing)
                 .map(|effective| {
-                    let d = effective - rig.doffs;
+                    let d = effective - rig.doffs();
                     sample_at(d, rig.distance_at(d)?)
                 })
                 .collect()
@@ -527,19 +453,20 @@ pub fn table(
 mod tests {
     use super::*;
 
+    /// An 800 × 600 rig in mm with its principal point at the centre, as stated.
+    fn spec(focal_px: f64, baseline: f64) -> RigSpec {
+        let mut spec = RigSpec::pixels(focal_px, baseline, LengthUnit::Millimetre);
+        spec.camera.image_width = Some(800);
+        spec.camera.image_height = Some(600);
+        spec
+    }
+
     fn rig(focal_px: f64, baseline: f64) -> Rig {
-        Rig {
-            focal_px,
-            focal_y_px: focal_px,
-            baseline,
-            unit: LengthUnit::Millimetre,
-            image_width: Some(800.0),
-            image_height: Some(600.0),
-            cx: 400.0,
-            cy: 300.0,
-            doffs: 0.0,
-            disparity_error_px: DEFAULT_DISPARITY_ERROR_PX,
-        }
+        build(&spec(focal_px, baseline))
+    }
+
+    fn build(spec: &RigSpec) -> Rig {
+        Rig::new(spec).unwrap()
     }
 
     fn close(a: f64, b: f64) -> bool {
@@ -558,7 +485,7 @@ mod tests {
         assert!(close(m.distance, 105.0));
         assert!(close(m.distance_m, 0.105));
         assert_eq!(m.normalized_x, Some(0.0));
-        assert_eq!(m.range, m.distance);
+        assert_eq!(m.range, Some(m.distance));
         assert!(close(m.projection_factor, 35.0 / 150.0));
         assert!(m.warnings.is_empty());
     }
@@ -566,8 +493,10 @@ mod tests {
     /// A negative disparity still gives a distance from |d|, with a warning.
     #[test]
     fn negative_disparity_uses_absolute_value_and_warns() {
-        let mut r = rig(12.0, 50.0);
-        r.image_width = Some(640.0);
+        let mut s = spec(12.0, 50.0);
+        s.camera.image_width = Some(640);
+        s.cx = Some(400.0);
+        let r = build(&s);
         let m = measure(&r, at(180.0, 195.0)).unwrap();
         assert_eq!(m.disparity_px, -15.0);
         assert!(close(m.distance, 40.0));
@@ -582,24 +511,27 @@ mod tests {
             measure(&rig(35.0, 150.0), at(400.0, 400.0)),
             Err(PhysicsError::AtInfinity)
         );
-        let mut r = rig(35.0, 150.0);
-        r.doffs = -50.0;
+        let mut s = spec(35.0, 150.0);
+        s.doffs = Some(-50.0);
+        let r = build(&s);
         assert_eq!(measure(&r, at(400.0, 350.0)), Err(PhysicsError::AtInfinity));
     }
 
     /// A subnormal disparity overflows the distance; that is an error, never infinity.
     #[test]
     fn overflow_is_an_error() {
-        let mut r = rig(1e6, 1e3);
-        r.doffs = 1e-310;
+        let mut s = spec(1e6, 1e3);
+        s.doffs = Some(1e-310);
+        let r = build(&s);
         assert_eq!(measure(&r, at(400.0, 400.0)), Err(PhysicsError::NotFinite));
     }
 
     /// The doffs offset is added to the disparity before dividing.
     #[test]
     fn doffs_is_added_to_disparity() {
-        let mut r = rig(1000.0, 200.0);
-        r.doffs = 50.0;
+        let mut s = spec(1000.0, 200.0);
+        s.doffs = Some(50.0);
+        let r = build(&s);
         assert!(close(r.distance_at(50.0).unwrap(), 2000.0));
         assert!(close(r.disparity_at(2000.0), 50.0));
     }
@@ -617,48 +549,58 @@ mod tests {
     /// The 3D point comes from the pinhole model around the principal point.
     #[test]
     fn point_in_left_camera_frame() {
-        let mut r = rig(1000.0, 100.0);
-        r.image_width = Some(1000.0);
-        r.image_height = Some(800.0);
-        r.cx = 500.0;
-        r.cy = 400.0;
-        let m = measure(&r, Correspondence::from_pair(700.0, 600.0, 500.0)).unwrap();
+        let mut s = spec(1000.0, 100.0);
+        s.camera.image_width = Some(1000);
+        s.camera.image_height = Some(800);
+        s.cx = Some(500.0);
+        s.cy = Some(400.0);
+        let m = measure(&build(&s), Correspondence::from_pair(700.0, 600.0, 500.0)).unwrap();
         assert_eq!(
             m.point,
-            Point3 {
+            Some(Point3 {
                 x: 200.0,
                 y: 100.0,
                 z: 1000.0
-            }
+            })
         );
         // X = 200, Y = 100, Z = 1000: the range is √(200² + 100² + 1000²) = 1024.695 mm.
-        assert!(close(m.range, 1_050_000.0_f64.sqrt()));
+        assert!(close(m.range.unwrap(), 1_050_000.0_f64.sqrt()));
     }
 
     /// Y uses fy, X uses fx: with fy = 2·fx the same pixel offset is half the height.
     #[test]
     fn vertical_focal_length_scales_y_only() {
-        let mut r = rig(1000.0, 100.0);
-        r.focal_y_px = 2000.0;
-        let m = measure(&r, Correspondence::from_pair(500.0, 400.0, 400.0)).unwrap();
-        assert!(close(m.point.x, 100.0));
-        assert!(close(m.point.y, 50.0));
+        let mut s = spec(1000.0, 100.0);
+        s.camera.focal_y_px = Some(2000.0);
+        let m = measure(&build(&s), Correspondence::from_pair(500.0, 400.0, 400.0)).unwrap();
+        let point = m.point.unwrap();
+        assert!(close(point.x, 100.0));
+        assert!(close(point.y, 50.0));
         assert!(close(m.distance, 1000.0));
     }
 
     /// Without an image width there is no normalised x, and the fields of view are unknown,
-    /// but the distance is the same.
+    /// but the distance is the same; without a principal point too, there is no 3D point or
+    /// range, and a warning says so.
     #[test]
     fn image_size_is_only_needed_for_what_uses_it() {
-        let mut r = rig(1000.0, 100.0);
-        let with = measure(&r, at(510.0, 500.0)).unwrap();
-        r.image_width = None;
-        r.image_height = None;
+        let mut s = spec(1000.0, 100.0);
+        let with = measure(&build(&s), at(510.0, 500.0)).unwrap();
+        s.camera.image_width = None;
+        s.camera.image_height = None;
+        s.cx = Some(400.0);
+        s.cy = Some(300.0);
+        let r = build(&s);
         let without = measure(&r, at(510.0, 500.0)).unwrap();
         assert_eq!(without.normalized_x, None);
         assert_eq!(without.distance, with.distance);
         assert_eq!(without.point, with.point);
         assert_eq!(r.fields_of_view_deg(), (None, None));
+        let bare = build(&RigSpec::pixels(1000.0, 100.0, LengthUnit::Millimetre));
+        let depth_only = measure(&bare, at(510.0, 500.0)).unwrap();
+        assert_eq!(depth_only.distance, with.distance);
+        assert_eq!((depth_only.point, depth_only.range), (None, None));
+        assert_eq!(depth_only.warnings[0].code(), "no_principal_point");
     }
 
     /// The four focal options agree on the reference numbers, and the FOV inverts.
@@ -713,8 +655,9 @@ mod tests {
     /// Every table row satisfies Z·|d + doffs| = B·f, for both kinds of range.
     #[test]
     fn table_rows_lie_on_the_curve() {
-        let mut r = rig(700.0, 120.0);
-        r.doffs = 3.0;
+        let mut s = spec(700.0, 120.0);
+        s.doffs = Some(3.0);
+        let r = build(&s);
         for range in [
             SampleRange::Distance {
                 min: 500.0,
@@ -742,8 +685,7 @@ mod tests {
     /// 168.25 mm; with Δd = 0.08 px the RMS depth error at 2 m is 15.09 mm.
     #[test]
     fn reference_rig_range_and_error() {
-        let mut r = rig(424.0, 50.0);
-        r.disparity_error_px = 0.08;
+        let r = rig(424.0, 50.0).with_disparity_error(0.08).unwrap();
         let (near, far) = r.depth_range(0.08, 126.0).unwrap();
         assert!(close(near, 168.253_968_253_968_25));
         assert!((near - 168.25).abs() < 0.005);
@@ -764,11 +706,11 @@ mod tests {
     /// there is no such distance when Δd is zero.
     #[test]
     fn distance_at_relative_error_inverts() {
-        let mut r = rig(1000.0, 100.0);
+        let r = rig(1000.0, 100.0);
         let z = r.distance_at_relative_error(0.02).unwrap();
         assert!(close(r.relative_error_at(z), 0.02));
         assert!(close(r.depth_error_at(z) / z, 0.02));
-        r.disparity_error_px = 0.0;
+        let r = r.with_disparity_error(0.0).unwrap();
         assert_eq!(r.distance_at_relative_error(0.02), None);
     }
 
@@ -778,8 +720,7 @@ mod tests {
         // 0.5 % at 5 m with f = 1000 px and Δd = 0.25 px needs B = 250 mm.
         let b = baseline_for(1000.0, 5000.0, 25.0, 0.25).unwrap();
         assert!(close(b, 250.0));
-        let mut r = rig(1000.0, b);
-        r.disparity_error_px = 0.25;
+        let r = rig(1000.0, b).with_disparity_error(0.25).unwrap();
         assert!(close(r.depth_error_at(5000.0), 25.0));
         assert_eq!(
             baseline_for(1.0, 1e200, 1e-200, 1.0),
@@ -790,7 +731,7 @@ mod tests {
     /// The default range starts at one pixel of effective disparity and takes in the measurement.
     #[test]
     fn default_range_covers_measurement() {
-        let mut r = rig(35.0, 150.0);
+        let r = rig(35.0, 150.0);
         assert_eq!(
             SampleRange::default_for(&r, 800.0, Some(50.0)),
             SampleRange::Disparity {
@@ -805,10 +746,12 @@ mod tests {
                 max: 500.0
             }
         );
-        r.doffs = -10.0;
+        let mut s = spec(35.0, 150.0);
+        s.doffs = Some(-10.0);
+        let r = build(&s);
         let SampleRange::Disparity { min, .. } = SampleRange::default_for(&r, 800.0, None) else {
             panic!("default range is in disparity");
         };
-        assert_eq!(min + r.doffs, 1.0);
+        assert_eq!(min + r.doffs(), 1.0);
     }
 }

@@ -1,0 +1,199 @@
+//! The image routes' multipart form: every part read into [`Parts`] by name (an unknown,
+//! repeated or unnamed part is named in the answer), the pair's sizes from their headers, and
+//! [`ImagePair`], the extractor that opens every image route with the same steps in the same
+//! order: the parts, the sizes, the pair's check, the rig.
+
+use std::collections::BTreeMap;
+use std::marker::PhantomData;
+use std::time::{Duration, Instant};
+
+use axum::body::Bytes;
+use axum::extract::multipart::MultipartError;
+use axum::extract::{FromRequest, Multipart, Request};
+use axum::http::{StatusCode, header};
+
+use super::limits;
+use super::rig::{self, GivenRig};
+use crate::api::HeavyState;
+use crate::api::error::{ApiError, FieldError, FieldErrors};
+use crate::api::extract;
+use crate::budget::Reservation;
+use crate::vision::decode;
+
+/// The media type the image routes read.
+pub const MULTIPART: &str = "multipart/form-data";
+
+/// The parts of a multipart form, by name.
+#[derive(Debug, Default)]
+pub struct Parts(BTreeMap<String, Bytes>);
+
+impl Parts {
+    pub fn get(&self, name: &str) -> Option<&Bytes> {
+        self.0.get(name)
+    }
+
+    /// The part as UTF-8 text, or an error naming it.
+    pub fn text(&self, name: &str, problems: &mut FieldErrors) -> Option<String> {
+        let bytes = self.get(name)?;
+        match std::str::from_utf8(bytes) {
+            Ok(text) => Some(text.to_owned()),
+            Err(e) => {
+                problems.add(
+                    name,
+                    format!("must be UTF-8 text; byte {} is not", e.valid_up_to()),
+                );
+                None
+            }
+        }
+    }
+}
+
+/// What one image route reads besides the pair and the rig's parts.
+pub trait ImageForm {
+    /// The route's own parts.
+    const PARTS: &'static [&'static str];
+}
+
+/// The pair of an image request, read and judged before anything is decoded.
+pub struct ImagePair<F> {
+    pub parts: Parts,
+    /// The pair's size (the left image's), when its header could be read.
+    pub size: Option<(u32, u32)>,
+    /// The rig from the `rig` or `calibration` part, when one is given and valid.
+    pub rig: Option<GivenRig>,
+    /// Everything found wrong so far, each part named.
+    pub problems: FieldErrors,
+    /// The memory the heavy group's guard reserved for this request, to grow before the work.
+    pub reservation: Reservation,
+    /// How long the body took to arrive and be read into parts.
+    pub read: Duration,
+    form: PhantomData<F>,
+}
+
+impl<F: ImageForm> FromRequest<HeavyState> for ImagePair<F> {
+    type Rejection = ApiError;
+
+    async fn from_request(req: Request, state: &HeavyState) -> Result<Self, ApiError> {
+        let reservation = req
+            .extensions()
+            .get::<Reservation>()
+            .cloned()
+            .ok_or_else(|| ApiError::Internal("no memory reservation".to_owned()))?;
+        let content_type = req.headers().get(header::CONTENT_TYPE).cloned();
+        let form = Multipart::from_request(req, state)
+            .await
+            .map_err(|_| not_multipart(content_type.as_ref()))?;
+        let known = [&["left", "right"][..], F::PARTS, &rig::RIG_PARTS[..]].concat();
+        let mut problems = FieldErrors::default();
+        let started = Instant::now();
+        let parts = read_parts(form, &known, state.body_limit.0, &mut problems).await?;
+        let read = started.elapsed();
+        let left = image_size(&parts, "left", &mut problems);
+        let right = image_size(&parts, "right", &mut problems);
+        if let (Some(l), Some(r)) = (left, right) {
+            limits::check_pair(l, r, &mut problems)?;
+        }
+        let rig = rig::rig(&parts, left, &mut problems);
+        Ok(ImagePair {
+            parts,
+            size: left,
+            rig,
+            problems,
+            reservation,
+            read,
+            form: PhantomData,
+        })
+    }
+}
+
+/// The 415 for a body that is not a multipart form, saying what was sent: another media type,
+/// none, or a form without its boundary.
+fn not_multipart(content_type: Option<&axum::http::HeaderValue>) -> ApiError {
+    let is_form = content_type
+        .and_then(|ct| ct.to_str().ok())
+        .is_some_and(|ct| extract::essence(ct).eq_ignore_ascii_case(MULTIPART));
+    if is_form {
+        ApiError::UnsupportedMediaType {
+            got: "multipart/form-data without a boundary parameter".to_owned(),
+            accepted: "multipart/form-data with its boundary (as curl -F and browsers' FormData \
+                       send it)",
+        }
+    } else {
+        extract::unsupported(
+            content_type,
+            "multipart/form-data: the images as file parts (curl -F left=@left.png -F \
+             right=@right.png)",
+        )
+    }
+}
+
+/// Reads every part of the form. A part this route does not read, a part given twice or one
+/// without a name is recorded in `problems`, naming it; the form itself failing is an error.
+pub async fn read_parts(
+    mut form: Multipart,
+    known: &[&str],
+    limit: usize,
+    problems: &mut FieldErrors,
+) -> Result<Parts, ApiError> {
+    let mut parts = Parts::default();
+    loop {
+        let field = match form.next_field().await {
+            Ok(Some(field)) => field,
+            Ok(None) => break,
+            Err(e) => return Err(multipart_error(&e, limit)),
+        };
+        let name = field.name().unwrap_or_default().to_owned();
+        let bytes = field
+            .bytes()
+            .await
+            .map_err(|e| multipart_error(&e, limit))?;
+        if name.is_empty() {
+            problems.add("body", "has a part without a name; name each part");
+        } else if !known.contains(&name.as_str()) {
+            problems.add_new(
+                crate::numbers::clip(&name, crate::api::wording::ECHO),
+                format!(
+                    "is not a part of this request; the parts are {}",
+                    known.join(", ")
+                ),
+            );
+        } else if parts.0.insert(name.clone(), bytes).is_some() {
+            problems.add(&name, "is given more than once; give it once");
+        }
+    }
+    Ok(parts)
+}
+
+/// A multipart body that cannot be read: too large (413) or broken (400).
+fn multipart_error(e: &MultipartError, limit: usize) -> ApiError {
+    if e.status() == StatusCode::PAYLOAD_TOO_LARGE {
+        ApiError::PayloadTooLarge(limit)
+    } else {
+        ApiError::Malformed(FieldError::new(
+            "body",
+            format!(
+                "is not a readable multipart/form-data body: {}",
+                e.body_text()
+            ),
+        ))
+    }
+}
+
+/// The size of one image of the pair, from its header (turned as its EXIF orientation turns
+/// it), or why it cannot be read.
+pub fn image_size(parts: &Parts, name: &str, problems: &mut FieldErrors) -> Option<(u32, u32)> {
+    let Some(bytes) = parts.get(name) else {
+        problems.add(
+            name,
+            format!("is required: the {name} image of the rectified pair (PNG or JPEG)"),
+        );
+        return None;
+    };
+    match decode::dimensions(bytes) {
+        Ok(size) => Some(size),
+        Err(e) => {
+            problems.add(name, limits::describe(&e));
+            None
+        }
+    }
+}

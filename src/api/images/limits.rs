@@ -1,0 +1,138 @@
+//! What the server accepts of an image request: the images' sizes (judged from their headers),
+//! the matcher's settings (checked by [`Params::new`], its faults named by the query's
+//! parameters), and, when a request cannot fit in the memory budget, what to shrink.
+
+use crate::api::error::{ApiError, FieldError, FieldErrors};
+use crate::vision::decode::{DecodeError, Limits};
+use crate::vision::{Params, Settings};
+
+/// The widest or tallest image accepted, in pixels.
+pub const MAX_SIDE: u32 = 8192;
+/// The most pixels an image may have: 12 megapixels (4000 × 3000).
+pub const MAX_PIXELS: u64 = 12_000_000;
+
+/// The decoder's limits for every image route.
+pub const LIMITS: Limits = Limits {
+    max_side: MAX_SIDE,
+    max_pixels: MAX_PIXELS,
+};
+
+/// What a decode error says about a part.
+pub fn describe(e: &DecodeError) -> String {
+    match e {
+        DecodeError::NotAnImage => "is not an image: send a PNG or JPEG file".to_owned(),
+        DecodeError::Unsupported(format) => {
+            format!("is a {format} file; send the image as PNG or JPEG")
+        }
+        DecodeError::TooLarge { width, height, .. } => too_many_pixels(*width, *height),
+        DecodeError::Corrupt(what) => {
+            format!("could not be decoded: {}", crate::numbers::clip(what, 120))
+        }
+    }
+}
+
+fn too_many_pixels(width: u32, height: u32) -> String {
+    format!(
+        "is {width} × {height} pixels; this server takes at most {MAX_SIDE} pixels a side and \
+         {} megapixels: send smaller images (scale the rig with them)",
+        MAX_PIXELS / 1_000_000
+    )
+}
+
+/// Checks the pair's sizes: each within the limits (413 otherwise), and the right the same
+/// size as the left (naming `right`).
+pub fn check_pair(
+    left: (u32, u32),
+    right: (u32, u32),
+    problems: &mut FieldErrors,
+) -> Result<(), ApiError> {
+    let over = |(w, h): (u32, u32)| {
+        w > MAX_SIDE || h > MAX_SIDE || u64::from(w) * u64::from(h) > MAX_PIXELS
+    };
+    let mut oversized = Vec::new();
+    for (name, size) in [("left", left), ("right", right)] {
+        if over(size) {
+            oversized.push(FieldError::new(name, too_many_pixels(size.0, size.1)));
+        }
+    }
+    if !oversized.is_empty() {
+        return Err(ApiError::Oversized(oversized));
+    }
+    if left != right {
+        problems.add(
+            "right",
+            format!(
+                "is {} × {} pixels but the left image is {} × {}: a rectified pair has one size",
+                right.0, right.1, left.0, left.1
+            ),
+        );
+    }
+    Ok(())
+}
+
+/// The matcher's parameters from the query's settings, with a calibration file's `ndisp` as
+/// the default end of the range; each fault named by its query parameter.
+pub fn params(
+    mut settings: Settings,
+    ndisp: Option<u32>,
+    problems: &mut FieldErrors,
+) -> Option<Params> {
+    if settings.max_disparity.is_none() {
+        settings.max_disparity = ndisp.map(|n| {
+            i32::try_from(n.min(crate::vision::MAX_DISPARITIES as u32))
+                .unwrap_or(crate::vision::DEFAULT_MAX_DISPARITY)
+        });
+    }
+    match Params::new(&settings) {
+        Ok(params) => Some(params),
+        Err(faults) => {
+            for fault in faults {
+                problems.add(fault.setting.name(), fault.message);
+            }
+            None
+        }
+    }
+}
+
+/// The bytes the decoded pair holds: for each image, the decoder's buffer at up to 8 bytes a
+/// pixel and the grey levels at 2.
+pub fn decoded_bytes(width: usize, height: usize) -> usize {
+    width.saturating_mul(height).saturating_mul(2 * (8 + 2))
+}
+
+/// What to shrink so that a `w × h` request searching `count` disparities, needing
+/// `need(count)` bytes, fits in a budget of `total` bytes: the images (to how many megapixels
+/// at this range) and, when a narrower range would fit, the range.
+pub fn shrink(
+    (w, h): (usize, usize),
+    count: usize,
+    total: usize,
+    need: impl Fn(usize) -> usize,
+) -> Vec<FieldError> {
+    let needed = need(count);
+    let per_pixel = needed / (w * h).max(1);
+    let max_pixels = total / per_pixel.max(1);
+    let mut fits = count;
+    while fits > 16 && need(fits) > total {
+        fits -= 16;
+    }
+    let mib = |b: usize| b / (1024 * 1024);
+    let mut errors = vec![FieldError::new(
+        "left",
+        format!(
+            "a {w} × {h} pair searching {count} disparities needs {} MiB, more than the {} MiB \
+             this server has for image requests: send smaller images (at most {:.1} megapixels \
+             at this range) or a narrower disparity range",
+            mib(needed),
+            mib(total),
+            max_pixels as f64 / 1e6
+        ),
+    )];
+    if need(fits) <= total {
+        errors.push(FieldError::new(
+            "max_disparity",
+            format!("or search fewer disparities: at most {fits} fit at this size"),
+        ));
+    }
+    errors
+}

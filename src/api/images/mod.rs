@@ -1,0 +1,21 @@
+//! What the image routes (`/depth-map`, `/match`, and the calibration and rectification routes
+//! after them) share, one concern a file:
+//! - [`form`]: the multipart form read into named parts, and [`form::ImagePair`], the extractor
+//!   that opens every image route (parts, sizes, the pair's check, the rig);
+//! - [`rig`]: the rig from a `rig` part or a `calibration` file, through the one constructor
+//!   every rig goes through;
+//! - [`limits`]: what the server accepts: image sizes, the matcher's settings mapped onto the
+//!   query's names, and what to shrink when a request cannot fit;
+//! - [`work`]: the memory reserved and the work run on a blocking thread that stops when its
+//!   request is abandoned, the pair decoded, `Server-Timing`.
+//!
+//! It sits between [`super::validate`] and [`super::routes`]: the routes use it, it uses
+//! none of them.
+
+pub mod form;
+pub mod limits;
+pub mod rig;
+pub mod work;
+
+pub use form::{ImageForm, ImagePair, Parts};
+pub use rig::GivenRig;

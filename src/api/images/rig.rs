@@ -1,0 +1,240 @@
+//! The rig of an image request, from a `rig` part (the members of `/distance`) or from a
+//! `calibration` part with its options (read as `/calibration` reads a file), built through
+//! [`Rig::new`] like every rig: a rig `/distance` refuses is refused here with the same
+//! message, its members named `rig.cx`, `rig.baseline`…
+
+use axum::body::Bytes;
+use serde_json::{Map, Value};
+
+use super::form::Parts;
+use crate::api::error::FieldErrors;
+use crate::api::extract::decode_object;
+use crate::api::validate;
+use crate::api::wire::calibration::{Cameras, FormatChoice};
+use crate::api::wire::de::request;
+use crate::api::wire::params::Unit;
+use crate::api::wire::rig::{CalibratedRig, StereoRig};
+use crate::calibration::{self, Input, Options, Source};
+use crate::physics::{LengthUnit, Rig};
+
+/// The rig of a request, and what its calibration file adds.
+#[derive(Debug, Clone, PartialEq)]
+pub struct GivenRig {
+    /// The rig, for the images' size.
+    pub rig: Rig,
+    /// The calibration file's disparity range (Middlebury `ndisp`).
+    pub max_disparity: Option<u32>,
+    pub warnings: Vec<String>,
+}
+
+impl GivenRig {
+    /// The rig in the members `/calibration` answers, to echo.
+    pub fn echo(&self) -> CalibratedRig {
+        CalibratedRig::from(&self.rig)
+    }
+}
+
+/// The parts that carry a rig.
+pub const RIG_PARTS: [&str; 6] = [
+    "rig",
+    "calibration",
+    "calibration_format",
+    "right_calibration",
+    "calibration_unit",
+    "calibration_cameras",
+];
+
+/// The prefix of a rig member's name in the image routes' answers.
+const RIG: &str = "rig.";
+
+/// The rig from the `rig` part or the `calibration` parts (not both), for images of `size`;
+/// `None` when neither is given or either is at fault (then `problems` says why).
+pub fn rig(
+    parts: &Parts,
+    size: Option<(u32, u32)>,
+    problems: &mut FieldErrors,
+) -> Option<GivenRig> {
+    let has_calibration = parts.get("calibration").is_some();
+    match (parts.get("rig"), has_calibration) {
+        (Some(_), true) => {
+            problems.add("rig", "give rig or calibration, not both");
+            problems.add("calibration", "give rig or calibration, not both");
+            None
+        }
+        (Some(json), false) => rig_part(json, size, problems),
+        (None, true) => calibration_parts(parts, size, problems),
+        (None, false) => {
+            for option in &RIG_PARTS[2..] {
+                if parts.get(option).is_some() {
+                    problems.add(option, "applies only with a calibration part");
+                }
+            }
+            None
+        }
+    }
+}
+
+/// Names `rig` as required, saying `why`, when the form has neither a `rig` nor a
+/// `calibration` part (a part that is there but at fault is named by [`rig`] itself).
+pub fn require_rig(parts: &Parts, why: &str, problems: &mut FieldErrors) {
+    if parts.get("rig").is_none() && parts.get("calibration").is_none() {
+        problems.add(
+            "rig",
+            format!(
+                "is required {why}: give a rig part (the members of /distance) or a \
+                 calibration part"
+            ),
+        );
+    }
+}
+
+/// The `rig` part: a JSON object with the members of `/distance`.
+fn rig_part(
+    json: &Bytes,
+    size: Option<(u32, u32)>,
+    problems: &mut FieldErrors,
+) -> Option<GivenRig> {
+    let map = match serde_json::from_slice::<Value>(json) {
+        Ok(Value::Object(map)) => map,
+        Ok(other) => {
+            problems.add(
+                "rig",
+                format!(
+                    "must be a JSON object of rig members, got {}",
+                    crate::api::wording::describe(&other)
+                ),
+            );
+            return None;
+        }
+        Err(e) => {
+            problems.add("rig", format!("must be a JSON object of rig members: {e}"));
+            return None;
+        }
+    };
+    let (mut given, refused) = decode_object::<StereoRig>(map);
+    let mut local = FieldErrors::from(refused.prefixed(""));
+    if let Some((w, h)) = size {
+        for (field, declared, actual) in [
+            ("image_width", &mut given.image_width, w),
+            ("image_height", &mut given.image_height, h),
+        ] {
+            match *declared {
+                None => *declared = Some(actual),
+                Some(d) if d != actual => local.add(
+                    field,
+                    format!(
+                        "is {d}, but the images are {actual} px: give the rig of these images \
+                         (scale focal_length_px, cx, cy and doffs with them)"
+                    ),
+                ),
+                Some(_) => {}
+            }
+        }
+    }
+    let rig = validate::rig(&given.rig_params(), &mut local);
+    let ok = local.is_empty();
+    for error in local.prefixed(RIG) {
+        problems.add_new(error.field, error.message);
+    }
+    Some(GivenRig {
+        rig: rig.filter(|_| ok)?,
+        max_disparity: None,
+        warnings: Vec::new(),
+    })
+}
+
+request! {
+    /// The options of a `calibration` part, each its own part.
+    pub struct CalibrationParts {
+        calibration_format: FormatChoice,
+        calibration_unit: Unit,
+        calibration_cameras: Cameras,
+    }
+}
+
+/// The calibration parts, read as `/calibration` reads a file; their errors name the parts,
+/// and the rig's members `rig.…`.
+fn calibration_parts(
+    parts: &Parts,
+    size: Option<(u32, u32)>,
+    problems: &mut FieldErrors,
+) -> Option<GivenRig> {
+    let mut local = FieldErrors::default();
+    let mut map = Map::new();
+    for part in [
+        "calibration_format",
+        "calibration_unit",
+        "calibration_cameras",
+    ] {
+        if let Some(text) = parts.text(part, &mut local) {
+            map.insert(part.to_owned(), Value::String(text.trim().to_owned()));
+        }
+    }
+    let (options, refused) = decode_object::<CalibrationParts>(map);
+    local.extend(refused);
+    let text = parts.text("calibration", &mut local);
+    let right_text = parts.text("right_calibration", &mut local);
+    if !local.is_empty() {
+        problems.extend(local);
+        return None;
+    }
+    let source = Source {
+        text: text.as_deref().unwrap_or_default(),
+        right_text: right_text.as_deref(),
+        format: options.calibration_format.unwrap_or_default().format(),
+        kitti_pair: options.calibration_cameras.map(Into::into),
+    };
+    let read = calibration::read(
+        source,
+        Options {
+            calibration_unit: options.calibration_unit.map(LengthUnit::from),
+            unit: None,
+        },
+    );
+    let read = match read {
+        Ok(read) => read,
+        Err(faults) => {
+            for fault in faults {
+                let field = match fault.input() {
+                    Input::Text => "calibration".to_owned(),
+                    Input::RightText => "right_calibration".to_owned(),
+                    Input::CalibrationUnit => "calibration_unit".to_owned(),
+                    Input::Rig(member) => format!("{RIG}{}", member.name()),
+                };
+                problems.add(&field, fault.message());
+            }
+            return None;
+        }
+    };
+    let Some((w, h)) = size else {
+        return Some(GivenRig {
+            rig: read.rig,
+            max_disparity: read.max_disparity_px,
+            warnings: read.warnings,
+        });
+    };
+    if let (Some(cw), Some(ch)) = (read.rig.image_width(), read.rig.image_height())
+        && (cw, ch) != (f64::from(w), f64::from(h))
+    {
+        problems.add(
+            "calibration",
+            format!(
+                "is for {cw} × {ch} images, but these are {w} × {h}: give the calibration of \
+                 these images, or a rig part with f, cx, cy and doffs scaled by {}",
+                crate::numbers::Num(f64::from(w) / cw)
+            ),
+        );
+        return None;
+    }
+    match read.rig.with_image_size(w, h) {
+        Ok(rig) => Some(GivenRig {
+            rig,
+            max_disparity: read.max_disparity_px,
+            warnings: read.warnings,
+        }),
+        Err(faults) => {
+            validate::faults(faults, RIG, problems);
+            None
+        }
+    }
+}

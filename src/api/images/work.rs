@@ -1,0 +1,112 @@
+//! The heavy work of an image request: the memory it needs reserved in the heavy group's
+//! budget (503 while others hold it, 413 naming what to shrink when it can never fit), then
+//! run on a blocking thread, off the async runtime, with a flag set when the request is
+//! abandoned; the pair decoded there; and the stages it took, as `Server-Timing`.
+
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+use axum::body::Bytes;
+
+use super::form::Parts;
+use super::limits::{self, LIMITS};
+use crate::api::error::{ApiError, FieldError};
+use crate::budget::{Refusal, Reservation};
+use crate::vision::decode::{self, Decoded};
+
+/// Sets its flag when dropped: the request's future was dropped (timed out, or its client
+/// went away), so the blocking work should stop at its next check.
+struct CancelOnDrop(Arc<AtomicBool>);
+
+impl Drop for CancelOnDrop {
+    fn drop(&mut self) {
+        self.0.store(true, Ordering::Relaxed);
+    }
+}
+
+/// The size of a request's work, to reserve its memory: a `size` pair searching `count`
+/// disparities needs `need(count)` bytes.
+pub struct Need<F: Fn(usize) -> usize> {
+    pub size: (usize, usize),
+    pub count: usize,
+    pub need: F,
+}
+
+/// What the work gets besides its flag: when the work was queued, to report how long it
+/// waited for a blocking thread.
+pub struct Started {
+    pub queued: Instant,
+    pub running: Instant,
+}
+
+impl Started {
+    /// How long the work waited for a thread.
+    pub fn queue(&self) -> Duration {
+        self.running.duration_since(self.queued)
+    }
+}
+
+/// Reserves the memory the work needs (or says why not), then runs `work` on a blocking
+/// thread, holding the reservation until it ends. The flag `work` gets is set when this
+/// future is dropped.
+pub async fn run<T: Send + 'static>(
+    reservation: Reservation,
+    need: Need<impl Fn(usize) -> usize>,
+    work: impl FnOnce(&AtomicBool, Started) -> T + Send + 'static,
+) -> Result<T, ApiError> {
+    let bytes = (need.need)(need.count);
+    match reservation.grow(bytes) {
+        Ok(()) => {}
+        Err(Refusal::TooLarge { total, .. }) => {
+            return Err(ApiError::Oversized(limits::shrink(
+                need.size, need.count, total, need.need,
+            )));
+        }
+        Err(busy) => return Err(ApiError::Memory(busy)),
+    }
+    let flag = Arc::new(AtomicBool::new(false));
+    let _cancel = CancelOnDrop(Arc::clone(&flag));
+    let queued = Instant::now();
+    tokio::task::spawn_blocking(move || {
+        let _held = reservation;
+        let started = Started {
+            queued,
+            running: Instant::now(),
+        };
+        work(&flag, started)
+    })
+    .await
+    .map_err(|e| {
+        if e.is_panic() {
+            std::panic::resume_unwind(e.into_panic())
+        } else {
+            ApiError::Internal("the image work was stopped".to_owned())
+        }
+    })
+}
+
+/// Both images of the pair decoded at once (on the matcher's pool), the left in colour too
+/// when `colour`; a 422 naming each image that cannot be decoded.
+pub fn decode_pair(parts: &Parts, colour: bool) -> Result<(Decoded, Decoded), ApiError> {
+    let read = |name: &str| {
+        let bytes = parts.get(name).map_or(&[][..], Bytes::as_ref);
+        decode::decode(bytes, LIMITS, colour && name == "left")
+            .map_err(|e| FieldError::new(name, limits::describe(&e)))
+    };
+    match rayon::join(|| read("left"), || read("right")) {
+        (Ok(l), Ok(r)) => Ok((l, r)),
+        (l, r) => Err(ApiError::Invalid(
+            [l.err(), r.err()].into_iter().flatten().collect(),
+        )),
+    }
+}
+
+/// `Server-Timing: decode;dur=12.3, cost;dur=…`, in milliseconds.
+pub fn server_timing(stages: &[(&str, Duration)]) -> String {
+    stages
+        .iter()
+        .map(|(name, d)| format!("{name};dur={:.1}", d.as_secs_f64() * 1e3))
+        .collect::<Vec<_>>()
+        .join(", ")
+}

@@ -1,0 +1,778 @@
+//! The camera and the rectified rig, each built only through its checking constructor
+//! ([`Camera::new`], [`Rig::new`]): a value that exists is a valid one, whichever way its
+//! members arrived (a JSON rig, a calibration file, a rig part of an image request). What the
+//! constructors refuse is a list of [`Fault`]s, each naming the [`Member`] at fault, which the
+//! HTTP layer maps onto its field names and nothing more.
+
+use crate::numbers::Num;
+
+use super::{FocalLength, LengthUnit, PhysicsError, Point3, field_of_view_deg, finite};
+
+/// Default disparity uncertainty Δd, in pixels: the ±0.5 px quantisation of integer-pixel
+/// matching. Subpixel matchers reach about 0.1 px and should pass their own figure.
+pub const DEFAULT_DISPARITY_ERROR_PX: f64 = 0.5;
+
+/// The members a camera and a rig are stated in, as every request and file names them.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Member {
+    FocalLengthPx,
+    FocalLengthMm,
+    SensorWidthMm,
+    PixelSizeUm,
+    HorizontalFovDeg,
+    FocalLengthYPx,
+    ImageWidth,
+    ImageHeight,
+    DisparityErrorPx,
+    Baseline,
+    Cx,
+    Cy,
+    Doffs,
+}
+
+impl Member {
+    /// The member's name, as the API and the documentation spell it.
+    pub fn name(self) -> &'static str {
+        match self {
+            Member::FocalLengthPx => "focal_length_px",
+            Member::FocalLengthMm => "focal_length_mm",
+            Member::SensorWidthMm => "sensor_width_mm",
+            Member::PixelSizeUm => "pixel_size_um",
+            Member::HorizontalFovDeg => "horizontal_fov_deg",
+            Member::FocalLengthYPx => "focal_length_y_px",
+            Member::ImageWidth => "image_width",
+            Member::ImageHeight => "image_height",
+            Member::DisparityErrorPx => "disparity_error_px",
+            Member::Baseline => "baseline",
+            Member::Cx => "cx",
+            Member::Cy => "cy",
+            Member::Doffs => "doffs",
+        }
+    }
+}
+
+/// One member a constructor refused, and why.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Fault {
+    pub member: Member,
+    pub message: String,
+}
+
+/// The faults found so far, one per member (the first explains the rest), and the members the
+/// caller gave but that could not be read (whose absence is then not reported again).
+struct Faults<'a> {
+    found: Vec<Fault>,
+    unreadable: &'a [Member],
+}
+
+impl Faults<'_> {
+    fn has(&self, member: Member) -> bool {
+        self.unreadable.contains(&member) || self.found.iter().any(|f| f.member == member)
+    }
+
+    fn add(&mut self, member: Member, message: impl Into<String>) {
+        if !self.found.iter().any(|f| f.member == member) {
+            self.found.push(Fault {
+                member,
+                message: message.into(),
+            });
+        }
+    }
+
+    fn positive(&mut self, member: Member, value: f64) -> Option<f64> {
+        if value.is_finite() && value > 0.0 {
+            Some(value)
+        } else {
+            self.add(
+                member,
+                format!("must be greater than 0, got {}", Num(value)),
+            );
+            None
+        }
+    }
+
+    fn non_negative(&mut self, member: Member, value: f64) -> Option<f64> {
+        if value.is_finite() && value >= 0.0 {
+            Some(value)
+        } else {
+            self.add(member, format!("must be 0 or more, got {}", Num(value)));
+            None
+        }
+    }
+
+    /// `value`, or a fault saying `member` is required `why` (unless it was unreadable).
+    fn needed<T>(&mut self, member: Member, value: Option<T>, why: &str) -> Option<T> {
+        if value.is_none() && !self.has(member) {
+            self.add(member, format!("is required {why}"));
+        }
+        value
+    }
+}
+
+const FOCAL_OPTIONS: &str = "give focal_length_px; or focal_length_mm with sensor_width_mm or \
+                             pixel_size_um; or horizontal_fov_deg";
+
+/// Why a focal length in millimetres is not enough on its own.
+pub const MM_ALONE: &str = "a focal length in millimetres cannot be used on its own: \
+    Z = B·f/d needs f in pixels, because d is in pixels and mm × mm / px is not a length. \
+    Add sensor_width_mm (f_px = f_mm · image_width / sensor_width_mm) or pixel_size_um \
+    (f_px = f_mm · 1000 / pixel_size_um), or give focal_length_px or horizontal_fov_deg instead";
+
+/// The focal length as it was stated: exactly one of pixels, millimetres (with a sensor width
+/// or a pixel pitch) or a horizontal field of view.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Focal {
+    pub px: Option<f64>,
+    pub mm: Option<f64>,
+    pub sensor_width_mm: Option<f64>,
+    pub pixel_size_um: Option<f64>,
+    pub horizontal_fov_deg: Option<f64>,
+}
+
+impl Focal {
+    /// The member the focal length was stated in.
+    pub fn member(&self) -> Member {
+        if self.mm.is_some() {
+            Member::FocalLengthMm
+        } else if self.horizontal_fov_deg.is_some() {
+            Member::HorizontalFovDeg
+        } else {
+            Member::FocalLengthPx
+        }
+    }
+}
+
+/// A camera as stated, before it is checked.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct CameraSpec {
+    pub focal: Focal,
+    pub focal_y_px: Option<f64>,
+    pub unit: LengthUnit,
+    pub image_width: Option<u32>,
+    pub image_height: Option<u32>,
+    pub disparity_error_px: Option<f64>,
+    /// Members the caller gave that could not be read (a wrong type): already reported, so
+    /// their absence is not reported again.
+    pub unreadable: Vec<Member>,
+}
+
+/// A rig as stated, before it is checked: the camera, the baseline and the principal points.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct RigSpec {
+    pub camera: CameraSpec,
+    pub baseline: Option<f64>,
+    pub cx: Option<f64>,
+    pub cy: Option<f64>,
+    pub doffs: Option<f64>,
+}
+
+impl RigSpec {
+    /// A rig stated in pixels: `f` (fx = fy) and `baseline` in `unit`, the rest as given
+    /// afterwards.
+    pub fn pixels(focal_px: f64, baseline: f64, unit: LengthUnit) -> Self {
+        Self {
+            camera: CameraSpec {
+                focal: Focal {
+                    px: Some(focal_px),
+                    ..Focal::default()
+                },
+                unit,
+                ..CameraSpec::default()
+            },
+            baseline: Some(baseline),
+            ..Self::default()
+        }
+    }
+}
+
+/// A checked camera: the focal lengths in pixels and what goes with them.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Camera {
+    focal_px: f64,
+    focal_y_px: f64,
+    focal_member: Member,
+    unit: LengthUnit,
+    image_width: Option<f64>,
+    image_height: Option<f64>,
+    disparity_error_px: f64,
+}
+
+impl Camera {
+    /// Checks a camera: exactly one focal option (converted to pixels), image extents of at
+    /// least a pixel, a positive fy, a disparity error of 0 or more.
+    pub fn new(spec: &CameraSpec) -> Result<Camera, Vec<Fault>> {
+        let mut faults = Faults {
+            found: Vec::new(),
+            unreadable: &spec.unreadable,
+        };
+        let camera = camera(spec, &mut faults);
+        match camera {
+            Some(camera) if faults.found.is_empty() => Ok(camera),
+            _ => Err(faults.found),
+        }
+    }
+
+    pub fn focal_px(&self) -> f64 {
+        self.focal_px
+    }
+    pub fn focal_y_px(&self) -> f64 {
+        self.focal_y_px
+    }
+    /// The member the focal length was stated in, to blame for it.
+    pub fn focal_member(&self) -> Member {
+        self.focal_member
+    }
+    pub fn unit(&self) -> LengthUnit {
+        self.unit
+    }
+    pub fn image_width(&self) -> Option<f64> {
+        self.image_width
+    }
+    pub fn image_height(&self) -> Option<f64> {
+        self.image_height
+    }
+    pub fn disparity_error_px(&self) -> f64 {
+        self.disparity_error_px
+    }
+}
+
+/// An image extent when given: whole pixels of at least 1.
+fn image_extent(member: Member, value: Option<u32>, faults: &mut Faults) -> Option<f64> {
+    match value? {
+        0 => {
+            faults.add(member, "must be at least 1 pixel");
+            None
+        }
+        n => Some(f64::from(n)),
+    }
+}
+
+fn camera(spec: &CameraSpec, faults: &mut Faults) -> Option<Camera> {
+    let width = image_extent(Member::ImageWidth, spec.image_width, faults);
+    let height = image_extent(Member::ImageHeight, spec.image_height, faults);
+    let focal_px = focal_length(&spec.focal, width, faults);
+    let focal_y_px = spec
+        .focal_y_px
+        .map(|fy| faults.positive(Member::FocalLengthYPx, fy));
+    let disparity_error_px = faults.non_negative(
+        Member::DisparityErrorPx,
+        spec.disparity_error_px
+            .unwrap_or(DEFAULT_DISPARITY_ERROR_PX),
+    );
+    let focal_px = focal_px?;
+    Some(Camera {
+        focal_px,
+        focal_y_px: focal_y_px.unwrap_or(Some(focal_px))?,
+        focal_member: spec.focal.member(),
+        unit: spec.unit,
+        image_width: width,
+        image_height: height,
+        disparity_error_px: disparity_error_px?,
+    })
+}
+
+/// Exactly one focal option, checked and converted to pixels. `width` is the image width when
+/// it was given and valid; only the sensor-width and field-of-view options need it.
+fn focal_length(p: &Focal, width: Option<f64>, faults: &mut Faults) -> Option<f64> {
+    let modes: Vec<&str> = [
+        (Member::FocalLengthPx, p.px.is_some()),
+        (Member::FocalLengthMm, p.mm.is_some()),
+        (Member::HorizontalFovDeg, p.horizontal_fov_deg.is_some()),
+    ]
+    .into_iter()
+    .filter_map(|(member, given)| given.then_some(member.name()))
+    .collect();
+    if modes.len() > 1 {
+        for member in [
+            Member::FocalLengthPx,
+            Member::FocalLengthMm,
+            Member::HorizontalFovDeg,
+        ] {
+            if modes.contains(&member.name()) {
+                faults.add(
+                    member,
+                    format!(
+                        "give exactly one focal option, but {} were given",
+                        modes.join(", ")
+                    ),
+                );
+            }
+        }
+        return None;
+    }
+    for (member, value) in [
+        (Member::SensorWidthMm, p.sensor_width_mm),
+        (Member::PixelSizeUm, p.pixel_size_um),
+    ] {
+        if value.is_some() && p.mm.is_none() {
+            faults.add(member, "only converts focal_length_mm, which was not given");
+        }
+    }
+    let spec = if let Some(px) = p.px {
+        FocalLength::Pixels(faults.positive(Member::FocalLengthPx, px)?)
+    } else if let Some(mm) = p.mm {
+        let focal_mm = faults.positive(Member::FocalLengthMm, mm);
+        match (p.sensor_width_mm, p.pixel_size_um) {
+            (None, None) => {
+                faults.add(Member::FocalLengthMm, MM_ALONE);
+                return None;
+            }
+            (Some(_), Some(_)) => {
+                for member in [Member::SensorWidthMm, Member::PixelSizeUm] {
+                    faults.add(member, "give sensor_width_mm or pixel_size_um, not both");
+                }
+                return None;
+            }
+            (Some(sensor), None) => FocalLength::MillimetresWithSensorWidth {
+                focal_mm: focal_mm?,
+                sensor_width_mm: faults.positive(Member::SensorWidthMm, sensor)?,
+            },
+            (None, Some(pitch)) => FocalLength::MillimetresWithPixelPitch {
+                focal_mm: focal_mm?,
+                pixel_pitch_um: faults.positive(Member::PixelSizeUm, pitch)?,
+            },
+        }
+    } else if let Some(degrees) = p.horizontal_fov_deg {
+        if !(degrees > 0.0 && degrees < 180.0) {
+            faults.add(
+                Member::HorizontalFovDeg,
+                format!(
+                    "must lie strictly between 0 and 180 degrees, got {}",
+                    Num(degrees)
+                ),
+            );
+            return None;
+        }
+        FocalLength::HorizontalFov { degrees }
+    } else {
+        // A focal member that was given but unreadable was already reported.
+        let focal = [
+            Member::FocalLengthPx,
+            Member::FocalLengthMm,
+            Member::HorizontalFovDeg,
+            Member::SensorWidthMm,
+            Member::PixelSizeUm,
+        ];
+        if !focal.iter().any(|&member| faults.has(member)) {
+            faults.add(
+                Member::FocalLengthPx,
+                format!("a focal length is required: {FOCAL_OPTIONS}"),
+            );
+        }
+        return None;
+    };
+    let width = match spec {
+        FocalLength::MillimetresWithSensorWidth { .. } => faults.needed(
+            Member::ImageWidth,
+            width,
+            "to convert focal_length_mm with sensor_width_mm (f_px = f_mm · image_width / \
+             sensor_width_mm)",
+        )?,
+        FocalLength::HorizontalFov { .. } => faults.needed(
+            Member::ImageWidth,
+            width,
+            "to convert horizontal_fov_deg (f_px = (image_width / 2) / tan(hfov / 2))",
+        )?,
+        FocalLength::Pixels(_) | FocalLength::MillimetresWithPixelPitch { .. } => 0.0,
+    };
+    match spec.to_pixels(width) {
+        Ok(focal_px) if focal_px > 0.0 => Some(focal_px),
+        Ok(focal_px) => {
+            faults.add(
+                p.member(),
+                format!(
+                    "converts to {} px, which is not a usable focal length",
+                    Num(focal_px)
+                ),
+            );
+            None
+        }
+        Err(_) => {
+            faults.add(
+                p.member(),
+                "converts to a focal length in pixels too large to represent",
+            );
+            None
+        }
+    }
+}
+
+/// A calibrated, rectified stereo rig. Lengths are in `unit`; pixel quantities in pixels.
+/// Built only by [`Rig::new`] (or [`Rig::from_camera`]), so every rig that exists has a
+/// positive focal length and baseline whose product and ratio are finite, a principal point
+/// on its image, and a disparity error of 0 or more.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Rig {
+    camera: Camera,
+    baseline: f64,
+    cx: Option<f64>,
+    cy: Option<f64>,
+    doffs: f64,
+}
+
+impl Rig {
+    /// Checks a rig: the camera ([`Camera::new`]), a positive baseline whose product and ratio
+    /// with the focal length are finite, a principal point within the image when its size is
+    /// known (by default the image centre; unknown without a size, when only depths can be
+    /// computed), a finite `doffs` (default 0).
+    pub fn new(spec: &RigSpec) -> Result<Rig, Vec<Fault>> {
+        let mut faults = Faults {
+            found: Vec::new(),
+            unreadable: &spec.camera.unreadable,
+        };
+        let camera = camera(&spec.camera, &mut faults);
+        let width = spec.camera.image_width.filter(|&n| n > 0).map(f64::from);
+        let height = spec.camera.image_height.filter(|&n| n > 0).map(f64::from);
+        let baseline = match spec.baseline {
+            None => {
+                faults.add(Member::Baseline, "is required");
+                None
+            }
+            Some(b) => faults.positive(Member::Baseline, b),
+        };
+        let cx = principal(Member::Cx, spec.cx, width, &mut faults);
+        let cy = principal(Member::Cy, spec.cy, height, &mut faults);
+        let doffs = spec.doffs.unwrap_or(0.0);
+        if !doffs.is_finite() {
+            faults.add(Member::Doffs, "must be a finite number");
+        }
+        if let (Some(camera), Some(baseline)) = (&camera, baseline) {
+            balanced(camera, baseline, &mut faults);
+        }
+        let (Some(camera), Some(baseline), Some(cx), Some(cy)) = (camera, baseline, cx, cy) else {
+            return Err(faults.found);
+        };
+        if !faults.found.is_empty() {
+            return Err(faults.found);
+        }
+        Ok(Rig {
+            camera,
+            baseline,
+            cx,
+            cy,
+            doffs,
+        })
+    }
+
+    /// The rig a checked camera makes with a second one `baseline` away, principal points at
+    /// the image centre (unknown without the image size) and no doffs.
+    pub fn from_camera(camera: Camera, baseline: f64) -> Result<Rig, Vec<Fault>> {
+        let mut faults = Faults {
+            found: Vec::new(),
+            unreadable: &[],
+        };
+        balanced(&camera, baseline, &mut faults);
+        if faults.found.is_empty() {
+            faults.positive(Member::Baseline, baseline);
+        }
+        match baseline {
+            baseline if faults.found.is_empty() => Ok(Rig {
+                camera,
+                baseline,
+                cx: camera.image_width.map(|w| w / 2.0),
+                cy: camera.image_height.map(|h| h / 2.0),
+                doffs: 0.0,
+            }),
+            _ => Err(faults.found),
+        }
+    }
+
+    /// The same rig with its lengths in `unit`.
+    pub fn in_unit(self, unit: LengthUnit) -> Rig {
+        Rig {
+            camera: Camera {
+                unit,
+                ..self.camera
+            },
+            baseline: self.camera.unit.convert(self.baseline, unit),
+            ..self
+        }
+    }
+
+    /// The same rig with a disparity error of `px` (refused unless finite and 0 or more).
+    pub fn with_disparity_error(self, px: f64) -> Result<Rig, Fault> {
+        if px.is_finite() && px >= 0.0 {
+            Ok(Rig {
+                camera: Camera {
+                    disparity_error_px: px,
+                    ..self.camera
+                },
+                ..self
+            })
+        } else {
+            Err(Fault {
+                member: Member::DisparityErrorPx,
+                message: format!("must be 0 or more, got {}", Num(px)),
+            })
+        }
+    }
+
+    /// The same rig for images of `width × height` (its principal point must lie on them).
+    pub fn with_image_size(self, width: u32, height: u32) -> Result<Rig, Vec<Fault>> {
+        let mut faults = Faults {
+            found: Vec::new(),
+            unreadable: &[],
+        };
+        let (w, h) = (f64::from(width), f64::from(height));
+        let cx = principal(Member::Cx, self.cx, Some(w), &mut faults);
+        let cy = principal(Member::Cy, self.cy, Some(h), &mut faults);
+        match (cx, cy) {
+            (Some(cx), Some(cy)) if width > 0 && height > 0 && faults.found.is_empty() => Ok(Rig {
+                camera: Camera {
+                    image_width: Some(w),
+                    image_height: Some(h),
+                    ..self.camera
+                },
+                cx,
+                cy,
+                ..self
+            }),
+            _ => Err(faults.found),
+        }
+    }
+
+    /// The checked camera.
+    pub fn camera(&self) -> Camera {
+        self.camera
+    }
+    /// Horizontal focal length `fx`, the one every disparity is measured with.
+    pub fn focal_px(&self) -> f64 {
+        self.camera.focal_px
+    }
+    /// Vertical focal length `fy`, for the point's Y (equal to `fx` for square pixels).
+    pub fn focal_y_px(&self) -> f64 {
+        self.camera.focal_y_px
+    }
+    pub fn baseline(&self) -> f64 {
+        self.baseline
+    }
+    pub fn unit(&self) -> LengthUnit {
+        self.camera.unit
+    }
+    /// The image size, when known: only the normalised x, the fields of view, the default
+    /// principal point and the default sample range need it.
+    pub fn image_width(&self) -> Option<f64> {
+        self.camera.image_width
+    }
+    pub fn image_height(&self) -> Option<f64> {
+        self.camera.image_height
+    }
+    /// The left camera's principal point x, when known.
+    pub fn cx(&self) -> Option<f64> {
+        self.cx
+    }
+    /// The left camera's principal point y, when known.
+    pub fn cy(&self) -> Option<f64> {
+        self.cy
+    }
+    /// Principal-point offset between the cameras, added to every disparity.
+    pub fn doffs(&self) -> f64 {
+        self.doffs
+    }
+    /// Disparity uncertainty Δd in pixels, for the depth error.
+    pub fn disparity_error_px(&self) -> f64 {
+        self.camera.disparity_error_px
+    }
+
+    /// `f_px·B`, the constant that turns an effective disparity into a depth.
+    pub fn fb(&self) -> f64 {
+        self.focal_px() * self.baseline
+    }
+
+    /// The seed calculator's "projection factor", `f_px / B`, in pixels per unit of length.
+    pub fn projection_factor(&self) -> f64 {
+        self.focal_px() / self.baseline
+    }
+
+    /// Depth for a raw disparity `d`: `Z = B·f_px / |d + doffs|`.
+    pub fn distance_at(&self, disparity_px: f64) -> Result<f64, PhysicsError> {
+        let effective = disparity_px + self.doffs;
+        if effective == 0.0 {
+            return Err(PhysicsError::AtInfinity);
+        }
+        finite(self.fb() / effective.abs())
+    }
+
+    /// The raw disparity `d` (positive effective disparity) at which a point lies at `distance`.
+    pub fn disparity_at(&self, distance: f64) -> f64 {
+        self.fb() / distance - self.doffs
+    }
+
+    /// Depth error at `distance`: `ΔZ = Z²·Δd / (f_px·B)`.
+    pub fn depth_error_at(&self, distance: f64) -> f64 {
+        distance * distance * self.disparity_error_px() / self.fb()
+    }
+
+    /// Relative depth error `ΔZ / Z = Z·Δd / (f_px·B)` at `distance`.
+    pub fn relative_error_at(&self, distance: f64) -> f64 {
+        distance * self.disparity_error_px() / self.fb()
+    }
+
+    /// The distance at which the relative error reaches `max_relative_error`:
+    /// `Z = r·f_px·B / Δd`. Closer points are better than `r`, farther ones worse. `None` when
+    /// `Δd` is zero (the error never grows) or the distance overflows.
+    pub fn distance_at_relative_error(&self, max_relative_error: f64) -> Option<f64> {
+        let distance = max_relative_error * self.fb() / self.disparity_error_px();
+        (distance.is_finite() && self.disparity_error_px() > 0.0).then_some(distance)
+    }
+
+    /// The horizontal and vertical fields of view in degrees, for a principal point at the image
+    /// centre; each is `None` when its image extent is unknown.
+    pub fn fields_of_view_deg(&self) -> (Option<f64>, Option<f64>) {
+        (
+            self.image_width()
+                .map(|w| field_of_view_deg(self.focal_px(), w)),
+            self.image_height()
+                .map(|h| field_of_view_deg(self.focal_y_px(), h)),
+        )
+    }
+
+    /// The depth range a disparity search from `min_disparity_px` to `max_disparity_px` (raw
+    /// disparities, `doffs` is added) can see: `(f·B / (max + doffs), f·B / (min + doffs))`.
+    /// Callers guarantee `0 < min + doffs < max + doffs`.
+    pub fn depth_range(
+        &self,
+        min_disparity_px: f64,
+        max_disparity_px: f64,
+    ) -> Result<(f64, f64), PhysicsError> {
+        Ok((
+            self.distance_at(max_disparity_px)?,
+            self.distance_at(min_disparity_px)?,
+        ))
+    }
+
+    /// The seed's normalised coordinate: `(x − W/2) / (W/2)`, −1 at the left edge, +1 at the
+    /// right; `None` when the image width is unknown.
+    pub fn normalized_x(&self, x_px: f64) -> Option<f64> {
+        let half = self.image_width()? / 2.0;
+        Some((x_px - half) / half)
+    }
+
+    /// The point in the left camera's frame at pixel `(x, y)` of the left image and depth `z`,
+    /// by the pinhole model around the principal point; `None` when the principal point is
+    /// unknown.
+    pub fn point_at(&self, x_px: f64, y_px: f64, z: f64) -> Option<Result<Point3, PhysicsError>> {
+        let (cx, cy) = (self.cx?, self.cy?);
+        Some((|| {
+            Ok(Point3 {
+                x: finite((x_px - cx) * z / self.focal_px())?,
+                y: finite((y_px - cy) * z / self.focal_y_px())?,
+                z,
+            })
+        })())
+    }
+}
+
+/// A principal-point coordinate: within `[0, extent]` when the extent is known, else at least
+/// 0; by default the image centre, unknown when the extent is.
+fn principal(
+    member: Member,
+    value: Option<f64>,
+    extent: Option<f64>,
+    faults: &mut Faults,
+) -> Option<Option<f64>> {
+    let extent_name = match member {
+        Member::Cx => "image_width",
+        _ => "image_height",
+    };
+    match (value, extent) {
+        (Some(c), Some(extent)) => {
+            if c.is_finite() && (0.0..=extent).contains(&c) {
+                Some(Some(c))
+            } else {
+                faults.add(
+                    member,
+                    format!(
+                        "must lie in [0, {}] ({extent_name}), got {}",
+                        Num(extent),
+                        Num(c)
+                    ),
+                );
+                None
+            }
+        }
+        (Some(c), None) => faults.non_negative(member, c).map(Some),
+        (None, Some(extent)) => Some(Some(extent / 2.0)),
+        (None, None) => Some(None),
+    }
+}
+
+/// Refuses a focal length and baseline whose product or ratio leaves the range of an f64,
+/// blaming both.
+fn balanced(camera: &Camera, baseline: f64, faults: &mut Faults) {
+    let focal_px = camera.focal_px;
+    if (focal_px * baseline).is_normal() && (focal_px / baseline).is_normal() {
+        return;
+    }
+    for member in [camera.focal_member, Member::Baseline] {
+        faults.add(
+            member,
+            format!(
+                "focal length ({} px) and baseline ({}) are too far apart in magnitude: \
+                 their product or ratio leaves the range of a 64-bit float",
+                Num(focal_px),
+                Num(baseline)
+            ),
+        );
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn names(faults: &[Fault]) -> Vec<&'static str> {
+        faults.iter().map(|f| f.member.name()).collect()
+    }
+
+    /// A rig with no size and no principal point is still a rig: it relates disparity and
+    /// depth, and places no point.
+    #[test]
+    fn depth_needs_no_principal_point() {
+        let rig = Rig::new(&RigSpec::pixels(700.0, 120.0, LengthUnit::Millimetre)).unwrap();
+        assert_eq!(rig.distance_at(20.0), Ok(4200.0));
+        assert_eq!(rig.point_at(1.0, 1.0, 4200.0), None);
+        assert_eq!((rig.cx(), rig.cy()), (None, None));
+    }
+
+    /// Every fault is named, once, in the order the members are read.
+    #[test]
+    fn faults_name_every_member() {
+        let mut spec = RigSpec::pixels(-1.0, 0.0, LengthUnit::Metre);
+        spec.camera.image_width = Some(0);
+        spec.cx = Some(900.0);
+        spec.camera.image_height = Some(600);
+        spec.cy = Some(601.0);
+        let faults = Rig::new(&spec).unwrap_err();
+        assert_eq!(
+            names(&faults),
+            ["image_width", "focal_length_px", "baseline", "cy"]
+        );
+        assert!(faults[3].message.contains("[0, 600] (image_height)"));
+    }
+
+    /// A focal length and baseline whose product overflows blame both; the stated focal member
+    /// is the one named.
+    #[test]
+    fn unbalanced_rig_blames_focal_and_baseline() {
+        let faults = Rig::new(&RigSpec::pixels(1e300, 1e300, LengthUnit::Millimetre)).unwrap_err();
+        assert_eq!(names(&faults), ["focal_length_px", "baseline"]);
+        assert!(faults[0].message.contains("too far apart"));
+    }
+
+    /// A rig given a size places its principal point at the centre; one outside the new size is
+    /// refused.
+    #[test]
+    fn image_size_checks_the_principal_point() {
+        let rig = Rig::new(&RigSpec::pixels(700.0, 120.0, LengthUnit::Millimetre)).unwrap();
+        let sized = rig.with_image_size(640, 480).unwrap();
+        assert_eq!((sized.cx(), sized.cy()), (Some(320.0), Some(240.0)));
+        let mut spec = RigSpec::pixels(700.0, 120.0, LengthUnit::Millimetre);
+        spec.cx = Some(1000.0);
+        let faults = Rig::new(&spec)
+            .unwrap()
+            .with_image_size(640, 480)
+            .unwrap_err();
+        assert_eq!(names(&faults), ["cx"]);
+    }
+}

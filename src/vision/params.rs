@@ -1,0 +1,413 @@
+//! The matcher's parameters, built only through [`Params::new`], which holds the one set of
+//! defaults and the bounds that keep the matcher's arithmetic safe. What it refuses is a list of
+//! [`ParamFault`]s, each naming the [`Setting`] at fault, which the routes map onto their field
+//! names.
+
+use super::{Subpixel, cost, sgm};
+use crate::numbers::Num;
+
+/// The end of the disparity search (exclusive) when neither the caller nor a calibration file
+/// gives one: disparities `0 ..` this.
+pub const DEFAULT_MAX_DISPARITY: i32 = 128;
+/// The most disparities one search covers.
+pub const MAX_DISPARITIES: usize = 512;
+/// The smallest and largest `min_disparity`.
+pub const MIN_DISPARITY_BOUND: i32 = 4096;
+/// The largest `P2`. The aggregation's `u16` path sums stay below `2 · PAD + P2`, which must
+/// stay below the sentinel `FAR` of [`sgm`]: checked when this module compiles.
+pub const MAX_P2: u16 = 1024;
+const _: () = assert!((sgm::FAR as u32) > 2 * cost::PAD as u32 + MAX_P2 as u32);
+
+/// The matcher's settings as asked for; each `None` takes the default.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Settings {
+    pub min_disparity: Option<i32>,
+    /// The end of the search, exclusive: disparities `min_disparity .. max_disparity`.
+    pub max_disparity: Option<i32>,
+    pub p1: Option<u32>,
+    pub p2: Option<u32>,
+    pub p2_edge: Option<u32>,
+    pub uniqueness: Option<u32>,
+    pub lr_check: Option<bool>,
+    pub lr_tolerance: Option<f64>,
+    pub subpixel: Option<Subpixel>,
+    pub speckle_size: Option<u32>,
+    pub speckle_range: Option<f64>,
+    pub median: Option<bool>,
+    pub fill: Option<bool>,
+}
+
+/// The settings a [`ParamFault`] can name.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Setting {
+    MinDisparity,
+    MaxDisparity,
+    P1,
+    P2,
+    P2Edge,
+    Uniqueness,
+    LrTolerance,
+    SpeckleSize,
+    SpeckleRange,
+}
+
+impl Setting {
+    /// The setting's name, as the API spells it.
+    pub fn name(self) -> &'static str {
+        match self {
+            Setting::MinDisparity => "min_disparity",
+            Setting::MaxDisparity => "max_disparity",
+            Setting::P1 => "p1",
+            Setting::P2 => "p2",
+            Setting::P2Edge => "p2_edge",
+            Setting::Uniqueness => "uniqueness",
+            Setting::LrTolerance => "lr_tolerance",
+            Setting::SpeckleSize => "speckle_size",
+            Setting::SpeckleRange => "speckle_range",
+        }
+    }
+}
+
+/// A setting [`Params::new`] refused, and why.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ParamFault {
+    pub setting: Setting,
+    pub message: String,
+}
+
+/// The matcher's parameters: a search range of 1 to [`MAX_DISPARITIES`] disparities and
+/// penalties, thresholds and filters within the bounds the matcher is safe in.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Params {
+    pub(super) min_disparity: i32,
+    pub(super) count: usize,
+    pub(super) penalties: sgm::Penalties,
+    pub(super) uniqueness: u32,
+    pub(super) lr_tolerance: Option<f32>,
+    pub(super) subpixel: Subpixel,
+    pub(super) speckle_size: usize,
+    pub(super) speckle_range: f32,
+    pub(super) median: bool,
+    pub(super) fill: bool,
+}
+
+impl Default for Params {
+    /// The tuned defaults (the README's Performance section gives the measurements that chose
+    /// them), searching `0 .. DEFAULT_MAX_DISPARITY`.
+    fn default() -> Self {
+        Self {
+            min_disparity: 0,
+            count: DEFAULT_MAX_DISPARITY as usize,
+            penalties: sgm::Penalties {
+                p1: 12,
+                p2: 64,
+                edge: 16,
+            },
+            uniqueness: 5,
+            lr_tolerance: Some(1.0),
+            subpixel: Subpixel::Equiangular,
+            speckle_size: 100,
+            speckle_range: 2.0,
+            median: true,
+            fill: false,
+        }
+    }
+}
+
+/// Collects faults, one per setting.
+#[derive(Default)]
+struct Faults(Vec<ParamFault>);
+
+impl Faults {
+    fn add(&mut self, setting: Setting, message: String) {
+        if !self.0.iter().any(|f| f.setting == setting) {
+            self.0.push(ParamFault { setting, message });
+        }
+    }
+
+    /// A whole number in `[lo, hi]`, or the default.
+    fn whole(
+        &mut self,
+        setting: Setting,
+        value: Option<u32>,
+        default: u32,
+        lo: u32,
+        hi: u32,
+    ) -> Option<u32> {
+        let v = value.unwrap_or(default);
+        if (lo..=hi).contains(&v) {
+            Some(v)
+        } else {
+            self.add(setting, format!("must be from {lo} to {hi}, got {v}"));
+            None
+        }
+    }
+
+    /// A real number in `[0, hi]` (`(0, hi]` when `open_low`), or the default.
+    fn real(
+        &mut self,
+        setting: Setting,
+        value: Option<f64>,
+        default: f64,
+        open_low: bool,
+        hi: f64,
+    ) -> Option<f64> {
+        let v = value.unwrap_or(default);
+        let low_ok = if open_low { v > 0.0 } else { v >= 0.0 };
+        if v.is_finite() && low_ok && v <= hi {
+            Some(v)
+        } else {
+            let bracket = if open_low { "(" } else { "[" };
+            self.add(
+                setting,
+                format!("must lie in {bracket}0, {hi}], got {}", Num(v)),
+            );
+            None
+        }
+    }
+}
+
+impl Params {
+    /// Checks the settings and fills in the defaults. Every fault is reported.
+    pub fn new(s: &Settings) -> Result<Params, Vec<ParamFault>> {
+        let d = Params::default();
+        let mut faults = Faults::default();
+        let range = range(s.min_disparity, s.max_disparity, &mut faults);
+        let p1 = faults.whole(Setting::P1, s.p1, d.penalties.p1.into(), 1, 255);
+        let p2 = faults.whole(Setting::P2, s.p2, d.penalties.p2.into(), 2, MAX_P2.into());
+        if let (Some(p1), Some(p2)) = (p1, p2)
+            && p2 <= p1
+        {
+            faults.add(
+                Setting::P2,
+                format!("must be greater than p1 ({p1}), got {p2}"),
+            );
+        }
+        let edge = faults.whole(Setting::P2Edge, s.p2_edge, d.penalties.edge.into(), 0, 255);
+        let uniqueness = faults.whole(Setting::Uniqueness, s.uniqueness, d.uniqueness, 0, 100);
+        let speckle_size = faults.whole(
+            Setting::SpeckleSize,
+            s.speckle_size,
+            d.speckle_size as u32,
+            0,
+            1_000_000,
+        );
+        let default_tolerance = d.lr_tolerance.map_or(1.0, f64::from);
+        let tolerance = faults.real(
+            Setting::LrTolerance,
+            s.lr_tolerance,
+            default_tolerance,
+            false,
+            64.0,
+        );
+        let speckle_range = faults.real(
+            Setting::SpeckleRange,
+            s.speckle_range,
+            f64::from(d.speckle_range),
+            true,
+            64.0,
+        );
+        let lr_check = s.lr_check.unwrap_or(true);
+        if !lr_check && s.lr_tolerance.is_some() {
+            faults.add(
+                Setting::LrTolerance,
+                "applies only when lr_check is true".to_owned(),
+            );
+        }
+        match (
+            range,
+            p1,
+            p2,
+            edge,
+            uniqueness,
+            speckle_size,
+            tolerance,
+            speckle_range,
+        ) {
+            (
+                Some((min_disparity, count)),
+                Some(p1),
+                Some(p2),
+                Some(edge),
+                Some(uniqueness),
+                Some(speckle_size),
+                Some(tolerance),
+                Some(speckle_range),
+            ) if faults.0.is_empty() => Ok(Params {
+                min_disparity,
+                count,
+                penalties: sgm::Penalties {
+                    p1: p1 as u16,
+                    p2: p2 as u16,
+                    edge: edge as u16,
+                },
+                uniqueness,
+                lr_tolerance: lr_check.then_some(tolerance as f32),
+                subpixel: s.subpixel.unwrap_or(d.subpixel),
+                speckle_size: speckle_size as usize,
+                speckle_range: speckle_range as f32,
+                median: s.median.unwrap_or(d.median),
+                fill: s.fill.unwrap_or(d.fill),
+            }),
+            _ => Err(faults.0),
+        }
+    }
+
+    /// The defaults with the search `min_disparity .. max_disparity`.
+    pub fn range(min_disparity: i32, max_disparity: i32) -> Result<Params, Vec<ParamFault>> {
+        Params::new(&Settings {
+            min_disparity: Some(min_disparity),
+            max_disparity: Some(max_disparity),
+            ..Settings::default()
+        })
+    }
+
+    /// The smallest disparity searched, in pixels.
+    pub fn min_disparity(&self) -> i32 {
+        self.min_disparity
+    }
+    /// The end of the search, exclusive.
+    pub fn max_disparity(&self) -> i32 {
+        self.min_disparity + self.count as i32
+    }
+    /// How many disparities are searched: `min_disparity .. max_disparity`.
+    pub fn count(&self) -> usize {
+        self.count
+    }
+    pub fn penalties(&self) -> sgm::Penalties {
+        self.penalties
+    }
+    /// How much better (in percent) the best cost must be than any other more than one pixel
+    /// away.
+    pub fn uniqueness(&self) -> u32 {
+        self.uniqueness
+    }
+    /// The left-right check's tolerance in pixels; `None` skips the check.
+    pub fn lr_tolerance(&self) -> Option<f32> {
+        self.lr_tolerance
+    }
+    pub fn subpixel(&self) -> Subpixel {
+        self.subpixel
+    }
+    /// Regions smaller than this many pixels are removed (0: no speckle removal)…
+    pub fn speckle_size(&self) -> usize {
+        self.speckle_size
+    }
+    /// … where neighbours within this many pixels of disparity are one region.
+    pub fn speckle_range(&self) -> f32 {
+        self.speckle_range
+    }
+    /// A 3 × 3 median filter of the result.
+    pub fn median(&self) -> bool {
+        self.median
+    }
+    /// Fill invalid pixels from their row's background instead of leaving them invalid.
+    pub fn fill(&self) -> bool {
+        self.fill
+    }
+}
+
+/// The search range `(min, count)` from its two ends, the one place where an end of range
+/// becomes a count.
+fn range(min: Option<i32>, max: Option<i32>, faults: &mut Faults) -> Option<(i32, usize)> {
+    let min = min.unwrap_or(0);
+    let mut ok = true;
+    if !(-MIN_DISPARITY_BOUND..=MIN_DISPARITY_BOUND).contains(&min) {
+        faults.add(
+            Setting::MinDisparity,
+            format!("must lie in [-{MIN_DISPARITY_BOUND}, {MIN_DISPARITY_BOUND}], got {min}"),
+        );
+        ok = false;
+    }
+    let max = max.unwrap_or(DEFAULT_MAX_DISPARITY);
+    let count = i64::from(max) - i64::from(min);
+    if count < 1 {
+        faults.add(
+            Setting::MaxDisparity,
+            format!("must be greater than min_disparity ({min}), got {max}"),
+        );
+    } else if count > MAX_DISPARITIES as i64 {
+        faults.add(
+            Setting::MaxDisparity,
+            format!(
+                "searches {count} disparities from min_disparity {min}; at most \
+                 {MAX_DISPARITIES} fit: narrow the range"
+            ),
+        );
+    }
+    let count = usize::try_from(count)
+        .ok()
+        .filter(|c| (1..=MAX_DISPARITIES).contains(c))?;
+    ok.then_some((min, count))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn names(faults: &[ParamFault]) -> Vec<&'static str> {
+        faults.iter().map(|f| f.setting.name()).collect()
+    }
+
+    /// No settings are the defaults, which search `0 .. DEFAULT_MAX_DISPARITY`.
+    #[test]
+    fn nothing_asked_is_the_defaults() {
+        let p = Params::new(&Settings::default()).unwrap();
+        assert_eq!(p, Params::default());
+        assert_eq!(
+            (p.min_disparity(), p.max_disparity()),
+            (0, DEFAULT_MAX_DISPARITY)
+        );
+    }
+
+    /// Every setting out of bounds is named once, with the bound.
+    #[test]
+    fn every_fault_is_named() {
+        let faults = Params::new(&Settings {
+            min_disparity: Some(5000),
+            p1: Some(0),
+            p2: Some(2000),
+            uniqueness: Some(101),
+            lr_check: Some(false),
+            lr_tolerance: Some(1.0),
+            speckle_range: Some(0.0),
+            ..Settings::default()
+        })
+        .unwrap_err();
+        assert_eq!(
+            names(&faults),
+            [
+                "min_disparity",
+                "max_disparity",
+                "p1",
+                "p2",
+                "uniqueness",
+                "speckle_range",
+                "lr_tolerance"
+            ]
+        );
+        assert!(faults[3].message.contains("from 2 to 1024"));
+    }
+
+    /// The range's count is end − start, from 1 to 512; p2 must exceed p1.
+    #[test]
+    fn the_range_and_the_penalties_hold_together() {
+        let p = Params::range(-16, 496).unwrap();
+        assert_eq!(p.count(), 512);
+        assert_eq!(
+            names(&Params::range(0, 513).unwrap_err()),
+            ["max_disparity"]
+        );
+        assert_eq!(
+            names(&Params::range(10, 10).unwrap_err()),
+            ["max_disparity"]
+        );
+        let faults = Params::new(&Settings {
+            p1: Some(40),
+            p2: Some(40),
+            ..Settings::default()
+        })
+        .unwrap_err();
+        assert_eq!(faults[0].message, "must be greater than p1 (40), got 40");
+    }
+}
