@@ -175,6 +175,16 @@ impl TestApp {
             .expect("request is sent")
     }
 
+    /// POSTs a multipart `form` to `path_and_query`.
+    pub async fn post_form(&self, path_and_query: &str, form: reqwest::multipart::Form) -> Response {
+        self.client
+            .post(format!("{}{path_and_query}", self.address))
+            .multipart(form)
+            .send()
+            .await
+            .expect("request is sent")
+    }
+
     /// GETs `path` with the members of the JSON object `fields` as query parameters.
     pub async fn get_with(&self, path: &str, fields: &Value) -> Response {
         self.get(&format!("{path}?{}", to_query(fields))).await

@@ -17,6 +17,7 @@ mod openapi;
 mod operations;
 mod planning;
 mod protection;
+mod rigs;
 mod svg;
 mod table;
 mod web;
