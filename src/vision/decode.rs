@@ -5,7 +5,10 @@
 
 use std::io::Cursor;
 
-use image::{ImageError, ImageFormat, ImageReader, error::LimitErrorKind};
+use image::metadata::Orientation;
+use image::{
+    DynamicImage, ImageDecoder, ImageError, ImageFormat, ImageReader, error::LimitErrorKind,
+};
 
 use super::Gray;
 
@@ -81,12 +84,32 @@ pub fn sniff(bytes: &[u8]) -> Result<Format, DecodeError> {
     Err(DecodeError::NotAnImage)
 }
 
-/// The width and height `bytes` declare, from the header alone.
+/// The width and height of the image as it is shown, from the header alone: turned as its
+/// EXIF orientation says (a phone's portrait JPEG, stored 4032 × 3024 with orientation 6, is
+/// 3024 × 4032), as browsers show it.
 pub fn dimensions(bytes: &[u8]) -> Result<(u32, u32), DecodeError> {
     let format = sniff(bytes)?;
-    reader(bytes, format)
-        .into_dimensions()
-        .map_err(|e| corrupt(&e))
+    let mut decoder = reader(bytes, format)
+        .into_decoder()
+        .map_err(|e| corrupt(&e))?;
+    let (width, height) = decoder.dimensions();
+    let orientation = decoder.orientation().map_err(|e| corrupt(&e))?;
+    Ok(if turns(orientation) {
+        (height, width)
+    } else {
+        (width, height)
+    })
+}
+
+/// Whether an orientation swaps the image's width and height.
+fn turns(orientation: Orientation) -> bool {
+    matches!(
+        orientation,
+        Orientation::Rotate90
+            | Orientation::Rotate270
+            | Orientation::Rotate90FlipH
+            | Orientation::Rotate270FlipH
+    )
 }
 
 /// Decodes `bytes` within `limits`, keeping the colours when `colour` is set.
@@ -114,10 +137,15 @@ pub fn decode(bytes: &[u8], limits: Limits, colour: bool) -> Result<Decoded, Dec
     // The decoded image at its widest (16-bit RGBA) and the decoder's own buffers.
     caps.max_alloc = Some(limits.max_pixels.saturating_mul(8).saturating_add(64 << 20));
     reader.limits(caps);
-    let image = reader.decode().map_err(|e| match e {
+    let refused = |e: ImageError| match e {
         ImageError::Limits(l) if matches!(l.kind(), LimitErrorKind::DimensionError) => too_large(),
         other => corrupt(&other),
-    })?;
+    };
+    let mut decoder = reader.into_decoder().map_err(refused)?;
+    let orientation = decoder.orientation().map_err(refused)?;
+    let mut image = DynamicImage::from_decoder(decoder).map_err(refused)?;
+    // As shown: `dimensions` already gave the turned size.
+    image.apply_orientation(orientation);
     let grey = image.to_luma16();
     let rgb = colour.then(|| image.to_rgb8().into_raw());
     Ok(Decoded {
@@ -190,6 +218,32 @@ mod tests {
             ),
             "{e:?}"
         );
+    }
+
+    /// A phone's portrait photo (stored landscape, EXIF orientation 6: turn 90° clockwise to
+    /// show) is read as shown: its size swapped, its top-left corner at the top right.
+    #[test]
+    fn exif_orientation_is_applied() {
+        let quadrants = |x: usize, y: usize| match (x < 32, y < 16) {
+            (true, true) => 20,
+            (false, true) => 230,
+            _ => 128,
+        };
+        let rgb: Vec<u8> = (0..64 * 32)
+            .flat_map(|i| [quadrants(i % 64, i / 64); 3])
+            .collect();
+        let bytes = super::super::synthetic::phone_jpeg(&rgb, 64, 32, 6);
+        assert_eq!(dimensions(&bytes), Ok((32, 64)));
+        let d = decode(&bytes, LIMITS, false).unwrap();
+        assert_eq!((d.grey.width, d.grey.height), (32, 64));
+        let at = |x: usize, y: usize| d.grey.data[y * 32 + x] / 257;
+        // Stored top-left (dark) is shown top-right; stored top-right (light) bottom-right.
+        assert!(at(28, 4) < 40, "{}", at(28, 4));
+        assert!(at(28, 60) > 210, "{}", at(28, 60));
+        assert!((110..150).contains(&at(4, 30)), "{}", at(4, 30));
+        // Orientation 1 leaves it as stored.
+        let plain = super::super::synthetic::phone_jpeg(&rgb, 64, 32, 1);
+        assert_eq!(dimensions(&plain), Ok((64, 32)));
     }
 
     /// Other formats are named, and what is no image is said to be none.

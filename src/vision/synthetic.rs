@@ -246,6 +246,31 @@ pub fn render(scene: &Scene) -> Pair {
     }
 }
 
+/// `rgb` (`width × height`, as stored) as a phone writes a photo: a JPEG with an EXIF
+/// `orientation` (1: as stored; 6: turn 90° clockwise to show; 8: counter-clockwise; 3: 180°).
+pub fn phone_jpeg(rgb: &[u8], width: usize, height: usize, orientation: u16) -> Vec<u8> {
+    let mut jpeg = Vec::new();
+    let encoder = image::codecs::jpeg::JpegEncoder::new_with_quality(&mut jpeg, 95);
+    image::ImageEncoder::write_image(
+        encoder,
+        rgb,
+        width as u32,
+        height as u32,
+        image::ExtendedColorType::Rgb8,
+    )
+    .expect("an RGB buffer of its size encodes");
+    // TIFF header (big-endian), one IFD entry: 0x0112 Orientation, SHORT, one value.
+    let mut app1 = b"Exif\0\0MM\0\x2a\0\0\0\x08\0\x01\x01\x12\0\x03\0\0\0\x01".to_vec();
+    app1.extend_from_slice(&orientation.to_be_bytes());
+    app1.extend_from_slice(&[0; 6]);
+    let mut out = jpeg[..2].to_vec();
+    out.extend_from_slice(&[0xFF, 0xE1]);
+    out.extend_from_slice(&(app1.len() as u16 + 2).to_be_bytes());
+    out.extend_from_slice(&app1);
+    out.extend_from_slice(&jpeg[2..]);
+    out
+}
+
 /// Grey levels of an RGB image (Rec. 709 weights, as the decoder's conversion), 16 bits.
 pub fn grey(rgb: &[u8], width: usize, height: usize) -> Gray {
     let data = rgb

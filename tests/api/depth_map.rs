@@ -418,7 +418,20 @@ async fn a_json_body_is_415() {
         .post_raw("/depth-map", Some("application/json"), b"{}".to_vec())
         .await;
     let body = problem(response, 415).await;
-    assert!(message_for(&body, "content-type").contains("multipart/form-data"));
+    let message = message_for(&body, "content-type");
+    assert!(message.contains("multipart/form-data"), "{message}");
+    // What was sent, in the API's words (not the form parser's about a boundary).
+    assert!(message.contains("got application/json"), "{message}");
+    assert!(!message.contains("boundary"), "{message}");
+    // A form without its boundary is told so.
+    let response = app
+        .post_raw("/depth-map", Some("multipart/form-data"), b"--x".to_vec())
+        .await;
+    let body = problem(response, 415).await;
+    assert!(
+        message_for(&body, "content-type").contains("without a boundary"),
+        "{body}"
+    );
 }
 
 /// A small PNG whose header claims 20 000 × 20 000 pixels is a 413 naming the image, found
@@ -517,4 +530,63 @@ async fn a_held_memory_budget_is_503_and_then_served() {
         served = depth_map(&app, "?max_disparity=48", form_of_pair()).await;
     }
     assert_eq!(served.status(), 200);
+}
+
+/// `rgb` (`W × H`, as shown) stored turned a quarter counter-clockwise in a JPEG whose EXIF
+/// orientation (6) says to turn it back clockwise, as a phone writes a portrait photo.
+pub(crate) fn phone_photo(rgb: &[u8]) -> Vec<u8> {
+    let (w, h) = (W, H);
+    let stored: Vec<u8> = (0..w * h)
+        .flat_map(|i| {
+            // The stored image is h wide and w tall: stored (x, y) is shown (w − 1 − y, x).
+            let (x, y) = (i % h, i / h);
+            let shown = (x * w + (w - 1 - y)) * 3;
+            [rgb[shown], rgb[shown + 1], rgb[shown + 2]]
+        })
+        .collect();
+    synthetic::phone_jpeg(&stored, h, w, 6)
+}
+
+/// A pair of phone photos with an EXIF orientation is read as a browser shows it: the summary
+/// gives the turned size, a rig for that size is taken, and the disparities are the scene's.
+#[tokio::test]
+async fn exif_orientation_is_applied() {
+    let app = spawn_app().await;
+    let pair = pair();
+    let photos = Form::new()
+        .part("left", jpeg_part(phone_photo(&pair.left_rgb)))
+        .part("right", jpeg_part(phone_photo(&pair.right_rgb)))
+        .text(
+            "rig",
+            json!({"focal_length_px": 500, "baseline": 100, "image_width": W,
+                   "image_height": H})
+            .to_string(),
+        );
+    let body = ok_json(depth_map(&app, "?max_disparity=48", photos).await).await;
+    assert_eq!(
+        (body["width"].as_u64(), body["height"].as_u64()),
+        (Some(160), Some(120))
+    );
+    assert!(body["valid_fraction"].as_f64().unwrap() > 0.75, "{body}");
+    let straight = ok_json(
+        depth_map(
+            &app,
+            "?max_disparity=48",
+            form(&pair, &[("rig", rig().to_string())]),
+        )
+        .await,
+    )
+    .await;
+    let median = |b: &Value| b["disparity_px"]["median"].as_f64().unwrap();
+    assert!(
+        (median(&body) - median(&straight)).abs() < 0.5,
+        "{body} {straight}"
+    );
+}
+
+pub(crate) fn jpeg_part(bytes: Vec<u8>) -> Part {
+    Part::bytes(bytes)
+        .file_name("photo.jpg")
+        .mime_str("image/jpeg")
+        .unwrap()
 }

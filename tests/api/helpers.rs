@@ -176,7 +176,11 @@ impl TestApp {
     }
 
     /// POSTs a multipart `form` to `path_and_query`.
-    pub async fn post_form(&self, path_and_query: &str, form: reqwest::multipart::Form) -> Response {
+    pub async fn post_form(
+        &self,
+        path_and_query: &str,
+        form: reqwest::multipart::Form,
+    ) -> Response {
         self.client
             .post(format!("{}{path_and_query}", self.address))
             .multipart(form)

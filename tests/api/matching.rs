@@ -9,7 +9,7 @@ use stereo_distance::Config;
 use stereo_distance::config::HeavyLimits;
 use stereo_distance::vision::synthetic::{self, Pair, Plane, Region, Scene};
 
-use crate::depth_map::{H, W, image_part, pair, png, rig};
+use crate::depth_map::{H, W, image_part, jpeg_part, pair, phone_photo, png, rig};
 use crate::helpers::{
     TestApp, assert_names, fields, message_for, ok_json, problem, spawn_app, spawn_app_with,
 };
@@ -489,4 +489,45 @@ fn plane_scene(d: f32) -> Scene {
         noise: 0.0,
         seed: 3,
     }
+}
+
+/// Phone photos with an EXIF orientation are matched as shown: the answer's size is the
+/// turned one, and points match where they match on the pair as stored.
+#[tokio::test]
+async fn exif_orientation_is_applied() {
+    let app = spawn_app().await;
+    let pair = pair();
+    let points =
+        r#"[{"x": 40, "y": 30}, {"x": 120, "y": 30}, {"x": 60, "y": 90}, {"x": 120, "y": 90}]"#;
+    let photos = Form::new()
+        .part("left", jpeg_part(phone_photo(&pair.left_rgb)))
+        .part("right", jpeg_part(phone_photo(&pair.right_rgb)))
+        .text("rig", rig().to_string())
+        .text("points", points);
+    let body = ok_json(post_match(&app, "?max_disparity=48", photos).await).await;
+    assert_eq!(
+        (body["width"].as_u64(), body["height"].as_u64()),
+        (Some(160), Some(120))
+    );
+    let stored = answer(
+        &app,
+        &pair,
+        "?max_disparity=48",
+        &[("points", points.to_owned())],
+    )
+    .await;
+    let mut compared = 0;
+    for (photo, png) in body["matches"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .zip(stored["matches"].as_array().unwrap())
+    {
+        if status(photo) == "ok" && status(png) == "ok" {
+            let d = |m: &Value| m["disparity_px"].as_f64().unwrap();
+            assert!((d(photo) - d(png)).abs() < 0.5, "{photo} vs {png}");
+            compared += 1;
+        }
+    }
+    assert!(compared >= 2, "{body} {stored}");
 }

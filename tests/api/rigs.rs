@@ -84,7 +84,11 @@ async fn a_rig_out_of_range_is_refused_everywhere() {
     assert!(message.contains("too far apart"), "{message}");
 
     for answer in image_problems(&app, &[("rig", rig.to_string())]).await {
-        assert_eq!(fields(&answer), ["rig.focal_length_px", "rig.baseline"], "{answer}");
+        assert_eq!(
+            fields(&answer),
+            ["rig.focal_length_px", "rig.baseline"],
+            "{answer}"
+        );
         assert_eq!(message_for(&answer, "rig.baseline"), message);
     }
 }
@@ -106,6 +110,10 @@ async fn a_valid_file_gives_the_same_rig_everywhere() {
     .await;
     assert_eq!(summary["rig"], read["rig"]);
     assert_eq!(summary["max_disparity"], 48);
-    let matched = ok_json(app.post_form("/match", form(&[("calibration", text)], true)).await).await;
+    let matched = ok_json(
+        app.post_form("/match", form(&[("calibration", text)], true))
+            .await,
+    )
+    .await;
     assert_eq!(matched["rig"], read["rig"]);
 }
