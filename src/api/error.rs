@@ -245,17 +245,16 @@ impl ApiError {
                 )],
             ),
             ApiError::Invalid(errors) => {
-                let names: Vec<&str> = errors.iter().map(|e| e.field.as_str()).collect();
                 let detail = match errors.as_slice() {
-                    [one] => format!("{}: {}", one.field, one.message),
-                    _ => format!("{} fields are invalid: {}", errors.len(), names.join(", ")),
+                    [one] => format!("{}: {}", clipped(one).field, clipped(one).message),
+                    _ => format!("{} fields are invalid: {}", errors.len(), names(errors)),
                 };
                 Problem {
                     problem_type: "urn:stereo-distance:problem:invalid-input".to_owned(),
                     title: "Invalid input".to_owned(),
                     status: status.as_u16(),
                     detail,
-                    errors: errors.clone(),
+                    errors: listed(errors),
                     request_id: None,
                 }
             }
@@ -330,17 +329,13 @@ impl ApiError {
             ),
             ApiError::Oversized(errors) => plain(
                 match errors.as_slice() {
-                    [one] => format!("{}: {}", one.field, one.message),
+                    [one] => format!("{}: {}", clipped(one).field, clipped(one).message),
                     _ => format!(
                         "the request is beyond the server's limits: {}",
-                        errors
-                            .iter()
-                            .map(|e| e.field.as_str())
-                            .collect::<Vec<_>>()
-                            .join(", ")
+                        names(errors)
                     ),
                 },
-                errors.clone(),
+                listed(errors),
             ),
             ApiError::Internal(what) => plain(
                 "the server failed to answer this request; it has been logged".to_owned(),
@@ -348,6 +343,51 @@ impl ApiError {
             ),
         }
     }
+}
+
+/// The most errors a problem lists; the rest are counted in one more entry. With each field
+/// and message clipped, every problem stays under 16 KiB.
+pub const MAX_LISTED: usize = 10;
+/// The most field names the `detail` line names.
+const MAX_NAMED: usize = 5;
+/// The longest field name and message a problem repeats, in characters.
+const MAX_FIELD: usize = 100;
+const MAX_MESSAGE: usize = 300;
+
+/// An error with its field and message clipped to what a problem repeats.
+fn clipped(error: &FieldError) -> FieldError {
+    FieldError::new(
+        crate::numbers::clip(&error.field, MAX_FIELD),
+        crate::numbers::clip(&error.message, MAX_MESSAGE),
+    )
+}
+
+/// The first [`MAX_LISTED`] errors, clipped, and a count of the rest.
+fn listed(errors: &[FieldError]) -> Vec<FieldError> {
+    let mut listed: Vec<FieldError> = errors.iter().take(MAX_LISTED).map(clipped).collect();
+    if errors.len() > MAX_LISTED {
+        listed.push(FieldError::new(
+            "body",
+            format!(
+                "and {} more problems not listed here: fix these and send it again",
+                errors.len() - MAX_LISTED
+            ),
+        ));
+    }
+    listed
+}
+
+/// The first [`MAX_NAMED`] fields' names, then how many more.
+fn names(errors: &[FieldError]) -> String {
+    let mut named: Vec<String> = errors
+        .iter()
+        .take(MAX_NAMED)
+        .map(|e| clipped(e).field)
+        .collect();
+    if errors.len() > MAX_NAMED {
+        named.push(format!("and {} more", errors.len() - MAX_NAMED));
+    }
+    named.join(", ")
 }
 
 impl From<(PhysicsError, &[&str])> for ApiError {
@@ -390,6 +430,25 @@ impl IntoResponse for ApiError {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Thousands of errors are listed as the first few and a count, each clipped, so the
+    /// problem stays under 16 KiB.
+    #[test]
+    fn problems_list_a_few_and_count_the_rest() {
+        let errors: Vec<FieldError> = (0..5000)
+            .map(|i| FieldError::new(format!("part{i}{}", "×".repeat(300)), "é".repeat(5000)))
+            .collect();
+        let problem = ApiError::Invalid(errors).problem();
+        assert_eq!(problem.errors.len(), MAX_LISTED + 1);
+        assert!(problem.errors[MAX_LISTED].message.contains("4990 more"));
+        assert!(problem.detail.starts_with("5000 fields are invalid"));
+        assert!(
+            problem.detail.ends_with("and 4995 more"),
+            "{}",
+            problem.detail
+        );
+        assert!(serde_json::to_vec(&problem).unwrap().len() < 16 * 1024);
+    }
 
     /// A timeout is 408 while the body is still arriving and 503 once the answer is late;
     /// shedding is 503 with `Retry-After`; each names what to fix in `errors`.
