@@ -62,6 +62,18 @@ impl FieldErrors {
         cap: usize,
     ) -> Option<usize> {
         let Some(value) = value else {
+            // A number beyond what any whole member takes was refused while decoding, against
+            // that bound; name this member's own cap instead.
+            let beyond = format!("must be at most {}", super::wire::de::MAX_WHOLE);
+            let cap_words = format!("must be from {min} to {cap} (the server's cap)");
+            let reworded = self
+                .iter()
+                .find(|e| e.field == field && e.message.starts_with(&beyond))
+                .map(|e| e.message.replacen(&beyond, &cap_words, 1));
+            if let Some(message) = reworded {
+                self.reword(field, &message);
+                return None;
+            }
             return Some(default);
         };
         let value = value as usize;

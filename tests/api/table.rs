@@ -295,3 +295,20 @@ async fn the_former_format_member_points_to_the_csv_path() {
     assert_eq!(fields(&body), vec!["steps"]);
     assert!(message_for(&body, "steps").contains("from the JSON body"));
 }
+
+/// A count beyond any whole number the API takes is told the member's own cap, not the
+/// decoder's bound.
+#[tokio::test]
+async fn a_huge_count_is_told_its_own_cap() {
+    let app = spawn_app().await;
+    let query = "/table?focal_length_px=700&baseline=120&image_width=800&image_height=600\
+                 &steps=99999999999999999999";
+    let body = problem(app.get(query).await, 422).await;
+    let message = message_for(&body, "steps");
+    assert!(message.contains("from 1 to 10000 (the server's cap)"), "{message}");
+    assert!(!message.contains("2147483647"), "{message}");
+    let chart = "/chart-data?focal_length_px=700&baseline=120&image_width=800\
+                 &image_height=600&points=3000000000";
+    let body = problem(app.get(chart).await, 422).await;
+    assert!(message_for(&body, "points").contains("(the server's cap)"), "{body}");
+}
