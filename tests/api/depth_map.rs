@@ -622,3 +622,41 @@ async fn a_problem_lists_a_few_and_counts_the_rest() {
         "{body}"
     );
 }
+
+/// NumPy's median of a float32 array's valid values: the middle one, or the mean of the two
+/// middle ones of an even count (`numpy.nanmedian`).
+fn nanmedian(values: &[f32]) -> f64 {
+    let mut valid: Vec<f64> = values
+        .iter()
+        .filter(|v| v.is_finite())
+        .map(|&v| f64::from(v))
+        .collect();
+    valid.sort_by(f64::total_cmp);
+    let n = valid.len();
+    if n % 2 == 0 {
+        (valid[n / 2 - 1] + valid[n / 2]) / 2.0
+    } else {
+        valid[n / 2]
+    }
+}
+
+/// The summary's medians are `numpy.nanmedian` of the NPY outputs, to the summary's 4
+/// decimals.
+#[tokio::test]
+async fn the_summary_median_is_numpys() {
+    let app = spawn_app().await;
+    let pair = pair();
+    let ask = |output: &'static str| {
+        let form = form(&pair, &[("rig", rig().to_string())]);
+        let app = &app;
+        async move { depth_map(app, &format!("?max_disparity=48&output={output}"), form).await }
+    };
+    let summary = ok_json(ask("summary").await).await;
+    let depth = npy(&ask("depth.npy").await.bytes().await.unwrap());
+    let disparity = npy(&ask("disparity.npy").await.bytes().await.unwrap());
+    for (name, values) in [("distance", &depth), ("disparity_px", &disparity)] {
+        let got = summary[name]["median"].as_f64().unwrap();
+        let numpy = nanmedian(values);
+        assert!((got - numpy).abs() <= 0.5e-4, "{name}: {got} vs {numpy}");
+    }
+}

@@ -305,10 +305,16 @@ async fn a_huge_count_is_told_its_own_cap() {
                  &steps=99999999999999999999";
     let body = problem(app.get(query).await, 422).await;
     let message = message_for(&body, "steps");
-    assert!(message.contains("from 1 to 10000 (the server's cap)"), "{message}");
+    assert!(
+        message.contains("from 1 to 10000 (the server's cap)"),
+        "{message}"
+    );
     assert!(!message.contains("2147483647"), "{message}");
     let chart = "/chart-data?focal_length_px=700&baseline=120&image_width=800\
                  &image_height=600&points=3000000000";
     let body = problem(app.get(chart).await, 422).await;
-    assert!(message_for(&body, "points").contains("(the server's cap)"), "{body}");
+    assert!(
+        message_for(&body, "points").contains("(the server's cap)"),
+        "{body}"
+    );
 }

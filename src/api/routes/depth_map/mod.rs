@@ -291,18 +291,26 @@ fn spread(values: &[f32]) -> Option<Spread> {
     if valid.is_empty() {
         return None;
     }
-    let mid = valid.len() / 2;
-    let (_, &mut median, _) = valid.select_nth_unstable_by(mid, f32::total_cmp);
+    // NumPy's median (`numpy.nanmedian` of the NPY and NPZ outputs): the middle value, or the
+    // mean of the two middle values of an even count.
+    let (count, mid) = (valid.len(), valid.len() / 2);
+    let (below, &mut upper, _) = valid.select_nth_unstable_by(mid, f32::total_cmp);
+    let median = if count % 2 == 0 {
+        let lower = below.iter().copied().fold(f32::NEG_INFINITY, f32::max);
+        (f64::from(lower) + f64::from(upper)) / 2.0
+    } else {
+        f64::from(upper)
+    };
     let (min, max) = valid
         .iter()
         .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &v| {
             (lo.min(v), hi.max(v))
         });
-    let round = |v: f32| (f64::from(v) * 1e4).round() / 1e4;
+    let round = |v: f64| (v * 1e4).round() / 1e4;
     Some(Spread {
-        min: round(min),
+        min: round(min.into()),
         median: round(median),
-        max: round(max),
+        max: round(max.into()),
     })
 }
 

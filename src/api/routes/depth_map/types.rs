@@ -256,10 +256,12 @@ pub struct DepthMapForm {
     calibration_cameras: Option<String>,
 }
 
-/// The smallest, median and largest of the valid values.
+/// The smallest, median and largest of the valid values, to 4 decimals.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, ToSchema)]
 pub struct Spread {
     pub min: f64,
+    /// NumPy's median (`numpy.nanmedian` of the NPY and NPZ outputs): the middle value, or
+    /// the mean of the two middle ones of an even count.
     pub median: f64,
     pub max: f64,
 }
