@@ -3,7 +3,8 @@
 //!
 //! The page is a client of the public API (`/distance`, `/table`, `/chart-data`,
 //! `/calibration`, `/depth-map`, `/match`) and holds no physics or stereo. Its sample pair
-//! (`/sample/left.png`, `/sample/right.png` and `/sample/sample.json`, the rig and search range)
+//! (`/sample/left.png`, `/sample/right.png`, `/sample/sample.json`, the rig as a `rig` part, and
+//! `/sample/calib.txt`, the same rig and its search range as a Middlebury file)
 //! is rendered by [`crate::vision::synthetic`] on first request, so the binary holds code, not
 //! a picture. Each asset is answered with an `ETag` (a hash of its bytes, so a new build is a new
 //! tag) and `Cache-Control: no-cache`, so browsers revalidate and get a 304 until the binary
@@ -47,6 +48,7 @@ const CSS: &str = "text/css; charset=utf-8";
 const SVG: &str = "image/svg+xml";
 const PNG: &str = "image/png";
 const JSON: &str = "application/json";
+const TEXT: &str = "text/plain; charset=utf-8";
 const JAVASCRIPT: &str = "text/javascript; charset=utf-8";
 
 const fn asset(path: &'static str, content_type: &'static str, body: &'static str) -> Asset {
@@ -162,7 +164,7 @@ pub const SAMPLE_RIG: (f64, f64) = (400.0, 120.0);
 /// The sample's search range, above the scene's largest disparity.
 pub const SAMPLE_MAX_DISPARITY: u32 = 48;
 
-static SAMPLE: OnceLock<[Served; 3]> = OnceLock::new();
+static SAMPLE: OnceLock<[Served; 4]> = OnceLock::new();
 
 /// The sample's file `i` (in [`SAMPLE_FILES`] order). The first request renders the pair once
 /// per process, on a blocking thread, so the runtime's workers never wait on it.
@@ -176,32 +178,39 @@ async fn sample_file(i: usize, headers: HeaderMap) -> Response {
     }
 }
 
-/// The sample's files, rendered on first use.
-fn sample() -> &'static [Served; 3] {
+/// The sample's files, rendered on first use: the pair, its rig as the image routes' `rig`
+/// part takes it, and the same rig with its search range as a Middlebury `calib.txt` (the
+/// `calibration` part, whose `ndisp` is the default range).
+fn sample() -> &'static [Served; 4] {
     SAMPLE.get_or_init(|| {
         let (w, h) = SAMPLE_SIZE;
         let pair = synthetic::render(&synthetic::layered(w, h));
         let (f, b) = SAMPLE_RIG;
-        let about = serde_json::json!({
-            "description": "The project's own rendered scene: a slanted textured wall, a box \
-                            and a disc in front of it; the disparities are known exactly.",
-            "rig": {"focal_length_px": f, "baseline": b, "unit": "mm",
-                    "image_width": w, "image_height": h},
-            "max_disparity": SAMPLE_MAX_DISPARITY,
+        let rig = serde_json::json!({
+            "focal_length_px": f, "baseline": b, "unit": "mm",
+            "image_width": w, "image_height": h,
         });
+        let (cx, cy) = (w as f64 / 2.0, h as f64 / 2.0);
+        let calib = format!(
+            "cam0=[{f} 0 {cx}; 0 {f} {cy}; 0 0 1]\ncam1=[{f} 0 {cx}; 0 {f} {cy}; 0 0 1]\n\
+             doffs=0\nbaseline={b}\nwidth={w}\nheight={h}\nndisp={SAMPLE_MAX_DISPARITY}\n"
+        );
         [
             Served::of(PNG, encode::png_rgb(w, h, &pair.left_rgb).into()),
             Served::of(PNG, encode::png_rgb(w, h, &pair.right_rgb).into()),
-            Served::of(JSON, about.to_string().into()),
+            Served::of(JSON, rig.to_string().into()),
+            Served::of(TEXT, calib.into()),
         ]
     })
 }
 
-/// Where the sample's files are served.
-pub const SAMPLE_FILES: [&str; 3] = [
+/// Where the sample's files are served: the pair, the rig (`rig` part), the calibration file
+/// (`calibration` part).
+pub const SAMPLE_FILES: [&str; 4] = [
     "/sample/left.png",
     "/sample/right.png",
     "/sample/sample.json",
+    "/sample/calib.txt",
 ];
 
 /// The page's routes (GET and HEAD).

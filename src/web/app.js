@@ -354,7 +354,9 @@
       const rig = rigParams(state);
       // In Images mode the feature is the last click's match; until there is one, only the
       // rig's chart and table are asked for.
-      const measuring = mode === 'numbers' || matched();
+      showRigNeeded();
+      const noRig = mode === 'images' && !rigGiven(state);
+      const measuring = mode === 'numbers' || (matched() && !noRig);
       const distance = measuring
         ? await call('/distance', withMembers(rig, state, ['x_left', 'x_right', 'y']), signal)
         : { ok: false, status: 0, body: null, unasked: true };
@@ -366,7 +368,8 @@
       tableParams.set('steps', state.rows);
       // In Images mode the image size comes with the pair: until then the rig's chart and
       // table (which need it) are not asked for.
-      const sized = mode === 'numbers' || (state.image_width !== '' && state.image_height !== '');
+      // Without a rig there is no chart or table of it either.
+      const sized = mode === 'numbers' || (!noRig && state.image_width !== '' && state.image_height !== '');
       const unasked = { ok: false, status: 0, body: null, unasked: true };
       const [chart, table] = sized
         ? await Promise.all([call('/chart-data', chartParams, signal), call('/table', tableParams, signal)])
@@ -375,12 +378,11 @@
       clearErrors();
       const errors = [distance, chart, table].filter((a) => !a.ok && !a.unasked).flatMap(problemsOf);
       const fields = showErrors(errors, state);
-      showDistance(distance.ok ? distance.body : null, state);
-      if (distance.unasked) {
-        $('mini-result').textContent = pair.match
-          ? `No distance: ${pair.match.status.replace('_', ' ')}.`
-          : 'Click the left image for a distance.';
-      }
+      // Nothing asked is nothing wrong: a prompt, not the marked-fields warning.
+      const prompt = !distance.unasked ? null : noRig ? NEEDS_RIG : pair.match
+        ? `No distance: ${pair.match.status.replace('_', ' ')}.`
+        : 'Click the left image for a distance.';
+      showDistance(distance.ok ? distance.body : null, state, prompt);
       showChart(chart.ok ? chart.body : null, state.scale === 'log');
       showTable(table.ok ? table.body : null, tableParams);
       const chartSvg = new URLSearchParams(chartParams);
@@ -389,7 +391,7 @@
       status.textContent = (note ? `${note} ` : '') + (distance.ok
         ? `Distance ${fmt(distance.body.distance)} ${distance.body.unit} ± ${fmt(distance.body.depth_error)} ${distance.body.unit}.`
         : distance.unasked && fields === 0
-          ? 'Rig ready; click the left image for a distance.'
+          ? noRig ? NEEDS_RIG : 'Rig ready; click the left image for a distance.'
           : `No distance: ${fields} ${fields === 1 ? 'field needs' : 'fields need'} attention.`);
     } catch (error) {
       if (error.name === 'AbortError' || token !== generation) return;
@@ -414,7 +416,9 @@
   // ---------------------------------------------------------------------------------------
   // Results.
 
-  function showDistance(answer, state) {
+  /** Shows a distance answer; without one, `prompt` (when nothing was asked, so nothing is
+   * wrong) or the marked-fields warning. */
+  function showDistance(answer, state, prompt = null) {
     lastResult = answer;
     // Images mode: the clicked point's distance card, in short, beside its match.
     const short = $('match-distance');
@@ -423,16 +427,17 @@
       short.textContent = `Distance ${fmt(answer.distance, 5)} ${answer.unit} ± ${fmt(answer.depth_error, 3)} ${answer.unit}, ` +
         `range ${fmt(answer.range, 5)} ${answer.unit} (the Distance card below has the rest).`;
     }
-    results.classList.toggle('invalid', answer === null);
+    const wrong = answer === null && prompt === null;
+    results.classList.toggle('invalid', wrong);
     const mini = $('mini-result');
-    mini.classList.toggle('invalid', answer === null);
-    mini.textContent = answer === null
-      ? 'No distance: see the marked fields.'
-      : `Z = ${fmt(answer.distance)} ${answer.unit} ± ${fmt(answer.depth_error)} ${answer.unit}`;
+    mini.classList.toggle('invalid', wrong);
+    mini.textContent = answer !== null
+      ? `Z = ${fmt(answer.distance)} ${answer.unit} ± ${fmt(answer.depth_error)} ${answer.unit}`
+      : prompt ?? 'No distance: see the marked fields.';
     if (answer === null) {
       $('distance').textContent = '–';
       $('depth-error').textContent = '';
-      $('distance-detail').textContent = 'Correct the marked fields to see a distance.';
+      $('distance-detail').textContent = prompt ?? 'Correct the marked fields to see a distance.';
       for (const id of ['disparity_px', 'effective_disparity_px', 'focal_length_px', 'normalized_x', 'projection_factor', 'point', 'range']) {
         $(id).textContent = '–';
       }
@@ -452,9 +457,10 @@
       : `${fmt(answer.focal_length_px)} px (converted)`;
     $('normalized_x').textContent = fmt(answer.normalized_x);
     $('projection_factor').textContent = `${fmt(answer.projection_factor)} px/${unit}`;
+    // Without a principal point (no cx, cy or image size) the service answers the depth alone.
     const p = answer.point;
-    $('point').textContent = `(${fmt(p.x)}, ${fmt(p.y)}, ${fmt(p.z)}) ${unit}`;
-    $('range').textContent = `${fmt(answer.range)} ${unit}`;
+    $('point').textContent = p ? `(${fmt(p.x)}, ${fmt(p.y)}, ${fmt(p.z)}) ${unit}` : '– (needs cx, cy or the image size)';
+    $('range').textContent = answer.range === undefined ? '–' : `${fmt(answer.range)} ${unit}`;
     const warnings = answer.warnings.map((w) => {
       const item = listItem(w.message);
       item.className = 'warning';
@@ -481,8 +487,10 @@
       `Baseline: ${fmt(answer.baseline)} ${u}`,
       `Normalized x: ${fmt(answer.normalized_x)}`,
       `Projection factor f/B: ${fmt(answer.projection_factor)} px/${u}`,
-      `3D point (X, Y, Z): (${fmt(answer.point.x)}, ${fmt(answer.point.y)}, ${fmt(answer.point.z)}) ${u}`,
-      `Range (straight line to the point): ${fmt(answer.range)} ${u}`,
+      answer.point
+        ? `3D point (X, Y, Z): (${fmt(answer.point.x)}, ${fmt(answer.point.y)}, ${fmt(answer.point.z)}) ${u}`
+        : '3D point: needs cx, cy or the image size',
+      answer.range === undefined ? 'Range: needs cx, cy or the image size' : `Range (straight line to the point): ${fmt(answer.range)} ${u}`,
       `Formula: ${answer.formula}`,
       `Warnings: ${answer.warnings.length > 0 ? answer.warnings.map((w) => w.message).join('; ') : 'none'}`,
       ...(mode === 'images' ? findings() : []),
@@ -738,6 +746,8 @@
       state.image_height = String(pair.height);
     }
     sizeFromCalibration = false;
+    // The calculator's example is no one's rig: in Images mode, disparities until one is given.
+    rigTouched = false;
     // The last click's match was made with the old rig and filled the feature's fields, which
     // the defaults replace: it is forgotten with them.
     pair.match = null;
@@ -785,6 +795,7 @@
    * sample's), f in pixels; doffs and the principal point the rig lacks are emptied (their
    * defaults), the image size and the search range are kept unless it gives them. */
   function applyRig(rig, maxDisparity) {
+    rigTouched = true;
     const text = (value) => (value === undefined ? '' : String(value));
     const state = readForm();
     Object.assign(state, {
@@ -840,7 +851,7 @@
       const format = FORMAT_NAMES[body.format] ?? body.format;
       const warnings = body.warnings.length > 0 ? ` Warnings: ${body.warnings.join(' ')}` : ' No warnings.';
       $('import-status').textContent =
-        `Read as a ${format} calibration: f = ${fmt(rig.focal_length_px)} px, B = ${fmt(rig.baseline)} ${rig.unit}.${warnings}`;
+        `Read as ${format === 'OpenCV' ? 'an' : 'a'} ${format} calibration: f = ${fmt(rig.focal_length_px)} px, B = ${fmt(rig.baseline)} ${rig.unit}.${warnings}`;
       $('import-status').dataset.format = body.format;
       compute(`Imported a ${format} calibration.`);
       if (mode === 'images') requestDepth();
@@ -875,6 +886,26 @@
     return pair.match !== null && pair.match.x_right !== undefined;
   }
 
+  /** Whether the person gave a rig (imported, the sample's, typed, or in the address), not
+   * the Numbers mode's example, which would label a real scene's depths with a made-up rig. */
+  let rigTouched = false;
+  const RIG_INPUTS = ['focal_mode', 'focal', 'sensor_width_mm', 'pixel_size_um', 'baseline', 'unit', 'doffs', 'cx', 'cy'];
+
+  function rigGiven(state = readForm()) {
+    return rigTouched || ['focal_mode', 'focal', 'baseline', 'unit'].some((name) => state[name] !== DEFAULTS[name]);
+  }
+
+  /** Images mode without a rig: say so, and offer the calibration import. */
+  function showRigNeeded() {
+    const given = rigGiven();
+    $('rig-needed').hidden = !(mode === 'images' && !given);
+    // Once a rig is given, the cards that asked for it invite a click again.
+    if (given && $('match-summary').textContent === NEEDS_RIG) showMatch(pair.match);
+    if (given && $('region-summary').textContent === NEEDS_RIG) showRegion(pair.region);
+  }
+
+  const NEEDS_RIG = 'Distances need the rig: import a calibration file or type f and B under Rig.';
+
   /** The rig part of an image request: the form's rig members, numbers as numbers. */
   function rigPart(state) {
     const rig = {};
@@ -889,7 +920,7 @@
     const body = new FormData();
     body.append('left', pair.files.left);
     body.append('right', pair.files.right);
-    body.append('rig', rigPart(state));
+    if (rigGiven(state)) body.append('rig', rigPart(state));
     return body;
   }
 
@@ -1169,7 +1200,7 @@
     }
     $('depth-canvas').getContext('2d').putImageData(depthImage, 0, 0);
     $('blend-canvas').getContext('2d').putImageData(blendImage, 0, 0);
-    drawColourBar(range, a.depth ? pair.unit : null);
+    drawColourBar(range, a.depth ? pair.unit : rigGiven() ? null : 'px');
     drawMarkers();
   }
 
@@ -1181,6 +1212,9 @@
       title.textContent = 'No depths: the rig is not valid.';
       return;
     }
+    // Without a rig the colours are the disparities': labelled d = 1 / (the inverse shown).
+    const px = unit === 'px';
+    const label = (z) => fmt(px ? 1 / z : z, 4);
     const [near, far] = range;
     const [left, right] = [10, 310];
     const at = (z) => left + ((1 / z - 1 / far) / (1 / near - 1 / far)) * (right - left);
@@ -1199,10 +1233,14 @@
       if (x - last < 34) continue;
       last = x;
       bar.append(svg('line', { class: 'tick', x1: x, x2: x, y1: 14, y2: 18 }));
-      bar.append(svg('text', { x, y: 28, 'text-anchor': 'middle' }, fmt(z, 4)));
+      bar.append(svg('text', { x, y: 28, 'text-anchor': 'middle' }, label(z)));
     }
-    bar.append(svg('text', { x: (left + right) / 2, y: 42, 'text-anchor': 'middle' }, `Depth (${unit}), far = blue, near = red`));
-    title.textContent = `Depth colour bar: ${fmt(far, 4)} ${unit} (blue) to ${fmt(near, 4)} ${unit} (red).`;
+    bar.append(svg('text', { x: (left + right) / 2, y: 42, 'text-anchor': 'middle' }, px
+      ? 'Disparity (px), far = blue, near = red'
+      : `Depth (${unit}), far = blue, near = red`));
+    title.textContent = px
+      ? `Disparity colour bar: ${label(far)} px (blue) to ${label(near)} px (red); distances need the rig.`
+      : `Depth colour bar: ${fmt(far, 4)} ${unit} (blue) to ${fmt(near, 4)} ${unit} (red).`;
     bar.dataset.unit = unit;
   }
 
@@ -1227,7 +1265,9 @@
     if (Number.isFinite(z)) {
       hover.textContent = `(${x}, ${y}): ${fmt(z, 5)} ${pair.unit} ± ${fmt(a.depth_error[i], 3)} ${pair.unit}, d = ${fmt(d, 4)} px`;
     } else if (Number.isFinite(d)) {
-      hover.textContent = `(${x}, ${y}): d = ${fmt(d, 4)} px, no depth (check the rig)`;
+      hover.textContent = rigGiven()
+        ? `(${x}, ${y}): d = ${fmt(d, 4)} px, no depth (check the rig)`
+        : `(${x}, ${y}): d = ${fmt(d, 4)} px. ${NEEDS_RIG}`;
     } else {
       hover.textContent = `(${x}, ${y}): no reliable match here; click for /match's best guess and why`;
     }
@@ -1374,9 +1414,23 @@
     }
   }
 
+  /** A click or a box without a rig: /match answers distances, so it needs one; say so and
+   * offer the import. */
+  function askForRig() {
+    $('match-summary').textContent = NEEDS_RIG;
+    $('region-summary').textContent = NEEDS_RIG;
+    status.textContent = NEEDS_RIG;
+    showRigNeeded();
+    drawMarkers();
+  }
+
   async function matchAt(x, y) {
     if (!pair.files.left || !pair.files.right) return;
     pair.crosshair = { x, y };
+    if (!rigGiven()) {
+      askForRig();
+      return;
+    }
     $('match-summary').textContent = `Matching (${x}, ${y})…`;
     const found = await find({ points: [{ x, y }] }, 'match');
     if (!found) return;
@@ -1397,6 +1451,10 @@
     const box = boxOf(a, b);
     pair.region = box;
     pair.anchor = null;
+    if (!rigGiven()) {
+      askForRig();
+      return;
+    }
     drawMarkers();
     $('region-summary').textContent = `Measuring the box at (${box.x}, ${box.y}), ${box.width} × ${box.height} px…`;
     const found = await find({ regions: [box] }, 'region');
@@ -1438,7 +1496,16 @@
   /** `/?mode=images&sample=1`: the project's own rendered pair and its rig, matched at once. */
   async function openSample() {
     try {
-      const about = await (await fetch('/sample/sample.json')).json();
+      // The sample's calibration file, read by /calibration as an imported file is: the rig and,
+      // from its ndisp, the search range.
+      const text = await (await fetch('/sample/calib.txt')).text();
+      const read = await fetch('/calibration', {
+        method: 'POST',
+        headers: { 'content-type': 'application/json', accept: 'application/json' },
+        body: JSON.stringify({ text }),
+      });
+      if (!read.ok) throw new Error(`/calibration answered ${read.status}`);
+      const about = await read.json();
       const files = {};
       for (const side of ['left', 'right']) {
         const blob = await (await fetch(`/sample/${side}.png`)).blob();
@@ -1447,10 +1514,11 @@
         transfer.items.add(files[side]);
         $(`${side}_image`).files = transfer.files;
       }
-      applyRig(about.rig, about.max_disparity);
+      applyRig(about.rig, about.max_disparity_px);
       sizeFromCalibration = false;
       pair.sample = true;
-      $('depth-status').textContent = about.description;
+      $('depth-status').textContent = 'The project\'s own rendered scene: a slanted textured wall, '
+        + 'a box and a disc in front of it; the disparities are known exactly.';
       await loadPair(files);
     } catch (error) {
       $('depth-status').textContent = `The sample could not be loaded (${error.message}).`;
@@ -1606,6 +1674,7 @@
   // Wiring.
 
   form.addEventListener('input', (event) => {
+    if (RIG_INPUTS.includes(event.target.id)) rigTouched = true;
     if (event.target.matches('input[type="text"]')) {
       schedule();
       scheduleDepth();
@@ -1613,6 +1682,7 @@
   });
   form.addEventListener('change', (event) => {
     if (event.target.id === 'calibration_unit') return;
+    if (RIG_INPUTS.includes(event.target.id)) rigTouched = true;
     if (event.target.tagName === 'SELECT') forgetUnknown(event.target);
     if (event.target.id === 'focal_mode' && event.target.value in FOCAL_MODES) showFocalMode(event.target.value);
     if (event.target.id === 'unit') showUnit(event.target.value);
@@ -1634,6 +1704,11 @@
     compute();
   });
   $('reset').addEventListener('click', reset);
+  $('rig-needed-import').addEventListener('click', () => {
+    $('import').open = true;
+    $('import').scrollIntoView({ block: 'start' });
+    $('calibration_file').focus();
+  });
   $('copy').addEventListener('click', copyResults);
   $('permalink').addEventListener('click', async (event) => {
     // A plain click copies the address; a modified click opens it as links do.

@@ -9,6 +9,8 @@ use reqwest::{
     header::{CACHE_CONTROL, CONTENT_TYPE, ETAG, IF_NONE_MATCH},
 };
 
+use serde_json::json;
+
 use crate::helpers::{assert_close, number_at, ok_json, problem, spawn_app};
 
 /// Every `href="…"` and `src="…"` value in `html`, with `&amp;` decoded.
@@ -135,7 +137,7 @@ async fn the_page_calls_only_the_public_api() {
             "${path}?${query}",
             "/calibration",
             "/sample/${side}.png",
-            "/sample/sample.json"
+            "/sample/calib.txt"
         ])
     );
     for path in got {
@@ -266,7 +268,8 @@ async fn the_sample_pair_is_rendered_by_the_project() {
     // Act
     let left = app.get("/sample/left.png").await;
     let right = app.get("/sample/right.png").await;
-    let about = ok_json(app.get("/sample/sample.json").await).await;
+    let rig = ok_json(app.get("/sample/sample.json").await).await;
+    let calib = app.get("/sample/calib.txt").await.text().await.unwrap();
 
     // Assert: the images are the render, pixel for pixel.
     for (response, rgb) in [(left, &scene.left_rgb), (right, &scene.right_rgb)] {
@@ -279,11 +282,54 @@ async fn the_sample_pair_is_rendered_by_the_project() {
         assert_eq!(image.dimensions(), (w as u32, h as u32));
         assert_eq!(image.as_raw(), rgb);
     }
-    assert_eq!(about["rig"]["focal_length_px"], 400.0);
-    assert_eq!(about["rig"]["baseline"], 120.0);
-    assert_eq!(about["rig"]["unit"], "mm");
-    assert_eq!(about["rig"]["image_width"], w);
-    assert_eq!(about["max_disparity"], 48);
+    assert_eq!(rig["focal_length_px"], 400.0);
+    assert_eq!(rig["baseline"], 120.0);
+    assert_eq!(rig["unit"], "mm");
+    assert_eq!(rig["image_width"], w);
+    // The calibration file is the same rig, with the search range as its ndisp.
+    let read = ok_json(app.post("/calibration", &json!({"text": calib})).await).await;
+    assert_eq!(read["format"], "middlebury");
+    assert_eq!(read["rig"]["focal_length_px"], 400.0);
+    assert_eq!(read["rig"]["baseline"], 120.0);
+    assert_eq!(read["max_disparity_px"], 48);
     let largest = scene.truth.iter().copied().fold(0.0f32, f32::max);
     assert!(largest < 48.0, "the range covers the scene: {largest}");
+}
+
+/// The sample's files go straight into the image routes: `sample.json` as the `rig` part and
+/// `calib.txt` as the `calibration` part, whose `ndisp` (48) becomes the search range.
+#[tokio::test]
+async fn the_sample_files_are_parts_as_they_are() {
+    let app = spawn_app().await;
+    let mut parts = Vec::new();
+    for path in [
+        "/sample/left.png",
+        "/sample/right.png",
+        "/sample/sample.json",
+        "/sample/calib.txt",
+    ] {
+        parts.push(app.get(path).await.bytes().await.unwrap().to_vec());
+    }
+    let form = |name: &str, index: usize| {
+        reqwest::multipart::Form::new()
+            .part("left", reqwest::multipart::Part::bytes(parts[0].clone()))
+            .part("right", reqwest::multipart::Part::bytes(parts[1].clone()))
+            .part(
+                name.to_owned(),
+                reqwest::multipart::Part::bytes(parts[index].clone()),
+            )
+    };
+    let with_rig = ok_json(
+        app.post_form("/depth-map?max_disparity=48", form("rig", 2))
+            .await,
+    )
+    .await;
+    let with_file = ok_json(app.post_form("/depth-map", form("calibration", 3)).await).await;
+    assert_eq!(with_file["max_disparity"], 48);
+    assert_eq!(with_rig["rig"], with_file["rig"]);
+    assert_eq!(with_rig["distance"], with_file["distance"]);
+    assert!(
+        with_file["valid_fraction"].as_f64().unwrap() > 0.8,
+        "{with_file}"
+    );
 }

@@ -314,6 +314,141 @@ async fn an_uploaded_pair_is_matched_hovered_clicked_and_boxed() {
     browser.close().await;
 }
 
+/// Images mode without a rig (neither typed, imported nor in the address): the depth map is
+/// drawn in disparities with a colour bar in px, hovering reads d in px, a click says that
+/// distances need the rig instead of using the calculator's example, and the page offers the
+/// calibration import; importing one turns the map into depths in mm.
+#[tokio::test]
+#[ignore = "needs chromium and chromedriver; .ci/run runs it"]
+async fn without_a_rig_the_page_shows_disparities_and_asks_for_one() {
+    // Arrange
+    let [left, right] = synthetic_pair();
+    let browser = Browser::start(1280, 1500).await;
+    browser.open("/?mode=images").await;
+
+    // Act
+    browser.upload(&left, &right).await;
+    browser.depth_map_shown().await;
+
+    // Assert: disparities, in px, and the plain words.
+    assert_eq!(
+        browser.attr("colour-bar", "data-unit").await.as_deref(),
+        Some("px")
+    );
+    assert_eq!(browser.attr("rig-needed", "hidden").await, None);
+    let bar = browser
+        .script("return document.getElementById('colour-bar-title').textContent")
+        .await;
+    assert!(
+        bar.as_str()
+            .is_some_and(|t| t.contains("distances need the rig")),
+        "{bar}"
+    );
+    let over_box = browser.pointer_to("left-frame", 120.0, 100.0).await;
+    browser.mouse(vec![over_box]).await;
+    let hover = browser
+        .until("the hover read-out", || async {
+            let text = browser.text("hover").await;
+            text.starts_with('(').then_some(text)
+        })
+        .await;
+    assert!((number_after(&hover, "d =") - 22.0).abs() < 0.3, "{hover}");
+    assert!(
+        hover.contains("need the rig") && !hover.contains("mm"),
+        "{hover}"
+    );
+    let distance = browser.text("distance-detail").await;
+    assert!(distance.starts_with("Distances need the rig"), "{distance}");
+    assert_eq!(
+        browser.attr("mini-result", "class").await.as_deref(),
+        Some("mini-result")
+    );
+
+    // Act: a click asks for the rig, not /match with a made-up one.
+    let click_at = browser.pointer_to("left-frame", 120.0, 150.0).await;
+    browser
+        .mouse(vec![
+            click_at,
+            PointerAction::Down {
+                button: MOUSE_BUTTON_LEFT,
+            },
+            PointerAction::Up {
+                button: MOUSE_BUTTON_LEFT,
+            },
+        ])
+        .await;
+    browser
+        .until_text(
+            "match-summary",
+            "Distances need the rig: import a calibration file or type f and B under Rig.",
+        )
+        .await;
+    let asked: Vec<String> = browser
+        .requests()
+        .await
+        .into_iter()
+        .map(|(_, path)| path)
+        .collect();
+    assert!(!asked.iter().any(|p| p.starts_with("/match")), "{asked:?}");
+    // The /depth-map request carried no rig: the map has disparities only.
+    assert!(browser.script("return document.body.dataset.depth").await == "done");
+
+    // Act: the offered import, with the pair's own calibration file.
+    browser
+        .find("rig-needed-import")
+        .await
+        .click()
+        .await
+        .expect("click");
+    assert_eq!(
+        browser.attr("import", "open").await.as_deref(),
+        Some("true")
+    );
+    let calib = format!(
+        "cam0=[400 0 {cx}; 0 400 {cy}; 0 0 1]\ncam1=[400 0 {cx}; 0 400 {cy}; 0 0 1]\ndoffs=0\n\
+         baseline=120\nwidth={W}\nheight={H}\nndisp=48\n",
+        cx = W / 2,
+        cy = H / 2
+    );
+    browser
+        .find("calibration_text")
+        .await
+        .send_keys(&calib)
+        .await
+        .expect("typed");
+    browser
+        .find("import-button")
+        .await
+        .click()
+        .await
+        .expect("click");
+    browser
+        .until("the map in depths", || async {
+            (browser.attr("colour-bar", "data-unit").await.as_deref() == Some("mm")).then_some(())
+        })
+        .await;
+
+    // Assert: the rig is given, the notice gone, and a hover reads B·f/22 in mm.
+    assert_eq!(
+        browser.attr("rig-needed", "hidden").await.as_deref(),
+        Some("true")
+    );
+    browser
+        .mouse(vec![browser.pointer_to("left-frame", 121.0, 100.0).await])
+        .await;
+    let hover = browser
+        .until("the hover in mm", || async {
+            let text = browser.text("hover").await;
+            text.contains(" mm ± ").then_some(text)
+        })
+        .await;
+    let z = number_after(&hover, ":");
+    assert!((z - FB / 22.0).abs() < 0.01 * FB / 22.0, "{hover}");
+    browser.screenshot("images-no-rig.png").await;
+    browser.assert_clean().await;
+    browser.close().await;
+}
+
 /// A pair of two sizes shows the API's error next to the right image's input, and a file
 /// that is not an image shows it next to the left one's.
 #[tokio::test]
@@ -599,6 +734,21 @@ async fn the_images_stack_on_a_phone() {
         )
         .await;
     assert_eq!(stacked, json!(true), "the images stack within the screen");
+    // Before any click the hint bar invites one, in its plain colours: nothing is wrong.
+    browser.settled().await;
+    assert_eq!(
+        browser.text("distance-detail").await,
+        "Click the left image for a distance."
+    );
+    assert_eq!(
+        browser.attr("mini-result", "class").await.as_deref(),
+        Some("mini-result")
+    );
+    // The table's caption stays put while the table scrolls sideways.
+    let caption_outside = browser
+        .script("return document.getElementById('table-caption').closest('.table-wrap') === null")
+        .await;
+    assert_eq!(caption_outside, json!(true));
     browser.assert_clean().await;
     browser
         .script("document.getElementById('views').scrollIntoView()")
