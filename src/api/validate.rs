@@ -211,6 +211,23 @@ pub struct Feature {
     pub y: Option<f64>,
 }
 
+impl Feature {
+    /// A feature from the members a request gave.
+    pub fn new(
+        x_left: Option<f64>,
+        x_right: Option<f64>,
+        disparity_px: Option<f64>,
+        y: Option<f64>,
+    ) -> Self {
+        Self {
+            x_left,
+            x_right,
+            disparity_px,
+            y,
+        }
+    }
+}
+
 /// The message for a feature that gives both `x_right` and `disparity_px`.
 pub const X_RIGHT_OR_DISPARITY: &str =
     "give x_right or disparity_px, not both: disparity_px = x_left − x_right";

@@ -633,7 +633,7 @@ fn nanmedian(values: &[f32]) -> f64 {
         .collect();
     valid.sort_by(f64::total_cmp);
     let n = valid.len();
-    if n % 2 == 0 {
+    if n.is_multiple_of(2) {
         (valid[n / 2 - 1] + valid[n / 2]) / 2.0
     } else {
         valid[n / 2]

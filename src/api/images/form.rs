@@ -12,8 +12,8 @@ use axum::extract::multipart::MultipartError;
 use axum::extract::{FromRequest, Multipart, Request};
 use axum::http::{StatusCode, header};
 
-use super::limits;
 use super::rig::{self, GivenRig};
+use super::{limits, work};
 use crate::api::HeavyState;
 use crate::api::error::{ApiError, FieldError, FieldErrors};
 use crate::api::extract;
@@ -104,6 +104,44 @@ impl<F: ImageForm> FromRequest<HeavyState> for ImagePair<F> {
             form: PhantomData,
         })
     }
+}
+
+impl<F> ImagePair<F> {
+    /// Everything found wrong so far: `query`'s problems (the route's query string), then the
+    /// form's.
+    pub fn problems(&mut self, mut query: FieldErrors) -> FieldErrors {
+        query.extend(std::mem::take(&mut self.problems));
+        query
+    }
+
+    /// Reserves the memory `need` says and runs `work` on a blocking thread with the form's
+    /// parts and rig ([`work::run`]).
+    pub async fn run<T: Send + 'static>(
+        self,
+        need: work::Need<impl Fn(usize) -> usize>,
+        work: impl FnOnce(Job<'_>) -> T + Send + 'static,
+    ) -> Result<T, ApiError> {
+        let (parts, rig, read) = (self.parts, self.rig, self.read);
+        work::run(self.reservation, need, move |cancel, started| {
+            work(Job {
+                parts: &parts,
+                rig,
+                cancel,
+                waited: [read, started.queue()],
+            })
+        })
+        .await
+    }
+}
+
+/// What an image request's blocking work gets.
+pub struct Job<'a> {
+    pub parts: &'a Parts,
+    pub rig: Option<GivenRig>,
+    /// Set when the request is abandoned: stop at the next check.
+    pub cancel: &'a std::sync::atomic::AtomicBool,
+    /// How long the body took to read and the work waited for a thread, for `Server-Timing`.
+    pub waited: [Duration; 2],
 }
 
 /// The 415 for a body that is not a multipart form, saying what was sent: another media type,

@@ -17,5 +17,5 @@ pub mod limits;
 pub mod rig;
 pub mod work;
 
-pub use form::{ImageForm, ImagePair, Parts};
+pub use form::{ImageForm, ImagePair, Job, Parts};
 pub use rig::GivenRig;

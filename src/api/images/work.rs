@@ -13,6 +13,7 @@ use super::form::Parts;
 use super::limits::{self, LIMITS};
 use crate::api::error::{ApiError, FieldError};
 use crate::budget::{Refusal, Reservation};
+use crate::vision::Timings;
 use crate::vision::decode::{self, Decoded};
 
 /// Sets its flag when dropped: the request's future was dropped (timed out, or its client
@@ -102,11 +103,25 @@ pub fn decode_pair(parts: &Parts, colour: bool) -> Result<(Decoded, Decoded), Ap
     }
 }
 
-/// `Server-Timing: decode;dur=12.3, cost;dur=…`, in milliseconds.
-pub fn server_timing(stages: &[(&str, Duration)]) -> String {
-    stages
-        .iter()
-        .map(|(name, d)| format!("{name};dur={:.1}", d.as_secs_f64() * 1e3))
-        .collect::<Vec<_>>()
-        .join(", ")
+/// `Server-Timing: read;dur=1.2, queue;dur=0.0, decode;dur=12.3, cost;dur=…`, in
+/// milliseconds: the body read, the wait for a thread and the decode, the matcher's stages,
+/// then the route's own (`after`).
+pub fn server_timing(
+    [read, queue, decode]: [Duration; 3],
+    matcher: &Timings,
+    after: &[(&str, Duration)],
+) -> String {
+    [
+        ("read", read),
+        ("queue", queue),
+        ("decode", decode),
+        ("cost", matcher.cost),
+        ("aggregate", matcher.aggregate),
+        ("refine", matcher.refine),
+    ]
+    .iter()
+    .chain(after)
+    .map(|(name, d)| format!("{name};dur={:.1}", d.as_secs_f64() * 1e3))
+    .collect::<Vec<_>>()
+    .join(", ")
 }

@@ -133,12 +133,7 @@ fn chart(
 ) -> Result<ChartResponse, ApiError> {
     let params = request.rig_params();
     let rig = validate::rig(&params, &mut problems);
-    let feature = Feature {
-        x_left: request.x_left,
-        x_right: request.x_right,
-        disparity_px: request.disparity_px,
-        y: None,
-    };
+    let feature = Feature::new(request.x_left, request.x_right, request.disparity_px, None);
     let measured = if feature == Feature::default() {
         None
     } else {

@@ -5,7 +5,6 @@
 
 pub mod types;
 
-use std::sync::atomic::AtomicBool;
 use std::time::{Duration, Instant};
 
 use axum::http::{HeaderMap, HeaderValue, header};
@@ -21,7 +20,7 @@ use crate::api::HeavyState;
 use crate::api::error::ApiError;
 use crate::api::extract::QueryParams;
 use crate::api::images::work::{self, Need};
-use crate::api::images::{GivenRig, ImageForm, ImagePair, Parts, limits, rig};
+use crate::api::images::{GivenRig, ImageForm, ImagePair, Job, limits, rig};
 use crate::api::respond::Json;
 use crate::api::wire::openapi::ImageErrors;
 use crate::physics::LengthUnit;
@@ -91,19 +90,10 @@ pub struct FileBody(pub Vec<u8>);
 )]
 pub async fn post_depth_map(
     headers: HeaderMap,
-    QueryParams(query, mut problems): QueryParams<DepthMapQuery>,
-    pair: ImagePair<DepthMapForm>,
+    QueryParams(query, problems): QueryParams<DepthMapQuery>,
+    mut pair: ImagePair<DepthMapForm>,
 ) -> Result<Response, ApiError> {
-    let ImagePair {
-        parts,
-        size,
-        rig: given,
-        problems: found,
-        reservation,
-        read,
-        ..
-    } = pair;
-    problems.extend(found);
+    let mut problems = pair.problems(problems);
     let output = query.output.unwrap_or_else(|| {
         headers
             .get(header::ACCEPT)
@@ -113,14 +103,14 @@ pub async fn post_depth_map(
     });
     if output.needs_rig() {
         rig::require_rig(
-            &parts,
+            &pair.parts,
             &format!("for output={}", output.name()),
             &mut problems,
         );
     }
-    let ndisp = given.as_ref().and_then(|g| g.max_disparity);
+    let ndisp = pair.rig.as_ref().and_then(|g| g.max_disparity);
     let params = limits::params(query.settings(), ndisp, &mut problems);
-    let (Some((width, height)), Some(params)) = (size, params) else {
+    let (Some((width, height)), Some(params)) = (pair.size, params) else {
         return Err(problems.into_error());
     };
     if !problems.is_empty() {
@@ -131,17 +121,8 @@ pub async fn post_depth_map(
         count: params.count(),
         need: move |count| bytes_needed(width as usize, height as usize, count, output),
     };
-    work::run(reservation, need, move |cancel, started| {
-        compute(
-            &parts,
-            &params,
-            given,
-            output,
-            cancel,
-            [read, started.queue()],
-        )
-    })
-    .await?
+    pair.run(need, move |job| compute(job, &params, output))
+        .await?
 }
 
 /// The bytes a request holds at its peak: the decoded pair, the colours for a point cloud, the
@@ -160,14 +141,13 @@ fn bytes_needed(w: usize, h: usize, count: usize, output: DepthMapOutput) -> usi
 
 /// Decodes, matches and encodes, on a blocking thread. `waited` is how long the body took to
 /// read and the work to get a thread, for `Server-Timing`.
-fn compute(
-    parts: &Parts,
-    params: &Params,
-    given: Option<GivenRig>,
-    output: DepthMapOutput,
-    cancel: &AtomicBool,
-    [read, queue]: [Duration; 2],
-) -> Result<Response, ApiError> {
+fn compute(job: Job, params: &Params, output: DepthMapOutput) -> Result<Response, ApiError> {
+    let Job {
+        parts,
+        rig: given,
+        cancel,
+        waited: [read, queue],
+    } = job;
     let started = Instant::now();
     let (left, right) = work::decode_pair(parts, output == DepthMapOutput::PointsPly)?;
     let decode_time = started.elapsed();
@@ -215,16 +195,11 @@ fn compute(
     let started = Instant::now();
     drop((left, map, depth));
     let drop_time = started.elapsed();
-    let stages = [
-        ("read", read),
-        ("queue", queue),
-        ("decode", decode_time),
-        ("cost", timings.cost),
-        ("aggregate", timings.aggregate),
-        ("refine", timings.refine),
-        ("encode", encode_time),
-        ("drop", drop_time),
-    ];
+    let timing = work::server_timing(
+        [read, queue, decode_time],
+        &timings,
+        &[("encode", encode_time), ("drop", drop_time)],
+    );
     let mut response = match body {
         Ok(bytes) => {
             let mut response = bytes.into_response();
@@ -248,7 +223,7 @@ fn compute(
         }
         Err(summary) => Json(summary).into_response(),
     };
-    if let Ok(v) = HeaderValue::from_str(&work::server_timing(&stages)) {
+    if let Ok(v) = HeaderValue::from_str(&timing) {
         response.headers_mut().insert("server-timing", v);
     }
     Ok(response)
@@ -295,7 +270,7 @@ fn spread(values: &[f32]) -> Option<Spread> {
     // mean of the two middle values of an even count.
     let (count, mid) = (valid.len(), valid.len() / 2);
     let (below, &mut upper, _) = valid.select_nth_unstable_by(mid, f32::total_cmp);
-    let median = if count % 2 == 0 {
+    let median = if count.is_multiple_of(2) {
         let lower = below.iter().copied().fold(f32::NEG_INFINITY, f32::max);
         (f64::from(lower) + f64::from(upper)) / 2.0
     } else {

@@ -6,8 +6,7 @@ use utoipa::ToSchema;
 
 use crate::api::extract::QueryForm;
 use crate::api::routes::calibration::types::CalibratedRig;
-use crate::api::routes::distance::types::StereoRig;
-use crate::api::wire::de::{choice_members, request};
+use crate::api::wire::de::{choice_members, image_form, request};
 use crate::vision::{Settings, Subpixel};
 
 /// What `/depth-map` answers.
@@ -223,37 +222,11 @@ impl DepthMapQuery {
     }
 }
 
-/// The `multipart/form-data` parts of `/depth-map` (for the documentation: the handler reads
-/// the parts itself, to name each one in its errors).
-#[derive(ToSchema)]
-#[serde(deny_unknown_fields)]
-#[allow(dead_code)]
-pub struct DepthMapForm {
-    /// The left image of the rectified pair: PNG or JPEG, 8 or 16 bits, grey, RGB or RGBA.
-    #[schema(value_type = String, format = Binary)]
-    left: Vec<u8>,
-    /// The right image, the same size as the left.
-    #[schema(value_type = String, format = Binary)]
-    right: Vec<u8>,
-    /// The rig, with the members of `/distance` (what `/calibration` answers as `rig`). The
-    /// image size defaults to the images'. Give `rig` or `calibration` for depth outputs.
-    #[schema(nullable = false)]
-    rig: Option<StereoRig>,
-    /// A calibration file as `/calibration` reads it (Middlebury, KITTI, ROS, OpenCV).
-    #[schema(value_type = Option<String>, format = Binary, nullable = false)]
-    calibration: Option<Vec<u8>>,
-    /// The calibration's format, or `auto` (the default).
-    #[schema(nullable = false)]
-    calibration_format: Option<String>,
-    /// The right camera's ROS `CameraInfo`, for ROS calibrations.
-    #[schema(value_type = Option<String>, format = Binary, nullable = false)]
-    right_calibration: Option<Vec<u8>>,
-    /// The unit of the calibration's lengths (required for OpenCV files).
-    #[schema(nullable = false)]
-    calibration_unit: Option<String>,
-    /// KITTI only: the camera pair, `2-3` (the default) or `0-1`.
-    #[schema(nullable = false)]
-    calibration_cameras: Option<String>,
+image_form! {
+    /// The `multipart/form-data` parts of `/depth-map` (for the documentation: the handler
+    /// reads the parts itself, to name each one in its errors). Give `rig` or `calibration`
+    /// for depth outputs.
+    pub struct DepthMapForm {}
 }
 
 /// The smallest, median and largest of the valid values, to 4 decimals.

@@ -112,12 +112,12 @@ fn distance(
 ) -> Result<DistanceResponse, ApiError> {
     let params = request.rig_params();
     let rig = validate::rig(&params, &mut problems);
-    let feature = Feature {
-        x_left: request.x_left,
-        x_right: request.x_right,
-        disparity_px: request.disparity_px,
-        y: request.y,
-    };
+    let feature = Feature::new(
+        request.x_left,
+        request.x_right,
+        request.disparity_px,
+        request.y,
+    );
     let correspondence =
         validate::correspondence(feature, Bounds::of(&params.camera), &mut problems);
     let (rig, correspondence) = problems.finish(rig.zip(correspondence))?;

@@ -5,7 +5,6 @@
 
 pub mod types;
 
-use std::sync::atomic::AtomicBool;
 use std::time::Instant;
 
 use axum::body::Bytes;
@@ -16,17 +15,17 @@ use serde_json::Value;
 use utoipa_axum::{router::OpenApiRouter, routes};
 
 use self::types::{
-    MatchForm, MatchPoint, MatchQuery, MatchRegion, MatchResponse, MatchStatus, PointMatch,
-    RegionMatch, RegionStatus,
+    MatchDistance, MatchForm, MatchPoint, MatchQuery, MatchRegion, MatchResponse, MatchStatus,
+    PointMatch, RegionMatch, RegionStatus,
 };
 use super::depth_map::types::StageTimes;
 use crate::api::HeavyState;
 use crate::api::error::{ApiError, FieldErrors};
 use crate::api::extract::{QueryParams, decode_object};
 use crate::api::images::work::{self, Need};
-use crate::api::images::{GivenRig, ImageForm, ImagePair, Parts, limits, rig};
+use crate::api::images::{ImageForm, ImagePair, Job, Parts, limits, rig};
 use crate::api::respond::Json;
-use crate::api::wire::measured::{Measured, Point};
+use crate::api::wire::measured::Measured;
 use crate::api::wire::openapi::ImageErrors;
 use crate::physics::{self, Correspondence, Rig};
 use crate::vision::correspond::{self, Found, Rect};
@@ -85,22 +84,14 @@ impl ImageForm for MatchForm {
     )
 )]
 pub async fn post_match(
-    QueryParams(query, mut problems): QueryParams<MatchQuery>,
-    pair: ImagePair<MatchForm>,
+    QueryParams(query, problems): QueryParams<MatchQuery>,
+    mut pair: ImagePair<MatchForm>,
 ) -> Result<Response, ApiError> {
-    let ImagePair {
-        parts,
-        size,
-        rig: given,
-        problems: found,
-        reservation,
-        read,
-        ..
-    } = pair;
-    problems.extend(found);
-    rig::require_rig(&parts, "for the distances", &mut problems);
-    let points = list::<MatchPoint>(&parts, "points", MAX_POINTS, &mut problems);
-    let regions = list::<MatchRegion>(&parts, "regions", MAX_REGIONS, &mut problems);
+    let mut problems = pair.problems(problems);
+    let parts = &pair.parts;
+    rig::require_rig(parts, "for the distances", &mut problems);
+    let points = list::<MatchPoint>(parts, "points", MAX_POINTS, &mut problems);
+    let regions = list::<MatchRegion>(parts, "regions", MAX_REGIONS, &mut problems);
     let points = points.map(|ps| check_points(ps, &mut problems));
     let regions = regions.map(|rs| check_regions(rs, &mut problems));
     if parts.get("points").is_none() && parts.get("regions").is_none() {
@@ -110,14 +101,15 @@ pub async fn post_match(
              image",
         );
     }
-    let ndisp = given.as_ref().and_then(|g| g.max_disparity);
+    let ndisp = pair.rig.as_ref().and_then(|g| g.max_disparity);
     let settings = Settings {
         min_disparity: query.min_disparity,
         max_disparity: query.max_disparity,
         ..Settings::default()
     };
     let params = limits::params(settings, ndisp, &mut problems);
-    let (Some((width, height)), Some(given), Some(params)) = (size, given, params) else {
+    let (Some((width, height)), true, Some(params)) = (pair.size, pair.rig.is_some(), params)
+    else {
         return Err(problems.into_error());
     };
     if !problems.is_empty() {
@@ -131,18 +123,8 @@ pub async fn post_match(
     };
     let points = points.unwrap_or_default();
     let regions = regions.unwrap_or_default();
-    work::run(reservation, need, move |cancel, started| {
-        compute(
-            &parts,
-            &params,
-            &given,
-            &points,
-            &regions,
-            cancel,
-            [read, started.queue()],
-        )
-    })
-    .await?
+    pair.run(need, move |job| compute(job, &params, &points, &regions))
+        .await?
 }
 
 /// The bytes a request holds at its peak: the decoded pair, the matcher's as for the whole
@@ -295,16 +277,18 @@ fn rect(b: [f64; 4], w: usize, h: usize) -> Option<Rect> {
 
 /// Decodes, matches and answers, on a blocking thread.
 fn compute(
-    parts: &Parts,
+    job: Job,
     params: &Params,
-    given: &GivenRig,
     points: &[(f64, f64)],
     regions: &[[f64; 4]],
-    cancel: &AtomicBool,
-    [read, queue]: [std::time::Duration; 2],
 ) -> Result<Response, ApiError> {
+    // The route runs the work only with a rig.
+    let Some(given) = job.rig else {
+        return Err(ApiError::Internal("matched without a rig".to_owned()));
+    };
+    let cancel = job.cancel;
     let started = Instant::now();
-    let (left, right) = work::decode_pair(parts, false)?;
+    let (left, right) = work::decode_pair(job.parts, false)?;
     let decode_time = started.elapsed();
     let (w, h) = (left.grey.width, left.grey.height);
     let boxes: Vec<Option<Rect>> = regions.iter().map(|&b| rect(b, w, h)).collect();
@@ -350,15 +334,8 @@ fn compute(
     let started = Instant::now();
     drop((left, right, found));
     let drop_time = started.elapsed();
-    let timing = work::server_timing(&[
-        ("read", read),
-        ("queue", queue),
-        ("decode", decode_time),
-        ("cost", t.cost),
-        ("aggregate", t.aggregate),
-        ("refine", t.refine),
-        ("drop", drop_time),
-    ]);
+    let [read, queue] = job.waited;
+    let timing = work::server_timing([read, queue, decode_time], &t, &[("drop", drop_time)]);
     if let Ok(v) = HeaderValue::from_str(&timing) {
         response.headers_mut().insert("server-timing", v);
     }
@@ -380,29 +357,22 @@ fn point_match(rig: &Rig, x: f64, y: f64, found: &Found) -> PointMatch {
         status: found.status.into(),
         confidence: round(f64::from(found.confidence), 3),
         x_right: None,
-        disparity_px: None,
-        distance: None,
-        range: None,
-        depth_error: None,
+        measured: MatchDistance::default(),
         relative_error: None,
-        point: None,
         warnings: None,
         error: None,
     };
     if let Some(d) = found.disparity {
         let d = round(f64::from(d), 3);
         answer.x_right = Some(round(x - d, 3));
-        answer.disparity_px = Some(d);
+        answer.measured.disparity_px = Some(d);
         let c = Correspondence::at(x, y, d);
         match physics::measure(rig, c) {
             Ok(m) => {
                 // Mapped as `/distance` maps it.
+                answer.measured = MatchDistance::from(&m);
                 let m = Measured::from(&m);
-                answer.distance = Some(m.distance);
-                answer.range = m.range;
-                answer.depth_error = Some(m.depth_error);
                 answer.relative_error = Some(m.relative_error);
-                answer.point = m.point;
                 answer.warnings = Some(m.warnings);
             }
             Err(e) => answer.error = Some(e.to_string()),
@@ -421,13 +391,9 @@ fn region_match(rig: &Rig, map: &vision::Disparity, b: [f64; 4], r: Option<Rect>
         height: b[3],
         status: RegionStatus::OutsideImage,
         valid_fraction: 0.0,
-        disparity_px: None,
-        distance: None,
+        measured: MatchDistance::default(),
         distance_p10: None,
         distance_p90: None,
-        range: None,
-        depth_error: None,
-        point: None,
     };
     let Some(r) = r else {
         return answer;
@@ -457,12 +423,8 @@ fn region_match(rig: &Rig, map: &vision::Disparity, b: [f64; 4], r: Option<Rect>
         return answer;
     };
     answer.status = RegionStatus::Ok;
-    answer.disparity_px = Some(median);
-    answer.distance = Some(m.distance);
+    answer.measured = MatchDistance::from(&m);
     answer.distance_p10 = rig.distance_at(at(0.1)).ok();
     answer.distance_p90 = rig.distance_at(at(0.9)).ok();
-    answer.range = m.range;
-    answer.depth_error = Some(m.depth_error);
-    answer.point = m.point.map(Point::from);
     answer
 }

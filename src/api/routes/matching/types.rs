@@ -7,8 +7,7 @@ use utoipa::ToSchema;
 use crate::api::extract::QueryForm;
 use crate::api::routes::calibration::types::CalibratedRig;
 use crate::api::routes::depth_map::types::StageTimes;
-use crate::api::routes::distance::types::StereoRig;
-use crate::api::wire::de::request;
+use crate::api::wire::de::{image_form, request};
 use crate::api::wire::measured::{Point, Warning};
 use crate::api::wire::params::Unit;
 use crate::vision::correspond::Status;
@@ -60,44 +59,19 @@ request! {
     }
 }
 
-/// The `multipart/form-data` parts of `/match` (for the documentation: the handler reads the
-/// parts itself, to name each one in its errors).
-#[derive(ToSchema)]
-#[serde(deny_unknown_fields)]
-#[allow(dead_code)]
-pub struct MatchForm {
-    /// The left image of the rectified pair: PNG or JPEG, 8 or 16 bits, grey, RGB or RGBA.
-    #[schema(value_type = String, format = Binary)]
-    left: Vec<u8>,
-    /// The right image, the same size as the left.
-    #[schema(value_type = String, format = Binary)]
-    right: Vec<u8>,
-    /// The points to match, a JSON array of `{"x", "y"}` in the left image: at most 10 000.
-    /// Give `points`, `regions` or both.
-    #[schema(nullable = false, max_items = 10000)]
-    points: Option<Vec<MatchPoint>>,
-    /// The boxes to measure, a JSON array of `{"x", "y", "width", "height"}`: at most 1 000.
-    #[schema(nullable = false, max_items = 1000)]
-    regions: Option<Vec<MatchRegion>>,
-    /// The rig, with the members of `/distance` (what `/calibration` answers as `rig`). The
-    /// image size defaults to the images'. Give `rig` or `calibration`.
-    #[schema(nullable = false)]
-    rig: Option<StereoRig>,
-    /// A calibration file as `/calibration` reads it (Middlebury, KITTI, ROS, OpenCV).
-    #[schema(value_type = Option<String>, format = Binary, nullable = false)]
-    calibration: Option<Vec<u8>>,
-    /// The calibration's format, or `auto` (the default).
-    #[schema(nullable = false)]
-    calibration_format: Option<String>,
-    /// The right camera's ROS `CameraInfo`, for ROS calibrations.
-    #[schema(value_type = Option<String>, format = Binary, nullable = false)]
-    right_calibration: Option<Vec<u8>>,
-    /// The unit of the calibration's lengths (required for OpenCV files).
-    #[schema(nullable = false)]
-    calibration_unit: Option<String>,
-    /// KITTI only: the camera pair, `2-3` (the default) or `0-1`.
-    #[schema(nullable = false)]
-    calibration_cameras: Option<String>,
+image_form! {
+    /// The `multipart/form-data` parts of `/match` (for the documentation: the handler reads
+    /// the parts itself, to name each one in its errors). Give `rig` or `calibration`.
+    pub struct MatchForm {
+        /// The points to match, a JSON array of `{"x", "y"}` in the left image: at most
+        /// 10 000. Give `points`, `regions` or both.
+        #[schema(nullable = false, max_items = 10000)]
+        points: Option<Vec<MatchPoint>>,
+        /// The boxes to measure, a JSON array of `{"x", "y", "width", "height"}`: at most
+        /// 1 000.
+        #[schema(nullable = false, max_items = 1000)]
+        regions: Option<Vec<MatchRegion>>,
+    }
 }
 
 /// Whether to trust a point's match, or why not.
@@ -138,6 +112,47 @@ impl From<Status> for MatchStatus {
     }
 }
 
+/// The distance members a point's match and a region share, as `/distance` answers them:
+/// each absent without a distance.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct MatchDistance {
+    /// The disparity the distance is computed from, in pixels (to 1/1000 px): the point's
+    /// `x − x_right`, or the median of the region's valid pixels.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub disparity_px: Option<f64>,
+    /// Depth Z along the optical axis, in `unit`: the point's, or the median of the region's
+    /// valid pixels.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub distance: Option<f64>,
+    /// The straight-line distance √(X² + Y² + Z²) to `point`, in `unit`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub range: Option<f64>,
+    /// Expected depth error ΔZ = Z²·Δd/(f·B), in `unit`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub depth_error: Option<f64>,
+    /// The point in the left camera's frame (a region's: its centre on the image at the
+    /// median depth).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub point: Option<Point>,
+}
+
+impl From<&crate::physics::Measurement> for MatchDistance {
+    fn from(m: &crate::physics::Measurement) -> Self {
+        Self {
+            disparity_px: Some(m.disparity_px),
+            distance: Some(m.distance),
+            range: m.range,
+            depth_error: Some(m.depth_error),
+            point: m.point.map(Point::from),
+        }
+    }
+}
+
 /// One point's match, in the order of `points`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
 pub struct PointMatch {
@@ -154,33 +169,15 @@ pub struct PointMatch {
     #[serde(skip_serializing_if = "Option::is_none")]
     #[schema(nullable = false)]
     pub x_right: Option<f64>,
-    /// The disparity `x − x_right` at the point's pixel, in pixels (to 1/1000 px: the value
-    /// the distance below is computed from); absent without one.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    #[schema(nullable = false)]
-    pub disparity_px: Option<f64>,
-    /// From here on, the `/distance` answer for `x`, `disparity_px` and `y` with the
-    /// request's rig, computed by the same code, present whenever the point has a disparity
-    /// (whatever its status). Depth Z along the optical axis, in `unit`.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    #[schema(nullable = false)]
-    pub distance: Option<f64>,
-    /// The straight-line distance √(X² + Y² + Z²) to the point, in `unit`.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    #[schema(nullable = false)]
-    pub range: Option<f64>,
-    /// Expected depth error ΔZ = Z²·Δd/(f·B), in `unit`.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    #[schema(nullable = false)]
-    pub depth_error: Option<f64>,
+    /// The disparity `x − x_right` at the point's pixel (to 1/1000 px) and the `/distance`
+    /// answer for `x`, that disparity and `y` with the request's rig, computed by the same
+    /// code, present whenever the point has a disparity (whatever its status).
+    #[serde(flatten)]
+    pub measured: MatchDistance,
     /// depth_error / distance.
     #[serde(skip_serializing_if = "Option::is_none")]
     #[schema(nullable = false)]
     pub relative_error: Option<f64>,
-    /// The point in the left camera's frame.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    #[schema(nullable = false)]
-    pub point: Option<Point>,
     /// Caveats about the distance, as `/distance` gives them.
     #[serde(skip_serializing_if = "Option::is_none")]
     #[schema(nullable = false)]
@@ -214,14 +211,10 @@ pub struct RegionMatch {
     pub status: RegionStatus,
     /// The share of the box's pixels (on the image) with a depth, in [0, 1].
     pub valid_fraction: f64,
-    /// The median disparity of those pixels, in pixels.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    #[schema(nullable = false)]
-    pub disparity_px: Option<f64>,
-    /// The median depth Z of those pixels, in `unit`.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    #[schema(nullable = false)]
-    pub distance: Option<f64>,
+    /// The median disparity and depth of those pixels, and the `/distance` answer for the
+    /// box's centre at that depth.
+    #[serde(flatten)]
+    pub measured: MatchDistance,
     /// The 10th percentile of their depths (the near side), in `unit`.
     #[serde(skip_serializing_if = "Option::is_none")]
     #[schema(nullable = false)]
@@ -230,18 +223,6 @@ pub struct RegionMatch {
     #[serde(skip_serializing_if = "Option::is_none")]
     #[schema(nullable = false)]
     pub distance_p90: Option<f64>,
-    /// The straight-line distance to `point`, in `unit`.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    #[schema(nullable = false)]
-    pub range: Option<f64>,
-    /// Expected error of `distance`, ΔZ = Z²·Δd/(f·B), in `unit`.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    #[schema(nullable = false)]
-    pub depth_error: Option<f64>,
-    /// The box's centre (on the image) at the median depth, in the left camera's frame.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    #[schema(nullable = false)]
-    pub point: Option<Point>,
 }
 
 /// The answer of `/match`.

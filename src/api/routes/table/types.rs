@@ -11,9 +11,8 @@ use crate::api::wire::params::Unit;
 range_request! {
     /// A rig and a range: the sample table of distance against disparity.
     #[schema(example = json!({
-        "focal_length_px": 35, "baseline": 150, "unit": "mm",
-        "image_width": 800, "image_height": 600,
-        "disparity_min": 10, "disparity_max": 100, "steps": 10
+        "focal_length_px": 700, "baseline": 120, "unit": "mm", "image_width": 1280,
+        "image_height": 720, "disparity_min": 10, "disparity_max": 100, "steps": 10
     }))]
     pub struct TableRequest {
         /// Number of rows, from 1 to the server's cap (10 000 by default). Default 10.
