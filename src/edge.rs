@@ -182,10 +182,7 @@ async fn edge<S: Inner>(
             &id,
         );
     }
-    // In the `library-request-id` build, tower-http's request-id layers echo the id instead.
-    if cfg!(not(feature = "library-request-id")) {
-        response.headers_mut().insert(X_REQUEST_ID.clone(), id);
-    }
+    response.headers_mut().insert(X_REQUEST_ID.clone(), id);
     Ok(response)
 }
 

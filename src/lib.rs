@@ -36,10 +36,9 @@
 //!   - [`protect`]: the body watcher behind 408 vs 503, `Retry-After`, CORS.
 //!   - [`telemetry`], [`metrics`]: logs, request ids and the access log; Prometheus metrics.
 //!   - [`healthcheck`]: the `healthcheck` subcommand's probe, for images without curl.
-//! - `library_layers` (cargo features `library-limits`, `library-layers`): the library layers
-//!   measured against the hand-written ones and not adopted, built only to measure them.
-//! - `conformance` (cargo feature `conformance`, on for the tests and the fuzz crate): what the
-//!   service promises for any input, checked in process.
+//! - Outside this crate, in the workspace: `crates/conformance` (dev only), what the service
+//!   promises for any input, checked in process: the oracle of the fuzz target and of
+//!   `tests/hostile_input.rs`.
 //!
 //! `main.rs` only parses the command line and runs the server or the probe.
 
@@ -47,12 +46,8 @@ pub mod api;
 pub mod budget;
 pub mod calibration;
 pub mod config;
-#[cfg(feature = "conformance")]
-pub mod conformance;
 pub mod edge;
 pub mod healthcheck;
-#[cfg(feature = "library-limits")]
-pub mod library_layers;
 pub mod metrics;
 pub mod numbers;
 pub mod physics;

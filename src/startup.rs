@@ -62,17 +62,10 @@ pub fn app_with(config: &Config, ops: OpsState, extra_heavy: Router<HeavyState>)
         ops.clone(),
         extra_heavy,
     );
-    #[cfg(not(feature = "library-limits"))]
     let light = light.merge(web::router()).layer(GuardLayer::new(
         config.concurrency_limit,
         config.request_timeout,
     ));
-    #[cfg(feature = "library-limits")]
-    let light = crate::library_layers::group(
-        light.merge(web::router()),
-        config.concurrency_limit,
-        config.request_timeout,
-    );
     // The form extractor's own cap (2 MB by default) raised to the group's body limit; the
     // guard's admission and the form reader enforce that limit.
     let images = images
@@ -83,14 +76,7 @@ pub fn app_with(config: &Config, ops: OpsState, extra_heavy: Router<HeavyState>)
             MemoryBudget::new(heavy.memory_budget),
             heavy.body_bytes,
         ));
-    let edge = ServiceBuilder::new();
-    #[cfg(feature = "library-request-id")]
-    let edge = edge
-        .layer(tower_http::request_id::SetRequestIdLayer::x_request_id(
-            tower_http::request_id::MakeRequestUuid,
-        ))
-        .layer(tower_http::request_id::PropagateRequestIdLayer::x_request_id());
-    let edge = edge
+    let edge = ServiceBuilder::new()
         .layer(EdgeLayer::new(ops.metrics, config.access_log))
         .layer(CatchPanicLayer::custom(edge::panic_answer))
         .option_layer(protect::cors(&config.cors_allowed_origins))

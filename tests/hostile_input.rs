@@ -1,7 +1,7 @@
 //! Bounded random input under `cargo test`, the in-CI counterpart of the cargo-fuzz target in
 //! `fuzz/`: arbitrary bytes, mutated request examples, random JSON objects of the API's member
 //! names and random query strings, each sent to every operation as a body and as a query
-//! through the full router. The oracle is [`stereo_distance::conformance`]: no 5xx or panic,
+//! through the full router. The oracle is [`stereo_conformance`]: no 5xx or panic,
 //! a 4xx is a problem naming a field, a 2xx holds no null.
 //!
 //! More cases: `PROPTEST_CASES=20000 cargo test --release --test hostile_input`.
@@ -11,7 +11,7 @@ use std::sync::OnceLock;
 use axum::http::StatusCode;
 use proptest::{collection::vec, prelude::*};
 use serde_json::{Map, Value};
-use stereo_distance::conformance::Harness;
+use stereo_conformance::Harness;
 
 fn harness() -> &'static Harness {
     static HARNESS: OnceLock<Harness> = OnceLock::new();

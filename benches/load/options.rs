@@ -17,8 +17,7 @@ usage: cargo bench --bench load -- [options]
   --compare NAME=PATH  also measure the service binary at PATH on /distance, in the same run
                        and against the same baseline, its rows named NAME (repeatable)
   --only TEXT          measure only the endpoints whose name contains TEXT (and the baseline)
-  --soak DUR           run the soak for DUR instead (mixed load, answers checked, RSS growth)
-  --soak-connections N connections of the soak (default 32)";
+";
 
 /// The seed's example 1: f = 35 px, B = 150 mm, 800×600, x 400 / 350 → 105 mm.
 
@@ -33,8 +32,6 @@ pub struct Options {
     pub service_bin: PathBuf,
     pub compare: Vec<(String, PathBuf)>,
     pub only: Option<String>,
-    pub soak: Option<Duration>,
-    pub soak_connections: usize,
 }
 
 impl Options {
@@ -49,8 +46,6 @@ impl Options {
             service_bin: PathBuf::from(SERVICE_BIN),
             compare: Vec::new(),
             only: None,
-            soak: None,
-            soak_connections: 32,
         };
         let mut args = args.iter();
         while let Some(flag) = args.next() {
@@ -83,8 +78,6 @@ impl Options {
                     options.compare.push((name.to_owned(), PathBuf::from(path)));
                 }
                 "--only" => options.only = Some(value()?.clone()),
-                "--soak" => options.soak = Some(duration(value()?)?),
-                "--soak-connections" => options.soak_connections = count(value()?)?,
                 "-h" | "--help" => return Err(USAGE.to_owned()),
                 other => return Err(format!("unknown option {other}\n{USAGE}")),
             }

@@ -1,6 +1,6 @@
 //! Fuzz target: arbitrary bytes as a JSON body to every `POST` operation and as a query
 //! string to every `GET`, through the full router (decoding, validation, the physics, the
-//! answer). Any broken promise of [`stereo_distance::conformance`] (a 5xx, a panic, a problem
+//! answer). Any broken promise of [`stereo_conformance`] (a 5xx, a panic, a problem
 //! that names no field, a `null` in a 2xx) is a crash.
 //!
 //! Run: `cargo +nightly fuzz run request -- -max_total_time=60` (see the README).
@@ -10,7 +10,7 @@
 use std::sync::OnceLock;
 
 use libfuzzer_sys::fuzz_target;
-use stereo_distance::conformance::Harness;
+use stereo_conformance::Harness;
 
 static HARNESS: OnceLock<Harness> = OnceLock::new();
 

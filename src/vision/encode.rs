@@ -183,27 +183,6 @@ pub fn turbo(t: f32) -> [u8; 3] {
     ]
 }
 
-/// The depth map coloured for people: near is warm (red), far is cool (blue), on a scale of
-/// inverse depth (disparity) from `near` to `far` so the near field gets the colours; invalid
-/// pixels are black.
-pub fn preview(depth: &[f32], near: f32, far: f32) -> Vec<u8> {
-    let (a, b) = (
-        1.0 / far.max(f32::MIN_POSITIVE),
-        1.0 / near.max(f32::MIN_POSITIVE),
-    );
-    let span = (b - a).max(f32::MIN_POSITIVE);
-    depth
-        .iter()
-        .flat_map(|&z| {
-            if z.is_nan() || z <= 0.0 {
-                [0, 0, 0]
-            } else {
-                turbo((1.0 / z - a) / span)
-            }
-        })
-        .collect()
-}
-
 /// One point of a cloud, in the left camera's frame, with its colour.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ColouredPoint {

@@ -1,6 +1,7 @@
 //! What the service promises for *any* request, checked in process on arbitrary input: the
 //! one oracle shared by the cargo-fuzz target (`fuzz/`) and the bounded random-input test
-//! (`tests/hostile_input.rs`).
+//! (`tests/hostile_input.rs`). A dev-only crate of the workspace: the service's own build
+//! never compiles it.
 //!
 //! For every operation that reads input, the bytes are sent as a JSON body (`POST`) and as a
 //! query string (`GET`), and to `/calibration` as a text body, through the full router,
@@ -21,8 +22,8 @@ use axum::{
 };
 use tower::ServiceExt;
 
-use crate::vision::{encode, synthetic};
-use crate::{Config, api::routes::ops::OpsState, app};
+use stereo_distance::vision::{encode, synthetic};
+use stereo_distance::{Config, api::routes::ops::OpsState, app};
 
 /// The operations that read a body (`POST`) and a query (`GET`).
 const BODY_PATHS: [&str; 8] = [

@@ -1,4 +1,4 @@
-//! The soak: `cargo bench --bench load -- --soak 60s`. A bounded closed-loop load of mixed
+//! The soak's run. A bounded closed-loop load of mixed
 //! requests (single and batch distances in JSON and in query strings, tables, charts, and
 //! requests that must be refused) on a fixed number of keep-alive connections, against the
 //! release binary. It records:
@@ -8,8 +8,7 @@
 //! - the server's RSS each second: its growth from the end of the first 10 % of the run
 //!   ("minute 0") to the end must stay under 10 %.
 //!
-//! It prints a Markdown report and exits non-zero when any of those fails. Not a test: nothing
-//! here is timed.
+//! It returns a Markdown report and whether every criterion held. Nothing here is timed.
 
 use std::{
     collections::BTreeMap,
