@@ -119,7 +119,6 @@ fn router(c: &mut Criterion) {
         },
         HeavyState::default(),
         OpsState::default(),
-        Router::new(),
     )
     .light;
     let mut group = c.benchmark_group("router");

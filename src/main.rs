@@ -6,7 +6,8 @@ use std::process::ExitCode;
 use stereo_distance::{
     Application,
     config::{Cli, Command},
-    healthcheck, telemetry,
+    observe::telemetry,
+    server::healthcheck,
 };
 
 fn main() -> ExitCode {

@@ -1,5 +1,7 @@
-//! Numbers written into messages for people: the shortest form that reads back as the same
-//! number, so that an echoed `1e308` stays `1e308` and not 309 digits.
+//! Numbers written as text, in one place: into messages for people ([`Num`], the shortest form
+//! that reads back as the same number, so that an echoed `1e308` stays `1e308` and not 309
+//! digits) and into CSV as the JSON writes them ([`push_json`]). Formulas' rounded numbers
+//! (`api::format`) are written through [`Num`] too; only this module calls ryu.
 
 use std::fmt;
 
@@ -20,6 +22,12 @@ impl fmt::Display for Num {
         let text = text.strip_suffix(".0").unwrap_or(text);
         f.write_str(if text == "-0" { "0" } else { text })
     }
+}
+
+/// Appends `value` as the JSON answers write it: the shortest decimal that reads back as the
+/// same `f64` (ryu), whole numbers with their `.0` (`105.0`). The CSV answers write through it.
+pub fn push_json(out: &mut String, value: f64) {
+    out.push_str(ryu::Buffer::new().format(value));
 }
 
 /// Text echoed in a message, cut to at most `max` characters (with `…`), so that a caller's

@@ -28,14 +28,13 @@ where
 {
     let mut out = columns.join(",");
     out.push_str("\r\n");
-    let mut buffer = ryu::Buffer::new();
     for row in rows {
         for (i, value) in row.into_iter().enumerate() {
             if i > 0 {
                 out.push(',');
             }
             if let Some(value) = value {
-                out.push_str(buffer.format(value));
+                crate::numbers::push_json(&mut out, value);
             }
         }
         out.push_str("\r\n");

@@ -12,7 +12,7 @@ use axum::{
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
-use crate::{budget::Refusal, physics::PhysicsError, protect::RETRY_AFTER_SECS, telemetry};
+use crate::{budget::Refusal, observe::telemetry, physics::PhysicsError};
 
 /// A byte count for people: `1.5 MiB`.
 fn mib(bytes: usize) -> String {
@@ -21,6 +21,10 @@ fn mib(bytes: usize) -> String {
         super::format::short(bytes as f64 / (1024.0 * 1024.0))
     )
 }
+
+/// Seconds a shed client, or one refused while the memory budget is held, is asked to wait
+/// before retrying (`Retry-After`).
+pub const RETRY_AFTER_SECS: u64 = 1;
 
 /// The media type of every error body.
 pub const PROBLEM_JSON: &str = "application/problem+json";

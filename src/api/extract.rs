@@ -16,7 +16,7 @@ use serde::de::DeserializeOwned;
 use serde_json::{Map, Value};
 
 use super::error::{ApiError, FieldError, FieldErrors};
-use super::wording::{self, ECHO, Refusal};
+use super::wording::{self, Complaint, ECHO};
 use crate::numbers::clip;
 
 /// A JSON request body, decoded as far as it could be, with the members it refused and the
@@ -318,7 +318,7 @@ fn diagnose<T: DeserializeOwned>(
         _ => {
             let text = whole.to_string();
             let field = match wording::parse(&text) {
-                Refusal::Duplicate { name } if !name.is_empty() => clip(name, ECHO),
+                Complaint::Duplicate { name } if !name.is_empty() => clip(name, ECHO),
                 _ => itself.to_owned(),
             };
             problems.add(&field, wording::message(&text, None));

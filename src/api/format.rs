@@ -4,18 +4,15 @@
 /// A number for reading: at most four decimals, no trailing zeros; scientific notation for
 /// magnitudes below 10⁻³ or from 10¹² up.
 ///
-/// Rounds in binary (`round(v·10⁴)/10⁴`) and writes the shortest form with ryu: ten times
+/// Rounds in binary (`round(v·10⁴)/10⁴`) and writes the shortest form ([`crate::numbers::Num`],
+/// ryu's): ten times
 /// cheaper than `format!("{:.4}")`, whose exact decimal expansion showed in the profile of
 /// `/distance`. The two differ only on exact ties of the fifth decimal.
 pub fn short(value: f64) -> String {
     if value != 0.0 && !(1e-3..1e12).contains(&value.abs()) {
         return format!("{value:e}");
     }
-    let rounded = (value * 1e4).round() / 1e4;
-    let mut buffer = ryu::Buffer::new();
-    let text = buffer.format(rounded);
-    let text = text.strip_suffix(".0").unwrap_or(text);
-    if text == "-0" { "0" } else { text }.to_owned()
+    crate::numbers::Num((value * 1e4).round() / 1e4).to_string()
 }
 
 /// A fraction as a percentage for reading, such as `2 %` for 0.02.

@@ -115,22 +115,17 @@ pub struct Routers {
     pub probes: Router,
 }
 
-/// The routers and the OpenAPI document, built from the same handler annotations; `extra_heavy`
-/// joins the heavy group outside the document.
+/// The routers and the OpenAPI document, built from the same handler annotations.
 fn routes(
     state: AppState,
     heavy: HeavyState,
     ops: OpsState,
-    extra_heavy: Router<HeavyState>,
 ) -> (Routers, utoipa::openapi::OpenApi) {
     let (light, mut doc) = OpenApiRouter::with_openapi(ApiDoc::openapi())
         .merge(routes::light())
         .with_state(state)
         .split_for_parts();
-    let (heavy, heavy_doc) = routes::heavy()
-        .merge(OpenApiRouter::from(extra_heavy))
-        .with_state(heavy)
-        .split_for_parts();
+    let (heavy, heavy_doc) = routes::heavy().with_state(heavy).split_for_parts();
     let (probes, probes_doc) = routes::ops::router().with_state(ops).split_for_parts();
     doc.merge(heavy_doc);
     doc.merge(probes_doc);
@@ -150,19 +145,13 @@ pub fn openapi() -> utoipa::openapi::OpenApi {
         AppState::default(),
         HeavyState::default(),
         OpsState::default(),
-        Router::new(),
     )
     .1
 }
 
 /// The routers, with `/openapi.json` and Swagger UI at `/docs` added to the light group's.
-pub fn routers(
-    state: AppState,
-    heavy: HeavyState,
-    ops: OpsState,
-    extra_heavy: Router<HeavyState>,
-) -> Routers {
-    let (routers, doc) = routes(state, heavy, ops, extra_heavy);
+pub fn routers(state: AppState, heavy: HeavyState, ops: OpsState) -> Routers {
+    let (routers, doc) = routes(state, heavy, ops);
     let spec = axum::body::Bytes::from(openapi_text(&doc));
     let served = move || {
         let spec = spec.clone();

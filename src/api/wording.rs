@@ -12,7 +12,7 @@ pub const ECHO: usize = 40;
 
 /// What serde said about a member, parsed.
 #[derive(Debug, PartialEq)]
-pub enum Refusal<'a> {
+pub enum Complaint<'a> {
     /// `unknown field `x`, expected one of `a`, `b``: the member and the known ones.
     UnknownField { name: &'a str, known: Vec<&'a str> },
     /// `unknown variant `x`, expected one of `a`, `b``: the allowed values.
@@ -28,13 +28,13 @@ pub enum Refusal<'a> {
 }
 
 /// Parses serde_json's message, without its ` at line … column …` suffix.
-pub fn parse<'a>(text: &'a str) -> Refusal<'a> {
+pub fn parse<'a>(text: &'a str) -> Complaint<'a> {
     let text = text.split(" at line ").next().unwrap_or(text);
     let quoted = |list: &'a str| -> Vec<&'a str> { list.split('`').skip(1).step_by(2).collect() };
     if let Some(rest) = text.strip_prefix("unknown field `")
         && let Some((name, expected)) = rest.split_once('`')
     {
-        return Refusal::UnknownField {
+        return Complaint::UnknownField {
             name,
             known: quoted(expected),
         };
@@ -42,7 +42,7 @@ pub fn parse<'a>(text: &'a str) -> Refusal<'a> {
     if let Some(rest) = text.strip_prefix("unknown variant `")
         && let Some((_, expected)) = rest.split_once("`, expected ")
     {
-        return Refusal::UnknownVariant {
+        return Complaint::UnknownVariant {
             allowed: quoted(expected),
         };
     }
@@ -50,7 +50,7 @@ pub fn parse<'a>(text: &'a str) -> Refusal<'a> {
         if let Some(rest) = text.strip_prefix(prefix)
             && let Some((got, expected)) = rest.rsplit_once(", expected ")
         {
-            return Refusal::Mismatch { got, expected };
+            return Complaint::Mismatch { got, expected };
         }
     }
     let named = |prefix: &str| {
@@ -58,21 +58,21 @@ pub fn parse<'a>(text: &'a str) -> Refusal<'a> {
             .and_then(|rest| rest.split('`').next())
     };
     if let Some(name) = named("duplicate field `") {
-        return Refusal::Duplicate { name };
+        return Complaint::Duplicate { name };
     }
     if let Some(name) = named("missing field `") {
-        return Refusal::Missing { name };
+        return Complaint::Missing { name };
     }
-    Refusal::Own(text)
+    Complaint::Own(text)
 }
 
 /// The message for a member that serde refused: `text` is serde's message, `value` the member
 /// as given (a list member's message is about one of its items).
 pub fn message(text: &str, value: Option<&Value>) -> String {
     match parse(text) {
-        Refusal::UnknownField { name, known } => unknown_field(name, &known),
-        Refusal::UnknownVariant { allowed } => one_of(&allowed, value),
-        Refusal::Mismatch { got, expected } => {
+        Complaint::UnknownField { name, known } => unknown_field(name, &known),
+        Complaint::UnknownVariant { allowed } => one_of(&allowed, value),
+        Complaint::Mismatch { got, expected } => {
             // A list member's message is about an item when serde saw something in it.
             let item =
                 value.is_some_and(Value::is_array) && got != "sequence" && expected != "a sequence";
@@ -85,9 +85,9 @@ pub fn message(text: &str, value: Option<&Value>) -> String {
                 format!("must be {expected}, got {got}{hint}")
             }
         }
-        Refusal::Duplicate { .. } => "is given more than once; give it once".to_owned(),
-        Refusal::Missing { .. } => "is required".to_owned(),
-        Refusal::Own(text) => text.to_owned(),
+        Complaint::Duplicate { .. } => "is given more than once; give it once".to_owned(),
+        Complaint::Missing { .. } => "is required".to_owned(),
+        Complaint::Own(text) => text.to_owned(),
     }
 }
 

@@ -58,7 +58,7 @@ pub fn volume(
 ) -> Volume {
     let stride = stride(count);
     // Every cell is written below, the padding past `count` included.
-    let mut data = super::pages::zeroed(width * height * stride);
+    let mut data = super::huge_pages::zeroed(width * height * stride);
     data.par_chunks_mut(width * stride)
         .enumerate()
         .for_each(|(y, row)| {

@@ -17,7 +17,7 @@
 //!
 //! The image is matched in horizontal stripes ([`stripes`]), side by side on the cores. The hot
 //! loops are dispatched between a portable and an AVX2 build by [`simd`], and the large
-//! buffers come from [`pages`] (zeroed, on transparent huge pages where the kernel allows).
+//! buffers come from [`huge_pages`] (zeroed, on transparent huge pages where the kernel allows).
 //!
 //! [`correspond`] (the `/match` engine) runs the same matcher on the rows some points need,
 //! [`disparity_probed`] telling it what the matcher saw at each point, and judges each point's
@@ -31,7 +31,7 @@ pub mod correspond;
 pub mod cost;
 pub mod decode;
 pub mod encode;
-pub mod pages;
+pub mod huge_pages;
 mod params;
 pub mod refine;
 pub mod sgm;

@@ -47,7 +47,7 @@ pub fn aggregate(
         p2: p2_table(penalties),
     };
     let (w, h, n) = (cost.width, cost.height, cost.stride);
-    let mut forward = super::pages::zeroed(w * h * n);
+    let mut forward = super::huge_pages::zeroed(w * h * n);
     pass(
         cost,
         grey,

@@ -1,7 +1,7 @@
 //! One module per resource, each with its request and response types beside its handlers and
 //! its own `router()`; [`light`] merges the JSON resources, [`heavy`] the image resources and
 //! [`ops::router`] the probes, each group to be wrapped in its own limits by
-//! [`crate::startup`].
+//! [`crate::server::startup`].
 
 pub mod calibration;
 pub mod chart;
@@ -145,8 +145,7 @@ pub fn light() -> OpenApiRouter<AppState> {
         .merge(calibration::router())
 }
 
-/// The image requests: megabytes in, milliseconds to seconds of CPU each (tests mount a route
-/// of their own here too, see [`crate::startup::app_with`]).
+/// The image requests: megabytes in, milliseconds to seconds of CPU each.
 pub fn heavy() -> OpenApiRouter<HeavyState> {
     OpenApiRouter::new()
         .merge(depth_map::router())

@@ -16,7 +16,7 @@ use utoipa_axum::{router::OpenApiRouter, routes};
 use crate::api::error::ApiError;
 use crate::api::respond::Json;
 use crate::api::wire::openapi::{DRAINING, METHOD, ProbeErrors, problem_responses};
-use crate::metrics::{Metrics, TEXT_FORMAT};
+use crate::observe::metrics::{Metrics, TEXT_FORMAT};
 
 /// Whether the server wants traffic: false before it serves and while it drains.
 #[derive(Debug, Clone, Default)]

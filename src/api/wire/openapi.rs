@@ -14,10 +14,10 @@ use utoipa::openapi::{
     schema::Schema,
 };
 
+use crate::api::error::RETRY_AFTER_SECS;
 use crate::api::error::{ApiError, FieldError, PROBLEM_JSON};
 use crate::api::extract::{QueryForm, decode_query, malformed_json};
 use crate::config::{DEFAULT_BODY_LIMIT, DEFAULT_REQUEST_TIMEOUT};
-use crate::protect::RETRY_AFTER_SECS;
 
 /// Documents each member of a request body schema as a query parameter, so that the GET form of
 /// an operation is described by the very type its POST form takes.

@@ -1,6 +1,6 @@
 //! Prometheus metrics: request counts and latency histograms by method, route and status, and
 //! the number of requests in flight, kept in a registry owned by each application instance and
-//! fed by [`crate::edge`].
+//! fed by [`crate::server::edge`].
 
 use axum::http::Method;
 use prometheus::{

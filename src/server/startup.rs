@@ -29,9 +29,13 @@ use crate::{
     },
     budget::MemoryBudget,
     config::Config,
-    edge::{self, EdgeLayer, GuardLayer},
-    protect, web,
+    observe::telemetry::X_REQUEST_ID,
+    web,
 };
+use axum::http::{HeaderValue, Method, header};
+use tower_http::cors::{AllowOrigin, CorsLayer};
+
+use super::edge::{self, EdgeLayer, GuardLayer};
 
 /// The complete application router for `config`, every layer included. `ops` carries the
 /// readiness flag and the metrics registry, shared with whoever runs the server.
@@ -39,29 +43,27 @@ pub fn app(config: &Config, ops: OpsState) -> Router {
     app_with(config, ops, Router::new())
 }
 
-/// [`app`], with `extra_heavy` mounted in the heavy group: under its limits and memory budget,
-/// but outside the OpenAPI document (the tests mount a route of their own there).
+/// [`app`], with `extra_heavy` mounted in the heavy group, under its limits and memory budget
+/// and outside the OpenAPI document: the one seam for tests, reached only through
+/// [`Application::build_with`].
 ///
-/// Each route group is wrapped in its own [`crate::edge::Guard`]: the light group (the JSON
+/// Each route group is wrapped in its own [`crate::server::edge::Guard`]: the light group (the JSON
 /// answers, the page, the docs) in the light limits, the heavy group (the image requests) in
 /// the heavy limits and the memory budget. The probes are a router of their own, outside both.
-/// Then every route, probes included, is wrapped in [`crate::edge::Edge`] (request id,
+/// Then every route, probes included, is wrapped in [`crate::server::edge::Edge`] (request id,
 /// in-flight gauge, panic → 500, metrics, access log) → CORS (when configured) → compression,
 /// applied in one `Router::layer` call.
-pub fn app_with(config: &Config, ops: OpsState, extra_heavy: Router<HeavyState>) -> Router {
+fn app_with(config: &Config, ops: OpsState, extra_heavy: Router<HeavyState>) -> Router {
     let (limits, heavy) = (config.limits, config.heavy);
+    let heavy_state = HeavyState {
+        body_limit: BodyLimit(heavy.body_bytes),
+    };
     let Routers {
         light,
         heavy: images,
         probes,
-    } = api::routers(
-        AppState { limits },
-        HeavyState {
-            body_limit: BodyLimit(heavy.body_bytes),
-        },
-        ops.clone(),
-        extra_heavy,
-    );
+    } = api::routers(AppState { limits }, heavy_state, ops.clone());
+    let images = images.merge(extra_heavy.with_state(heavy_state));
     let light = light.merge(web::router()).layer(GuardLayer::new(
         config.concurrency_limit,
         config.request_timeout,
@@ -79,7 +81,7 @@ pub fn app_with(config: &Config, ops: OpsState, extra_heavy: Router<HeavyState>)
     let edge = ServiceBuilder::new()
         .layer(EdgeLayer::new(ops.metrics, config.access_log))
         .layer(CatchPanicLayer::custom(edge::panic_answer))
-        .option_layer(protect::cors(&config.cors_allowed_origins))
+        .option_layer(cors(&config.cors_allowed_origins))
         .layer(CompressionLayer::new());
     light
         .merge(images)
@@ -317,4 +319,29 @@ pub async fn shutdown_signal() {
         () = terminate => {},
     }
     tracing::info!("shutdown signal received");
+}
+
+/// CORS for `origins` (`*` alone allows any), or `None` when the list is empty: then no CORS
+/// headers are sent and browsers keep the same-origin policy.
+pub fn cors(origins: &[String]) -> Option<CorsLayer> {
+    if origins.is_empty() {
+        return None;
+    }
+    let allow_origin = if origins.iter().any(|o| o == "*") {
+        AllowOrigin::any()
+    } else {
+        AllowOrigin::list(
+            origins
+                .iter()
+                .filter_map(|origin| HeaderValue::from_str(origin).ok()),
+        )
+    };
+    Some(
+        CorsLayer::new()
+            .allow_origin(allow_origin)
+            .allow_methods([Method::GET, Method::POST])
+            .allow_headers([header::CONTENT_TYPE, header::ACCEPT, X_REQUEST_ID.clone()])
+            .expose_headers([X_REQUEST_ID.clone(), header::RETRY_AFTER])
+            .max_age(Duration::from_secs(3600)),
+    )
 }

@@ -32,13 +32,13 @@ use axum::{
 use http_body::Body as _;
 use tower::{Layer, Service};
 
+use super::watch::Watched;
 use crate::{
-    api::error::ApiError,
+    api::error::{ApiError, RETRY_AFTER_SECS},
     budget::{MemoryBudget, Refusal, Reservation},
     config::AccessLog,
-    metrics::{InFlight, Metrics, method_label},
-    protect::{RETRY_AFTER_SECS, Watched},
-    telemetry::{self, UNMATCHED_ROUTE, X_REQUEST_ID},
+    observe::metrics::{InFlight, Metrics, method_label},
+    observe::telemetry::{self, UNMATCHED_ROUTE, X_REQUEST_ID},
 };
 
 /// A boxed response future: one allocation per request and layer.
