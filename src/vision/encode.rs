@@ -2,7 +2,7 @@
 //! NumPy's NPY and NPZ, KITTI's and ROS's 16-bit PNG, a colour preview PNG and a binary PLY
 //! point cloud.
 
-use std::io::Cursor;
+use std::io::{Cursor, Write};
 
 use image::codecs::png::{CompressionType, FilterType, PngEncoder};
 use image::{ExtendedColorType, ImageEncoder};
@@ -45,59 +45,23 @@ pub fn npy(width: usize, height: usize, data: &[f32]) -> Vec<u8> {
 }
 
 /// NumPy's NPZ: named NPY files in a zip archive, stored (not deflated: float maps hardly
-/// compress, and this answer is made for one request). `numpy.load(p)["depth"]` reads an
-/// entry; a name gets `.npy` appended, as `numpy.savez` does.
-pub fn npz(entries: &[(&str, Vec<u8>)]) -> Vec<u8> {
-    // Every header field is little-endian; 1980-01-01 00:00 is zip's zero date.
-    const DATE: u16 = 0x21;
-    let mut out = Vec::with_capacity(
-        entries
-            .iter()
-            .map(|(n, b)| 100 + 2 * n.len() + b.len())
-            .sum(),
-    );
-    let mut central = Vec::new();
+/// compress, and this answer is made for one request), each entry's sizes in its local header
+/// (the page reads them there). `numpy.load(p)["depth"]` reads an entry; a name gets `.npy`
+/// appended, as `numpy.savez` does. Written by the `zip` crate; an error is only possible for
+/// an entry of 4 GiB or more, which no image here reaches.
+pub fn npz(entries: &[(&str, Vec<u8>)]) -> zip::result::ZipResult<Vec<u8>> {
+    let size = entries
+        .iter()
+        .map(|(n, b)| 100 + 2 * n.len() + b.len())
+        .sum();
+    let mut zip = zip::ZipWriter::new(Cursor::new(Vec::with_capacity(size)));
+    let stored =
+        zip::write::SimpleFileOptions::default().compression_method(zip::CompressionMethod::Stored);
     for (name, bytes) in entries {
-        let name = format!("{name}.npy");
-        let crc = crc32fast::hash(bytes);
-        let (size, offset) = (bytes.len() as u32, out.len() as u32);
-        let common = |to: &mut Vec<u8>| {
-            for v in [20u16, 0, 0, 0, DATE] {
-                to.extend_from_slice(&v.to_le_bytes());
-            }
-            for v in [crc, size, size] {
-                to.extend_from_slice(&v.to_le_bytes());
-            }
-            to.extend_from_slice(&(name.len() as u16).to_le_bytes());
-            to.extend_from_slice(&0u16.to_le_bytes());
-        };
-        out.extend_from_slice(&0x0403_4b50u32.to_le_bytes());
-        common(&mut out);
-        out.extend_from_slice(name.as_bytes());
-        out.extend_from_slice(bytes);
-        central.extend_from_slice(&0x0201_4b50u32.to_le_bytes());
-        central.extend_from_slice(&20u16.to_le_bytes());
-        common(&mut central);
-        // Comment length, disk, internal and external attributes, then the local header.
-        for v in [0u16, 0, 0] {
-            central.extend_from_slice(&v.to_le_bytes());
-        }
-        central.extend_from_slice(&0u32.to_le_bytes());
-        central.extend_from_slice(&offset.to_le_bytes());
-        central.extend_from_slice(name.as_bytes());
+        zip.start_file(format!("{name}.npy"), stored)?;
+        zip.write_all(bytes)?;
     }
-    let (at, length) = (out.len() as u32, central.len() as u32);
-    out.extend_from_slice(&central);
-    out.extend_from_slice(&0x0605_4b50u32.to_le_bytes());
-    let count = entries.len() as u16;
-    for v in [0u16, 0, count, count] {
-        out.extend_from_slice(&v.to_le_bytes());
-    }
-    for v in [length, at] {
-        out.extend_from_slice(&v.to_le_bytes());
-    }
-    out.extend_from_slice(&0u16.to_le_bytes());
-    out
+    Ok(zip.finish()?.into_inner())
 }
 
 /// A 16-bit grey PNG (the encoder takes native-endian samples and stores them big-endian, as
@@ -234,7 +198,7 @@ mod tests {
     fn npz_is_a_stored_zip_of_npy_files() {
         let a = npy(2, 1, &[1.0, 2.0]);
         let b = npy(1, 1, &[f32::NAN]);
-        let out = npz(&[("disparity", a.clone()), ("depth", b.clone())]);
+        let out = npz(&[("disparity", a.clone()), ("depth", b.clone())]).unwrap();
         let u16_at = |i: usize| usize::from(u16::from_le_bytes([out[i], out[i + 1]]));
         let u32_at = |i: usize| u32::from_le_bytes(out[i..i + 4].try_into().unwrap());
         let end = out.len() - 22;
@@ -255,6 +219,25 @@ mod tests {
             at += 46 + name_len;
         }
         assert_eq!(at, end);
+    }
+
+    /// What `npz` writes, a zip reader reads back: the names, in order, and the bytes.
+    #[test]
+    fn npz_round_trips() {
+        let entries = [
+            ("disparity", npy(2, 1, &[1.0, 2.0])),
+            ("depth", npy(1, 1, &[7.5])),
+        ];
+        let out = npz(&entries).unwrap();
+        let mut archive = zip::ZipArchive::new(Cursor::new(out)).unwrap();
+        assert_eq!(archive.len(), 2);
+        for (i, (name, bytes)) in entries.iter().enumerate() {
+            let mut file = archive.by_index(i).unwrap();
+            assert_eq!(file.name().unwrap(), format!("{name}.npy"));
+            let mut read = Vec::new();
+            std::io::Read::read_to_end(&mut file, &mut read).unwrap();
+            assert_eq!(&read, bytes);
+        }
     }
 
     /// PFM rows run bottom to top and NaN becomes +inf.

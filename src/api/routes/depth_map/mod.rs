@@ -172,7 +172,7 @@ fn compute(job: Job, params: &Params, output: DepthMapOutput) -> Result<Response
         }
         DepthMapOutput::DisparityNpy => Ok(encode::npy(w, h, &map.data)),
         DepthMapOutput::DepthNpy => Ok(encode::npy(w, h, depth.as_deref().unwrap_or_default())),
-        DepthMapOutput::ArraysNpz => Ok(arrays(&map, depth.as_deref(), rig)),
+        DepthMapOutput::ArraysNpz => Ok(arrays(&map, depth.as_deref(), rig)?),
         DepthMapOutput::DepthPng => {
             let unit = rig.map_or(LengthUnit::Millimetre, |r| r.unit());
             let mm: Vec<f32> = depth
@@ -246,7 +246,11 @@ fn depths(map: &Disparity, fb: f32, doffs: f32) -> Vec<f32> {
 }
 
 /// The NPZ: the disparity and, with a rig, the depth and its error ΔZ = Z²·Δd / (f·B).
-fn arrays(map: &Disparity, depth: Option<&[f32]>, rig: Option<crate::physics::Rig>) -> Vec<u8> {
+fn arrays(
+    map: &Disparity,
+    depth: Option<&[f32]>,
+    rig: Option<crate::physics::Rig>,
+) -> Result<Vec<u8>, ApiError> {
     let (w, h) = (map.width, map.height);
     let mut entries = vec![("disparity", encode::npy(w, h, &map.data))];
     if let (Some(depth), Some(rig)) = (depth, rig) {
@@ -257,7 +261,7 @@ fn arrays(map: &Disparity, depth: Option<&[f32]>, rig: Option<crate::physics::Ri
         entries.push(("depth", encode::npy(w, h, depth)));
         entries.push(("depth_error", encode::npy(w, h, &error)));
     }
-    encode::npz(&entries)
+    encode::npz(&entries).map_err(|e| ApiError::Internal(format!("the NPZ was not written: {e}")))
 }
 
 /// The valid values' min, median and max.
