@@ -192,34 +192,49 @@ fn rig(doc: &Node) -> Result<Calibration, Vec<ParseError>> {
     calibration.checked(line)
 }
 
-/// Reads FileStorage XML into the same nodes as its YAML: each top-level element a member, a
-/// matrix a map of `rows`, `cols`, `dt` and `data`, text of several numbers a list.
+/// Reads FileStorage XML (with roxmltree, which refuses DTDs and so entity expansion) into
+/// the same nodes as its YAML: each element of `<opencv_storage>` a member, a matrix a map of
+/// `rows`, `cols`, `dt` and `data`, text of several numbers a list.
 fn xml(text: &str) -> Result<Node, ParseError> {
-    let line_of = |offset: usize| text[..offset].matches('\n').count() + 1;
-    let start = text
-        .find("<opencv_storage>")
-        .ok_or_else(|| ParseError::whole("an OpenCV XML file must have <opencv_storage>"))?
-        + "<opencv_storage>".len();
-    let end = text[start..]
-        .find("</opencv_storage>")
-        .map(|e| start + e)
-        .ok_or_else(|| ParseError::whole("<opencv_storage> is not closed"))?;
-    let members = elements(text, start, end, &line_of)?
-        .into_iter()
-        .map(|(name, inner, at)| {
-            let line = line_of(at);
-            let node = if inner.contains('<') {
-                let children = elements(text, at, at + inner.len(), &line_of)?
-                    .into_iter()
-                    .map(|(n, t, a)| (n, value(t, line_of(a))))
-                    .collect();
-                Node::Map(children, line)
+    let doc = roxmltree::Document::parse(text)
+        .map_err(|e| ParseError::at(e.pos().row as usize, format!("not well-formed XML: {e}")))?;
+    let root = doc.root_element();
+    if root.tag_name().name() != "opencv_storage" {
+        return Err(ParseError::whole(
+            "an OpenCV XML file must have <opencv_storage> as its root element",
+        ));
+    }
+    let line = |node: roxmltree::Node| doc.text_pos_at(node.range().start).row as usize;
+    let leaf = |node: roxmltree::Node| {
+        let text: Vec<&str> = node
+            .descendants()
+            .filter(roxmltree::Node::is_text)
+            .filter_map(|t| t.text())
+            .collect();
+        value(&text.join(" "), line(node))
+    };
+    let members = root
+        .children()
+        .filter(roxmltree::Node::is_element)
+        .map(|member| {
+            let children: Vec<_> = member
+                .children()
+                .filter(roxmltree::Node::is_element)
+                .collect();
+            let node = if children.is_empty() {
+                leaf(member)
             } else {
-                value(inner, line)
+                Node::Map(
+                    children
+                        .into_iter()
+                        .map(|c| (c.tag_name().name().to_owned(), leaf(c)))
+                        .collect(),
+                    line(member),
+                )
             };
-            Ok((name, node))
+            (member.tag_name().name().to_owned(), node)
         })
-        .collect::<Result<_, ParseError>>()?;
+        .collect();
     Ok(Node::Map(members, 1))
 }
 
@@ -238,45 +253,38 @@ fn value(text: &str, line: usize) -> Node {
     }
 }
 
-/// The elements directly inside `text[start..end]`: `(name, inner text, inner offset)`.
-fn elements<'a>(
-    text: &'a str,
-    start: usize,
-    end: usize,
-    line_of: &dyn Fn(usize) -> usize,
-) -> Result<Vec<(String, &'a str, usize)>, ParseError> {
-    let mut out = Vec::new();
-    let mut at = start;
-    while let Some(open) = text[at..end].find('<').map(|o| at + o) {
-        let rest = &text[open..end];
-        if rest.starts_with("<!--") {
-            at = rest
-                .find("-->")
-                .map(|c| open + c + 3)
-                .ok_or_else(|| ParseError::at(line_of(open), "a comment <!-- is not closed"))?;
-            continue;
-        }
-        let close_angle = rest
-            .find('>')
-            .ok_or_else(|| ParseError::at(line_of(open), "a tag is not closed with >"))?;
-        let tag = &rest[1..close_angle];
-        let name = tag.split_whitespace().next().unwrap_or_default();
-        if name.is_empty() || name.starts_with('/') {
-            return Err(ParseError::at(line_of(open), format!("unexpected <{tag}>")));
-        }
-        let inner_start = open + close_angle + 1;
-        if tag.ends_with('/') {
-            out.push((name.trim_end_matches('/').to_owned(), "", inner_start));
-            at = inner_start;
-            continue;
-        }
-        let closing = format!("</{name}>");
-        let inner_end = text[inner_start..end]
-            .find(&closing)
-            .map(|e| inner_start + e)
-            .ok_or_else(|| ParseError::at(line_of(open), format!("<{name}> is not closed")))?;
-        out.push((name.to_owned(), &text[inner_start..inner_end], inner_start));
-        at = inner_end + closing.len();
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const Q: &str = "<Q type_id=\"opencv-matrix\"><rows>4</rows><cols>4</cols><dt>d</dt>\n\
+                     <data>1. 0. 0. -640. 0. 1. 0. -360. 0. 0. 0. 900. 0. 0. 0.02 0.</data></Q>";
+
+    /// A FileStorage XML file reads as its YAML does: f, cx, cy and B from Q.
+    #[test]
+    fn xml_reads_q() {
+        let text = format!(
+            "<?xml version=\"1.0\"?>\n<opencv_storage>\n<!-- a comment -->\n{Q}\n</opencv_storage>\n"
+        );
+        let c = parse(&text).unwrap();
+        assert_eq!((c.focal_px, c.cx, c.cy), (900.0, 640.0, 360.0));
+        assert!((c.baseline - 50.0).abs() < 1e-9);
     }
-    Ok(out)
+
+    /// Broken XML names its line; a DTD (entity expansion) is refused; another root is said.
+    #[test]
+    fn bad_xml_is_named() {
+        let broken =
+            format!("<?xml version=\"1.0\"?>\n<opencv_storage>\n{Q}\n<P1>\n</opencv_storage>\n");
+        let e = &parse(&broken).unwrap_err()[0];
+        assert_eq!(e.line, Some(6), "{e}");
+        let dtd = "<?xml version=\"1.0\"?>\n<!DOCTYPE x [<!ENTITY a \"aaaa\">]>\n<opencv_storage>&a;</opencv_storage>";
+        assert!(parse(dtd).is_err());
+        let other = "<?xml version=\"1.0\"?>\n<storage></storage>";
+        assert!(
+            parse(other).unwrap_err()[0]
+                .message
+                .contains("<opencv_storage>")
+        );
+    }
 }
