@@ -1,41 +1,47 @@
 //! Stereo distance service: turns a stereo correspondence into a distance with its expected
-//! error, and a calibration file into the rig, over HTTP and JSON; and, next, rectified image
-//! pairs into correspondences and depth.
+//! error, a calibration file into the rig, and rectified image pairs into disparities, depths
+//! and matches, over HTTP and JSON; next, checkerboard pairs into a calibration and raw pairs
+//! into rectified ones.
 //!
 //! Two kinds of work, kept apart from the router down:
 //! - **light**: JSON answers that take microseconds of CPU and kilobytes of memory (`/distance`,
 //!   `/table`, `/chart-data`, `/rig`, …, the page at `/`);
 //! - **heavy**: image requests that take megabytes in, milliseconds to seconds of CPU and tens
-//!   of MB of memory each.
+//!   of MB of memory each (`/depth-map`, `/match`; `/calibrate` and `/rectify` next).
 //!
 //! Each is a route group with its own body limit, timeout and concurrency limit; the heavy group
 //! also shares a memory budget. The probes are a third router that no limit touches.
 //!
-//! Layout:
+//! Layout, each layer using only those above it:
 //! - Pure code, no HTTP or serde in any signature:
-//!   - [`physics`]: the triangulation model: focal conversions, `Z = B·f_px / |d + doffs|`,
-//!     depth error, 3D point and range, sweeps for tables and charts.
-//!   - [`calibration`]: Middlebury, KITTI, ROS and OpenCV calibration files read into a rig.
-//!   - [`numbers`]: numbers and text echoed into messages, short and exact.
-//!   - [`vision`]: image matching (from a rectified pair to disparities); the heavy group's
-//!     engine.
+//!   - [`numbers`]: every number written as text (messages, CSV), short and exact.
+//!   - [`physics`]: the triangulation model: the camera and the rectified rig, each built only
+//!     through its checking constructor (`Rig::new`), focal conversions,
+//!     `Z = B·f_px / |d + doffs|`, depth error, 3D point and range, sweeps for tables and
+//!     charts. Next to it will live `camera/`: intrinsics, the distortion models
+//!     (`plumb_bob`, `rational_polynomial`, `equidistant`), projection, and `stereoRectify`
+//!     (R1 R2 P1 P2 Q, `alpha`, ROIs), whose rectified rig is a `physics::Rig`.
+//!   - [`calibration`]: calibration files (Middlebury, KITTI, ROS, OpenCV) read into a checked
+//!     rig (`calibration::read`). Calibration from images will live here too: corners,
+//!     Zhang's first guess, the Levenberg–Marquardt refinements, each parameter's deviation.
+//!   - [`vision`]: the matcher, the heavy group's engine: its parameters checked by
+//!     `vision::Params::new` (the one set of defaults, and the search range's arithmetic),
+//!     census costs, SGM, refinement, `/match`'s correspondences, decoding and encoding.
+//!     Rectification maps and remapping will live here, shared by `/rectify` and the raw
+//!     pairs of `/depth-map` and `/match`.
+//! - [`budget`]: the memory budget shared by the heavy requests in flight.
+//! - [`observe`]: logs, request ids and the access log; Prometheus metrics.
+//! - [`config`]: flags and environment variables (clap) for both groups, defaults, start-up
+//!   checks.
 //! - [`api`]: the HTTP layer, read one way: [`api::error`] ← [`api::extract`] ←
-//!   [`api::wire`] ← [`api::validate`] ← [`api::routes`] (one module per resource, each with
-//!   its types and `router()`, merged into the light and heavy groups and the probes).
+//!   [`api::wire`] ← [`api::validate`] ← [`api::images`] ← [`api::routes`]. The routes map
+//!   the pure constructors' faults onto field names and nothing more; [`api::images`] holds
+//!   what every image route shares (the form and its `ImagePair` extractor, the rig from a
+//!   part, the limits, the blocking work), which `/calibrate` and `/rectify` will use too.
 //! - [`web`]: the calculator page at `/`, a client of the API, its assets embedded
 //!   (`src/web/`).
-//! - Serving:
-//!   - [`config`]: flags and environment variables (clap) for both groups, defaults, start-up
-//!     checks.
-//!   - [`startup`]: the route groups wrapped in their limits, [`startup::Application`] (binds,
-//!     may use port 0), the accept loop, graceful shutdown.
-//!   - [`edge`]: the two hand-written layers: `Edge` on every request (request id, metrics,
-//!     access log; tower-http's `CatchPanic` inside it for panic → 500), `Guard` on each route
-//!     group (shedding, timeout, memory admission).
-//!   - [`budget`]: the memory budget shared by the heavy requests in flight.
-//!   - [`protect`]: the body watcher behind 408 vs 503, `Retry-After`, CORS.
-//!   - [`telemetry`], [`metrics`]: logs, request ids and the access log; Prometheus metrics.
-//!   - [`healthcheck`]: the `healthcheck` subcommand's probe, for images without curl.
+//! - [`server`]: the route groups wrapped in their guards, the edge layers, the accept loop
+//!   and graceful shutdown, the health-check probe.
 //! - Outside this crate, in the workspace: `crates/conformance` (dev only), what the service
 //!   promises for any input, checked in process: the oracle of the fuzz target and of
 //!   `tests/hostile_input.rs`.

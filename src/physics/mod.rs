@@ -14,11 +14,11 @@
 
 use std::fmt;
 
+mod camera;
 mod rig;
 
-pub use rig::{
-    Camera, CameraSpec, DEFAULT_DISPARITY_ERROR_PX, Fault, Focal, MM_ALONE, Member, Rig, RigSpec,
-};
+pub use camera::{Camera, CameraSpec, DEFAULT_DISPARITY_ERROR_PX, Fault, Focal, MM_ALONE, Member};
+pub use rig::{Rig, RigSpec};
 
 /// Relative depth error above which a measurement carries a [`Warning::LargeRelativeError`].
 pub const LARGE_RELATIVE_ERROR: f64 = 0.1;

@@ -113,7 +113,8 @@ impl Application {
         Self::build_with(config, Router::new()).await
     }
 
-    /// [`Application::build`], with `extra_heavy` mounted in the heavy group (see [`app_with`]).
+    /// [`Application::build`], with `extra_heavy` mounted in the heavy group, under its limits
+    /// and memory budget and outside the OpenAPI document: the one seam for tests.
     pub async fn build_with(config: Config, extra_heavy: Router<HeavyState>) -> io::Result<Self> {
         let listener = TcpListener::bind((config.host, config.port)).await?;
         let ops = OpsState::default();
