@@ -349,14 +349,16 @@ impl ApiError {
     }
 }
 
-/// The most errors a problem lists; the rest are counted in one more entry. With each field
-/// and message clipped, every problem stays under 16 KiB.
+/// The most errors a problem lists; the rest are counted in one more entry.
 pub const MAX_LISTED: usize = 10;
+/// The bytes of fields and messages a problem lists at most (the first error is always
+/// listed): with the clipped `detail`, every problem stays under 16 KiB.
+const LISTED_BYTES: usize = 11 * 1024;
 /// The most field names the `detail` line names.
 const MAX_NAMED: usize = 5;
 /// The longest field name and message a problem repeats, in characters.
 const MAX_FIELD: usize = 100;
-const MAX_MESSAGE: usize = 300;
+const MAX_MESSAGE: usize = 600;
 
 /// An error with its field and message clipped to what a problem repeats.
 fn clipped(error: &FieldError) -> FieldError {
@@ -366,15 +368,26 @@ fn clipped(error: &FieldError) -> FieldError {
     )
 }
 
-/// The first [`MAX_LISTED`] errors, clipped, and a count of the rest.
+/// The first errors, clipped, at most [`MAX_LISTED`] of them in [`LISTED_BYTES`], and a count
+/// of the rest.
 fn listed(errors: &[FieldError]) -> Vec<FieldError> {
-    let mut listed: Vec<FieldError> = errors.iter().take(MAX_LISTED).map(clipped).collect();
-    if errors.len() > MAX_LISTED {
+    let mut listed = Vec::new();
+    let mut bytes = 0;
+    for error in errors.iter().take(MAX_LISTED) {
+        let error = clipped(error);
+        // Each entry's JSON adds its keys, quotes and commas to the text.
+        bytes += error.field.len() + error.message.len() + 32;
+        if !listed.is_empty() && bytes > LISTED_BYTES {
+            break;
+        }
+        listed.push(error);
+    }
+    if errors.len() > listed.len() {
         listed.push(FieldError::new(
             "body",
             format!(
                 "and {} more problems not listed here: fix these and send it again",
-                errors.len() - MAX_LISTED
+                errors.len() - listed.len()
             ),
         ));
     }
@@ -443,8 +456,10 @@ mod tests {
             .map(|i| FieldError::new(format!("part{i}{}", "×".repeat(300)), "é".repeat(5000)))
             .collect();
         let problem = ApiError::Invalid(errors).problem();
-        assert_eq!(problem.errors.len(), MAX_LISTED + 1);
-        assert!(problem.errors[MAX_LISTED].message.contains("4990 more"));
+        let listed = problem.errors.len() - 1;
+        assert!((1..=MAX_LISTED).contains(&listed), "{listed}");
+        let more = format!("{} more", 5000 - listed);
+        assert!(problem.errors[listed].message.contains(&more));
         assert!(problem.detail.starts_with("5000 fields are invalid"));
         assert!(
             problem.detail.ends_with("and 4995 more"),
@@ -452,6 +467,14 @@ mod tests {
             problem.detail
         );
         assert!(serde_json::to_vec(&problem).unwrap().len() < 16 * 1024);
+        // Short ASCII errors: ten listed, whole.
+        let short: Vec<FieldError> = (0..50)
+            .map(|i| FieldError::new(format!("points[{i}].x"), "is required"))
+            .collect();
+        let problem = ApiError::Invalid(short).problem();
+        assert_eq!(problem.errors.len(), MAX_LISTED + 1);
+        assert!(problem.errors[MAX_LISTED].message.contains("40 more"));
+        assert_eq!(problem.errors[9].message, "is required");
     }
 
     /// A timeout is 408 while the body is still arriving and 503 once the answer is late;
