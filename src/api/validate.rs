@@ -2,10 +2,10 @@
 //! collecting every problem (with the field it belongs to) before giving up.
 
 use super::error::FieldErrors;
-use super::wire::params::{CameraParams, RangeParams, RigParams};
+use super::wire::params::RangeParams;
 use crate::numbers::Num;
 use crate::physics::{
-    Camera, CameraSpec, Correspondence, Fault, Focal, Member, Rig, RigSpec, SampleRange, Spacing,
+    Camera, CameraSpec, Correspondence, Fault, Member, Rig, RigSpec, SampleRange, Spacing,
 };
 
 /// The range checks validation makes: each records its own error and returns the value only
@@ -89,49 +89,31 @@ impl FieldErrors {
     }
 }
 
-/// The caller's camera members as the physics states them; a member already refused while
-/// decoding (a wrong type) is marked unreadable, so its absence is not reported again.
-fn camera_spec(p: &CameraParams, problems: &FieldErrors) -> CameraSpec {
-    let members = [
-        Member::FocalLengthPx,
-        Member::FocalLengthMm,
-        Member::SensorWidthMm,
-        Member::PixelSizeUm,
-        Member::HorizontalFovDeg,
-        Member::FocalLengthYPx,
-        Member::ImageWidth,
-        Member::ImageHeight,
-        Member::DisparityErrorPx,
-    ];
-    CameraSpec {
-        focal: Focal {
-            px: p.focal_length_px,
-            mm: p.focal_length_mm,
-            sensor_width_mm: p.sensor_width_mm,
-            pixel_size_um: p.pixel_size_um,
-            horizontal_fov_deg: p.horizontal_fov_deg,
-        },
-        focal_y_px: p.focal_length_y_px,
-        unit: p.unit.unwrap_or_default().into(),
-        image_width: p.image_width,
-        image_height: p.image_height,
-        disparity_error_px: p.disparity_error_px,
-        unreadable: members
-            .into_iter()
-            .filter(|m| problems.has(m.name()))
-            .collect(),
-    }
-}
+/// The members a camera and a rig are stated in.
+const MEMBERS: [Member; 13] = [
+    Member::FocalLengthPx,
+    Member::FocalLengthMm,
+    Member::SensorWidthMm,
+    Member::PixelSizeUm,
+    Member::HorizontalFovDeg,
+    Member::FocalLengthYPx,
+    Member::ImageWidth,
+    Member::ImageHeight,
+    Member::DisparityErrorPx,
+    Member::Baseline,
+    Member::Cx,
+    Member::Cy,
+    Member::Doffs,
+];
 
-/// The caller's rig members as the physics states them.
-pub fn rig_spec(p: &RigParams, problems: &FieldErrors) -> RigSpec {
-    RigSpec {
-        camera: camera_spec(&p.camera, problems),
-        baseline: p.baseline,
-        cx: p.cx,
-        cy: p.cy,
-        doffs: p.doffs,
-    }
+/// `camera` with the members already refused while decoding (a wrong type) marked
+/// unreadable, so that their absence is not reported again.
+fn marked(mut camera: CameraSpec, problems: &FieldErrors) -> CameraSpec {
+    camera.unreadable = MEMBERS
+        .into_iter()
+        .filter(|m| problems.has(m.name()))
+        .collect();
+    camera
 }
 
 /// Records what a rig or camera constructor refused, each member named behind `prefix` (such
@@ -142,19 +124,18 @@ pub fn faults(faults: Vec<Fault>, prefix: &str, problems: &mut FieldErrors) {
     }
 }
 
-/// The camera the members state, through [`Camera::new`].
-pub fn camera(p: &CameraParams, problems: &mut FieldErrors) -> Option<Camera> {
-    Camera::new(&camera_spec(p, problems))
+/// The camera a request states, through [`Camera::new`].
+pub fn camera(spec: CameraSpec, problems: &mut FieldErrors) -> Option<Camera> {
+    Camera::new(&marked(spec, problems))
         .map_err(|f| faults(f, "", problems))
         .ok()
 }
 
-/// The rig the members state, through [`Rig::new`], the one constructor every rig goes
+/// The rig a request states, through [`Rig::new`], the one constructor every rig goes
 /// through.
-pub fn rig(p: &RigParams, problems: &mut FieldErrors) -> Option<Rig> {
-    Rig::new(&rig_spec(p, problems))
-        .map_err(|f| faults(f, "", problems))
-        .ok()
+pub fn rig(mut spec: RigSpec, problems: &mut FieldErrors) -> Option<Rig> {
+    spec.camera = marked(spec.camera, problems);
+    Rig::new(&spec).map_err(|f| faults(f, "", problems)).ok()
 }
 
 /// `value`, or an error saying `field` is required `why` (unless `field` was already refused).
@@ -179,7 +160,7 @@ pub struct Bounds {
 }
 
 impl Bounds {
-    pub fn of(p: &CameraParams) -> Self {
+    pub fn of(p: &CameraSpec) -> Self {
         let valid = |n: Option<u32>| n.filter(|&n| n > 0).map(f64::from);
         Self {
             width: valid(p.image_width),

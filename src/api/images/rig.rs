@@ -131,7 +131,7 @@ fn rig_part(
             }
         }
     }
-    let rig = validate::rig(&given.rig_params(), &mut local);
+    let rig = validate::rig(given.rig_spec(), &mut local);
     let ok = local.is_empty();
     for error in local.prefixed(RIG) {
         problems.add_new(error.field, error.message);

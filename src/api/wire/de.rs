@@ -269,7 +269,7 @@ macro_rules! request {
 }
 
 /// Declares a flat request type holding the camera members, with `$early` after the focal
-/// options and `$late` at the end, plus `camera_params()`. (Flat, because `serde(flatten)`
+/// options and `$late` at the end, plus `camera_spec()`. (Flat, because `serde(flatten)`
 /// cannot be combined with `deny_unknown_fields`, and a misspelt field must be an error.)
 macro_rules! camera_request {
     (
@@ -328,19 +328,22 @@ macro_rules! camera_request {
         }
 
         impl $name {
-            /// The camera members of this request.
-            pub fn camera_params(&self) -> crate::api::wire::params::CameraParams {
-                crate::api::wire::params::CameraParams {
-                    focal_length_px: self.focal_length_px,
-                    focal_length_mm: self.focal_length_mm,
-                    sensor_width_mm: self.sensor_width_mm,
-                    pixel_size_um: self.pixel_size_um,
-                    horizontal_fov_deg: self.horizontal_fov_deg,
-                    focal_length_y_px: self.focal_length_y_px,
-                    unit: self.unit,
+            /// The camera this request states, for [`crate::physics::Camera::new`].
+            pub fn camera_spec(&self) -> crate::physics::CameraSpec {
+                crate::physics::CameraSpec {
+                    focal: crate::physics::Focal {
+                        px: self.focal_length_px,
+                        mm: self.focal_length_mm,
+                        sensor_width_mm: self.sensor_width_mm,
+                        pixel_size_um: self.pixel_size_um,
+                        horizontal_fov_deg: self.horizontal_fov_deg,
+                    },
+                    focal_y_px: self.focal_length_y_px,
+                    unit: self.unit.unwrap_or_default().into(),
                     image_width: self.image_width,
                     image_height: self.image_height,
                     disparity_error_px: self.disparity_error_px,
+                    unreadable: Vec::new(),
                 }
             }
         }
@@ -348,7 +351,7 @@ macro_rules! camera_request {
 }
 
 /// Declares a flat request type holding the rig members (camera, baseline, principal points)
-/// followed by its own, with `rig_params()`.
+/// followed by its own, with `rig_spec()`.
 macro_rules! rig_request {
     (
         $(#[$meta:meta])*
@@ -380,14 +383,14 @@ macro_rules! rig_request {
         }
 
         impl $name {
-            /// The rig members of this request.
-            pub fn rig_params(&self) -> crate::api::wire::params::RigParams {
-                crate::api::wire::params::RigParams {
-                    camera: self.camera_params(),
+            /// The rig this request states, for [`crate::physics::Rig::new`].
+            pub fn rig_spec(&self) -> crate::physics::RigSpec {
+                crate::physics::RigSpec {
+                    camera: self.camera_spec(),
                     baseline: self.baseline,
-                    doffs: self.doffs,
                     cx: self.cx,
                     cy: self.cy,
+                    doffs: self.doffs,
                 }
             }
         }

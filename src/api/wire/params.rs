@@ -1,5 +1,6 @@
-//! What the caller stated, before validation: the unit and spacing enums, and the camera, rig
-//! and range members gathered from whichever request type carried them.
+//! What the caller stated, before validation: the unit and spacing enums, and the sample range
+//! gathered from whichever request type carried it. (The camera and the rig a request states
+//! are the physics' own specs, `CameraSpec` and `RigSpec`, made by the request macros.)
 
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
@@ -60,33 +61,6 @@ impl From<Spacing> for physics::Spacing {
             Spacing::Log => physics::Spacing::Log,
         }
     }
-}
-
-/// The camera as the caller stated it, before validation: focal length, image size, unit and
-/// disparity error, the members every request shares.
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub struct CameraParams {
-    pub focal_length_px: Option<f64>,
-    pub focal_length_mm: Option<f64>,
-    pub sensor_width_mm: Option<f64>,
-    pub pixel_size_um: Option<f64>,
-    pub horizontal_fov_deg: Option<f64>,
-    pub focal_length_y_px: Option<f64>,
-    pub unit: Option<Unit>,
-    pub image_width: Option<u32>,
-    pub image_height: Option<u32>,
-    pub disparity_error_px: Option<f64>,
-}
-
-/// The rig as the caller stated it, before validation: the camera plus the baseline and the
-/// principal points.
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub struct RigParams {
-    pub camera: CameraParams,
-    pub baseline: Option<f64>,
-    pub doffs: Option<f64>,
-    pub cx: Option<f64>,
-    pub cy: Option<f64>,
 }
 
 /// The sample range as the caller stated it, before validation.

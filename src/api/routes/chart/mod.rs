@@ -131,14 +131,15 @@ fn chart(
     request: &ChartRequest,
     mut problems: FieldErrors,
 ) -> Result<ChartResponse, ApiError> {
-    let params = request.rig_params();
-    let rig = validate::rig(&params, &mut problems);
+    let params = request.rig_spec();
+    let bounds = Bounds::of(&params.camera);
+    let rig = validate::rig(params, &mut problems);
     let feature = Feature::new(request.x_left, request.x_right, request.disparity_px, None);
     let measured = if feature == Feature::default() {
         None
     } else {
         // The marker needs only the disparity: x_left places nothing here.
-        validate::disparity(feature, Bounds::of(&params.camera), &mut problems).map(|(_, d)| d)
+        validate::disparity(feature, bounds, &mut problems).map(|(_, d)| d)
     };
     let range = validate::range(
         &request.range_params(),

@@ -191,7 +191,7 @@ pub fn answer(batch: Batch, limits: &Limits) -> Result<BatchDistanceResponse, Ap
         mut problems,
     } = batch;
     let rig = match &spec {
-        Some(spec) => validate::rig(&spec.rig_params(), &mut rig_problems),
+        Some(spec) => validate::rig(spec.rig_spec(), &mut rig_problems),
         None => {
             if !problems.has("rig") {
                 problems.add("rig", "is required");
@@ -224,7 +224,7 @@ pub fn answer(batch: Batch, limits: &Limits) -> Result<BatchDistanceResponse, Ap
     }
     let (rig, points) = problems.finish(rig.zip(points))?;
     let spec = spec.unwrap_or_default();
-    let bounds = Bounds::of(&spec.camera_params());
+    let bounds = Bounds::of(&spec.camera_spec());
     let results: Vec<PointOutcome> = points
         .into_iter()
         .enumerate()

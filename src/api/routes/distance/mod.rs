@@ -110,16 +110,16 @@ fn distance(
     request: &DistanceRequest,
     mut problems: FieldErrors,
 ) -> Result<DistanceResponse, ApiError> {
-    let params = request.rig_params();
-    let rig = validate::rig(&params, &mut problems);
+    let params = request.rig_spec();
+    let bounds = Bounds::of(&params.camera);
+    let rig = validate::rig(params, &mut problems);
     let feature = Feature::new(
         request.x_left,
         request.x_right,
         request.disparity_px,
         request.y,
     );
-    let correspondence =
-        validate::correspondence(feature, Bounds::of(&params.camera), &mut problems);
+    let correspondence = validate::correspondence(feature, bounds, &mut problems);
     let (rig, correspondence) = problems.finish(rig.zip(correspondence))?;
     let m = physics::measure(&rig, correspondence)
         .map_err(|e| ApiError::from((e, validate::disparity_fields(&rig, &feature))))?;

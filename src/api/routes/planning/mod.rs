@@ -95,7 +95,7 @@ fn rig(
     request: &RigRequest,
     mut problems: FieldErrors,
 ) -> Result<RigResponse, ApiError> {
-    let rig = validate::rig(&request.rig_params(), &mut problems);
+    let rig = validate::rig(request.rig_spec(), &mut problems);
     let max_disparity = problems
         .required("max_disparity_px", request.max_disparity_px)
         .and_then(|d| problems.positive("max_disparity_px", d));
@@ -256,8 +256,7 @@ fn baseline(
     request: &BaselineRequest,
     mut problems: FieldErrors,
 ) -> Result<BaselineResponse, ApiError> {
-    let params = request.camera_params();
-    let camera = validate::camera(&params, &mut problems);
+    let camera = validate::camera(request.camera_spec(), &mut problems);
     let target = problems
         .required("target_distance", request.target_distance)
         .and_then(|z| problems.positive("target_distance", z));

@@ -98,12 +98,13 @@ fn table(
     request: &TableRequest,
     mut problems: FieldErrors,
 ) -> Result<TableResponse, ApiError> {
-    let params = request.rig_params();
-    let rig = validate::rig(&params, &mut problems);
+    let params = request.rig_spec();
+    let bounds = Bounds::of(&params.camera);
+    let rig = validate::rig(params, &mut problems);
     let range = validate::range(&request.range_params(), rig.as_ref(), None, &mut problems);
     let steps = problems.count("steps", request.steps, 10, 1, state.limits.table_rows);
     let x_left = match request.x_left {
-        Some(x) => validate::x_coordinate("x_left", x, Bounds::of(&params.camera), &mut problems),
+        Some(x) => validate::x_coordinate("x_left", x, bounds, &mut problems),
         None => rig.map(|r| r.image_width().map_or(r.cx().unwrap_or(0.0), |w| w / 2.0)),
     };
     let (rig, ((range, spacing), (steps, x_left))) =
