@@ -366,6 +366,21 @@ impl Browser {
         self.client.release_actions().await.expect("release");
     }
 
+    /// Clicks the image pixel (`x`, `y`) of the element `#id`.
+    pub async fn click_pixel(&self, id: &str, x: f64, y: f64) {
+        let at = self.pointer_to(id, x, y).await;
+        self.mouse(vec![
+            at,
+            PointerAction::Down {
+                button: fantoccini::actions::MOUSE_BUTTON_LEFT,
+            },
+            PointerAction::Up {
+                button: fantoccini::actions::MOUSE_BUTTON_LEFT,
+            },
+        ])
+        .await;
+    }
+
     /// Clicks "Copy results" (with the clipboard allowed) and returns what it put there.
     pub async fn copy_results(&self) -> String {
         self.client

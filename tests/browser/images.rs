@@ -194,18 +194,7 @@ async fn an_uploaded_pair_is_matched_hovered_clicked_and_boxed() {
     assert!(hover.contains(" mm ± "), "{hover}");
 
     // Act: click a pixel of the box.
-    let click_at = browser.pointer_to("left-frame", 120.0, 150.0).await;
-    browser
-        .mouse(vec![
-            click_at,
-            PointerAction::Down {
-                button: MOUSE_BUTTON_LEFT,
-            },
-            PointerAction::Up {
-                button: MOUSE_BUTTON_LEFT,
-            },
-        ])
-        .await;
+    browser.click_pixel("left-frame", 120.0, 150.0).await;
     browser.found().await;
 
     // Assert: the match is ok, 22 px to the left on the same row, marked there and on its
@@ -365,18 +354,7 @@ async fn without_a_rig_the_page_shows_disparities_and_asks_for_one() {
     );
 
     // Act: a click asks for the rig, not /match with a made-up one.
-    let click_at = browser.pointer_to("left-frame", 120.0, 150.0).await;
-    browser
-        .mouse(vec![
-            click_at,
-            PointerAction::Down {
-                button: MOUSE_BUTTON_LEFT,
-            },
-            PointerAction::Up {
-                button: MOUSE_BUTTON_LEFT,
-            },
-        ])
-        .await;
+    browser.click_pixel("left-frame", 120.0, 150.0).await;
     browser
         .until_text(
             "match-summary",
