@@ -29,10 +29,10 @@
 //!     census costs, SGM, refinement, `/match`'s correspondences, decoding and encoding.
 //!     Rectification maps and remapping will live here, shared by `/rectify` and the raw
 //!     pairs of `/depth-map` and `/match`.
-//! - [`budget`]: the memory budget shared by the heavy requests in flight.
-//! - [`observe`]: logs, request ids and the access log; Prometheus metrics.
 //! - [`config`]: flags and environment variables (clap) for both groups, defaults, start-up
 //!   checks.
+//! - [`budget`]: the memory budget shared by the heavy requests in flight.
+//! - [`observe`]: logs, request ids and the access log; Prometheus metrics.
 //! - [`api`]: the HTTP layer, read one way: [`api::error`] ← [`api::extract`] ←
 //!   [`api::wire`] ← [`api::validate`] ← [`api::images`] ← [`api::routes`]. The routes map
 //!   the pure constructors' faults onto field names and nothing more; [`api::images`] holds

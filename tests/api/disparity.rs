@@ -250,3 +250,32 @@ async fn chart_takes_a_disparity_and_answers_csv_and_log() {
     assert_eq!(fields(&body), ["format"]);
     assert!(message_for(&body, "format").contains("/chart.svg always answers SVG"));
 }
+
+/// The depth needs only f, B and d: without the image size or a principal point `/distance`
+/// answers Z = 700 × 120 / 20 = 4200 mm, leaves out the point, the range and the normalized x,
+/// and says why in a warning.
+#[tokio::test]
+async fn depth_needs_no_image_size() {
+    let app = spawn_app().await;
+    let body = ok_json(
+        app.get("/distance?focal_length_px=700&baseline=120&disparity_px=20")
+            .await,
+    )
+    .await;
+    assert_close(number_at(&body, "distance"), 4200.0, "distance");
+    assert_close(
+        number_at(&body, "depth_error"),
+        4200.0 * 4200.0 * 0.5 / 84_000.0,
+        "error",
+    );
+    for absent in ["point", "range", "normalized_x"] {
+        assert!(body.get(absent).is_none(), "{absent} in {body}");
+    }
+    assert_eq!(body["warnings"][0]["code"], "no_principal_point");
+    assert!(
+        body["warnings"][0]["message"]
+            .as_str()
+            .unwrap()
+            .contains("give cx and cy")
+    );
+}
