@@ -98,7 +98,7 @@ pub struct Correspondences {
     pub map: Disparity,
     /// One per point, in order.
     pub found: Vec<Found>,
-    /// Stage times of the slowest band.
+    /// Stage times: the bands' wall time shared in proportion to their summed stage times.
     pub timings: Timings,
     /// How many rows were matched (with their context).
     pub rows_matched: usize,
@@ -140,6 +140,7 @@ pub fn correspond(
     let mut timings = Timings::default();
     let mut rows_matched = 0;
     let bands = bands(&needed, h);
+    let started = std::time::Instant::now();
     // The bands side by side on the cores (each band's stripes too).
     let matched: Vec<Result<Band, Cancelled>> = bands
         .par_iter()
@@ -172,11 +173,12 @@ pub fn correspond(
         {
             probes[band.start + y] = row;
         }
-        timings.cost = timings.cost.max(t.cost);
-        timings.aggregate = timings.aggregate.max(t.aggregate);
-        timings.refine = timings.refine.max(t.refine);
+        timings.cost += t.cost;
+        timings.aggregate += t.aggregate;
+        timings.refine += t.refine;
         rows_matched += band.len();
     }
+    let timings = timings.sharing(started.elapsed());
     let map = Disparity {
         width: w,
         height: h,

@@ -91,7 +91,9 @@ pub struct Disparity {
     pub data: Vec<f32>,
 }
 
-/// How long each stage took.
+/// How long each stage took, in wall time: the stripes run side by side (and in waves when
+/// there are more than cores), so their wall time is shared between the stages in proportion
+/// to each stage's time summed over the stripes, and the three add up to the matcher's time.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct Timings {
     /// Census transform and cost volume.
@@ -151,8 +153,8 @@ pub fn bytes_needed(width: usize, height: usize, count: usize) -> usize {
 }
 
 /// The disparity map of a rectified pair (the same size), or [`Cancelled`] when `cancel` was set
-/// before the matcher finished; it is checked between stages and between rows. Stage times are
-/// those of the slowest stripe.
+/// before the matcher finished; it is checked between stages and between rows. Stage times add
+/// up to the matcher's wall time ([`Timings`]).
 pub fn disparity(
     left: &Gray,
     right: &Gray,
@@ -210,6 +212,7 @@ pub fn disparity_probed(
     checkpoint()?;
 
     let stripes = stripes(h);
+    let started = Instant::now();
     let matched: Vec<Result<Stripe, Cancelled>> = stripes
         .par_iter()
         .map(|(kept, context)| {
@@ -217,18 +220,20 @@ pub fn disparity_probed(
             match_stripe(&cl, &cr, left, context, params, probe, cancel)
         })
         .collect();
+    let stripes_time = started.elapsed();
     let mut data = Vec::with_capacity(w * h);
-    let mut timings = Timings::default();
+    let mut summed = Timings::default();
     let mut probes = Vec::with_capacity(wanted.len());
     for stripe in matched {
         let (rows, t, found) = stripe?;
         data.extend_from_slice(&rows);
         probes.extend(found);
-        timings.cost = timings.cost.max(t.cost);
-        timings.aggregate = timings.aggregate.max(t.aggregate);
-        timings.refine = timings.refine.max(t.refine);
+        summed.cost += t.cost;
+        summed.aggregate += t.aggregate;
+        summed.refine += t.refine;
     }
     drop((cl, cr));
+    let mut timings = summed.sharing(stripes_time);
     timings.cost += census_time;
     checkpoint()?;
 
@@ -255,6 +260,25 @@ pub fn disparity_probed(
         timings,
         probes,
     ))
+}
+
+impl Timings {
+    /// `wall`, shared between the stages in proportion to these (summed) times.
+    pub(crate) fn sharing(self, wall: Duration) -> Timings {
+        let total = (self.cost + self.aggregate + self.refine).as_secs_f64();
+        if total <= 0.0 {
+            return Timings {
+                cost: wall,
+                ..Timings::default()
+            };
+        }
+        let share = |d: Duration| wall.mul_f64(d.as_secs_f64() / total);
+        Timings {
+            cost: share(self.cost),
+            aggregate: share(self.aggregate),
+            refine: share(self.refine),
+        }
+    }
 }
 
 /// A matched stripe: its kept rows' disparities, its stage times, and its rows' probes.
