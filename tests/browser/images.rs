@@ -64,6 +64,17 @@ impl Browser {
         .await
     }
 
+    /// Points at pixel (`x`, `y`) of the left image and returns the hover read-out there.
+    async fn hover_at(&self, x: f64, y: f64) -> String {
+        let at = self.pointer_to("left-frame", x, y).await;
+        self.mouse(vec![at]).await;
+        self.until("the hover read-out", || async {
+            let text = self.text("hover").await;
+            text.starts_with('(').then_some(text)
+        })
+        .await
+    }
+
     /// Waits until no `/match` request is in flight and the page has settled.
     async fn found(&self) {
         self.until_done("match").await;
@@ -173,14 +184,7 @@ async fn an_uploaded_pair_is_matched_hovered_clicked_and_boxed() {
     );
 
     // Act: hover over the box, whose disparity is 22 px everywhere.
-    let over_box = browser.pointer_to("left-frame", 120.0, 100.0).await;
-    browser.mouse(vec![over_box]).await;
-    let hover = browser
-        .until("the hover read-out", || async {
-            let text = browser.text("hover").await;
-            text.starts_with('(').then_some(text)
-        })
-        .await;
+    let hover = browser.hover_at(120.0, 100.0).await;
 
     // Assert: B·f/22 within 1 %, and its error Z²·Δd/(f·B) with Δd = 0.5 px.
     let z = number_after(&hover, ":");
@@ -333,14 +337,7 @@ async fn without_a_rig_the_page_shows_disparities_and_asks_for_one() {
             .is_some_and(|t| t.contains("distances need the rig")),
         "{bar}"
     );
-    let over_box = browser.pointer_to("left-frame", 120.0, 100.0).await;
-    browser.mouse(vec![over_box]).await;
-    let hover = browser
-        .until("the hover read-out", || async {
-            let text = browser.text("hover").await;
-            text.starts_with('(').then_some(text)
-        })
-        .await;
+    let hover = browser.hover_at(120.0, 100.0).await;
     assert!((number_after(&hover, "d =") - 22.0).abs() < 0.3, "{hover}");
     assert!(
         hover.contains("need the rig") && !hover.contains("mm"),
