@@ -18,9 +18,10 @@
 //!   - [`physics`]: the triangulation model: the camera and the rectified rig, each built only
 //!     through its checking constructor (`Rig::new`), focal conversions,
 //!     `Z = B·f_px / |d + doffs|`, depth error, 3D point and range, sweeps for tables and
-//!     charts. Next to it will live `camera/`: intrinsics, the distortion models
-//!     (`plumb_bob`, `rational_polynomial`, `equidistant`), projection, and `stereoRectify`
-//!     (R1 R2 P1 P2 Q, `alpha`, ROIs), whose rectified rig is a `physics::Rig`.
+//!     charts.
+//!   - [`camera`]: the raw camera and the pair: intrinsics, the distortion models
+//!     (`plumb_bob`, `rational_polynomial`, `equidistant`), projection and undistortion, and
+//!     `stereoRectify` (R1 R2 P1 P2 Q, `alpha`, ROIs), whose rectified rig is a `physics::Rig`.
 //!   - [`calibration`]: calibration files (Middlebury, KITTI, ROS, OpenCV) read into a checked
 //!     rig (`calibration::read`). Calibration from images will live here too: corners,
 //!     Zhang's first guess, the Levenberg–Marquardt refinements, each parameter's deviation.
@@ -51,6 +52,7 @@
 pub mod api;
 pub mod budget;
 pub mod calibration;
+pub mod camera;
 pub mod config;
 pub mod numbers;
 pub mod observe;

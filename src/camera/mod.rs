@@ -1,0 +1,21 @@
+//! The raw camera and the stereo pair as OpenCV models them: intrinsics, the distortion
+//! models users have (`plumb_bob`, `rational_polynomial`, `equidistant`), projection and
+//! undistortion, the pair's extrinsics (X_right = R·X_left + T) and Bouguet's rectification,
+//! whose rectified rig is a [`crate::physics::Rig`]. Pure: no HTTP, no serde.
+//!
+//! - [`distortion`]: the models, their Jacobians and their inverses.
+//! - [`pinhole`]: one camera, K and its distortion, pixels to rays and back.
+//! - [`rectify`]: the pair and `stereoRectify` (R1 R2 P1 P2 Q, `alpha`, ROIs).
+
+pub mod distortion;
+pub mod pinhole;
+pub mod rectify;
+
+pub use distortion::{Distorted, Distortion, DistortionFault, Model};
+pub use pinhole::{Camera, CameraFault, Intrinsics};
+pub use rectify::{
+    Options, Rectification, RectifyFault, RigFault, Roi, Side, Size, StereoPair, stereo_rectify,
+};
+
+#[cfg(test)]
+mod tests;

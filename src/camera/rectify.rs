@@ -1,0 +1,434 @@
+//! Bouguet's rectification as OpenCV's `stereoRectify` computes it: the rotations R1, R2 that
+//! make both cameras look the same way with the baseline along x (or y), the new camera
+//! matrices P1, P2 and the reprojection matrix Q, scaled by `alpha` between only valid pixels
+//! (0) and every source pixel (1), with the valid regions of interest. The rectified rig that
+//! `/distance` takes comes from it ([`Rectification::rig`]); the maps that rectify images are
+//! built from R and P by whoever remaps.
+
+use std::fmt;
+
+use nalgebra::{Matrix3, Matrix3x4, Matrix4, Rotation3, Vector3};
+
+use super::pinhole::Camera;
+use crate::physics::{Fault, LengthUnit, Rig, RigSpec};
+
+/// A stereo pair of raw cameras and the pose of the right one: X_right = R·X_left + T, with T
+/// in the calibration's length unit.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StereoPair {
+    pub left: Camera,
+    pub right: Camera,
+    pub rotation: Rotation3<f64>,
+    pub translation: Vector3<f64>,
+}
+
+/// Which camera of a pair.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Side {
+    Left,
+    Right,
+}
+
+impl Side {
+    pub fn name(self) -> &'static str {
+        match self {
+            Side::Left => "left",
+            Side::Right => "right",
+        }
+    }
+}
+
+/// An image size in pixels.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Size {
+    pub width: u32,
+    pub height: u32,
+}
+
+/// A rectangle of whole pixels, as OpenCV's `Rect` (x, y, width, height).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Roi {
+    pub x: i64,
+    pub y: i64,
+    pub width: i64,
+    pub height: i64,
+}
+
+impl Roi {
+    /// The part of `self` within `0..width × 0..height` (empty as all zeros, as OpenCV's `&`).
+    fn within(self, width: u32, height: u32) -> Roi {
+        let x0 = self.x.max(0);
+        let y0 = self.y.max(0);
+        let x1 = (self.x + self.width).min(i64::from(width));
+        let y1 = (self.y + self.height).min(i64::from(height));
+        if x1 <= x0 || y1 <= y0 {
+            Roi::default()
+        } else {
+            Roi {
+                x: x0,
+                y: y0,
+                width: x1 - x0,
+                height: y1 - y0,
+            }
+        }
+    }
+}
+
+/// How to rectify: `alpha` in 0..=1, OpenCV's `CALIB_ZERO_DISPARITY`, and the size of the
+/// rectified images (the raw size when `None`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Options {
+    pub alpha: f64,
+    pub zero_disparity: bool,
+    pub new_size: Option<Size>,
+}
+
+impl Default for Options {
+    /// `alpha` 0 (only valid pixels) and `CALIB_ZERO_DISPARITY`, OpenCV's default flag.
+    fn default() -> Self {
+        Options {
+            alpha: 0.0,
+            zero_disparity: true,
+            new_size: None,
+        }
+    }
+}
+
+/// Why a pair cannot be rectified.
+#[derive(Debug, Clone, PartialEq)]
+pub enum RectifyFault {
+    /// `alpha` outside 0..=1.
+    Alpha,
+    /// The cameras are at the same place (|T| = 0 or not finite).
+    NoBaseline,
+    /// A zero image size.
+    Size,
+    /// The camera's distortion cannot be inverted at the edge of its image.
+    NotInvertible(Side),
+    /// The rectified image would hold no valid pixel.
+    Degenerate,
+}
+
+impl fmt::Display for RectifyFault {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            RectifyFault::Alpha => f.write_str("alpha must be between 0 and 1"),
+            RectifyFault::NoBaseline => {
+                f.write_str("the translation between the cameras must be finite and not zero")
+            }
+            RectifyFault::Size => f.write_str("the image size must not be zero"),
+            RectifyFault::NotInvertible(side) => write!(
+                f,
+                "the {} camera's distortion cannot be inverted at the edges of its image",
+                side.name()
+            ),
+            RectifyFault::Degenerate => {
+                f.write_str("the rectified images would hold no valid pixel")
+            }
+        }
+    }
+}
+
+/// Why a rectification has no rectified rig of the kind `/distance` takes.
+#[derive(Debug, Clone, PartialEq)]
+pub enum RigFault {
+    /// The cameras are one above the other (OpenCV's vertical stereo); the rig is horizontal.
+    Vertical,
+    /// What `Rig::new` refused.
+    Rig(Vec<Fault>),
+}
+
+/// The result of [`stereo_rectify`], in OpenCV's names and conventions.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Rectification {
+    /// Rotation from the left raw camera to the left rectified one.
+    pub r1: Matrix3<f64>,
+    pub r2: Matrix3<f64>,
+    /// The rectified cameras' projection matrices; P2's last column holds T·f.
+    pub p1: Matrix3x4<f64>,
+    pub p2: Matrix3x4<f64>,
+    /// Disparity-to-depth reprojection.
+    pub q: Matrix4<f64>,
+    pub alpha: f64,
+    pub roi_left: Roi,
+    pub roi_right: Roi,
+    /// The rectified images' size.
+    pub size: Size,
+    /// Whether the cameras are one above the other (disparities along y).
+    pub vertical: bool,
+}
+
+/// The inner (every pixel valid) and outer (every source pixel) rectangles of a camera's image
+/// in the rectified one, from a 9 × 9 grid of its pixels as OpenCV's `icvGetRectangles`.
+struct Rectangles {
+    inner: [f64; 4],
+    outer: [f64; 4],
+}
+
+fn rectangles(
+    camera: &Camera,
+    rotation: &Matrix3<f64>,
+    new_matrix: &Matrix3<f64>,
+    size: Size,
+    side: Side,
+) -> Result<Rectangles, RectifyFault> {
+    const N: u32 = 9;
+    let (mut ix0, mut ix1, mut iy0, mut iy1) = (f64::MIN, f64::MAX, f64::MIN, f64::MAX);
+    let (mut ox0, mut ox1, mut oy0, mut oy1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
+    for y in 0..N {
+        for x in 0..N {
+            let pixel = [
+                f64::from(x) * f64::from(size.width - 1) / f64::from(N - 1),
+                f64::from(y) * f64::from(size.height - 1) / f64::from(N - 1),
+            ];
+            let [px, py] = camera
+                .undistort_to(pixel, rotation, new_matrix)
+                .ok_or(RectifyFault::NotInvertible(side))?;
+            ox0 = ox0.min(px);
+            ox1 = ox1.max(px);
+            oy0 = oy0.min(py);
+            oy1 = oy1.max(py);
+            if x == 0 {
+                ix0 = ix0.max(px);
+            }
+            if x == N - 1 {
+                ix1 = ix1.min(px);
+            }
+            if y == 0 {
+                iy0 = iy0.max(py);
+            }
+            if y == N - 1 {
+                iy1 = iy1.min(py);
+            }
+        }
+    }
+    Ok(Rectangles {
+        inner: [ix0, iy0, ix1 - ix0, iy1 - iy0],
+        outer: [ox0, oy0, ox1 - ox0, oy1 - oy0],
+    })
+}
+
+/// Rectifies a stereo pair whose raw images are `size`, as OpenCV's `stereoRectify` does.
+///
+/// Differences from OpenCV, each toward the exact answer: raw pixels are undistorted to
+/// convergence (OpenCV stops after 5 fixed-point iterations), and the equidistant model is
+/// rectified by the same Bouguet construction with its own undistortion (OpenCV's
+/// `fisheye::stereoRectify` scales by `balance` instead).
+pub fn stereo_rectify(
+    pair: &StereoPair,
+    size: Size,
+    options: Options,
+) -> Result<Rectification, RectifyFault> {
+    if !(0.0..=1.0).contains(&options.alpha) {
+        return Err(RectifyFault::Alpha);
+    }
+    if size.width == 0 || size.height == 0 {
+        return Err(RectifyFault::Size);
+    }
+    let new_size = options.new_size.unwrap_or(size);
+    if new_size.width == 0 || new_size.height == 0 {
+        return Err(RectifyFault::Size);
+    }
+    let t_norm = pair.translation.norm();
+    if !(t_norm.is_finite() && t_norm > 0.0) {
+        return Err(RectifyFault::NoBaseline);
+    }
+    // Rotate each camera half way, so that both look the same way.
+    let half = Rotation3::from_scaled_axis(pair.rotation.scaled_axis() * -0.5);
+    let r_r = *half.matrix();
+    let t = r_r * pair.translation;
+    let idx = if t.x.abs() > t.y.abs() { 0 } else { 1 };
+    let c = t[idx];
+    let mut uu = Vector3::zeros();
+    uu[idx] = if c > 0.0 { 1.0 } else { -1.0 };
+    // Then turn both about the axis that brings the baseline onto x (or y).
+    let mut ww = t.cross(&uu);
+    let nw = ww.norm();
+    if nw > 0.0 {
+        ww *= (c.abs() / t.norm()).clamp(-1.0, 1.0).acos() / nw;
+    }
+    let w_r = *Rotation3::from_scaled_axis(ww).matrix();
+    let r1 = w_r * r_r.transpose();
+    let r2 = w_r * r_r;
+    let t = r2 * pair.translation;
+
+    let (nx, ny) = (f64::from(size.width), f64::from(size.height));
+    let ratio = if idx == 1 {
+        f64::from(new_size.width) / nx / 2.0
+    } else {
+        f64::from(new_size.height) / ny / 2.0
+    };
+    let focal = |camera: &Camera| {
+        let k = camera.intrinsics();
+        if idx == 1 { k.fx } else { k.fy }
+    };
+    let mut fc_new = (focal(&pair.left) + focal(&pair.right)) * ratio;
+
+    // Each rectified principal point centres the image's corners.
+    let mut cc_new = [[0.0; 2]; 2];
+    for (k, (camera, rotation, side)) in [
+        (&pair.left, &r1, Side::Left),
+        (&pair.right, &r2, Side::Right),
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        let mut sum = [0.0; 2];
+        for corner in [
+            [0.0, 0.0],
+            [nx - 1.0, 0.0],
+            [0.0, ny - 1.0],
+            [nx - 1.0, ny - 1.0],
+        ] {
+            let [x, y] = camera
+                .normalize(corner)
+                .ok_or(RectifyFault::NotInvertible(side))?;
+            let ray = rotation * Vector3::new(x, y, 1.0);
+            if ray.z.abs() <= f64::EPSILON {
+                return Err(RectifyFault::Degenerate);
+            }
+            sum[0] += fc_new * ray.x / ray.z;
+            sum[1] += fc_new * ray.y / ray.z;
+        }
+        cc_new[k] = [
+            (nx - 1.0) / 2.0 - sum[0] / 4.0,
+            (ny - 1.0) / 2.0 - sum[1] / 4.0,
+        ];
+    }
+    if options.zero_disparity {
+        let [left, right] = &mut cc_new;
+        for (l, r) in left.iter_mut().zip(right.iter_mut()) {
+            let mean = (*l + *r) * 0.5;
+            *l = mean;
+            *r = mean;
+        }
+    } else {
+        // Keep the epipolar lines shared: the coordinate across the baseline.
+        let across = 1 - idx;
+        let mean = (cc_new[0][across] + cc_new[1][across]) * 0.5;
+        cc_new[0][across] = mean;
+        cc_new[1][across] = mean;
+    }
+
+    let matrix = |f: f64, cc: [f64; 2]| Matrix3::new(f, 0.0, cc[0], 0.0, f, cc[1], 0.0, 0.0, 1.0);
+    let left_rect = rectangles(
+        &pair.left,
+        &r1,
+        &matrix(fc_new, cc_new[0]),
+        size,
+        Side::Left,
+    )?;
+    let right_rect = rectangles(
+        &pair.right,
+        &r2,
+        &matrix(fc_new, cc_new[1]),
+        size,
+        Side::Right,
+    )?;
+
+    // Scale so that alpha 0 keeps only valid pixels and alpha 1 every source pixel.
+    let (nw_, nh_) = (f64::from(new_size.width), f64::from(new_size.height));
+    let scaled = |cc: [f64; 2]| [nw_ * cc[0] / nx, nh_ * cc[1] / ny];
+    let cc_scaled = [scaled(cc_new[0]), scaled(cc_new[1])];
+    let fit = |rect: &[f64; 4], cc0: [f64; 2], cc: [f64; 2]| {
+        [
+            cc[0] / (cc0[0] - rect[0]),
+            cc[1] / (cc0[1] - rect[1]),
+            (nw_ - 1.0 - cc[0]) / (rect[0] + rect[2] - cc0[0]),
+            (nh_ - 1.0 - cc[1]) / (rect[1] + rect[3] - cc0[1]),
+        ]
+    };
+    let mut s0 = f64::MIN;
+    let mut s1 = f64::MAX;
+    for (rect, k) in [(&left_rect, 0), (&right_rect, 1)] {
+        for v in fit(&rect.inner, cc_new[k], cc_scaled[k]) {
+            s0 = s0.max(v);
+        }
+        for v in fit(&rect.outer, cc_new[k], cc_scaled[k]) {
+            s1 = s1.min(v);
+        }
+    }
+    let s = s0 * (1.0 - options.alpha) + s1 * options.alpha;
+    if !(s.is_finite() && s > 0.0) {
+        return Err(RectifyFault::Degenerate);
+    }
+    fc_new *= s;
+    let roi = |rect: &Rectangles, cc0: [f64; 2], cc: [f64; 2]| {
+        Roi {
+            x: ((rect.inner[0] - cc0[0]) * s + cc[0]).ceil() as i64,
+            y: ((rect.inner[1] - cc0[1]) * s + cc[1]).ceil() as i64,
+            width: (rect.inner[2] * s).floor() as i64,
+            height: (rect.inner[3] * s).floor() as i64,
+        }
+        .within(new_size.width, new_size.height)
+    };
+    let roi_left = roi(&left_rect, cc_new[0], cc_scaled[0]);
+    let roi_right = roi(&right_rect, cc_new[1], cc_scaled[1]);
+
+    let [c1, c2] = cc_scaled;
+    let mut p1 = Matrix3x4::zeros();
+    p1[(0, 0)] = fc_new;
+    p1[(1, 1)] = fc_new;
+    p1[(0, 2)] = c1[0];
+    p1[(1, 2)] = c1[1];
+    p1[(2, 2)] = 1.0;
+    let mut p2 = p1;
+    p2[(0, 2)] = c2[0];
+    p2[(1, 2)] = c2[1];
+    p2[(idx, 3)] = t[idx] * fc_new;
+
+    let shift = if idx == 0 {
+        c1[0] - c2[0]
+    } else {
+        c1[1] - c2[1]
+    };
+    let q = Matrix4::new(
+        1.0,
+        0.0,
+        0.0,
+        -c1[0],
+        0.0,
+        1.0,
+        0.0,
+        -c1[1],
+        0.0,
+        0.0,
+        0.0,
+        fc_new,
+        0.0,
+        0.0,
+        -1.0 / t[idx],
+        shift / t[idx],
+    );
+    Ok(Rectification {
+        r1,
+        r2,
+        p1,
+        p2,
+        q,
+        alpha: options.alpha,
+        roi_left,
+        roi_right,
+        size: new_size,
+        vertical: idx == 1,
+    })
+}
+
+impl Rectification {
+    /// The rectified rig `/distance` takes: f = P1's focal length, B = |P2's T·f| / f in
+    /// `unit` (the unit T was in), the left principal point, doffs = cx_right − cx_left, and
+    /// the rectified images' size.
+    pub fn rig(&self, unit: LengthUnit) -> Result<Rig, RigFault> {
+        if self.vertical {
+            return Err(RigFault::Vertical);
+        }
+        let focal = self.p1[(0, 0)];
+        let mut spec = RigSpec::pixels(focal, self.p2[(0, 3)].abs() / focal, unit);
+        spec.cx = Some(self.p1[(0, 2)]);
+        spec.cy = Some(self.p1[(1, 2)]);
+        spec.doffs = Some(self.p2[(0, 2)] - self.p1[(0, 2)]);
+        spec.camera.image_width = Some(self.size.width);
+        spec.camera.image_height = Some(self.size.height);
+        Rig::new(&spec).map_err(RigFault::Rig)
+    }
+}
