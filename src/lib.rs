@@ -52,6 +52,7 @@
 pub mod api;
 pub mod budget;
 pub mod calibration;
+pub mod calibrate;
 pub mod camera;
 pub mod config;
 pub mod numbers;

@@ -1,0 +1,39 @@
+//! Finding a chessboard's inner corners in an image: the grey image they work on and the
+//! sub-pixel refinement ([`refine`]).
+
+pub mod refine;
+
+pub use refine::{Refined, refine};
+
+/// A grey image as the corner finder reads it: grey levels 0..=255 as `f32`, row-major.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Luma {
+    pub width: usize,
+    pub height: usize,
+    pub data: Vec<f32>,
+}
+
+impl Luma {
+    /// An 8-bit image (`data.len()` must be `width · height`).
+    pub fn from_u8(width: usize, height: usize, data: &[u8]) -> Luma {
+        debug_assert_eq!(data.len(), width * height);
+        Luma {
+            width,
+            height,
+            data: data.iter().map(|&v| f32::from(v)).collect(),
+        }
+    }
+
+    /// A 16-bit image as the decoder gives it (grey levels scaled by 257).
+    pub fn from_u16(width: usize, height: usize, data: &[u16]) -> Luma {
+        debug_assert_eq!(data.len(), width * height);
+        Luma {
+            width,
+            height,
+            data: data.iter().map(|&v| f32::from(v) / 257.0).collect(),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests;
