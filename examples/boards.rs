@@ -1,24 +1,73 @@
-//! Renders stereo checkerboard views with exact truth into a folder, for the evaluation
-//! against OpenCV (`scripts/eval-calibration`) and for trying other detectors:
+//! Checkerboards for the evaluation against OpenCV (`scripts/eval-corners`) and for trying
+//! other detectors:
 //!
-//!     cargo run --release --example boards -- OUT_DIR [SEED] [VIEWS] [MODEL]
+//!     cargo run --release --example boards -- render DIR [SEED] [VIEWS] [MODEL]
+//!     cargo run --release --example boards -- refine DIR
 //!
-//! writes `left_NN.png`, `right_NN.png` and `truth.json` (the rig, the board, each view's
-//! exact corners in OpenCV's order).
+//! `render` writes stereo views with exact truth: `left_NN.png`, `right_NN.png` and
+//! `truth.json` (the rig, the board, each view's exact corners in OpenCV's order). `refine`
+//! reads `DIR/starts.json` (`{"left_00.png": [[x, y], …], …}`, corners found by another
+//! detector) and writes `DIR/refined.json` in the same shape, each corner refined by
+//! `calibrate::corners::refine` with a window of half the distance to its nearest neighbour.
 
 use std::path::PathBuf;
 
 use nalgebra::{Rotation3, Vector3};
 use serde_json::json;
 use stereo_distance::calibrate::Board;
+use stereo_distance::calibrate::corners::{self, Luma};
 use stereo_distance::calibrate::synthetic::{Style, poses, stereo_views};
 use stereo_distance::camera::{Camera, Distortion, Intrinsics, Model, Size, StereoPair};
 use stereo_distance::physics::LengthUnit;
 use stereo_distance::vision::synthetic::Rng;
 
+const USAGE: &str = "usage: boards render DIR [SEED] [VIEWS] [MODEL] | boards refine DIR";
+
 fn main() {
     let mut args = std::env::args().skip(1);
-    let out = PathBuf::from(args.next().expect("usage: boards OUT_DIR [SEED] [VIEWS] [MODEL]"));
+    match args.next().as_deref() {
+        Some("render") => render(args),
+        Some("refine") => refine(&PathBuf::from(args.next().expect(USAGE))),
+        _ => panic!("{USAGE}"),
+    }
+}
+
+fn refine(dir: &std::path::Path) {
+    let starts: std::collections::BTreeMap<String, Vec<[f64; 2]>> =
+        serde_json::from_slice(&std::fs::read(dir.join("starts.json")).expect("starts.json"))
+            .expect("starts.json");
+    let mut refined = serde_json::Map::new();
+    for (name, points) in starts {
+        let image = image::open(dir.join(&name)).expect("image").to_luma8();
+        let luma = Luma::from_u8(
+            image.width() as usize,
+            image.height() as usize,
+            image.as_raw(),
+        );
+        let corners: Vec<Option<[f64; 2]>> = points
+            .iter()
+            .enumerate()
+            .map(|(k, p)| {
+                let spacing = points
+                    .iter()
+                    .enumerate()
+                    .filter(|&(i, _)| i != k)
+                    .map(|(_, o)| (o[0] - p[0]).hypot(o[1] - p[1]))
+                    .fold(f64::MAX, f64::min);
+                corners::refine(&luma, *p, (0.5 * spacing).clamp(3.0, 8.0)).map(|r| r.point)
+            })
+            .collect();
+        refined.insert(name, json!(corners));
+    }
+    std::fs::write(
+        dir.join("refined.json"),
+        serde_json::to_vec(&refined).expect("json"),
+    )
+    .expect("write refined.json");
+}
+
+fn render(mut args: impl Iterator<Item = String>) {
+    let out = PathBuf::from(args.next().expect(USAGE));
     let seed: u64 = args.next().map_or(1, |s| s.parse().expect("SEED"));
     let views: usize = args.next().map_or(15, |s| s.parse().expect("VIEWS"));
     let model = args
@@ -34,14 +83,30 @@ fn main() {
     };
     let mut camera = |f: f64| {
         let coefficients: Vec<f64> = match model {
-            Model::PlumbBob => vec![-0.25 + jitter(0.05), 0.1 + jitter(0.03), jitter(0.001), jitter(0.001), jitter(0.01)],
+            Model::PlumbBob => vec![
+                -0.25 + jitter(0.05),
+                0.1 + jitter(0.03),
+                jitter(0.001),
+                jitter(0.001),
+                jitter(0.01),
+            ],
             Model::RationalPolynomial => vec![
-                0.4 + jitter(0.05), -0.1 + jitter(0.02), jitter(0.001), jitter(0.001), 0.0,
-                0.6 + jitter(0.05), -0.05, 0.0,
+                0.4 + jitter(0.05),
+                -0.1 + jitter(0.02),
+                jitter(0.001),
+                jitter(0.001),
+                0.0,
+                0.6 + jitter(0.05),
+                -0.05,
+                0.0,
             ],
             Model::Equidistant => vec![-0.02 + jitter(0.01), 0.005, 0.0, 0.0],
         };
-        let f = if model == Model::Equidistant { f * 0.55 } else { f };
+        let f = if model == Model::Equidistant {
+            f * 0.55
+        } else {
+            f
+        };
         Camera::new(
             Intrinsics {
                 fx: f + jitter(10.0),
@@ -58,7 +123,11 @@ fn main() {
     let pair = StereoPair {
         left,
         right,
-        rotation: Rotation3::from_scaled_axis(Vector3::new(jitter(0.02), jitter(0.03), jitter(0.01))),
+        rotation: Rotation3::from_scaled_axis(Vector3::new(
+            jitter(0.02),
+            jitter(0.03),
+            jitter(0.01),
+        )),
         translation: Vector3::new(-120.0 + jitter(5.0), jitter(2.0), jitter(2.0)),
     };
     let board = Board::new(9, 6, 25.0, LengthUnit::Millimetre).expect("board");
@@ -91,6 +160,10 @@ fn main() {
         "translation": pair.translation.as_slice(),
         "views": truth_views,
     });
-    std::fs::write(out.join("truth.json"), serde_json::to_vec_pretty(&truth).expect("json")).expect("write truth");
+    std::fs::write(
+        out.join("truth.json"),
+        serde_json::to_vec_pretty(&truth).expect("json"),
+    )
+    .expect("write truth");
     println!("{} views in {}", rendered.len(), out.display());
 }

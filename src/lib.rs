@@ -51,8 +51,8 @@
 
 pub mod api;
 pub mod budget;
-pub mod calibration;
 pub mod calibrate;
+pub mod calibration;
 pub mod camera;
 pub mod config;
 pub mod numbers;

@@ -117,7 +117,7 @@ impl Board {
     /// Whether a half turn maps the board onto itself (both sides' square counts odd, so
     /// both inner-corner counts even), which leaves the corners' order ambiguous.
     pub fn is_symmetric(&self) -> bool {
-        self.columns % 2 == 0 && self.rows % 2 == 0
+        self.columns.is_multiple_of(2) && self.rows.is_multiple_of(2)
     }
 
     /// The inner corners on the board's plane (z = 0), row by row: corner (i, j) at
@@ -126,7 +126,8 @@ impl Board {
         let s = self.square_size;
         (0..self.rows)
             .flat_map(|j| {
-                (0..self.columns).map(move |i| Vector3::new(f64::from(i) * s, f64::from(j) * s, 0.0))
+                (0..self.columns)
+                    .map(move |i| Vector3::new(f64::from(i) * s, f64::from(j) * s, 0.0))
             })
             .collect()
     }
@@ -149,7 +150,11 @@ mod tests {
         let members: Vec<_> = faults.iter().map(|f| f.member).collect();
         assert_eq!(
             members,
-            [BoardMember::Columns, BoardMember::Rows, BoardMember::SquareSize]
+            [
+                BoardMember::Columns,
+                BoardMember::Rows,
+                BoardMember::SquareSize
+            ]
         );
         assert!(faults[0].message.contains("not 2"));
     }
@@ -163,6 +168,10 @@ mod tests {
         assert_eq!(points[1], Vector3::new(25.0, 0.0, 0.0));
         assert_eq!(points[4], Vector3::new(0.0, 25.0, 0.0));
         assert!(!board.is_symmetric());
-        assert!(Board::new(8, 6, 1.0, LengthUnit::Metre).unwrap().is_symmetric());
+        assert!(
+            Board::new(8, 6, 1.0, LengthUnit::Metre)
+                .unwrap()
+                .is_symmetric()
+        );
     }
 }

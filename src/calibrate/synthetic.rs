@@ -149,7 +149,11 @@ pub fn render(board: &Board, pose: &Isometry3<f64>, rays: &Rays, style: &Style) 
     let mut rng = Rng::new(style.seed);
     let pixels = blurred
         .iter()
-        .map(|&g| (f64::from(g) + style.noise * f64::from(rng.normal())).round().clamp(0.0, 255.0) as u8)
+        .map(|&g| {
+            (f64::from(g) + style.noise * f64::from(rng.normal()))
+                .round()
+                .clamp(0.0, 255.0) as u8
+        })
         .collect();
     Image {
         width,
@@ -217,10 +221,8 @@ pub struct StereoView {
 
 /// The board's pose seen by the right camera of `pair` when the left sees it at `pose`.
 pub fn right_pose(pair: &StereoPair, pose: &Isometry3<f64>) -> Isometry3<f64> {
-    let extrinsics = Isometry3::from_parts(
-        Translation3::from(pair.translation),
-        pair.rotation.into(),
-    );
+    let extrinsics =
+        Isometry3::from_parts(Translation3::from(pair.translation), pair.rotation.into());
     extrinsics * pose
 }
 
@@ -243,7 +245,11 @@ pub fn poses(
         f64::from(board.columns() + 1) * s,
         f64::from(board.rows() + 1) * s,
     );
-    let centre = Vector3::new(f64::from(board.columns() - 1) * s / 2.0, f64::from(board.rows() - 1) * s / 2.0, 0.0);
+    let centre = Vector3::new(
+        f64::from(board.columns() - 1) * s / 2.0,
+        f64::from(board.rows() - 1) * s / 2.0,
+        0.0,
+    );
     let f = pair.left.intrinsics().fx;
     let margin = 12.0;
     let fits = |camera: &Camera, pose: &Isometry3<f64>| {
@@ -266,7 +272,9 @@ pub fn poses(
         let tilt = (max_tilt_deg * (0.2 + 0.8 * unit())).to_radians();
         let spin = (unit() - 0.5) * 0.5;
         let rotation = Rotation3::from_axis_angle(&Vector3::z_axis(), spin)
-            * Rotation3::from_scaled_axis(Vector3::new(axis_angle.cos(), axis_angle.sin(), 0.0) * tilt);
+            * Rotation3::from_scaled_axis(
+                Vector3::new(axis_angle.cos(), axis_angle.sin(), 0.0) * tilt,
+            );
         let aim = [
             (unit() - 0.5) * 0.7 * f64::from(size.width) / f,
             (unit() - 0.5) * 0.7 * f64::from(size.height) / f,

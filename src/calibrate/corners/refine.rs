@@ -6,6 +6,8 @@
 //! neither blur nor the model's approximation where the edges meet at an oblique angle moves
 //! the corner.
 
+use nalgebra::{SMatrix, SVector};
+
 use super::Luma;
 
 /// The parameters: corner (x, y), the two edges' angles, blur σ, brightness a, contrast b,
@@ -30,15 +32,17 @@ pub struct Refined {
 fn erf(x: f64) -> f64 {
     let z = x.abs();
     let t = 1.0 / (1.0 + 0.5 * z);
-    let r = t * (-z * z - 1.265_512_23
-        + t * (1.000_023_68
-            + t * (0.374_091_96
-                + t * (0.096_784_18
-                    + t * (-0.186_288_06
-                        + t * (0.278_868_07
-                            + t * (-1.135_203_98
-                                + t * (1.488_515_87 + t * (-0.822_152_23 + t * 0.170_872_77)))))))))
-        .exp();
+    let r = t
+        * (-z * z - 1.265_512_23
+            + t * (1.000_023_68
+                + t * (0.374_091_96
+                    + t * (0.096_784_18
+                        + t * (-0.186_288_06
+                            + t * (0.278_868_07
+                                + t * (-1.135_203_98
+                                    + t * (1.488_515_87
+                                        + t * (-0.822_152_23 + t * 0.170_872_77)))))))))
+            .exp();
     if x >= 0.0 { 1.0 - r } else { r - 1.0 }
 }
 
@@ -68,7 +72,11 @@ fn edge_angles(image: &Luma, centre: [f64; 2], radius: f64) -> Option<[f64; 2]> 
     let ring: Vec<f64> = (0..N)
         .map(|k| {
             let a = k as f64 * std::f64::consts::TAU / N as f64;
-            sample(image, centre[0] + radius * a.cos(), centre[1] + radius * a.sin())
+            sample(
+                image,
+                centre[0] + radius * a.cos(),
+                centre[1] + radius * a.sin(),
+            )
         })
         .collect();
     let mean = ring.iter().sum::<f64>() / N as f64;
@@ -85,51 +93,16 @@ fn edge_angles(image: &Luma, centre: [f64; 2], radius: f64) -> Option<[f64; 2]> 
     }
     // Opposite crossings belong to one edge: average each pair's direction modulo π.
     let direction = |a: f64, b: f64| {
-        let (ca, cb) = ((2.0 * a).cos() + (2.0 * b).cos(), (2.0 * a).sin() + (2.0 * b).sin());
+        let (ca, cb) = (
+            (2.0 * a).cos() + (2.0 * b).cos(),
+            (2.0 * a).sin() + (2.0 * b).sin(),
+        );
         cb.atan2(ca) / 2.0
     };
     Some([
         direction(crossings[0], crossings[2]),
         direction(crossings[1], crossings[3]),
     ])
-}
-
-/// Solves the 9 × 9 system `a·x = b` (symmetric positive definite) by Cholesky.
-fn solve(a: &[[f64; P]; P], b: &[f64; P]) -> Option<[f64; P]> {
-    let mut l = [[0.0; P]; P];
-    for i in 0..P {
-        for j in 0..=i {
-            let mut s = a[i][j];
-            for k in 0..j {
-                s -= l[i][k] * l[j][k];
-            }
-            if i == j {
-                if s <= 0.0 {
-                    return None;
-                }
-                l[i][i] = s.sqrt();
-            } else {
-                l[i][j] = s / l[j][j];
-            }
-        }
-    }
-    let mut y = [0.0; P];
-    for i in 0..P {
-        let mut s = b[i];
-        for k in 0..i {
-            s -= l[i][k] * y[k];
-        }
-        y[i] = s / l[i][i];
-    }
-    let mut x = [0.0; P];
-    for i in (0..P).rev() {
-        let mut s = y[i];
-        for k in i + 1..P {
-            s -= l[k][i] * x[k];
-        }
-        x[i] = s / l[i][i];
-    }
-    Some(x)
 }
 
 /// Refines a corner found near `start` (within about a pixel) using the pixels within
@@ -229,28 +202,20 @@ pub fn refine(image: &Luma, start: [f64; 2], radius: f64) -> Option<Refined> {
     let (mut cost, mut res) = residuals(&theta, Some(&mut rows));
     let mut lambda = 1e-3;
     for _ in 0..30 {
-        let mut jtj = [[0.0; P]; P];
-        let mut jtr = [0.0; P];
+        let mut jtj = SMatrix::<f64, P, P>::zeros();
+        let mut jtr = SVector::<f64, P>::zeros();
         for (row, e) in rows.iter().zip(&res) {
-            for i in 0..P {
-                jtr[i] -= row[i] * e;
-                for k in 0..=i {
-                    jtj[i][k] += row[i] * row[k];
-                }
-            }
-        }
-        for i in 0..P {
-            for k in 0..i {
-                jtj[k][i] = jtj[i][k];
-            }
+            let j = SVector::<f64, P>::from_column_slice(row);
+            jtr -= j * *e;
+            jtj.ger(1.0, &j, &j, 1.0);
         }
         let mut improved = false;
         while lambda < 1e8 {
             let mut damped = jtj;
-            for (i, row) in damped.iter_mut().enumerate() {
-                row[i] += lambda * jtj[i][i].max(1e-9);
+            for i in 0..P {
+                damped[(i, i)] += lambda * jtj[(i, i)].max(1e-9);
             }
-            let Some(step) = solve(&damped, &jtr) else {
+            let Some(step) = damped.cholesky().map(|c| c.solve(&jtr)) else {
                 lambda *= 10.0;
                 continue;
             };
@@ -278,10 +243,10 @@ pub fn refine(image: &Luma, start: [f64; 2], radius: f64) -> Option<Refined> {
     let moved = (point[0] - start[0]).hypot(point[1] - start[1]);
     let contrast = theta[6].abs() * 2.0;
     // The two edges must stay apart, the corner near where it started, the contrast real.
-    let apart = ((theta[2] - theta[3]).rem_euclid(std::f64::consts::PI)).min(
-        std::f64::consts::PI - (theta[2] - theta[3]).rem_euclid(std::f64::consts::PI),
-    );
-    if !(moved <= 0.5 * r && apart > 0.15 && contrast > 4.0 && point.iter().all(|v| v.is_finite())) {
+    let apart = ((theta[2] - theta[3]).rem_euclid(std::f64::consts::PI))
+        .min(std::f64::consts::PI - (theta[2] - theta[3]).rem_euclid(std::f64::consts::PI));
+    if !(moved <= 0.5 * r && apart > 0.15 && contrast > 4.0 && point.iter().all(|v| v.is_finite()))
+    {
         return None;
     }
     let weight: f64 = pixels.iter().map(|p| p.3).sum();

@@ -11,7 +11,12 @@ use crate::vision::synthetic::Rng;
 
 fn pair(model: Model, coefficients: &[f64], f: f64) -> StereoPair {
     let camera = Camera::new(
-        Intrinsics { fx: f, fy: f * 1.002, cx: 322.0, cy: 237.0 },
+        Intrinsics {
+            fx: f,
+            fy: f * 1.002,
+            cx: 322.0,
+            cy: 237.0,
+        },
         Distortion::new(model, coefficients).unwrap(),
     )
     .unwrap();
@@ -26,7 +31,10 @@ fn pair(model: Model, coefficients: &[f64], f: f64) -> StereoPair {
 /// The median and 95th percentile of the refined corners' distance from the truth, started
 /// up to a pixel off in each axis, with the window set from the board's local spacing.
 fn errors(pair: &StereoPair, style: &Style, views: usize, seed: u64) -> (f64, f64, usize) {
-    let size = Size { width: 640, height: 480 };
+    let size = Size {
+        width: 640,
+        height: 480,
+    };
     let board = Board::new(9, 6, 25.0, LengthUnit::Millimetre).unwrap();
     let found = poses(pair, size, &board, views, 45.0, seed);
     let rendered = stereo_views(pair, size, &board, &found, style);
@@ -34,7 +42,10 @@ fn errors(pair: &StereoPair, style: &Style, views: usize, seed: u64) -> (f64, f6
     let mut errors = Vec::new();
     let mut failed = 0;
     for view in &rendered {
-        for (image, truth) in [(&view.left, &view.left_corners), (&view.right, &view.right_corners)] {
+        for (image, truth) in [
+            (&view.left, &view.left_corners),
+            (&view.right, &view.right_corners),
+        ] {
             let luma = Luma::from_u8(image.width as usize, image.height as usize, &image.pixels);
             for (k, t) in truth.iter().enumerate() {
                 let spacing = truth
@@ -43,7 +54,10 @@ fn errors(pair: &StereoPair, style: &Style, views: usize, seed: u64) -> (f64, f6
                     .filter(|&(i, _)| i != k)
                     .map(|(_, o)| (o[0] - t[0]).hypot(o[1] - t[1]))
                     .fold(f64::MAX, f64::min);
-                let start = [t[0] + 2.0 * f64::from(rng.unit()) - 1.0, t[1] + 2.0 * f64::from(rng.unit()) - 1.0];
+                let start = [
+                    t[0] + 2.0 * f64::from(rng.unit()) - 1.0,
+                    t[1] + 2.0 * f64::from(rng.unit()) - 1.0,
+                ];
                 match refine(&luma, start, (0.5 * spacing).clamp(3.0, 8.0)) {
                     Some(r) => errors.push((r.point[0] - t[0]).hypot(r.point[1] - t[1])),
                     None => failed += 1,
@@ -74,7 +88,13 @@ fn refines_rendered_corners_to_hundredths_of_a_pixel() {
 #[test]
 fn blur_and_a_fisheye_do_not_bias_the_corner() {
     let pair = pair(Model::Equidistant, &[-0.02, 0.004, 0.0, 0.0], 440.0);
-    let style = Style { blur: 1.5, noise: 2.0, exposure: 160.0, seed: 3, ..Style::default() };
+    let style = Style {
+        blur: 1.5,
+        noise: 2.0,
+        exposure: 160.0,
+        seed: 3,
+        ..Style::default()
+    };
     let (median, p95, failed) = errors(&pair, &style, 3, 11);
     eprintln!("fisheye, blurred: median {median:.4} px, p95 {p95:.4} px, failed {failed}");
     assert!(median <= 0.05, "median {median}");
