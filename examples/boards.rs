@@ -44,18 +44,9 @@ fn refine(dir: &std::path::Path) {
             image.height() as usize,
             image.as_raw(),
         );
-        let corners: Vec<Option<[f64; 2]>> = points
+        let corners: Vec<Option<[f64; 2]>> = corners::refine_all(&luma, &points)
             .iter()
-            .enumerate()
-            .map(|(k, p)| {
-                let spacing = points
-                    .iter()
-                    .enumerate()
-                    .filter(|&(i, _)| i != k)
-                    .map(|(_, o)| (o[0] - p[0]).hypot(o[1] - p[1]))
-                    .fold(f64::MAX, f64::min);
-                corners::refine(&luma, *p, (0.5 * spacing).clamp(3.0, 8.0)).map(|r| r.point)
-            })
+            .map(|r| r.map(|r| r.point))
             .collect();
         refined.insert(name, json!(corners));
     }

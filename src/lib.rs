@@ -23,8 +23,10 @@
 //!     (`plumb_bob`, `rational_polynomial`, `equidistant`), projection and undistortion, and
 //!     `stereoRectify` (R1 R2 P1 P2 Q, `alpha`, ROIs), whose rectified rig is a `physics::Rig`.
 //!   - [`calibration`]: calibration files (Middlebury, KITTI, ROS, OpenCV) read into a checked
-//!     rig (`calibration::read`). Calibration from images will live here too: corners,
-//!     Zhang's first guess, the Levenberg–Marquardt refinements, each parameter's deviation.
+//!     rig (`calibration::read`).
+//!   - [`calibrate`]: calibration from checkerboard images: the board, boards rendered with
+//!     exact corners, the sub-pixel corner refinement; next, the board finder, Zhang's first
+//!     guess, the Levenberg–Marquardt refinements and each parameter's deviation.
 //!   - [`vision`]: the matcher, the heavy group's engine: its parameters checked by
 //!     `vision::Params::new` (the one set of defaults, and the search range's arithmetic),
 //!     census costs, SGM, refinement, `/match`'s correspondences, decoding and encoding.

@@ -18,8 +18,8 @@ pub struct Style {
     pub white: f64,
     /// Grey level of full light on white (the exposure), before the light's unevenness.
     pub exposure: f64,
-    /// The light's relative slope across the image in x and y (0.3: 30 % brighter at one
-    /// side than in the middle... minus at the other) and its vignetting at the corners.
+    /// The light's relative slope across the image in x and y (0.15: 15 % brighter at the
+    /// right edge than in the middle, 15 % dimmer at the left), and its fall-off at the corners.
     pub slope: [f64; 2],
     pub vignetting: f64,
     /// Gaussian blur of the optics, σ in pixels (0 for none).

@@ -3,7 +3,7 @@
 
 pub mod refine;
 
-pub use refine::{Refined, refine};
+pub use refine::{Refined, refine, refine_all};
 
 /// A grey image as the corner finder reads it: grey levels 0..=255 as `f32`, row-major.
 #[derive(Debug, Clone, PartialEq)]

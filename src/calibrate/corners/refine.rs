@@ -109,9 +109,14 @@ fn edge_angles(image: &Luma, centre: [f64; 2], radius: f64) -> Option<[f64; 2]> 
 /// `radius` of it, or `None` when no two-edge corner fits there (a blank patch, an edge, the
 /// image border, a fit that wanders off).
 pub fn refine(image: &Luma, start: [f64; 2], radius: f64) -> Option<Refined> {
-    let r = radius.max(2.0);
+    let r = if radius.is_finite() {
+        radius.max(2.0)
+    } else {
+        2.0
+    };
     let reach = (r + 2.0).ceil();
-    if start[0] < reach
+    if !(start[0].is_finite() && start[1].is_finite())
+        || start[0] < reach
         || start[1] < reach
         || start[0] + reach + 1.0 >= image.width as f64
         || start[1] + reach + 1.0 >= image.height as f64
@@ -257,4 +262,23 @@ pub fn refine(image: &Luma, start: [f64; 2], radius: f64) -> Option<Refined> {
         contrast,
         rms: (cost / weight).sqrt(),
     })
+}
+
+/// Refines every corner of one board found near `points`, each with a window of half the
+/// distance to its nearest neighbour (3 to 8 px): wide enough for the edges, narrow enough
+/// that no other corner enters it on small or steeply tilted squares.
+pub fn refine_all(image: &Luma, points: &[[f64; 2]]) -> Vec<Option<Refined>> {
+    points
+        .iter()
+        .enumerate()
+        .map(|(k, p)| {
+            let nearest = points
+                .iter()
+                .enumerate()
+                .filter(|&(i, _)| i != k)
+                .map(|(_, o)| (o[0] - p[0]).hypot(o[1] - p[1]))
+                .fold(f64::INFINITY, f64::min);
+            refine(image, *p, (0.5 * nearest).clamp(3.0, 8.0))
+        })
+        .collect()
 }

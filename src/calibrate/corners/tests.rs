@@ -29,7 +29,7 @@ fn pair(model: Model, coefficients: &[f64], f: f64) -> StereoPair {
 }
 
 /// The median and 95th percentile of the refined corners' distance from the truth, started
-/// up to a pixel off in each axis, with the window set from the board's local spacing.
+/// up to a pixel off in each axis, through `refine_all` (the window from the local spacing).
 fn errors(pair: &StereoPair, style: &Style, views: usize, seed: u64) -> (f64, f64, usize) {
     let size = Size {
         width: 640,
@@ -47,18 +47,17 @@ fn errors(pair: &StereoPair, style: &Style, views: usize, seed: u64) -> (f64, f6
             (&view.right, &view.right_corners),
         ] {
             let luma = Luma::from_u8(image.width as usize, image.height as usize, &image.pixels);
-            for (k, t) in truth.iter().enumerate() {
-                let spacing = truth
-                    .iter()
-                    .enumerate()
-                    .filter(|&(i, _)| i != k)
-                    .map(|(_, o)| (o[0] - t[0]).hypot(o[1] - t[1]))
-                    .fold(f64::MAX, f64::min);
-                let start = [
-                    t[0] + 2.0 * f64::from(rng.unit()) - 1.0,
-                    t[1] + 2.0 * f64::from(rng.unit()) - 1.0,
-                ];
-                match refine(&luma, start, (0.5 * spacing).clamp(3.0, 8.0)) {
+            let starts: Vec<[f64; 2]> = truth
+                .iter()
+                .map(|t| {
+                    [
+                        t[0] + 2.0 * f64::from(rng.unit()) - 1.0,
+                        t[1] + 2.0 * f64::from(rng.unit()) - 1.0,
+                    ]
+                })
+                .collect();
+            for (refined, t) in refine_all(&luma, &starts).iter().zip(truth) {
+                match refined {
                     Some(r) => errors.push((r.point[0] - t[0]).hypot(r.point[1] - t[1])),
                     None => failed += 1,
                 }
@@ -99,4 +98,20 @@ fn blur_and_a_fisheye_do_not_bias_the_corner() {
     eprintln!("fisheye, blurred: median {median:.4} px, p95 {p95:.4} px, failed {failed}");
     assert!(median <= 0.05, "median {median}");
     assert_eq!(failed, 0);
+}
+
+/// A start that is not a number, or one too near the border for the window, is refused,
+/// never read outside the image.
+#[test]
+fn refuses_starts_it_cannot_use() {
+    let luma = Luma::from_u8(32, 32, &[128; 32 * 32]);
+    for start in [
+        [f64::NAN, 16.0],
+        [16.0, f64::INFINITY],
+        [1.0, 16.0],
+        [16.0, 31.0],
+    ] {
+        assert_eq!(refine(&luma, start, 4.0), None, "{start:?}");
+    }
+    assert_eq!(refine(&luma, [16.0, 16.0], f64::NAN), None);
 }
