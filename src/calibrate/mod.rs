@@ -4,10 +4,21 @@
 //!
 //! - [`board`]: the printed target and its corners' positions on its plane.
 //! - [`corners`]: finding the inner corners, to hundredths of a pixel.
+//! - [`zhang`]: homographies, Zhang's closed-form camera matrix and the views' poses.
+//! - [`solve`]: Levenberg–Marquardt over lenses, extrinsics and poses, with the covariance.
+//! - [`fit`]: one camera or a pair calibrated, outlier views left out, E, F, the epipolar
+//!   check and the rectified rig's uncertainty.
 //! - [`synthetic`]: boards rendered through the camera model with exact truth.
 
 pub mod board;
 pub mod corners;
+pub mod fit;
+pub mod solve;
 pub mod synthetic;
+pub mod zhang;
 
 pub use board::{Board, BoardFault, BoardMember};
+#[cfg(test)]
+mod tests;
+
+pub use fit::{CameraFit, Corners, Extrinsics, Fit, FitFault, Status, ViewFit, calibrate};

@@ -1,8 +1,10 @@
-//! Finding a chessboard's inner corners in an image: the grey image they work on and the
-//! sub-pixel refinement ([`refine`]).
+//! Finding a chessboard's inner corners in an image: the grey image they work on, the whole
+//! board found and ordered ([`find`]) and the sub-pixel refinement ([`refine`]).
 
+pub mod find;
 pub mod refine;
 
+pub use find::{Miss, find_board};
 pub use refine::{Refined, refine, refine_all};
 
 /// A grey image as the corner finder reads it: grey levels 0..=255 as `f32`, row-major.

@@ -115,3 +115,131 @@ fn refuses_starts_it_cannot_use() {
     }
     assert_eq!(refine(&luma, [16.0, 16.0], f64::NAN), None);
 }
+
+/// Renders `views` stereo views of `board` and returns, for each image, the found corners
+/// (or the miss) beside the truth.
+type Found = Vec<(Result<Vec<[f64; 2]>, Miss>, Vec<[f64; 2]>)>;
+
+fn find_rendered(board: &Board, poses: &[nalgebra::Isometry3<f64>], pair: &StereoPair) -> Found {
+    let size = Size {
+        width: 640,
+        height: 480,
+    };
+    let rendered = stereo_views(pair, size, board, poses, &Style::default());
+    let mut out = Vec::new();
+    for view in rendered {
+        for (image, truth) in [
+            (view.left, view.left_corners),
+            (view.right, view.right_corners),
+        ] {
+            let luma = Luma::from_u8(image.width as usize, image.height as usize, &image.pixels);
+            out.push((find_board(&luma, board), truth));
+        }
+    }
+    out
+}
+
+fn worst_error(found: &[[f64; 2]], truth: &[[f64; 2]]) -> f64 {
+    found
+        .iter()
+        .zip(truth)
+        .map(|(f, t)| (f[0] - t[0]).hypot(f[1] - t[1]))
+        .fold(0.0, f64::max)
+}
+
+/// Every image of a 9 × 6 board seen through a distorted lens from random tilted poses is
+/// found, with all 54 corners in OpenCV's order (each within 0.15 px of the truth, so none
+/// is swapped), in both cameras.
+#[test]
+fn finds_the_whole_board_in_opencv_order() {
+    let pair = pair(Model::PlumbBob, &[-0.25, 0.1, 0.001, -0.0005, -0.01], 800.0);
+    let board = Board::new(9, 6, 25.0, LengthUnit::Millimetre).unwrap();
+    let size = Size {
+        width: 640,
+        height: 480,
+    };
+    let found = find_rendered(&board, &poses(&pair, size, &board, 4, 45.0, 21), &pair);
+    assert_eq!(found.len(), 8);
+    for (k, (result, truth)) in found.iter().enumerate() {
+        let corners = result.as_ref().unwrap_or_else(|m| panic!("image {k}: {m}"));
+        assert_eq!(corners.len(), 54);
+        let worst = worst_error(corners, truth);
+        assert!(worst < 0.15, "image {k}: worst corner {worst} px");
+    }
+}
+
+/// A board held upside down is still ordered from its own corner (0, 0): the colours decide
+/// where a 9 × 6 board starts, not the image.
+#[test]
+fn an_upside_down_board_keeps_its_order() {
+    let pair = pair(Model::PlumbBob, &[-0.1, 0.02, 0.0, 0.0, 0.0], 800.0);
+    let board = Board::new(9, 6, 25.0, LengthUnit::Millimetre).unwrap();
+    let turn = Rotation3::from_axis_angle(&Vector3::z_axis(), std::f64::consts::PI);
+    let centre = Vector3::new(100.0, 62.5, 0.0);
+    let pose = nalgebra::Isometry3::from_parts(
+        (Vector3::new(60.0, 10.0, 600.0) - turn * centre).into(),
+        turn.into(),
+    );
+    let found = find_rendered(&board, &[pose], &pair);
+    for (result, truth) in &found {
+        let corners = result.as_ref().expect("board found");
+        // Neighbours are 30 px apart: 0.5 px tells the order (an axis-aligned board's
+        // supersampled edges are a tenth of a pixel off, a rendering artefact).
+        let worst = worst_error(corners, truth);
+        assert!(worst < 0.5, "worst {worst}");
+    }
+}
+
+/// An 8 × 6 board looks the same after a half turn; upside down, both cameras then order it
+/// the same way (rows running rightward in the image), each the truth's order reversed.
+#[test]
+fn a_symmetric_board_is_ordered_alike_in_both_cameras() {
+    let pair = pair(Model::PlumbBob, &[-0.1, 0.02, 0.0, 0.0, 0.0], 800.0);
+    let board = Board::new(8, 6, 25.0, LengthUnit::Millimetre).unwrap();
+    let turn = Rotation3::from_axis_angle(&Vector3::z_axis(), std::f64::consts::PI - 0.2);
+    let centre = Vector3::new(87.5, 62.5, 0.0);
+    let pose = nalgebra::Isometry3::from_parts(
+        (Vector3::new(60.0, 10.0, 600.0) - turn * centre).into(),
+        turn.into(),
+    );
+    let found = find_rendered(&board, &[pose], &pair);
+    for (result, truth) in &found {
+        let corners = result.as_ref().expect("board found");
+        let reversed: Vec<[f64; 2]> = truth.iter().rev().copied().collect();
+        assert!(worst_error(corners, &reversed) < 0.5);
+        assert!(corners[7][0] > corners[0][0], "rows run rightward");
+    }
+}
+
+/// A board of another size in the image is a miss that says what was found, not a
+/// wrong ordering; a blank image has no grid.
+#[test]
+fn a_board_of_another_size_is_a_miss() {
+    let pair = pair(Model::PlumbBob, &[-0.1, 0.02, 0.0, 0.0, 0.0], 800.0);
+    let board = Board::new(9, 6, 25.0, LengthUnit::Millimetre).unwrap();
+    let size = Size {
+        width: 640,
+        height: 480,
+    };
+    let views = find_rendered(&board, &poses(&pair, size, &board, 1, 20.0, 5), &pair);
+    let other = Board::new(7, 6, 25.0, LengthUnit::Millimetre).unwrap();
+    let rendered = stereo_views(
+        &pair,
+        size,
+        &board,
+        &poses(&pair, size, &board, 1, 20.0, 5),
+        &Style::default(),
+    );
+    let luma = Luma::from_u8(640, 480, &rendered[0].left.pixels);
+    assert!(views[0].0.is_ok());
+    assert_eq!(
+        find_board(&luma, &other),
+        Err(Miss::Incomplete {
+            found: 54,
+            columns: 9,
+            rows: 6
+        })
+    );
+    let blank = Luma::from_u8(64, 48, &[200; 64 * 48]);
+    assert_eq!(find_board(&blank, &board), Err(Miss::NoGrid));
+}

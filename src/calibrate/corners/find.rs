@@ -1,0 +1,283 @@
+//! Finding a whole chessboard in one image: ChESS X-junctions and their grid labelling from
+//! `calib-targets-chessboard`, the labels turned into the board's columns × rows in a fixed
+//! order, then every corner refined by [`super::refine_all`].
+//!
+//! The order is OpenCV's (row by row, as [`Board::object_points`]) and is fixed by the board's
+//! colours: corner (0, 0) has black squares on its upper left and lower right in the board's
+//! own frame. When a half turn maps the board onto itself (both counts even), the colours
+//! cannot tell the two orders apart, so the one whose rows run most nearly left to right in
+//! the image is taken; two cameras side by side then agree.
+
+use calib_targets_chessboard::{
+    ChessboardDetector, ChessboardParams, GrayImageView, default_chess_config, detect_corners,
+};
+
+use super::{Luma, refine_all};
+use crate::calibrate::Board;
+
+/// Why a board was not found in an image.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Miss {
+    /// No grid of chessboard corners was found at all.
+    NoGrid,
+    /// A grid was found, but not the board's whole columns × rows.
+    Incomplete {
+        found: usize,
+        columns: usize,
+        rows: usize,
+    },
+    /// The squares' colours fit no orientation of the board (not a chessboard of this size,
+    /// or too dark or washed out to tell).
+    Colours,
+}
+
+impl std::fmt::Display for Miss {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Miss::NoGrid => write!(f, "no chessboard corners were found"),
+            Miss::Incomplete {
+                found,
+                columns,
+                rows,
+            } => write!(
+                f,
+                "found a grid of {columns}×{rows} inner corners ({found} of them), not the board's whole grid"
+            ),
+            Miss::Colours => write!(
+                f,
+                "the squares' colours do not fit the board in any orientation"
+            ),
+        }
+    }
+}
+
+/// The board's inner corners in `image`, in OpenCV's order, refined to sub-pixel.
+pub fn find_board(image: &Luma, board: &Board) -> Result<Vec<[f64; 2]>, Miss> {
+    let grid = detect_grid(image)?;
+    let ordered = order(&grid, image, board)?;
+    Ok(refine_all(image, &ordered)
+        .into_iter()
+        .zip(&ordered)
+        .map(|(refined, start)| refined.map_or(*start, |r| r.point))
+        .collect())
+}
+
+/// The detector's labelled corners: a dense table `position[v][u]` over the grid's extent.
+struct Grid {
+    width: usize,
+    height: usize,
+    found: usize,
+    position: Vec<Option<[f64; 2]>>,
+}
+
+impl Grid {
+    fn at(&self, u: usize, v: usize) -> Option<[f64; 2]> {
+        self.position[v * self.width + u]
+    }
+}
+
+fn detect_grid(image: &Luma) -> Result<Grid, Miss> {
+    let bytes: Vec<u8> = image
+        .data
+        .iter()
+        .map(|&v| v.round().clamp(0.0, 255.0) as u8)
+        .collect();
+    let view = GrayImageView {
+        width: image.width,
+        height: image.height,
+        data: &bytes,
+    };
+    let corners = detect_corners(&view, &default_chess_config());
+    let detector =
+        ChessboardDetector::new(ChessboardParams::default()).map_err(|_| Miss::NoGrid)?;
+    let detection = detector.detect(&corners).ok_or(Miss::NoGrid)?;
+    let labels: Vec<(i64, i64, [f64; 2])> = detection
+        .corners
+        .iter()
+        .map(|c| {
+            (
+                i64::from(c.grid.u),
+                i64::from(c.grid.v),
+                [f64::from(c.position.x), f64::from(c.position.y)],
+            )
+        })
+        .collect();
+    let (Some(u0), Some(v0)) = (
+        labels.iter().map(|l| l.0).min(),
+        labels.iter().map(|l| l.1).min(),
+    ) else {
+        return Err(Miss::NoGrid);
+    };
+    let width = (labels.iter().map(|l| l.0).max().unwrap_or(u0) - u0 + 1) as usize;
+    let height = (labels.iter().map(|l| l.1).max().unwrap_or(v0) - v0 + 1) as usize;
+    if width > 4096 || height > 4096 {
+        return Err(Miss::NoGrid);
+    }
+    let mut position = vec![None; width * height];
+    for (u, v, p) in labels {
+        position[(v - v0) as usize * width + (u - u0) as usize] = Some(p);
+    }
+    let mut grid = Grid {
+        width,
+        height,
+        found: detection.corners.len(),
+        position,
+    };
+    // Make the labelling keep the image's handedness (u rightward, v downward), so that the
+    // board's orientations below are all rotations.
+    if grid.width > 1 && grid.height > 1 && handedness(&grid) < 0.0 {
+        grid = transpose(&grid);
+    }
+    Ok(grid)
+}
+
+/// The sign of the cross product of the grid's u and v steps, summed over its cells.
+fn handedness(grid: &Grid) -> f64 {
+    let mut sum = 0.0;
+    for v in 0..grid.height - 1 {
+        for u in 0..grid.width - 1 {
+            if let (Some(a), Some(b), Some(c)) =
+                (grid.at(u, v), grid.at(u + 1, v), grid.at(u, v + 1))
+            {
+                let (du, dv) = ([b[0] - a[0], b[1] - a[1]], [c[0] - a[0], c[1] - a[1]]);
+                sum += du[0] * dv[1] - du[1] * dv[0];
+            }
+        }
+    }
+    sum
+}
+
+fn transpose(grid: &Grid) -> Grid {
+    let mut position = vec![None; grid.width * grid.height];
+    for v in 0..grid.height {
+        for u in 0..grid.width {
+            position[u * grid.height + v] = grid.at(u, v);
+        }
+    }
+    Grid {
+        width: grid.height,
+        height: grid.width,
+        found: grid.found,
+        position,
+    }
+}
+
+/// The four quarter turns that take board corner (i, j) to grid label (u, v).
+#[derive(Debug, Clone, Copy)]
+enum Turn {
+    None,
+    Half,
+    Quarter,
+    ThreeQuarters,
+}
+
+impl Turn {
+    fn label(self, i: usize, j: usize, grid: &Grid) -> (usize, usize) {
+        let (w, h) = (grid.width - 1, grid.height - 1);
+        match self {
+            Turn::None => (i, j),
+            Turn::Half => (w - i, h - j),
+            Turn::Quarter => (j, h - i),
+            Turn::ThreeQuarters => (w - j, i),
+        }
+    }
+
+    fn fits(self, grid: &Grid, columns: usize, rows: usize) -> bool {
+        match self {
+            Turn::None | Turn::Half => grid.width == columns && grid.height == rows,
+            Turn::Quarter | Turn::ThreeQuarters => grid.width == rows && grid.height == columns,
+        }
+    }
+}
+
+fn order(grid: &Grid, image: &Luma, board: &Board) -> Result<Vec<[f64; 2]>, Miss> {
+    let (columns, rows) = (board.columns() as usize, board.rows() as usize);
+    let incomplete = Miss::Incomplete {
+        found: grid.found,
+        columns: grid.width,
+        rows: grid.height,
+    };
+    if grid.found != columns * rows {
+        return Err(incomplete);
+    }
+    let mut best: Option<(f64, Vec<[f64; 2]>)> = None;
+    let mut fitted = false;
+    for turn in [Turn::None, Turn::Half, Turn::Quarter, Turn::ThreeQuarters] {
+        if !turn.fits(grid, columns, rows) {
+            continue;
+        }
+        fitted = true;
+        let Some(points) = (0..rows)
+            .flat_map(|j| (0..columns).map(move |i| (i, j)))
+            .map(|(i, j)| {
+                let (u, v) = turn.label(i, j, grid);
+                grid.at(u, v)
+            })
+            .collect::<Option<Vec<_>>>()
+        else {
+            return Err(incomplete);
+        };
+        if contrast(&points, image, columns, rows) <= 0.0 {
+            continue;
+        }
+        // Among orders the colours allow, the one whose rows run most nearly rightward.
+        let rightward = points[columns - 1][0] - points[0][0];
+        if best.as_ref().is_none_or(|(r, _)| rightward > *r) {
+            best = Some((rightward, points));
+        }
+    }
+    if !fitted {
+        return Err(incomplete);
+    }
+    best.map(|(_, points)| points).ok_or(Miss::Colours)
+}
+
+/// Mean grey of the squares that should be white minus that of those that should be black,
+/// sampled at each inner square's centre.
+fn contrast(points: &[[f64; 2]], image: &Luma, columns: usize, rows: usize) -> f64 {
+    let (mut white, mut black) = ((0.0, 0usize), (0.0, 0usize));
+    for q in 0..rows - 1 {
+        for p in 0..columns - 1 {
+            let corner = |i: usize, j: usize| points[j * columns + i];
+            let quad = [
+                corner(p, q),
+                corner(p + 1, q),
+                corner(p, q + 1),
+                corner(p + 1, q + 1),
+            ];
+            let centre = [
+                quad.iter().map(|c| c[0]).sum::<f64>() / 4.0,
+                quad.iter().map(|c| c[1]).sum::<f64>() / 4.0,
+            ];
+            let Some(grey) = patch_mean(image, centre) else {
+                continue;
+            };
+            if Board::is_black(p as i64, q as i64) {
+                black.0 += grey;
+                black.1 += 1;
+            } else {
+                white.0 += grey;
+                white.1 += 1;
+            }
+        }
+    }
+    if white.1 == 0 || black.1 == 0 {
+        return 0.0;
+    }
+    white.0 / white.1 as f64 - black.0 / black.1 as f64
+}
+
+/// The mean grey of the 3 × 3 pixels around `centre`, or `None` outside the image.
+fn patch_mean(image: &Luma, centre: [f64; 2]) -> Option<f64> {
+    let (x, y) = (centre[0].round() as i64, centre[1].round() as i64);
+    if x < 1 || y < 1 || x + 1 >= image.width as i64 || y + 1 >= image.height as i64 {
+        return None;
+    }
+    let mut sum = 0.0;
+    for dy in -1..=1 {
+        for dx in -1..=1 {
+            sum += f64::from(image.data[(y + dy) as usize * image.width + (x + dx) as usize]);
+        }
+    }
+    Some(sum / 9.0)
+}

@@ -1,0 +1,411 @@
+//! Levenberg–Marquardt bundle adjustment over board views: one camera's intrinsics,
+//! distortion and the board's pose in each view, or both cameras, the pair's R, T and the
+//! board's pose in the left camera. Analytic Jacobians (from the distortion models'), normal
+//! equations assembled view by view over the cores, and the covariance at the optimum.
+
+use nalgebra::{DMatrix, DVector, Matrix2x3, Matrix3, Rotation3, Vector3};
+use rayon::prelude::*;
+
+use crate::camera::{Camera, Distortion, Intrinsics, Model};
+
+/// One camera as the solver moves it: fx, fy, cx, cy, then the model's coefficients.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Lens {
+    pub model: Model,
+    pub values: [f64; 12],
+}
+
+impl Lens {
+    pub fn new(intrinsics: Intrinsics, distortion: &Distortion) -> Lens {
+        let mut values = [0.0; 12];
+        values[..4].copy_from_slice(&[intrinsics.fx, intrinsics.fy, intrinsics.cx, intrinsics.cy]);
+        let c = distortion.coefficients();
+        values[4..4 + c.len()].copy_from_slice(c);
+        Lens {
+            model: distortion.model(),
+            values,
+        }
+    }
+
+    /// How many parameters the lens has (4 + the model's coefficients).
+    pub fn len(&self) -> usize {
+        4 + self.model.coefficient_count()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        false
+    }
+
+    pub fn intrinsics(&self) -> Intrinsics {
+        let v = self.values;
+        Intrinsics {
+            fx: v[0],
+            fy: v[1],
+            cx: v[2],
+            cy: v[3],
+        }
+    }
+
+    pub fn camera(&self) -> Option<Camera> {
+        let distortion = Distortion::new(self.model, &self.values[4..self.len()]).ok()?;
+        Camera::new(self.intrinsics(), distortion).ok()
+    }
+}
+
+/// A rigid motion: x ↦ rotation·x + translation.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Pose {
+    pub rotation: Rotation3<f64>,
+    pub translation: Vector3<f64>,
+}
+
+impl Pose {
+    pub fn apply(&self, x: &Vector3<f64>) -> Vector3<f64> {
+        self.rotation * x + self.translation
+    }
+
+    /// The pose moved by a step: a rotation ω applied on the left, then a translation.
+    fn moved(&self, step: &[f64]) -> Pose {
+        Pose {
+            rotation: Rotation3::from_scaled_axis(Vector3::new(step[0], step[1], step[2]))
+                * self.rotation,
+            translation: self.translation + Vector3::new(step[3], step[4], step[5]),
+        }
+    }
+}
+
+/// The corners one view gives each camera (`None` when that camera's are not used).
+#[derive(Debug, Clone, Copy)]
+pub struct Seen<'a> {
+    pub left: Option<&'a [[f64; 2]]>,
+    pub right: Option<&'a [[f64; 2]]>,
+}
+
+/// Everything the solver moves: one lens (a single camera: every view's `left`) or two with
+/// the pair's extrinsics, and the board's pose in the left camera per view.
+#[derive(Debug, Clone, PartialEq)]
+pub struct State {
+    pub lenses: Vec<Lens>,
+    pub extrinsics: Option<Pose>,
+    pub poses: Vec<Pose>,
+}
+
+impl State {
+    /// How many parameters are shared by all views (the lenses and the extrinsics).
+    pub fn global_len(&self) -> usize {
+        self.lenses.iter().map(Lens::len).sum::<usize>()
+            + if self.extrinsics.is_some() { 6 } else { 0 }
+    }
+
+    fn len(&self) -> usize {
+        self.global_len() + 6 * self.poses.len()
+    }
+
+    fn moved(&self, step: &DVector<f64>) -> State {
+        let mut next = self.clone();
+        let mut at = 0;
+        for lens in &mut next.lenses {
+            for k in 0..lens.len() {
+                lens.values[k] += step[at + k];
+            }
+            at += lens.len();
+        }
+        if let Some(e) = &mut next.extrinsics {
+            *e = e.moved(&step.as_slice()[at..at + 6]);
+            at += 6;
+        }
+        for pose in &mut next.poses {
+            *pose = pose.moved(&step.as_slice()[at..at + 6]);
+            at += 6;
+        }
+        next
+    }
+}
+
+/// The squared residuals and corner count of one view in each camera.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct ViewError {
+    pub squared: [f64; 2],
+    pub corners: [usize; 2],
+}
+
+impl ViewError {
+    /// The RMS reprojection error (px) in camera `side` (0 left, 1 right), if it was seen.
+    pub fn rms(&self, side: usize) -> Option<f64> {
+        (self.corners[side] > 0).then(|| (self.squared[side] / self.corners[side] as f64).sqrt())
+    }
+}
+
+/// The outcome of a refinement: the state at the optimum, each view's error, and the
+/// covariance of every parameter (σ² (JᵀJ)⁻¹, σ² from the residuals) in the state's order:
+/// the lenses, the extrinsics' (ω, T), then each pose's.
+#[derive(Debug, Clone)]
+pub struct Solution {
+    pub state: State,
+    pub views: Vec<ViewError>,
+    pub rms: f64,
+    pub covariance: Option<DMatrix<f64>>,
+    pub iterations: usize,
+}
+
+/// Why a refinement failed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SolveFault {
+    /// The starting point puts the board behind a camera or the model cannot be evaluated.
+    BadStart,
+}
+
+struct Linear {
+    jtj: DMatrix<f64>,
+    jtr: DVector<f64>,
+    cost: f64,
+    views: Vec<ViewError>,
+    residuals: usize,
+}
+
+/// One view's share of the normal equations on its own parameters.
+struct Block {
+    index: Vec<usize>,
+    jtj: DMatrix<f64>,
+    jtr: DVector<f64>,
+    error: ViewError,
+}
+
+fn skew(a: &Vector3<f64>) -> Matrix3<f64> {
+    Matrix3::new(0.0, -a.z, a.y, a.z, 0.0, -a.x, -a.y, a.x, 0.0)
+}
+
+/// A projected pixel with its derivatives by the point in the camera's frame and by each of
+/// the lens's parameters.
+struct Projected {
+    pixel: [f64; 2],
+    by_point: Matrix2x3<f64>,
+    by_lens: [[f64; 2]; 12],
+}
+
+/// The pixel of a point in a camera's frame, with its derivatives; `None` behind the camera.
+fn project(lens: &Lens, distortion: &Distortion, x: &Vector3<f64>) -> Option<Projected> {
+    if x.z <= f64::EPSILON {
+        return None;
+    }
+    let (iz, n) = (1.0 / x.z, [x.x / x.z, x.y / x.z]);
+    let d = distortion.distort_with_derivatives(n);
+    let [fx, fy, cx, cy] = [
+        lens.values[0],
+        lens.values[1],
+        lens.values[2],
+        lens.values[3],
+    ];
+    let pixel = [fx * d.point[0] + cx, fy * d.point[1] + cy];
+    let dn = Matrix2x3::new(iz, 0.0, -n[0] * iz, 0.0, iz, -n[1] * iz);
+    let bp = nalgebra::Matrix2::new(
+        fx * d.by_point[0][0],
+        fx * d.by_point[0][1],
+        fy * d.by_point[1][0],
+        fy * d.by_point[1][1],
+    );
+    let by_point = bp * dn;
+    let mut by_lens = [[0.0; 2]; 12];
+    by_lens[0] = [d.point[0], 0.0];
+    by_lens[1] = [0.0, d.point[1]];
+    by_lens[2] = [1.0, 0.0];
+    by_lens[3] = [0.0, 1.0];
+    for k in 0..lens.model.coefficient_count() {
+        by_lens[4 + k] = [fx * d.by_coefficient[k][0], fy * d.by_coefficient[k][1]];
+    }
+    Some(Projected {
+        pixel,
+        by_point,
+        by_lens,
+    })
+}
+
+fn linearize(state: &State, object: &[Vector3<f64>], seen: &[Seen]) -> Option<Linear> {
+    let distortions: Vec<Distortion> = state
+        .lenses
+        .iter()
+        .map(|l| Distortion::new(l.model, &l.values[4..l.len()]).ok())
+        .collect::<Option<_>>()?;
+    let n = state.len();
+    let global = state.global_len();
+    let offsets: Vec<usize> = state
+        .lenses
+        .iter()
+        .scan(0, |at, l| {
+            let o = *at;
+            *at += l.len();
+            Some(o)
+        })
+        .collect();
+    let extrinsics_at =
+        offsets.last().copied().unwrap_or(0) + state.lenses.last().map_or(0, Lens::len);
+    let blocks: Vec<Block> = seen
+        .par_iter()
+        .enumerate()
+        .map(|(v, view)| {
+            let pose = state.poses[v];
+            // Local parameters: lens 0, [lens 1, extrinsics], pose.
+            let mut index: Vec<usize> = (0..state.lenses[0].len()).collect();
+            let stereo = state.extrinsics.is_some() && state.lenses.len() == 2;
+            if stereo {
+                index.extend(offsets[1]..offsets[1] + state.lenses[1].len());
+                index.extend(extrinsics_at..extrinsics_at + 6);
+            }
+            let pose_local = index.len();
+            index.extend(global + 6 * v..global + 6 * v + 6);
+            let m = index.len();
+            let mut jtj = DMatrix::zeros(m, m);
+            let mut jtr = DVector::zeros(m);
+            let mut error = ViewError::default();
+            let sides: [(usize, Option<&[[f64; 2]]>); 2] = [(0, view.left), (1, view.right)];
+            for (side, corners) in sides {
+                let Some(corners) = corners else { continue };
+                if side == 1 && !stereo {
+                    continue;
+                }
+                let lens = &state.lenses[side];
+                let (lens_local, extr_local) = if side == 0 {
+                    (0, None)
+                } else {
+                    (
+                        state.lenses[0].len(),
+                        Some(state.lenses[0].len() + lens.len()),
+                    )
+                };
+                for (p, observed) in object.iter().zip(corners) {
+                    let rp = pose.rotation * p;
+                    let xl = rp + pose.translation;
+                    let mut row = [[0.0f64; 2]; 36];
+                    let (x, by_pose_rot, by_pose_t, by_extr) = match (side, state.extrinsics) {
+                        (1, Some(e)) => {
+                            let re = e.rotation.matrix();
+                            let x = e.rotation * xl + e.translation;
+                            (x, re * (-skew(&rp)), *re, Some(-skew(&(e.rotation * xl))))
+                        }
+                        _ => (xl, -skew(&rp), Matrix3::identity(), None),
+                    };
+                    let projected = project(lens, &distortions[side], &x)?;
+                    let (pixel, by_x) = (projected.pixel, projected.by_point);
+                    let r = [pixel[0] - observed[0], pixel[1] - observed[1]];
+                    row[lens_local..lens_local + lens.len()]
+                        .copy_from_slice(&projected.by_lens[..lens.len()]);
+                    let rot = by_x * by_pose_rot;
+                    let tr = by_x * by_pose_t;
+                    for c in 0..3 {
+                        row[pose_local + c] = [rot[(0, c)], rot[(1, c)]];
+                        row[pose_local + 3 + c] = [tr[(0, c)], tr[(1, c)]];
+                    }
+                    if let (Some(at), Some(by_w)) = (extr_local, by_extr) {
+                        let w = by_x * by_w;
+                        for c in 0..3 {
+                            row[at + c] = [w[(0, c)], w[(1, c)]];
+                            row[at + 3 + c] = [by_x[(0, c)], by_x[(1, c)]];
+                        }
+                    }
+                    for a in 0..m {
+                        let ja = row[a];
+                        if ja == [0.0, 0.0] {
+                            continue;
+                        }
+                        jtr[a] += ja[0] * r[0] + ja[1] * r[1];
+                        for b in a..m {
+                            jtj[(a, b)] += ja[0] * row[b][0] + ja[1] * row[b][1];
+                        }
+                    }
+                    error.squared[side] += r[0] * r[0] + r[1] * r[1];
+                    error.corners[side] += 1;
+                }
+            }
+            Some(Block {
+                index,
+                jtj,
+                jtr,
+                error,
+            })
+        })
+        .collect::<Option<Vec<_>>>()?;
+    let mut jtj = DMatrix::zeros(n, n);
+    let mut jtr = DVector::zeros(n);
+    let mut views = Vec::with_capacity(blocks.len());
+    let mut cost = 0.0;
+    let mut residuals = 0;
+    for block in blocks {
+        for (a, &ga) in block.index.iter().enumerate() {
+            jtr[ga] += block.jtr[a];
+            for (b, &gb) in block.index.iter().enumerate().skip(a) {
+                let v = block.jtj[(a, b)];
+                jtj[(ga, gb)] += v;
+                if ga != gb {
+                    jtj[(gb, ga)] += v;
+                }
+            }
+        }
+        cost += block.error.squared[0] + block.error.squared[1];
+        residuals += 2 * (block.error.corners[0] + block.error.corners[1]);
+        views.push(block.error);
+    }
+    cost.is_finite().then_some(Linear {
+        jtj,
+        jtr,
+        cost,
+        views,
+        residuals,
+    })
+}
+
+const MAX_ITERATIONS: usize = 200;
+
+/// Refines `start` over the views `seen` (one per pose in `start`) of the board's points
+/// `object` until the cost stops falling.
+pub fn refine(
+    start: State,
+    object: &[Vector3<f64>],
+    seen: &[Seen],
+) -> Result<Solution, SolveFault> {
+    debug_assert_eq!(start.poses.len(), seen.len());
+    let mut state = start;
+    let mut linear = linearize(&state, object, seen).ok_or(SolveFault::BadStart)?;
+    let mut lambda = 1e-3;
+    let mut iterations = 0;
+    while iterations < MAX_ITERATIONS && lambda < 1e12 {
+        iterations += 1;
+        let mut a = linear.jtj.clone();
+        for i in 0..a.nrows() {
+            a[(i, i)] += lambda * a[(i, i)].max(1e-12);
+        }
+        let Some(chol) = a.cholesky() else {
+            lambda *= 10.0;
+            continue;
+        };
+        let step = -chol.solve(&linear.jtr);
+        let trial = state.moved(&step);
+        match linearize(&trial, object, seen) {
+            Some(next) if next.cost <= linear.cost => {
+                let gain = (linear.cost - next.cost) / linear.cost.max(f64::MIN_POSITIVE);
+                state = trial;
+                linear = next;
+                lambda = (lambda / 10.0).max(1e-12);
+                if gain < 1e-12 {
+                    break;
+                }
+            }
+            _ => lambda *= 10.0,
+        }
+    }
+    let n = state.len();
+    let dof = linear.residuals.saturating_sub(n).max(1) as f64;
+    let sigma2 = linear.cost / dof;
+    let covariance = linear.jtj.clone().cholesky().map(|c| c.inverse() * sigma2);
+    let corners: usize = linear
+        .views
+        .iter()
+        .map(|v| v.corners[0] + v.corners[1])
+        .sum();
+    Ok(Solution {
+        rms: (linear.cost / corners.max(1) as f64).sqrt(),
+        state,
+        views: linear.views,
+        covariance,
+        iterations,
+    })
+}
