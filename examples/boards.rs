@@ -3,12 +3,15 @@
 //!
 //!     cargo run --release --example boards -- render DIR [SEED] [VIEWS] [MODEL]
 //!     cargo run --release --example boards -- refine DIR
+//!     cargo run --release --example boards -- calibrate DIR
 //!
 //! `render` writes stereo views with exact truth: `left_NN.png`, `right_NN.png` and
 //! `truth.json` (the rig, the board, each view's exact corners in OpenCV's order). `refine`
 //! reads `DIR/starts.json` (`{"left_00.png": [[x, y], …], …}`, corners found by another
 //! detector) and writes `DIR/refined.json` in the same shape, each corner refined by
 //! `calibrate::corners::refine` with a window of half the distance to its nearest neighbour.
+//! `calibrate` finds the board in every image of DIR (as `render` wrote it), calibrates the
+//! pair and prints the result and its time as JSON.
 
 use std::path::PathBuf;
 
@@ -21,13 +24,15 @@ use stereo_distance::camera::{Camera, Distortion, Intrinsics, Model, Size, Stere
 use stereo_distance::physics::LengthUnit;
 use stereo_distance::vision::synthetic::Rng;
 
-const USAGE: &str = "usage: boards render DIR [SEED] [VIEWS] [MODEL] | boards refine DIR";
+const USAGE: &str =
+    "usage: boards render DIR [SEED] [VIEWS] [MODEL] | boards refine DIR | boards calibrate DIR";
 
 fn main() {
     let mut args = std::env::args().skip(1);
     match args.next().as_deref() {
         Some("render") => render(args),
         Some("refine") => refine(&PathBuf::from(args.next().expect(USAGE))),
+        Some("calibrate") => calibrate(&PathBuf::from(args.next().expect(USAGE))),
         _ => panic!("{USAGE}"),
     }
 }
@@ -55,6 +60,63 @@ fn refine(dir: &std::path::Path) {
         serde_json::to_vec(&refined).expect("json"),
     )
     .expect("write refined.json");
+}
+
+fn calibrate(dir: &std::path::Path) {
+    use rayon::prelude::*;
+    use stereo_distance::calibrate::{self, Corners};
+    let truth: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.join("truth.json")).expect("truth.json"))
+            .expect("truth.json");
+    let model = Model::from_name(truth["model"].as_str().expect("model")).expect("model");
+    let count = truth["views"].as_array().expect("views").len();
+    let board = Board::new(9, 6, 25.0, LengthUnit::Millimetre).expect("board");
+    let images: Vec<Luma> = (0..count)
+        .flat_map(|i| ["left", "right"].map(|side| dir.join(format!("{side}_{i:02}.png"))))
+        .map(|path| {
+            let image = image::open(path).expect("image").to_luma8();
+            Luma::from_u8(
+                image.width() as usize,
+                image.height() as usize,
+                image.as_raw(),
+            )
+        })
+        .collect();
+    let started = std::time::Instant::now();
+    let found: Vec<Option<Vec<[f64; 2]>>> = images
+        .par_iter()
+        .map(|luma| corners::find_board(luma, &board).ok())
+        .collect();
+    let views: Vec<Corners> = found
+        .chunks(2)
+        .map(|pair| Corners {
+            left: pair[0].clone(),
+            right: pair[1].clone(),
+        })
+        .collect();
+    let detected = started.elapsed();
+    let size = Size {
+        width: images[0].width as u32,
+        height: images[0].height as u32,
+    };
+    let fit = calibrate::calibrate(&board, size, model, &views, true).expect("calibration");
+    let total = started.elapsed();
+    let pair = fit.pair().expect("pair");
+    let cam = |c: &Camera| {
+        let k = c.intrinsics();
+        json!({"fx": k.fx, "fy": k.fy, "cx": k.cx, "cy": k.cy, "distortion": c.distortion().coefficients()})
+    };
+    let out = json!({
+        "left": cam(&pair.left), "right": cam(&pair.right),
+        "rotation": pair.rotation.matrix().transpose().as_slice(),
+        "translation": pair.translation.as_slice(),
+        "rms": fit.rms,
+        "found": found.iter().filter(|f| f.is_some()).count(),
+        "used": fit.views.iter().filter(|v| v.status == calibrate::Status::Used).count(),
+        "detect_ms": detected.as_secs_f64() * 1e3,
+        "total_ms": total.as_secs_f64() * 1e3,
+    });
+    println!("{out}");
 }
 
 fn render(mut args: impl Iterator<Item = String>) {

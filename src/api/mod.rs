@@ -90,7 +90,8 @@ impl FromRef<HeavyState> for BodyLimit {
     components(schemas(
         error::Problem,
         error::FieldError,
-        routes::depth_map::types::DepthMapOutput
+        routes::depth_map::types::DepthMapOutput,
+        routes::calibrate::types::CalibrateOutput
     )),
     tags(
         (name = "calibration", description = "Calibration files read into a rig"),

@@ -2,6 +2,7 @@
 //! socket with reqwest.
 
 mod batch;
+mod calibrate;
 mod calibration;
 mod chart;
 mod depth_map;

@@ -168,12 +168,26 @@ fn not_multipart(content_type: Option<&axum::http::HeaderValue>) -> ApiError {
 /// Reads every part of the form. A part this route does not read, a part given twice or one
 /// without a name is recorded in `problems`, naming it; the form itself failing is an error.
 pub async fn read_parts(
-    mut form: Multipart,
+    form: Multipart,
     known: &[&str],
     limit: usize,
     problems: &mut FieldErrors,
 ) -> Result<Parts, ApiError> {
-    let mut parts = Parts::default();
+    let read = read_parts_with(form, known, &[], limit, problems).await?;
+    Ok(Parts(read.into_iter().collect()))
+}
+
+/// Reads every part of the form in order; the parts named in `repeatable` may come more than
+/// once (a calibration's views), every other once. A part this route does not read, a part
+/// given twice or one without a name is recorded in `problems`, naming it.
+pub async fn read_parts_with(
+    mut form: Multipart,
+    known: &[&str],
+    repeatable: &[&str],
+    limit: usize,
+    problems: &mut FieldErrors,
+) -> Result<Vec<(String, Bytes)>, ApiError> {
+    let mut parts: Vec<(String, Bytes)> = Vec::new();
     loop {
         let field = match form.next_field().await {
             Ok(Some(field)) => field,
@@ -195,8 +209,10 @@ pub async fn read_parts(
                     known.join(", ")
                 ),
             );
-        } else if parts.0.insert(name.clone(), bytes).is_some() {
+        } else if !repeatable.contains(&name.as_str()) && parts.iter().any(|(n, _)| *n == name) {
             problems.add(&name, "is given more than once; give it once");
+        } else {
+            parts.push((name, bytes));
         }
     }
     Ok(parts)

@@ -57,13 +57,21 @@ pub async fn run<T: Send + 'static>(
     work: impl FnOnce(&AtomicBool, Started) -> T + Send + 'static,
 ) -> Result<T, ApiError> {
     let bytes = (need.need)(need.count);
+    let too_large = |total| limits::shrink(need.size, need.count, total, &need.need);
+    run_reserved(reservation, bytes, too_large, work).await
+}
+
+/// [`run`] for work whose size is known in bytes: `too_large(total)` names what to shrink when
+/// it can never fit in the budget of `total` bytes.
+pub async fn run_reserved<T: Send + 'static>(
+    reservation: Reservation,
+    bytes: usize,
+    too_large: impl FnOnce(usize) -> Vec<FieldError>,
+    work: impl FnOnce(&AtomicBool, Started) -> T + Send + 'static,
+) -> Result<T, ApiError> {
     match reservation.grow(bytes) {
         Ok(()) => {}
-        Err(Refusal::TooLarge { total, .. }) => {
-            return Err(ApiError::Oversized(limits::shrink(
-                need.size, need.count, total, need.need,
-            )));
-        }
+        Err(Refusal::TooLarge { total, .. }) => return Err(ApiError::Oversized(too_large(total))),
         Err(busy) => return Err(ApiError::Memory(busy)),
     }
     let flag = Arc::new(AtomicBool::new(false));

@@ -3,6 +3,7 @@
 //! [`ops::router`] the probes, each group to be wrapped in its own limits by
 //! [`crate::server::startup`].
 
+pub mod calibrate;
 pub mod calibration;
 pub mod chart;
 pub mod depth_map;
@@ -148,6 +149,7 @@ pub fn light() -> OpenApiRouter<AppState> {
 /// The image requests: megabytes in, milliseconds to seconds of CPU each.
 pub fn heavy() -> OpenApiRouter<HeavyState> {
     OpenApiRouter::new()
+        .merge(calibrate::router())
         .merge(depth_map::router())
         .merge(matching::router())
 }

@@ -1,0 +1,308 @@
+//! The wire types of `/calibrate`: the query's options, the `board` part, the multipart form
+//! (documentation) and the JSON summary.
+
+use serde::{Deserialize, Serialize};
+use utoipa::ToSchema;
+
+use crate::api::extract::QueryForm;
+use crate::api::wire::de::{choice_members, request};
+use crate::api::wire::params::Unit;
+use crate::api::wire::rig::CalibratedRig;
+use crate::camera::Model;
+
+/// The distortion model to fit, as ROS names them.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize, Serialize, ToSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum ModelChoice {
+    /// OpenCV's default: k1 k2 p1 p2 k3.
+    #[default]
+    PlumbBob,
+    /// OpenCV's `CALIB_RATIONAL_MODEL`: k1 k2 p1 p2 k3 k4 k5 k6.
+    RationalPolynomial,
+    /// Fisheye (OpenCV's `cv::fisheye`): k1 k2 k3 k4.
+    Equidistant,
+}
+
+impl From<ModelChoice> for Model {
+    fn from(m: ModelChoice) -> Self {
+        match m {
+            ModelChoice::PlumbBob => Model::PlumbBob,
+            ModelChoice::RationalPolynomial => Model::RationalPolynomial,
+            ModelChoice::Equidistant => Model::Equidistant,
+        }
+    }
+}
+
+/// What `/calibrate` answers.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize, Serialize, ToSchema)]
+pub enum CalibrateOutput {
+    /// JSON: the cameras, the pair, the rectification, the rig and how far to trust them.
+    #[default]
+    #[serde(rename = "summary")]
+    Summary,
+    /// OpenCV FileStorage YAML: M1 D1 M2 D2 R T E F R1 R2 P1 P2 Q, imageSize and the board.
+    #[serde(rename = "opencv.yml")]
+    OpencvYml,
+    /// ROS `camera_calibration` YAML of the left camera.
+    #[serde(rename = "ros-left.yaml")]
+    RosLeftYaml,
+    /// ROS `camera_calibration` YAML of the right camera.
+    #[serde(rename = "ros-right.yaml")]
+    RosRightYaml,
+}
+
+impl CalibrateOutput {
+    pub fn name(self) -> &'static str {
+        match self {
+            CalibrateOutput::Summary => "summary",
+            CalibrateOutput::OpencvYml => "opencv.yml",
+            CalibrateOutput::RosLeftYaml => "ros-left.yaml",
+            CalibrateOutput::RosRightYaml => "ros-right.yaml",
+        }
+    }
+}
+
+choice_members!(ModelChoice, CalibrateOutput);
+
+request! {
+    /// The options of `/calibrate`, in the query string.
+    pub struct CalibrateQuery {
+        /// The distortion model (default `plumb_bob`).
+        model: ModelChoice,
+        /// The rectification's free scaling, as `stereoRectify`'s: 0 keeps only valid pixels,
+        /// 1 keeps every source pixel. Default 0.
+        #[schema(minimum = 0.0, maximum = 1.0)]
+        alpha: f64,
+        /// What to answer (default `summary`).
+        output: CalibrateOutput,
+        /// Whether the summary lists each view's corners (for drawing). Default false.
+        corners: bool,
+    }
+}
+
+impl QueryForm for CalibrateQuery {}
+
+request! {
+    /// The printed chessboard: its inner corners (as OpenCV's `patternSize`) and its squares'
+    /// side.
+    #[schema(example = json!({"columns": 9, "rows": 6, "square_size": 25, "unit": "mm"}))]
+    pub struct BoardSpec {
+        /// Inner corners along a row (3 to 64).
+        #[schema(required = true, minimum = 3, maximum = 64)]
+        columns: u32,
+        /// Inner corners along a column (3 to 64).
+        #[schema(required = true, minimum = 3, maximum = 64)]
+        rows: u32,
+        /// A square's side, in `unit`.
+        #[schema(required = true, exclusive_minimum = 0.0)]
+        square_size: f64,
+        /// The unit of `square_size` and of the translation and baseline answered (default
+        /// `mm`).
+        unit: Unit,
+    }
+}
+
+/// The `multipart/form-data` parts of `/calibrate` (for the documentation: the handler reads
+/// the parts itself, to name each one in its errors).
+#[derive(ToSchema)]
+#[allow(dead_code)]
+pub struct CalibrateForm {
+    /// The left camera's images, one part per view, in order (PNG or JPEG, one size).
+    #[schema(value_type = Vec<String>, format = Binary)]
+    left: Vec<Vec<u8>>,
+    /// The right camera's images, as many as `left`: the i-th left and the i-th right are one
+    /// view. Without them, the left camera alone is calibrated.
+    #[schema(value_type = Option<Vec<String>>, format = Binary, nullable = false)]
+    right: Option<Vec<Vec<u8>>>,
+    /// The board, as JSON.
+    board: BoardSpec,
+}
+
+/// The board as used.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct BoardUsed {
+    pub columns: u32,
+    pub rows: u32,
+    pub square_size: f64,
+    pub unit: Unit,
+}
+
+/// What became of a view.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum ViewStatus {
+    /// Its corners took part in the calibration.
+    Used,
+    /// The board was not found in one camera or both (`failed`).
+    BoardNotFound,
+    /// Its error was far above the other views' (more than 3 × their median and 0.5 px):
+    /// left out.
+    Outlier,
+}
+
+/// One view (pair) of the request, in order.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct ViewSummary {
+    pub status: ViewStatus,
+    /// Which cameras did not find the board: `left`, `right` or both.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub failed: Vec<String>,
+    /// Why, for each camera that failed.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub reasons: Vec<String>,
+    /// The view's RMS reprojection error in each camera, px (views used).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub rms_left: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub rms_right: Option<f64>,
+    /// The board's tilt from facing the left camera, degrees (views used).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub tilt_deg: Option<f64>,
+    /// The corners found, in OpenCV's order, px (with `corners=true`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub corners_left: Option<Vec<[f64; 2]>>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub corners_right: Option<Vec<[f64; 2]>>,
+}
+
+/// The standard deviation of each of a camera's parameters.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct CameraStd {
+    pub fx: f64,
+    pub fy: f64,
+    pub cx: f64,
+    pub cy: f64,
+    /// In the order of `distortion`.
+    pub distortion: Vec<f64>,
+}
+
+/// One calibrated camera.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct CameraSummary {
+    /// K, row by row.
+    pub camera_matrix: [[f64; 3]; 3],
+    /// In OpenCV's order: k1 k2 p1 p2 k3 (plumb_bob), k1 k2 p1 p2 k3 k4 k5 k6
+    /// (rational_polynomial), k1 k2 k3 k4 (equidistant).
+    pub distortion: Vec<f64>,
+    /// The RMS reprojection error of this camera over the views used, px.
+    pub rms: f64,
+    pub std: CameraStd,
+}
+
+/// Bouguet's rectification (OpenCV's `stereoRectify`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+#[allow(non_snake_case)]
+pub struct RectificationSummary {
+    pub R1: [[f64; 3]; 3],
+    pub R2: [[f64; 3]; 3],
+    pub P1: [[f64; 4]; 3],
+    pub P2: [[f64; 4]; 3],
+    pub Q: [[f64; 4]; 4],
+    pub alpha: f64,
+    /// The valid rectangle of each rectified image: x, y, width, height.
+    pub roi_left: [i64; 4],
+    pub roi_right: [i64; 4],
+}
+
+/// The rectified rig's standard deviations.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct RigStd {
+    pub focal_length_px: f64,
+    pub baseline: f64,
+}
+
+/// How much of one image the corners covered, as ROS `camera_calibration`'s bars: the range of
+/// the corners' x and y as fractions of the image, and of the board's apparent size.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct Coverage {
+    /// [min, max] of the corners' x over the views used, as fractions of the width.
+    pub x: [f64; 2],
+    /// [min, max] of the corners' y, as fractions of the height.
+    pub y: [f64; 2],
+    /// The share of a 4 × 4 grid of cells over the image that hold a corner, 0–1.
+    pub cells: f64,
+}
+
+/// Where the corners fell, and how much the board tilted.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct CoverageSummary {
+    pub left: Coverage,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub right: Option<Coverage>,
+    /// [min, max] of the board's tilt from facing the left camera, degrees.
+    pub tilt_deg: [f64; 2],
+}
+
+/// How long each stage took, in milliseconds.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct CalibrateTimes {
+    /// Decoding every image and finding its board (over the cores).
+    pub detect: f64,
+    /// The solves: first guesses, each camera's and the joint refinement.
+    pub solve: f64,
+    /// The rectification and the rig's uncertainty.
+    pub rectify: f64,
+}
+
+/// A calibration, with how far to trust it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct CalibrationSummary {
+    pub image_width: u32,
+    pub image_height: u32,
+    pub model: ModelChoice,
+    pub board: BoardUsed,
+    pub views: Vec<ViewSummary>,
+    /// The RMS reprojection error over every corner used, px.
+    pub rms: f64,
+    /// The mean distance of a corner from its partner's epipolar line, both ways, after
+    /// undistortion, px (OpenCV's `stereo_calib.cpp` check). Pairs only.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub epipolar_error: Option<f64>,
+    pub left: CameraSummary,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub right: Option<CameraSummary>,
+    /// R of X_right = R·X_left + T, row by row.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub rotation: Option<[[f64; 3]; 3]>,
+    /// T, in the board's unit.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub translation: Option<[f64; 3]>,
+    /// σ of the rotation about x, y, z (degrees) and of T (board unit).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub rotation_std_deg: Option<[f64; 3]>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub translation_std: Option<[f64; 3]>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub essential: Option<[[f64; 3]; 3]>,
+    /// F, scaled so that F[2][2] = 1.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub fundamental: Option<[[f64; 3]; 3]>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub rectification: Option<RectificationSummary>,
+    /// The rectified rig in `/distance`'s members.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub rig: Option<CalibratedRig>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub rig_std: Option<RigStd>,
+    pub coverage: CoverageSummary,
+    /// Things that make the calibration less trustworthy, and what to do.
+    pub warnings: Vec<String>,
+    pub timings_ms: CalibrateTimes,
+}

@@ -1,0 +1,250 @@
+//! `POST /calibrate` over a real socket, on checkerboard pairs rendered through a known rig:
+//! the summary's rig against the truth, the three files read back by `/calibration` into the
+//! same rig, and bad input named part by part.
+
+use std::sync::OnceLock;
+
+use nalgebra::{Rotation3, Vector3};
+use reqwest::multipart::{Form, Part};
+use serde_json::json;
+use stereo_distance::calibrate::Board;
+use stereo_distance::calibrate::synthetic::{Style, poses, stereo_views};
+use stereo_distance::camera::{
+    Camera, Distortion, Intrinsics, Model, Options, Size, StereoPair, stereo_rectify,
+};
+use stereo_distance::physics::LengthUnit;
+use stereo_distance::vision::encode;
+
+use crate::helpers::{TestApp, assert_names, message_for, ok_json, problem, spawn_app};
+
+const SIZE: Size = Size {
+    width: 320,
+    height: 240,
+};
+
+fn truth() -> StereoPair {
+    let camera = |fx: f64, cx: f64| {
+        Camera::new(
+            Intrinsics {
+                fx,
+                fy: fx,
+                cx,
+                cy: 121.0,
+            },
+            Distortion::new(Model::PlumbBob, &[-0.15, 0.05, 0.0, 0.0, 0.0]).unwrap(),
+        )
+        .unwrap()
+    };
+    StereoPair {
+        left: camera(360.0, 158.0),
+        right: camera(362.0, 163.0),
+        rotation: Rotation3::from_scaled_axis(Vector3::new(0.003, -0.01, 0.002)),
+        translation: Vector3::new(-60.0, 0.5, 0.4),
+    }
+}
+
+fn board() -> Board {
+    Board::new(7, 5, 20.0, LengthUnit::Millimetre).unwrap()
+}
+
+/// Eight rendered pairs as PNG files (rendered once for every test here).
+fn views() -> &'static Vec<(Vec<u8>, Vec<u8>)> {
+    static VIEWS: OnceLock<Vec<(Vec<u8>, Vec<u8>)>> = OnceLock::new();
+    VIEWS.get_or_init(|| {
+        let pair = truth();
+        let found = poses(&pair, SIZE, &board(), 8, 40.0, 9);
+        let style = Style {
+            supersampling: 3,
+            ..Style::default()
+        };
+        stereo_views(&pair, SIZE, &board(), &found, &style)
+            .into_iter()
+            .map(|v| {
+                let png = |i: &stereo_distance::calibrate::synthetic::Image| {
+                    gray_png(i.width as usize, i.height as usize, &i.pixels)
+                };
+                (png(&v.left), png(&v.right))
+            })
+            .collect()
+    })
+}
+
+/// An 8-bit grey image as a PNG (through the RGB encoder).
+fn gray_png(width: usize, height: usize, grey: &[u8]) -> Vec<u8> {
+    let rgb: Vec<u8> = grey.iter().flat_map(|&v| [v, v, v]).collect();
+    encode::png_rgb(width, height, &rgb)
+}
+
+const BOARD: &str = r#"{"columns": 7, "rows": 5, "square_size": 20, "unit": "mm"}"#;
+
+fn image(bytes: &[u8], name: &str) -> Part {
+    Part::bytes(bytes.to_vec())
+        .file_name(name.to_owned())
+        .mime_str("image/png")
+        .unwrap()
+}
+
+/// A form with the first `count` views (both cameras unless `left_only`) and `board`.
+fn form(count: usize, left_only: bool, board: Option<&str>) -> Form {
+    let mut form = Form::new();
+    for (i, (l, r)) in views().iter().take(count).enumerate() {
+        form = form.part("left", image(l, &format!("left{i}.png")));
+        if !left_only {
+            form = form.part("right", image(r, &format!("right{i}.png")));
+        }
+    }
+    if let Some(board) = board {
+        form = form.text("board", board.to_owned());
+    }
+    form
+}
+
+async fn calibrate(app: &TestApp, query: &str, form: Form) -> reqwest::Response {
+    app.post_form(&format!("/calibrate{query}"), form).await
+}
+
+async fn text(response: reqwest::Response) -> String {
+    assert_eq!(response.status(), 200);
+    assert_eq!(
+        response.headers()["content-type"].to_str().unwrap(),
+        "application/x-yaml"
+    );
+    response.text().await.unwrap()
+}
+
+/// Eight rendered pairs calibrate to the true rectified rig: f within 0.3 %, B within 0.3 %,
+/// each view used with a small RMS, standard deviations present and small, and a warning
+/// that eight views are few.
+#[tokio::test]
+async fn calibrates_a_rendered_rig() {
+    let app = spawn_app().await;
+    let summary =
+        ok_json(calibrate(&app, "?corners=true", form(8, false, Some(BOARD))).await).await;
+    let expected = stereo_rectify(&truth(), SIZE, Options::default())
+        .unwrap()
+        .rig(LengthUnit::Millimetre)
+        .unwrap();
+    let f = summary["rig"]["focal_length_px"].as_f64().unwrap();
+    let b = summary["rig"]["baseline"].as_f64().unwrap();
+    assert!(
+        (f / expected.focal_px() - 1.0).abs() < 0.003,
+        "f {f} vs {}",
+        expected.focal_px()
+    );
+    assert!((b / expected.baseline() - 1.0).abs() < 0.003, "B {b}");
+    assert_eq!(summary["views"].as_array().unwrap().len(), 8);
+    for view in summary["views"].as_array().unwrap() {
+        assert_eq!(view["status"], "used", "{view}");
+        assert!(view["rms_left"].as_f64().unwrap() < 0.2);
+        assert_eq!(view["corners_left"].as_array().unwrap().len(), 35);
+    }
+    assert!(summary["rms"].as_f64().unwrap() < 0.2);
+    assert!(summary["epipolar_error"].as_f64().unwrap() < 0.2);
+    let std_f = summary["rig_std"]["focal_length_px"].as_f64().unwrap();
+    assert!(std_f > 0.0 && std_f < 2.0, "σ_f {std_f}");
+    assert!(summary["left"]["std"]["fx"].as_f64().unwrap() > 0.0);
+    assert_eq!(summary["left"]["distortion"].as_array().unwrap().len(), 5);
+    assert!(
+        summary["warnings"][0]
+            .as_str()
+            .unwrap()
+            .contains("only 8 views")
+    );
+    assert_eq!(summary["image_width"], 320);
+    assert_eq!(summary["rectification"]["alpha"], 0.0);
+}
+
+/// The OpenCV file and the two ROS files, read back by `/calibration`, give the summary's rig.
+#[tokio::test]
+async fn the_files_read_back_into_the_same_rig() {
+    let app = spawn_app().await;
+    let summary = ok_json(calibrate(&app, "", form(6, false, Some(BOARD))).await).await;
+    let opencv =
+        text(calibrate(&app, "?output=opencv.yml", form(6, false, Some(BOARD))).await).await;
+    assert!(opencv.starts_with("%YAML:1.0\n"));
+    let left =
+        text(calibrate(&app, "?output=ros-left.yaml", form(6, false, Some(BOARD))).await).await;
+    let right =
+        text(calibrate(&app, "?output=ros-right.yaml", form(6, false, Some(BOARD))).await).await;
+    assert!(left.contains("distortion_model: plumb_bob"));
+    for request in [
+        json!({"text": opencv, "calibration_unit": "mm"}),
+        json!({"text": left, "right_text": right, "unit": "mm"}),
+    ] {
+        let read = ok_json(app.post("/calibration", &request).await).await;
+        for member in ["focal_length_px", "baseline", "cx", "cy", "doffs"] {
+            let (got, want) = (
+                read["rig"][member].as_f64().unwrap(),
+                summary["rig"][member].as_f64().unwrap(),
+            );
+            assert!(
+                (got - want).abs() <= 1e-6 * want.abs().max(1.0),
+                "{member}: {got} vs {want}"
+            );
+        }
+    }
+}
+
+/// Only `left` parts calibrate one camera: no pair members, no rig.
+#[tokio::test]
+async fn left_parts_alone_calibrate_one_camera() {
+    let app = spawn_app().await;
+    let summary = ok_json(calibrate(&app, "", form(6, true, Some(BOARD))).await).await;
+    let fx = summary["left"]["camera_matrix"][0][0].as_f64().unwrap();
+    assert!((fx / 360.0 - 1.0).abs() < 0.005, "fx {fx}");
+    assert!(summary.get("rig").is_none() && summary.get("right").is_none());
+}
+
+/// Bad forms are 4xx problems naming the part: counts that differ name `right`, a board with
+/// too few columns names `board.columns`, a missing board names `board`, a bad alpha names
+/// `alpha`.
+#[tokio::test]
+async fn bad_forms_name_the_part() {
+    let app = spawn_app().await;
+    let mut uneven = form(3, false, Some(BOARD));
+    uneven = uneven.part("left", image(&views()[3].0, "extra.png"));
+    let p = problem(calibrate(&app, "", uneven).await, 422).await;
+    assert!(message_for(&p, "right").contains("has 3 images but left has 4"));
+
+    let p = problem(
+        calibrate(
+            &app,
+            "?alpha=2",
+            form(
+                3,
+                false,
+                Some(r#"{"columns": 2, "rows": 5, "square_size": 0}"#),
+            ),
+        )
+        .await,
+        422,
+    )
+    .await;
+    assert_names(&p, &["alpha", "board.columns", "board.square_size"]);
+
+    let p = problem(calibrate(&app, "", form(3, false, None)).await, 422).await;
+    assert_names(&p, &["board"]);
+}
+
+/// Images of another size name their view; views whose board is not found are each named
+/// with the reason when fewer than three remain.
+#[tokio::test]
+async fn sizes_and_missing_boards_name_the_view() {
+    let app = spawn_app().await;
+    let small = gray_png(64, 48, &[200; 64 * 48]);
+    let mut mixed = form(2, false, Some(BOARD));
+    mixed = mixed
+        .part("left", image(&views()[2].0, "l.png"))
+        .part("right", image(&small, "r.png"));
+    let p = problem(calibrate(&app, "", mixed).await, 422).await;
+    assert_names(&p, &["right[2]"]);
+
+    let blank = gray_png(320, 240, &[200; 320 * 240]);
+    let mut few = form(2, false, Some(BOARD));
+    few = few
+        .part("left", image(&blank, "l.png"))
+        .part("right", image(&views()[2].1, "r.png"));
+    let p = problem(calibrate(&app, "", few).await, 422).await;
+    assert!(message_for(&p, "left[2]").contains("board not found"));
+    assert!(message_for(&p, "left").contains("2 usable views"));
+}
