@@ -395,7 +395,18 @@ pub fn refine(
     let n = state.len();
     let dof = linear.residuals.saturating_sub(n).max(1) as f64;
     let sigma2 = linear.cost / dof;
-    let covariance = linear.jtj.clone().cholesky().map(|c| c.inverse() * sigma2);
+    // Cholesky when JᵀJ is well conditioned; else (a model whose coefficients trade off, as
+    // rational_polynomial's numerator and denominator do) the pseudo-inverse, which gives the
+    // poorly determined combinations a large variance instead of failing.
+    let covariance = match linear.jtj.clone().cholesky() {
+        Some(c) => Some(c.inverse() * sigma2),
+        None => linear
+            .jtj
+            .clone()
+            .pseudo_inverse(1e-12 * linear.jtj.diagonal().max())
+            .ok()
+            .map(|p| p * sigma2),
+    };
     let corners: usize = linear
         .views
         .iter()
