@@ -7,7 +7,7 @@
 //! - **light**: JSON answers that take microseconds of CPU and kilobytes of memory (`/distance`,
 //!   `/table`, `/chart-data`, `/rig`, …, the page at `/`);
 //! - **heavy**: image requests that take megabytes in, milliseconds to seconds of CPU and tens
-//!   of MB of memory each (`/depth-map`, `/match`; `/calibrate` and `/rectify` next).
+//!   of MB of memory each (`/depth-map`, `/match`, `/calibrate`; `/rectify` next).
 //!
 //! Each is a route group with its own body limit, timeout and concurrency limit; the heavy group
 //! also shares a memory budget. The probes are a third router that no limit touches.
@@ -24,9 +24,10 @@
 //!     `stereoRectify` (R1 R2 P1 P2 Q, `alpha`, ROIs), whose rectified rig is a `physics::Rig`.
 //!   - [`calibration`]: calibration files (Middlebury, KITTI, ROS, OpenCV) read into a checked
 //!     rig (`calibration::read`).
-//!   - [`calibrate`]: calibration from checkerboard images: the board, boards rendered with
-//!     exact corners, the sub-pixel corner refinement; next, the board finder, Zhang's first
-//!     guess, the Levenberg–Marquardt refinements and each parameter's deviation.
+//!   - [`calibrate`]: calibration from checkerboard images: the board, the board finder and
+//!     the sub-pixel corner refinement, Zhang's first guess, the Levenberg–Marquardt
+//!     refinements of each camera and of the pair with each parameter's deviation, and boards
+//!     rendered with exact corners.
 //!   - [`vision`]: the matcher, the heavy group's engine: its parameters checked by
 //!     `vision::Params::new` (the one set of defaults, and the search range's arithmetic),
 //!     census costs, SGM, refinement, `/match`'s correspondences, decoding and encoding.
@@ -40,7 +41,7 @@
 //!   [`api::wire`] ← [`api::validate`] ← [`api::images`] ← [`api::routes`]. The routes map
 //!   the pure constructors' faults onto field names and nothing more; [`api::images`] holds
 //!   what every image route shares (the form and its `ImagePair` extractor, the rig from a
-//!   part, the limits, the blocking work), which `/calibrate` and `/rectify` will use too.
+//!   part, the limits, the blocking work), which `/calibrate` and `/rectify` use too.
 //! - [`web`]: the calculator page at `/`, a client of the API, its assets embedded
 //!   (`src/web/`).
 //! - [`server`]: the route groups wrapped in their guards, the edge layers, the accept loop

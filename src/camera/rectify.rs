@@ -175,15 +175,20 @@ fn rectangles(
     const N: u32 = 9;
     let (mut ix0, mut ix1, mut iy0, mut iy1) = (f64::MIN, f64::MAX, f64::MIN, f64::MAX);
     let (mut ox0, mut ox1, mut oy0, mut oy1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
+    let mut inverted = 0;
     for y in 0..N {
         for x in 0..N {
             let pixel = [
                 f64::from(x) * f64::from(size.width - 1) / f64::from(N - 1),
                 f64::from(y) * f64::from(size.height - 1) / f64::from(N - 1),
             ];
-            let [px, py] = camera
-                .undistort_to(pixel, rotation, new_matrix)
-                .ok_or(RectifyFault::NotInvertible(side))?;
+            // A pixel the fitted distortion cannot invert (a model extrapolated past the
+            // corners the calibration saw) bounds nothing; OpenCV takes its 5 fixed-point
+            // iterations' guess instead.
+            let Some([px, py]) = camera.undistort_to(pixel, rotation, new_matrix) else {
+                continue;
+            };
+            inverted += 1;
             ox0 = ox0.min(px);
             ox1 = ox1.max(px);
             oy0 = oy0.min(py);
@@ -201,6 +206,9 @@ fn rectangles(
                 iy1 = iy1.min(py);
             }
         }
+    }
+    if inverted < N * N / 2 || [ix0, ix1, iy0, iy1].iter().any(|v| v.abs() == f64::MAX) {
+        return Err(RectifyFault::NotInvertible(side));
     }
     Ok(Rectangles {
         inner: [ix0, iy0, ix1 - ix0, iy1 - iy0],
@@ -273,16 +281,19 @@ pub fn stereo_rectify(
     .into_iter()
     .enumerate()
     {
-        let mut sum = [0.0; 2];
+        let (mut sum, mut count) = ([0.0; 2], 0.0);
+        // Image corners the distortion cannot invert are left out of the mean (see
+        // `rectangles`); a pair of opposite ones keeps the centre.
         for corner in [
             [0.0, 0.0],
+            [nx - 1.0, ny - 1.0],
             [nx - 1.0, 0.0],
             [0.0, ny - 1.0],
-            [nx - 1.0, ny - 1.0],
         ] {
-            let [x, y] = camera
-                .normalize(corner)
-                .ok_or(RectifyFault::NotInvertible(side))?;
+            let Some([x, y]) = camera.normalize(corner) else {
+                continue;
+            };
+            count += 1.0;
             let ray = rotation * Vector3::new(x, y, 1.0);
             if ray.z.abs() <= f64::EPSILON {
                 return Err(RectifyFault::Degenerate);
@@ -290,9 +301,12 @@ pub fn stereo_rectify(
             sum[0] += fc_new * ray.x / ray.z;
             sum[1] += fc_new * ray.y / ray.z;
         }
+        if count == 0.0 {
+            return Err(RectifyFault::NotInvertible(side));
+        }
         cc_new[k] = [
-            (nx - 1.0) / 2.0 - sum[0] / 4.0,
-            (ny - 1.0) / 2.0 - sum[1] / 4.0,
+            (nx - 1.0) / 2.0 - sum[0] / count,
+            (ny - 1.0) / 2.0 - sum[1] / count,
         ];
     }
     if options.zero_disparity {

@@ -18,6 +18,8 @@ use crate::calibrate::Board;
 /// Why a board was not found in an image.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Miss {
+    /// The image is smaller than [`MIN_SIDE`] pixels a side: too small to hold a board.
+    TooSmall,
     /// No grid of chessboard corners was found at all.
     NoGrid,
     /// A grid was found, but not the board's whole columns × rows.
@@ -34,6 +36,10 @@ pub enum Miss {
 impl std::fmt::Display for Miss {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
+            Miss::TooSmall => write!(
+                f,
+                "the image is smaller than {MIN_SIDE} pixels a side, too small to hold a board"
+            ),
             Miss::NoGrid => write!(f, "no chessboard corners were found"),
             Miss::Incomplete {
                 found,
@@ -51,8 +57,14 @@ impl std::fmt::Display for Miss {
     }
 }
 
+/// The smallest image side searched: three squares of a minimal board need more.
+pub const MIN_SIDE: usize = 32;
+
 /// The board's inner corners in `image`, in OpenCV's order, refined to sub-pixel.
 pub fn find_board(image: &Luma, board: &Board) -> Result<Vec<[f64; 2]>, Miss> {
+    if image.width < MIN_SIDE || image.height < MIN_SIDE {
+        return Err(Miss::TooSmall);
+    }
     let grid = detect_grid(image)?;
     let ordered = order(&grid, image, board)?;
     Ok(refine_all(image, &ordered)

@@ -203,7 +203,7 @@ pub fn refine(image: &Luma, start: [f64; 2], radius: f64) -> Option<Refined> {
         }
         (cost, res)
     };
-    let mut rows = Vec::new();
+    let (mut rows, mut trial_rows) = (Vec::new(), Vec::new());
     let (mut cost, mut res) = residuals(&theta, Some(&mut rows));
     let mut lambda = 1e-3;
     for _ in 0..30 {
@@ -229,11 +229,15 @@ pub fn refine(image: &Luma, start: [f64; 2], radius: f64) -> Option<Refined> {
                 next[i] += step[i];
             }
             next[4] = next[4].clamp(0.2, r);
-            let (c, _) = residuals(&next, None);
+            // The trial's Jacobian comes with its cost (the exponentials are shared), kept
+            // when the step is taken.
+            let (c, trial) = residuals(&next, Some(&mut trial_rows));
             if c < cost {
-                let small = step[0].abs().max(step[1].abs()) < 1e-5;
+                // A step under 10⁻⁴ px is a hundredth of the corners' error: converged.
+                let small = step[0].abs().max(step[1].abs()) < 1e-4;
                 theta = next;
-                (cost, res) = residuals(&theta, Some(&mut rows));
+                (cost, res) = (c, trial);
+                std::mem::swap(&mut rows, &mut trial_rows);
                 lambda = (lambda / 10.0).max(1e-9);
                 improved = !small;
                 break;

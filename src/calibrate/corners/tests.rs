@@ -212,7 +212,7 @@ fn a_symmetric_board_is_ordered_alike_in_both_cameras() {
 }
 
 /// A board of another size in the image is a miss that says what was found, not a
-/// wrong ordering; a blank image has no grid.
+/// wrong ordering; a blank image has no grid; an image too small to hold one is not searched.
 #[test]
 fn a_board_of_another_size_is_a_miss() {
     let pair = pair(Model::PlumbBob, &[-0.1, 0.02, 0.0, 0.0, 0.0], 800.0);
@@ -242,4 +242,8 @@ fn a_board_of_another_size_is_a_miss() {
     );
     let blank = Luma::from_u8(64, 48, &[200; 64 * 48]);
     assert_eq!(find_board(&blank, &board), Err(Miss::NoGrid));
+    for (w, h) in [(1, 1), (31, 200), (200, 2)] {
+        let tiny = Luma::from_u8(w, h, &vec![0; w * h]);
+        assert_eq!(find_board(&tiny, &board), Err(Miss::TooSmall), "{w} × {h}");
+    }
 }

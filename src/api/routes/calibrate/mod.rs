@@ -709,7 +709,14 @@ fn summarize(
     }
     let unit = settings.board.unit();
     let rig = rectification.and_then(|r| r.rig(unit).ok());
-    if stereo && rig.is_none() {
+    if stereo && rectification.is_none() {
+        warnings.push(
+            "the pair could not be rectified: the fitted distortion cannot be inverted over the \
+             image (show the board near the image's corners so that the distortion is measured \
+             there); no rectification or rig"
+                .to_owned(),
+        );
+    } else if stereo && rig.is_none() {
         warnings.push(
             "the cameras are one above the other: no horizontal rig for /distance".to_owned(),
         );

@@ -105,6 +105,7 @@ request! {
 /// The `multipart/form-data` parts of `/calibrate` (for the documentation: the handler reads
 /// the parts itself, to name each one in its errors).
 #[derive(ToSchema)]
+#[serde(deny_unknown_fields)]
 #[allow(dead_code)]
 pub struct CalibrateForm {
     /// The left camera's images, one part per view, in order (PNG or JPEG, one size).
