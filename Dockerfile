@@ -23,6 +23,9 @@ ENV CARGO_BUILD_TARGET=x86_64-unknown-linux-gnu \
     RUSTFLAGS="-C target-feature=+crt-static"
 # Build the dependencies alone first: this layer is reused until Cargo.toml or Cargo.lock change.
 COPY Cargo.toml Cargo.lock ./
+# The environment of the build (.cargo/config.toml) and the Swagger UI files it blanks.
+COPY .cargo ./.cargo
+COPY swagger-ui-trim ./swagger-ui-trim
 # The manifest names the bench targets, so their sources must exist for cargo to read it.
 COPY benches ./benches
 RUN mkdir src \
