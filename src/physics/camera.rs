@@ -26,6 +26,8 @@ pub enum Member {
     Cx,
     Cy,
     Doffs,
+    FocalLengthStdPx,
+    BaselineStd,
 }
 
 impl Member {
@@ -45,6 +47,8 @@ impl Member {
             Member::Cx => "cx",
             Member::Cy => "cy",
             Member::Doffs => "doffs",
+            Member::FocalLengthStdPx => "focal_length_std_px",
+            Member::BaselineStd => "baseline_std",
         }
     }
 }

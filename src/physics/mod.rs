@@ -18,7 +18,7 @@ mod camera;
 mod rig;
 
 pub use camera::{Camera, CameraSpec, DEFAULT_DISPARITY_ERROR_PX, Fault, Focal, MM_ALONE, Member};
-pub use rig::{Rig, RigSpec};
+pub use rig::{DepthErrorTerms, Rig, RigSpec};
 
 /// Relative depth error above which a measurement carries a [`Warning::LargeRelativeError`].
 pub const LARGE_RELATIVE_ERROR: f64 = 0.1;
@@ -263,6 +263,8 @@ pub struct Measurement {
     pub range: Option<f64>,
     pub distance_m: f64,
     pub depth_error: f64,
+    /// The depth error's terms: disparity, focal length, baseline.
+    pub depth_error_terms: DepthErrorTerms,
     pub relative_error: f64,
     pub normalized_x: Option<f64>,
     pub projection_factor: f64,
@@ -276,7 +278,15 @@ pub fn measure(rig: &Rig, c: Correspondence) -> Result<Measurement, PhysicsError
     let disparity_px = c.disparity_px;
     let effective_disparity_px = disparity_px + rig.doffs();
     let distance = rig.distance_at(disparity_px)?;
-    let depth_error = finite(rig.depth_error_at(distance))?;
+    let depth_error_terms = rig.depth_error_terms_at(distance);
+    for term in [
+        depth_error_terms.disparity,
+        depth_error_terms.focal_length,
+        depth_error_terms.baseline,
+    ] {
+        finite(term)?;
+    }
+    let depth_error = finite(depth_error_terms.total())?;
     let relative_error = finite(depth_error / distance)?;
     let x_left = c.x_left.or(rig.cx());
     let y = c.y.or(rig.cy());
@@ -304,6 +314,7 @@ pub fn measure(rig: &Rig, c: Correspondence) -> Result<Measurement, PhysicsError
         range,
         distance_m: finite(distance * rig.unit().metres())?,
         depth_error,
+        depth_error_terms,
         relative_error,
         normalized_x: x_left
             .and_then(|x| rig.normalized_x(x))
@@ -544,6 +555,47 @@ mod tests {
         assert!(close(m.distance, 10_000.0));
         assert!(close(m.depth_error, 500.0));
         assert!(close(m.relative_error, 0.05));
+    }
+
+    /// A calibration's σ_f and σ_B add their terms in quadrature: at Z = 10 m, f = 1000 px,
+    /// B = 100 mm, Δd = 0.5, σ_f = 20 px (2 %) and σ_B = 1 mm (1 %), the terms are 500, 200 and
+    /// 100 mm and σ_Z = √(500² + 200² + 100²).
+    #[test]
+    fn calibration_uncertainty_adds_its_terms() {
+        let mut s = spec(1000.0, 100.0);
+        s.focal_std_px = Some(20.0);
+        s.baseline_std = Some(1.0);
+        let r = build(&s);
+        let m = measure(&r, at(510.0, 500.0)).unwrap();
+        assert!(close(m.depth_error_terms.disparity, 500.0));
+        assert!(close(m.depth_error_terms.focal_length, 200.0));
+        assert!(close(m.depth_error_terms.baseline, 100.0));
+        assert!(close(m.depth_error, 300_000f64.sqrt()));
+        assert!(close(m.relative_error, 300_000f64.sqrt() / 10_000.0));
+        // Metres: the baseline's σ converts with the baseline, the terms stay the same share.
+        let metres = r.in_unit(LengthUnit::Metre);
+        assert!(close(metres.baseline_std(), 0.001));
+        assert!(close(metres.depth_error_at(10.0), 0.3f64.sqrt()));
+        // The relative error the calibration leaves is √(0.02² + 0.01²) at every distance, so a
+        // 2 % budget is reached where the disparity term is √(0.02² − 0.02² − 0.01²): nowhere.
+        assert!(close(r.calibration_relative_error(), 0.0005f64.sqrt()));
+        assert_eq!(r.distance_at_relative_error(0.02), None);
+        let z = r.distance_at_relative_error(0.05).unwrap();
+        assert!(close(r.relative_error_at(z), 0.05));
+    }
+
+    /// A σ must be finite and 0 or more, and each fault names its member.
+    #[test]
+    fn calibration_uncertainty_is_checked() {
+        let mut s = spec(1000.0, 100.0);
+        s.focal_std_px = Some(-1.0);
+        s.baseline_std = Some(f64::NAN);
+        let faults = Rig::new(&s).unwrap_err();
+        let names: Vec<_> = faults.iter().map(|f| f.member.name()).collect();
+        assert_eq!(names, ["focal_length_std_px", "baseline_std"]);
+        let without = measure(&rig(1000.0, 100.0), at(510.0, 500.0)).unwrap();
+        assert_eq!(without.depth_error_terms.focal_length, 0.0);
+        assert_eq!(without.depth_error_terms.baseline, 0.0);
     }
 
     /// The 3D point comes from the pinhole model around the principal point.

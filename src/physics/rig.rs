@@ -9,7 +9,8 @@ use crate::numbers::Num;
 use super::camera::{Camera, CameraSpec, Fault, Faults, Focal, Member, camera};
 use super::{LengthUnit, PhysicsError, Point3, field_of_view_deg, finite};
 
-/// A rig as stated, before it is checked: the camera, the baseline and the principal points.
+/// A rig as stated, before it is checked: the camera, the baseline and the principal points,
+/// and how well a calibration knows the focal length and the baseline.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct RigSpec {
     pub camera: CameraSpec,
@@ -17,6 +18,29 @@ pub struct RigSpec {
     pub cx: Option<f64>,
     pub cy: Option<f64>,
     pub doffs: Option<f64>,
+    /// σ of the focal length in pixels (default 0: known exactly).
+    pub focal_std_px: Option<f64>,
+    /// σ of the baseline in the rig's unit (default 0).
+    pub baseline_std: Option<f64>,
+}
+
+/// The depth error's three independent terms, each a standard deviation in the rig's unit:
+/// `σ_Z² = disparity² + focal_length² + baseline²`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DepthErrorTerms {
+    /// From the disparity's uncertainty: `Z²·σ_d / (f·B)`.
+    pub disparity: f64,
+    /// From the focal length's: `Z·σ_f / f`.
+    pub focal_length: f64,
+    /// From the baseline's: `Z·σ_B / B`.
+    pub baseline: f64,
+}
+
+impl DepthErrorTerms {
+    /// `σ_Z`, the terms added in quadrature.
+    pub fn total(&self) -> f64 {
+        self.disparity.hypot(self.focal_length).hypot(self.baseline)
+    }
 }
 
 impl RigSpec {
@@ -49,6 +73,8 @@ pub struct Rig {
     cx: Option<f64>,
     cy: Option<f64>,
     doffs: f64,
+    focal_std_px: f64,
+    baseline_std: f64,
 }
 
 impl Rig {
@@ -77,10 +103,22 @@ impl Rig {
         if !doffs.is_finite() {
             faults.add(Member::Doffs, "must be a finite number");
         }
+        let focal_std_px =
+            faults.non_negative(Member::FocalLengthStdPx, spec.focal_std_px.unwrap_or(0.0));
+        let baseline_std =
+            faults.non_negative(Member::BaselineStd, spec.baseline_std.unwrap_or(0.0));
         if let (Some(camera), Some(baseline)) = (&camera, baseline) {
             balanced(camera, baseline, &mut faults);
         }
-        let (Some(camera), Some(baseline), Some(cx), Some(cy)) = (camera, baseline, cx, cy) else {
+        let (
+            Some(camera),
+            Some(baseline),
+            Some(cx),
+            Some(cy),
+            Some(focal_std_px),
+            Some(baseline_std),
+        ) = (camera, baseline, cx, cy, focal_std_px, baseline_std)
+        else {
             return Err(faults.found);
         };
         if !faults.found.is_empty() {
@@ -92,6 +130,8 @@ impl Rig {
             cx,
             cy,
             doffs,
+            focal_std_px,
+            baseline_std,
         })
     }
 
@@ -113,6 +153,8 @@ impl Rig {
                 cx: camera.image_width.map(|w| w / 2.0),
                 cy: camera.image_height.map(|h| h / 2.0),
                 doffs: 0.0,
+                focal_std_px: 0.0,
+                baseline_std: 0.0,
             }),
             _ => Err(faults.found),
         }
@@ -126,6 +168,7 @@ impl Rig {
                 ..self.camera
             },
             baseline: self.camera.unit.convert(self.baseline, unit),
+            baseline_std: self.camera.unit.convert(self.baseline_std, unit),
             ..self
         }
     }
@@ -215,6 +258,38 @@ impl Rig {
         self.camera.disparity_error_px
     }
 
+    /// σ of the focal length in pixels, from a calibration (0 when not stated).
+    pub fn focal_std_px(&self) -> f64 {
+        self.focal_std_px
+    }
+    /// σ of the baseline in `unit`, from a calibration (0 when not stated).
+    pub fn baseline_std(&self) -> f64 {
+        self.baseline_std
+    }
+
+    /// The same rig with the calibration's standard deviations of the focal length (px) and
+    /// the baseline (in `unit`); refused unless each is finite and 0 or more.
+    pub fn with_calibration_std(
+        self,
+        focal_std_px: f64,
+        baseline_std: f64,
+    ) -> Result<Rig, Vec<Fault>> {
+        let mut faults = Faults {
+            found: Vec::new(),
+            unreadable: &[],
+        };
+        let focal = faults.non_negative(Member::FocalLengthStdPx, focal_std_px);
+        let baseline = faults.non_negative(Member::BaselineStd, baseline_std);
+        match (focal, baseline) {
+            (Some(focal_std_px), Some(baseline_std)) => Ok(Rig {
+                focal_std_px,
+                baseline_std,
+                ..self
+            }),
+            _ => Err(faults.found),
+        }
+    }
+
     /// `f_px·B`, the constant that turns an effective disparity into a depth.
     pub fn fb(&self) -> f64 {
         self.focal_px() * self.baseline
@@ -239,22 +314,43 @@ impl Rig {
         self.fb() / distance - self.doffs
     }
 
-    /// Depth error at `distance`: `ΔZ = Z²·Δd / (f_px·B)`.
-    pub fn depth_error_at(&self, distance: f64) -> f64 {
-        distance * distance * self.disparity_error_px() / self.fb()
+    /// The depth error's terms at `distance`: the disparity's `Z²·Δd / (f_px·B)`, the focal
+    /// length's `Z·σ_f / f` and the baseline's `Z·σ_B / B`.
+    pub fn depth_error_terms_at(&self, distance: f64) -> DepthErrorTerms {
+        DepthErrorTerms {
+            disparity: distance * distance * self.disparity_error_px() / self.fb(),
+            focal_length: distance * self.focal_std_px / self.focal_px(),
+            baseline: distance * self.baseline_std / self.baseline,
+        }
     }
 
-    /// Relative depth error `ΔZ / Z = Z·Δd / (f_px·B)` at `distance`.
+    /// Depth error at `distance`: `ΔZ = Z²·Δd / (f_px·B)`, or with a calibration's σ_f and
+    /// σ_B, `√((Z²·Δd/(f·B))² + (Z·σ_f/f)² + (Z·σ_B/B)²)`.
+    pub fn depth_error_at(&self, distance: f64) -> f64 {
+        self.depth_error_terms_at(distance).total()
+    }
+
+    /// Relative depth error `ΔZ / Z` at `distance`.
     pub fn relative_error_at(&self, distance: f64) -> f64 {
-        distance * self.disparity_error_px() / self.fb()
+        self.depth_error_at(distance) / distance
+    }
+
+    /// The relative error the calibration alone leaves at any distance: `√((σ_f/f)² + (σ_B/B)²)`.
+    pub fn calibration_relative_error(&self) -> f64 {
+        (self.focal_std_px / self.focal_px()).hypot(self.baseline_std / self.baseline)
     }
 
     /// The distance at which the relative error reaches `max_relative_error`:
-    /// `Z = r·f_px·B / Δd`. Closer points are better than `r`, farther ones worse. `None` when
-    /// `Δd` is zero (the error never grows) or the distance overflows.
+    /// `Z = r·f_px·B / Δd`, or with a calibration's σ, `Z = √(r² − c²)·f_px·B / Δd` where `c` is
+    /// [`Rig::calibration_relative_error`]. Closer points are better than `r`, farther ones
+    /// worse. `None` when `Δd` is zero (the error never grows), when the calibration alone
+    /// already reaches `r` (no distance is that good), or when the distance overflows.
     pub fn distance_at_relative_error(&self, max_relative_error: f64) -> Option<f64> {
-        let distance = max_relative_error * self.fb() / self.disparity_error_px();
-        (distance.is_finite() && self.disparity_error_px() > 0.0).then_some(distance)
+        let calibration = self.calibration_relative_error();
+        let room = (max_relative_error - calibration) * (max_relative_error + calibration);
+        let distance = room.max(0.0).sqrt() * self.fb() / self.disparity_error_px();
+        (distance.is_finite() && distance > 0.0 && self.disparity_error_px() > 0.0)
+            .then_some(distance)
     }
 
     /// The horizontal and vertical fields of view in degrees, for a principal point at the image

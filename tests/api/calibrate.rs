@@ -152,6 +152,33 @@ async fn calibrates_a_rendered_rig() {
     );
     assert_eq!(summary["image_width"], 320);
     assert_eq!(summary["rectification"]["alpha"], 0.0);
+
+    // The rig carries its σ, and goes to /distance as it is: the depth error then holds the
+    // calibration's terms, Z·σ_f/f and Z·σ_B/B.
+    assert_eq!(
+        summary["rig"]["focal_length_std_px"],
+        summary["rig_std"]["focal_length_px"]
+    );
+    assert_eq!(
+        summary["rig"]["baseline_std"],
+        summary["rig_std"]["baseline"]
+    );
+    let std_b = summary["rig_std"]["baseline"].as_f64().unwrap();
+    let mut request = summary["rig"].clone();
+    request["disparity_px"] = json!(20.0);
+    let answer = ok_json(app.post("/distance", &request).await).await;
+    let z = answer["distance"].as_f64().unwrap();
+    let terms = &answer["depth_error_terms"];
+    let close = |got: f64, want: f64| (got - want).abs() <= 1e-9 * want.max(1e-12);
+    assert!(
+        close(terms["focal_length"].as_f64().unwrap(), z * std_f / f),
+        "{terms}"
+    );
+    assert!(
+        close(terms["baseline"].as_f64().unwrap(), z * std_b / b),
+        "{terms}"
+    );
+    assert!(answer["depth_error"].as_f64().unwrap() > terms["disparity"].as_f64().unwrap());
 }
 
 /// The OpenCV file and the two ROS files, read back by `/calibration`, give the summary's rig.

@@ -322,6 +322,102 @@ async fn large_relative_error_warns() {
     assert_eq!(body["warnings"][0]["code"], "large_relative_error");
 }
 
+/// A rig with a calibration's σ (as `/calibrate` answers it) widens `depth_error` by the focal
+/// length's and the baseline's terms, over POST and GET alike, and breaks it down: at Z = 10 m
+/// (f = 1000 px, B = 100 mm, Δd = 0.5) σ_f = 20 px and σ_B = 1 mm add 200 and 100 mm to the
+/// disparity's 500 mm, in quadrature.
+#[tokio::test]
+async fn calibration_uncertainty_reaches_the_depth_error() {
+    let app = spawn_app().await;
+    let request = json!({"focal_length_px": 1000, "baseline": 100, "x_left": 510, "x_right": 500,
+                         "focal_length_std_px": 20, "baseline_std": 1,
+                         "image_width": 1000, "image_height": 800});
+    for body in [
+        ok_json(app.post("/distance", &request).await).await,
+        ok_json(app.get_with("/distance", &request).await).await,
+    ] {
+        assert_close(number_at(&body, "distance"), 10_000.0, "distance");
+        assert_close(
+            number_at(&body, "depth_error_terms.disparity"),
+            500.0,
+            "disparity term",
+        );
+        assert_close(
+            number_at(&body, "depth_error_terms.focal_length"),
+            200.0,
+            "focal term",
+        );
+        assert_close(
+            number_at(&body, "depth_error_terms.baseline"),
+            100.0,
+            "baseline term",
+        );
+        assert_close(
+            number_at(&body, "depth_error"),
+            300_000f64.sqrt(),
+            "depth_error",
+        );
+        assert_close(
+            number_at(&body, "relative_error"),
+            0.0547722557505,
+            "relative_error",
+        );
+    }
+    // Without them the breakdown still says where the error comes from: the disparity only.
+    let plain = ok_json(
+        app.post(
+            "/distance",
+            &json!({"focal_length_px": 1000, "baseline": 100, "x_left": 510, "x_right": 500,
+                    "image_width": 1000, "image_height": 800}),
+        )
+        .await,
+    )
+    .await;
+    assert_close(number_at(&plain, "depth_error"), 500.0, "depth_error");
+    assert_eq!(plain["depth_error_terms"]["focal_length"], 0.0);
+    assert_eq!(plain["depth_error_terms"]["baseline"], 0.0);
+    // A batch's rig takes them too, for every point.
+    let batch = ok_json(
+        app.post(
+            "/distance",
+            &json!({"rig": {"focal_length_px": 1000, "baseline": 100, "baseline_std": 1,
+                            "image_width": 1000, "image_height": 800},
+                    "points": [{"x_left": 510, "x_right": 500}, {"disparity_px": 20}]}),
+        )
+        .await,
+    )
+    .await;
+    assert_close(
+        number_at(&batch["results"][0], "depth_error_terms.baseline"),
+        100.0,
+        "batch 0",
+    );
+    assert_close(
+        number_at(&batch["results"][1], "depth_error_terms.baseline"),
+        50.0,
+        "batch 1",
+    );
+}
+
+/// A negative or non-numeric σ is a 422 naming each member.
+#[tokio::test]
+async fn calibration_uncertainty_is_checked() {
+    let app = spawn_app().await;
+    let body = problem(
+        app.post(
+            "/distance",
+            &json!({"focal_length_px": 1000, "baseline": 100, "x_left": 510, "x_right": 500,
+                    "focal_length_std_px": -2, "baseline_std": -1,
+                    "image_width": 1000, "image_height": 800}),
+        )
+        .await,
+        422,
+    )
+    .await;
+    assert_eq!(fields(&body), vec!["focal_length_std_px", "baseline_std"]);
+    assert!(message_for(&body, "baseline_std").contains("0 or more"));
+}
+
 /// Zero effective disparity (with doffs) is a 422 blaming the disparity inputs.
 #[tokio::test]
 async fn point_at_infinity_names_disparity_fields() {

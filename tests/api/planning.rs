@@ -110,6 +110,27 @@ async fn error_budget_distance_and_summary() {
     assert!(summary.starts_with("the relative depth error exceeds 0.1 % everywhere"));
 }
 
+/// A calibration's σ shrinks the budget's reach, Z = √(r² − c²)·f·B/Δd with c = σ_f/f here;
+/// a budget the calibration alone exceeds is a 422 that says so.
+#[tokio::test]
+async fn error_budget_counts_the_calibration() {
+    let app = spawn_app().await;
+    let mut request = reference_rig();
+    let f = request["focal_length_px"].as_f64().unwrap();
+    request["max_relative_error"] = json!(0.02);
+    request["focal_length_std_px"] = json!(0.012 * f);
+    let body = ok_json(app.post("/rig", &request).await).await;
+    assert_close(
+        number_at(&body["error_budget"], "distance"),
+        0.016 * 21_200.0 / 0.08,
+        "√(0.02² − 0.012²)·f·B/Δd",
+    );
+    request["focal_length_std_px"] = json!(0.03 * f);
+    let body = problem(app.post("/rig", &request).await, 422).await;
+    assert_eq!(fields(&body), vec!["max_relative_error"]);
+    assert!(message_for(&body, "max_relative_error").contains("calibration alone"));
+}
+
 /// doffs is honoured in both ends of the range, and a distance beyond the range is flagged.
 #[tokio::test]
 async fn doffs_shifts_the_range() {

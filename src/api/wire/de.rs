@@ -378,6 +378,15 @@ macro_rules! rig_request {
                 /// required).
                 #[schema(minimum = 0.0)]
                 cy: f64,
+                /// Standard deviation of `focal_length_px` in pixels, from a calibration
+                /// (`/calibrate` answers it as the rig's `focal_length_std_px`). With it,
+                /// `depth_error` adds the term Z·σ_f/f. Default 0.
+                #[schema(minimum = 0.0)]
+                focal_length_std_px: f64,
+                /// Standard deviation of `baseline` in `unit`, from a calibration. With it,
+                /// `depth_error` adds the term Z·σ_B/B. Default 0.
+                #[schema(minimum = 0.0)]
+                baseline_std: f64,
                 $($body)*
             }
         }
@@ -391,6 +400,8 @@ macro_rules! rig_request {
                     cx: self.cx,
                     cy: self.cy,
                     doffs: self.doffs,
+                    focal_std_px: self.focal_length_std_px,
+                    baseline_std: self.baseline_std,
                 }
             }
         }

@@ -42,6 +42,28 @@ impl From<&physics::Warning> for Warning {
     }
 }
 
+/// The depth error's terms, each a standard deviation in `unit`; `depth_error` is their
+/// quadrature sum √(disparity² + focal_length² + baseline²).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct DepthErrorTerms {
+    /// From the disparity's uncertainty Δd: Z²·Δd/(f·B).
+    pub disparity: f64,
+    /// From the focal length's σ (`focal_length_std_px`): Z·σ_f/f; 0 without it.
+    pub focal_length: f64,
+    /// From the baseline's σ (`baseline_std`): Z·σ_B/B; 0 without it.
+    pub baseline: f64,
+}
+
+impl From<physics::DepthErrorTerms> for DepthErrorTerms {
+    fn from(t: physics::DepthErrorTerms) -> Self {
+        Self {
+            disparity: t.disparity,
+            focal_length: t.focal_length,
+            baseline: t.baseline,
+        }
+    }
+}
+
 /// What one triangulated correspondence gives: the part of every distance answer that comes
 /// straight from the triangulation, the same in a single answer and in a batch.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
@@ -56,8 +78,12 @@ pub struct Measured {
     #[serde(skip_serializing_if = "Option::is_none")]
     #[schema(nullable = false)]
     pub range: Option<f64>,
-    /// Expected depth error ΔZ = Z²·Δd/(f·B), in `unit`.
+    /// Expected depth error (one standard deviation), in `unit`: ΔZ = Z²·Δd/(f·B), and with
+    /// a calibration's `focal_length_std_px` and `baseline_std`,
+    /// √((Z²·Δd/(f·B))² + (Z·σ_f/f)² + (Z·σ_B/B)²).
     pub depth_error: f64,
+    /// `depth_error`'s terms: what the disparity, the focal length and the baseline each add.
+    pub depth_error_terms: DepthErrorTerms,
     /// depth_error / distance.
     pub relative_error: f64,
     /// Disparity d = x_left − x_right, in pixels (signed).
@@ -77,6 +103,7 @@ impl From<&physics::Measurement> for Measured {
             distance: m.distance,
             range: m.range,
             depth_error: m.depth_error,
+            depth_error_terms: m.depth_error_terms.into(),
             relative_error: m.relative_error,
             disparity_px: m.disparity_px,
             point: m.point.map(Point::from),

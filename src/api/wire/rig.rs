@@ -49,6 +49,14 @@ pub struct CalibratedRig {
     #[serde(skip_serializing_if = "Option::is_none")]
     #[schema(nullable = false)]
     pub image_height: Option<u32>,
+    /// σ of `focal_length_px` in pixels, when a calibration estimated it (`/calibrate`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub focal_length_std_px: Option<f64>,
+    /// σ of `baseline` in `unit`, when a calibration estimated it (`/calibrate`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub baseline_std: Option<f64>,
 }
 
 impl From<&Rig> for CalibratedRig {
@@ -65,6 +73,8 @@ impl From<&Rig> for CalibratedRig {
             doffs: rig.doffs(),
             image_width: rig.image_width().map(|w| w as u32),
             image_height: rig.image_height().map(|h| h as u32),
+            focal_length_std_px: (rig.focal_std_px() > 0.0).then_some(rig.focal_std_px()),
+            baseline_std: (rig.baseline_std() > 0.0).then_some(rig.baseline_std()),
         }
     }
 }

@@ -708,7 +708,12 @@ fn summarize(
         ));
     }
     let unit = settings.board.unit();
-    let rig = rectification.and_then(|r| r.rig(unit).ok());
+    // The rig carries its σ, so that it can be sent to `/distance` as it is.
+    let rig = rectification.and_then(|r| r.rig(unit).ok()).map(|rig| {
+        rig_std
+            .and_then(|[f, b]| rig.with_calibration_std(f, b).ok())
+            .unwrap_or(rig)
+    });
     if stereo && rectification.is_none() {
         warnings.push(
             "the pair could not be rectified: the fitted distortion cannot be inverted over the \

@@ -92,6 +92,7 @@ impl QueryForm for DistanceRequest {}
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
 #[schema(example = json!({
     "distance": 105.0, "range": 105.0, "unit": "mm", "distance_m": 0.105, "depth_error": 1.05,
+    "depth_error_terms": {"disparity": 1.05, "focal_length": 0.0, "baseline": 0.0},
     "relative_error": 0.01, "disparity_error_px": 0.5, "disparity_px": 50.0,
     "effective_disparity_px": 50.0, "focal_length_px": 35.0, "baseline": 150.0,
     "normalized_x": 0.0, "projection_factor": 0.23333333333333334,

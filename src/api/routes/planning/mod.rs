@@ -139,6 +139,18 @@ fn rig(
              relative error is 0 at every distance",
         );
     }
+    if let (Some(Some(budget)), Some(r)) = (max_relative_error, rig)
+        && r.calibration_relative_error() >= budget
+    {
+        problems.add(
+            "max_relative_error",
+            format!(
+                "cannot be met at any distance: the calibration alone (focal_length_std_px, \
+                 baseline_std) gives a relative error of {}; allow more, or calibrate better",
+                Num(r.calibration_relative_error())
+            ),
+        );
+    }
     let (rig, ((min_disparity, max_disparity), distances)) =
         problems.finish(rig.zip(min_disparity.zip(max_disparity).zip(distances)))?;
     let max_relative_error = max_relative_error.flatten();
