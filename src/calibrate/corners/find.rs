@@ -65,13 +65,66 @@ pub fn find_board(image: &Luma, board: &Board) -> Result<Vec<[f64; 2]>, Miss> {
     if image.width < MIN_SIDE || image.height < MIN_SIDE {
         return Err(Miss::TooSmall);
     }
-    let grid = detect_grid(image)?;
-    let ordered = order(&grid, image, board)?;
-    Ok(refine_all(image, &ordered)
+    let factor = image.width.max(image.height).div_ceil(DETECTION_SIDE);
+    let ordered = match factor {
+        0 | 1 => order(&detect_grid(image)?, image, board)?,
+        _ => {
+            // A large image is searched at a size where its corners are sharp for the
+            // detector's fixed ring, and found there in a fraction of the time; a board
+            // too small for that is searched at full size.
+            let small = shrink(image, factor);
+            match detect_grid(&small).and_then(|grid| order(&grid, &small, board)) {
+                Ok(points) => {
+                    let k = factor as f64;
+                    let centre = (k - 1.0) / 2.0;
+                    refined(&small, &points)
+                        .iter()
+                        .map(|p| [p[0] * k + centre, p[1] * k + centre])
+                        .collect()
+                }
+                Err(_) => order(&detect_grid(image)?, image, board)?,
+            }
+        }
+    };
+    Ok(refined(image, &ordered))
+}
+
+/// The longest side the detector searches; a larger image is shrunk by a whole factor first.
+pub const DETECTION_SIDE: usize = 1280;
+
+/// Each point refined, or kept where the refinement finds no corner.
+fn refined(image: &Luma, points: &[[f64; 2]]) -> Vec<[f64; 2]> {
+    refine_all(image, points)
         .into_iter()
-        .zip(&ordered)
+        .zip(points)
         .map(|(refined, start)| refined.map_or(*start, |r| r.point))
-        .collect())
+        .collect()
+}
+
+/// The image shrunk by `factor` in each direction, each pixel the mean of a `factor` ×
+/// `factor` block (the right and bottom remainders dropped). Pixel (i, j) of the result is
+/// centred on (i·factor + (factor − 1)/2, j·factor + (factor − 1)/2) of the image.
+fn shrink(image: &Luma, factor: usize) -> Luma {
+    let (width, height) = (image.width / factor, image.height / factor);
+    let mut data = vec![0.0f32; width * height];
+    for j in 0..height {
+        let out = &mut data[j * width..(j + 1) * width];
+        for row in image.data[j * factor * image.width..]
+            .chunks(image.width)
+            .take(factor)
+        {
+            for (value, block) in out.iter_mut().zip(row.chunks_exact(factor)) {
+                *value += block.iter().sum::<f32>();
+            }
+        }
+    }
+    let area = (factor * factor) as f32;
+    data.iter_mut().for_each(|v| *v /= area);
+    Luma {
+        width,
+        height,
+        data,
+    }
 }
 
 /// The detector's labelled corners: a dense table `position[v][u]` over the grid's extent.
@@ -292,4 +345,23 @@ fn patch_mean(image: &Luma, centre: [f64; 2]) -> Option<f64> {
         }
     }
     Some(sum / 9.0)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Shrinking averages whole blocks and drops the remainders: a 5 × 3 ramp by 2 is 2 × 1,
+    /// each pixel the mean of its 2 × 2 block.
+    #[test]
+    fn shrink_averages_blocks() {
+        let image = Luma {
+            width: 5,
+            height: 3,
+            data: (0..15).map(|v| v as f32).collect(),
+        };
+        let small = shrink(&image, 2);
+        assert_eq!((small.width, small.height), (2, 1));
+        assert_eq!(small.data, vec![3.0, 5.0]);
+    }
 }

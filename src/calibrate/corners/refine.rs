@@ -14,6 +14,9 @@ use super::Luma;
 /// brightness slopes gx, gy.
 const P: usize = 9;
 
+/// The widest window a blurred corner is fitted in, in pixels (a σ of 10 px).
+pub const MAX_WINDOW: f64 = 30.0;
+
 /// What a refinement gives.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Refined {
@@ -271,6 +274,12 @@ pub fn refine(image: &Luma, start: [f64; 2], radius: f64) -> Option<Refined> {
 /// Refines every corner of one board found near `points`, each with a window of half the
 /// distance to its nearest neighbour (3 to 8 px): wide enough for the edges, narrow enough
 /// that no other corner enters it on small or steeply tilted squares.
+///
+/// A blurred corner needs a wider window: within about 2σ of it the blurred corner is a
+/// smooth saddle, and a saddle shifted sideways is the same saddle on a brightness slope, so
+/// the corner's position and the light's slope cannot be told apart. When the fitted blur is
+/// over a third of the window and the squares leave room, the corner is fitted again in a
+/// window of 3σ (up to half the distance to the nearest corner, and [`MAX_WINDOW`]).
 pub fn refine_all(image: &Luma, points: &[[f64; 2]]) -> Vec<Option<Refined>> {
     points
         .iter()
@@ -282,7 +291,14 @@ pub fn refine_all(image: &Luma, points: &[[f64; 2]]) -> Vec<Option<Refined>> {
                 .filter(|&(i, _)| i != k)
                 .map(|(_, o)| (o[0] - p[0]).hypot(o[1] - p[1]))
                 .fold(f64::INFINITY, f64::min);
-            refine(image, *p, (0.5 * nearest).clamp(3.0, 8.0))
+            let room = 0.5 * nearest;
+            let window = room.clamp(3.0, 8.0);
+            let first = refine(image, *p, window)?;
+            let wanted = (3.0 * first.blur).min(room).min(MAX_WINDOW);
+            if wanted <= window {
+                return Some(first);
+            }
+            Some(refine(image, first.point, wanted).unwrap_or(first))
         })
         .collect()
 }

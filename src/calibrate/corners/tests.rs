@@ -247,3 +247,79 @@ fn a_board_of_another_size_is_a_miss() {
         assert_eq!(find_board(&tiny, &board), Err(Miss::TooSmall), "{w} × {h}");
     }
 }
+
+/// A corner blurred by σ 4 px is fitted again in a window of 3σ: in the 8 px window alone a
+/// blurred corner's shift looks like a slope of the light, and the median error was 0.07 px
+/// on these boards; with the wider window it stays within 0.05 px.
+#[test]
+fn a_heavily_blurred_corner_is_fitted_in_a_wider_window() {
+    let pair = pair(Model::PlumbBob, &[-0.2, 0.08, 0.0, 0.0, 0.0], 800.0);
+    let style = Style {
+        blur: 4.0,
+        noise: 2.0,
+        seed: 5,
+        ..Style::default()
+    };
+    let (median, p95, failed) = errors(&pair, &style, 3, 13);
+    eprintln!("blur 4 px: median {median:.4} px, p95 {p95:.4} px, failed {failed}");
+    assert!(median <= 0.05, "median {median}");
+    assert_eq!(failed, 0);
+}
+
+/// A 1920 × 1080 image is searched at half size and refined at full size: the whole board
+/// is found in OpenCV's order, with the median corner within 0.05 px of the truth.
+#[test]
+fn a_large_image_is_searched_shrunk_and_refined_at_full_size() {
+    let size = Size {
+        width: 1920,
+        height: 1080,
+    };
+    assert_eq!(size.width.div_ceil(super::find::DETECTION_SIDE as u32), 2);
+    let camera = Camera::new(
+        Intrinsics {
+            fx: 2300.0,
+            fy: 2300.0,
+            cx: 955.0,
+            cy: 545.0,
+        },
+        Distortion::new(Model::PlumbBob, &[-0.2, 0.08, 0.0, 0.0, 0.0]).unwrap(),
+    )
+    .unwrap();
+    let pair = StereoPair {
+        left: camera,
+        right: camera,
+        rotation: Rotation3::identity(),
+        translation: Vector3::new(-120.0, 0.0, 0.0),
+    };
+    let board = Board::new(9, 6, 25.0, LengthUnit::Millimetre).unwrap();
+    let style = Style {
+        blur: 2.0,
+        supersampling: 2,
+        ..Style::default()
+    };
+    let found = poses(&pair, size, &board, 1, 40.0, 3);
+    let mut errors = Vec::new();
+    for view in stereo_views(&pair, size, &board, &found, &style) {
+        for (image, truth) in [
+            (view.left, view.left_corners),
+            (view.right, view.right_corners),
+        ] {
+            let luma = Luma::from_u8(image.width as usize, image.height as usize, &image.pixels);
+            let corners = find_board(&luma, &board).unwrap();
+            assert!(worst_error(&corners, &truth) < 0.3);
+            errors.extend(
+                corners
+                    .iter()
+                    .zip(&truth)
+                    .map(|(c, t)| (c[0] - t[0]).hypot(c[1] - t[1])),
+            );
+        }
+    }
+    errors.sort_by(f64::total_cmp);
+    let median = errors[errors.len() / 2];
+    eprintln!(
+        "1920 x 1080: median {median:.4} px over {} corners",
+        errors.len()
+    );
+    assert!(median <= 0.05, "median {median}");
+}
