@@ -1,8 +1,9 @@
 //! Corner finding at camera resolutions: renders stereo checkerboards of any size, blur, noise
 //! and contrast with exact corners, runs `calibrate::corners::find_board` on every left image
 //! and prints how many boards were found, the median / p95 error against the truth and the time
-//! per image; with an output folder it also writes the images and their truth, for
-//! `scripts/corner_sizes.py` to run OpenCV on the same files.
+//! per image; with an output folder it also writes both cameras' images and the left truth, for
+//! `scripts/corner_sizes.py` to run OpenCV on the same files and for `POST /calibrate` (the rig:
+//! fx = fy = 1.25 × WIDTH at the image centre, k1 −0.2, k2 0.08, |T| 120 mm, R = I).
 //!
 //! ```sh
 //! cargo run --release --example corner_sizes -- WIDTH HEIGHT BLUR NOISE BLACK WHITE VIEWS [OUT_DIR]
@@ -103,10 +104,12 @@ fn run() -> Result<(), String> {
         }
         if let Some(o) = &out {
             std::fs::create_dir_all(o).map_err(|e| e.to_string())?;
-            image::GrayImage::from_raw(v.left.width, v.left.height, v.left.pixels.clone())
-                .ok_or("image buffer")?
-                .save(format!("{o}/left_{i:02}.png"))
-                .map_err(|e| e.to_string())?;
+            for (side, img) in [("left", &v.left), ("right", &v.right)] {
+                image::GrayImage::from_raw(img.width, img.height, img.pixels.clone())
+                    .ok_or("image buffer")?
+                    .save(format!("{o}/{side}_{i:02}.png"))
+                    .map_err(|e| e.to_string())?;
+            }
             let truth = serde_json::to_string(&v.left_corners).map_err(|e| e.to_string())?;
             std::fs::write(format!("{o}/truth_{i:02}.json"), truth).map_err(|e| e.to_string())?;
         }
