@@ -75,6 +75,8 @@ pub fn find_board(image: &Luma, board: &Board) -> Result<Vec<[f64; 2]>, Miss> {
             let small = shrink(image, factor);
             match detect_grid(&small).and_then(|grid| order(&grid, &small, board)) {
                 Ok(points) => {
+                    // Refined on the small image first, so that the full-size fit starts
+                    // a fraction of a pixel off, not the detector's error times `factor`.
                     let k = factor as f64;
                     let centre = (k - 1.0) / 2.0;
                     refined(&small, &points)
