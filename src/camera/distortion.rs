@@ -286,6 +286,89 @@ impl Distortion {
         (residual < 1e-9).then_some(p)
     }
 
+    /// The ideal point as OpenCV's `undistortPoints` finds it with its default criteria, so
+    /// that `stereoRectify` and its rectangles come out as OpenCV's do: for the Brown models 5
+    /// fixed-point steps `x = (x_d − Δ(x)) / radial(x)` (giving up at a negative radial term,
+    /// as OpenCV does), for the fisheye Newton on θ for at most 10 steps or until the step is
+    /// below 1e-8. Not the exact inverse: [`Distortion::undistort`] is.
+    pub fn undistort_as_opencv(&self, target: [f64; 2]) -> Option<[f64; 2]> {
+        let [x0, y0] = target;
+        let [k1, k2, p1, p2, k3, k4, k5, k6] = self.coefficients;
+        let out = match self.model {
+            Model::PlumbBob | Model::RationalPolynomial => {
+                let (mut x, mut y) = (x0, y0);
+                for _ in 0..5 {
+                    let r2 = x * x + y * y;
+                    let icdist = (1.0 + ((k6 * r2 + k5) * r2 + k4) * r2)
+                        / (1.0 + ((k3 * r2 + k2) * r2 + k1) * r2);
+                    if icdist < 0.0 {
+                        (x, y) = (x0, y0);
+                        break;
+                    }
+                    let dx = 2.0 * p1 * x * y + p2 * (r2 + 2.0 * x * x);
+                    let dy = p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * x * y;
+                    x = (x0 - dx) * icdist;
+                    y = (y0 - dy) * icdist;
+                }
+                [x, y]
+            }
+            Model::Equidistant => {
+                let [k1, k2, k3, k4, ..] = self.coefficients;
+                let theta_d = x0.hypot(y0);
+                if theta_d <= 1e-8 {
+                    return Some(target);
+                }
+                let mut theta = theta_d;
+                for _ in 0..10 {
+                    let t2 = theta * theta;
+                    let fix = (theta * (1.0 + t2 * (k1 + t2 * (k2 + t2 * (k3 + t2 * k4))))
+                        - theta_d)
+                        / (1.0
+                            + t2 * (3.0 * k1 + t2 * (5.0 * k2 + t2 * (7.0 * k3 + 9.0 * t2 * k4))));
+                    theta -= fix;
+                    if fix.abs() < 1e-8 {
+                        break;
+                    }
+                }
+                if theta.abs() >= std::f64::consts::FRAC_PI_2 || theta < 0.0 {
+                    return None;
+                }
+                let scale = theta.tan() / theta_d;
+                [x0 * scale, y0 * scale]
+            }
+        };
+        (out[0].is_finite() && out[1].is_finite()).then_some(out)
+    }
+
+    /// The distorted point alone, without derivatives: what a rectification map evaluates
+    /// for every pixel.
+    #[inline]
+    pub fn apply(&self, x: f64, y: f64) -> [f64; 2] {
+        let [k1, k2, p1, p2, k3, k4, k5, k6] = self.coefficients;
+        match self.model {
+            Model::PlumbBob | Model::RationalPolynomial => {
+                let (x2, y2) = (x * x, y * y);
+                let r2 = x2 + y2;
+                let xy2 = 2.0 * x * y;
+                let kr = (1.0 + ((k3 * r2 + k2) * r2 + k1) * r2)
+                    / (1.0 + ((k6 * r2 + k5) * r2 + k4) * r2);
+                [
+                    x * kr + p1 * xy2 + p2 * (r2 + 2.0 * x2),
+                    y * kr + p1 * (r2 + 2.0 * y2) + p2 * xy2,
+                ]
+            }
+            Model::Equidistant => {
+                let [k1, k2, k3, k4, ..] = self.coefficients;
+                let r = (x * x + y * y).sqrt();
+                let theta = r.atan();
+                let t2 = theta * theta;
+                let theta_d = theta * (1.0 + t2 * (k1 + t2 * (k2 + t2 * (k3 + t2 * k4))));
+                let scale = if r == 0.0 { 1.0 } else { theta_d / r };
+                [x * scale, y * scale]
+            }
+        }
+    }
+
     /// The fisheye inverse: Newton on θ alone (θ_d = |target|), as OpenCV's fisheye does.
     fn undistort_equidistant(&self, target: [f64; 2]) -> Option<[f64; 2]> {
         let [k1, k2, k3, k4, ..] = self.coefficients;

@@ -6,12 +6,15 @@
 //! - [`distortion`]: the models, their Jacobians and their inverses.
 //! - [`pinhole`]: one camera, K and its distortion, pixels to rays and back.
 //! - [`rectify`]: the pair and `stereoRectify` (R1 R2 P1 P2 Q, `alpha`, ROIs).
+//! - [`maps`]: `initUndistortRectifyMap`: for each rectified pixel, the raw one it comes from.
 
 pub mod distortion;
+pub mod maps;
 pub mod pinhole;
 pub mod rectify;
 
 pub use distortion::{Distorted, Distortion, DistortionFault, Model};
+pub use maps::{Map, undistort_rectify_map};
 pub use pinhole::{Camera, CameraFault, Intrinsics};
 pub use rectify::{
     Options, Rectification, RectifyFault, RigFault, Roi, Side, Size, StereoPair, stereo_rectify,

@@ -109,6 +109,14 @@ impl Camera {
             .undistort([(pixel[0] - k.cx) / k.fx, (pixel[1] - k.cy) / k.fy])
     }
 
+    /// The normalized point OpenCV's `undistortPoints` gives for a pixel with its default
+    /// criteria ([`Distortion::undistort_as_opencv`]).
+    pub fn normalize_as_opencv(&self, pixel: [f64; 2]) -> Option<[f64; 2]> {
+        let k = self.intrinsics;
+        self.distortion
+            .undistort_as_opencv([(pixel[0] - k.cx) / k.fx, (pixel[1] - k.cy) / k.fy])
+    }
+
     /// OpenCV's `undistortPoints` with `R` and `P`: the pixel in a new (rectified) camera
     /// whose rotation from this one is `rotation` and whose matrix is `new_matrix`.
     pub fn undistort_to(

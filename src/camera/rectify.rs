@@ -9,6 +9,7 @@ use std::fmt;
 
 use nalgebra::{Matrix3, Matrix3x4, Matrix4, Rotation3, Vector3};
 
+use super::distortion::Model;
 use super::pinhole::Camera;
 use crate::physics::{Fault, LengthUnit, Rig, RigSpec};
 
@@ -182,10 +183,11 @@ fn rectangles(
                 f64::from(x) * f64::from(size.width - 1) / f64::from(N - 1),
                 f64::from(y) * f64::from(size.height - 1) / f64::from(N - 1),
             ];
-            // A pixel the fitted distortion cannot invert (a model extrapolated past the
-            // corners the calibration saw) bounds nothing; OpenCV takes its 5 fixed-point
-            // iterations' guess instead.
-            let Some([px, py]) = camera.undistort_to(pixel, rotation, new_matrix) else {
+            // OpenCV's guess for the pixel (5 fixed-point steps), so that the rectangles and
+            // the scale are OpenCV's; a pixel even that leaves undefined bounds nothing.
+            let Some([px, py]) =
+                project_ray(camera.normalize_as_opencv(pixel), rotation, new_matrix)
+            else {
                 continue;
             };
             inverted += 1;
@@ -216,12 +218,26 @@ fn rectangles(
     })
 }
 
-/// Rectifies a stereo pair whose raw images are `size`, as OpenCV's `stereoRectify` does.
-///
-/// Differences from OpenCV, each toward the exact answer: raw pixels are undistorted to
-/// convergence (OpenCV stops after 5 fixed-point iterations), and the equidistant model is
-/// rectified by the same Bouguet construction with its own undistortion (OpenCV's
-/// `fisheye::stereoRectify` scales by `balance` instead).
+/// The pixel in a new camera (`rotation`, `new_matrix`) of a raw camera's normalized point.
+fn project_ray(
+    normalized: Option<[f64; 2]>,
+    rotation: &Matrix3<f64>,
+    new_matrix: &Matrix3<f64>,
+) -> Option<[f64; 2]> {
+    let [x, y] = normalized?;
+    let ray = rotation * Vector3::new(x, y, 1.0);
+    if ray.z <= f64::EPSILON {
+        return None;
+    }
+    let p = new_matrix * (ray / ray.z);
+    (p.x.is_finite() && p.y.is_finite()).then_some([p.x, p.y])
+}
+
+/// Rectifies a stereo pair whose raw images are `size` as OpenCV does: `stereoRectify` for
+/// the Brown models, `fisheye::stereoRectify` (with `alpha` as its `balance`) when both
+/// cameras are equidistant. Raw pixels are undistorted as OpenCV's `undistortPoints` does
+/// with its default criteria, so that R1 R2 P1 P2 Q equal OpenCV's to about 1e-8; the
+/// fisheye ROIs, which OpenCV does not give, come from the same grid as the others.
 pub fn stereo_rectify(
     pair: &StereoPair,
     size: Size,
@@ -245,7 +261,14 @@ pub fn stereo_rectify(
     let half = Rotation3::from_scaled_axis(pair.rotation.scaled_axis() * -0.5);
     let r_r = *half.matrix();
     let t = r_r * pair.translation;
-    let idx = if t.x.abs() > t.y.abs() { 0 } else { 1 };
+    let fisheye = pair.left.distortion().model() == Model::Equidistant
+        && pair.right.distortion().model() == Model::Equidistant;
+    // OpenCV's fisheye rectification is horizontal only.
+    let idx = if fisheye || t.x.abs() > t.y.abs() {
+        0
+    } else {
+        1
+    };
     let c = t[idx];
     let mut uu = Vector3::zeros();
     uu[idx] = if c > 0.0 { 1.0 } else { -1.0 };
@@ -259,6 +282,9 @@ pub fn stereo_rectify(
     let r1 = w_r * r_r.transpose();
     let r2 = w_r * r_r;
     let t = r2 * pair.translation;
+    if fisheye {
+        return fisheye_projections(pair, size, new_size, options, [r1, r2], t);
+    }
 
     let (nx, ny) = (f64::from(size.width), f64::from(size.height));
     let ratio = if idx == 1 {
@@ -290,7 +316,7 @@ pub fn stereo_rectify(
             [nx - 1.0, 0.0],
             [0.0, ny - 1.0],
         ] {
-            let Some([x, y]) = camera.normalize(corner) else {
+            let Some([x, y]) = camera.normalize_as_opencv(corner) else {
                 continue;
             };
             count += 1.0;
@@ -298,8 +324,9 @@ pub fn stereo_rectify(
             if ray.z.abs() <= f64::EPSILON {
                 return Err(RectifyFault::Degenerate);
             }
-            sum[0] += fc_new * ray.x / ray.z;
-            sum[1] += fc_new * ray.y / ray.z;
+            // OpenCV projects these corners into single-precision points.
+            sum[0] += f64::from((fc_new * ray.x / ray.z) as f32);
+            sum[1] += f64::from((fc_new * ray.y / ray.z) as f32);
         }
         if count == 0.0 {
             return Err(RectifyFault::NotInvertible(side));
@@ -425,6 +452,149 @@ pub fn stereo_rectify(
         roi_right,
         size: new_size,
         vertical: idx == 1,
+    })
+}
+
+/// The new camera matrix (fx, fy, cx, cy) of one fisheye camera as OpenCV's
+/// `fisheye::estimateNewCameraMatrixForUndistortRectify` makes it (`fov_scale` 1): the
+/// middles of the image's sides undistorted and rotated, and a focal length between the one
+/// that keeps them all (`balance` 1) and the one that fills the image (`balance` 0).
+fn fisheye_new_matrix(
+    camera: &Camera,
+    size: Size,
+    rotation: &Matrix3<f64>,
+    balance: f64,
+    new_size: Size,
+) -> [f64; 4] {
+    let (w, h) = (size.width, size.height);
+    let k = camera.intrinsics();
+    let aspect = k.fx / k.fy;
+    let mut points = [
+        [f64::from(w / 2), 0.0],
+        [f64::from(w), f64::from(h / 2)],
+        [f64::from(w / 2), f64::from(h)],
+        [0.0, f64::from(h / 2)],
+    ];
+    for p in &mut points {
+        // OpenCV marks a point it cannot undistort at (−1e6, −1e6).
+        *p = match camera.normalize_as_opencv(*p) {
+            Some([x, y]) => {
+                let r = rotation * Vector3::new(x, y, 1.0);
+                [r.x / r.z, r.y / r.z]
+            }
+            None => [-1e6, -1e6],
+        };
+        p[1] *= aspect;
+    }
+    let cn = [
+        points.iter().map(|p| p[0]).sum::<f64>() / 4.0,
+        points.iter().map(|p| p[1]).sum::<f64>() / 4.0,
+    ];
+    let (mut minx, mut miny, mut maxx, mut maxy) = (f64::MAX, f64::MAX, f64::MIN, f64::MIN);
+    for p in &points {
+        minx = minx.min(p[0]);
+        maxx = maxx.max(p[0]);
+        miny = miny.min(p[1]);
+        maxy = maxy.max(p[1]);
+    }
+    let (wf, hf) = (f64::from(w), f64::from(h));
+    let fs = [
+        wf * 0.5 / (cn[0] - minx),
+        wf * 0.5 / (maxx - cn[0]),
+        hf * 0.5 * aspect / (cn[1] - miny),
+        hf * 0.5 * aspect / (maxy - cn[1]),
+    ];
+    let fmin = fs.iter().copied().fold(f64::MAX, f64::min);
+    let fmax = fs.iter().copied().fold(f64::MIN, f64::max);
+    let f = balance * fmin + (1.0 - balance) * fmax;
+    let (mut fx, mut fy) = (f, f / aspect);
+    let (mut cx, mut cy) = (
+        -cn[0] * f + wf * 0.5,
+        (-cn[1] * f + hf * aspect * 0.5) / aspect,
+    );
+    if new_size != size {
+        let rx = f64::from(new_size.width) / wf;
+        let ry = f64::from(new_size.height) / hf;
+        fx *= rx;
+        fy *= ry;
+        cx *= rx;
+        cy *= ry;
+    }
+    [fx, fy, cx, cy]
+}
+
+/// P1, P2, Q and the ROIs of two fisheye cameras as OpenCV's `fisheye::stereoRectify`
+/// makes them, `alpha` as its `balance`.
+fn fisheye_projections(
+    pair: &StereoPair,
+    size: Size,
+    new_size: Size,
+    options: Options,
+    [r1, r2]: [Matrix3<f64>; 2],
+    t: Vector3<f64>,
+) -> Result<Rectification, RectifyFault> {
+    let k1 = fisheye_new_matrix(&pair.left, size, &r1, options.alpha, new_size);
+    let k2 = fisheye_new_matrix(&pair.right, size, &r2, options.alpha, new_size);
+    let fc_new = k1[1].min(k2[1]);
+    let mut cc = [[k1[2], k1[3]], [k2[2], k2[3]]];
+    if options.zero_disparity {
+        let mean = [(cc[0][0] + cc[1][0]) * 0.5, (cc[0][1] + cc[1][1]) * 0.5];
+        cc = [mean, mean];
+    } else {
+        let mean = (cc[0][1] + cc[1][1]) * 0.5;
+        cc[0][1] = mean;
+        cc[1][1] = mean;
+    }
+    if !(fc_new.is_finite() && fc_new > 0.0 && cc.iter().flatten().all(|v| v.is_finite())) {
+        return Err(RectifyFault::Degenerate);
+    }
+    let matrix = |c: [f64; 2]| Matrix3::new(fc_new, 0.0, c[0], 0.0, fc_new, c[1], 0.0, 0.0, 1.0);
+    let roi = |camera: &Camera, rotation: &Matrix3<f64>, c: [f64; 2], side| {
+        let rect = rectangles(camera, rotation, &matrix(c), size, side)?;
+        Ok(Roi {
+            x: rect.inner[0].ceil() as i64,
+            y: rect.inner[1].ceil() as i64,
+            width: rect.inner[2].floor() as i64,
+            height: rect.inner[3].floor() as i64,
+        }
+        .within(new_size.width, new_size.height))
+    };
+    let roi_left = roi(&pair.left, &r1, cc[0], Side::Left)?;
+    let roi_right = roi(&pair.right, &r2, cc[1], Side::Right)?;
+    let mut p1 = Matrix3x4::zeros();
+    p1.fixed_view_mut::<3, 3>(0, 0).copy_from(&matrix(cc[0]));
+    let mut p2 = Matrix3x4::zeros();
+    p2.fixed_view_mut::<3, 3>(0, 0).copy_from(&matrix(cc[1]));
+    p2[(0, 3)] = t.x * fc_new;
+    let q = Matrix4::new(
+        1.0,
+        0.0,
+        0.0,
+        -cc[0][0],
+        0.0,
+        1.0,
+        0.0,
+        -cc[0][1],
+        0.0,
+        0.0,
+        0.0,
+        fc_new,
+        0.0,
+        0.0,
+        -1.0 / t.x,
+        (cc[0][0] - cc[1][0]) / t.x,
+    );
+    Ok(Rectification {
+        r1,
+        r2,
+        p1,
+        p2,
+        q,
+        alpha: options.alpha,
+        roi_left,
+        roi_right,
+        size: new_size,
+        vertical: false,
     })
 }
 

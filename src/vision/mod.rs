@@ -23,6 +23,9 @@
 //! [`disparity_probed`] telling it what the matcher saw at each point, and judges each point's
 //! match into a status and a confidence.
 //!
+//! Before it, for raw pairs: [`remap`] reads each raw image through its rectification map
+//! (`camera::undistort_rectify_map`), as OpenCV's `remap`.
+//!
 //! Around it: [`decode`] reads PNG and JPEG under limits, [`encode`] writes PFM, NPY, 16-bit
 //! PNG, the colour preview and PLY, and [`synthetic`] renders pairs with exact ground truth.
 
@@ -34,6 +37,7 @@ pub mod encode;
 pub mod huge_pages;
 mod params;
 pub mod refine;
+pub mod remap;
 pub mod sgm;
 pub mod simd;
 pub mod synthetic;
