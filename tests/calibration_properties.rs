@@ -293,7 +293,7 @@ proptest! {
         ]),
     ) {
         let _ = calibration::parse(Source { text: &text, right_text: right.as_deref(), format,
-                                            kitti_pair: None });
+                                            ..Source::default() });
     }
 
     /// Damaged real files (a character changed, a line cut) are rigs or errors, never panics.

@@ -47,15 +47,18 @@ impl FromRef<AppState> for BodyLimit {
 
 /// What the heavy group's handlers see. Its memory budget reaches them as the
 /// [`crate::budget::Reservation`] the group's guard made for the request.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone)]
 pub struct HeavyState {
     pub body_limit: BodyLimit,
+    /// The rectification maps of the raw rigs seen lately.
+    pub maps: std::sync::Arc<images::maps::MapCache>,
 }
 
 impl Default for HeavyState {
     fn default() -> Self {
         Self {
             body_limit: BodyLimit(crate::config::DEFAULT_HEAVY_BODY_LIMIT),
+            maps: std::sync::Arc::default(),
         }
     }
 }
@@ -99,7 +102,7 @@ impl FromRef<HeavyState> for BodyLimit {
         (name = "table", description = "Sample tables for a rig"),
         (name = "chart", description = "Chart data and the chart as SVG for a rig"),
         (name = "planning", description = "Rig planning: depth range, error budget, baseline"),
-        (name = "images", description = "Rectified stereo pairs: dense disparity and depth maps, \
+        (name = "images", description = "Stereo pairs: raw frames rectified, dense disparity and depth maps, \
                                           points matched and regions measured"),
         (name = "operations", description = "Liveness, readiness and metrics")
     )

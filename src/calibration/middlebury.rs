@@ -156,6 +156,8 @@ pub fn parse(text: &str) -> Result<Calibration, Vec<ParseError>> {
         image_size,
         max_disparity_px: ndisp,
         warnings,
+        raw: None,
+        unit: None,
     };
     let line = if baseline > 0.0 { line0 } else { baseline_line };
     calibration.checked(Some(line))

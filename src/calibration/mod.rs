@@ -11,10 +11,12 @@
 mod kitti;
 mod middlebury;
 mod opencv;
+mod raw;
 mod read;
 mod ros;
 pub mod yaml;
 
+pub use raw::Raw;
 pub use read::{Fault, Input, Options, Read, UNIT_REQUIRED, read};
 
 use crate::numbers::{Num, clip};
@@ -94,6 +96,11 @@ pub struct Source<'a> {
     /// The KITTI pair, or `None` for the default (colour, falling back to grey with a
     /// warning when the file has only the grey pair).
     pub kitti_pair: Option<KittiPair>,
+    /// For a file that describes raw cameras: recompute the rectification with this `alpha`
+    /// (0..=1) instead of using the file's own (`None`: the file's, or 0 when it has none).
+    pub alpha: Option<f64>,
+    /// The raw images' size, when the file may not say (the images of the request).
+    pub image_size: Option<(u32, u32)>,
 }
 
 /// Which file an error is in.
@@ -174,6 +181,10 @@ pub struct Calibration {
     pub max_disparity_px: Option<u32>,
     /// Things worth knowing that did not stop the reading.
     pub warnings: Vec<String>,
+    /// The raw cameras and their rectification, when the file describes them.
+    pub raw: Option<Box<Raw>>,
+    /// The length unit the file records (our own `opencv.yml` writes `unit`).
+    pub unit: Option<LengthUnit>,
 }
 
 impl Calibration {
@@ -201,6 +212,8 @@ impl Calibration {
             image_size,
             max_disparity_px: None,
             warnings,
+            raw: None,
+            unit: None,
         }
     }
 
@@ -264,9 +277,19 @@ pub fn parse(source: Source) -> Result<Calibration, Rejected> {
     };
     let parsed = match format {
         Format::Middlebury => middlebury::parse(source.text),
-        Format::Kitti => kitti::parse(source.text, source.kitti_pair),
-        Format::Ros => ros::parse(source.text, source.right_text),
-        Format::OpenCv => opencv::parse(source.text),
+        Format::Kitti => kitti::parse(source.text, source.kitti_pair, source.alpha),
+        Format::Ros => ros::parse(
+            source.text,
+            source.right_text,
+            source.alpha,
+            source.image_size,
+        ),
+        Format::OpenCv => opencv::parse(
+            source.text,
+            source.right_text,
+            source.alpha,
+            source.image_size,
+        ),
     };
     parsed.map_err(|mut errors| {
         // A format given by the caller that the file does not have: say which it looks like.

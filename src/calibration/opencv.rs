@@ -9,18 +9,263 @@
 //! rectified projections `P1`, `P2` when there is no `Q` (B = −P2[0,3]/P2[0,0]). Lengths are in
 //! the unit of the calibration target's squares, which the file does not record.
 
-use super::yaml::{self, Node};
-use super::{Calibration, Format, ParseError, pixels};
-use crate::numbers::Num;
+use nalgebra::{Matrix3x4, Vector3};
 
-pub fn parse(text: &str) -> Result<Calibration, Vec<ParseError>> {
-    let doc = if text.trim_start().starts_with('<') {
+use super::yaml::{self, Node};
+use super::{Calibration, Format, ParseError, pixels, raw};
+use crate::camera::{Model, Size};
+use crate::numbers::Num;
+use crate::physics::LengthUnit;
+
+/// One FileStorage text, YAML or XML.
+fn document(text: &str) -> Result<Node, ParseError> {
+    if text.trim_start().starts_with('<') {
         xml(text)
     } else {
         yaml::parse(text)
     }
-    .map_err(|e| vec![e])?;
-    rig(&doc)
+}
+
+/// Reads one file, or two (`stereo_calib.cpp`'s `intrinsics.yml` and `extrinsics.yml`) read
+/// as one. A file with the cameras (M1/K1 D1 M2/K2 D2) describes the raw pair: its rig is
+/// that of its R1 R2 P1 P2, or of the rectification computed with `alpha` and the images'
+/// size when it has none.
+pub fn parse(
+    text: &str,
+    second: Option<&str>,
+    alpha: Option<f64>,
+    image_size: Option<(u32, u32)>,
+) -> Result<Calibration, Vec<ParseError>> {
+    let mut doc = document(text).map_err(|e| vec![e])?;
+    if let Some(second) = second {
+        let other = document(second).map_err(|e| vec![e.in_right()])?;
+        if let (Node::Map(members, _), Node::Map(more, _)) = (&mut doc, other) {
+            members.extend(more);
+        }
+    }
+    let unit = match doc.get("unit") {
+        Some(node) => Some(unit(node)?),
+        None => None,
+    };
+    let mut calibration = match raw_parts(&doc, image_size)? {
+        // A rectified file without the raw size: its rig stands, its raw cameras cannot be
+        // used.
+        Some(parts) if parts.size.is_none() && parts.given.is_some() => rig(&doc)?,
+        Some(parts) => {
+            let raw = raw::pair(parts, alpha).map_err(|e| vec![e])?;
+            raw::calibration(Format::OpenCv, raw, Vec::new()).checked(None)?
+        }
+        None => rig(&doc)?,
+    };
+    calibration.unit = unit;
+    Ok(calibration)
+}
+
+/// The `unit` our own `opencv.yml` records.
+fn unit(node: &Node) -> Result<LengthUnit, Vec<ParseError>> {
+    let text = match node {
+        Node::Scalar(text, _) => text.trim_matches(['"', '\'']),
+        _ => "",
+    };
+    LengthUnit::ALL
+        .into_iter()
+        .find(|u| u.symbol() == text)
+        .ok_or_else(|| {
+            vec![ParseError::at(
+                node.line(),
+                "unit must be one of mm, cm, m, in, ft",
+            )]
+        })
+}
+
+/// A matrix member of any shape: its numbers (row-major), line and (rows, cols).
+fn any_matrix(doc: &Node, name: &str) -> Result<Option<(Vec<f64>, usize)>, ParseError> {
+    let Some(node) = doc.get(name) else {
+        return Ok(None);
+    };
+    let (Some(r), Some(c), Some(data)) = (node.get("rows"), node.get("cols"), node.get("data"))
+    else {
+        return Err(ParseError::at(
+            node.line(),
+            format!("{name} must be an opencv-matrix with rows, cols and data"),
+        ));
+    };
+    let (r, c) = (
+        r.number(&format!("{name}.rows"))?,
+        c.number(&format!("{name}.cols"))?,
+    );
+    let values = data.numbers(&format!("{name}.data"))?;
+    if (values.len() as f64) != r * c {
+        return Err(ParseError::at(
+            data.line(),
+            format!(
+                "{name}.data must hold rows × cols = {} numbers, got {}",
+                Num(r * c),
+                values.len()
+            ),
+        ));
+    }
+    Ok(Some((values, data.line())))
+}
+
+/// The first of `names` the file has.
+fn first<'a>(doc: &Node, names: &[&'a str]) -> Option<&'a str> {
+    names.iter().copied().find(|n| doc.get(n).is_some())
+}
+
+/// The raw pair's parts, when the file has the cameras.
+fn raw_parts(
+    doc: &Node,
+    image_size: Option<(u32, u32)>,
+) -> Result<Option<raw::Parts>, Vec<ParseError>> {
+    let names = [
+        first(doc, &["M1", "K1", "cameraMatrix1"]),
+        first(doc, &["D1", "distCoeffs1"]),
+        first(doc, &["M2", "K2", "cameraMatrix2"]),
+        first(doc, &["D2", "distCoeffs2"]),
+    ];
+    if names.iter().all(Option::is_none) {
+        return Ok(None);
+    }
+    let mut errors = Vec::new();
+    let wanted = ["M1 (or K1)", "D1", "M2 (or K2)", "D2"];
+    for (name, what) in names.iter().zip(wanted) {
+        if name.is_none() {
+            errors.push(ParseError::whole(format!(
+                "the file describes raw cameras but has no {what}: a stereoCalibrate file \
+                 needs M1 D1 M2 D2 (send intrinsics.yml and extrinsics.yml together)"
+            )));
+        }
+    }
+    let [Some(k1), Some(d1), Some(k2), Some(d2)] = names else {
+        return Err(errors);
+    };
+    let model = match first(doc, &["distortionModel", "distortion_model"]) {
+        Some(key) => {
+            let node = doc.get(key).expect("found");
+            let name = match node {
+                Node::Scalar(text, _) => text.trim_matches(['"', '\'']).to_owned(),
+                _ => String::new(),
+            };
+            match Model::from_name(&name) {
+                Some(model) => Some(model),
+                None => {
+                    return Err(vec![ParseError::at(
+                        node.line(),
+                        format!(
+                            "{key} `{}` is not a distortion model this service knows: \
+                             plumb_bob, rational_polynomial or equidistant (fisheye)",
+                            crate::numbers::clip(&name, 40)
+                        ),
+                    )]);
+                }
+            }
+        }
+        None => None,
+    };
+    let read = |name: &str| any_matrix(doc, name);
+    let (k1v, d1v, k2v, d2v) = (read(k1), read(d1), read(k2), read(d2));
+    let (r, t) = (matrix(doc, "R", 3, 3), any_matrix(doc, "T"));
+    let given: Vec<_> = ["R1", "R2"]
+        .iter()
+        .map(|n| matrix(doc, n, 3, 3))
+        .chain(["P1", "P2"].iter().map(|n| matrix(doc, n, 3, 4)))
+        .collect();
+    let size = image_size_of(doc);
+    let mut take = |r: Result<Option<(Vec<f64>, usize)>, ParseError>| match r {
+        Ok(v) => v,
+        Err(e) => {
+            errors.push(e);
+            None
+        }
+    };
+    let (k1v, d1v, k2v, d2v) = (take(k1v), take(d1v), take(k2v), take(d2v));
+    let (r, t) = (take(r), take(t));
+    let given: Vec<_> = given.into_iter().map(&mut take).collect();
+    let size = match size {
+        Ok(size) => size.or(image_size),
+        Err(e) => {
+            errors.push(e);
+            None
+        }
+    };
+    let (Some(k1v), Some(d1v), Some(k2v), Some(d2v)) = (k1v, d1v, k2v, d2v) else {
+        return Err(errors);
+    };
+    let camera =
+        |k_name, (k, k_line): &(Vec<f64>, usize), d_name, (d, d_line): &(Vec<f64>, usize)| {
+            raw::camera(&raw::CameraText {
+                k_name,
+                k,
+                k_line: *k_line,
+                d_name,
+                d,
+                d_line: *d_line,
+                model,
+            })
+        };
+    let left = camera(k1, &k1v, d1, &d1v)
+        .map_err(|e| errors.extend(e))
+        .ok();
+    let right = camera(k2, &k2v, d2, &d2v)
+        .map_err(|e| errors.extend(e))
+        .ok();
+    let extrinsics = match (r, t) {
+        (Some((r, line)), Some((t, t_line))) => {
+            if t.len() != 3 {
+                errors.push(ParseError::at(t_line, "T must hold 3 numbers"));
+                None
+            } else {
+                raw::rotation(&r, "R", line)
+                    .map_err(|e| errors.push(e))
+                    .ok()
+                    .map(|r| (r, Vector3::new(t[0], t[1], t[2])))
+            }
+        }
+        (None, None) => None,
+        (r, _) => {
+            errors.push(ParseError::whole(format!(
+                "the file has {} but not {}: the pose needs both",
+                if r.is_some() { "R" } else { "T" },
+                if r.is_some() { "T" } else { "R" }
+            )));
+            None
+        }
+    };
+    let given = match given.as_slice() {
+        [Some(r1), Some(r2), Some(p1), Some(p2)] => {
+            let r1 = raw::rotation(&r1.0, "R1", r1.1)
+                .map_err(|e| errors.push(e))
+                .ok();
+            let r2 = raw::rotation(&r2.0, "R2", r2.1)
+                .map_err(|e| errors.push(e))
+                .ok();
+            r1.zip(r2).map(|(r1, r2)| raw::Given {
+                r: [r1, r2],
+                p: [
+                    Matrix3x4::from_row_slice(&p1.0),
+                    Matrix3x4::from_row_slice(&p2.0),
+                ],
+                line: p2.1,
+            })
+        }
+        _ => None,
+    };
+    if !errors.is_empty() {
+        return Err(errors);
+    }
+    let (Some(left), Some(right)) = (left, right) else {
+        return Err(errors);
+    };
+    Ok(Some(raw::Parts {
+        left,
+        right,
+        extrinsics,
+        given,
+        size: size.map(|(width, height)| Size { width, height }),
+        rectified_size: None,
+        line: k1v.1,
+    }))
 }
 
 /// A `rows × cols` matrix member, row-major, or what is wrong with it.
@@ -68,7 +313,7 @@ fn matrix(
 }
 
 /// The image size: `imageSize: [w, h]`, or `image_width` and `image_height`.
-fn image_size(doc: &Node) -> Result<Option<(u32, u32)>, ParseError> {
+fn image_size_of(doc: &Node) -> Result<Option<(u32, u32)>, ParseError> {
     let whole = |node: &Node, what: &str| -> Result<u32, ParseError> {
         let v = node.number(what)?;
         pixels(v).ok_or_else(|| {
@@ -101,7 +346,7 @@ fn rig(doc: &Node) -> Result<Calibration, Vec<ParseError>> {
     let q = matrix(doc, "Q", 4, 4);
     let p1 = matrix(doc, "P1", 3, 4);
     let p2 = matrix(doc, "P2", 3, 4);
-    let size = image_size(doc);
+    let size = image_size_of(doc);
     let (q, p1, p2, image_size) = match (q, p1, p2, size) {
         (Ok(q), Ok(p1), Ok(p2), Ok(size)) => (q, p1, p2, size),
         (q, p1, p2, size) => {
@@ -161,6 +406,8 @@ fn rig(doc: &Node) -> Result<Calibration, Vec<ParseError>> {
                 image_size,
                 max_disparity_px: None,
                 warnings: Vec::new(),
+                raw: None,
+                unit: None,
             };
             if let Some(p) = from_p {
                 let differs = |a: f64, b: f64| (a - b).abs() > 1e-6 * a.abs().max(b.abs()).max(1.0);
@@ -266,7 +513,7 @@ mod tests {
         let text = format!(
             "<?xml version=\"1.0\"?>\n<opencv_storage>\n<!-- a comment -->\n{Q}\n</opencv_storage>\n"
         );
-        let c = parse(&text).unwrap();
+        let c = parse(&text, None, None, None).unwrap();
         assert_eq!((c.focal_px, c.cx, c.cy), (900.0, 640.0, 360.0));
         assert!((c.baseline - 50.0).abs() < 1e-9);
     }
@@ -276,13 +523,13 @@ mod tests {
     fn bad_xml_is_named() {
         let broken =
             format!("<?xml version=\"1.0\"?>\n<opencv_storage>\n{Q}\n<P1>\n</opencv_storage>\n");
-        let e = &parse(&broken).unwrap_err()[0];
+        let e = &parse(&broken, None, None, None).unwrap_err()[0];
         assert_eq!(e.line, Some(6), "{e}");
         let dtd = "<?xml version=\"1.0\"?>\n<!DOCTYPE x [<!ENTITY a \"aaaa\">]>\n<opencv_storage>&a;</opencv_storage>";
-        assert!(parse(dtd).is_err());
+        assert!(parse(dtd, None, None, None).is_err());
         let other = "<?xml version=\"1.0\"?>\n<storage></storage>";
         assert!(
-            parse(other).unwrap_err()[0]
+            parse(other, None, None, None).unwrap_err()[0]
                 .message
                 .contains("<opencv_storage>")
         );

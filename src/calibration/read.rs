@@ -25,6 +25,11 @@ pub struct Read {
     /// The disparity search range the file recommends (Middlebury's `ndisp`).
     pub max_disparity_px: Option<u32>,
     pub warnings: Vec<String>,
+    /// The raw cameras and their rectification, when the file describes them; T stays in
+    /// the file's unit, [`Read::file_unit`].
+    pub raw: Option<Box<super::Raw>>,
+    /// The unit of the file's lengths.
+    pub file_unit: LengthUnit,
 }
 
 /// Why a file gives no rig.
@@ -58,7 +63,12 @@ pub fn read(source: Source, options: Options) -> Result<Read, Vec<Fault>> {
         }
     };
     let mut warnings = Vec::new();
-    let file_unit = match (options.calibration_unit, format.and_then(Format::unit)) {
+    // The unit the file records (our own opencv.yml) counts as the format's own.
+    let recorded = parsed.as_ref().and_then(|c| c.unit);
+    let file_unit = match (
+        options.calibration_unit,
+        recorded.or(format.and_then(Format::unit)),
+    ) {
         (Some(given), Some(own)) => {
             if given != own {
                 warnings.push(format!(
@@ -78,9 +88,10 @@ pub fn read(source: Source, options: Options) -> Result<Read, Vec<Fault>> {
         (None, None) => None,
     };
     if let Some(format) = format {
-        if source.right_text.is_some() && format != Format::Ros {
+        if source.right_text.is_some() && !matches!(format, Format::Ros | Format::OpenCv) {
             warnings.push(format!(
-                "right_text is read only for ROS files; this is a {} file, so it was ignored",
+                "right_text is read only for ROS files (the right camera's) and OpenCV files (a \
+                 second file, such as extrinsics.yml); this is a {} file, so it was ignored",
                 format.name()
             ));
         }
@@ -112,6 +123,8 @@ pub fn read(source: Source, options: Options) -> Result<Read, Vec<Fault>> {
         rig,
         max_disparity_px: parsed.max_disparity_px,
         warnings,
+        raw: parsed.raw,
+        file_unit,
     })
 }
 

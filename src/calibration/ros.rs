@@ -3,8 +3,11 @@
 //! `ros2 topic echo` message (`width`, `height`, flat `k` and `p`) or a ROS 1 `rostopic echo`
 //! (`K`, `P`). The right camera's projection carries the baseline: `P_r[3] = −f·B`.
 
+use nalgebra::Matrix3x4;
+
 use super::yaml::{self, Node};
-use super::{Calibration, Format, ParseError, pixels};
+use super::{Calibration, Format, ParseError, pixels, raw};
+use crate::camera::{Model, Size};
 use crate::numbers::Num;
 
 /// What one camera's file gives.
@@ -13,6 +16,65 @@ struct Camera {
     p: Vec<f64>,
     p_line: usize,
     size: Option<(u32, u32)>,
+    /// K, D and R with their lines, and the model the file names: the raw camera, when the
+    /// file gives all three.
+    raw: Option<RawCamera>,
+}
+
+struct RawCamera {
+    k: (Vec<f64>, usize),
+    d: (Vec<f64>, usize),
+    r: (Vec<f64>, usize),
+    model: Option<Model>,
+}
+
+/// A member given as a `{rows, cols, data}` map or as a flat list, under any of `names`:
+/// its numbers and line, or `None` when absent.
+fn member(doc: &Node, names: &[&str]) -> Result<Option<(Vec<f64>, usize)>, ParseError> {
+    let Some((name, node)) = names.iter().find_map(|k| doc.get(k).map(|n| (*k, n))) else {
+        return Ok(None);
+    };
+    let data = match node {
+        Node::Map(..) => node.get("data").ok_or_else(|| {
+            ParseError::at(node.line(), format!("{name} must have data: [numbers]"))
+        })?,
+        other => other,
+    };
+    Ok(Some((data.numbers(&format!("{name}.data"))?, data.line())))
+}
+
+/// The raw camera a CameraInfo describes, when it gives K, D and R.
+fn raw_camera(doc: &Node) -> Result<Option<RawCamera>, ParseError> {
+    let k = member(doc, &["camera_matrix", "k", "K"])?;
+    let d = member(doc, &["distortion_coefficients", "d", "D"])?;
+    let r = member(doc, &["rectification_matrix", "r", "R"])?;
+    let model = match doc.get("distortion_model") {
+        Some(node) => {
+            let name = match node {
+                Node::Scalar(text, _) => text.trim_matches(['"', '\'']).to_owned(),
+                _ => String::new(),
+            };
+            Some(Model::from_name(&name).ok_or_else(|| {
+                ParseError::at(
+                    node.line(),
+                    format!(
+                        "distortion_model `{}` is not one this service knows: plumb_bob, \
+                         rational_polynomial or equidistant",
+                        crate::numbers::clip(&name, 40)
+                    ),
+                )
+            })?)
+        }
+        None => None,
+    };
+    let (Some(k), Some(mut d), Some(r)) = (k, d, r) else {
+        return Ok(None);
+    };
+    // An empty D (a CameraInfo with no distortion) is the model's zeros.
+    if d.0.is_empty() {
+        d.0 = vec![0.0; model.unwrap_or(Model::PlumbBob).coefficient_count()];
+    }
+    Ok(Some(RawCamera { k, d, r, model }))
 }
 
 fn camera(text: &str) -> Result<Camera, ParseError> {
@@ -69,10 +131,81 @@ fn camera(text: &str) -> Result<Camera, ParseError> {
         p,
         p_line: data.line(),
         size: width.zip(height),
+        raw: raw_camera(&doc)?,
     })
 }
 
-pub fn parse(text: &str, right_text: Option<&str>) -> Result<Calibration, Vec<ParseError>> {
+/// The raw pair of two CameraInfos that both give K, D and R: the rectification is theirs
+/// (R and P), or recomputed with `alpha` from the pose they imply.
+fn raw_pair(
+    left: &Camera,
+    right: &Camera,
+    alpha: Option<f64>,
+    image_size: Option<(u32, u32)>,
+) -> Result<Option<raw::Raw>, Vec<ParseError>> {
+    let (Some(l), Some(r)) = (&left.raw, &right.raw) else {
+        return Ok(None);
+    };
+    let camera = |c: &RawCamera| {
+        raw::camera(&raw::CameraText {
+            k_name: "camera_matrix",
+            k: &c.k.0,
+            k_line: c.k.1,
+            d_name: "distortion_coefficients",
+            d: &c.d.0,
+            d_line: c.d.1,
+            model: c.model,
+        })
+    };
+    let (lc, rc) = (
+        camera(l),
+        camera(r).map_err(|e| e.into_iter().map(ParseError::in_right).collect::<Vec<_>>()),
+    );
+    let rl = raw::rotation(&l.r.0, "rectification_matrix", l.r.1);
+    let rr = raw::rotation(&r.r.0, "rectification_matrix", r.r.1).map_err(ParseError::in_right);
+    let (lc, rc, rl, rr) = match (lc, rc, rl, rr) {
+        (Ok(a), Ok(b), Ok(c), Ok(d)) => (a, b, c, d),
+        (a, b, c, d) => {
+            let mut errors = Vec::new();
+            errors.extend(a.err().into_iter().flatten());
+            errors.extend(b.err().into_iter().flatten());
+            errors.extend(c.err());
+            errors.extend(d.err());
+            return Err(errors);
+        }
+    };
+    let Some(size) = left.size.or(right.size).or(image_size) else {
+        // Without the raw size the raw images cannot be rectified; the rectified rig stands.
+        return Ok(None);
+    };
+    let parts = raw::Parts {
+        left: lc,
+        right: rc,
+        extrinsics: None,
+        given: Some(raw::Given {
+            r: [rl, rr],
+            p: [
+                Matrix3x4::from_row_slice(&left.p),
+                Matrix3x4::from_row_slice(&right.p),
+            ],
+            line: right.p_line,
+        }),
+        size: Some(Size {
+            width: size.0,
+            height: size.1,
+        }),
+        rectified_size: None,
+        line: l.k.1,
+    };
+    raw::pair(parts, alpha).map(Some).map_err(|e| vec![e])
+}
+
+pub fn parse(
+    text: &str,
+    right_text: Option<&str>,
+    alpha: Option<f64>,
+    image_size: Option<(u32, u32)>,
+) -> Result<Calibration, Vec<ParseError>> {
     let left = camera(text);
     let Some(right_text) = right_text else {
         let mut errors = vec![
@@ -111,7 +244,24 @@ pub fn parse(text: &str, right_text: Option<&str>) -> Result<Calibration, Vec<Pa
         warnings.push("the two cameras give different image sizes; the left one's is used".into());
     }
     let size = left.size.or(right.size);
-    let calibration = Calibration::from_projections(Format::Ros, pl, pr, f, size, warnings);
+    let raw = raw_pair(&left, &right, alpha, image_size)?;
+    if left.raw.is_some() != right.raw.is_some() {
+        warnings.push(
+            "only one camera's CameraInfo gives K, D and R, so the raw cameras are not \
+             described and only rectified images can be used"
+                .into(),
+        );
+    }
+    let calibration = match raw {
+        // A recomputed rectification gives the rig; the files' own gives the same as P.
+        Some(raw) if raw.computed => raw::calibration(Format::Ros, raw, warnings),
+        Some(raw) => {
+            let mut c = Calibration::from_projections(Format::Ros, pl, pr, f, size, warnings);
+            c.raw = Some(Box::new(raw));
+            c
+        }
+        None => Calibration::from_projections(Format::Ros, pl, pr, f, size, warnings),
+    };
     if calibration.baseline < 0.0 {
         return Err(vec![
             ParseError::at(

@@ -150,7 +150,8 @@ pub struct Rectification {
     pub p2: Matrix3x4<f64>,
     /// Disparity-to-depth reprojection.
     pub q: Matrix4<f64>,
-    pub alpha: f64,
+    /// The `alpha` it was computed with; `None` for a rectification a file gave.
+    pub alpha: Option<f64>,
     pub roi_left: Roi,
     pub roi_right: Roi,
     /// The rectified images' size.
@@ -447,7 +448,7 @@ pub fn stereo_rectify(
         p1,
         p2,
         q,
-        alpha: options.alpha,
+        alpha: Some(options.alpha),
         roi_left,
         roi_right,
         size: new_size,
@@ -590,7 +591,7 @@ fn fisheye_projections(
         p1,
         p2,
         q,
-        alpha: options.alpha,
+        alpha: Some(options.alpha),
         roi_left,
         roi_right,
         size: new_size,
@@ -598,7 +599,108 @@ fn fisheye_projections(
     })
 }
 
+/// Why a rectification a file gives cannot be used.
+#[derive(Debug, Clone, PartialEq)]
+pub enum GivenFault {
+    /// P2 holds no translation (P2[0,3] = P1[0,3] and P2[1,3] = P1[1,3]).
+    NoBaseline,
+    /// A focal length in P1 or P2 that is not positive, or a number that is not finite.
+    Projection,
+    Rectify(RectifyFault),
+}
+
 impl Rectification {
+    /// The rectification a file states (ROS's R and P, KITTI's `R_rect` and `P_rect`,
+    /// OpenCV's R1 R2 P1 P2 without recomputing them), with Q as `stereoRectify` would write
+    /// it and the valid ROIs found on the same grid as [`stereo_rectify`]'s. `size` is the raw
+    /// images', `new_size` the rectified ones'.
+    pub fn given(
+        pair: &StereoPair,
+        size: Size,
+        new_size: Size,
+        [r1, r2]: [Matrix3<f64>; 2],
+        [p1, p2]: [Matrix3x4<f64>; 2],
+    ) -> Result<Rectification, GivenFault> {
+        let f = p1[(0, 0)];
+        if !(f.is_finite() && f > 0.0 && p2[(0, 0)] > 0.0 && p1[(1, 1)] > 0.0)
+            || p1.iter().chain(p2.iter()).any(|v| !v.is_finite())
+        {
+            return Err(GivenFault::Projection);
+        }
+        if new_size.width == 0 || new_size.height == 0 || size.width == 0 || size.height == 0 {
+            return Err(GivenFault::Rectify(RectifyFault::Size));
+        }
+        let tx = (p2[(0, 3)] - p1[(0, 3)]) / p2[(0, 0)];
+        let ty = (p2[(1, 3)] - p1[(1, 3)]) / p2[(1, 1)];
+        let vertical = tx == 0.0;
+        let t = if vertical { ty } else { tx };
+        if t == 0.0 || !t.is_finite() {
+            return Err(GivenFault::NoBaseline);
+        }
+        let (c1, c2) = ([p1[(0, 2)], p1[(1, 2)]], [p2[(0, 2)], p2[(1, 2)]]);
+        let shift = if vertical {
+            c1[1] - c2[1]
+        } else {
+            c1[0] - c2[0]
+        };
+        let q = Matrix4::new(
+            1.0,
+            0.0,
+            0.0,
+            -c1[0],
+            0.0,
+            1.0,
+            0.0,
+            -c1[1],
+            0.0,
+            0.0,
+            0.0,
+            f,
+            0.0,
+            0.0,
+            -1.0 / t,
+            shift / t,
+        );
+        let roi = |camera: &Camera, rotation: &Matrix3<f64>, p: &Matrix3x4<f64>, side| {
+            let matrix = p.fixed_view::<3, 3>(0, 0).into_owned();
+            let rect = rectangles(camera, rotation, &matrix, size, side)?;
+            Ok(Roi {
+                x: rect.inner[0].ceil() as i64,
+                y: rect.inner[1].ceil() as i64,
+                width: rect.inner[2].floor() as i64,
+                height: rect.inner[3].floor() as i64,
+            }
+            .within(new_size.width, new_size.height))
+        };
+        let roi_left = roi(&pair.left, &r1, &p1, Side::Left).map_err(GivenFault::Rectify)?;
+        let roi_right = roi(&pair.right, &r2, &p2, Side::Right).map_err(GivenFault::Rectify)?;
+        Ok(Rectification {
+            r1,
+            r2,
+            p1,
+            p2,
+            q,
+            alpha: None,
+            roi_left,
+            roi_right,
+            size: new_size,
+            vertical,
+        })
+    }
+
+    /// The raw pair these rectified cameras came from, when a file gives only R1 R2 P1 P2 (a
+    /// ROS pair): X_right = R2ᵀ·R1·X_left + R2ᵀ·t, t the translation P2 holds.
+    pub fn extrinsics(&self) -> (Rotation3<f64>, Vector3<f64>) {
+        let f = self.p2[(0, 0)];
+        let t = Vector3::new(
+            (self.p2[(0, 3)] - self.p1[(0, 3)]) / f,
+            (self.p2[(1, 3)] - self.p1[(1, 3)]) / self.p2[(1, 1)],
+            self.p2[(2, 3)] - self.p1[(2, 3)],
+        );
+        let rotation = self.r2.transpose() * self.r1;
+        (Rotation3::from_matrix(&rotation), self.r2.transpose() * t)
+    }
+
     /// The rectified rig `/distance` takes: f = P1's focal length, B = |P2's T·f| / f in
     /// `unit` (the unit T was in), the left principal point, doffs = cx_right − cx_left, and
     /// the rectified images' size.

@@ -2,6 +2,7 @@
 //! header read timeout, and graceful shutdown (readiness off, optional delay, bounded drain
 //! that loses no request a client has sent).
 
+use crate::api::images::maps::{self, MapCache};
 use std::{future::Future, io, net::SocketAddr, pin::pin, sync::Arc, time::Duration};
 
 use axum::Router;
@@ -55,14 +56,16 @@ pub fn app(config: &Config, ops: OpsState) -> Router {
 /// applied in one `Router::layer` call.
 fn app_with(config: &Config, ops: OpsState, extra_heavy: Router<HeavyState>) -> Router {
     let (limits, heavy) = (config.limits, config.heavy);
+    let budget = MemoryBudget::new(heavy.memory_budget);
     let heavy_state = HeavyState {
         body_limit: BodyLimit(heavy.body_bytes),
+        maps: std::sync::Arc::new(MapCache::new(Some(budget.clone()), maps::MAX_ENTRIES)),
     };
     let Routers {
         light,
         heavy: images,
         probes,
-    } = api::routers(AppState { limits }, heavy_state, ops.clone());
+    } = api::routers(AppState { limits }, heavy_state.clone(), ops.clone());
     let images = images.merge(extra_heavy.with_state(heavy_state));
     let light = light.merge(web::router()).layer(GuardLayer::new(
         config.concurrency_limit,
@@ -75,7 +78,7 @@ fn app_with(config: &Config, ops: OpsState, extra_heavy: Router<HeavyState>) -> 
         .layer(GuardLayer::with_memory(
             heavy.concurrency_limit,
             heavy.request_timeout,
-            MemoryBudget::new(heavy.memory_budget),
+            budget,
             heavy.body_bytes,
         ));
     let edge = ServiceBuilder::new()

@@ -71,6 +71,11 @@ pub fn png16(width: usize, height: usize, data: &[u16]) -> Vec<u8> {
     png(width, height, &bytes, ExtendedColorType::L16)
 }
 
+/// An 8-bit grey PNG.
+pub fn png_grey(width: usize, height: usize, grey: &[u8]) -> Vec<u8> {
+    png(width, height, grey, ExtendedColorType::L8)
+}
+
 /// An 8-bit RGB PNG.
 pub fn png_rgb(width: usize, height: usize, rgb: &[u8]) -> Vec<u8> {
     png(width, height, rgb, ExtendedColorType::Rgb8)

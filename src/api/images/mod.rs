@@ -4,6 +4,7 @@
 //!   that opens every image route (parts, sizes, the pair's check, the rig);
 //! - [`rig`]: the rig from a `rig` part or a `calibration` file, through the one constructor
 //!   every rig goes through;
+//! - [`maps`]: the rectification maps of the raw rigs seen lately, cached within the budget;
 //! - [`limits`]: what the server accepts: image sizes, the matcher's settings mapped onto the
 //!   query's names, and what to shrink when a request cannot fit;
 //! - [`work`]: the memory reserved and the work run on a blocking thread that stops when its
@@ -14,6 +15,7 @@
 
 pub mod form;
 pub mod limits;
+pub mod maps;
 pub mod rig;
 pub mod work;
 

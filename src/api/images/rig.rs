@@ -14,7 +14,7 @@ use crate::api::wire::calibration::{Cameras, FormatChoice};
 use crate::api::wire::de::request;
 use crate::api::wire::params::Unit;
 use crate::api::wire::rig::{CalibratedRig, StereoRig};
-use crate::calibration::{self, Input, Options, Source};
+use crate::calibration::{self, Input, Options, Raw, Source};
 use crate::physics::{LengthUnit, Rig};
 
 /// The rig of a request, and what its calibration file adds.
@@ -25,6 +25,9 @@ pub struct GivenRig {
     /// The calibration file's disparity range (Middlebury `ndisp`).
     pub max_disparity: Option<u32>,
     pub warnings: Vec<String>,
+    /// The raw cameras the calibration describes, when it does; their T in `file_unit`.
+    pub raw: Option<Box<Raw>>,
+    pub file_unit: LengthUnit,
 }
 
 impl GivenRig {
@@ -136,10 +139,13 @@ fn rig_part(
     for error in local.prefixed(RIG) {
         problems.add_new(error.field, error.message);
     }
+    let rig = rig.filter(|_| ok)?;
     Some(GivenRig {
-        rig: rig.filter(|_| ok)?,
+        file_unit: rig.unit(),
+        rig,
         max_disparity: None,
         warnings: Vec::new(),
+        raw: None,
     })
 }
 
@@ -183,6 +189,8 @@ fn calibration_parts(
         right_text: right_text.as_deref(),
         format: options.calibration_format.unwrap_or_default().format(),
         kitti_pair: options.calibration_cameras.map(Into::into),
+        alpha: None,
+        image_size: size,
     };
     let read = calibration::read(
         source,
@@ -206,35 +214,69 @@ fn calibration_parts(
             return None;
         }
     };
-    let Some((w, h)) = size else {
-        return Some(GivenRig {
-            rig: read.rig,
-            max_disparity: read.max_disparity_px,
-            warnings: read.warnings,
-        });
+    let given = |rig| GivenRig {
+        rig,
+        max_disparity: read.max_disparity_px,
+        warnings: read.warnings.clone(),
+        raw: read.raw.clone(),
+        file_unit: read.file_unit,
     };
+    let Some((w, h)) = size else {
+        return Some(given(read.rig));
+    };
+    // Raw frames of a raw calibration: the rig is that of the rectified images.
+    if let Some(raw) = &read.raw
+        && (raw.size.width, raw.size.height) == (w, h)
+    {
+        return Some(given(read.rig));
+    }
     if let (Some(cw), Some(ch)) = (read.rig.image_width(), read.rig.image_height())
         && (cw, ch) != (f64::from(w), f64::from(h))
     {
-        problems.add(
-            "calibration",
-            format!(
-                "is for {cw} × {ch} images, but these are {w} × {h}: give the calibration of \
-                 these images, or a rig part with f, cx, cy and doffs scaled by {}",
-                crate::numbers::Num(f64::from(w) / cw)
-            ),
-        );
+        let (cw, ch) = read.raw.as_ref().map_or((cw, ch), |r| {
+            (f64::from(r.size.width), f64::from(r.size.height))
+        });
+        problems.add("calibration", size_mismatch((cw, ch), (w, h)));
         return None;
     }
     match read.rig.with_image_size(w, h) {
-        Ok(rig) => Some(GivenRig {
-            rig,
-            max_disparity: read.max_disparity_px,
-            warnings: read.warnings,
-        }),
+        Ok(rig) => Some(given(rig)),
         Err(faults) => {
             validate::faults(faults, RIG, problems);
             None
         }
     }
+}
+
+/// Why images of `(w, h)` do not fit a calibration of `(cw, ch)`, with the scale when it is a
+/// whole ratio (half-size frames, or a calibration made at half size).
+fn size_mismatch((cw, ch): (f64, f64), (w, h): (u32, u32)) -> String {
+    let (w, h) = (f64::from(w), f64::from(h));
+    let whole = |a: f64, b: f64| {
+        let r = a / b;
+        (r.fract() == 0.0 && r >= 2.0).then_some(r)
+    };
+    let scale = match (whole(cw, w), whole(ch, h), whole(w, cw), whole(h, ch)) {
+        (Some(a), Some(b), _, _) if a == b => {
+            format!(
+                " (the images are 1/{} of the calibrated size: scale them up, or calibrate at this size)",
+                crate::numbers::Num(a)
+            )
+        }
+        (_, _, Some(a), Some(b)) if a == b => {
+            format!(
+                " (the images are {}× the calibrated size: scale them down, or calibrate at this size)",
+                crate::numbers::Num(a)
+            )
+        }
+        _ => String::new(),
+    };
+    format!(
+        "is for {} × {} images, but these are {} × {}{scale}: give the calibration of these \
+         images, or a rig part with f, cx, cy and doffs scaled to them",
+        crate::numbers::Num(cw),
+        crate::numbers::Num(ch),
+        crate::numbers::Num(w),
+        crate::numbers::Num(h)
+    )
 }

@@ -11,6 +11,7 @@ pub mod distance;
 pub mod matching;
 pub mod ops;
 pub mod planning;
+pub mod rectify;
 pub mod table;
 
 use axum::http::{Method, Uri};
@@ -152,6 +153,7 @@ pub fn heavy() -> OpenApiRouter<HeavyState> {
         .merge(calibrate::router())
         .merge(depth_map::router())
         .merge(matching::router())
+        .merge(rectify::router())
 }
 
 /// Answers any path the API does not have.

@@ -758,7 +758,7 @@ fn summarize(
             P1: std::array::from_fn(|i| std::array::from_fn(|j| r.p1[(i, j)])),
             P2: std::array::from_fn(|i| std::array::from_fn(|j| r.p2[(i, j)])),
             Q: std::array::from_fn(|i| std::array::from_fn(|j| r.q[(i, j)])),
-            alpha: r.alpha,
+            alpha: r.alpha.unwrap_or_default(),
             roi_left: [
                 r.roi_left.x,
                 r.roi_left.y,

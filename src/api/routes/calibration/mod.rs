@@ -10,6 +10,7 @@ use utoipa_axum::{router::OpenApiRouter, routes};
 
 use self::types::{
     CalibratedRig, CalibrationFile, CalibrationQuery, CalibrationRequest, CalibrationResponse,
+    RawCameras,
 };
 use crate::api::AppState;
 use crate::api::error::{ApiError, FieldErrors};
@@ -73,6 +74,7 @@ impl FromRequest<AppState> for CalibrationBody {
         request.format = query.format.or(request.format);
         request.cameras = query.cameras.or(request.cameras);
         request.calibration_unit = query.calibration_unit.or(request.calibration_unit);
+        request.alpha = query.alpha.or(request.alpha);
         request.unit = query.unit.or(request.unit);
         Ok(CalibrationBody(request, problems))
     }
@@ -155,6 +157,17 @@ fn read(
     mut problems: FieldErrors,
 ) -> Result<CalibrationResponse, ApiError> {
     let text = problems.required("text", request.text.as_deref());
+    if let Some(alpha) = request.alpha
+        && !(0.0..=1.0).contains(&alpha)
+    {
+        problems.add(
+            "alpha",
+            format!(
+                "must be from 0 (only valid pixels) to 1 (every raw pixel), got {}",
+                crate::numbers::Num(alpha)
+            ),
+        );
+    }
     if !problems.is_empty() {
         return Err(problems.into_error());
     }
@@ -163,6 +176,8 @@ fn read(
         right_text: request.right_text.as_deref(),
         format: request.format.unwrap_or_default().format(),
         kitti_pair: request.cameras.map(Into::into),
+        alpha: request.alpha,
+        image_size: None,
     };
     let options = Options {
         calibration_unit: request.calibration_unit.map(LengthUnit::from),
@@ -174,6 +189,11 @@ fn read(
             rig: CalibratedRig::from(&read.rig),
             max_disparity_px: read.max_disparity_px,
             warnings: read.warnings,
+            raw_cameras: read.raw.is_some(),
+            raw: read
+                .raw
+                .as_deref()
+                .map(|raw| RawCameras::new(raw, read.file_unit)),
         }),
         Err(faults) => {
             for fault in faults {

@@ -5,7 +5,7 @@ use serde::{Deserialize, Serialize};
 use utoipa::{IntoParams, ToSchema};
 
 use crate::api::extract::QueryForm;
-pub use crate::api::wire::calibration::{CalibrationFormat, Cameras, FormatChoice};
+pub use crate::api::wire::calibration::{CalibrationFormat, Cameras, FormatChoice, RawCameras};
 use crate::api::wire::de::{member, plain_members, request};
 use crate::api::wire::params::Unit;
 pub use crate::api::wire::rig::CalibratedRig;
@@ -38,6 +38,13 @@ request! {
         calibration_unit: Unit,
         /// The unit of the answer's lengths (default: the file's own).
         unit: Unit,
+        /// For a file that describes the raw cameras (`stereoCalibrate`'s K D R T, ROS
+        /// `CameraInfo`, KITTI's raw `calib_cam_to_cam.txt`): recompute the rectification as
+        /// `cv2.stereoRectify` does with this `alpha`, from 0 (only valid pixels) to 1 (every
+        /// raw pixel kept). Without it, the file's own R1 R2 P1 P2 are used, or `alpha` 0
+        /// when the file has none.
+        #[schema(minimum = 0.0, maximum = 1.0)]
+        alpha: f64,
     }
 }
 
@@ -63,6 +70,10 @@ pub struct CalibrationQuery {
     #[serde(default, deserialize_with = "member")]
     #[param(nullable = false)]
     pub unit: Option<Unit>,
+    /// Raw cameras only: recompute the rectification with this `alpha` (0 to 1).
+    #[serde(default, deserialize_with = "member")]
+    #[param(nullable = false, minimum = 0.0, maximum = 1.0)]
+    pub alpha: Option<f64>,
 }
 
 impl QueryForm for CalibrationQuery {}
@@ -87,6 +98,13 @@ pub struct CalibrationResponse {
     pub max_disparity_px: Option<u32>,
     /// Things worth checking that did not stop the reading; empty when there are none.
     pub warnings: Vec<String>,
+    /// Whether the file describes the raw cameras (K, D and their pose or rectification),
+    /// so that `/rectify`, `/depth-map` and `/match` can take the frames the cameras deliver.
+    pub raw_cameras: bool,
+    /// The raw cameras and the rectification of their frames, when `raw_cameras`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub raw: Option<RawCameras>,
 }
 
 /// The calibration file itself as the raw body (`Content-Type: text/plain`): its bytes, which
