@@ -7,7 +7,7 @@
 //! - **light**: JSON answers that take microseconds of CPU and kilobytes of memory (`/distance`,
 //!   `/table`, `/chart-data`, `/rig`, …, the page at `/`);
 //! - **heavy**: image requests that take megabytes in, milliseconds to seconds of CPU and tens
-//!   of MB of memory each (`/depth-map`, `/match`, `/calibrate`; `/rectify` next).
+//!   of MB of memory each (`/depth-map`, `/match`, `/calibrate`, `/rectify`).
 //!
 //! Each is a route group with its own body limit, timeout and concurrency limit; the heavy group
 //! also shares a memory budget. The probes are a third router that no limit touches.
@@ -20,10 +20,11 @@
 //!     `Z = B·f_px / |d + doffs|`, depth error, 3D point and range, sweeps for tables and
 //!     charts.
 //!   - [`camera`]: the raw camera and the pair: intrinsics, the distortion models
-//!     (`plumb_bob`, `rational_polynomial`, `equidistant`), projection and undistortion, and
-//!     `stereoRectify` (R1 R2 P1 P2 Q, `alpha`, ROIs), whose rectified rig is a `physics::Rig`.
+//!     (`plumb_bob`, `rational_polynomial`, `equidistant`), projection and undistortion,
+//!     `stereoRectify` (R1 R2 P1 P2 Q, `alpha`, ROIs), whose rectified rig is a
+//!     `physics::Rig`, and `initUndistortRectifyMap`'s maps.
 //!   - [`calibration`]: calibration files (Middlebury, KITTI, ROS, OpenCV) read into a checked
-//!     rig (`calibration::read`).
+//!     rig (`calibration::read`), and the raw cameras the files of raw rigs describe.
 //!   - [`calibrate`]: calibration from checkerboard images: the board, the board finder and
 //!     the sub-pixel corner refinement, Zhang's first guess, the Levenberg–Marquardt
 //!     refinements of each camera and of the pair with each parameter's deviation, and boards
@@ -31,8 +32,8 @@
 //!   - [`vision`]: the matcher, the heavy group's engine: its parameters checked by
 //!     `vision::Params::new` (the one set of defaults, and the search range's arithmetic),
 //!     census costs, SGM, refinement, `/match`'s correspondences, decoding and encoding.
-//!     Rectification maps and remapping will live here, shared by `/rectify` and the raw
-//!     pairs of `/depth-map` and `/match`.
+//!     Remapping raw frames through rectification maps (`vision::remap`) lives here,
+//!     used by `/rectify` and next by the raw pairs of `/depth-map` and `/match`.
 //! - [`config`]: flags and environment variables (clap) for both groups, defaults, start-up
 //!   checks.
 //! - [`budget`]: the memory budget shared by the heavy requests in flight.

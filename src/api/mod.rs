@@ -94,7 +94,9 @@ impl FromRef<HeavyState> for BodyLimit {
         error::Problem,
         error::FieldError,
         routes::depth_map::types::DepthMapOutput,
-        routes::calibrate::types::CalibrateOutput
+        routes::calibrate::types::CalibrateOutput,
+        routes::rectify::types::RectifyOutput,
+        routes::rectify::types::InterpolationChoice
     )),
     tags(
         (name = "calibration", description = "Calibration files read into a rig"),

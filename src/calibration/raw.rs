@@ -174,7 +174,28 @@ pub fn camera(text: &CameraText) -> Result<Camera, Vec<ParseError>> {
     })
 }
 
-/// A 3 × 3 row-major rotation, checked: orthonormal and of determinant 1 within 1e-6.
+/// How far a rotation printed with `values`' decimals may be from orthonormal: 1e-6, or 5
+/// units of the last decimal for a file that prints 4 to 6 (ROS YAMLs often print 5), whose
+/// rounding alone moves RᵀR by a few units of the last decimal.
+fn rotation_tolerance(values: &[f64]) -> f64 {
+    let decimals = (0..=12).find(|&k| {
+        let scale = 10f64.powi(k);
+        values.iter().all(|v| {
+            let s = v * scale;
+            (s - s.round()).abs() <= 1e-6 * s.abs().max(1.0)
+        })
+    });
+    // Fewer than 4 decimals is no calibrated rotation (the identity, printed with none, is
+    // exact), so only 4 and more widen the tolerance.
+    decimals
+        .filter(|&k| k >= 4)
+        .map_or(ROTATION_TOLERANCE, |k| {
+            ROTATION_TOLERANCE.max(5.0 * 10f64.powi(-k))
+        })
+}
+
+/// A 3 × 3 row-major rotation, checked: orthonormal and of determinant 1 within 1e-6 (or
+/// within what the decimals the file prints allow), then made exactly orthonormal.
 pub fn rotation(values: &[f64], name: &str, line: usize) -> Result<Matrix3<f64>, ParseError> {
     if values.len() != 9 || values.iter().any(|v| !v.is_finite()) {
         return Err(ParseError::at(
@@ -185,18 +206,20 @@ pub fn rotation(values: &[f64], name: &str, line: usize) -> Result<Matrix3<f64>,
     let m = Matrix3::from_row_slice(values);
     let off = (m.transpose() * m - Matrix3::identity()).abs().max();
     let det = m.determinant();
-    if off > ROTATION_TOLERANCE || (det - 1.0).abs() > ROTATION_TOLERANCE {
+    let tolerance = rotation_tolerance(values);
+    if off > tolerance || (det - 1.0).abs() > tolerance {
         return Err(ParseError::at(
             line,
             format!(
                 "{name} is not a rotation: RᵀR differs from the identity by {} and det R = {} \
-                 (both must be within 1e-6 of a rotation's)",
+                 (both must be within {} of a rotation's)",
                 Num(off),
-                Num(det)
+                Num(det),
+                Num(tolerance)
             ),
         ));
     }
-    Ok(m)
+    Ok(*Rotation3::from_matrix(&m).matrix())
 }
 
 /// A rectification a file gives: R1 R2 (row-major 3 × 3, checked) and P1 P2 (3 × 4).

@@ -62,7 +62,7 @@ async fn depth_map(app: &TestApp, query: &str, form: Form) -> Response {
         .expect("request is sent")
 }
 
-fn floats(bytes: &[u8]) -> Vec<f32> {
+pub(crate) fn floats(bytes: &[u8]) -> Vec<f32> {
     bytes
         .chunks_exact(4)
         .map(|c| f32::from_le_bytes(c.try_into().unwrap()))
@@ -71,7 +71,7 @@ fn floats(bytes: &[u8]) -> Vec<f32> {
 
 /// The entries of a stored (uncompressed) zip, as `numpy.savez` writes NPZ files: each local
 /// header's name and bytes, in order, until the central directory.
-fn npz_entries(zip: &[u8]) -> Vec<(String, Vec<u8>)> {
+pub(crate) fn npz_entries(zip: &[u8]) -> Vec<(String, Vec<u8>)> {
     let u16_at = |i: usize| usize::from(u16::from_le_bytes([zip[i], zip[i + 1]]));
     let u32_at = |i: usize| u32::from_le_bytes(zip[i..i + 4].try_into().unwrap()) as usize;
     let mut entries = Vec::new();

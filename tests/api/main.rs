@@ -18,6 +18,7 @@ mod openapi;
 mod operations;
 mod planning;
 mod protection;
+mod rectify;
 mod rigs;
 mod svg;
 mod table;

@@ -74,6 +74,13 @@ impl FromRequest<AppState> for CalibrationBody {
         request.format = query.format.or(request.format);
         request.cameras = query.cameras.or(request.cameras);
         request.calibration_unit = query.calibration_unit.or(request.calibration_unit);
+        // A body alpha the query overrides is still checked: it was sent.
+        if query.alpha.is_some()
+            && let Some(alpha) = request.alpha
+            && !(0.0..=1.0).contains(&alpha)
+        {
+            problems.add("alpha", alpha_message(alpha));
+        }
         request.alpha = query.alpha.or(request.alpha);
         request.unit = query.unit.or(request.unit);
         Ok(CalibrationBody(request, problems))
@@ -160,13 +167,7 @@ fn read(
     if let Some(alpha) = request.alpha
         && !(0.0..=1.0).contains(&alpha)
     {
-        problems.add(
-            "alpha",
-            format!(
-                "must be from 0 (only valid pixels) to 1 (every raw pixel), got {}",
-                crate::numbers::Num(alpha)
-            ),
-        );
+        problems.add("alpha", alpha_message(alpha));
     }
     if !problems.is_empty() {
         return Err(problems.into_error());
@@ -208,4 +209,12 @@ fn read(
             Err(problems.into_error())
         }
     }
+}
+
+/// Why an `alpha` is refused.
+pub fn alpha_message(alpha: f64) -> String {
+    format!(
+        "must be from 0 (only valid pixels) to 1 (every raw pixel), got {}",
+        crate::numbers::Num(alpha)
+    )
 }

@@ -85,7 +85,8 @@ impl QueryForm for CalibrationQuery {}
     "rig": {"focal_length_px": 1000.0, "baseline": 120.0, "unit": "mm", "cx": 640.0,
             "cy": 360.0, "doffs": 12.0, "image_width": 1280, "image_height": 720},
     "max_disparity_px": 192,
-    "warnings": []
+    "warnings": [],
+    "raw_cameras": false
 }))]
 pub struct CalibrationResponse {
     /// The format the file was read as.

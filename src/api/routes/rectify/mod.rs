@@ -22,12 +22,12 @@ use crate::api::images::maps::{MapCache, Maps, float_maps};
 use crate::api::images::work::Need;
 use crate::api::images::{GivenRig, ImageForm, ImagePair, limits};
 use crate::api::respond::Json;
+use crate::api::routes::calibration::alpha_message;
 use crate::api::routes::calibration::types::{CalibratedRig, RawCameras};
 use crate::api::routes::depth_map::FileBody;
 use crate::api::wire::openapi::ImageErrors;
 use crate::calibration::Raw;
 use crate::camera::{Options, stereo_rectify};
-use crate::numbers::Num;
 use crate::vision::decode::{self, Decoded};
 use crate::vision::encode;
 use crate::vision::remap::{self, Fixed, Interpolation, Source};
@@ -132,13 +132,7 @@ pub fn raw_rig(
     if let Some(alpha) = alpha
         && !(0.0..=1.0).contains(&alpha)
     {
-        problems.add(
-            "alpha",
-            format!(
-                "must be from 0 (only valid pixels) to 1 (every raw pixel), got {}",
-                Num(alpha)
-            ),
-        );
+        problems.add("alpha", alpha_message(alpha));
         return None;
     }
     if pair.parts.get("rig").is_some() {
