@@ -96,7 +96,8 @@ impl FromRef<HeavyState> for BodyLimit {
         routes::depth_map::types::DepthMapOutput,
         routes::calibrate::types::CalibrateOutput,
         routes::rectify::types::RectifyOutput,
-        routes::rectify::types::InterpolationChoice
+        routes::rectify::types::InterpolationChoice,
+        routes::rectify::types::RectifyMode
     )),
     tags(
         (name = "calibration", description = "Calibration files read into a rig"),

@@ -1,4 +1,5 @@
-//! `/depth-map`: a rectified pair in (multipart), a dense disparity and depth map out, as a
+//! `/depth-map`: a rectified pair (or a raw one with its calibration, rectified first) in
+//! (multipart), a dense disparity and depth map out, as a
 //! JSON summary or as the file a user's tool reads (PFM, KITTI PNG, NPY, depth PNG, preview,
 //! PLY). The matcher is [`crate::vision`]'s; this module reads the form, judges it against the
 //! limits and the memory budget, runs the matcher off the async runtime and encodes the answer.
@@ -16,13 +17,18 @@ use self::types::{
     DepthMapForm, DepthMapOutput, DepthMapQuery, DepthMapSummary, MatcherParameters, Spread,
     StageTimes,
 };
+use axum::extract::State;
+
 use crate::api::HeavyState;
 use crate::api::error::ApiError;
 use crate::api::extract::QueryParams;
+use crate::api::images::maps::{MapCache, Maps};
 use crate::api::images::work::{self, Need};
 use crate::api::images::{GivenRig, ImageForm, ImagePair, Job, limits, rig};
 use crate::api::respond::Json;
+use crate::api::routes::rectify;
 use crate::api::wire::openapi::ImageErrors;
+use crate::calibration::Raw;
 use crate::physics::LengthUnit;
 use crate::vision::{self, Cancelled, Disparity, Params, encode};
 
@@ -49,6 +55,11 @@ pub struct FileBody(pub Vec<u8>);
                    (9 × 7 census, 8 paths, a P2 that shrinks across intensity edges, sub-pixel \
                    fit, left-right check, uniqueness, speckle and median filters) and answers \
                    the disparity map, the depth map Z = B·f / (d + doffs), or both in a summary.\n\n\
+                   Raw frames: with a `calibration` that describes the raw cameras (a \
+                   `stereoCalibrate` file, a ROS `CameraInfo` pair with D K R P, KITTI's raw \
+                   `calib_cam_to_cam.txt`, `/calibrate`'s `opencv.yml`), `rectify=auto` (the \
+                   default) rectifies the pair first as `/rectify` does; the outputs are then \
+                   in the rectified left camera's frame and size (`rectified: true`).\n\n\
                    Send `multipart/form-data` with parts `left` and `right` (PNG or JPEG, one \
                    size) and, for depths, `rig` (JSON with the members of `/distance`, e.g. \
                    what `/calibration` answers) or `calibration` (a calibration file, with \
@@ -89,11 +100,18 @@ pub struct FileBody(pub Vec<u8>);
     )
 )]
 pub async fn post_depth_map(
+    State(state): State<HeavyState>,
     headers: HeaderMap,
     QueryParams(query, problems): QueryParams<DepthMapQuery>,
     mut pair: ImagePair<DepthMapForm>,
 ) -> Result<Response, ApiError> {
     let mut problems = pair.problems(problems);
+    let raw = rectify::plan(
+        &mut pair,
+        query.rectify.unwrap_or_default(),
+        query.alpha,
+        &mut problems,
+    );
     let output = query.output.unwrap_or_else(|| {
         headers
             .get(header::ACCEPT)
@@ -110,20 +128,42 @@ pub async fn post_depth_map(
     }
     let ndisp = pair.rig.as_ref().and_then(|g| g.max_disparity);
     let params = limits::params(query.settings(), ndisp, &mut problems);
-    let (Some((width, height)), Some(params)) = (pair.size, params) else {
+    let (Some((raw_w, raw_h)), Some(params)) = (pair.size, params) else {
         return Err(problems.into_error());
     };
     if !problems.is_empty() {
         return Err(problems.into_error());
     }
+    // A rectified pair is matched at the rectified size, after its maps are built (or found)
+    // and both frames read through them.
+    let (width, height, extra) = match &raw {
+        Some(raw) => {
+            let s = raw.rectification.size;
+            let decoded = limits::decoded_bytes(raw_w as usize, raw_h as usize);
+            (
+                s.width,
+                s.height,
+                decoded.saturating_add(Maps::bytes_for(raw)),
+            )
+        }
+        None => (raw_w, raw_h, 0),
+    };
     let need = Need {
         size: (width as usize, height as usize),
         count: params.count(),
-        need: move |count| bytes_needed(width as usize, height as usize, count, output),
+        need: move |count| {
+            bytes_needed(width as usize, height as usize, count, output).saturating_add(extra)
+        },
     };
-    pair.run(need, move |job| compute(job, &params, output))
-        .await?
+    let cache = state.maps.clone();
+    pair.run(need, move |job| {
+        compute(job, &params, output, raw.as_deref().map(|r| (r, &*cache)))
+    })
+    .await?
 }
+
+/// Below this share of matched pixels, a pair sent as rectified may well be raw.
+const UNRECTIFIED_SHARE: f64 = 0.2;
 
 /// The bytes a request holds at its peak: the decoded pair, the colours for a point cloud, the
 /// matcher's, and the answer's per-pixel buffers.
@@ -141,7 +181,12 @@ fn bytes_needed(w: usize, h: usize, count: usize, output: DepthMapOutput) -> usi
 
 /// Decodes, matches and encodes, on a blocking thread. `waited` is how long the body took to
 /// read and the work to get a thread, for `Server-Timing`.
-fn compute(job: Job, params: &Params, output: DepthMapOutput) -> Result<Response, ApiError> {
+fn compute(
+    job: Job,
+    params: &Params,
+    output: DepthMapOutput,
+    raw: Option<(&Raw, &MapCache)>,
+) -> Result<Response, ApiError> {
     let Job {
         parts,
         rig: given,
@@ -149,7 +194,12 @@ fn compute(job: Job, params: &Params, output: DepthMapOutput) -> Result<Response
         waited: [read, queue],
     } = job;
     let started = Instant::now();
-    let (left, right) = work::decode_pair(parts, output == DepthMapOutput::PointsPly)?;
+    let colour = output == DepthMapOutput::PointsPly;
+    let (mut left, mut right) = work::decode_pair(parts, colour)?;
+    if let Some((raw, cache)) = raw {
+        let (maps, _) = cache.get(raw);
+        rectify::rectify_pair(&mut left, &mut right, &maps, colour);
+    }
     let decode_time = started.elapsed();
     let (map, timings) = vision::disparity(&left.grey, &right.grey, params, cancel)
         .map_err(|Cancelled| ApiError::Internal("cancelled".to_owned()))?;
@@ -164,6 +214,7 @@ fn compute(job: Job, params: &Params, output: DepthMapOutput) -> Result<Response
             depth.as_deref(),
             params,
             given,
+            raw.is_some(),
             [decode_time, timings.cost, timings.aggregate, timings.refine],
         )),
         DepthMapOutput::DisparityPfm => Ok(encode::pfm(w, h, &map.data)),
@@ -298,17 +349,35 @@ fn summary(
     depth: Option<&[f32]>,
     params: &Params,
     given: Option<GivenRig>,
+    rectified: bool,
     [decode, cost, aggregate, refine]: [Duration; 4],
 ) -> DepthMapSummary {
     let valid = map.data.iter().filter(|d| !d.is_nan()).count();
     let ms = |d: Duration| (d.as_secs_f64() * 1e4).round() / 10.0;
-    let (rig, warnings) = given.map_or((None, Vec::new()), |g| (Some(g.echo()), g.warnings));
+    let (rig, mut warnings) = given.map_or((None, Vec::new()), |g| (Some(g.echo()), g.warnings));
+    let valid_fraction = valid as f64 / map.data.len().max(1) as f64;
+    if rectified {
+        warnings.push(format!(
+            "the raw pair was rectified first: the maps are the rectified left camera's, {} × \
+             {} px, and the depths use the rectified rig",
+            map.width, map.height
+        ));
+    } else if valid_fraction < UNRECTIFIED_SHARE {
+        warnings.push(format!(
+            "only {:.1} % of the pixels matched: if these are raw frames (lens distortion, rows \
+             that do not line up between the cameras), they need rectifying: send the \
+             calibration of the raw cameras (a stereoCalibrate file, a ROS CameraInfo pair \
+             with D K R P, KITTI's calib_cam_to_cam.txt, /calibrate's opencv.yml) as the \
+             calibration part with rectify=auto, or rectify them with /rectify",
+            valid_fraction * 100.0
+        ));
+    }
     DepthMapSummary {
         width: map.width,
         height: map.height,
         min_disparity: params.min_disparity(),
         max_disparity: params.max_disparity(),
-        valid_fraction: (valid as f64 / map.data.len().max(1) as f64 * 1e4).round() / 1e4,
+        valid_fraction: (valid_fraction * 1e4).round() / 1e4,
         disparity_px: spread(&map.data),
         distance: depth.and_then(spread),
         rig,
@@ -330,6 +399,7 @@ fn summary(
             aggregate: ms(aggregate),
             refine: ms(refine),
         },
+        rectified,
         warnings,
     }
 }

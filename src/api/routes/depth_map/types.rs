@@ -6,6 +6,7 @@ use utoipa::ToSchema;
 
 use crate::api::extract::QueryForm;
 use crate::api::routes::calibration::types::CalibratedRig;
+pub use crate::api::routes::rectify::types::RectifyMode;
 use crate::api::wire::de::{choice_members, image_form, request};
 use crate::vision::{Settings, Subpixel};
 
@@ -196,6 +197,16 @@ request! {
         speckle_range: f64,
         /// A 3 × 3 median filter of the result. Default true.
         median: bool,
+        /// Rectify the pair first: `auto` (the default) when the calibration describes raw
+        /// cameras (a stereoCalibrate file, a ROS CameraInfo pair with D K R P, KITTI's raw
+        /// calib_cam_to_cam.txt, /calibrate's opencv.yml) and the frames are their raw size;
+        /// `yes`, or `no`. A rectified pair's outputs are in the rectified left camera's
+        /// frame and size.
+        rectify: RectifyMode,
+        /// With rectification: recompute it as `cv2.stereoRectify` does with this `alpha`
+        /// (0 only valid pixels, 1 every raw pixel). Default: the file's own, or 0.
+        #[schema(minimum = 0.0, maximum = 1.0)]
+        alpha: f64,
     }
 }
 
@@ -273,7 +284,7 @@ pub struct MatcherParameters {
 /// The depth map in numbers.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
 #[schema(example = json!({
-    "width": 741, "height": 500, "min_disparity": 0, "max_disparity": 64,
+    "width": 741, "height": 500, "min_disparity": 0, "max_disparity": 64, "rectified": false,
     "valid_fraction": 0.859,
     "disparity_px": {"min": 3.21, "median": 28.4, "max": 61.9},
     "distance": {"min": 1196.1, "median": 3215.0, "max": 14987.2},
@@ -311,6 +322,9 @@ pub struct DepthMapSummary {
     pub rig: Option<CalibratedRig>,
     pub parameters: MatcherParameters,
     pub timings_ms: StageTimes,
+    /// Whether the raw pair was rectified here first; the maps and the size are then the
+    /// rectified left camera's.
+    pub rectified: bool,
     /// Things to know about the answer (such as a calibration option that did not apply).
     pub warnings: Vec<String>,
 }

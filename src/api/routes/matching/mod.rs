@@ -1,5 +1,6 @@
-//! `/match`: a rectified pair and points (or boxes) in the left image in, each point's match in
-//! the right image with a status and a confidence, and each box's robust distance, out. The
+//! `/match`: a rectified pair (or a raw one with its calibration, rectified first) and points
+//! (or boxes) in the left image in, each point's match in the right image with a status and a
+//! confidence, and each box's robust distance, out. The
 //! engine is [`crate::vision::correspond`]; the distances are `/distance`'s own
 //! ([`crate::physics::measure`] through [`Measured`]), so the two never disagree.
 
@@ -19,14 +20,19 @@ use self::types::{
     PointMatch, RegionMatch, RegionStatus,
 };
 use super::depth_map::types::StageTimes;
+use axum::extract::State;
+
 use crate::api::HeavyState;
 use crate::api::error::{ApiError, FieldErrors};
 use crate::api::extract::{QueryParams, decode_object};
+use crate::api::images::maps::{MapCache, Maps};
 use crate::api::images::work::{self, Need};
 use crate::api::images::{ImageForm, ImagePair, Job, Parts, limits, rig};
 use crate::api::respond::Json;
+use crate::api::routes::rectify;
 use crate::api::wire::measured::Measured;
 use crate::api::wire::openapi::ImageErrors;
+use crate::calibration::Raw;
 use crate::physics::{self, Correspondence, Rig};
 use crate::vision::correspond::{self, Found, Rect};
 use crate::vision::{self, Cancelled, Params, Settings};
@@ -59,6 +65,11 @@ impl ImageForm for MatchForm {
                    and, whenever it has a disparity, the `/distance` answer for it (`distance`, \
                    `range`, `depth_error`, `relative_error`, `point`). For each box, answers \
                    the median depth of its valid pixels with the 10th and 90th percentiles.\n\n\
+                   Raw frames: with a `calibration` of the raw cameras, `rectify=auto` (the \
+                   default) rectifies the pair first; points and boxes are given in the raw \
+                   left image, and each match also gives `x_rectified`, `y_rectified` (where \
+                   it was matched) and `x_right_raw`, `y_right_raw` (the match on the raw \
+                   right frame).\n\n\
                    Send `multipart/form-data` with parts `left` and `right` (PNG or JPEG, one \
                    size), `points` (a JSON array of `{\"x\", \"y\"}`, at most 10 000) and/or \
                    `regions` (a JSON array of `{\"x\", \"y\", \"width\", \"height\"}`, at most \
@@ -84,10 +95,17 @@ impl ImageForm for MatchForm {
     )
 )]
 pub async fn post_match(
+    State(state): State<HeavyState>,
     QueryParams(query, problems): QueryParams<MatchQuery>,
     mut pair: ImagePair<MatchForm>,
 ) -> Result<Response, ApiError> {
     let mut problems = pair.problems(problems);
+    let raw = rectify::plan(
+        &mut pair,
+        query.rectify.unwrap_or_default(),
+        query.alpha,
+        &mut problems,
+    );
     let parts = &pair.parts;
     rig::require_rig(parts, "for the distances", &mut problems);
     let points = list::<MatchPoint>(parts, "points", MAX_POINTS, &mut problems);
@@ -115,16 +133,55 @@ pub async fn post_match(
     if !problems.is_empty() {
         return Err(problems.into_error());
     }
-    let (w, h) = (width as usize, height as usize);
+    let (w, h, extra) = match &raw {
+        Some(raw) => {
+            let s = raw.rectification.size;
+            let decoded = limits::decoded_bytes(width as usize, height as usize);
+            (
+                s.width as usize,
+                s.height as usize,
+                decoded.saturating_add(Maps::bytes_for(raw)),
+            )
+        }
+        None => (width as usize, height as usize, 0),
+    };
     let need = Need {
         size: (w, h),
         count: params.count(),
-        need: move |count| bytes_needed(w, h, count),
+        need: move |count| bytes_needed(w, h, count).saturating_add(extra),
     };
     let points = points.unwrap_or_default();
     let regions = regions.unwrap_or_default();
-    pair.run(need, move |job| compute(job, &params, &points, &regions))
-        .await?
+    let cache = state.maps.clone();
+    pair.run(need, move |job| {
+        compute(
+            job,
+            &params,
+            &points,
+            &regions,
+            raw.as_deref().map(|r| (r, &*cache)),
+        )
+    })
+    .await?
+}
+
+/// Where a raw left pixel lands in the rectified left image (`None` where the lens model
+/// cannot take it there).
+fn to_rectified(raw: &Raw, (x, y): (f64, f64)) -> Option<(f64, f64)> {
+    let r = &raw.rectification;
+    let k = r.p1.fixed_view::<3, 3>(0, 0).into_owned();
+    raw.pair
+        .left
+        .undistort_to([x, y], &r.r1, &k)
+        .map(|[x, y]| (x, y))
+}
+
+/// Where a rectified right pixel was seen in the raw right frame.
+fn to_raw_right(raw: &Raw, x: f64, y: f64) -> Option<[f64; 2]> {
+    let r = &raw.rectification;
+    let k = r.p2.fixed_view::<3, 3>(0, 0).into_owned().try_inverse()?;
+    let ray = r.r2.transpose() * (k * nalgebra::Vector3::new(x, y, 1.0));
+    raw.pair.right.project(&ray)
 }
 
 /// The bytes a request holds at its peak: the decoded pair, the matcher's as for the whole
@@ -281,6 +338,7 @@ fn compute(
     params: &Params,
     points: &[(f64, f64)],
     regions: &[[f64; 4]],
+    raw: Option<(&Raw, &MapCache)>,
 ) -> Result<Response, ApiError> {
     // The route runs the work only with a rig.
     let Some(given) = job.rig else {
@@ -288,18 +346,86 @@ fn compute(
     };
     let cancel = job.cancel;
     let started = Instant::now();
-    let (left, right) = work::decode_pair(job.parts, false)?;
+    let (mut left, mut right) = work::decode_pair(job.parts, false)?;
+    if let Some((raw, cache)) = raw {
+        let (maps, _) = cache.get(raw);
+        rectify::rectify_pair(&mut left, &mut right, &maps, false);
+    }
     let decode_time = started.elapsed();
     let (w, h) = (left.grey.width, left.grey.height);
-    let boxes: Vec<Option<Rect>> = regions.iter().map(|&b| rect(b, w, h)).collect();
+    // Points and boxes are clicked on the raw frame: matched where they land once rectified
+    // (a box as the rectangle around its corners' images).
+    let rectified: Vec<(f64, f64)> = match raw {
+        Some((raw, _)) => points
+            .iter()
+            .map(|&p| to_rectified(raw, p).unwrap_or((f64::NAN, f64::NAN)))
+            .collect(),
+        None => points.to_vec(),
+    };
+    let boxes_rectified: Vec<[f64; 4]> = match raw {
+        Some((raw, _)) => regions
+            .iter()
+            .map(|b| {
+                let corners = [
+                    (b[0], b[1]),
+                    (b[0] + b[2], b[1]),
+                    (b[0], b[1] + b[3]),
+                    (b[0] + b[2], b[1] + b[3]),
+                ]
+                .map(|c| to_rectified(raw, c).unwrap_or((f64::NAN, f64::NAN)));
+                let (x0, x1) = corners
+                    .iter()
+                    .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, z), c| {
+                        (a.min(c.0), z.max(c.0))
+                    });
+                let (y0, y1) = corners
+                    .iter()
+                    .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, z), c| {
+                        (a.min(c.1), z.max(c.1))
+                    });
+                [x0, y0, x1 - x0, y1 - y0]
+            })
+            .collect(),
+        None => regions.to_vec(),
+    };
+    let boxes: Vec<Option<Rect>> = boxes_rectified
+        .iter()
+        .map(|&b| {
+            if b.iter().all(|v| v.is_finite()) {
+                rect(b, w, h)
+            } else {
+                None
+            }
+        })
+        .collect();
     let wanted: Vec<Rect> = boxes.iter().flatten().copied().collect();
-    let found = correspond::correspond(&left.grey, &right.grey, params, points, &wanted, cancel)
-        .map_err(|Cancelled| ApiError::Internal("cancelled".to_owned()))?;
+    let found =
+        correspond::correspond(&left.grey, &right.grey, params, &rectified, &wanted, cancel)
+            .map_err(|Cancelled| ApiError::Internal("cancelled".to_owned()))?;
     let rig = &given.rig;
     let matches: Vec<PointMatch> = points
         .iter()
+        .zip(&rectified)
         .zip(&found.found)
-        .map(|(&(x, y), f)| point_match(rig, x, y, f))
+        .map(|((&(x, y), &(xr, yr)), f)| {
+            let Some((raw, _)) = raw else {
+                return point_match(rig, x, y, f);
+            };
+            let mut answer = point_match(rig, xr, yr, f);
+            answer.x = x;
+            answer.y = y;
+            if xr.is_finite() {
+                answer.x_rectified = Some(round(xr, 3));
+                answer.y_rectified = Some(round(yr, 3));
+            }
+            if let Some(xm) = answer.x_right
+                && let Some([u, v]) = to_raw_right(raw, xm, yr)
+            {
+                answer.x_right_raw = Some(round(u, 3));
+                answer.y_right_raw = Some(round(v, 3));
+            }
+            answer
+        })
         .collect();
     let regions: Vec<RegionMatch> = regions
         .iter()
@@ -322,6 +448,7 @@ fn compute(
         regions,
         rig: given.echo(),
         rows_matched: found.rows_matched,
+        rectified: raw.is_some(),
         timings_ms: StageTimes {
             decode: ms(decode_time),
             cost: ms(t.cost),
@@ -357,6 +484,10 @@ fn point_match(rig: &Rig, x: f64, y: f64, found: &Found) -> PointMatch {
         status: found.status.into(),
         confidence: round(f64::from(found.confidence), 3),
         x_right: None,
+        x_rectified: None,
+        y_rectified: None,
+        x_right_raw: None,
+        y_right_raw: None,
         measured: MatchDistance::default(),
         relative_error: None,
         warnings: None,

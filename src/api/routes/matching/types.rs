@@ -7,6 +7,7 @@ use utoipa::ToSchema;
 use crate::api::extract::QueryForm;
 use crate::api::routes::calibration::types::CalibratedRig;
 use crate::api::routes::depth_map::types::StageTimes;
+pub use crate::api::routes::rectify::types::RectifyMode;
 use crate::api::wire::de::{image_form, request};
 use crate::api::wire::measured::{Point, Warning};
 use crate::api::wire::params::Unit;
@@ -23,6 +24,13 @@ request! {
         /// else 128.
         #[schema(minimum = -4095, maximum = 4608, example = 64)]
         max_disparity: i32,
+        /// Rectify the pair first: `auto` (the default) when the calibration describes raw
+        /// cameras and the frames are their raw size; `yes`, or `no`. Points and boxes are
+        /// then given in the raw left image, as a person clicks them.
+        rectify: RectifyMode,
+        /// With rectification: recompute it as `cv2.stereoRectify` does with this `alpha`.
+        #[schema(minimum = 0.0, maximum = 1.0)]
+        alpha: f64,
     }
 }
 
@@ -164,11 +172,27 @@ pub struct PointMatch {
     /// than a pixel away, times the share of the 5 × 5 neighbourhood within a pixel of it,
     /// times the texture; halved when `status` is not `ok`, 0 without a disparity.
     pub confidence: f64,
-    /// x of the match in the right image, `x − disparity_px`, in pixels; absent without a
-    /// disparity.
+    /// x of the match in the right image, `x − disparity_px`, in pixels (in the rectified
+    /// right image when the pair was rectified); absent without a disparity.
     #[serde(skip_serializing_if = "Option::is_none")]
     #[schema(nullable = false)]
     pub x_right: Option<f64>,
+    /// A rectified raw pair only: the point in the rectified left image, where it was
+    /// matched and measured.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub x_rectified: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub y_rectified: Option<f64>,
+    /// A rectified raw pair only: the match in the raw right image, to draw a marker on the
+    /// frame the user sees.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub x_right_raw: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub y_right_raw: Option<f64>,
     /// The disparity `x − x_right` at the point's pixel (to 1/1000 px) and the `/distance`
     /// answer for `x`, that disparity and `y` with the request's rig, computed by the same
     /// code, present whenever the point has a disparity (whatever its status).
@@ -228,7 +252,7 @@ pub struct RegionMatch {
 /// The answer of `/match`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
 #[schema(example = json!({
-    "width": 741, "height": 500, "min_disparity": 0, "max_disparity": 64, "unit": "mm",
+    "width": 741, "height": 500, "min_disparity": 0, "max_disparity": 64, "unit": "mm", "rectified": false,
     "ok": 1,
     "matches": [{"x": 420, "y": 260, "status": "ok", "confidence": 0.81, "x_right": 391.642,
                  "disparity_px": 28.358, "distance": 3221.3, "range": 3282.9,
@@ -264,6 +288,9 @@ pub struct MatchResponse {
     /// unless they cover most of the image.
     pub rows_matched: usize,
     pub timings_ms: StageTimes,
+    /// Whether the raw pair was rectified here first (`width` and `height` are then the
+    /// rectified size, and `x_rectified`, `x_right_raw`… are given).
+    pub rectified: bool,
     /// Things to know about the answer (such as a calibration option that did not apply).
     pub warnings: Vec<String>,
 }

@@ -13,7 +13,7 @@ use axum::response::{IntoResponse, Response};
 use utoipa_axum::{router::OpenApiRouter, routes};
 
 use self::types::{
-    RectifyForm, RectifyOutput, RectifyQuery, RectifySummary, RectifyTimes, ValidShare,
+    RectifyForm, RectifyMode, RectifyOutput, RectifyQuery, RectifySummary, RectifyTimes, ValidShare,
 };
 use crate::api::HeavyState;
 use crate::api::error::{ApiError, FieldError, FieldErrors};
@@ -122,6 +122,47 @@ pub async fn post_rectify(
     .await?
 }
 
+/// Whether an image route rectifies its pair (`mode`, with `alpha`): the raw rig to rectify
+/// with, or `None` to match the pair as it is; each refusal in `problems`. The pair's rig
+/// becomes the rectified rig (with `alpha` applied).
+pub fn plan<F: ImageForm>(
+    pair: &mut ImagePair<F>,
+    mode: RectifyMode,
+    alpha: Option<f64>,
+    problems: &mut FieldErrors,
+) -> Option<Box<Raw>> {
+    let raw_frames = pair
+        .rig
+        .as_ref()
+        .and_then(|g| g.raw.as_ref())
+        .is_some_and(|raw| {
+            !raw.is_identity() && Some((raw.size.width, raw.size.height)) == pair.size
+        });
+    let wanted = match mode {
+        RectifyMode::No => false,
+        RectifyMode::Yes => true,
+        RectifyMode::Auto => raw_frames,
+    };
+    if !wanted {
+        if let Some(alpha) = alpha {
+            if !(0.0..=1.0).contains(&alpha) {
+                problems.add("alpha", alpha_message(alpha));
+            } else {
+                problems.add(
+                    "alpha",
+                    "applies only when the pair is rectified here (rectify=yes, or auto with a \
+                     calibration of raw cameras and frames of their size)",
+                );
+            }
+        }
+        return None;
+    }
+    let given = raw_rig(pair, alpha, problems)?;
+    let raw = given.raw.clone();
+    pair.rig = Some(given);
+    raw
+}
+
 /// The raw rig of the request, with `alpha` applied; `None` with the reasons in `problems`
 /// when the form has no calibration of raw cameras for these images.
 pub fn raw_rig(
@@ -215,6 +256,44 @@ fn has_colour(d: &Decoded) -> bool {
     d.rgb
         .as_deref()
         .is_some_and(|rgb| rgb.chunks_exact(3).any(|p| p[0] != p[1] || p[1] != p[2]))
+}
+
+/// Both frames of a pair read through their maps: grey always, the left colours too when
+/// `colour` (a point cloud's).
+pub fn rectify_pair(left: &mut Decoded, right: &mut Decoded, maps: &Maps, colour: bool) {
+    let grey = |d: &Decoded, map: &Fixed| {
+        let g = &d.grey;
+        crate::vision::Gray::new(
+            map.width,
+            map.height,
+            remap::remap_fixed(
+                Source {
+                    width: g.width,
+                    height: g.height,
+                    channels: 1,
+                    data: &g.data,
+                },
+                map,
+                Interpolation::Linear,
+            ),
+        )
+    };
+    let (l, r) = rayon::join(|| grey(left, &maps.left), || grey(right, &maps.right));
+    if colour && let Some(rgb) = left.rgb.as_deref() {
+        let g = &left.grey;
+        left.rgb = Some(remap::remap_fixed(
+            Source {
+                width: g.width,
+                height: g.height,
+                channels: 3,
+                data: rgb,
+            },
+            &maps.left,
+            Interpolation::Linear,
+        ));
+    }
+    left.grey = l;
+    right.grey = r;
 }
 
 /// A rectified image as PNG: RGB when the frame has colour, else grey, 8 bits when the frame

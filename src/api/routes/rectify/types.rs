@@ -77,7 +77,21 @@ impl From<InterpolationChoice> for Interpolation {
     }
 }
 
-choice_members!(RectifyOutput, InterpolationChoice);
+/// Whether an image route rectifies the pair before matching.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize, Serialize, ToSchema)]
+#[serde(rename_all = "lowercase")]
+pub enum RectifyMode {
+    /// Rectify when the calibration describes raw cameras and the frames are their raw size
+    /// (the default).
+    #[default]
+    Auto,
+    /// Rectify; a calibration without the raw cameras is refused, saying what is missing.
+    Yes,
+    /// Take the pair as rectified.
+    No,
+}
+
+choice_members!(RectifyOutput, InterpolationChoice, RectifyMode);
 
 request! {
     /// The options of `/rectify`, in the query string.
