@@ -24,7 +24,8 @@
 //! match into a status and a confidence.
 //!
 //! Before it, for raw pairs: [`remap`] reads each raw image through its rectification map
-//! (`camera::undistort_rectify_map`), as OpenCV's `remap`.
+//! (`camera::undistort_rectify_map`), as OpenCV's `remap`; after it, for pairs sent as
+//! rectified, [`rows`] checks that matched corners lie on their rows.
 //!
 //! Around it: [`decode`] reads PNG and JPEG under limits, [`encode`] writes PFM, NPY, 16-bit
 //! PNG, the colour preview and PLY, and [`synthetic`] renders pairs with exact ground truth.
@@ -38,6 +39,7 @@ pub mod huge_pages;
 mod params;
 pub mod refine;
 pub mod remap;
+pub mod rows;
 pub mod sgm;
 pub mod simd;
 pub mod synthetic;

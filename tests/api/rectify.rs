@@ -587,12 +587,6 @@ async fn rectify_refuses_what_it_cannot_rectify() {
     check(&body, "alpha", "from 0");
 }
 
-/// The synthetic layered scene (160 × 120, rectified, exact truth) made raw through a
-/// calibration whose rectification the file gives (R1 R2 P1 P2: the scene's own cameras):
-/// `/depth-map` with the default `rectify=auto` rectifies it, says so, and finds the scene's
-/// disparities (median within 0.5 px of the rectified pair's, more than half the pixels
-/// valid); `rectify=no` on the same raw frames matches far fewer;
-/// `rectify=yes` with a Middlebury file names what is missing.
 /// The synthetic layered scene as raw frames, with the calibration that describes them.
 struct RawScene {
     truth: stereo_distance::vision::synthetic::Pair,
@@ -687,6 +681,13 @@ fn raw_scene() -> RawScene {
     }
 }
 
+/// The synthetic layered scene (160 × 120, rectified, exact truth) made raw through a
+/// calibration whose rectification the file gives (R1 R2 P1 P2: the scene's own cameras):
+/// `/depth-map` with the default `rectify=auto` rectifies it, says so, and finds the scene's
+/// disparities (median within 0.5 px of the rectified pair's, more than half the pixels
+/// valid); `rectify=no` on the same raw frames matches far fewer and
+/// warns;
+/// `rectify=yes` with a Middlebury file names what is missing.
 #[tokio::test]
 async fn depth_map_rectifies_raw_frames() {
     use crate::depth_map::rig as scene_rig;
@@ -874,4 +875,74 @@ async fn match_takes_points_on_the_raw_frame() {
         );
     }
     assert!(ok >= 3, "{body}");
+}
+
+/// Pairs sent as rectified whose right image sits rows lower (a rig whose rows do not line
+/// up): 3 rows on a 320 × 240 pair, and 17 on a 480 × 360 one (found through the row check's
+/// pyramid, as raw frames tens of rows apart are). `/depth-map`'s summary and `/match` (which
+/// matches only the rows its point needs, so has no share of matched pixels to judge by) warn
+/// that the matched corners lie that many px (±0.3) off their rows and that the frames need
+/// rectifying; the same scenes with their rows in line get no such warning from either.
+#[tokio::test]
+async fn rows_that_do_not_line_up_are_warned() {
+    use stereo_distance::vision::synthetic;
+    let app = spawn_app().await;
+    for (w, h, shift) in [(320usize, 240usize, 3usize), (480, 360, 17)] {
+        let scene = synthetic::render(&synthetic::layered(w, h));
+        // The right image moved down by `shift` rows (the top rows repeat the first).
+        let mut lowered = scene.right_rgb.clone();
+        for y in 0..h {
+            let from = y.saturating_sub(shift);
+            lowered[y * w * 3..(y + 1) * w * 3]
+                .copy_from_slice(&scene.right_rgb[from * w * 3..(from + 1) * w * 3]);
+        }
+        let png = |rgb: &[u8]| stereo_distance::vision::encode::png_rgb(w, h, rgb);
+        let rig = json!({"focal_length_px": 500, "baseline": 100, "unit": "mm"}).to_string();
+        let warning = |body: &Value| -> Option<String> {
+            body["warnings"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .filter_map(Value::as_str)
+                .find(|w| w.contains("off their rows"))
+                .map(str::to_owned)
+        };
+        for (right, lowered) in [(&scene.right_rgb, false), (&lowered, true)] {
+            let parts = [("rig", rig.clone())];
+            let depth = ok_json(
+                app.post_form(
+                    "/depth-map?max_disparity=48",
+                    form(png(&scene.left_rgb), png(right), &parts),
+                )
+                .await,
+            )
+            .await;
+            let parts = [
+                ("rig", rig.clone()),
+                ("points", json!([{"x": w / 2, "y": h / 2}]).to_string()),
+            ];
+            let matched = ok_json(
+                app.post_form(
+                    "/match?max_disparity=48",
+                    form(png(&scene.left_rgb), png(right), &parts),
+                )
+                .await,
+            )
+            .await;
+            for body in [&depth, &matched] {
+                assert_eq!(body["rectified"], false);
+                match (lowered, warning(body)) {
+                    (false, found) => assert_eq!(found, None, "{body}"),
+                    (true, Some(text)) => {
+                        // "matched corners lie 3.0 px off their rows (the median of N; …"
+                        let at = text.find("corners lie ").unwrap() + "corners lie ".len();
+                        let px: f64 = text[at..].split(' ').next().unwrap().parse().unwrap();
+                        assert!((px - shift as f64).abs() <= 0.3, "{w}x{h}: {text}");
+                        assert!(text.contains("need rectifying"), "{text}");
+                    }
+                    (true, None) => panic!("{w}x{h}: no row warning: {body}"),
+                }
+            }
+        }
+    }
 }

@@ -30,6 +30,7 @@ use crate::api::routes::rectify;
 use crate::api::wire::openapi::ImageErrors;
 use crate::calibration::Raw;
 use crate::physics::LengthUnit;
+use crate::vision::rows::RowOffsets;
 use crate::vision::{self, Cancelled, Disparity, Params, encode};
 
 /// `POST /depth-map`.
@@ -59,7 +60,10 @@ pub struct FileBody(pub Vec<u8>);
                    `stereoCalibrate` file, a ROS `CameraInfo` pair with D K R P, KITTI's raw \
                    `calib_cam_to_cam.txt`, `/calibrate`'s `opencv.yml`), `rectify=auto` (the \
                    default) rectifies the pair first as `/rectify` does; the outputs are then \
-                   in the rectified left camera's frame and size (`rectified: true`).\n\n\
+                   in the rectified left camera's frame and size (`rectified: true`). A pair \
+                   sent as rectified that looks raw (under 20 % of the pixels matched, or \
+                   matched corners a pixel or more off their rows) gets a warning in the \
+                   summary saying how to rectify it.\n\n\
                    Send `multipart/form-data` with parts `left` and `right` (PNG or JPEG, one \
                    size) and, for depths, `rig` (JSON with the members of `/distance`, e.g. \
                    what `/calibration` answers) or `calibration` (a calibration file, with \
@@ -73,8 +77,8 @@ pub struct FileBody(pub Vec<u8>);
                    `depth` and `depth_error`), `depth.png` (16-bit millimetres, 0 = invalid), \
                    `preview.png` (Turbo colours, near = warm) and `points.ply` (binary PLY, \
                    x y z in the rig's unit in the left camera's frame, coloured). Every answer \
-                   carries `Server-Timing` with the stages decode, cost, aggregate, refine and \
-                   encode.\n\n\
+                   carries `Server-Timing` with the stages decode, cost, aggregate, refine, \
+                   encode and, for raw pairs, rectify.\n\n\
                    Limits: images up to 8192 px a side and 12 megapixels, at most 512 \
                    disparities, and the memory the request needs within the heavy group's \
                    budget (413 naming what to shrink when it can never fit, 503 with \
@@ -162,9 +166,6 @@ pub async fn post_depth_map(
     .await?
 }
 
-/// Below this share of matched pixels, a pair sent as rectified may well be raw.
-const UNRECTIFIED_SHARE: f64 = 0.2;
-
 /// The bytes a request holds at its peak: the decoded pair, the colours for a point cloud, the
 /// matcher's, and the answer's per-pixel buffers.
 fn bytes_needed(w: usize, h: usize, count: usize, output: DepthMapOutput) -> usize {
@@ -196,13 +197,23 @@ fn compute(
     let started = Instant::now();
     let colour = output == DepthMapOutput::PointsPly;
     let (mut left, mut right) = work::decode_pair(parts, colour)?;
-    if let Some((raw, cache)) = raw {
+    let decode_time = started.elapsed();
+    let rectify_time = raw.map(|(raw, cache)| {
+        let started = Instant::now();
         let (maps, _) = cache.get(raw);
         rectify::rectify_pair(&mut left, &mut right, &maps, colour);
-    }
-    let decode_time = started.elapsed();
+        started.elapsed()
+    });
     let (map, timings) = vision::disparity(&left.grey, &right.grey, params, cancel)
         .map_err(|Cancelled| ApiError::Internal("cancelled".to_owned()))?;
+    // A pair sent as rectified: do its matched corners lie on their rows? (Summary only: the
+    // files have nowhere to say it.)
+    let rows = (raw.is_none() && output == DepthMapOutput::Summary)
+        .then(|| {
+            let range = (params.min_disparity(), params.max_disparity());
+            vision::rows::row_offsets(&left.grey, &right.grey, range)
+        })
+        .flatten();
     drop(right);
     let started = Instant::now();
     let rig = given.as_ref().map(|g| g.rig);
@@ -214,7 +225,7 @@ fn compute(
             depth.as_deref(),
             params,
             given,
-            raw.is_some(),
+            (rectify_time, rows),
             [decode_time, timings.cost, timings.aggregate, timings.refine],
         )),
         DepthMapOutput::DisparityPfm => Ok(encode::pfm(w, h, &map.data)),
@@ -246,11 +257,10 @@ fn compute(
     let started = Instant::now();
     drop((left, map, depth));
     let drop_time = started.elapsed();
-    let timing = work::server_timing(
-        [read, queue, decode_time],
-        &timings,
-        &[("encode", encode_time), ("drop", drop_time)],
-    );
+    let mut after = Vec::with_capacity(3);
+    after.extend(rectify_time.map(|t| ("rectify", t)));
+    after.extend([("encode", encode_time), ("drop", drop_time)]);
+    let timing = work::server_timing([read, queue, decode_time], &timings, &after);
     let mut response = match body {
         Ok(bytes) => {
             let mut response = bytes.into_response();
@@ -349,28 +359,21 @@ fn summary(
     depth: Option<&[f32]>,
     params: &Params,
     given: Option<GivenRig>,
-    rectified: bool,
+    (rectified, rows): (Option<Duration>, Option<RowOffsets>),
     [decode, cost, aggregate, refine]: [Duration; 4],
 ) -> DepthMapSummary {
     let valid = map.data.iter().filter(|d| !d.is_nan()).count();
     let ms = |d: Duration| (d.as_secs_f64() * 1e4).round() / 10.0;
     let (rig, mut warnings) = given.map_or((None, Vec::new()), |g| (Some(g.echo()), g.warnings));
     let valid_fraction = valid as f64 / map.data.len().max(1) as f64;
-    if rectified {
+    if rectified.is_some() {
         warnings.push(format!(
             "the raw pair was rectified first: the maps are the rectified left camera's, {} × \
              {} px, and the depths use the rectified rig",
             map.width, map.height
         ));
-    } else if valid_fraction < UNRECTIFIED_SHARE {
-        warnings.push(format!(
-            "only {:.1} % of the pixels matched: if these are raw frames (lens distortion, rows \
-             that do not line up between the cameras), they need rectifying: send the \
-             calibration of the raw cameras (a stereoCalibrate file, a ROS CameraInfo pair \
-             with D K R P, KITTI's calib_cam_to_cam.txt, /calibrate's opencv.yml) as the \
-             calibration part with rectify=auto, or rectify them with /rectify",
-            valid_fraction * 100.0
-        ));
+    } else if let Some(warning) = rectify::unrectified_warning(Some(valid_fraction), rows) {
+        warnings.push(warning);
     }
     DepthMapSummary {
         width: map.width,
@@ -398,8 +401,9 @@ fn summary(
             cost: ms(cost),
             aggregate: ms(aggregate),
             refine: ms(refine),
+            rectify: rectified.map(ms),
         },
-        rectified,
+        rectified: rectified.is_some(),
         warnings,
     }
 }

@@ -261,6 +261,11 @@ pub struct StageTimes {
     pub aggregate: f64,
     /// Winner-takes-all, sub-pixel, left-right check, speckle and median filters.
     pub refine: f64,
+    /// Rectifying a raw pair (after decoding, before matching); absent for a pair sent as
+    /// rectified.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub rectify: Option<f64>,
 }
 
 /// The matcher's parameters as used.

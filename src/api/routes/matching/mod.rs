@@ -69,7 +69,8 @@ impl ImageForm for MatchForm {
                    default) rectifies the pair first; points and boxes are given in the raw \
                    left image, and each match also gives `x_rectified`, `y_rectified` (where \
                    it was matched) and `x_right_raw`, `y_right_raw` (the match on the raw \
-                   right frame).\n\n\
+                   right frame). A pair sent as rectified whose corners match a pixel or \
+                   more off their rows gets a warning saying how to rectify it.\n\n\
                    Send `multipart/form-data` with parts `left` and `right` (PNG or JPEG, one \
                    size), `points` (a JSON array of `{\"x\", \"y\"}`, at most 10 000) and/or \
                    `regions` (a JSON array of `{\"x\", \"y\", \"width\", \"height\"}`, at most \
@@ -347,11 +348,13 @@ fn compute(
     let cancel = job.cancel;
     let started = Instant::now();
     let (mut left, mut right) = work::decode_pair(job.parts, false)?;
-    if let Some((raw, cache)) = raw {
+    let decode_time = started.elapsed();
+    let rectify_time = raw.map(|(raw, cache)| {
+        let started = Instant::now();
         let (maps, _) = cache.get(raw);
         rectify::rectify_pair(&mut left, &mut right, &maps, false);
-    }
-    let decode_time = started.elapsed();
+        started.elapsed()
+    });
     let (w, h) = (left.grey.width, left.grey.height);
     // Points and boxes are clicked on the raw frame: matched where they land once rectified
     // (a box as the rectangle around its corners' images).
@@ -432,6 +435,13 @@ fn compute(
         .zip(&boxes)
         .map(|(&b, r)| region_match(rig, &found.map, b, *r))
         .collect();
+    // A pair sent as rectified: do its corners lie on their rows?
+    let rows = raw.is_none().then(|| {
+        let range = (params.min_disparity(), params.max_disparity());
+        vision::rows::row_offsets(&left.grey, &right.grey, range)
+    });
+    let mut warnings = given.warnings.clone();
+    warnings.extend(rows.and_then(|r| rectify::unrectified_warning(None, r)));
     let ms = |d: std::time::Duration| (d.as_secs_f64() * 1e4).round() / 10.0;
     let t = found.timings;
     let answer = MatchResponse {
@@ -454,15 +464,19 @@ fn compute(
             cost: ms(t.cost),
             aggregate: ms(t.aggregate),
             refine: ms(t.refine),
+            rectify: rectify_time.map(ms),
         },
-        warnings: given.warnings.clone(),
+        warnings,
     };
     let mut response = Json(answer).into_response();
     let started = Instant::now();
     drop((left, right, found));
     let drop_time = started.elapsed();
     let [read, queue] = job.waited;
-    let timing = work::server_timing([read, queue, decode_time], &t, &[("drop", drop_time)]);
+    let mut after = Vec::with_capacity(2);
+    after.extend(rectify_time.map(|t| ("rectify", t)));
+    after.push(("drop", drop_time));
+    let timing = work::server_timing([read, queue, decode_time], &t, &after);
     if let Ok(v) = HeaderValue::from_str(&timing) {
         response.headers_mut().insert("server-timing", v);
     }

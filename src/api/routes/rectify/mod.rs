@@ -31,6 +31,7 @@ use crate::camera::{Options, stereo_rectify};
 use crate::vision::decode::{self, Decoded};
 use crate::vision::encode;
 use crate::vision::remap::{self, Fixed, Interpolation, Source};
+use crate::vision::rows::RowOffsets;
 
 /// `POST /rectify`.
 pub fn router() -> OpenApiRouter<HeavyState> {
@@ -47,6 +48,47 @@ pub const NOT_RAW: &str = "describes only rectified images (a Middlebury or KITT
      camera's K and D and their pose or rectification: a stereoCalibrate file (M1 D1 M2 D2 R \
      T), a ROS CameraInfo pair with K D R P, KITTI's calib_cam_to_cam.txt with K_0i D_0i \
      R_rect_0i, or /calibrate's opencv.yml";
+
+/// Below this share of matched pixels, a pair sent as rectified may well be raw.
+pub const UNRECTIFIED_SHARE: f64 = 0.2;
+/// Matched corners this many rows apart (the median) mean the rows do not line up: a
+/// rectified pair's are a few tenths of a pixel.
+pub const UNRECTIFIED_ROWS: f64 = 1.0;
+/// The corners the row check needs before it speaks.
+pub const ROW_FEATURES: usize = 8;
+
+/// The summary's warning for a pair sent as rectified that looks raw: too few pixels matched
+/// (`valid_fraction`, when the whole map was matched), or its matched corners off their rows
+/// ([`crate::vision::rows`]). `None` when neither shows.
+pub fn unrectified_warning(
+    valid_fraction: Option<f64>,
+    rows: Option<RowOffsets>,
+) -> Option<String> {
+    let mut signs = Vec::new();
+    if let Some(share) = valid_fraction.filter(|&v| v < UNRECTIFIED_SHARE) {
+        signs.push(format!("only {:.1} % of the pixels matched", share * 100.0));
+    }
+    if let Some(rows) =
+        rows.filter(|r| r.features >= ROW_FEATURES && r.median_offset >= UNRECTIFIED_ROWS)
+    {
+        signs.push(format!(
+            "matched corners lie {:.1} px off their rows (the median of {}; a rectified pair's \
+             are under {UNRECTIFIED_ROWS} px)",
+            rows.median_offset, rows.features
+        ));
+    }
+    if signs.is_empty() {
+        return None;
+    }
+    Some(format!(
+        "{}: if these are raw frames (lens distortion, rows that do not line up between the \
+         cameras), they need rectifying: send the calibration of the raw cameras (a \
+         stereoCalibrate file, a ROS CameraInfo pair with D K R P, KITTI's \
+         calib_cam_to_cam.txt, /calibrate's opencv.yml) as the calibration part with \
+         rectify=auto, or rectify them with /rectify",
+        signs.join(", and ")
+    ))
+}
 
 #[utoipa::path(
     post,
