@@ -402,8 +402,12 @@ async fn split_intrinsics_and_extrinsics_are_read_together() {
 #[tokio::test]
 async fn ros_and_kitti_raw_files_describe_raw_cameras() {
     let app = spawn_app().await;
+    // The project's copies of the shared reference files.
     let read = |name: &str| {
-        std::fs::read_to_string(format!("../shared/vectors/calibration/{name}")).unwrap()
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("tests/data/calibration")
+            .join(name);
+        std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
     };
     let (left, right) = (read("ros_left.yaml"), read("ros_right.yaml"));
     let body = ok_json(
