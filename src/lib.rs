@@ -33,7 +33,8 @@
 //!     `vision::Params::new` (the one set of defaults, and the search range's arithmetic),
 //!     census costs, SGM, refinement, `/match`'s correspondences, decoding and encoding.
 //!     Remapping raw frames through rectification maps (`vision::remap`) lives here,
-//!     used by `/rectify` and next by the raw pairs of `/depth-map` and `/match`.
+//!     used by `/rectify` and by the raw pairs of `/depth-map` and `/match`, and the check
+//!     that a pair sent as rectified has its rows in line (`vision::rows`).
 //! - [`config`]: flags and environment variables (clap) for both groups, defaults, start-up
 //!   checks.
 //! - [`budget`]: the memory budget shared by the heavy requests in flight.
