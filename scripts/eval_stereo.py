@@ -130,15 +130,14 @@ def ours(url, left_png, right_png, output="disparity.npy"):
                             "right": (right_png, "right.png", "image/png")})
 
 
-def post(url, path, parts, rig=True):
-    """The same multipart POST (with Motorcycle's rig part unless rig is False), RUNS + 1 times
-    on one kept-alive connection: the last answer, the median time of the last RUNS, and the
-    Server-Timing header."""
+def post(url, path, parts):
+    """The same multipart POST, RUNS + 1 times on one kept-alive connection: the last answer,
+    the median time of the last RUNS, and the Server-Timing header."""
     target = urllib.parse.urlsplit(url)
     conn = http.client.HTTPConnection(target.hostname, target.port, timeout=60)
-    if rig:
-        parts = {**parts, "rig": (json.dumps(RIG).encode(), None, "application/json")}
-    body, ctype = multipart(parts)
+    body, ctype = multipart(
+        {**parts, "rig": (json.dumps(RIG).encode(), None, "application/json")}
+    )
     times, answer, timing = [], None, ""
     for _ in range(RUNS + 1):  # the first warms the connection and the allocator
         t = time.perf_counter()

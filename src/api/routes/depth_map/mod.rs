@@ -198,21 +198,13 @@ fn compute(
     let colour = output == DepthMapOutput::PointsPly;
     let (mut left, mut right) = work::decode_pair(parts, colour)?;
     let decode_time = started.elapsed();
-    let rectify_time = raw.map(|(raw, cache)| {
-        let started = Instant::now();
-        let (maps, _) = cache.get(raw);
-        rectify::rectify_pair(&mut left, &mut right, &maps, colour);
-        started.elapsed()
-    });
+    let rectify_time = raw.map(|raw| rectify::rectify_raw_pair(&mut left, &mut right, raw, colour));
     let (map, timings) = vision::disparity(&left.grey, &right.grey, params, cancel)
         .map_err(|Cancelled| ApiError::Internal("cancelled".to_owned()))?;
     // A pair sent as rectified: do its matched corners lie on their rows? (Summary only: the
     // files have nowhere to say it.)
     let rows = (raw.is_none() && output == DepthMapOutput::Summary)
-        .then(|| {
-            let range = (params.min_disparity(), params.max_disparity());
-            vision::rows::row_offsets(&left.grey, &right.grey, range)
-        })
+        .then(|| rectify::row_check(&left, &right, params))
         .flatten();
     drop(right);
     let started = Instant::now();

@@ -349,12 +349,7 @@ fn compute(
     let started = Instant::now();
     let (mut left, mut right) = work::decode_pair(job.parts, false)?;
     let decode_time = started.elapsed();
-    let rectify_time = raw.map(|(raw, cache)| {
-        let started = Instant::now();
-        let (maps, _) = cache.get(raw);
-        rectify::rectify_pair(&mut left, &mut right, &maps, false);
-        started.elapsed()
-    });
+    let rectify_time = raw.map(|raw| rectify::rectify_raw_pair(&mut left, &mut right, raw, false));
     let (w, h) = (left.grey.width, left.grey.height);
     // Points and boxes are clicked on the raw frame: matched where they land once rectified
     // (a box as the rectangle around its corners' images).
@@ -436,10 +431,9 @@ fn compute(
         .map(|(&b, r)| region_match(rig, &found.map, b, *r))
         .collect();
     // A pair sent as rectified: do its corners lie on their rows?
-    let rows = raw.is_none().then(|| {
-        let range = (params.min_disparity(), params.max_disparity());
-        vision::rows::row_offsets(&left.grey, &right.grey, range)
-    });
+    let rows = raw
+        .is_none()
+        .then(|| rectify::row_check(&left, &right, params));
     let mut warnings = given.warnings.clone();
     warnings.extend(rows.and_then(|r| rectify::unrectified_warning(None, r)));
     let ms = |d: std::time::Duration| (d.as_secs_f64() * 1e4).round() / 10.0;

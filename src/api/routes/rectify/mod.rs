@@ -300,9 +300,34 @@ fn has_colour(d: &Decoded) -> bool {
         .is_some_and(|rgb| rgb.chunks_exact(3).any(|p| p[0] != p[1] || p[1] != p[2]))
 }
 
+/// A raw pair rectified in place for `/depth-map` and `/match`: the rig's maps from `cache`
+/// (built on a miss), then [`rectify_pair`]. The time it took, for `Server-Timing`.
+pub fn rectify_raw_pair(
+    left: &mut Decoded,
+    right: &mut Decoded,
+    (raw, cache): (&Raw, &MapCache),
+    colour: bool,
+) -> std::time::Duration {
+    let started = Instant::now();
+    let (maps, _) = cache.get(raw);
+    rectify_pair(left, right, &maps, colour);
+    started.elapsed()
+}
+
+/// The row check of a pair sent as rectified ([`crate::vision::rows`]), over the matcher's
+/// disparity range.
+pub fn row_check(
+    left: &Decoded,
+    right: &Decoded,
+    params: &crate::vision::Params,
+) -> Option<RowOffsets> {
+    let range = (params.min_disparity(), params.max_disparity());
+    crate::vision::rows::row_offsets(&left.grey, &right.grey, range)
+}
+
 /// Both frames of a pair read through their maps: grey always, the left colours too when
 /// `colour` (a point cloud's).
-pub fn rectify_pair(left: &mut Decoded, right: &mut Decoded, maps: &Maps, colour: bool) {
+fn rectify_pair(left: &mut Decoded, right: &mut Decoded, maps: &Maps, colour: bool) {
     let grey = |d: &Decoded, map: &Fixed| {
         let g = &d.grey;
         crate::vision::Gray::new(
