@@ -1,7 +1,9 @@
 //! Criterion benchmarks of the matcher's stages on a synthetic 741 × 500 pair (Motorcycle's
 //! quarter size, no download), 64 disparities: census, cost volume, aggregation, the
 //! winner-takes-all of a row, and the whole `vision::disparity`, with the AVX2 build and the
-//! portable one. The comparison with OpenCV is `scripts/eval-stereo` (README, Performance).
+//! portable one; and coarse to fine at 256 disparities: halving, the prior's windows, the whole
+//! matcher through the pyramid. The comparison with OpenCV is `scripts/eval-stereo` (README,
+//! Performance).
 //!
 //! ```text
 //! cargo bench --bench vision
@@ -11,7 +13,7 @@ use std::hint::black_box;
 use std::sync::atomic::AtomicBool;
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use stereo_distance::vision::{self, Params, census, cost, refine, sgm, simd, synthetic};
+use stereo_distance::vision::{self, Params, census, cost, pyramid, refine, sgm, simd, synthetic};
 
 fn stages(c: &mut Criterion) {
     let pair = synthetic::render(&synthetic::Scene {
@@ -21,9 +23,10 @@ fn stages(c: &mut Criterion) {
     let params = Params::range(0, 64).unwrap();
     let never = AtomicBool::new(false);
     let (w, h) = (pair.left.width, pair.left.height);
+    let full = || cost::Windows::full(w * h, params.count());
     let cl = census::transform(&pair.left);
     let cr = census::transform(&pair.right);
-    let volume = cost::volume(&cl, &cr, w, h, 0, params.count());
+    let volume = cost::volume(&cl, &cr, w, h, (0, params.count()), full());
     let mut totals = Vec::new();
     sgm::aggregate(
         &volume,
@@ -49,7 +52,16 @@ fn stages(c: &mut Criterion) {
         })
     });
     group.bench_function("cost volume", |b| {
-        b.iter(|| cost::volume(black_box(&cl), black_box(&cr), w, h, 0, params.count()))
+        b.iter(|| {
+            cost::volume(
+                black_box(&cl),
+                black_box(&cr),
+                w,
+                h,
+                (0, params.count()),
+                full(),
+            )
+        })
     });
     group.bench_function(
         "aggregate (8 paths, 2 passes, whole image, 1 thread)",
@@ -71,8 +83,7 @@ fn stages(c: &mut Criterion) {
         b.iter(|| {
             refine::winners(
                 black_box(&totals),
-                w,
-                volume.stride,
+                refine::RowWindows::of(&volume.windows, h / 2, w),
                 params.count(),
                 params.uniqueness(),
                 params.subpixel(),
@@ -89,6 +100,36 @@ fn stages(c: &mut Criterion) {
         });
     }
     simd::use_simd(true);
+    group.finish();
+
+    // Coarse to fine: the pair halved, the prior's windows for every row, and the whole
+    // matcher through the pyramid at 256 disparities (two levels above the finest).
+    let mut group = c.benchmark_group("pyramid 741x500x256");
+    group.sample_size(10);
+    let wide = Params::range(0, 256).unwrap();
+    group.bench_function("halve (both images)", |b| {
+        b.iter(|| {
+            (
+                pyramid::halve(black_box(&pair.left)),
+                pyramid::halve(black_box(&pair.right)),
+            )
+        })
+    });
+    let (coarse, _) = vision::disparity(
+        &pyramid::halve(&pair.left),
+        &pyramid::halve(&pair.right),
+        &Params::range(0, 128).unwrap(),
+        &never,
+    )
+    .unwrap();
+    let prior = pyramid::Prior::new(&coarse, 0);
+    group.bench_function("prior and its windows (whole image)", |b| {
+        b.iter(|| pyramid::Prior::new(black_box(&coarse), 0).windows(0..h, w, (0, 256)))
+    });
+    black_box(prior);
+    group.bench_function("whole matcher, 256 disparities, coarse to fine", |b| {
+        b.iter(|| vision::disparity(&pair.left, &pair.right, &wide, &never).unwrap())
+    });
     group.finish();
 }
 

@@ -52,10 +52,16 @@ pub const DEFAULT_HEAVY_REQUEST_TIMEOUT: Duration = Duration::from_secs(30);
 /// once (a 1280 × 720 pair with 128 disparities needs a few hundred MiB) within a pod of 2 GiB.
 pub const DEFAULT_HEAVY_MEMORY_BUDGET: usize = 1024 * 1024 * 1024;
 
-/// Default concurrency limit of the heavy routes: the number of CPUs. Each request keeps a core
-/// busy, so more at once would only make each slower while holding more memory.
+/// Default concurrency limit of the heavy routes: twice the number of CPUs, and at least 4.
+/// The requests in flight share the matcher's threads (one a core), so more of them than cores
+/// each go slower rather than thrash; what keeps them within memory is the heavy budget, which
+/// every request reserves from first. A client feeding two or three cameras is then not refused
+/// while the budget holds their pairs.
 pub fn default_heavy_concurrency() -> usize {
-    std::thread::available_parallelism().map_or(1, usize::from)
+    std::thread::available_parallelism()
+        .map_or(1, usize::from)
+        .saturating_mul(2)
+        .max(4)
 }
 
 /// The command line of the `stereo-distance` binary.

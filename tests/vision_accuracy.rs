@@ -173,3 +173,51 @@ fn degenerate_inputs_do_not_panic() {
         }
     }
 }
+
+/// The layered scene with every disparity multiplied by `k`.
+fn deep(width: usize, height: usize, k: f32) -> Scene {
+    let mut scene = synthetic::layered(width, height);
+    for plane in &mut scene.planes {
+        plane.disparity = plane.disparity.map(|v| v * k);
+    }
+    scene
+}
+
+/// A wide range goes through the pyramid (three coarser levels for 320 disparities): the planes, now 48 to
+/// 272 px apart, are still matched nearly everywhere and within a pixel, as closely as the whole
+/// range searched at every pixel finds them.
+#[test]
+fn a_wide_range_is_matched_coarse_to_fine() {
+    assert_eq!(vision::pyramid::levels(960, 640, 320), 3);
+    let pair = synthetic::render(&deep(960, 640, 8.0));
+    let wide = Params::new(&Settings {
+        max_disparity: Some(320),
+        ..Settings::default()
+    })
+    .unwrap();
+    let s = score(&pair, &wide);
+    assert!(s.density > 0.95, "{s:?}");
+    assert!(s.bad1 < 0.01, "{s:?}");
+    assert!(s.median_error < 0.15, "{s:?}");
+}
+
+/// Below the coarsest level each pixel costs at most MAX_WINDOW cells, so the memory the
+/// matcher reserves stops growing with the range: 512 disparities need no more per pixel than
+/// 128 or 200 (the whole range at one level would need over 150 bytes a pixel at 512).
+#[test]
+fn memory_per_pixel_does_not_grow_with_the_range() {
+    let (w, h) = (3000, 2000);
+    let per_pixel = |count| vision::bytes_needed(w, h, count) as f64 / (w * h) as f64;
+    assert!(
+        per_pixel(400) <= per_pixel(200) * 1.01,
+        "{} {}",
+        per_pixel(400),
+        per_pixel(200)
+    );
+    assert!(
+        per_pixel(512) <= per_pixel(128) * 1.01,
+        "{}",
+        per_pixel(512)
+    );
+    assert!(per_pixel(512) < 80.0, "{}", per_pixel(512));
+}

@@ -1,15 +1,18 @@
-//! The matching cost volume: for every left pixel and every disparity searched, how unlike the
-//! right pixel it would match are their census signatures (Hamming distance, 0 to 62).
+//! The matching cost volume: for every left pixel and every disparity it searches, how unlike
+//! the right pixel it would match are their census signatures (Hamming distance, 0 to 62).
 //!
 //! Layout, as OpenCV's `stereosgbm.cpp` lays out its `C` buffer: row-major pixels, and for each
-//! pixel its disparities contiguous (`[y][x][d]`), padded to a multiple of [`LANES`] so that the
-//! aggregation's inner loop over `d` runs on whole SIMD registers. One byte a cell.
+//! pixel its disparities contiguous (`[y][x][d]`), so that the aggregation's inner loop over `d`
+//! runs on whole SIMD registers. Each pixel searches its own window of the range ([`Windows`]):
+//! the whole range at the coarsest level of the pyramid, a few registers around what the level
+//! above found everywhere else, so that the cells a pixel costs do not grow with the range. A
+//! window is a whole number of [`LANES`]; one byte a cell.
 
 use rayon::prelude::*;
 
 use super::census;
 
-/// The disparity axis is padded to a multiple of this many cells (one AVX2 register of `u16`).
+/// Windows are whole multiples of this many cells (one AVX2 register of `u16`).
 pub const LANES: usize = 16;
 
 /// The cost of a disparity whose right pixel falls outside the right image: a little worse than
@@ -17,91 +20,162 @@ pub const LANES: usize = 16;
 /// real match that is better than chance, and path costs are not dragged far off by the border.
 pub const OUTSIDE: u8 = (census::BITS * 5 / 8) as u8;
 
-/// The cost of the padding cells past the last disparity searched: never chosen.
+/// The cost of the cells of a window past the last disparity searched: never chosen.
 pub const PAD: u8 = 2 * census::BITS as u8;
-
-/// A cost volume of `width × height × stride` cells; disparity `min + k` at index `k`.
-#[derive(Debug)]
-pub struct Volume {
-    pub width: usize,
-    pub height: usize,
-    /// The smallest disparity searched, in pixels.
-    pub min: i32,
-    /// How many disparities are searched: `min ..  min + count`.
-    pub count: usize,
-    /// Cells per pixel: `count` rounded up to a multiple of [`LANES`].
-    pub stride: usize,
-    pub data: Vec<u8>,
-}
 
 /// `count` rounded up to whole SIMD registers.
 pub fn stride(count: usize) -> usize {
     count.div_ceil(LANES) * LANES
 }
 
-impl Volume {
-    /// The costs of pixel `(x, y)`, one per padded disparity.
-    pub fn at(&self, x: usize, y: usize) -> &[u8] {
-        let start = (y * self.width + x) * self.stride;
-        &self.data[start..start + self.stride]
+/// Which disparities each pixel of a `width × height` block searches: pixel `i` (row-major)
+/// searches the indices `first[i] .. first[i] + len` of the range, `len` a multiple of
+/// [`LANES`], and its cells are `offsets[i] .. offsets[i + 1]` of the volume.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Windows {
+    pub first: Vec<u16>,
+    pub offsets: Vec<u32>,
+}
+
+impl Windows {
+    /// Every one of `pixels` pixels searches the whole range of `count` disparities.
+    pub fn full(pixels: usize, count: usize) -> Windows {
+        let n = stride(count) as u32;
+        Windows {
+            first: vec![0; pixels],
+            offsets: (0..=pixels as u32).map(|i| i * n).collect(),
+        }
+    }
+
+    /// Windows from each pixel's first index and length (a multiple of [`LANES`]).
+    pub fn from_lengths(first: Vec<u16>, lengths: impl Iterator<Item = u16>) -> Windows {
+        let mut offsets = Vec::with_capacity(first.len() + 1);
+        let mut at = 0u32;
+        offsets.push(0);
+        for len in lengths {
+            at += u32::from(len);
+            offsets.push(at);
+        }
+        debug_assert_eq!(offsets.len(), first.len() + 1);
+        Windows { first, offsets }
+    }
+
+    /// Cells in all.
+    pub fn cells(&self) -> usize {
+        self.offsets.last().map_or(0, |&c| c as usize)
+    }
+
+    /// Pixel `i`'s first index and its cells.
+    #[inline(always)]
+    pub fn of(&self, i: usize) -> (usize, std::ops::Range<usize>) {
+        (
+            usize::from(self.first[i]),
+            self.offsets[i] as usize..self.offsets[i + 1] as usize,
+        )
     }
 }
 
-/// The cost volume of two census-transformed images of `width × height`.
+/// A cost volume of `width × height` pixels, each with its window of the range; disparity
+/// `min + j` at index `j`.
+#[derive(Debug)]
+pub struct Volume {
+    pub width: usize,
+    pub height: usize,
+    /// The smallest disparity of the range, in pixels.
+    pub min: i32,
+    /// How many disparities the range holds: `min .. min + count`.
+    pub count: usize,
+    pub windows: Windows,
+    pub data: Vec<u8>,
+}
+
+impl Volume {
+    /// The costs of pixel `(x, y)`, one per disparity of its window, and the window's first
+    /// index.
+    pub fn at(&self, x: usize, y: usize) -> (usize, &[u8]) {
+        let (first, cells) = self.windows.of(y * self.width + x);
+        (first, &self.data[cells])
+    }
+}
+
+/// The cost volume of two census-transformed images of `width × height`, each pixel over its
+/// window.
 pub fn volume(
     left: &[u64],
     right: &[u64],
     width: usize,
     height: usize,
-    min: i32,
-    count: usize,
+    (min, count): (i32, usize),
+    windows: Windows,
 ) -> Volume {
-    let stride = stride(count);
-    // Every cell is written below, the padding past `count` included.
-    let mut data = super::huge_pages::zeroed(width * height * stride);
-    data.par_chunks_mut(width * stride)
-        .enumerate()
-        .for_each(|(y, row)| {
-            costs_of_row(
-                &left[y * width..(y + 1) * width],
-                &right[y * width..(y + 1) * width],
-                min as i64,
-                count,
-                row,
-            );
-        });
+    // Every cell is written below, those past `count` included.
+    let mut data = super::huge_pages::zeroed(windows.cells());
+    let mut rows: Vec<&mut [u8]> = Vec::with_capacity(height);
+    let mut rest = &mut data[..];
+    for y in 0..height {
+        let cells = windows.offsets[(y + 1) * width] - windows.offsets[y * width];
+        let (row, after) = rest.split_at_mut(cells as usize);
+        rows.push(row);
+        rest = after;
+    }
+    rows.into_par_iter().enumerate().for_each(|(y, row)| {
+        let pixels = y * width..(y + 1) * width;
+        costs_of_row(
+            &left[pixels.clone()],
+            &right[pixels.clone()],
+            (min as i64, count),
+            &windows.first[pixels.clone()],
+            &windows.offsets[pixels.start..=pixels.end],
+            row,
+        );
+    });
     Volume {
         width,
         height,
         min,
         count,
-        stride,
+        windows,
         data,
     }
 }
 
 crate::dispatch! {
-    /// One row of the volume. For pixel `x`, the disparities whose right pixel `x − d` is inside
-    /// the image form one run of `k`, computed in one branch-free loop (vectorised popcounts);
-    /// the rest are [`OUTSIDE`].
-    fn costs_of_row(left: &[u64], right: &[u64], min: i64, count: usize, row: &mut [u8]) {
+    /// One row of the volume. For pixel `x`, the indices `j` of its window whose right pixel
+    /// `x − min − j` is inside the image and which are in the range form one run, computed in
+    /// one branch-free loop (vectorised popcounts); the rest are [`OUTSIDE`], or [`PAD`] past the
+    /// range.
+    fn costs_of_row(
+        left: &[u64],
+        right: &[u64],
+        range: (i64, usize),
+        first: &[u16],
+        offsets: &[u32],
+        row: &mut [u8],
+    ) {
+        let (min, count) = range;
         let width = left.len() as i64;
-        let stride = row.len() / left.len();
-        for (x, cells) in row.chunks_exact_mut(stride).enumerate() {
-            let (cells, padding) = cells.split_at_mut(count);
+        let base = offsets[0] as usize;
+        for x in 0..left.len() {
+            let cells = &mut row[offsets[x] as usize - base..offsets[x + 1] as usize - base];
+            let f = i64::from(first[x]);
+            let len = cells.len() as i64;
+            // Indices in the range: f .. f + valid.
+            let valid = (count as i64 - f).clamp(0, len) as usize;
+            let (cells, padding) = cells.split_at_mut(valid);
             padding.fill(PAD);
             let sig = left[x];
-            // k such that 0 <= x - min - k < width.
-            let first = (x as i64 - min - width + 1).clamp(0, count as i64) as usize;
-            let end = (x as i64 - min + 1).clamp(first as i64, count as i64) as usize;
-            cells[..first].fill(OUTSIDE);
+            // j such that 0 <= x - min - j < width, as k = j - f within the window.
+            let xi = x as i64;
+            let lo = (xi - min - width + 1 - f).clamp(0, valid as i64) as usize;
+            let end = (xi - min + 1 - f).clamp(lo as i64, valid as i64) as usize;
+            cells[..lo].fill(OUTSIDE);
             cells[end..].fill(OUTSIDE);
-            if first < end {
-                // Right pixels from x − min − first down to x − min − (end − 1).
-                let hi = (x as i64 - min - first as i64) as usize;
-                let lo = hi + 1 - (end - first);
-                let run = &right[lo..=hi];
-                for (cell, &r) in cells[first..end].iter_mut().zip(run.iter().rev()) {
+            if lo < end {
+                // Right pixels from x − min − f − lo down to x − min − f − (end − 1).
+                let hi = (xi - min - f - lo as i64) as usize;
+                let low = hi + 1 - (end - lo);
+                let run = &right[low..=hi];
+                for (cell, &r) in cells[lo..end].iter_mut().zip(run.iter().rev()) {
                     *cell = (sig ^ r).count_ones() as u8;
                 }
             }
@@ -119,10 +193,31 @@ mod tests {
     fn cells_are_hamming_distances() {
         let left = [0b1111u64, 0b1010, 0b0000];
         let right = [0b0000u64, 0b1111, 0b1000];
-        let v = volume(&left, &right, 3, 1, 0, 2);
-        assert_eq!(v.stride, 16);
-        assert_eq!(&v.at(0, 0)[..3], &[4, OUTSIDE, PAD]);
-        assert_eq!(&v.at(1, 0)[..2], &[2, 2]);
-        assert_eq!(&v.at(2, 0)[..2], &[1, 4]);
+        let v = volume(&left, &right, 3, 1, (0, 2), Windows::full(3, 2));
+        assert_eq!(v.windows.cells(), 48);
+        assert_eq!(&v.at(0, 0).1[..3], &[4, OUTSIDE, PAD]);
+        assert_eq!(&v.at(1, 0).1[..2], &[2, 2]);
+        assert_eq!(&v.at(2, 0).1[..2], &[1, 4]);
+    }
+
+    /// A window that starts inside the range holds the same costs as the full range at the
+    /// same disparities, and PAD past the range's end.
+    #[test]
+    fn a_window_holds_the_full_ranges_cells() {
+        let left: Vec<u64> = (0..40u64)
+            .map(|i| i.wrapping_mul(0x9E37_79B9_7F4A_7C15))
+            .collect();
+        let right: Vec<u64> = (0..40u64)
+            .map(|i| i.wrapping_mul(0xC2B2_AE3D_27D4_EB4F))
+            .collect();
+        let full = volume(&left, &right, 40, 1, (-3, 30), Windows::full(40, 30));
+        let narrow = Windows::from_lengths(vec![20; 40], std::iter::repeat_n(16, 40));
+        let part = volume(&left, &right, 40, 1, (-3, 30), narrow);
+        for x in 0..40 {
+            let (f, cells) = part.at(x, 0);
+            assert_eq!(f, 20);
+            assert_eq!(&cells[..10], &full.at(x, 0).1[20..30], "pixel {x}");
+            assert!(cells[10..].iter().all(|&c| c == PAD));
+        }
     }
 }

@@ -7,9 +7,11 @@
 //! answer. That keeps the engine testable on synthetic images, benchmarkable on its own, and
 //! usable from the fuzz target without a server.
 //!
-//! The matcher, stage by stage ([`disparity`]):
+//! The matcher, stage by stage ([`disparity`]), at each level of a pyramid ([`pyramid`]) when
+//! the range is wide: matched over the whole range at the coarsest level, and over a narrow
+//! window around what the level above found everywhere below it:
 //! - [`census`]: a 9 × 7 census transform of both images (62 bits a pixel);
-//! - [`cost`]: the Hamming cost volume, `[y][x][d]`, one byte a cell;
+//! - [`cost`]: the Hamming cost volume, `[y][x][d]` over each pixel's window, one byte a cell;
 //! - [`sgm`]: semi-global aggregation along 8 paths in two passes, the second handing each
 //!   finished row to
 //! - [`refine`]: winner-takes-all with uniqueness and a sub-pixel fit, the left-right check;
@@ -37,6 +39,7 @@ pub mod decode;
 pub mod encode;
 pub mod huge_pages;
 mod params;
+pub mod pyramid;
 pub mod refine;
 pub mod remap;
 pub mod rows;
@@ -118,15 +121,19 @@ pub const STRIPE_ROWS: usize = 256;
 /// few dozen rows).
 pub const STRIPE_MARGIN: usize = 24;
 
-/// The stripes of an image `height` rows tall: `(rows kept, rows matched)`, the second
-/// containing the first. A last stripe shorter than a quarter of [`STRIPE_ROWS`] joins the one
-/// before it.
-pub fn stripes(height: usize) -> Vec<(Range<usize>, Range<usize>)> {
+/// Rows of a stripe below the pyramid's coarsest level, where each pixel searches a window
+/// ([`pyramid`]): half as many, so that the stripes in flight hold half the memory.
+pub const NARROW_STRIPE_ROWS: usize = STRIPE_ROWS / 2;
+
+/// The stripes of an image `height` rows tall, `rows` rows a stripe: `(rows kept, rows
+/// matched)`, the second containing the first. A last stripe shorter than a quarter of `rows`
+/// joins the one before it.
+pub fn stripes(height: usize, rows: usize) -> Vec<(Range<usize>, Range<usize>)> {
     let mut kept: Vec<Range<usize>> = (0..height)
-        .step_by(STRIPE_ROWS)
-        .map(|r0| r0..(r0 + STRIPE_ROWS).min(height))
+        .step_by(rows)
+        .map(|r0| r0..(r0 + rows).min(height))
         .collect();
-    if kept.len() > 1 && kept[kept.len() - 1].len() < STRIPE_ROWS / 4 {
+    if kept.len() > 1 && kept[kept.len() - 1].len() < rows / 4 {
         let last = kept.pop().unwrap_or_default();
         if let Some(before) = kept.last_mut() {
             before.end = last.end;
@@ -142,20 +149,37 @@ pub fn stripes(height: usize) -> Vec<(Range<usize>, Range<usize>)> {
 }
 
 /// The bytes the matcher holds at its peak for a `width × height` pair searching `count`
-/// disparities: for each stripe in flight at once (one a core), its cost volume (one byte a
-/// cell) and the first pass's sums (two bytes a cell); and per-pixel buffers (census
-/// signatures, grey images, the disparity maps).
+/// disparities, over the levels of its pyramid ([`pyramid`]): 32 bytes a pixel of the finest
+/// level for the per-pixel buffers of whichever level is being matched (census signatures,
+/// the stripes' rows, the coarser level's prior and images; the disparity map and the filters'
+/// copies after them), and, for the level whose stripes hold the most, each stripe in flight at
+/// once (one a core): its cost volume (one byte a cell), the first pass's sums (two bytes a
+/// cell) and its windows (six bytes a pixel, eight counted). Below the coarsest level a pixel's
+/// window holds at most [`pyramid::MAX_WINDOW`] cells, whatever the range.
 pub fn bytes_needed(width: usize, height: usize, count: usize) -> usize {
-    let stripes = stripes(height);
-    let in_flight = stripes.len().min(rayon::current_num_threads()).max(1);
-    let tallest = stripes.iter().map(|(_, c)| c.len()).max().unwrap_or(0);
-    let pixels = width.saturating_mul(height);
+    let levels = pyramid::levels(width, height, count);
+    let (mut w, mut h, mut n) = (width, height, count);
+    let mut stripes_peak = 0usize;
+    for level in 0..=levels {
+        let (window, rows) = if level == levels {
+            (cost::stride(n), STRIPE_ROWS)
+        } else {
+            (pyramid::MAX_WINDOW.min(cost::stride(n)), NARROW_STRIPE_ROWS)
+        };
+        let stripes = stripes(h, rows);
+        let in_flight = stripes.len().min(rayon::current_num_threads()).max(1);
+        let tallest = stripes.iter().map(|(_, c)| c.len()).max().unwrap_or(0);
+        let held = w
+            .saturating_mul(tallest)
+            .saturating_mul(window.saturating_mul(3).saturating_add(8))
+            .saturating_mul(in_flight);
+        stripes_peak = stripes_peak.max(held);
+        (w, h, n) = (w.div_ceil(2), h.div_ceil(2), pyramid::halve_range(0, n).1);
+    }
     width
-        .saturating_mul(tallest)
-        .saturating_mul(cost::stride(count))
-        .saturating_mul(3)
-        .saturating_mul(in_flight)
-        .saturating_add(pixels.saturating_mul(48))
+        .saturating_mul(height)
+        .saturating_mul(32)
+        .saturating_add(stripes_peak)
 }
 
 /// The disparity map of a rectified pair (the same size), or [`Cancelled`] when `cancel` was set
@@ -204,6 +228,21 @@ pub fn disparity_probed(
     cancel: &AtomicBool,
     wanted: &[Vec<usize>],
 ) -> Result<(Disparity, Timings, Vec<Vec<Probe>>), Cancelled> {
+    let levels = pyramid::levels(left.width, left.height, params.count);
+    level(left, right, params, levels, cancel, wanted)
+}
+
+/// One level of the pyramid: the level above it first when `above` levels remain, then this
+/// level's pair matched over the windows that level's map gives ([`pyramid::Prior`]), or over
+/// the whole range at the coarsest level.
+fn level(
+    left: &Gray,
+    right: &Gray,
+    params: &Params,
+    above: usize,
+    cancel: &AtomicBool,
+    wanted: &[Vec<usize>],
+) -> Result<(Disparity, Timings, Vec<Vec<Probe>>), Cancelled> {
     let (w, h) = (left.width, left.height);
     let checkpoint = || {
         if cancel.load(Ordering::Relaxed) {
@@ -212,18 +251,46 @@ pub fn disparity_probed(
             Ok(())
         }
     };
+    let mut timings = Timings::default();
+    let prior = if above > 0 {
+        let started = Instant::now();
+        let (l2, r2) = rayon::join(|| pyramid::halve(left), || pyramid::halve(right));
+        timings.cost += started.elapsed();
+        let (min, count) = pyramid::halve_range(params.min_disparity, params.count);
+        let coarse = Params {
+            min_disparity: min,
+            count,
+            speckle_size: params.speckle_size / 4,
+            fill: false,
+            ..*params
+        };
+        let (map, t, _) = level(&l2, &r2, &coarse, above - 1, cancel, &[])?;
+        timings.add(t);
+        let started = Instant::now();
+        let prior = pyramid::Prior::new(&map, min);
+        timings.refine += started.elapsed();
+        Some(prior)
+    } else {
+        None
+    };
     let started = Instant::now();
     let (cl, cr) = rayon::join(|| census::transform(left), || census::transform(right));
-    let census_time = started.elapsed();
+    timings.cost += started.elapsed();
     checkpoint()?;
 
-    let stripes = stripes(h);
+    let rows = if prior.is_some() {
+        NARROW_STRIPE_ROWS
+    } else {
+        STRIPE_ROWS
+    };
+    let stripes = stripes(h, rows);
     let started = Instant::now();
     let matched: Vec<Result<Stripe, Cancelled>> = stripes
         .par_iter()
         .map(|(kept, context)| {
             let probe = Probing { wanted, rows: kept };
-            match_stripe(&cl, &cr, left, context, params, probe, cancel)
+            let census = (&cl[..], &cr[..]);
+            match_stripe(census, left, context, params, prior.as_ref(), probe, cancel)
         })
         .collect();
     let stripes_time = started.elapsed();
@@ -234,13 +301,10 @@ pub fn disparity_probed(
         let (rows, t, found) = stripe?;
         data.extend_from_slice(&rows);
         probes.extend(found);
-        summed.cost += t.cost;
-        summed.aggregate += t.aggregate;
-        summed.refine += t.refine;
+        summed.add(t);
     }
-    drop((cl, cr));
-    let mut timings = summed.sharing(stripes_time);
-    timings.cost += census_time;
+    drop((cl, cr, prior));
+    timings.add(summed.sharing(stripes_time));
     checkpoint()?;
 
     let started = Instant::now();
@@ -269,6 +333,13 @@ pub fn disparity_probed(
 }
 
 impl Timings {
+    /// Adds another's stage times to these.
+    fn add(&mut self, other: Timings) {
+        self.cost += other.cost;
+        self.aggregate += other.aggregate;
+        self.refine += other.refine;
+    }
+
     /// `wall`, shared between the stages in proportion to these (summed) times.
     pub(crate) fn sharing(self, wall: Duration) -> Timings {
         let total = (self.cost + self.aggregate + self.refine).as_secs_f64();
@@ -297,30 +368,30 @@ struct Probing<'a> {
     rows: &'a Range<usize>,
 }
 
-/// One stripe: the cost volume and the two passes over its `context` rows, the winners and the
-/// left-right check of its `kept` rows (disparities as indices into the range).
+/// One stripe: the cost volume over each pixel's window (from `prior`, or the whole range) and
+/// the two passes over its `context` rows, the winners and the left-right check of its `kept`
+/// rows (disparities as indices into the range).
 fn match_stripe(
-    cl: &[u64],
-    cr: &[u64],
+    (cl, cr): (&[u64], &[u64]),
     left: &Gray,
     context: &Range<usize>,
     params: &Params,
+    prior: Option<&pyramid::Prior>,
     probing: Probing,
     cancel: &AtomicBool,
 ) -> Result<Stripe, Cancelled> {
     let kept = probing.rows;
     let w = left.width;
+    let range = (params.min_disparity, params.count);
     let mut timings = Timings::default();
     let started = Instant::now();
+    let windows = match prior {
+        Some(prior) => prior.windows(context.clone(), w, range),
+        None => cost::Windows::full(context.len() * w, params.count),
+    };
     let rows = context.start * w..context.end * w;
-    let volume = cost::volume(
-        &cl[rows.clone()],
-        &cr[rows.clone()],
-        w,
-        context.len(),
-        params.min_disparity,
-        params.count,
-    );
+    let census = (&cl[rows.clone()], &cr[rows.clone()]);
+    let volume = cost::volume(census.0, census.1, w, context.len(), range, windows);
     timings.cost = started.elapsed();
     if cancel.load(Ordering::Relaxed) {
         return Err(Cancelled);
@@ -341,10 +412,10 @@ fn match_stripe(
                 return;
             }
             let chose = Instant::now();
+            let windows = refine::RowWindows::of(&volume.windows, y, w);
             let mut won = refine::winners(
                 totals,
-                w,
-                volume.stride,
+                windows,
                 params.count,
                 params.uniqueness,
                 params.subpixel,
@@ -352,7 +423,7 @@ fn match_stripe(
             if let Some(xs) = probing.wanted.get(kept.start + y - first) {
                 probes[y - first] = xs
                     .iter()
-                    .map(|&x| refine::probe(totals, &volume, (x, y), params, &won.right))
+                    .map(|&x| refine::probe(totals, windows, census, (x, y), params, &won.right))
                     .collect();
             }
             if let Some(tolerance) = params.lr_tolerance {

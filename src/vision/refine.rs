@@ -17,38 +17,75 @@ pub struct Winners {
     pub right: Vec<u16>,
 }
 
+/// The windows of one row of the volume: each pixel's first index into the range, and the
+/// offsets of its cells (`width + 1` of them; the row's totals start at `offsets[0]`).
+#[derive(Clone, Copy)]
+pub struct RowWindows<'a> {
+    pub first: &'a [u16],
+    pub offsets: &'a [u32],
+}
+
+impl<'a> RowWindows<'a> {
+    /// Row `y` of a `width`-pixel block's windows.
+    pub fn of(windows: &'a super::cost::Windows, y: usize, width: usize) -> Self {
+        RowWindows {
+            first: &windows.first[y * width..(y + 1) * width],
+            offsets: &windows.offsets[y * width..=(y + 1) * width],
+        }
+    }
+
+    /// Pixel `x`'s first index and its totals in the row, cut to the range's `count`.
+    #[inline(always)]
+    fn totals<'t>(&self, totals: &'t [u16], x: usize, count: usize) -> (usize, &'t [u16]) {
+        let base = self.offsets[0] as usize;
+        let cells = &totals[self.offsets[x] as usize - base..self.offsets[x + 1] as usize - base];
+        let first = usize::from(self.first[x]);
+        (
+            first,
+            &cells[..cells.len().min(count.saturating_sub(first))],
+        )
+    }
+}
+
 crate::dispatch! {
-    /// Winner-takes-all over one row of aggregated costs (`width × stride`). `uniqueness` is
-    /// in percent: the best cost must beat every disparity more than one step away by that
-    /// margin.
+    /// Winner-takes-all over one row of aggregated costs (each pixel's window, `windows`).
+    /// `uniqueness` is in percent: the best cost must beat every disparity of the window more
+    /// than one step away by that margin.
     pub fn winners(
         totals: &[u16],
-        width: usize,
-        stride: usize,
+        windows: RowWindows,
         count: usize,
         uniqueness: u32,
         subpixel: Subpixel,
     ) -> Winners {
+        let width = windows.first.len();
         let mut left = vec![f32::NAN; width];
         // The right image's winners, kept in reverse order of x: the cells of left pixel x run
-        // over right pixels x, x − 1, …, which is then one forward contiguous run.
+        // over right pixels x − first, x − first − 1, …, which is then one forward contiguous
+        // run.
         let mut right_rev = vec![u16::MAX; width];
         let mut right_cost_rev = vec![u16::MAX; width];
-        for x in 0..width {
-            let total = &totals[x * stride..x * stride + count];
+        for (x, out) in left.iter_mut().enumerate() {
+            let (first, total) = windows.totals(totals, x, count);
+            if total.is_empty() {
+                continue;
+            }
             let (best, best_k) = argmin(total);
-            let reach = count.min(x + 1);
-            let start = width - 1 - x;
-            keep_smaller(
-                &mut right_cost_rev[start..start + reach],
-                &mut right_rev[start..start + reach],
-                &total[..reach],
-            );
+            let reach = (x + 1).saturating_sub(first).min(total.len());
+            if reach > 0 {
+                let start = width - 1 - x + first;
+                keep_smaller(
+                    &mut right_cost_rev[start..start + reach],
+                    &mut right_rev[start..start + reach],
+                    &total[..reach],
+                    first as u16,
+                );
+            }
             let second = min_away_from(total, best_k);
             if !unique(best, second, uniqueness) {
                 continue;
             }
-            left[x] = fit(total, best_k, subpixel);
+            *out = first as f32 + fit(total, best_k, subpixel);
         }
         right_rev.reverse();
         Winners {
@@ -131,14 +168,14 @@ fn min_away_from(values: &[u16], k: usize) -> u16 {
     second
 }
 
-/// `costs[k] = min(costs[k], totals[k])`, and `winners[k] = k` where the total won, in whole
-/// SIMD registers.
+/// `costs[k] = min(costs[k], totals[k])`, and `winners[k] = first + k` where the total won, in
+/// whole SIMD registers.
 #[inline(always)]
-fn keep_smaller(costs: &mut [u16], winners: &mut [u16], totals: &[u16]) {
+fn keep_smaller(costs: &mut [u16], winners: &mut [u16], totals: &[u16], first: u16) {
     const L: usize = super::cost::LANES;
     let mut index = [0u16; L];
     for (i, v) in index.iter_mut().enumerate() {
-        *v = i as u16;
+        *v = first + i as u16;
     }
     let whole = totals.len() / L * L;
     for ((c, w), t) in costs[..whole]
@@ -163,7 +200,7 @@ fn keep_smaller(costs: &mut [u16], winners: &mut [u16], totals: &[u16]) {
     for k in whole..totals.len() {
         if totals[k] < costs[k] {
             costs[k] = totals[k];
-            winners[k] = k as u16;
+            winners[k] = first + k as u16;
         }
     }
 }
@@ -195,32 +232,44 @@ pub fn offset(before: f32, at: f32, after: f32, how: Subpixel) -> f32 {
     o.clamp(-0.5, 0.5)
 }
 
-/// What the winner-takes-all saw at pixel `x` of a row of aggregated costs (`totals`, `stride`
-/// cells a pixel), judged by `params`' uniqueness and left-right tests against the row's
-/// right-image winners `right`, as [`winners`] and [`left_right`] judge it.
+/// What the winner-takes-all saw at pixel `x` of a row of aggregated costs (`totals` over
+/// `windows`), judged by `params`' uniqueness and left-right tests against the row's
+/// right-image winners `right`, as [`winners`] and [`left_right`] judge it; the raw costs around
+/// it come from the census signatures of the block (`census`, `width` pixels a row).
 pub fn probe(
     totals: &[u16],
-    volume: &super::cost::Volume,
+    windows: RowWindows,
+    census: (&[u64], &[u64]),
     (x, y): (usize, usize),
     params: &super::Params,
     right: &[u16],
 ) -> super::Probe {
     let count = params.count;
-    let stride = volume.stride;
-    let total = &totals[x * stride..x * stride + count];
-    let (best, index) = argmin(total);
-    let second = min_away_from(total, index);
-    let subpixel = fit(total, index, params.subpixel);
+    let (first, total) = windows.totals(totals, x, count);
+    let (best, k) = argmin(total);
+    let second = min_away_from(total, k);
+    let index = first + k;
+    let subpixel = first as f32 + fit(total, k, params.subpixel);
     let consistent = params
         .lr_tolerance
         .is_none_or(|tolerance| agrees(right, x, subpixel, tolerance));
-    // The raw costs summed over the 5 × 5 window around the pixel, for each disparity.
+    // The raw costs summed over the 5 × 5 window around the pixel, for each disparity of the
+    // whole range.
+    let width = windows.first.len();
+    let height = census.0.len() / width.max(1);
     let mut window = vec![0u32; count];
     let mut cells = 0u32;
-    for yy in y.saturating_sub(2)..(y + 3).min(volume.height) {
-        for xx in x.saturating_sub(2)..(x + 3).min(volume.width) {
-            for (sum, &c) in window.iter_mut().zip(&volume.at(xx, yy)[..count]) {
-                *sum += u32::from(c);
+    for yy in y.saturating_sub(2)..(y + 3).min(height) {
+        for xx in x.saturating_sub(2)..(x + 3).min(width) {
+            let sig = census.0[yy * width + xx];
+            let row = &census.1[yy * width..(yy + 1) * width];
+            for (j, sum) in window.iter_mut().enumerate() {
+                let xr = xx as i64 - i64::from(params.min_disparity) - j as i64;
+                *sum += if (0..width as i64).contains(&xr) {
+                    (sig ^ row[xr as usize]).count_ones()
+                } else {
+                    u32::from(super::cost::OUTSIDE)
+                };
             }
             cells += 1;
         }
@@ -245,7 +294,7 @@ pub fn probe(
         second,
         unique: unique(best, second, params.uniqueness),
         consistent,
-        window_cost: mean(window[index]),
+        window_cost: mean(window[index.min(count - 1)]),
         window_mean: mean(window.iter().sum::<u32>() / count.max(1) as u32),
         window_best: mean(local),
         window_second: mean(local_second),

@@ -34,7 +34,7 @@ pub(crate) const FAR: u16 = 8192;
 
 /// Aggregates `cost` along 8 paths, guided by the grey levels of the volume's rows (`grey`,
 /// `width × height` of them), and calls `on_row(y, totals)` for each row from the bottom up with
-/// the sum of the 8 paths' costs of its pixels (`width × stride`, the volume's layout).
+/// the sum of the 8 paths' costs of its pixels (the row's cells, each pixel's window in turn).
 pub fn aggregate(
     cost: &Volume,
     grey: &[u16],
@@ -46,8 +46,7 @@ pub fn aggregate(
         p1: penalties.p1,
         p2: p2_table(penalties),
     };
-    let (w, h, n) = (cost.width, cost.height, cost.stride);
-    let mut forward = super::huge_pages::zeroed(w * h * n);
+    let mut forward = super::huge_pages::zeroed(cost.windows.cells());
     pass(
         cost,
         grey,
@@ -57,8 +56,27 @@ pub fn aggregate(
         &mut |_, _| {},
         cancel,
     )?;
-    let mut row = vec![0u16; w * n];
+    let mut row = vec![0u16; widest_row(cost)];
     pass(cost, grey, &table, Some(&forward), &mut row, on_row, cancel)
+}
+
+/// The most cells a row of the volume holds.
+fn widest_row(cost: &Volume) -> usize {
+    let o = &cost.windows.offsets;
+    (0..cost.height)
+        .map(|y| (o[(y + 1) * cost.width] - o[y * cost.width]) as usize)
+        .max()
+        .unwrap_or(0)
+}
+
+/// The widest window of the volume.
+fn widest_window(cost: &Volume) -> usize {
+    cost.windows
+        .offsets
+        .windows(2)
+        .map(|p| (p[1] - p[0]) as usize)
+        .max()
+        .unwrap_or(0)
 }
 
 /// The penalties as a pass uses them: `P1`, and `P2` for each intensity step 0..=255.
@@ -79,6 +97,34 @@ fn p2_table(p: Penalties) -> [u16; 256] {
     table
 }
 
+/// A neighbour's path costs as seen from a pixel whose window starts at index `first` and holds
+/// `n` cells: `src` is the neighbour's slot (its window starting at `from`, between two FAR
+/// sentinels). The slot itself when the windows are the same; otherwise `scratch`, filled with
+/// the neighbour's costs at this window's disparities and FAR where the neighbour did not look.
+#[inline(always)]
+fn seen_from<'a>(
+    src: &'a [u16],
+    from: usize,
+    first: usize,
+    n: usize,
+    scratch: &'a mut [u16],
+) -> &'a [u16] {
+    if from == first && src.len() == n + 2 {
+        return src;
+    }
+    let out = &mut scratch[..n + 2];
+    out.fill(FAR);
+    // out[j] = src[first − from + j] where that is inside src.
+    let shift = first as isize - from as isize;
+    let j0 = (-shift).max(0) as usize;
+    let j1 = ((src.len() as isize - shift).min((n + 2) as isize)).max(j0 as isize) as usize;
+    if j0 < j1 {
+        let s0 = (j0 as isize + shift) as usize;
+        out[j0..j1].copy_from_slice(&src[s0..s0 + (j1 - j0)]);
+    }
+    out
+}
+
 crate::dispatch! {
     /// One pass: the 4 paths arriving from the previous row and the previous pixel. The first
     /// pass (`stored` is `None`) visits rows and pixels in order and stores its sums in `sums`,
@@ -93,87 +139,114 @@ crate::dispatch! {
         on_row: &mut dyn FnMut(usize, &[u16]),
         cancel: &AtomicBool,
     ) -> Result<(), Cancelled> {
-        let (w, h, n) = (cost.width, cost.height, cost.stride);
+        let (w, h) = (cost.width, cost.height);
+        let windows = &cost.windows;
         let (p1, p2) = (table.p1, &table.p2);
         let forward = stored.is_none();
-        let slot = n + 2;
+        let widest = widest_window(cost);
         // Path costs of the previous and current rows, for the three paths that come from the
         // previous row: from the pixel before (diagonal), above, and after (other diagonal).
-        // Each pixel's slot holds its n costs between two FAR sentinels.
-        let mut row_buffer = vec![0u16; w * slot];
-        for x in 0..w {
-            row_buffer[x * slot] = FAR;
-            row_buffer[x * slot + slot - 1] = FAR;
-        }
-        let mut prev = [row_buffer.clone(), row_buffer.clone(), row_buffer.clone()];
-        let mut cur = [row_buffer.clone(), row_buffer.clone(), row_buffer];
+        // Pixel x of row y has its slot at (its cells' offset in the row) + 2x: its window's
+        // costs between two FAR sentinels.
+        let row_len = widest_row(cost) + 2 * w;
+        let mut prev = [vec![0u16; row_len], vec![0u16; row_len], vec![0u16; row_len]];
+        let mut cur = prev.clone();
         let mut prev_min = [vec![0u16; w], vec![0u16; w], vec![0u16; w]];
         let mut cur_min = prev_min.clone();
-        // Where a path starts, it starts from nothing: zero costs, FAR outside the range.
-        let mut start = vec![0u16; slot];
-        start[0] = FAR;
-        start[slot - 1] = FAR;
-        let mut along = start.clone();
-        let mut along_next = start.clone();
+        // Where a path starts, it starts from nothing: zero costs (the sentinels do not matter,
+        // the zero between them always wins).
+        let start = vec![0u16; widest + 2];
+        let mut along = vec![FAR; widest + 2];
+        let mut along_next = along.clone();
+        let (mut along_first, mut along_n) = (0usize, 0usize);
+        let mut scratch = [
+            vec![FAR; widest + 2],
+            vec![FAR; widest + 2],
+            vec![FAR; widest + 2],
+            vec![FAR; widest + 2],
+        ];
 
         let step: isize = if forward { 1 } else { -1 };
+        let slot = |y: usize, x: usize| {
+            let row = windows.offsets[y * w] as usize;
+            let (first, cells) = windows.of(y * w + x);
+            (first, cells.start - row + 2 * x, cells.len())
+        };
         for i in 0..h {
             if cancel.load(Ordering::Relaxed) {
                 return Err(Cancelled);
             }
             let y = if forward { i } else { h - 1 - i };
             let first_row = i == 0;
+            let yp = if forward { y.wrapping_sub(1) } else { y + 1 };
             let grey_row = &grey[y * w..(y + 1) * w];
             let grey_prev = if first_row {
                 grey_row
             } else {
-                let yp = if forward { y - 1 } else { y + 1 };
                 &grey[yp * w..(yp + 1) * w]
             };
+            let row_cells = windows.offsets[y * w] as usize..windows.offsets[(y + 1) * w] as usize;
             if let Some(stored) = stored {
-                sums.copy_from_slice(&stored[y * w * n..(y + 1) * w * n]);
+                sums[..row_cells.len()].copy_from_slice(&stored[row_cells.clone()]);
             }
             let mut along_min = 0u16;
             let [cur0, cur1, cur2] = &mut cur;
+            let [t0, t1, t2, t3] = &mut scratch;
             for j in 0..w {
                 let x = if forward { j } else { w - 1 - j };
+                let (first, at, n) = slot(y, x);
                 let here = grey_row[x] >> 8;
                 let jump = |other: u16| p2[usize::from(here.abs_diff(other >> 8))];
-                let mut srcs: [&[u16]; 4] = [&start; 4];
+                let mut srcs: [&[u16]; 4] = [&start, &start, &start, &start];
                 let mut mins = [0u16; 4];
                 let mut p2s = [0u16; 4];
                 // Along the row, from the previous pixel.
                 if j > 0 {
                     let xp = (x as isize - step) as usize;
-                    srcs[0] = &along;
+                    srcs[0] = seen_from(&along[..along_n + 2], along_first, first, n, t0);
                     mins[0] = along_min;
                     p2s[0] = jump(grey_row[xp]);
                 }
                 // From the previous row: the pixel before, above, and after.
                 if !first_row {
-                    for (k, dx) in [-step, 0, step].into_iter().enumerate() {
+                    for (k, (dx, t)) in [(-step, &mut *t1), (0, &mut *t2), (step, &mut *t3)]
+                        .into_iter()
+                        .enumerate()
+                    {
                         let xs = x as isize + dx;
                         if xs >= 0 && xs < w as isize {
                             let xs = xs as usize;
-                            srcs[k + 1] = &prev[k][xs * slot..(xs + 1) * slot];
+                            let (from, pos, m) = slot(yp, xs);
+                            srcs[k + 1] = seen_from(&prev[k][pos..pos + m + 2], from, first, n, t);
                             mins[k + 1] = prev_min[k][xs];
                             p2s[k + 1] = jump(grey_prev[xs]);
                         }
                     }
                 }
-                let at = if forward { y * w + x } else { x };
-                let sum = &mut sums[at * n..(at + 1) * n];
+                let cells = windows.of(y * w + x).1;
+                let sum = if forward {
+                    &mut sums[cells.clone()]
+                } else {
+                    let r = cells.start - row_cells.start;
+                    &mut sums[r..r + n]
+                };
+                along_next[0] = FAR;
+                along_next[n + 1] = FAR;
+                for c in [&mut *cur0, &mut *cur1, &mut *cur2] {
+                    c[at] = FAR;
+                    c[at + n + 1] = FAR;
+                }
                 let least = step4(
-                    cost.at(x, y),
+                    &cost.data[cells],
                     srcs,
                     mins,
                     p1,
                     p2s,
                     [
-                        &mut along_next,
-                        &mut cur0[x * slot..(x + 1) * slot],
-                        &mut cur1[x * slot..(x + 1) * slot],
-                        &mut cur2[x * slot..(x + 1) * slot],
+                        &mut along_next[..n + 2],
+                        &mut cur0[at..at + n + 2],
+                        &mut cur1[at..at + n + 2],
+                        &mut cur2[at..at + n + 2],
                     ],
                     sum,
                 );
@@ -182,11 +255,12 @@ crate::dispatch! {
                     cur_min[k][x] = least[k + 1];
                 }
                 std::mem::swap(&mut along, &mut along_next);
+                (along_first, along_n) = (first, n);
             }
             std::mem::swap(&mut prev, &mut cur);
             std::mem::swap(&mut prev_min, &mut cur_min);
             if !forward {
-                on_row(y, sums);
+                on_row(y, &sums[..row_cells.len()]);
             }
         }
         Ok(())

@@ -20,6 +20,7 @@ mod planning;
 mod protection;
 mod rectify;
 mod rigs;
+mod scale;
 mod svg;
 mod table;
 mod web;

@@ -166,9 +166,10 @@ pub async fn post_depth_map(
     .await?
 }
 
-/// The bytes a request holds at its peak: the decoded pair, the colours for a point cloud, the
-/// matcher's, and the answer's per-pixel buffers.
-fn bytes_needed(w: usize, h: usize, count: usize, output: DepthMapOutput) -> usize {
+/// The bytes a request holds at its peak besides its body: the decoded pair, the colours for a
+/// point cloud, the matcher's, and the answer's per-pixel buffers. What a `w × h` rectified pair
+/// searching `count` disparities reserves from the heavy budget.
+pub fn bytes_needed(w: usize, h: usize, count: usize, output: DepthMapOutput) -> usize {
     // A point cloud's colours, or the NPZ's two more arrays and the archive's copy of all three.
     let extra = match output {
         DepthMapOutput::PointsPly => 3,

@@ -1,0 +1,229 @@
+//! Coarse to fine, after tSGM (Rothermel et al., 2012) and Hirschmüller's hierarchical
+//! matching: the pair is halved until the range is narrow, matched over its whole range there,
+//! and each finer level searches, at each pixel, only a window of a few SIMD registers around
+//! what the level above found near it. The cells a pixel costs, and so the time and memory per
+//! pixel, then stop growing with the disparity range.
+//!
+//! A pixel's window spans the least and greatest disparity found in the 5 × 5 coarse pixels
+//! around it (holes filled from the row's background first, as occlusions are), doubled and
+//! widened by [`MARGIN`], so that both sides of a depth edge are searched; it is at most
+//! [`MAX_WINDOW`] cells, centred on the pixel's own coarse disparity when the edge is deeper.
+
+use std::ops::Range;
+
+use super::cost::{self, LANES, Windows};
+use super::{Disparity, Gray, refine};
+
+/// Coarser levels are added while the range holds more than this many disparities: up to it,
+/// the whole range is searched at every pixel (narrowing it there cost accuracy on Motorcycle:
+/// bad-1.0 7.94 → 8.6 at 64 disparities).
+pub const NARROW: usize = 64;
+/// The most cells a pixel's window holds below the coarsest level.
+pub const MAX_WINDOW: usize = 48;
+/// Disparities searched beyond the coarse neighbourhood's least and greatest, on each side.
+pub const MARGIN: f32 = 4.0;
+/// Radius, in coarse pixels, of the neighbourhood a window spans.
+const RADIUS: usize = 2;
+/// The smallest coarse level: narrower or shorter images are not halved again.
+const MIN_SIDE: (usize, usize) = (48, 24);
+
+/// How many times to halve a `width × height` pair searching `count` disparities.
+pub fn levels(width: usize, height: usize, count: usize) -> usize {
+    let (mut w, mut h, mut c, mut n) = (width, height, count, 0);
+    while c > NARROW && w / 2 >= MIN_SIDE.0 && h / 2 >= MIN_SIDE.1 {
+        (w, h, c, n) = (w.div_ceil(2), h.div_ceil(2), halve_range(0, c).1, n + 1);
+    }
+    n
+}
+
+/// The range `(min, count)` one level up covers: every disparity of `min .. min + count`
+/// halved.
+pub fn halve_range(min: i32, count: usize) -> (i32, usize) {
+    let lo = min.div_euclid(2);
+    let hi = (min + count as i32 - 1).div_euclid(2);
+    (lo, (hi - lo + 1) as usize)
+}
+
+/// The image one level up: each 2 × 2 block averaged (the last row and column repeated when
+/// the size is odd).
+pub fn halve(image: &Gray) -> Gray {
+    let (w, h) = (image.width, image.height);
+    let (hw, hh) = (w.div_ceil(2), h.div_ceil(2));
+    let mut data = Vec::with_capacity(hw * hh);
+    for y in 0..hh {
+        let r0 = &image.data[2 * y * w..(2 * y + 1) * w];
+        let y1 = (2 * y + 1).min(h - 1);
+        let r1 = &image.data[y1 * w..(y1 + 1) * w];
+        for x in 0..hw {
+            let (x0, x1) = (2 * x, (2 * x + 1).min(w - 1));
+            let sum = u32::from(r0[x0]) + u32::from(r0[x1]) + u32::from(r1[x0]) + u32::from(r1[x1]);
+            data.push(((sum + 2) / 4) as u16);
+        }
+    }
+    Gray::new(hw, hh, data)
+}
+
+/// What a coarser level found, as each finer pixel's search needs it: the least and greatest
+/// disparity (in coarse pixels) around each coarse pixel, and the pixel's own.
+pub struct Prior {
+    width: usize,
+    height: usize,
+    own: Vec<f32>,
+    least: Vec<f32>,
+    greatest: Vec<f32>,
+}
+
+impl Prior {
+    /// The prior of a coarse map: holes filled from the row's background (a row with no valid
+    /// pixel takes the range's smallest disparity, `min`), then the least and greatest over
+    /// the [`RADIUS`] neighbourhood.
+    pub fn new(map: &Disparity, min: i32) -> Prior {
+        let (w, h) = (map.width, map.height);
+        let mut own = map.data.clone();
+        refine::fill(&mut own, w);
+        for d in &mut own {
+            if d.is_nan() {
+                *d = min as f32;
+            }
+        }
+        let least = box_extreme(&own, w, h, f32::min);
+        let greatest = box_extreme(&own, w, h, f32::max);
+        Prior {
+            width: w,
+            height: h,
+            own,
+            least,
+            greatest,
+        }
+    }
+
+    /// The windows of the finer level's rows `rows` (`width` pixels a row), over its range
+    /// `min .. min + count`.
+    pub fn windows(&self, rows: Range<usize>, width: usize, (min, count): (i32, usize)) -> Windows {
+        let full = cost::stride(count);
+        let cap = MAX_WINDOW.min(full);
+        let last = count as f32 - 1.0;
+        let pixels = rows.len() * width;
+        let mut first = Vec::with_capacity(pixels);
+        let mut lengths = Vec::with_capacity(pixels);
+        for y in rows {
+            let cy = (y / 2).min(self.height - 1);
+            for x in 0..width {
+                let c = cy * self.width + (x / 2).min(self.width - 1);
+                // Indices into the finer range.
+                let lo = (2.0 * self.least[c] - MARGIN - min as f32).clamp(0.0, last);
+                let hi = (2.0 * self.greatest[c] + MARGIN - min as f32).clamp(lo, last);
+                let (lo, hi) = (lo.floor() as usize, hi.ceil() as usize);
+                let mut len = (hi - lo + 1).div_ceil(LANES) * LANES;
+                let mut start = lo;
+                if len > cap {
+                    len = cap;
+                    let centre = (2.0 * self.own[c] - min as f32).clamp(0.0, last) as usize;
+                    start = centre.saturating_sub(cap / 2);
+                }
+                // Use the whole window inside the padded range.
+                start = start.min(full - len);
+                first.push(start as u16);
+                lengths.push(len as u16);
+            }
+        }
+        Windows::from_lengths(first, lengths.into_iter())
+    }
+}
+
+/// The least (or greatest, by `pick`) value over the `(2·RADIUS + 1)²` box around each pixel,
+/// clipped at the borders: one pass along rows, one along columns.
+fn box_extreme(values: &[f32], w: usize, h: usize, pick: fn(f32, f32) -> f32) -> Vec<f32> {
+    let mut rows = vec![0f32; w * h];
+    for y in 0..h {
+        let row = &values[y * w..(y + 1) * w];
+        for x in 0..w {
+            let span = &row[x.saturating_sub(RADIUS)..(x + RADIUS + 1).min(w)];
+            rows[y * w + x] = span.iter().copied().reduce(pick).unwrap_or(f32::NAN);
+        }
+    }
+    let mut out = vec![0f32; w * h];
+    for y in 0..h {
+        for x in 0..w {
+            out[y * w + x] = (y.saturating_sub(RADIUS)..(y + RADIUS + 1).min(h))
+                .map(|yy| rows[yy * w + x])
+                .reduce(pick)
+                .unwrap_or(f32::NAN);
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The range is halved until it holds at most NARROW disparities, or the image gets small.
+    #[test]
+    fn levels_follow_the_range_and_the_size() {
+        assert_eq!(levels(741, 500, 64), 0);
+        assert_eq!(levels(741, 500, 128), 1);
+        assert_eq!(levels(1920, 1080, 256), 2);
+        assert_eq!(levels(3000, 2000, 400), 3);
+        assert_eq!(levels(90, 40, 400), 0);
+    }
+
+    /// The halved range covers every halved disparity of the finer one, to the nearest
+    /// whole coarse disparity.
+    #[test]
+    fn halved_ranges_cover() {
+        assert_eq!(halve_range(0, 64), (0, 32));
+        assert_eq!(halve_range(-5, 10), (-3, 6));
+        for (min, count) in [(0, 64), (-5, 10), (7, 33), (-100, 400)] {
+            let (lo, n) = halve_range(min, count);
+            for d in min..min + count as i32 {
+                let c = d as f32 / 2.0;
+                assert!(
+                    c >= lo as f32 && c <= (lo + n as i32 - 1) as f32 + 0.5,
+                    "{d}"
+                );
+            }
+        }
+    }
+
+    /// Halving averages 2 × 2 blocks and repeats the last row and column of odd sizes.
+    #[test]
+    fn halving_averages_blocks() {
+        let g = Gray::new(3, 3, vec![0, 4, 8, 4, 8, 12, 100, 100, 100]);
+        let h = halve(&g);
+        assert_eq!((h.width, h.height), (2, 2));
+        assert_eq!(h.data, vec![4, 10, 100, 100]);
+    }
+
+    /// A window spans the coarse neighbourhood's disparities, doubled, with the margin; at a
+    /// deep edge it is capped and centred on the pixel's own.
+    #[test]
+    fn windows_span_the_neighbourhood() {
+        // A coarse map: 10 on the left half, 40 on the right (a 60-disparity edge when doubled).
+        let (cw, ch) = (20, 6);
+        let data = (0..cw * ch)
+            .map(|i| if i % cw < 10 { 10.0 } else { 40.0 })
+            .collect();
+        let prior = Prior::new(
+            &Disparity {
+                width: cw,
+                height: ch,
+                data,
+            },
+            0,
+        );
+        let w = 2 * cw;
+        let win = prior.windows(0..2, w, (0, 200));
+        // Far from the edge: 20 ± 4 → 16 ..= 24, one register from 16.
+        let (first, cells) = win.of(0);
+        assert_eq!((first, cells.len()), (16, 16));
+        // At the edge: 20 − 4 ..= 80 + 4 is 69 wide, more than the cap: centred on its own.
+        let (first, cells) = win.of(19);
+        assert_eq!(cells.len(), MAX_WINDOW);
+        assert!(first <= 20 && first + MAX_WINDOW > 24, "first {first}");
+        // A window never reaches past the padded range: 80 ± 4 in a range of 20 is its last
+        // register.
+        let win = prior.windows(0..1, w, (0, 20));
+        assert_eq!((win.of(30).0, win.of(30).1.len()), (16, 16));
+    }
+}
