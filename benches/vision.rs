@@ -26,7 +26,8 @@ fn stages(c: &mut Criterion) {
     let full = || cost::Windows::full(w * h, params.count());
     let cl = census::transform(&pair.left);
     let cr = census::transform(&pair.right);
-    let volume = cost::volume(&cl, &cr, w, h, (0, params.count()), full());
+    let (gl, gr) = (cost::levels(&pair.left), cost::levels(&pair.right));
+    let volume = cost::volume((&cl, &cr), (&gl, &gr), w, h, (0, params.count()), full());
     let mut totals = Vec::new();
     sgm::aggregate(
         &volume,
@@ -54,8 +55,8 @@ fn stages(c: &mut Criterion) {
     group.bench_function("cost volume", |b| {
         b.iter(|| {
             cost::volume(
-                black_box(&cl),
-                black_box(&cr),
+                (black_box(&cl), black_box(&cr)),
+                (&gl, &gr),
                 w,
                 h,
                 (0, params.count()),

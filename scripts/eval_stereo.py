@@ -27,6 +27,8 @@ RIG = {
 }
 NUM_DISPARITIES = 64
 RUNS = 5
+# Goal 2: the 4 x upscaled pair (5.9 MP) searched over this many disparities.
+LARGE_DISPARITIES = 400
 # /match: how many random ground-truth pixels and 60 x 60 boxes, and the seed that picks them.
 MATCH_POINTS = 1000
 MATCH_BOXES = 10
@@ -46,6 +48,12 @@ FLOORS = {
     "gain": {"bad1": 11.18, "bad2": 8.74},
     "noise": {"bad1": 17.13, "bad2": 11.44},
 }
+# Goal 3 (noise): 0.8 x OpenCV's best (13.70 / 9.15); bad-2.0 meets it (measured 8.64), bad-1.0
+# does not (14.75), so its floor is the measure with a little room until it does.
+FLOORS["noise"] = {"bad1": 15.0, "bad2": 9.15}
+# Goal 2 (5.9 MP, 400 disparities): never worse than OpenCV's best on it (measured 0.99 x and
+# 0.85 x); the goal itself, 0.75 x, is printed and not yet met.
+LARGE_FLOOR_RATIO = 1.0
 
 
 def fill(disp):
@@ -217,6 +225,39 @@ def match_points(url, left_png, right_png, truth, seed=MATCH_SEED):
     }
 
 
+def large(url, left, right, truth):
+    """Goal 2: Motorcycle upscaled 4 x (2964 x 2000, 5.9 MP) with OpenCV's cubic resize and
+    its ground truth scaled with it, at LARGE_DISPARITIES. OpenCV SGBM_3WAY is timed (median of
+    RUNS); its most accurate modes run once each for accuracy (they are deterministic, and HH4
+    takes 6-17 s here); ours is a whole request, median of RUNS."""
+    up = lambda img: cv2.resize(img, None, fx=4, fy=4, interpolation=cv2.INTER_CUBIC)
+    l, r = up(left), up(right)
+    t = np.repeat(np.repeat(truth, 4, 0), 4, 1) * 4
+    rows = []
+    for name, mode, block, runs in (("SGBM_3WAY b3", cv2.STEREO_SGBM_MODE_SGBM_3WAY, 3, RUNS),
+                                    ("SGBM_3WAY b5", cv2.STEREO_SGBM_MODE_SGBM_3WAY, 5, RUNS),
+                                    ("HH4 b3", cv2.STEREO_SGBM_MODE_HH4, 3, 1),
+                                    ("HH4 b5", cv2.STEREO_SGBM_MODE_HH4, 5, 1)):
+        matcher = cv2.StereoSGBM_create(
+            minDisparity=0, numDisparities=LARGE_DISPARITIES, blockSize=block,
+            P1=8 * 3 * block * block, P2=32 * 3 * block * block, disp12MaxDiff=1,
+            uniquenessRatio=10, speckleWindowSize=100, speckleRange=2, mode=mode)
+        times = []
+        for _ in range(runs):
+            started = time.perf_counter()
+            raw = matcher.compute(l, r)
+            times.append(time.perf_counter() - started)
+        disp = raw.astype(np.float32) / 16.0
+        disp[raw < 0] = np.inf
+        rows.append((f"OpenCV {name}", score(disp, t), statistics.median(times)))
+    path = f"/depth-map?max_disparity={LARGE_DISPARITIES}&output=disparity.npy"
+    answer, seconds, timing = post(url, path, {
+        "left": (cv2.imencode(".png", l)[1].tobytes(), "left.png", "image/png"),
+        "right": (cv2.imencode(".png", r)[1].tobytes(), "right.png", "image/png")})
+    disp = load_npy(answer)
+    return rows, score(np.where(np.isnan(disp), np.inf, disp), t), seconds, timing
+
+
 def load_npy(data):
     import io
 
@@ -322,9 +363,45 @@ def main():
         if bad:
             failures.append(f"match: {name} {value:.4f} is beyond its floor")
     print()
+    rows, mine, seconds, timing = large(args.url, left, right, truth)
+    print(f"Goal 2: Motorcycle upscaled 4 x (2964 x 2000, 5.9 MP), {LARGE_DISPARITIES} "
+          f"disparities, ground truth scaled with it")
+    for name, s, secs in rows + [("ours (/depth-map)", mine, seconds)]:
+        print(f"{'large':<11} {name:<22} {s['bad0.5']:8.2f} {s['bad1']:8.2f} "
+              f"{s['bad2']:8.2f} {s['density']:8.1f} {secs * 1e3:8.1f}")
+    print(f"{'large':<11}   our stages: {timing}")
+    large_best = {m: min(s[m] for _, s, _ in rows) for m in ("bad1", "bad2")}
+    results["large"] = {"ours": {**mine, "ms": seconds * 1e3, "server_timing": timing},
+                        "opencv": {name: {**s, "ms": secs * 1e3} for name, s, secs in rows}}
+    for metric in ("bad1", "bad2"):
+        if mine[metric] > LARGE_FLOOR_RATIO * large_best[metric]:
+            failures.append(f"large: {metric} {mine[metric]:.2f} % is above OpenCV's best "
+                            f"{large_best[metric]:.2f} %")
+    print()
+
+    def ratio(scene, metric):
+        best = min(s[metric] for s in results[scene]["opencv"].values())
+        return results[scene]["ours"][metric] / best
+
     sgbm3 = results["motorcycle"]["opencv"]["OpenCV SGBM_3WAY b3"]["ms"]
-    print(f"time: our whole request {results['motorcycle']['ours']['ms']:.1f} ms, "
-          f"OpenCV SGBM_3WAY compute alone {sgbm3:.1f} ms (a timing, reported, never asserted)")
+    large3 = min(results["large"]["opencv"][f"OpenCV SGBM_3WAY b{b}"]["ms"] for b in (3, 5))
+    verdict = lambda ok: "met" if ok else "NOT MET"
+    ours_ms, large_ms = results["motorcycle"]["ours"]["ms"], results["large"]["ours"]["ms"]
+    print("Goals (issue 32), same run; times are reported, never asserted:")
+    print(f"  1. Motorcycle, {NUM_DISPARITIES} disparities: our whole request {ours_ms:.1f} ms = "
+          f"{ours_ms / sgbm3:.2f} x OpenCV SGBM_3WAY's compute alone ({sgbm3:.1f} ms), goal <= 1.0: "
+          f"{verdict(ours_ms <= sgbm3)}; bad-1.0 {ratio('motorcycle', 'bad1'):.2f} x and bad-2.0 "
+          f"{ratio('motorcycle', 'bad2'):.2f} x OpenCV's best, goal <= 0.75: "
+          f"{verdict(max(ratio('motorcycle', 'bad1'), ratio('motorcycle', 'bad2')) <= 0.75)}")
+    print(f"  2. 5.9 MP, {LARGE_DISPARITIES} disparities: our whole request {large_ms:.0f} ms = "
+          f"{large_ms / large3:.2f} x OpenCV SGBM_3WAY's compute ({large3:.0f} ms), goal <= 1.0: "
+          f"{verdict(large_ms <= large3)}; bad-1.0 {ratio('large', 'bad1'):.2f} x and bad-2.0 "
+          f"{ratio('large', 'bad2'):.2f} x OpenCV's best, goal <= 0.75: "
+          f"{verdict(max(ratio('large', 'bad1'), ratio('large', 'bad2')) <= 0.75)}")
+    print(f"  3. noise sigma 4: bad-1.0 {ratio('noise', 'bad1'):.2f} x and bad-2.0 "
+          f"{ratio('noise', 'bad2'):.2f} x OpenCV's best, goal <= 0.8: "
+          f"{verdict(max(ratio('noise', 'bad1'), ratio('noise', 'bad2')) <= 0.8)}; gain change "
+          f"{ratio('gain', 'bad1'):.2f} x and {ratio('gain', 'bad2'):.2f} x (never above 1)")
     if args.json:
         with open(args.json, "w") as f:
             json.dump(results, f, indent=2)

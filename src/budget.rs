@@ -4,9 +4,10 @@
 //!
 //! The heavy group's guard reserves the request body on admission (its declared length, or the
 //! body limit when none is declared); a handler grows its [`Reservation`] by what it sizes from
-//! the decoded headers (W·H·D for a cost volume) before allocating. A reservation is given back
-//! when its last clone is dropped, so work moved to a blocking thread keeps its memory reserved
-//! until that work ends, even if the request that started it was abandoned.
+//! the decoded headers (the decoded pair, the matcher's stripes in flight) before allocating. A
+//! reservation is given back when its last clone is dropped, so work moved to a blocking thread
+//! keeps its memory reserved until that work ends, even if the request that started it was
+//! abandoned.
 
 use std::sync::{
     Arc,

@@ -1,5 +1,8 @@
 //! The matching cost volume: for every left pixel and every disparity it searches, how unlike
-//! the right pixel it would match are their census signatures (Hamming distance, 0 to 62).
+//! the right pixel it would match is: the Hamming distance of their census signatures (0 to
+//! 62), plus half their absolute grey-level difference capped at [`AD_CAP`] (AD-Census, Mei et
+//! al. 2011). The census compares a pixel's neighbours one by one, so sensor noise flips the
+//! comparisons of near-equal ones; the grey levels themselves carry what noise does not erase.
 //!
 //! Layout, as OpenCV's `stereosgbm.cpp` lays out its `C` buffer: row-major pixels, and for each
 //! pixel its disparities contiguous (`[y][x][d]`), so that the aggregation's inner loop over `d`
@@ -15,13 +18,30 @@ use super::census;
 /// Windows are whole multiples of this many cells (one AVX2 register of `u16`).
 pub const LANES: usize = 16;
 
-/// The cost of a disparity whose right pixel falls outside the right image: a little worse than
-/// an average mismatch of random texture (half the bits), so that a border pixel prefers any
-/// real match that is better than chance, and path costs are not dragged far off by the border.
-pub const OUTSIDE: u8 = (census::BITS * 5 / 8) as u8;
+/// The most the grey-level term adds: half the absolute difference of 8-bit grey levels, capped
+/// here, so that a few very different pixels (a specular highlight, an occlusion) do not
+/// outweigh the census.
+pub const AD_CAP: u8 = 16;
 
-/// The cost of the cells of a window past the last disparity searched: never chosen.
+/// The census part of the cost of a disparity whose right pixel falls outside the right image:
+/// a little worse than an average mismatch of random texture (half the bits), so that a border
+/// pixel prefers any real match that is better than chance, and path costs are not dragged far
+/// off by the border.
+pub const OUTSIDE_CENSUS: u8 = (census::BITS * 5 / 8) as u8;
+
+/// The cost of a disparity whose right pixel falls outside the right image: the census part
+/// above and half the grey-level term's cap.
+pub const OUTSIDE: u8 = OUTSIDE_CENSUS + AD_CAP / 2;
+
+/// The cost of the cells of a window past the last disparity searched: never chosen (above any
+/// real cost, 62 + 16).
 pub const PAD: u8 = 2 * census::BITS as u8;
+const _: () = assert!(PAD as u32 > census::BITS + AD_CAP as u32);
+
+/// An image's grey levels at 8 bits, which the cost's grey-level term compares.
+pub fn levels(image: &super::Gray) -> Vec<u8> {
+    image.data.iter().map(|&v| (v >> 8) as u8).collect()
+}
 
 /// `count` rounded up to whole SIMD registers.
 pub fn stride(count: usize) -> usize {
@@ -98,11 +118,11 @@ impl Volume {
     }
 }
 
-/// The cost volume of two census-transformed images of `width × height`, each pixel over its
-/// window.
+/// The cost volume of two images of `width × height` (their census signatures and 8-bit grey
+/// levels, [`levels`]), each pixel over its window.
 pub fn volume(
-    left: &[u64],
-    right: &[u64],
+    (left, right): (&[u64], &[u64]),
+    grey: (&[u8], &[u8]),
     width: usize,
     height: usize,
     (min, count): (i32, usize),
@@ -121,8 +141,8 @@ pub fn volume(
     rows.into_par_iter().enumerate().for_each(|(y, row)| {
         let pixels = y * width..(y + 1) * width;
         costs_of_row(
-            &left[pixels.clone()],
-            &right[pixels.clone()],
+            (&left[pixels.clone()], &right[pixels.clone()]),
+            (&grey.0[pixels.clone()], &grey.1[pixels.clone()]),
             (min as i64, count),
             &windows.first[pixels.clone()],
             &windows.offsets[pixels.start..=pixels.end],
@@ -142,20 +162,26 @@ pub fn volume(
 crate::dispatch! {
     /// One row of the volume. For pixel `x`, the indices `j` of its window whose right pixel
     /// `x − min − j` is inside the image and which are in the range form one run, computed in
-    /// one branch-free loop (vectorised popcounts); the rest are [`OUTSIDE`], or [`PAD`] past the
-    /// range.
+    /// one branch-free loop (vectorised popcounts and differences); the rest are [`OUTSIDE`], or
+    /// [`PAD`] past the range.
     fn costs_of_row(
-        left: &[u64],
-        right: &[u64],
+        census: (&[u64], &[u64]),
+        grey: (&[u8], &[u8]),
         range: (i64, usize),
         first: &[u16],
         offsets: &[u32],
         row: &mut [u8],
     ) {
         let (min, count) = range;
+        let (left, right) = census;
         let width = left.len() as i64;
         let base = offsets[0] as usize;
-        for x in 0..left.len() {
+        // The right row reversed, so that each pixel's run of right pixels (x − d for growing
+        // d) is read forwards, on whole vectors.
+        let right_rev: Vec<u64> = right.iter().rev().copied().collect();
+        let grey_rev: Vec<u8> = grey.1.iter().rev().copied().collect();
+        let w = left.len();
+        for x in 0..w {
             let cells = &mut row[offsets[x] as usize - base..offsets[x + 1] as usize - base];
             let f = i64::from(first[x]);
             let len = cells.len() as i64;
@@ -163,7 +189,7 @@ crate::dispatch! {
             let valid = (count as i64 - f).clamp(0, len) as usize;
             let (cells, padding) = cells.split_at_mut(valid);
             padding.fill(PAD);
-            let sig = left[x];
+            let (sig, level) = (left[x], grey.0[x]);
             // j such that 0 <= x - min - j < width, as k = j - f within the window.
             let xi = x as i64;
             let lo = (xi - min - width + 1 - f).clamp(0, valid as i64) as usize;
@@ -172,11 +198,17 @@ crate::dispatch! {
             cells[end..].fill(OUTSIDE);
             if lo < end {
                 // Right pixels from x − min − f − lo down to x − min − f − (end − 1).
+                // In the reversed row, right pixel i is at w − 1 − i.
                 let hi = (xi - min - f - lo as i64) as usize;
-                let low = hi + 1 - (end - lo);
-                let run = &right[low..=hi];
-                for (cell, &r) in cells[lo..end].iter_mut().zip(run.iter().rev()) {
+                let at = w - 1 - hi;
+                let n = end - lo;
+                let cells = &mut cells[lo..end];
+                for (cell, &r) in cells.iter_mut().zip(&right_rev[at..at + n]) {
                     *cell = (sig ^ r).count_ones() as u8;
+                }
+                // The grey-level term in a second loop, on bytes (32 to a vector).
+                for (cell, &g) in cells.iter_mut().zip(&grey_rev[at..at + n]) {
+                    *cell += (level.abs_diff(g) >> 1).min(AD_CAP);
                 }
             }
         }
@@ -193,11 +225,36 @@ mod tests {
     fn cells_are_hamming_distances() {
         let left = [0b1111u64, 0b1010, 0b0000];
         let right = [0b0000u64, 0b1111, 0b1000];
-        let v = volume(&left, &right, 3, 1, (0, 2), Windows::full(3, 2));
+        let flat = [100u8; 3];
+        let v = volume(
+            (&left, &right),
+            (&flat, &flat),
+            3,
+            1,
+            (0, 2),
+            Windows::full(3, 2),
+        );
         assert_eq!(v.windows.cells(), 48);
         assert_eq!(&v.at(0, 0).1[..3], &[4, OUTSIDE, PAD]);
         assert_eq!(&v.at(1, 0).1[..2], &[2, 2]);
         assert_eq!(&v.at(2, 0).1[..2], &[1, 4]);
+    }
+
+    /// The grey-level term adds half the absolute difference, capped at AD_CAP.
+    #[test]
+    fn grey_levels_add_their_capped_difference() {
+        let sig = [0u64; 2];
+        let v = volume(
+            (&sig, &sig),
+            (&[0, 10], &[200, 3]),
+            2,
+            1,
+            (0, 2),
+            Windows::full(2, 2),
+        );
+        // Pixel 1 against right pixels 1 (|10 − 3| / 2 = 3) and 0 (|10 − 200| / 2, capped).
+        assert_eq!(&v.at(1, 0).1[..2], &[3, AD_CAP]);
+        assert_eq!(&v.at(0, 0).1[..2], &[AD_CAP, OUTSIDE]);
     }
 
     /// A window that starts inside the range holds the same costs as the full range at the
@@ -210,9 +267,11 @@ mod tests {
         let right: Vec<u64> = (0..40u64)
             .map(|i| i.wrapping_mul(0xC2B2_AE3D_27D4_EB4F))
             .collect();
-        let full = volume(&left, &right, 40, 1, (-3, 30), Windows::full(40, 30));
+        let (gl, gr): (Vec<u8>, Vec<u8>) = (0..40u8).map(|i| (i.wrapping_mul(7), i * 3)).unzip();
+        let both = ((&left[..], &right[..]), (&gl[..], &gr[..]));
+        let full = volume(both.0, both.1, 40, 1, (-3, 30), Windows::full(40, 30));
         let narrow = Windows::from_lengths(vec![20; 40], std::iter::repeat_n(16, 40));
-        let part = volume(&left, &right, 40, 1, (-3, 30), narrow);
+        let part = volume(both.0, both.1, 40, 1, (-3, 30), narrow);
         for x in 0..40 {
             let (f, cells) = part.at(x, 0);
             assert_eq!(f, 20);

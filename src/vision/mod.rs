@@ -275,6 +275,7 @@ fn level(
     };
     let started = Instant::now();
     let (cl, cr) = rayon::join(|| census::transform(left), || census::transform(right));
+    let (gl, gr) = (cost::levels(left), cost::levels(right));
     timings.cost += started.elapsed();
     checkpoint()?;
 
@@ -289,8 +290,19 @@ fn level(
         .par_iter()
         .map(|(kept, context)| {
             let probe = Probing { wanted, rows: kept };
-            let census = (&cl[..], &cr[..]);
-            match_stripe(census, left, context, params, prior.as_ref(), probe, cancel)
+            let features = Features {
+                census: (&cl, &cr),
+                levels: (&gl, &gr),
+            };
+            match_stripe(
+                features,
+                left,
+                context,
+                params,
+                prior.as_ref(),
+                probe,
+                cancel,
+            )
         })
         .collect();
     let stripes_time = started.elapsed();
@@ -303,7 +315,7 @@ fn level(
         probes.extend(found);
         summed.add(t);
     }
-    drop((cl, cr, prior));
+    drop((cl, cr, gl, gr, prior));
     timings.add(summed.sharing(stripes_time));
     checkpoint()?;
 
@@ -368,11 +380,22 @@ struct Probing<'a> {
     rows: &'a Range<usize>,
 }
 
+/// What the cost compares of both images, pixel by pixel: their census signatures and their
+/// 8-bit grey levels.
+#[derive(Clone, Copy)]
+struct Features<'a> {
+    census: (&'a [u64], &'a [u64]),
+    levels: (&'a [u8], &'a [u8]),
+}
+
 /// One stripe: the cost volume over each pixel's window (from `prior`, or the whole range) and
 /// the two passes over its `context` rows, the winners and the left-right check of its `kept`
 /// rows (disparities as indices into the range).
 fn match_stripe(
-    (cl, cr): (&[u64], &[u64]),
+    Features {
+        census: (cl, cr),
+        levels: (gl, gr),
+    }: Features,
     left: &Gray,
     context: &Range<usize>,
     params: &Params,
@@ -391,7 +414,8 @@ fn match_stripe(
     };
     let rows = context.start * w..context.end * w;
     let census = (&cl[rows.clone()], &cr[rows.clone()]);
-    let volume = cost::volume(census.0, census.1, w, context.len(), range, windows);
+    let grey = (&gl[rows.clone()], &gr[rows.clone()]);
+    let volume = cost::volume(census, grey, w, context.len(), range, windows);
     timings.cost = started.elapsed();
     if cancel.load(Ordering::Relaxed) {
         return Err(Cancelled);

@@ -99,11 +99,11 @@ impl Default for Params {
             min_disparity: 0,
             count: DEFAULT_MAX_DISPARITY as usize,
             penalties: sgm::Penalties {
-                p1: 12,
+                p1: 16,
                 p2: 64,
                 edge: 16,
             },
-            uniqueness: 5,
+            uniqueness: 15,
             lr_tolerance: Some(1.0),
             subpixel: Subpixel::Equiangular,
             speckle_size: 100,

@@ -268,7 +268,7 @@ pub fn probe(
                 *sum += if (0..width as i64).contains(&xr) {
                     (sig ^ row[xr as usize]).count_ones()
                 } else {
-                    u32::from(super::cost::OUTSIDE)
+                    u32::from(super::cost::OUTSIDE_CENSUS)
                 };
             }
             cells += 1;

@@ -157,7 +157,7 @@ async fn the_summary_agrees_with_the_truth() {
     assert!((zmax - 50_000.0 / dmin).abs() < 0.01 * zmax, "{body}");
     assert_eq!(body["rig"]["cx"], 80.0);
     assert_eq!(body["rig"]["image_width"], 160);
-    assert_eq!(body["parameters"]["p1"], 12);
+    assert_eq!(body["parameters"]["p1"], 16);
 }
 
 /// Each output is what its tools read: PFM bottom-up with +inf holes, NPY (the same values),

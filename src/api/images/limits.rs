@@ -100,6 +100,15 @@ pub fn decoded_bytes(width: usize, height: usize) -> usize {
     width.saturating_mul(height).saturating_mul(2 * (8 + 2))
 }
 
+/// The peak of a request that decodes a `width × height` pair and then holds `after` bytes
+/// besides the pair's grey levels (2 bytes a pixel each, all that decoding leaves): the decode's
+/// peak or the rest's, whichever is larger, since the decoder's buffers are freed before the
+/// matcher starts.
+pub fn decode_then(width: usize, height: usize, after: usize) -> usize {
+    let grey = width.saturating_mul(height).saturating_mul(4);
+    decoded_bytes(width, height).max(grey.saturating_add(after))
+}
+
 /// What to shrink so that a `w × h` request searching `count` disparities, needing
 /// `need(count)` bytes, fits in a budget of `total` bytes: the images (to how many megapixels
 /// at this range) and, when a narrower range would fit, the range.

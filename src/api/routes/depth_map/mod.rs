@@ -166,9 +166,9 @@ pub async fn post_depth_map(
     .await?
 }
 
-/// The bytes a request holds at its peak besides its body: the decoded pair, the colours for a
-/// point cloud, the matcher's, and the answer's per-pixel buffers. What a `w × h` rectified pair
-/// searching `count` disparities reserves from the heavy budget.
+/// The bytes a request holds at its peak besides its body: the decoded pair, then the colours
+/// for a point cloud, the matcher's, and the answer's per-pixel buffers. What a `w × h`
+/// rectified pair searching `count` disparities reserves from the heavy budget.
 pub fn bytes_needed(w: usize, h: usize, count: usize, output: DepthMapOutput) -> usize {
     // A point cloud's colours, or the NPZ's two more arrays and the archive's copy of all three.
     let extra = match output {
@@ -176,9 +176,11 @@ pub fn bytes_needed(w: usize, h: usize, count: usize, output: DepthMapOutput) ->
         DepthMapOutput::ArraysNpz => 20,
         _ => 0,
     };
-    limits::decoded_bytes(w, h)
-        .saturating_add(w.saturating_mul(h).saturating_mul(extra + 24))
-        .saturating_add(vision::bytes_needed(w, h, count))
+    let after = w
+        .saturating_mul(h)
+        .saturating_mul(extra + 24)
+        .saturating_add(vision::bytes_needed(w, h, count));
+    limits::decode_then(w, h, after)
 }
 
 /// Decodes, matches and encodes, on a blocking thread. `waited` is how long the body took to

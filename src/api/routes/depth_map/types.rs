@@ -295,7 +295,7 @@ pub struct MatcherParameters {
     "distance": {"min": 1196.1, "median": 3215.0, "max": 14987.2},
     "rig": {"focal_length_px": 994.978, "baseline": 193.001, "unit": "mm", "cx": 311.193,
             "cy": 254.877, "doffs": 31.086, "image_width": 741, "image_height": 500},
-    "parameters": {"p1": 12, "p2": 64, "p2_edge": 16, "uniqueness": 5, "lr_tolerance": 1.0,
+    "parameters": {"p1": 16, "p2": 64, "p2_edge": 16, "uniqueness": 15, "lr_tolerance": 1.0,
                    "subpixel": "equiangular", "speckle_size": 100, "speckle_range": 2.0,
                    "median": true, "fill": false},
     "timings_ms": {"decode": 14.2, "cost": 9.8, "aggregate": 41.0, "refine": 18.3},

@@ -185,12 +185,14 @@ fn to_raw_right(raw: &Raw, x: f64, y: f64) -> Option<[f64; 2]> {
     raw.pair.right.project(&ray)
 }
 
-/// The bytes a request holds at its peak: the decoded pair, the matcher's as for the whole
-/// image, and the map.
+/// The bytes a request holds at its peak: the decoded pair, then the matcher's as for the
+/// whole image, and the map.
 fn bytes_needed(w: usize, h: usize, count: usize) -> usize {
-    limits::decoded_bytes(w, h)
-        .saturating_add(w.saturating_mul(h).saturating_mul(8))
-        .saturating_add(vision::bytes_needed(w, h, count))
+    let after = w
+        .saturating_mul(h)
+        .saturating_mul(8)
+        .saturating_add(vision::bytes_needed(w, h, count));
+    limits::decode_then(w, h, after)
 }
 
 /// A part holding a JSON array of objects `T`, each member's fault named `name[i].member`;
