@@ -84,6 +84,31 @@ def score(disp, truth):
     return bad
 
 
+def sgbm(left, right, mode, block, disparities, runs):
+    """OpenCV's StereoSGBM in `mode` with `block`, as the issue sets it: its map (inf where
+    invalid) and the median time of `compute()` over `runs`."""
+    matcher = cv2.StereoSGBM_create(
+        minDisparity=0,
+        numDisparities=disparities,
+        blockSize=block,
+        P1=8 * 3 * block * block,
+        P2=32 * 3 * block * block,
+        disp12MaxDiff=1,
+        uniquenessRatio=10,
+        speckleWindowSize=100,
+        speckleRange=2,
+        mode=mode,
+    )
+    times = []
+    for _ in range(runs):
+        t = time.perf_counter()
+        raw = matcher.compute(left, right)
+        times.append(time.perf_counter() - t)
+    disp = raw.astype(np.float32) / 16.0
+    disp[raw < 0] = np.inf
+    return disp, statistics.median(times)
+
+
 def opencv(left, right):
     """Every StereoSGBM mode with block 3 and 5, as the issue sets them."""
     cv2.setNumThreads(2)
@@ -95,26 +120,8 @@ def opencv(left, right):
     }
     for name, mode in modes.items():
         for block in (3, 5):
-            matcher = cv2.StereoSGBM_create(
-                minDisparity=0,
-                numDisparities=NUM_DISPARITIES,
-                blockSize=block,
-                P1=8 * 3 * block * block,
-                P2=32 * 3 * block * block,
-                disp12MaxDiff=1,
-                uniquenessRatio=10,
-                speckleWindowSize=100,
-                speckleRange=2,
-                mode=mode,
-            )
-            times = []
-            for _ in range(RUNS):
-                t = time.perf_counter()
-                raw = matcher.compute(left, right)
-                times.append(time.perf_counter() - t)
-            disp = raw.astype(np.float32) / 16.0
-            disp[raw < 0] = np.inf
-            yield f"OpenCV {name} b{block}", disp, statistics.median(times)
+            disp, seconds = sgbm(left, right, mode, block, NUM_DISPARITIES, RUNS)
+            yield f"OpenCV {name} b{block}", disp, seconds
 
 
 def multipart(parts):
@@ -238,18 +245,8 @@ def large(url, left, right, truth):
                                     ("SGBM_3WAY b5", cv2.STEREO_SGBM_MODE_SGBM_3WAY, 5, RUNS),
                                     ("HH4 b3", cv2.STEREO_SGBM_MODE_HH4, 3, 1),
                                     ("HH4 b5", cv2.STEREO_SGBM_MODE_HH4, 5, 1)):
-        matcher = cv2.StereoSGBM_create(
-            minDisparity=0, numDisparities=LARGE_DISPARITIES, blockSize=block,
-            P1=8 * 3 * block * block, P2=32 * 3 * block * block, disp12MaxDiff=1,
-            uniquenessRatio=10, speckleWindowSize=100, speckleRange=2, mode=mode)
-        times = []
-        for _ in range(runs):
-            started = time.perf_counter()
-            raw = matcher.compute(l, r)
-            times.append(time.perf_counter() - started)
-        disp = raw.astype(np.float32) / 16.0
-        disp[raw < 0] = np.inf
-        rows.append((f"OpenCV {name}", score(disp, t), statistics.median(times)))
+        disp, seconds = sgbm(l, r, mode, block, LARGE_DISPARITIES, runs)
+        rows.append((f"OpenCV {name}", score(disp, t), seconds))
     path = f"/depth-map?max_disparity={LARGE_DISPARITIES}&output=disparity.npy"
     answer, seconds, timing = post(url, path, {
         "left": (cv2.imencode(".png", l)[1].tobytes(), "left.png", "image/png"),

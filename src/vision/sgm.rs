@@ -10,6 +10,11 @@
 //! in a `u16` volume; the second adds its own to them one row at a time and hands each finished
 //! row of totals to the winner-takes-all, so no second volume is written or read back. The
 //! matcher runs this on horizontal stripes of the image, one per core (see [`super::disparity`]).
+//!
+//! Below the pyramid's coarsest level ([`super::pyramid`]) each pixel has its own window of the
+//! range: a neighbour's path costs are read at this pixel's disparities, and as FAR where the
+//! neighbour did not look, so a path can only continue through disparities both searched or
+//! jump for `P2`.
 
 use std::sync::atomic::{AtomicBool, Ordering};
 
@@ -125,11 +130,33 @@ fn seen_from<'a>(
     out
 }
 
+/// What a pass reads: the cost volume, the grey levels that guide `P2`, the penalties, and the
+/// first pass's sums (`None` in the first pass).
+#[derive(Clone, Copy)]
+struct Pass<'a> {
+    cost: &'a Volume,
+    grey: &'a [u16],
+    table: &'a Table,
+    stored: Option<&'a [u16]>,
+}
+
+/// The window every pixel searches, `(first, cells)`, when they all search the same one (the
+/// whole range, below the pyramid).
+fn uniform(windows: &super::cost::Windows) -> Option<(usize, usize)> {
+    let first = *windows.first.first()?;
+    let n = windows.offsets.get(1)? - windows.offsets[0];
+    let same = windows.first.iter().all(|&f| f == first)
+        && windows.offsets.windows(2).all(|p| p[1] - p[0] == n);
+    same.then_some((usize::from(first), n as usize))
+}
+
 crate::dispatch! {
     /// One pass: the 4 paths arriving from the previous row and the previous pixel. The first
     /// pass (`stored` is `None`) visits rows and pixels in order and stores its sums in `sums`,
     /// the whole volume. The second visits them in reverse, and for each row adds its sums to
-    /// the first pass's (`stored`) in `sums`, one row, then calls `on_row`.
+    /// the first pass's (`stored`) in `sums`, one row, then calls `on_row`. Compiled twice: for
+    /// a volume whose pixels all search the same window, with no per-pixel lookups, and for
+    /// per-pixel windows.
     fn pass(
         cost: &Volume,
         grey: &[u16],
@@ -139,132 +166,194 @@ crate::dispatch! {
         on_row: &mut dyn FnMut(usize, &[u16]),
         cancel: &AtomicBool,
     ) -> Result<(), Cancelled> {
-        let (w, h) = (cost.width, cost.height);
-        let windows = &cost.windows;
-        let (p1, p2) = (table.p1, &table.p2);
-        let forward = stored.is_none();
-        let widest = widest_window(cost);
-        // Path costs of the previous and current rows, for the three paths that come from the
-        // previous row: from the pixel before (diagonal), above, and after (other diagonal).
-        // Pixel x of row y has its slot at (its cells' offset in the row) + 2x: its window's
-        // costs between two FAR sentinels.
-        let row_len = widest_row(cost) + 2 * w;
-        let mut prev = [vec![0u16; row_len], vec![0u16; row_len], vec![0u16; row_len]];
-        let mut cur = prev.clone();
-        let mut prev_min = [vec![0u16; w], vec![0u16; w], vec![0u16; w]];
-        let mut cur_min = prev_min.clone();
-        // Where a path starts, it starts from nothing: zero costs (the sentinels do not matter,
-        // the zero between them always wins).
-        let start = vec![0u16; widest + 2];
-        let mut along = vec![FAR; widest + 2];
-        let mut along_next = along.clone();
-        let (mut along_first, mut along_n) = (0usize, 0usize);
-        let mut scratch = [
-            vec![FAR; widest + 2],
-            vec![FAR; widest + 2],
-            vec![FAR; widest + 2],
-            vec![FAR; widest + 2],
-        ];
+        let reads = Pass {
+            cost,
+            grey,
+            table,
+            stored,
+        };
+        match uniform(&cost.windows) {
+            Some(window) => rows::<true>(reads, sums, on_row, cancel, window),
+            None => rows::<false>(reads, sums, on_row, cancel, (0, 0)),
+        }
+    }
+}
 
-        let step: isize = if forward { 1 } else { -1 };
-        let slot = |y: usize, x: usize| {
+/// The body of [`pass`]; with `UNIFORM`, every pixel's window is `window` and the sentinels of
+/// the row buffers are written once.
+#[inline(always)]
+fn rows<const UNIFORM: bool>(
+    Pass {
+        cost,
+        grey,
+        table,
+        stored,
+    }: Pass,
+    sums: &mut [u16],
+    on_row: &mut dyn FnMut(usize, &[u16]),
+    cancel: &AtomicBool,
+    window: (usize, usize),
+) -> Result<(), Cancelled> {
+    let (w, h) = (cost.width, cost.height);
+    let windows = &cost.windows;
+    let (p1, p2) = (table.p1, &table.p2);
+    let forward = stored.is_none();
+    let widest = widest_window(cost);
+    // Path costs of the previous and current rows, for the three paths that come from the
+    // previous row: from the pixel before (diagonal), above, and after (other diagonal).
+    // Pixel x of row y has its slot at (its cells' offset in the row) + 2x: its window's
+    // costs between two FAR sentinels.
+    let row_len = widest_row(cost) + 2 * w;
+    let mut prev = [
+        vec![0u16; row_len],
+        vec![0u16; row_len],
+        vec![0u16; row_len],
+    ];
+    let mut cur = prev.clone();
+    let mut prev_min = [vec![0u16; w], vec![0u16; w], vec![0u16; w]];
+    let mut cur_min = prev_min.clone();
+    // Where a path starts, it starts from nothing: zero costs (the sentinels do not matter,
+    // the zero between them always wins).
+    let start = vec![0u16; widest + 2];
+    let mut along = vec![FAR; widest + 2];
+    let mut along_next = along.clone();
+    let (mut along_first, mut along_n) = (0usize, 0usize);
+    let mut scratch = [
+        vec![FAR; widest + 2],
+        vec![FAR; widest + 2],
+        vec![FAR; widest + 2],
+        vec![FAR; widest + 2],
+    ];
+
+    let step: isize = if forward { 1 } else { -1 };
+    let slot = |y: usize, x: usize| {
+        if UNIFORM {
+            let (first, n) = window;
+            (first, x * (n + 2), n)
+        } else {
             let row = windows.offsets[y * w] as usize;
             let (first, cells) = windows.of(y * w + x);
             (first, cells.start - row + 2 * x, cells.len())
+        }
+    };
+    if UNIFORM {
+        // The slots never move: their sentinels are written once.
+        let n = window.1;
+        for buffer in cur.iter_mut().chain(prev.iter_mut()) {
+            for x in 0..w {
+                buffer[x * (n + 2)] = FAR;
+                buffer[x * (n + 2) + n + 1] = FAR;
+            }
+        }
+        for buffer in [&mut along, &mut along_next] {
+            buffer[0] = FAR;
+            buffer[n + 1] = FAR;
+        }
+    }
+    for i in 0..h {
+        if cancel.load(Ordering::Relaxed) {
+            return Err(Cancelled);
+        }
+        let y = if forward { i } else { h - 1 - i };
+        let first_row = i == 0;
+        let yp = if forward { y.wrapping_sub(1) } else { y + 1 };
+        let grey_row = &grey[y * w..(y + 1) * w];
+        let grey_prev = if first_row {
+            grey_row
+        } else {
+            &grey[yp * w..(yp + 1) * w]
         };
-        for i in 0..h {
-            if cancel.load(Ordering::Relaxed) {
-                return Err(Cancelled);
+        let row_cells = windows.offsets[y * w] as usize..windows.offsets[(y + 1) * w] as usize;
+        if let Some(stored) = stored {
+            sums[..row_cells.len()].copy_from_slice(&stored[row_cells.clone()]);
+        }
+        let mut along_min = 0u16;
+        let [cur0, cur1, cur2] = &mut cur;
+        let [t0, t1, t2, t3] = &mut scratch;
+        for j in 0..w {
+            let x = if forward { j } else { w - 1 - j };
+            let (first, at, n) = slot(y, x);
+            let here = grey_row[x] >> 8;
+            let jump = |other: u16| p2[usize::from(here.abs_diff(other >> 8))];
+            let mut srcs: [&[u16]; 4] = [&start, &start, &start, &start];
+            let mut mins = [0u16; 4];
+            let mut p2s = [0u16; 4];
+            // Along the row, from the previous pixel.
+            if j > 0 {
+                let xp = (x as isize - step) as usize;
+                srcs[0] = if UNIFORM {
+                    &along[..n + 2]
+                } else {
+                    seen_from(&along[..along_n + 2], along_first, first, n, t0)
+                };
+                mins[0] = along_min;
+                p2s[0] = jump(grey_row[xp]);
             }
-            let y = if forward { i } else { h - 1 - i };
-            let first_row = i == 0;
-            let yp = if forward { y.wrapping_sub(1) } else { y + 1 };
-            let grey_row = &grey[y * w..(y + 1) * w];
-            let grey_prev = if first_row {
-                grey_row
-            } else {
-                &grey[yp * w..(yp + 1) * w]
-            };
-            let row_cells = windows.offsets[y * w] as usize..windows.offsets[(y + 1) * w] as usize;
-            if let Some(stored) = stored {
-                sums[..row_cells.len()].copy_from_slice(&stored[row_cells.clone()]);
-            }
-            let mut along_min = 0u16;
-            let [cur0, cur1, cur2] = &mut cur;
-            let [t0, t1, t2, t3] = &mut scratch;
-            for j in 0..w {
-                let x = if forward { j } else { w - 1 - j };
-                let (first, at, n) = slot(y, x);
-                let here = grey_row[x] >> 8;
-                let jump = |other: u16| p2[usize::from(here.abs_diff(other >> 8))];
-                let mut srcs: [&[u16]; 4] = [&start, &start, &start, &start];
-                let mut mins = [0u16; 4];
-                let mut p2s = [0u16; 4];
-                // Along the row, from the previous pixel.
-                if j > 0 {
-                    let xp = (x as isize - step) as usize;
-                    srcs[0] = seen_from(&along[..along_n + 2], along_first, first, n, t0);
-                    mins[0] = along_min;
-                    p2s[0] = jump(grey_row[xp]);
-                }
-                // From the previous row: the pixel before, above, and after.
-                if !first_row {
-                    for (k, (dx, t)) in [(-step, &mut *t1), (0, &mut *t2), (step, &mut *t3)]
-                        .into_iter()
-                        .enumerate()
-                    {
-                        let xs = x as isize + dx;
-                        if xs >= 0 && xs < w as isize {
-                            let xs = xs as usize;
-                            let (from, pos, m) = slot(yp, xs);
-                            srcs[k + 1] = seen_from(&prev[k][pos..pos + m + 2], from, first, n, t);
-                            mins[k + 1] = prev_min[k][xs];
-                            p2s[k + 1] = jump(grey_prev[xs]);
-                        }
+            // From the previous row: the pixel before, above, and after.
+            if !first_row {
+                for (k, (dx, t)) in [(-step, &mut *t1), (0, &mut *t2), (step, &mut *t3)]
+                    .into_iter()
+                    .enumerate()
+                {
+                    let xs = x as isize + dx;
+                    if xs >= 0 && xs < w as isize {
+                        let xs = xs as usize;
+                        let (from, pos, m) = slot(yp, xs);
+                        srcs[k + 1] = if UNIFORM {
+                            &prev[k][pos..pos + n + 2]
+                        } else {
+                            seen_from(&prev[k][pos..pos + m + 2], from, first, n, t)
+                        };
+                        mins[k + 1] = prev_min[k][xs];
+                        p2s[k + 1] = jump(grey_prev[xs]);
                     }
                 }
-                let cells = windows.of(y * w + x).1;
-                let sum = if forward {
-                    &mut sums[cells.clone()]
-                } else {
-                    let r = cells.start - row_cells.start;
-                    &mut sums[r..r + n]
-                };
+            }
+            // The pixel's cells: its slot, less the sentinels of the pixels before it.
+            let start = row_cells.start + at - 2 * x;
+            let cells = start..start + n;
+            let sum = if forward {
+                &mut sums[cells.clone()]
+            } else {
+                let r = cells.start - row_cells.start;
+                &mut sums[r..r + n]
+            };
+            if !UNIFORM {
                 along_next[0] = FAR;
                 along_next[n + 1] = FAR;
                 for c in [&mut *cur0, &mut *cur1, &mut *cur2] {
                     c[at] = FAR;
                     c[at + n + 1] = FAR;
                 }
-                let least = step4(
-                    &cost.data[cells],
-                    srcs,
-                    mins,
-                    p1,
-                    p2s,
-                    [
-                        &mut along_next[..n + 2],
-                        &mut cur0[at..at + n + 2],
-                        &mut cur1[at..at + n + 2],
-                        &mut cur2[at..at + n + 2],
-                    ],
-                    sum,
-                );
-                along_min = least[0];
-                for k in 0..3 {
-                    cur_min[k][x] = least[k + 1];
-                }
-                std::mem::swap(&mut along, &mut along_next);
-                (along_first, along_n) = (first, n);
             }
-            std::mem::swap(&mut prev, &mut cur);
-            std::mem::swap(&mut prev_min, &mut cur_min);
-            if !forward {
-                on_row(y, &sums[..row_cells.len()]);
+            let least = step4(
+                &cost.data[cells],
+                srcs,
+                mins,
+                p1,
+                p2s,
+                [
+                    &mut along_next[..n + 2],
+                    &mut cur0[at..at + n + 2],
+                    &mut cur1[at..at + n + 2],
+                    &mut cur2[at..at + n + 2],
+                ],
+                sum,
+            );
+            along_min = least[0];
+            for k in 0..3 {
+                cur_min[k][x] = least[k + 1];
             }
+            std::mem::swap(&mut along, &mut along_next);
+            (along_first, along_n) = (first, n);
         }
-        Ok(())
+        std::mem::swap(&mut prev, &mut cur);
+        std::mem::swap(&mut prev_min, &mut cur_min);
+        if !forward {
+            on_row(y, &sums[..row_cells.len()]);
+        }
     }
+    Ok(())
 }
 
 /// SIMD width of the path loop, in `u16` lanes.
@@ -351,6 +440,68 @@ fn path(c: &[u16; LANES], prev: &[u16], prev_min: u16, p1: u16, jump: u16) -> [u
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The build for one shared window and the build for per-pixel windows give the same sums
+    /// on a volume whose pixels all search the whole range, in both passes.
+    #[test]
+    fn both_builds_of_the_pass_agree() {
+        let (w, h, count) = (23, 9, 20);
+        let mut rng = crate::vision::synthetic::Rng::new(5);
+        let windows = crate::vision::cost::Windows::full(w * h, count);
+        let data = (0..windows.cells())
+            .map(|_| (rng.unit() * 60.0) as u8)
+            .collect();
+        let cost = Volume {
+            width: w,
+            height: h,
+            min: 0,
+            count,
+            windows,
+            data,
+        };
+        let grey: Vec<u16> = (0..w * h).map(|_| (rng.unit() * 65535.0) as u16).collect();
+        let table = Table {
+            p1: 10,
+            p2: p2_table(Penalties {
+                p1: 10,
+                p2: 80,
+                edge: 16,
+            }),
+        };
+        let never = AtomicBool::new(false);
+        let window = uniform(&cost.windows).expect("the whole range everywhere");
+        let first = |stored| Pass {
+            cost: &cost,
+            grey: &grey,
+            table: &table,
+            stored,
+        };
+        let mut one = vec![0u16; cost.windows.cells()];
+        let mut each = one.clone();
+        rows::<true>(first(None), &mut one, &mut |_, _| {}, &never, window).unwrap();
+        rows::<false>(first(None), &mut each, &mut |_, _| {}, &never, (0, 0)).unwrap();
+        assert_eq!(one, each);
+        let (mut a, mut b) = (Vec::new(), Vec::new());
+        let mut row = vec![0u16; widest_row(&cost)];
+        rows::<true>(
+            first(Some(&one)),
+            &mut row,
+            &mut |_, r| a.extend_from_slice(r),
+            &never,
+            window,
+        )
+        .unwrap();
+        rows::<false>(
+            first(Some(&one)),
+            &mut row,
+            &mut |_, r| b.extend_from_slice(r),
+            &never,
+            (0, 0),
+        )
+        .unwrap();
+        assert_eq!(a, b);
+        assert!(a.iter().any(|&v| v > 0));
+    }
 
     /// `P2` halves at an intensity step of `edge` grey levels and never falls to `P1`.
     #[test]
