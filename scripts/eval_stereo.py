@@ -51,6 +51,10 @@ FLOORS = {
 # Goal 3 (noise): 0.8 x OpenCV's best (13.70 / 9.15); bad-2.0 meets it (measured 8.64), bad-1.0
 # does not (14.75), so its floor is the measure with a little room until it does.
 FLOORS["noise"] = {"bad1": 15.0, "bad2": 9.15}
+# The unseen scenes where we are known to be worse than OpenCV's best: printed as NOT MET, not
+# floored. At a tenth of the contrast the texture is fainter than the noise and the census's
+# comparisons are mostly noise (README, Performance).
+UNSEEN_NOT_MET = {"  faint (1/10 contrast) + noise"}
 # Goal 2 (5.9 MP, 400 disparities): never worse than OpenCV's best on it (measured 0.99 x and
 # 0.85 x); the goal itself, 0.75 x, is printed and not yet met.
 LARGE_FLOOR_RATIO = 1.0
@@ -255,6 +259,86 @@ def large(url, left, right, truth):
     return rows, score(np.where(np.isnan(disp), np.inf, disp), t), seconds, timing
 
 
+def texture(u, v, seed):
+    """A band-limited colour texture at surface coordinates (u, v): per channel a sum of plane
+    waves below 0.3 cycles a pixel, in 0..255."""
+    rng = np.random.default_rng(seed)
+    out = np.zeros(u.shape + (3,), np.float32)
+    for c in range(3):
+        for _ in range(24):
+            f = rng.uniform(0.01, 0.3)
+            a = rng.uniform(0, np.pi)
+            out[..., c] += np.sin(2 * np.pi * f * (np.cos(a) * u + np.sin(a) * v)
+                                  + rng.uniform(0, 2 * np.pi))
+    out = 127.5 + 127.5 * out / np.abs(out).max()
+    return out
+
+
+def slanted_scene(width=640, height=480):
+    """A scene no parameter was tuned on, with exact truth: a slanted background plane and a
+    slanted box in front of it, each with its own colour texture and a smooth shading, seen by
+    two rectified cameras. Returns left, right (BGR uint8) and the left's true disparities."""
+    ys, xs = np.mgrid[0:height, 0:width].astype(np.float32)
+    # Surfaces: d = a + b * x + c * y (x in the left image), region in the left image, seed.
+    surfaces = [((6.0, 24.0 / width, 8.0 / height), None, 11),
+                ((34.0, 10.0 / width, -4.0 / height), (0.3, 0.25, 0.7, 0.8), 12)]
+
+    def render(right):
+        image = np.zeros((height, width, 3), np.float32)
+        depth = np.full((height, width), -np.inf, np.float32)
+        for (a, b, c), region, seed in surfaces:
+            # The left x this pixel sees on the surface: itself, or solved from xr = x - d(x).
+            xl = (xs + a + c * ys) / (1 - b) if right else xs
+            d = a + b * xl + c * ys
+            inside = np.ones_like(xs, bool)
+            if region:
+                x0, y0, x1, y1 = region
+                inside = (xl >= x0 * width) & (xl < x1 * width) & (ys >= y0 * height) \
+                    & (ys < y1 * height)
+            nearer = inside & (d > depth)
+            shade = 0.75 + 0.25 * np.cos(xl / width * 3 + ys / height * 2)[..., None]
+            colour = texture(xl, ys, seed) * shade
+            image[nearer] = colour[nearer]
+            depth[nearer] = d[nearer]
+        return image, depth
+
+    left, truth = render(False)
+    right, _ = render(True)
+    return left, right, truth
+
+
+def unseen(url):
+    """The slanted colour scene, clean, with a gain change, and with noise: ours (defaults)
+    against OpenCV's best mode on each. Returns rows of (name, ours, best)."""
+    left, right, truth = slanted_scene()
+    rng = np.random.default_rng(5)
+    cases = {
+        "slanted colour": (left, right),
+        "  + right gain 0.8, +10": (left, right * 0.8 + 10),
+        "  + noise sigma 3": (left + rng.normal(0, 3, left.shape), right + rng.normal(0, 3, right.shape)),
+        # A fifth and a tenth of the contrast, with the same noise: weak texture, as on a
+        # painted wall. At a tenth the texture is fainter than the noise.
+        "  faint (1/5 contrast) + noise": (
+            128 + (left - 128) / 5 + rng.normal(0, 3, left.shape),
+            128 + (right - 128) / 5 + rng.normal(0, 3, right.shape)),
+        "  faint (1/10 contrast) + noise": (
+            128 + (left - 128) / 10 + rng.normal(0, 3, left.shape),
+            128 + (right - 128) / 10 + rng.normal(0, 3, right.shape)),
+    }
+    rows = []
+    for name, (l, r) in cases.items():
+        l8 = np.clip(l, 0, 255).astype(np.uint8)
+        r8 = np.clip(r, 0, 255).astype(np.uint8)
+        best = {m: min(sc[m] for sc in (score(d, truth) for _, d, _ in opencv(l8, r8)))
+                for m in ("bad1", "bad2")}
+        answer, _, _ = post(url, f"/depth-map?max_disparity={NUM_DISPARITIES}&output=disparity.npy",
+                            {"left": (cv2.imencode(".png", l8)[1].tobytes(), "left.png", "image/png"),
+                             "right": (cv2.imencode(".png", r8)[1].tobytes(), "right.png", "image/png")})
+        disp = load_npy(answer)
+        rows.append((name, score(np.where(np.isnan(disp), np.inf, disp), truth), best))
+    return rows
+
+
 def load_npy(data):
     import io
 
@@ -374,6 +458,18 @@ def main():
         if mine[metric] > LARGE_FLOOR_RATIO * large_best[metric]:
             failures.append(f"large: {metric} {mine[metric]:.2f} % is above OpenCV's best "
                             f"{large_best[metric]:.2f} %")
+    print()
+    print("Unseen scenes (rendered here, nothing tuned on them), 640 x 480, 64 disparities: ours "
+          "against OpenCV's best mode; floor: never worse")
+    for name, mine, best in unseen(args.url):
+        print(f"  {name:<32} ours bad-1.0 {mine['bad1']:6.2f} bad-2.0 {mine['bad2']:6.2f}   "
+              f"OpenCV best {best['bad1']:6.2f} {best['bad2']:6.2f}   ratio "
+              f"{mine['bad1'] / best['bad1']:.2f} {mine['bad2'] / best['bad2']:.2f}")
+        worse = [m for m in ("bad1", "bad2") if mine[m] > best[m]]
+        if worse and name not in UNSEEN_NOT_MET:
+            failures.append(f"unseen {name.strip()}: {', '.join(worse)} above OpenCV's best")
+        elif worse:
+            print(f"  {'':<32} NOT MET: worse than OpenCV's best (known, reported, not floored)")
     print()
 
     def ratio(scene, metric):
