@@ -440,31 +440,37 @@ pub fn median(disparity: &[f32], width: usize) -> Vec<f32> {
     out
 }
 
-/// The 19 exchanges of Paeth's 9-input median network ("Median finding on a 3 × 3 grid",
-/// Graphics Gems, 1990), each handed to `$exchange!(a, b)`, which puts the smaller of elements
-/// `a` and `b` at `a`: after them, element 4 is the median. A macro, so that every index is a
-/// constant for the vectorised median as for the scalar one.
-macro_rules! median_network {
+/// The 25 exchanges of a 9-input sorting network (checked on all 512 inputs of zeros and ones
+/// in the tests, which by the 0-1 principle proves it sorts any input), each handed to
+/// `$exchange!(a, b)`, which puts the smaller of elements `a` and `b` at `a`. A macro, so that
+/// every index is a constant for the vectorised median as for the scalar one.
+macro_rules! sorting_network {
     ($exchange:ident) => {
-        $exchange!(1, 2);
-        $exchange!(4, 5);
-        $exchange!(7, 8);
         $exchange!(0, 1);
         $exchange!(3, 4);
         $exchange!(6, 7);
         $exchange!(1, 2);
         $exchange!(4, 5);
         $exchange!(7, 8);
+        $exchange!(0, 1);
+        $exchange!(3, 4);
+        $exchange!(6, 7);
         $exchange!(0, 3);
-        $exchange!(5, 8);
-        $exchange!(4, 7);
         $exchange!(3, 6);
+        $exchange!(0, 3);
+        $exchange!(1, 4);
+        $exchange!(4, 7);
         $exchange!(1, 4);
         $exchange!(2, 5);
-        $exchange!(4, 7);
-        $exchange!(4, 2);
-        $exchange!(6, 4);
-        $exchange!(4, 2);
+        $exchange!(5, 8);
+        $exchange!(2, 5);
+        $exchange!(1, 3);
+        $exchange!(5, 7);
+        $exchange!(2, 6);
+        $exchange!(4, 6);
+        $exchange!(2, 4);
+        $exchange!(2, 3);
+        $exchange!(5, 6);
     };
 }
 
@@ -472,11 +478,12 @@ macro_rules! median_network {
 const MEDIAN_LANES: usize = 16;
 
 crate::dispatch! {
-    /// The 3 × 3 median of a row's inner pixels whose nine neighbours (`rows`: above, the row,
-    /// below) are all valid, [`MEDIAN_LANES`] pixels at a time through Paeth's network
-    /// ([`median_network`]), written to `out`. Clears `slow` for the pixels it did; the
-    /// others (a NaN among the nine, the row's ends, a last partial chunk) are left to the
-    /// caller.
+    /// The 3 × 3 median of the valid values around a row's inner valid pixels (`rows`: above,
+    /// the row, below), [`MEDIAN_LANES`] pixels at a time, written to `out`: the nine values
+    /// with the invalid ones made +∞ go through a sorting network ([`sorting_network`]), and
+    /// with `n` of them valid the median is the mean of sorted elements `(n − 1) / 2` and
+    /// `n / 2` (one element when `n` is odd), as [`median`] defines it. Clears `slow` for the
+    /// pixels it did; the others (the row's ends, a last partial chunk) are left to the caller.
     fn median_interior(rows: [&[f32]; 3], out: &mut [f32], slow: &mut [bool]) {
         const M: usize = MEDIAN_LANES;
         let inner = out.len().saturating_sub(2);
@@ -487,11 +494,13 @@ crate::dispatch! {
                     p[k * 3 + dx].copy_from_slice(&row[base + dx..base + dx + M]);
                 }
             }
-            // A NaN among the nine makes their sum NaN (the values are finite otherwise).
-            let mut sum = [0f32; M];
-            for q in &p {
+            let centre = p[4];
+            let mut valid = [0u32; M];
+            for q in &mut p {
                 for i in 0..M {
-                    sum[i] += q[i];
+                    let ok = !q[i].is_nan();
+                    valid[i] += u32::from(ok);
+                    q[i] = if ok { q[i] } else { f32::INFINITY };
                 }
             }
             macro_rules! exchange {
@@ -501,26 +510,37 @@ crate::dispatch! {
                     p[$b] = std::array::from_fn(|i| if x[i] < y[i] { y[i] } else { x[i] });
                 };
             }
-            median_network!(exchange);
-            let slow = &mut slow[base + 1..base + 1 + M];
+            sorting_network!(exchange);
+            let mut lo = [0f32; M];
+            let mut hi = [0f32; M];
+            for (k, sorted) in p.iter().enumerate() {
+                for i in 0..M {
+                    let n = valid[i] as usize;
+                    lo[i] = if k + 1 == n.div_ceil(2) { sorted[i] } else { lo[i] };
+                    hi[i] = if k == n / 2 { sorted[i] } else { hi[i] };
+                }
+            }
             let out = &mut out[base + 1..base + 1 + M];
             for i in 0..M {
-                let ok = !sum[i].is_nan();
-                out[i] = if ok { p[4][i] } else { out[i] };
-                slow[i] = !ok;
+                out[i] = if centre[i].is_nan() {
+                    f32::NAN
+                } else {
+                    0.5 * (lo[i] + hi[i])
+                };
             }
+            slow[base + 1..base + 1 + M].fill(false);
         }
     }
 }
 
-/// The median of 9 values (none NaN) by Paeth's network ([`median_network`]).
+/// The median of 9 values (none NaN) by the sorting network ([`sorting_network`]).
 fn median9(mut p: [f32; 9]) -> f32 {
     macro_rules! exchange {
         ($a:literal, $b:literal) => {
             (p[$a], p[$b]) = (p[$a].min(p[$b]), p[$a].max(p[$b]));
         };
     }
-    median_network!(exchange);
+    sorting_network!(exchange);
     p[4]
 }
 
@@ -579,7 +599,8 @@ mod tests {
         let map: Vec<f32> = (0..w * h)
             .map(|_| {
                 let v = rng.unit();
-                if v < 1.0 / 16.0 { f32::NAN } else { v * 128.0 }
+                // Invalid often enough that windows with every count of valid values occur.
+                if v < 0.3 { f32::NAN } else { v * 128.0 }
             })
             .collect();
         let expected: Vec<f32> = (0..w * h)
@@ -626,6 +647,23 @@ mod tests {
                     .unwrap_or(u16::MAX);
                 assert_eq!(min_away_from(&values, k), expected, "len {len} k {k}");
             }
+        }
+    }
+
+    /// The network sorts every input of zeros and ones, so (by the 0-1 principle) every input.
+    #[test]
+    fn sorting_network_sorts_every_input_of_zeros_and_ones() {
+        for bits in 0u32..512 {
+            let mut p: [u8; 9] = std::array::from_fn(|i| ((bits >> i) & 1) as u8);
+            let mut expected = p;
+            expected.sort_unstable();
+            macro_rules! exchange {
+                ($a:literal, $b:literal) => {
+                    (p[$a], p[$b]) = (p[$a].min(p[$b]), p[$a].max(p[$b]));
+                };
+            }
+            sorting_network!(exchange);
+            assert_eq!(p, expected, "input {bits:09b}");
         }
     }
 
