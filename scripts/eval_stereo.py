@@ -48,13 +48,14 @@ FLOORS = {
     "gain": {"bad1": 11.18, "bad2": 8.74},
     "noise": {"bad1": 17.13, "bad2": 11.44},
 }
-# Goal 3 (noise): 0.8 x OpenCV's best (13.70 / 9.15); bad-2.0 meets it (measured 8.64), bad-1.0
-# does not (14.75), so its floor is the measure with a little room until it does.
-FLOORS["noise"] = {"bad1": 15.0, "bad2": 9.15}
-# The unseen scenes where we are known to be worse than OpenCV's best: printed as NOT MET, not
-# floored. At a tenth of the contrast the texture is fainter than the noise and the census's
-# comparisons are mostly noise (README, Performance).
-UNSEEN_NOT_MET = {"  faint (1/10 contrast) + noise"}
+# Goal 3 (noise): 0.8 x OpenCV's best (13.70 / 9.15); bad-2.0 meets it (measured 8.43), bad-1.0
+# does not quite (13.96), so its floor is the measure with a little room until it does.
+FLOORS["noise"] = {"bad1": 14.5, "bad2": 9.15}
+# The unseen scenes where we are known to be worse than OpenCV's best, printed as NOT MET and
+# floored at this multiple of OpenCV's best so that they cannot slip back. At a tenth of the
+# contrast the texture is no stronger than the noise (README, Performance): 69.6 / 61.2 % before
+# the census compared with Lee-filtered centres, 10.98 / 5.22 % since, against 7.7 / 2.8 %.
+UNSEEN_NOT_MET = {"  faint (1/10 contrast) + noise": 2.5}
 # Goal 2 (5.9 MP, 400 disparities): never worse than OpenCV's best on it (measured 0.99 x and
 # 0.85 x); the goal itself, 0.75 x, is printed and not yet met.
 LARGE_FLOOR_RATIO = 1.0
@@ -466,10 +467,16 @@ def main():
               f"OpenCV best {best['bad1']:6.2f} {best['bad2']:6.2f}   ratio "
               f"{mine['bad1'] / best['bad1']:.2f} {mine['bad2'] / best['bad2']:.2f}")
         worse = [m for m in ("bad1", "bad2") if mine[m] > best[m]]
-        if worse and name not in UNSEEN_NOT_MET:
+        allowed = UNSEEN_NOT_MET.get(name)
+        if worse and allowed is None:
             failures.append(f"unseen {name.strip()}: {', '.join(worse)} above OpenCV's best")
         elif worse:
-            print(f"  {'':<32} NOT MET: worse than OpenCV's best (known, reported, not floored)")
+            print(f"  {'':<32} NOT MET: worse than OpenCV's best (known; floored at "
+                  f"{allowed} x OpenCV's best)")
+            beyond = [m for m in ("bad1", "bad2") if mine[m] > allowed * best[m]]
+            if beyond:
+                failures.append(f"unseen {name.strip()}: {', '.join(beyond)} above {allowed} x "
+                                "OpenCV's best")
     print()
 
     def ratio(scene, metric):

@@ -10,9 +10,11 @@
 //!   match may lie beyond);
 //! - `Textureless`: the census window around the point is flat (its grey levels vary by less
 //!   than [`TEXTURE_MIN`]); its disparity was carried in from its surroundings;
+//! - `Occluded`: the right image's own best match points elsewhere (the left-right check);
+//!   checked before ambiguity, since a pixel the right camera cannot see has no true match and
+//!   so often also fails the uniqueness test;
 //! - `Ambiguous`: a disparity more than one pixel away costs nearly as little (the uniqueness
 //!   test);
-//! - `Occluded`: the right image's own best match points elsewhere (the left-right check);
 //! - `Inconsistent`: its neighbourhood disagrees: the speckle filter removed it, or more than
 //!   [`INVALID_NEIGHBOURS_MAX`] of its 8 neighbours have no disparity (the border of an
 //!   occlusion), or its 5 × 5 neighbourhood spans more than [`SPREAD_MAX`] pixels of
@@ -141,6 +143,8 @@ pub fn correspond(
     let mut rows_matched = 0;
     let bands = bands(&needed, h);
     let started = std::time::Instant::now();
+    // The whole pair's noise, so that each band's census is the whole image's there.
+    let noise = super::Noise::of(left, right);
     // The bands side by side on the cores (each band's stripes too).
     let matched: Vec<Result<Band, Cancelled>> = bands
         .par_iter()
@@ -158,7 +162,7 @@ pub fn correspond(
                     image.data[band.start * w..band.end * w].to_vec(),
                 )
             };
-            super::disparity_probed(&crop(left), &crop(right), params, cancel, &wanted)
+            super::disparity_probed_in(&crop(left), &crop(right), noise, params, cancel, &wanted)
         })
         .collect();
     for ((keep, band), result) in bands.iter().zip(matched) {
@@ -266,10 +270,10 @@ fn judge(
         Status::OutOfRange
     } else if texture < TEXTURE_MIN {
         Status::Textureless
-    } else if !probe.unique || probe.window_second < probe.window_best + WINDOW_MARGIN_MIN {
-        Status::Ambiguous
     } else if !probe.consistent {
         Status::Occluded
+    } else if !probe.unique || probe.window_second < probe.window_best + WINDOW_MARGIN_MIN {
+        Status::Ambiguous
     } else if probe.window_cost > MATCH_COST_RATIO * probe.window_mean {
         Status::OutOfRange
     } else if filtered.is_nan() || invalid > INVALID_NEIGHBOURS_MAX || spread > SPREAD_MAX || edge {

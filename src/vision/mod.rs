@@ -10,7 +10,8 @@
 //! The matcher, stage by stage ([`disparity`]), at each level of a pyramid ([`pyramid`]) when
 //! the range is wide: matched over the whole range at the coarsest level, and over a narrow
 //! window around what the level above found everywhere below it:
-//! - [`census`]: a 9 × 7 census transform of both images (62 bits a pixel);
+//! - [`census`]: a 9 × 7 census transform of both images (62 bits a pixel), each pixel's
+//!   neighbours compared with its Lee-filtered value (the noise estimated once, [`Noise`]);
 //! - [`cost`]: the Hamming cost volume, `[y][x][d]` over each pixel's window, one byte a cell;
 //! - [`sgm`]: semi-global aggregation along 8 paths in two passes, the second handing each
 //!   finished row to
@@ -228,16 +229,55 @@ pub fn disparity_probed(
     cancel: &AtomicBool,
     wanted: &[Vec<usize>],
 ) -> Result<(Disparity, Timings, Vec<Vec<Probe>>), Cancelled> {
+    disparity_probed_in(left, right, Noise::of(left, right), params, cancel, wanted)
+}
+
+/// The standard deviation of each image's noise (16-bit levels), which the census compares
+/// against ([`census`]): estimated once for a pair, so that a crop of it (the bands
+/// [`correspond`] matches) is matched as the whole pair is.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Noise {
+    pub left: f32,
+    pub right: f32,
+}
+
+impl Noise {
+    /// Each image's noise by Immerkær's estimate ([`census::noise_sigma`]).
+    pub fn of(left: &Gray, right: &Gray) -> Noise {
+        let (left, right) =
+            rayon::join(|| census::noise_sigma(left), || census::noise_sigma(right));
+        Noise { left, right }
+    }
+
+    /// The noise a level up the pyramid, where each pixel averages four: half as much.
+    fn halved(self) -> Noise {
+        Noise {
+            left: self.left / 2.0,
+            right: self.right / 2.0,
+        }
+    }
+}
+
+/// [`disparity_probed`] on a pair whose noise is known (`noise`, of the whole pair when this is
+/// a crop of it).
+pub fn disparity_probed_in(
+    left: &Gray,
+    right: &Gray,
+    noise: Noise,
+    params: &Params,
+    cancel: &AtomicBool,
+    wanted: &[Vec<usize>],
+) -> Result<(Disparity, Timings, Vec<Vec<Probe>>), Cancelled> {
     let levels = pyramid::levels(left.width, left.height, params.count);
-    level(left, right, params, levels, cancel, wanted)
+    level((left, right), noise, params, levels, cancel, wanted)
 }
 
 /// One level of the pyramid: the level above it first when `above` levels remain, then this
 /// level's pair matched over the windows that level's map gives ([`pyramid::Prior`]), or over
 /// the whole range at the coarsest level.
 fn level(
-    left: &Gray,
-    right: &Gray,
+    (left, right): (&Gray, &Gray),
+    noise: Noise,
     params: &Params,
     above: usize,
     cancel: &AtomicBool,
@@ -264,7 +304,7 @@ fn level(
             fill: false,
             ..*params
         };
-        let (map, t, _) = level(&l2, &r2, &coarse, above - 1, cancel, &[])?;
+        let (map, t, _) = level((&l2, &r2), noise.halved(), &coarse, above - 1, cancel, &[])?;
         timings.add(t);
         let started = Instant::now();
         let prior = pyramid::Prior::new(&map, min);
@@ -274,7 +314,10 @@ fn level(
         None
     };
     let started = Instant::now();
-    let (cl, cr) = rayon::join(|| census::transform(left), || census::transform(right));
+    let (cl, cr) = rayon::join(
+        || census::transform_with(left, noise.left),
+        || census::transform_with(right, noise.right),
+    );
     let (gl, gr) = (cost::levels(left), cost::levels(right));
     timings.cost += started.elapsed();
     checkpoint()?;
