@@ -314,7 +314,9 @@ fn level(
         None
     };
     let started = Instant::now();
-    let (cl, cr) = rayon::join(
+    // The left image's census centres (its structure, without its noise) guide P2 across
+    // intensity edges, so that noise is not taken for edges.
+    let ((cl, guide), (cr, _)) = rayon::join(
         || census::transform_with(left, noise.left),
         || census::transform_with(right, noise.right),
     );
@@ -339,7 +341,7 @@ fn level(
             };
             match_stripe(
                 features,
-                left,
+                &guide,
                 context,
                 params,
                 prior.as_ref(),
@@ -358,7 +360,7 @@ fn level(
         probes.extend(found);
         summed.add(t);
     }
-    drop((cl, cr, gl, gr, prior));
+    drop((cl, cr, gl, gr, guide, prior));
     timings.add(summed.sharing(stripes_time));
     checkpoint()?;
 
@@ -432,14 +434,15 @@ struct Features<'a> {
 }
 
 /// One stripe: the cost volume over each pixel's window (from `prior`, or the whole range) and
-/// the two passes over its `context` rows, the winners and the left-right check of its `kept`
-/// rows (disparities as indices into the range).
+/// the two passes over its `context` rows (guided across edges by `guide`, the left image's
+/// census centres), the winners and the left-right check of its `kept` rows (disparities as
+/// indices into the range).
 fn match_stripe(
     Features {
         census: (cl, cr),
         levels: (gl, gr),
     }: Features,
-    left: &Gray,
+    guide: &Gray,
     context: &Range<usize>,
     params: &Params,
     prior: Option<&pyramid::Prior>,
@@ -447,7 +450,7 @@ fn match_stripe(
     cancel: &AtomicBool,
 ) -> Result<Stripe, Cancelled> {
     let kept = probing.rows;
-    let w = left.width;
+    let w = guide.width;
     let range = (params.min_disparity, params.count);
     let mut timings = Timings::default();
     let started = Instant::now();
@@ -471,7 +474,7 @@ fn match_stripe(
     let first = kept.start - context.start;
     sgm::aggregate(
         &volume,
-        &left.data[rows],
+        &guide.data[rows],
         params.penalties,
         cancel,
         &mut |y, totals| {

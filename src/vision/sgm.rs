@@ -28,7 +28,8 @@ pub struct Penalties {
     pub p1: u16,
     /// For a larger jump, where the intensity does not change.
     pub p2: u16,
-    /// The intensity step (in 8-bit grey levels) across which `P2` is halved:
+    /// The intensity step (in 8-bit grey levels of the guide the matcher passes: the left
+    /// image's census centres, its structure without its noise) across which `P2` is halved:
     /// `P2' = max(P1 + 1, P2 · T / (T + |ΔI|))`. 0 keeps `P2` constant.
     pub edge: u16,
 }
