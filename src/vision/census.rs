@@ -71,9 +71,9 @@ pub fn transform_with(image: &Gray, sigma: f32) -> (Vec<u64>, Gray) {
 /// variance estimation", 1996): the response to the 3 × 3 difference of two Laplacians is blind
 /// to planes and smooth shading, and on white noise of σ it is normal with a standard
 /// deviation of 6σ. Immerkær averages its absolute value, which texture and edges inflate
-/// (Motorcycle: 2.5 grey levels, of which its sensor noise is about 1); the median is taken
-/// here instead (`0.6745 · 6σ` on noise; 1.2 on Motorcycle, 2.0 where σ = 2 noise was added
-/// to a faint texture), as Donoho's wavelet estimate takes the median of its finest detail.
+/// (2.5 grey levels on Motorcycle); the median is taken here instead (`0.6745 · 6σ` on noise;
+/// 1.2 on Motorcycle, 2.0 on a faint rendered texture whose grey levels carry σ ≈ 2 of added
+/// noise), as Donoho's wavelet estimate takes the median of its finest detail.
 /// 0 for an image smaller than 3 × 3.
 pub fn noise_sigma(image: &Gray) -> f32 {
     // Bins 16 levels of response wide (a sixteenth of an 8-bit grey level), up to the
@@ -149,7 +149,8 @@ crate::dispatch! {
 }
 
 crate::dispatch! {
-    /// The signatures of row `y` against its `centre` values, one window offset at a time across the whole row, so that
+    /// The signatures of row `y` against its `centre` values, one window offset at a time
+    /// across the whole row, so that
     /// the comparisons run on whole vectors of pixels. The first half of the bits (31) is
     /// gathered in one `u32` a pixel and the other half in another (twice the lanes of a `u64`), then joined.
     fn signatures(padded: &[u16], centre: &[u16], pw: usize, y: usize, row: &mut [u64]) {

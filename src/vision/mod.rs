@@ -242,7 +242,7 @@ pub struct Noise {
 }
 
 impl Noise {
-    /// Each image's noise by Immerkær's estimate ([`census::noise_sigma`]).
+    /// Each image's noise by the median form of Immerkær's estimate ([`census::noise_sigma`]).
     pub fn of(left: &Gray, right: &Gray) -> Noise {
         let (left, right) =
             rayon::join(|| census::noise_sigma(left), || census::noise_sigma(right));
