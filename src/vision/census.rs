@@ -84,15 +84,16 @@ pub fn noise_sigma(image: &Gray) -> f32 {
     if w < 3 || h < 3 {
         return 0.0;
     }
-    // One histogram a block of rows, a block a thread.
-    let blocks = rayon::current_num_threads().max(1);
-    let rows: Vec<usize> = (1..h - 1).collect();
-    let per = rows.len().div_ceil(blocks).max(1);
-    let histograms: Vec<Vec<u32>> = rows
-        .par_chunks(per)
-        .map(|ys| {
+    // One histogram a block of rows, a block a thread, added into one.
+    let inner = 1..h - 1;
+    let per = inner.len().div_ceil(rayon::current_num_threads().max(1));
+    let histogram = inner
+        .step_by(per)
+        .collect::<Vec<_>>()
+        .into_par_iter()
+        .map(|first| {
             let mut counts = vec![0u32; BINS];
-            for &y in ys {
+            for y in first..(first + per).min(h - 1) {
                 let row = |dy: usize| &image.data[(y + dy - 1) * w..(y + dy) * w];
                 let (a, b, c) = (row(0), row(1), row(2));
                 for x in 1..w - 1 {
@@ -105,11 +106,15 @@ pub fn noise_sigma(image: &Gray) -> f32 {
             }
             counts
         })
-        .collect();
+        .reduce_with(|mut sum, counts| {
+            sum.iter_mut().zip(&counts).for_each(|(s, c)| *s += c);
+            sum
+        })
+        .unwrap_or_default();
     let half = ((w - 2) * (h - 2)) as f64 / 2.0;
     let mut below = 0f64;
-    for bin in 0..BINS {
-        let n: f64 = histograms.iter().map(|c| f64::from(c[bin])).sum();
+    for (bin, &n) in histogram.iter().enumerate() {
+        let n = f64::from(n);
         if n > 0.0 && below + n >= half {
             // Linear within the bin.
             let median = (bin as f64 + (half - below) / n) * f64::from(1u32 << SHIFT);
