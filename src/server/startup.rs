@@ -57,6 +57,9 @@ pub fn app(config: &Config, ops: OpsState) -> Router {
 fn app_with(config: &Config, ops: OpsState, extra_heavy: Router<HeavyState>) -> Router {
     let (limits, heavy) = (config.limits, config.heavy);
     let budget = MemoryBudget::new(heavy.memory_budget);
+    // What the matcher's buffer pools keep between requests is held outside the budget's
+    // reservations: an eighth of the budget each at most (a quarter together).
+    crate::vision::huge_pages::keep_at_most(heavy.memory_budget / 8);
     let heavy_state = HeavyState {
         body_limit: BodyLimit(heavy.body_bytes),
         maps: std::sync::Arc::new(MapCache::new(Some(budget.clone()), maps::MAX_ENTRIES)),

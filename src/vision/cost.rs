@@ -129,7 +129,7 @@ pub fn volume(
     windows: Windows,
 ) -> Volume {
     // Every cell is written below, those past `count` included.
-    let mut data = super::huge_pages::zeroed(windows.cells());
+    let mut data = super::huge_pages::BYTES.take(windows.cells());
     let mut rows: Vec<&mut [u8]> = Vec::with_capacity(height);
     let mut rest = &mut data[..];
     for y in 0..height {

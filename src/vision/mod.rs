@@ -20,7 +20,8 @@
 //!
 //! The image is matched in horizontal stripes ([`stripes`]), side by side on the cores. The hot
 //! loops are dispatched between a portable and an AVX2 build by [`simd`], and the large
-//! buffers come from [`huge_pages`] (zeroed, on transparent huge pages where the kernel allows).
+//! buffers come from [`huge_pages`] (on transparent huge pages where the kernel allows, kept
+//! between stripes and requests in its pools).
 //!
 //! [`correspond`] (the `/match` engine) runs the same matcher on the rows some points need,
 //! [`disparity_probed`] telling it what the matcher saw at each point, and judges each point's
@@ -503,6 +504,7 @@ fn match_stripe(
             choosing += chose.elapsed();
         },
     )?;
+    huge_pages::BYTES.give(volume.data);
     timings.aggregate = started.elapsed().saturating_sub(choosing);
     timings.refine = choosing;
     Ok((out, timings, probes))

@@ -52,7 +52,8 @@ pub fn aggregate(
         p1: penalties.p1,
         p2: p2_table(penalties),
     };
-    let mut forward = super::huge_pages::zeroed(cost.windows.cells());
+    // Every cell is written by the first pass before the second reads it.
+    let mut forward = super::huge_pages::WORDS.take(cost.windows.cells());
     pass(
         cost,
         grey,
@@ -63,7 +64,9 @@ pub fn aggregate(
         cancel,
     )?;
     let mut row = vec![0u16; widest_row(cost)];
-    pass(cost, grey, &table, Some(&forward), &mut row, on_row, cancel)
+    let second = pass(cost, grey, &table, Some(&forward), &mut row, on_row, cancel);
+    super::huge_pages::WORDS.give(forward);
+    second
 }
 
 /// The most cells a row of the volume holds.
@@ -331,8 +334,7 @@ fn rows<const UNIFORM: bool>(
                 &cost.data[cells],
                 srcs,
                 mins,
-                p1,
-                p2s,
+                (p1, p2s),
                 [
                     &mut along_next[..n + 2],
                     &mut cur0[at..at + n + 2],
@@ -340,6 +342,7 @@ fn rows<const UNIFORM: bool>(
                     &mut cur2[at..at + n + 2],
                 ],
                 sum,
+                !forward,
             );
             along_min = least[0];
             for k in 0..3 {
@@ -362,17 +365,18 @@ const LANES: usize = super::cost::LANES;
 
 /// One step of the 4 paths of a pass at one pixel: for each path,
 /// `L(p, d) = C(p, d) + min(L(p−r, d), L(p−r, d±1) + P1, min L(p−r) + P2) − min L(p−r)`,
-/// written between the sentinels of its `out` slot; the 4 paths' total is added to `sum` (zero
-/// in the first pass, the first pass's sums in the second). Returns each path's `min L(p)`.
+/// written between the sentinels of its `out` slot; the 4 paths' total is written to `sum` in
+/// the first pass, and added to it (the first pass's sums) in the second (`add`). Returns each
+/// path's `min L(p)`.
 #[inline(always)]
 fn step4(
     cost: &[u8],
     srcs: [&[u16]; 4],
     mins: [u16; 4],
-    p1: u16,
-    p2: [u16; 4],
+    (p1, p2): (u16, [u16; 4]),
     outs: [&mut [u16]; 4],
     sum: &mut [u16],
+    add: bool,
 ) -> [u16; 4] {
     let n = cost.len();
     let [s0, s1, s2, s3] = srcs;
@@ -385,6 +389,8 @@ fn step4(
         &mut o3[1..n + 1],
     );
     let sum = &mut sum[..n];
+    // What is kept of `sum`: all of it when adding, nothing when writing.
+    let keep = if add { u16::MAX } else { 0 };
     let jumps = [
         mins[0] + p2[0],
         mins[1] + p2[1],
@@ -411,7 +417,7 @@ fn step4(
         let total = &mut sum[base..base + LANES];
         for i in 0..LANES {
             let here = v0[i] + v1[i] + v2[i] + v3[i];
-            total[i] = total[i].saturating_add(here);
+            total[i] = (total[i] & keep).saturating_add(here);
             l0[i] = l0[i].min(v0[i]);
             l1[i] = l1[i].min(v1[i]);
             l2[i] = l2[i].min(v2[i]);
@@ -531,16 +537,17 @@ mod tests {
         (prev[0], prev[1], prev[4], prev[LANES + 1]) = (FAR, 0, 3, FAR);
         let start = [0u16; LANES + 2];
         let mut outs = [[0u16; LANES + 2]; 4];
-        let mut sum = [0u16; LANES];
+        // The first pass writes its sums over whatever the buffer held.
+        let mut sum = [999u16; LANES];
         let [o0, o1, o2, o3] = &mut outs;
         let least = step4(
             &cost,
             [&prev, &start, &start, &start],
             [0; 4],
-            2,
-            [30; 4],
+            (2, [30; 4]),
             [o0, o1, o2, o3],
             &mut sum,
+            false,
         );
         // d0 stays at 0; d1 comes from d0 + P1; d2 and d4 from d3 + P1; d3 stays at 3; the
         // others jump from the minimum for P2 (30), cheaper than staying at 40.
@@ -548,6 +555,18 @@ mod tests {
         // The three paths that start here cost just C.
         assert_eq!(&outs[1][1..6], &[5, 5, 5, 5, 60]);
         assert_eq!(&sum[..6], &[20, 22, 25, 23, 245, 270]);
+        // The second pass adds its sums to the first's.
+        let [o0, o1, o2, o3] = &mut outs;
+        step4(
+            &cost,
+            [&prev, &start, &start, &start],
+            [0; 4],
+            (2, [30; 4]),
+            [o0, o1, o2, o3],
+            &mut sum,
+            true,
+        );
+        assert_eq!(&sum[..6], &[40, 44, 50, 46, 490, 540]);
         assert_eq!(least, [5, 5, 5, 5]);
     }
 }
