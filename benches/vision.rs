@@ -91,11 +91,15 @@ fn stages(c: &mut Criterion) {
             )
         })
     });
-    for (name, simd_on) in [
-        ("whole matcher, AVX2 if present", true),
-        ("whole matcher, portable", false),
+    for (name, simd_on, avx512) in [
+        ("whole matcher, the best build present", true, true),
+        ("whole matcher, AVX2 if present", true, false),
+        ("whole matcher, portable", false, false),
     ] {
         simd::use_simd(simd_on);
+        if simd_on {
+            simd::use_avx512(avx512);
+        }
         group.bench_function(name, |b| {
             b.iter(|| vision::disparity(&pair.left, &pair.right, &params, &never).unwrap())
         });

@@ -7,7 +7,8 @@
 //! ```
 //! `TRUTH.f32` is the ground truth as raw little-endian float32, row-major, +inf where unknown.
 //! Keys: p1, p2, edge, uniq, lr, speckle, median (0/1), sub (off/parabola/equiangular).
-//! `TUNE_SIMD=portable` runs the portable build of the hot loops instead of AVX2.
+//! `TUNE_SIMD=portable` runs the portable build of the hot loops, `TUNE_SIMD=avx2` the AVX2
+//! build where the CPU has AVX-512 too.
 
 use std::sync::atomic::AtomicBool;
 use std::time::Instant;
@@ -16,8 +17,10 @@ use stereo_distance::vision::{self, Params, Settings, Subpixel, decode, refine, 
 
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
-    if std::env::var("TUNE_SIMD").as_deref() == Ok("portable") {
-        simd::use_simd(false);
+    match std::env::var("TUNE_SIMD").as_deref() {
+        Ok("portable") => simd::use_simd(false),
+        Ok("avx2") => simd::use_avx512(false),
+        _ => {}
     }
     let limits = decode::Limits {
         max_side: 8192,

@@ -119,9 +119,9 @@ fn subpixel_follows_a_slanted_plane() {
     assert!(fitted.density > 0.9, "{fitted:?}");
 }
 
-/// The AVX2 build of the hot loops, where the CPU has it, gives a map bit-identical to the
-/// portable build's, with a disparity count that fills whole registers (64) and one that leaves
-/// padded lanes (40).
+/// The AVX2 build of the hot loops and the AVX-512 build of the census and the cost's row,
+/// where the CPU has them, give maps bit-identical to the portable build's, with a disparity
+/// count that fills whole registers (64) and one that leaves padded lanes (40).
 #[test]
 fn simd_and_portable_builds_agree() {
     let pair = synthetic::render(&Scene {
@@ -130,20 +130,25 @@ fn simd_and_portable_builds_agree() {
     });
     for count in [40, 64] {
         let params = Params::range(0, count).unwrap();
-        let run = |simd| {
+        let run = |simd, avx512| {
             vision::simd::use_simd(simd);
+            if simd {
+                vision::simd::use_avx512(avx512);
+            }
             vision::disparity(&pair.left, &pair.right, &params, &AtomicBool::new(false))
                 .unwrap()
                 .0
         };
-        let portable = run(false);
-        let fast = run(true);
-        let same = portable
-            .data
-            .iter()
-            .zip(&fast.data)
-            .all(|(a, b)| a.to_bits() == b.to_bits());
-        assert!(same, "the two builds disagree with {count} disparities");
+        let portable = run(false, false);
+        for (build, avx512) in [("AVX2", false), ("the best", true)] {
+            let fast = run(true, avx512);
+            let same = portable
+                .data
+                .iter()
+                .zip(&fast.data)
+                .all(|(a, b)| a.to_bits() == b.to_bits());
+            assert!(same, "{build} build disagrees with {count} disparities");
+        }
         assert!(portable.data.iter().filter(|d| d.is_finite()).count() > 200 * 120 / 2);
     }
 }

@@ -158,7 +158,7 @@ crate::dispatch! {
     /// across the whole row, so that
     /// the comparisons run on whole vectors of pixels. The first half of the bits (31) is
     /// gathered in one `u32` a pixel and the other half in another (twice the lanes of a `u64`), then joined.
-    fn signatures(padded: &[u16], centre: &[u16], pw: usize, y: usize, row: &mut [u64]) {
+    wide fn signatures(padded: &[u16], centre: &[u16], pw: usize, y: usize, row: &mut [u64]) {
         const HALF: usize = BITS as usize / 2;
         let (rx, ry) = (WIDTH / 2, HEIGHT / 2);
         let w = row.len();

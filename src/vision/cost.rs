@@ -164,7 +164,7 @@ crate::dispatch! {
     /// `x − min − j` is inside the image and which are in the range form one run, computed in
     /// one branch-free loop (vectorised popcounts and differences); the rest are [`OUTSIDE`], or
     /// [`PAD`] past the range.
-    fn costs_of_row(
+    wide fn costs_of_row(
         census: (&[u64], &[u64]),
         grey: (&[u8], &[u8]),
         range: (i64, usize),
