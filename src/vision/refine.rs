@@ -350,47 +350,121 @@ fn fit(total: &[u16], k: usize, how: Subpixel) -> f32 {
 
 /// Invalidates the connected regions of fewer than `max_size` pixels whose neighbours differ by
 /// at most `range` (OpenCV's `filterSpeckles`): small islands are usually mismatches.
+///
+/// The regions are found by union-find in horizontal bands side by side (one a core), each
+/// pixel joined to its left and upper neighbours, every tree's root holding its size; then the
+/// bands' regions that touch across a seam are joined, their sizes added; then every pixel
+/// whose region is small is invalidated, band by band again. Which pixels go does not depend
+/// on the bands.
 pub fn speckles(disparity: &mut [f32], width: usize, max_size: usize, range: f32) {
-    if max_size == 0 || disparity.is_empty() {
+    if max_size == 0 || disparity.is_empty() || width == 0 {
         return;
     }
     let height = disparity.len() / width;
-    // A copy framed by one invalid pixel on every side: the four neighbours of any inner
-    // pixel are then plain offsets, with no bounds to check and no division to find x and y.
-    let pw = width + 2;
-    let mut framed = vec![f32::NAN; pw * (height + 2)];
-    for (y, row) in disparity.chunks_exact(width).enumerate() {
-        framed[(y + 1) * pw + 1..(y + 1) * pw + 1 + width].copy_from_slice(row);
-    }
-    let mut seen = vec![false; framed.len()];
-    let mut stack: Vec<usize> = Vec::new();
-    let mut members: Vec<usize> = Vec::new();
-    for start in pw..framed.len() - pw {
-        if seen[start] || framed[start].is_nan() {
-            continue;
+    let per = height.div_ceil(rayon::current_num_threads().max(1)).max(1);
+    let band = per * width;
+    let n = disparity.len();
+    // `parent[p]` leads to the root of p's region (a pixel index); `size[r]` is root r's region
+    // size. Both `u32`: the pixel limits keep an image far below 2^32 pixels.
+    let mut parent = vec![0u32; n];
+    let mut size = vec![0u32; n];
+    let joined = |a: f32, b: f32| (a - b).abs() <= range;
+    parent
+        .par_chunks_mut(band)
+        .zip(size.par_chunks_mut(band))
+        .zip(disparity.par_chunks(band))
+        .enumerate()
+        .for_each(|(b, ((parent, size), d))| {
+            let offset = (b * band) as u32;
+            label_band(d, width, offset, parent, size, &joined);
+        });
+    // The seams: the last row of each band against the first row of the next.
+    for seam in (band..n).step_by(band) {
+        for p in seam - width..seam {
+            let q = p + width;
+            if joined(disparity[p], disparity[q]) {
+                unite(&mut parent, &mut size, p, q);
+            }
         }
-        seen[start] = true;
-        stack.push(start);
-        members.clear();
-        while let Some(p) = stack.pop() {
-            members.push(p);
-            let d = framed[p];
-            for q in [p - 1, p + 1, p - pw, p + pw] {
-                // NaN (the frame, an invalid pixel) fails the comparison.
-                if !seen[q] && (framed[q] - d).abs() <= range {
-                    seen[q] = true;
-                    stack.push(q);
+    }
+    let (parent, size) = (&parent, &size);
+    disparity
+        .par_chunks_mut(band)
+        .enumerate()
+        .for_each(|(b, d)| {
+            for (i, v) in d.iter_mut().enumerate() {
+                if !v.is_nan() && (size[root(parent, b * band + i)] as usize) < max_size {
+                    *v = f32::NAN;
                 }
             }
+        });
+}
+
+/// Union-find over one band of a map (`d`, `width` pixels a row; its first pixel is pixel
+/// `offset` of the map): each valid pixel joined to its left and upper neighbours when
+/// `joined`, and then every pixel pointed straight at its root, each root's `size` its
+/// region's pixel count in the band. `parent` and `size` are the band's slices (map indices).
+fn label_band(
+    d: &[f32],
+    width: usize,
+    offset: u32,
+    parent: &mut [u32],
+    size: &mut [u32],
+    joined: &impl Fn(f32, f32) -> bool,
+) {
+    let find = |parent: &mut [u32], mut p: usize| {
+        // Path halving, on band-local indices.
+        while parent[p] as usize != p + offset as usize {
+            let up = parent[p] as usize - offset as usize;
+            parent[p] = parent[up];
+            p = parent[p] as usize - offset as usize;
         }
-        if members.len() < max_size {
-            for &p in &members {
-                framed[p] = f32::NAN;
+        p
+    };
+    for (p, &v) in d.iter().enumerate() {
+        parent[p] = p as u32 + offset;
+        if v.is_nan() {
+            continue;
+        }
+        let x = p % width;
+        if x > 0 && joined(v, d[p - 1]) {
+            parent[p] = parent[find(parent, p - 1)];
+        }
+        if p >= width && joined(v, d[p - width]) {
+            let (a, b) = (find(parent, p), find(parent, p - width));
+            if a != b {
+                // The later root joins the earlier one.
+                let (lo, hi) = (a.min(b), a.max(b));
+                parent[hi] = lo as u32 + offset;
             }
         }
     }
-    for (y, row) in disparity.chunks_exact_mut(width).enumerate() {
-        row.copy_from_slice(&framed[(y + 1) * pw + 1..(y + 1) * pw + 1 + width]);
+    for p in 0..d.len() {
+        if !d[p].is_nan() {
+            let r = find(parent, p);
+            parent[p] = r as u32 + offset;
+            size[r] += 1;
+        }
+    }
+}
+
+/// The root of pixel `p`'s region (no path compression: bands read it side by side; after
+/// [`label_band`] every pixel points at its band's root, and seams add at most one step per
+/// band).
+fn root(parent: &[u32], mut p: usize) -> usize {
+    while parent[p] as usize != p {
+        p = parent[p] as usize;
+    }
+    p
+}
+
+/// Joins the regions of `p` and `q` across a seam, the smaller-indexed root keeping both sizes.
+fn unite(parent: &mut [u32], size: &mut [u32], p: usize, q: usize) {
+    let (a, b) = (root(parent, p), root(parent, q));
+    if a != b {
+        let (lo, hi) = (a.min(b), a.max(b));
+        parent[hi] = lo as u32;
+        size[lo] += size[hi];
     }
 }
 
@@ -719,6 +793,84 @@ mod tests {
         assert_eq!(d[2 * w + w - 1], 25.0);
         assert!(d[3 * w + 4].is_nan());
         assert_eq!(d.iter().filter(|v| v.is_nan()).count(), 3);
+    }
+
+    /// The filter by bands removes exactly the regions a flood fill over the whole map finds
+    /// too small, on maps of many small regions and holes, with one band and with many.
+    #[test]
+    fn speckles_by_bands_match_a_flood_fill() {
+        fn flood(d: &[f32], w: usize, max_size: usize, range: f32) -> Vec<f32> {
+            let h = d.len() / w;
+            let mut out = d.to_vec();
+            let mut seen = vec![false; d.len()];
+            for start in 0..d.len() {
+                if seen[start] || d[start].is_nan() {
+                    continue;
+                }
+                seen[start] = true;
+                let (mut stack, mut members) = (vec![start], Vec::new());
+                while let Some(p) = stack.pop() {
+                    members.push(p);
+                    let (x, y) = (p % w, p / w);
+                    let mut near = Vec::new();
+                    if x > 0 {
+                        near.push(p - 1);
+                    }
+                    if x + 1 < w {
+                        near.push(p + 1);
+                    }
+                    if y > 0 {
+                        near.push(p - w);
+                    }
+                    if y + 1 < h {
+                        near.push(p + w);
+                    }
+                    for q in near {
+                        if !seen[q] && (d[q] - d[p]).abs() <= range {
+                            seen[q] = true;
+                            stack.push(q);
+                        }
+                    }
+                }
+                if members.len() < max_size {
+                    for p in members {
+                        out[p] = f32::NAN;
+                    }
+                }
+            }
+            out
+        }
+        let mut rng = crate::vision::synthetic::Rng::new(11);
+        for (w, h) in [(37, 23), (64, 64), (5, 101)] {
+            // Levels 0..6 a step apart (joined at range 1) with 20 % holes: regions of every
+            // size, snaking across any band's seams.
+            let d: Vec<f32> = (0..w * h)
+                .map(|_| {
+                    let u = rng.unit();
+                    if u < 0.2 {
+                        f32::NAN
+                    } else {
+                        (rng.unit() * 6.0).floor() * 1.5
+                    }
+                })
+                .collect();
+            for max_size in [2, 5, 30] {
+                let expected = flood(&d, w, max_size, 1.0);
+                for threads in [1, 3, 8] {
+                    let pool = rayon::ThreadPoolBuilder::new()
+                        .num_threads(threads)
+                        .build()
+                        .unwrap();
+                    let mut got = d.clone();
+                    pool.install(|| speckles(&mut got, w, max_size, 1.0));
+                    let same = got
+                        .iter()
+                        .zip(&expected)
+                        .all(|(a, b)| a.to_bits() == b.to_bits());
+                    assert!(same, "{w} x {h}, size {max_size}, {threads} bands");
+                }
+            }
+        }
     }
 
     /// Holes take the smaller of their row neighbours, and row ends the only one they have.
