@@ -1,7 +1,8 @@
 //! Criterion benchmarks of the matcher's stages on a synthetic 741 × 500 pair (Motorcycle's
 //! quarter size, no download), 64 disparities: census, cost volume, aggregation, the
-//! winner-takes-all of a row, and the whole `vision::disparity`, with the AVX2 build and the
-//! portable one; and coarse to fine at 256 disparities: halving, the prior's windows, the whole
+//! winner-takes-all of a row, the speckle filter and the median over the whole map, and the
+//! whole `vision::disparity` with the best build the CPU runs (AVX-512 for the census and the
+//! cost's row), the AVX2 build and the portable one; and coarse to fine at 256 disparities: halving, the prior's windows, the whole
 //! matcher through the pyramid. The comparison with OpenCV is `scripts/eval-stereo` (README,
 //! Performance).
 //!
@@ -90,6 +91,28 @@ fn stages(c: &mut Criterion) {
                 params.subpixel(),
             )
         })
+    });
+    // The whole-map filters on the map as it leaves the stripes (no speckle filter, no median).
+    let raw = Params::new(&vision::Settings {
+        max_disparity: Some(64),
+        speckle_size: Some(0),
+        median: Some(false),
+        ..vision::Settings::default()
+    })
+    .unwrap();
+    let unfiltered = vision::disparity(&pair.left, &pair.right, &raw, &never)
+        .unwrap()
+        .0
+        .data;
+    group.bench_function("speckle filter (whole map, by bands)", |b| {
+        b.iter_batched_ref(
+            || unfiltered.clone(),
+            |map| refine::speckles(map, w, 100, 2.0),
+            criterion::BatchSize::LargeInput,
+        )
+    });
+    group.bench_function("3 x 3 median (whole map)", |b| {
+        b.iter(|| refine::median(black_box(&unfiltered), w))
     });
     for (name, simd_on, avx512) in [
         ("whole matcher, the best build present", true, true),

@@ -203,7 +203,8 @@ pub struct HeavyLimits {
 
     /// Memory shared by the image requests in flight, in bytes or with a unit (KiB, MiB, GiB).
     /// Each reserves its body on arrival and its working memory before allocating it; one that
-    /// does not fit is refused with 503 and Retry-After.
+    /// does not fit is refused with 503 and Retry-After. The matcher's buffer pools keep up to
+    /// an eighth of it each (96 MiB at most) between requests.
     #[arg(id = "heavy_memory_budget", long = "heavy-memory-budget", env = "HEAVY_MEMORY_BUDGET", value_name = "SIZE",
           default_value = "1GiB", value_parser = size::<1024, 1_099_511_627_776>)]
     pub memory_budget: usize,

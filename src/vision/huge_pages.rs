@@ -87,15 +87,22 @@ impl<T: Copy + Default> Pool<T> {
 
     /// A `Vec` of `len` values for a caller that writes every one before reading it: the
     /// smallest kept buffer that holds `len`, with whatever it held, or else a fresh one of
-    /// zeros ([`zeroed`]).
+    /// zeros ([`zeroed`]). When none holds `len`, the kept ones are all smaller and are freed
+    /// first: a request whose buffers grow (coarse to fine) then holds no more at its peak
+    /// than it would without the pool.
     pub fn take(&self, len: usize) -> Vec<T> {
-        let found = {
+        let (found, smaller) = {
             let mut kept = self.kept();
             let fits = (0..kept.len())
                 .filter(|&i| kept[i].capacity() >= len)
                 .min_by_key(|&i| kept[i].capacity());
-            fits.map(|i| kept.swap_remove(i))
+            match fits {
+                Some(i) => (Some(kept.swap_remove(i)), Vec::new()),
+                None => (None, std::mem::take(&mut *kept)),
+            }
         };
+        // Freed outside the lock.
+        drop(smaller);
         match found {
             Some(mut v) => {
                 // Within the capacity: shortening writes nothing, lengthening only the tail.
@@ -191,6 +198,11 @@ mod tests {
         assert_eq!(small.as_ptr(), at);
         let next = pool.take(10);
         assert_eq!(next.as_ptr(), big);
+        // A request larger than every kept buffer frees them all.
+        pool.give(pool.take(700));
+        let huge = pool.take(6000);
+        assert!(pool.kept().is_empty());
+        drop(huge);
         // 10 000 + 8 000 bytes fit the limit (19 000); with the 2 000 of `small` they do not:
         // `small` goes. A buffer over the limit on its own is never kept.
         pool.give(vec![0u16; 4000]);
