@@ -7,7 +7,9 @@
 //!
 //! Those buffers are then kept in a [`Pool`] for the next stripe or request, which writes
 //! every cell before reading it: reused memory is neither cleared by the allocator nor faulted
-//! in again (Motorcycle at 64 disparities: the matcher 30 → 27-28 ms, the same map).
+//! in again. That matters where the buffers are above glibc's mapping threshold (5.9 MP at 400
+//! disparities: 825 against 860–930 ms a request); on Motorcycle the server already got its
+//! memory back from glibc without clearing, and gains nothing measurable.
 
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Mutex, PoisonError};
@@ -24,9 +26,8 @@ pub fn zeroed<T: Copy + Default>(len: usize) -> Vec<T> {
 
 /// The most bytes each [`Pool`] of the matcher keeps between uses, unless [`keep_at_most`]
 /// says less: enough for the stripes of a 1080p pair in flight on a few cores, so that one
-/// request after another reuses the same memory instead of having it cleared again (by the
-/// allocator, or by the kernel for fresh pages: about a tenth of the matcher's time at 64
-/// disparities).
+/// request after another reuses the same memory instead of having the kernel clear fresh
+/// pages again.
 pub const KEPT: usize = 96 << 20;
 
 /// Caps what each of the matcher's pools ([`BYTES`], [`WORDS`]) keeps between uses at
@@ -61,24 +62,24 @@ impl<T: Copy + Default> Pool<T> {
     /// Keeps at most `limit` bytes from now on, freeing the smallest kept buffers beyond it.
     pub fn set_limit(&self, limit: usize) {
         self.limit.store(limit, Ordering::Relaxed);
-        let freed = {
-            let mut kept = self.kept();
-            let keep = self.within_limit(&kept);
-            kept.split_off(keep)
-        };
+        let freed = self.trim(&mut self.kept());
         drop(freed);
     }
 
-    /// How many of `kept` (largest first) fit the limit together.
-    fn within_limit(&self, kept: &[Vec<T>]) -> usize {
+    /// Sorts `kept` largest first and splits off the smallest that do not fit the limit
+    /// together, to be freed by the caller outside the lock.
+    fn trim(&self, kept: &mut Vec<Vec<T>>) -> Vec<Vec<T>> {
+        kept.sort_unstable_by_key(|v| std::cmp::Reverse(v.capacity()));
         let limit = self.limit.load(Ordering::Relaxed);
         let mut total = 0usize;
-        kept.iter()
+        let fit = kept
+            .iter()
             .take_while(|v| {
                 total = total.saturating_add(v.capacity().saturating_mul(size_of::<T>()));
                 total <= limit
             })
-            .count()
+            .count();
+        kept.split_off(fit)
     }
 
     fn kept(&self) -> std::sync::MutexGuard<'_, Vec<Vec<T>>> {
@@ -123,9 +124,7 @@ impl<T: Copy + Default> Pool<T> {
         let freed = {
             let mut kept = self.kept();
             kept.push(buffer);
-            kept.sort_unstable_by_key(|v| std::cmp::Reverse(v.capacity()));
-            let keep = self.within_limit(&kept);
-            kept.split_off(keep)
+            self.trim(&mut kept)
         };
         // Freed outside the lock.
         drop(freed);
@@ -211,9 +210,17 @@ mod tests {
         pool.give(vec![0u16; 10_001]);
         let kept = || pool.kept().iter().map(Vec::capacity).collect::<Vec<_>>();
         assert_eq!(kept(), vec![5000, 4000]);
-        // A lower limit frees the smallest first.
+        // A lower limit frees the smallest first,
         pool.set_limit(12_000);
         assert_eq!(kept(), vec![5000]);
+        // even after a take has left the kept out of order ([1000, 4000] here).
+        pool.set_limit(21_000);
+        pool.give(vec![0u16; 4000]);
+        pool.give(vec![0u16; 1000]);
+        let held = pool.take(4500);
+        assert_eq!(held.capacity(), 5000);
+        pool.set_limit(9_000);
+        assert_eq!(kept(), vec![4000]);
         pool.set_limit(0);
         assert!(kept().is_empty());
     }
