@@ -56,9 +56,11 @@ FLOORS["noise"] = {"bad1": 13.70, "bad2": 9.15}
 # contrast the texture is no stronger than the noise (README, Performance): 69.6 / 61.2 % before
 # the census compared with Lee-filtered centres, 9.37 / 4.44 % since, against 7.68 / 2.84 %.
 UNSEEN_NOT_MET = {"  faint (1/10 contrast) + noise": 2.5}
-# Goal 2 (5.9 MP, 400 disparities): never worse than OpenCV's best on it (measured 0.99 x and
-# 0.85 x); the goal itself, 0.75 x, is printed and not yet met.
-LARGE_FLOOR_RATIO = 1.0
+# Goal 2 (5.9 MP, 400 disparities): 0.85 x OpenCV's best on it, since the census spreads its
+# samples over the scale the images are smooth at (measured 0.78 x and 0.70 x; 0.94 x and
+# 0.80 x with them one pixel apart); the goal itself, 0.75 x, is printed and not yet met for
+# bad-1.0.
+LARGE_FLOOR_RATIO = 0.85
 
 
 def fill(disp):
@@ -457,8 +459,8 @@ def main():
                         "opencv": {name: {**s, "ms": secs * 1e3} for name, s, secs in rows}}
     for metric in ("bad1", "bad2"):
         if mine[metric] > LARGE_FLOOR_RATIO * large_best[metric]:
-            failures.append(f"large: {metric} {mine[metric]:.2f} % is above OpenCV's best "
-                            f"{large_best[metric]:.2f} %")
+            failures.append(f"large: {metric} {mine[metric]:.2f} % is above "
+                            f"{LARGE_FLOOR_RATIO} x OpenCV's best {large_best[metric]:.2f} %")
     print()
     print("Unseen scenes (rendered here, nothing tuned on them), 640 x 480, 64 disparities: ours "
           "against OpenCV's best mode; floor: never worse")

@@ -143,8 +143,8 @@ pub fn correspond(
     let mut rows_matched = 0;
     let bands = bands(&needed, h);
     let started = std::time::Instant::now();
-    // The whole pair's noise, so that each band's census is the whole image's there.
-    let noise = super::Noise::of(left, right);
+    // The whole pair's noise and stride, so that each band's census is the whole image's there.
+    let seen = super::Seen::of(left, right);
     // The bands side by side on the cores (each band's stripes too).
     let matched: Vec<Result<Band, Cancelled>> = bands
         .par_iter()
@@ -162,7 +162,7 @@ pub fn correspond(
                     image.data[band.start * w..band.end * w].to_vec(),
                 )
             };
-            super::disparity_probed_in(&crop(left), &crop(right), noise, params, cancel, &wanted)
+            super::disparity_probed_in(&crop(left), &crop(right), seen, params, cancel, &wanted)
         })
         .collect();
     for ((keep, band), result) in bands.iter().zip(matched) {

@@ -11,7 +11,8 @@
 //! the range is wide: matched over the whole range at the coarsest level, and over a narrow
 //! window around what the level above found everywhere below it:
 //! - [`census`]: a 9 × 7 census transform of both images (62 bits a pixel), each pixel's
-//!   neighbours compared with its Lee-filtered value (the noise estimated once, [`Noise`]);
+//!   neighbours compared with its Lee-filtered value, the neighbours 1 to 4 pixels apart as
+//!   the pair is smooth over (the noise and that spacing measured once, [`Seen`]);
 //! - [`cost`]: the Hamming cost volume, `[y][x][d]` over each pixel's window, one byte a cell;
 //! - [`sgm`]: semi-global aggregation along 8 paths in two passes, the second handing each
 //!   finished row to
@@ -230,47 +231,59 @@ pub fn disparity_probed(
     cancel: &AtomicBool,
     wanted: &[Vec<usize>],
 ) -> Result<(Disparity, Timings, Vec<Vec<Probe>>), Cancelled> {
-    disparity_probed_in(left, right, Noise::of(left, right), params, cancel, wanted)
+    disparity_probed_in(left, right, Seen::of(left, right), params, cancel, wanted)
 }
 
-/// The standard deviation of each image's noise (16-bit levels), which the census compares
-/// against ([`census`]): estimated once for a pair, so that a crop of it (the bands
-/// [`correspond`] matches) is matched as the whole pair is.
+/// What the census needs to know of the whole pair ([`census`]), measured once, so that a crop
+/// of it (the bands [`correspond`] matches) is matched as the whole pair is: the standard
+/// deviation of each image's noise (16-bit levels), which the census centres compare against,
+/// and the pixels between the census window's samples.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Noise {
+pub struct Seen {
     pub left: f32,
     pub right: f32,
+    pub stride: usize,
 }
 
-impl Noise {
-    /// Each image's noise by the median form of Immerkær's estimate ([`census::noise_sigma`]).
-    pub fn of(left: &Gray, right: &Gray) -> Noise {
-        let (left, right) =
-            rayon::join(|| census::noise_sigma(left), || census::noise_sigma(right));
-        Noise { left, right }
+impl Seen {
+    /// Each image's noise by the median form of Immerkær's estimate ([`census::noise_sigma`]),
+    /// and the stride the pair's smoothness calls for ([`census::stride`]).
+    pub fn of(left_image: &Gray, right_image: &Gray) -> Seen {
+        let (left, right) = rayon::join(
+            || census::noise_sigma(left_image),
+            || census::noise_sigma(right_image),
+        );
+        let stride = census::stride(left_image, right_image, (left, right));
+        Seen {
+            left,
+            right,
+            stride,
+        }
     }
 
-    /// The noise a level up the pyramid, where each pixel averages four: half as much.
-    fn halved(self) -> Noise {
-        Noise {
+    /// The pair a level up the pyramid, where each pixel averages four: half the noise, and
+    /// smooth over half as many pixels.
+    fn halved(self) -> Seen {
+        Seen {
             left: self.left / 2.0,
             right: self.right / 2.0,
+            stride: (self.stride / 2).max(1),
         }
     }
 }
 
-/// [`disparity_probed`] on a pair whose noise is known (`noise`, of the whole pair when this is
+/// [`disparity_probed`] on a pair whose statistics are known (`seen`, of the whole pair when this is
 /// a crop of it).
 pub fn disparity_probed_in(
     left: &Gray,
     right: &Gray,
-    noise: Noise,
+    seen: Seen,
     params: &Params,
     cancel: &AtomicBool,
     wanted: &[Vec<usize>],
 ) -> Result<(Disparity, Timings, Vec<Vec<Probe>>), Cancelled> {
     let levels = pyramid::levels(left.width, left.height, params.count);
-    level((left, right), noise, params, levels, cancel, wanted)
+    level((left, right), seen, params, levels, cancel, wanted)
 }
 
 /// One level of the pyramid: the level above it first when `above` levels remain, then this
@@ -278,7 +291,7 @@ pub fn disparity_probed_in(
 /// the whole range at the coarsest level.
 fn level(
     (left, right): (&Gray, &Gray),
-    noise: Noise,
+    seen: Seen,
     params: &Params,
     above: usize,
     cancel: &AtomicBool,
@@ -305,7 +318,7 @@ fn level(
             fill: false,
             ..*params
         };
-        let (map, t, _) = level((&l2, &r2), noise.halved(), &coarse, above - 1, cancel, &[])?;
+        let (map, t, _) = level((&l2, &r2), seen.halved(), &coarse, above - 1, cancel, &[])?;
         timings.add(t);
         let started = Instant::now();
         let prior = pyramid::Prior::new(&map, min);
@@ -318,8 +331,8 @@ fn level(
     // The left image's census centres (its structure, without its noise) guide P2 across
     // intensity edges, so that noise is not taken for edges.
     let ((cl, guide), (cr, _)) = rayon::join(
-        || census::transform_with(left, noise.left),
-        || census::transform_with(right, noise.right),
+        || census::transform_with(left, seen.left, seen.stride),
+        || census::transform_with(right, seen.right, seen.stride),
     );
     let (gl, gr) = (cost::levels(left), cost::levels(right));
     timings.cost += started.elapsed();
