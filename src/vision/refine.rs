@@ -96,38 +96,32 @@ crate::dispatch! {
 }
 
 /// The smallest value and its first index, in whole SIMD registers (`(u16::MAX, 0)` when
-/// empty).
+/// empty): the least of each lane over the registers, the least of those, then the first
+/// register holding it and the first lane there, from a mask of the lanes equal to it.
 #[inline(always)]
 fn argmin(values: &[u16]) -> (u16, usize) {
     const L: usize = super::cost::LANES;
-    let mut best = [u16::MAX; L];
-    let mut at = [0u16; L];
-    let mut index = [0u16; L];
-    for (i, v) in index.iter_mut().enumerate() {
-        *v = i as u16;
-    }
     let whole = values.len() / L * L;
+    let mut least = [u16::MAX; L];
     for chunk in values[..whole].chunks_exact(L) {
         for i in 0..L {
-            let better = chunk[i] < best[i];
-            best[i] = if better { chunk[i] } else { best[i] };
-            at[i] = if better { index[i] } else { at[i] };
-        }
-        for v in &mut index {
-            *v += L as u16;
+            least[i] = least[i].min(chunk[i]);
         }
     }
-    let mut value = best.iter().copied().fold(u16::MAX, u16::min);
-    let mut first = [u16::MAX; L];
-    for i in 0..L {
-        first[i] = if best[i] == value { at[i] } else { u16::MAX };
+    let mut value = least.iter().copied().fold(u16::MAX, u16::min);
+    let mut k = usize::MAX;
+    if whole > 0 {
+        for (c, chunk) in values[..whole].chunks_exact(L).enumerate() {
+            let mut equal = 0u32;
+            for (i, &v) in chunk.iter().enumerate() {
+                equal |= u32::from(v == value) << i;
+            }
+            if equal != 0 {
+                k = c * L + equal.trailing_zeros() as usize;
+                break;
+            }
+        }
     }
-    let k = first.iter().copied().fold(u16::MAX, u16::min);
-    let mut k = if whole == 0 {
-        usize::MAX
-    } else {
-        usize::from(k)
-    };
     for (i, &v) in values.iter().enumerate().skip(whole) {
         if v < value {
             (value, k) = (v, i);
