@@ -141,11 +141,12 @@ const LAGS: [usize; 6] = [1, 2, 3, 4, 6, 8];
 /// How many times the variance of an image's second differences must grow as their lag
 /// doubles for the image to count as smooth at that lag. Where an image is smooth (twice
 /// differentiable) the second difference `I(x − s) − 2 I(x) + I(x + s)` grows as `s²`, so its
-/// variance grows 16 times; on rough texture (Brownian, the sharp end of natural images) it
-/// grows as `s`, twice. The threshold is their geometric mean, `4√2`. Linear shading has no
-/// second difference, so it cannot pass for smoothness. Measured on Motorcycle: 3.43 from lag 1
-/// to 2 at its own size; upscaled 4 ×, 10.41, 8.29, 5.77 and 4.14 from lags 1, 2, 3 and 4.
-const SMOOTH_GROWTH: f64 = 4.0 * std::f64::consts::SQRT_2;
+/// variance grows 16 times; on rough texture, which natural images are at their own scale
+/// (fractional Brownian, of Hurst exponent `H` below 1), it grows as `s^H`, less than 4 times.
+/// 4 is the boundary between the two. Linear shading has no second difference, so it cannot
+/// pass for smoothness. Measured on Motorcycle: 3.43 from lag 1 to 2 at its own size; upscaled
+/// 4 ×, 10.41, 8.29, 5.77 and 4.14 from lags 1, 2, 3 and 4.
+const SMOOTH_GROWTH: f64 = 4.0;
 
 /// The pixels between the census window's samples for a pair: the largest lag `s` (up to
 /// [`MAX_STRIDE`]) such that the pair is smooth at every lag up to `s`: the variance of its
@@ -154,8 +155,8 @@ const SMOOTH_GROWTH: f64 = 4.0 * std::f64::consts::SQRT_2;
 /// it. 1 when it is smooth at no lag, or too small to tell.
 ///
 /// Measured on Motorcycle (`examples/tune`, bad-1.0 %): at its own size the rule gives 1;
-/// upscaled 2 × it gives 1 (12.30 %; stride 2 12.70 %); 3 × gives 2 (20.79 → 18.86 %; 3: 18.59);
-/// 4 × gives 3 (30.96 → 25.73 %; 4: 25.53 %).
+/// upscaled 2 × it gives 2 (12.30 → 12.70 %, the one pair it did not help); 3 × gives 3
+/// (20.79 → 18.59 %); 4 × gives 4 (30.96 → 25.53 %), each the best stride there but the first.
 pub fn stride(left: &Gray, right: &Gray, sigmas: (f32, f32)) -> usize {
     let reach = 2 * LAGS[LAGS.len() - 1];
     if [left, right]

@@ -262,12 +262,14 @@ impl Seen {
     }
 
     /// The pair a level up the pyramid, where each pixel averages four: half the noise, and
-    /// smooth over half as many pixels.
+    /// the census's samples one pixel apart. (Those levels only bound the finest level's
+    /// search; halving the stride there instead, 4 → 2 on Motorcycle upscaled 4 ×, measured
+    /// 26.03 % bad-1.0 against 25.53.)
     fn halved(self) -> Seen {
         Seen {
             left: self.left / 2.0,
             right: self.right / 2.0,
-            stride: (self.stride / 2).max(1),
+            stride: 1,
         }
     }
 }
