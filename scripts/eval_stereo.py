@@ -174,6 +174,39 @@ def post(url, path, parts):
     return answer, statistics.median(times[1:]), timing
 
 
+def taking_turns(url, left, right, rounds=2 * RUNS + 1):
+    """Goal 1's times taken in turns, so that what the machine is doing meanwhile weighs on
+    both alike: each round one OpenCV SGBM_3WAY b3 `compute()` on the pair, then one whole
+    /depth-map request of ours on a kept-alive connection. Medians over `rounds`, after one
+    round unmeasured, in ms: (ours, OpenCV's)."""
+    cv2.setNumThreads(2)
+    matcher = cv2.StereoSGBM_create(
+        minDisparity=0, numDisparities=NUM_DISPARITIES, blockSize=3, P1=8 * 3 * 9,
+        P2=32 * 3 * 9, disp12MaxDiff=1, uniquenessRatio=10, speckleWindowSize=100,
+        speckleRange=2, mode=cv2.STEREO_SGBM_MODE_SGBM_3WAY)
+    target = urllib.parse.urlsplit(url)
+    conn = http.client.HTTPConnection(target.hostname, target.port, timeout=60)
+    body, ctype = multipart({
+        "left": (cv2.imencode(".png", left)[1].tobytes(), "left.png", "image/png"),
+        "right": (cv2.imencode(".png", right)[1].tobytes(), "right.png", "image/png"),
+        "rig": (json.dumps(RIG).encode(), None, "application/json")})
+    path = f"/depth-map?max_disparity={NUM_DISPARITIES}&output=disparity.npy"
+    mine, theirs = [], []
+    for _ in range(rounds + 1):
+        t = time.perf_counter()
+        matcher.compute(left, right)
+        theirs.append(time.perf_counter() - t)
+        t = time.perf_counter()
+        conn.request("POST", path, body=body, headers={"Content-Type": ctype})
+        response = conn.getresponse()
+        response.read()
+        mine.append(time.perf_counter() - t)
+        if response.status != 200:
+            sys.exit(f"{path} answered {response.status}")
+    conn.close()
+    return 1e3 * statistics.median(mine[1:]), 1e3 * statistics.median(theirs[1:])
+
+
 def match_points(url, left_png, right_png, truth, seed=MATCH_SEED):
     """/match on Motorcycle: MATCH_POINTS random pixels with ground truth (x >= 70, a fixed
     seed) in one request, and MATCH_BOXES 60 x 60 boxes on surfaces (every pixel with ground
@@ -489,10 +522,16 @@ def main():
     large3 = min(results["large"]["opencv"][f"OpenCV SGBM_3WAY b{b}"]["ms"] for b in (3, 5))
     verdict = lambda ok: "met" if ok else "NOT MET"
     ours_ms, large_ms = results["motorcycle"]["ours"]["ms"], results["large"]["ours"]["ms"]
+    turns = 2 * RUNS + 1
+    mine_ms, theirs_ms = taking_turns(args.url, left, right, turns)
+    results["goal1_taking_turns"] = {"ours_ms": mine_ms, "opencv_sgbm_3way_b3_ms": theirs_ms,
+                                     "rounds": turns}
     print("Goals (issue 32), same run; times are reported, never asserted:")
     print(f"  1. Motorcycle, {NUM_DISPARITIES} disparities: our whole request {ours_ms:.1f} ms = "
-          f"{ours_ms / sgbm3:.2f} x OpenCV SGBM_3WAY's compute alone ({sgbm3:.1f} ms), goal <= 1.0: "
-          f"{verdict(ours_ms <= sgbm3)}; bad-1.0 {ratio('motorcycle', 'bad1'):.2f} x and bad-2.0 "
+          f"{ours_ms / sgbm3:.2f} x OpenCV SGBM_3WAY's compute alone ({sgbm3:.1f} ms); taking "
+          f"turns ({turns} rounds, medians) {mine_ms:.1f} against {theirs_ms:.1f} ms = "
+          f"{mine_ms / theirs_ms:.2f} x, goal <= 1.0: "
+          f"{verdict(mine_ms <= theirs_ms)}; bad-1.0 {ratio('motorcycle', 'bad1'):.2f} x and bad-2.0 "
           f"{ratio('motorcycle', 'bad2'):.2f} x OpenCV's best, goal <= 0.75: "
           f"{verdict(max(ratio('motorcycle', 'bad1'), ratio('motorcycle', 'bad2')) <= 0.75)}")
     print(f"  2. 5.9 MP, {LARGE_DISPARITIES} disparities: our whole request {large_ms:.0f} ms = "

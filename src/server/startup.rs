@@ -60,6 +60,8 @@ fn app_with(config: &Config, ops: OpsState, extra_heavy: Router<HeavyState>) -> 
     // What the matcher's buffer pools keep between requests is held outside the budget's
     // reservations: an eighth of the budget each at most (a quarter together).
     crate::vision::huge_pages::keep_at_most(heavy.memory_budget / 8);
+    // glibc's thresholds as a warm server has them (a no-op under another allocator).
+    let _ = crate::vision::huge_pages::settle_allocator();
     let heavy_state = HeavyState {
         body_limit: BodyLimit(heavy.body_bytes),
         maps: std::sync::Arc::new(MapCache::new(Some(budget.clone()), maps::MAX_ENTRIES)),
