@@ -231,15 +231,7 @@ fn memory_per_pixel_does_not_grow_with_the_range() {
 /// convention), the border repeated.
 fn upscaled(image: &vision::Gray, k: usize) -> vision::Gray {
     let (w, h) = (image.width, image.height);
-    let weights = |t: f32| {
-        let (t2, t3) = (t * t, t * t * t);
-        [
-            0.5 * (-t3 + 2.0 * t2 - t),
-            0.5 * (3.0 * t3 - 5.0 * t2 + 2.0),
-            0.5 * (-3.0 * t3 + 4.0 * t2 + t),
-            0.5 * (t3 - t2),
-        ]
-    };
+    let weights = synthetic::catmull_rom;
     let at = |x: isize, y: isize| {
         let x = x.clamp(0, w as isize - 1) as usize;
         let y = y.clamp(0, h as isize - 1) as usize;

@@ -407,15 +407,7 @@ mod tests {
         let mut rng = crate::vision::synthetic::Rng::new(seed);
         let (gw, gh) = (w / k + 4, h / k + 4);
         let grid: Vec<f32> = (0..gw * gh).map(|_| 40.0 + 170.0 * rng.unit()).collect();
-        let weights = |t: f32| {
-            let (t2, t3) = (t * t, t * t * t);
-            [
-                0.5 * (-t3 + 2.0 * t2 - t),
-                0.5 * (3.0 * t3 - 5.0 * t2 + 2.0),
-                0.5 * (-3.0 * t3 + 4.0 * t2 + t),
-                0.5 * (t3 - t2),
-            ]
-        };
+        let weights = crate::vision::synthetic::catmull_rom;
         let data = (0..w * h)
             .map(|i| {
                 let (x, y) = (i % w, i / w);

@@ -143,6 +143,19 @@ impl Texture {
     }
 }
 
+/// The weights of Catmull-Rom's cubic (OpenCV's `INTER_CUBIC` kernel, a = −0.5) for the four
+/// samples around a point `t` (in [0, 1)) past the second of them: how the tests upscale an
+/// image into one smooth over several pixels.
+pub fn catmull_rom(t: f32) -> [f32; 4] {
+    let (t2, t3) = (t * t, t * t * t);
+    [
+        0.5 * (-t3 + 2.0 * t2 - t),
+        0.5 * (3.0 * t3 - 5.0 * t2 + 2.0),
+        0.5 * (-3.0 * t3 + 4.0 * t2 + t),
+        0.5 * (t3 - t2),
+    ]
+}
+
 /// Renders `scene`.
 pub fn render(scene: &Scene) -> Pair {
     let (w, h) = (scene.width, scene.height);
