@@ -27,6 +27,8 @@ RIG = {
 }
 NUM_DISPARITIES = 64
 RUNS = 5
+# Rounds of goal 1's timing taken in turns with OpenCV (`taking_turns`).
+TURNS = 2 * RUNS + 1
 # Goal 2: the 4 x upscaled pair (5.9 MP) searched over this many disparities.
 LARGE_DISPARITIES = 400
 # /match: how many random ground-truth pixels and 60 x 60 boxes, and the seed that picks them.
@@ -91,10 +93,9 @@ def score(disp, truth):
     return bad
 
 
-def sgbm(left, right, mode, block, disparities, runs):
-    """OpenCV's StereoSGBM in `mode` with `block`, as the issue sets it: its map (inf where
-    invalid) and the median time of `compute()` over `runs`."""
-    matcher = cv2.StereoSGBM_create(
+def sgbm_matcher(mode, block, disparities):
+    """OpenCV's StereoSGBM in `mode` with `block`, as the issue sets it."""
+    return cv2.StereoSGBM_create(
         minDisparity=0,
         numDisparities=disparities,
         blockSize=block,
@@ -106,6 +107,12 @@ def sgbm(left, right, mode, block, disparities, runs):
         speckleRange=2,
         mode=mode,
     )
+
+
+def sgbm(left, right, mode, block, disparities, runs):
+    """OpenCV's StereoSGBM in `mode` with `block` ([`sgbm_matcher`]): its map (inf where
+    invalid) and the median time of `compute()` over `runs`."""
+    matcher = sgbm_matcher(mode, block, disparities)
     times = []
     for _ in range(runs):
         t = time.perf_counter()
@@ -152,14 +159,21 @@ def ours(url, left_png, right_png, output="disparity.npy"):
                             "right": (right_png, "right.png", "image/png")})
 
 
-def post(url, path, parts):
-    """The same multipart POST, RUNS + 1 times on one kept-alive connection: the last answer,
-    the median time of the last RUNS, and the Server-Timing header."""
+def connect(url, parts):
+    """A connection to the service at `url`, and the multipart body of `parts` with the rig
+    added, and its content type."""
     target = urllib.parse.urlsplit(url)
     conn = http.client.HTTPConnection(target.hostname, target.port, timeout=60)
     body, ctype = multipart(
         {**parts, "rig": (json.dumps(RIG).encode(), None, "application/json")}
     )
+    return conn, body, ctype
+
+
+def post(url, path, parts):
+    """The same multipart POST, RUNS + 1 times on one kept-alive connection: the last answer,
+    the median time of the last RUNS, and the Server-Timing header."""
+    conn, body, ctype = connect(url, parts)
     times, answer, timing = [], None, ""
     for _ in range(RUNS + 1):  # the first warms the connection and the allocator
         t = time.perf_counter()
@@ -174,22 +188,16 @@ def post(url, path, parts):
     return answer, statistics.median(times[1:]), timing
 
 
-def taking_turns(url, left, right, rounds=2 * RUNS + 1):
+def taking_turns(url, left, right, rounds=TURNS):
     """Goal 1's times taken in turns, so that what the machine is doing meanwhile weighs on
     both alike: each round one OpenCV SGBM_3WAY b3 `compute()` on the pair, then one whole
     /depth-map request of ours on a kept-alive connection. Medians over `rounds`, after one
     round unmeasured, in ms: (ours, OpenCV's)."""
     cv2.setNumThreads(2)
-    matcher = cv2.StereoSGBM_create(
-        minDisparity=0, numDisparities=NUM_DISPARITIES, blockSize=3, P1=8 * 3 * 9,
-        P2=32 * 3 * 9, disp12MaxDiff=1, uniquenessRatio=10, speckleWindowSize=100,
-        speckleRange=2, mode=cv2.STEREO_SGBM_MODE_SGBM_3WAY)
-    target = urllib.parse.urlsplit(url)
-    conn = http.client.HTTPConnection(target.hostname, target.port, timeout=60)
-    body, ctype = multipart({
+    matcher = sgbm_matcher(cv2.STEREO_SGBM_MODE_SGBM_3WAY, 3, NUM_DISPARITIES)
+    conn, body, ctype = connect(url, {
         "left": (cv2.imencode(".png", left)[1].tobytes(), "left.png", "image/png"),
-        "right": (cv2.imencode(".png", right)[1].tobytes(), "right.png", "image/png"),
-        "rig": (json.dumps(RIG).encode(), None, "application/json")})
+        "right": (cv2.imencode(".png", right)[1].tobytes(), "right.png", "image/png")})
     path = f"/depth-map?max_disparity={NUM_DISPARITIES}&output=disparity.npy"
     mine, theirs = [], []
     for _ in range(rounds + 1):
@@ -522,14 +530,13 @@ def main():
     large3 = min(results["large"]["opencv"][f"OpenCV SGBM_3WAY b{b}"]["ms"] for b in (3, 5))
     verdict = lambda ok: "met" if ok else "NOT MET"
     ours_ms, large_ms = results["motorcycle"]["ours"]["ms"], results["large"]["ours"]["ms"]
-    turns = 2 * RUNS + 1
-    mine_ms, theirs_ms = taking_turns(args.url, left, right, turns)
+    mine_ms, theirs_ms = taking_turns(args.url, left, right)
     results["goal1_taking_turns"] = {"ours_ms": mine_ms, "opencv_sgbm_3way_b3_ms": theirs_ms,
-                                     "rounds": turns}
+                                     "rounds": TURNS}
     print("Goals (issue 32), same run; times are reported, never asserted:")
     print(f"  1. Motorcycle, {NUM_DISPARITIES} disparities: our whole request {ours_ms:.1f} ms = "
           f"{ours_ms / sgbm3:.2f} x OpenCV SGBM_3WAY's compute alone ({sgbm3:.1f} ms); taking "
-          f"turns ({turns} rounds, medians) {mine_ms:.1f} against {theirs_ms:.1f} ms = "
+          f"turns ({TURNS} rounds, medians) {mine_ms:.1f} against {theirs_ms:.1f} ms = "
           f"{mine_ms / theirs_ms:.2f} x, goal <= 1.0: "
           f"{verdict(mine_ms <= theirs_ms)}; bad-1.0 {ratio('motorcycle', 'bad1'):.2f} x and bad-2.0 "
           f"{ratio('motorcycle', 'bad2'):.2f} x OpenCV's best, goal <= 0.75: "
