@@ -1,0 +1,56 @@
+//! Times the matcher alone on a pair, with its defaults and a disparity count: best and median
+//! wall time of `RUNS` calls, and the median run's stage times (cost, aggregation, refine). For
+//! comparing builds side by side: run two binaries in turns.
+//!
+//! ```text
+//! cargo build --profile tune --example time_matcher
+//! target/tune/examples/time_matcher LEFT.png RIGHT.png COUNT RUNS
+//! ```
+
+use std::sync::atomic::AtomicBool;
+use std::time::Instant;
+
+use stereo_distance::vision::{self, Params, Settings, decode};
+
+fn main() {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let [left, right, count, runs] = args.as_slice() else {
+        eprintln!("usage: time_matcher LEFT.png RIGHT.png COUNT RUNS");
+        std::process::exit(2);
+    };
+    let limits = decode::Limits {
+        max_side: 8192,
+        max_pixels: 50_000_000,
+    };
+    let read = |path: &str| {
+        let bytes = std::fs::read(path).expect("readable image");
+        decode::decode(&bytes, limits, false).expect("decodable image")
+    };
+    let (left, right) = (read(left), read(right));
+    let count: i32 = count.parse().expect("COUNT is a number");
+    let runs: usize = runs.parse().expect("RUNS is a number");
+    let params = Params::new(&Settings {
+        max_disparity: Some(count),
+        ..Settings::default()
+    })
+    .expect("valid settings");
+    let never = AtomicBool::new(false);
+    let mut runs_ms: Vec<(f64, [f64; 3])> = (0..runs.max(1))
+        .map(|_| {
+            let started = Instant::now();
+            let (_, t) =
+                vision::disparity(&left.grey, &right.grey, &params, &never).expect("not cancelled");
+            let ms = |d: std::time::Duration| d.as_secs_f64() * 1e3;
+            (
+                ms(started.elapsed()),
+                [ms(t.cost), ms(t.aggregate), ms(t.refine)],
+            )
+        })
+        .collect();
+    runs_ms.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let (median, [cost, aggregate, refine]) = runs_ms[runs_ms.len() / 2];
+    println!(
+        "best {:.2} ms, median {median:.2} ms (cost {cost:.1}, aggregation {aggregate:.1}, refine {refine:.1})",
+        runs_ms[0].0
+    );
+}
