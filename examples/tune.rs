@@ -74,10 +74,11 @@ fn main() {
     let w = left.grey.width;
     let seen = vision::Seen::of(&left.grey, &right.grey);
     println!(
-        "noise {:.2} / {:.2} grey levels, census stride {}",
+        "noise {:.2} / {:.2} grey levels, census stride {}{}",
         seen.left / 257.0,
         seen.right / 257.0,
-        seen.stride
+        seen.stride,
+        if seen.faint { ", faint" } else { "" }
     );
     for settings in grid {
         let params = Params::new(&settings).expect("the grid's settings are within bounds");

@@ -53,11 +53,13 @@ FLOORS = {
 # Goal 3 (noise): 0.8 x OpenCV's best (13.70 / 9.15), the floor itself since the census's
 # Lee-filtered centres and the P2 guide built on them (measured 13.33 / 8.15).
 FLOORS["noise"] = {"bad1": 13.70, "bad2": 9.15}
-# The unseen scenes where we are known to be worse than OpenCV's best, printed as NOT MET and
-# floored at this multiple of OpenCV's best so that they cannot slip back. At a tenth of the
-# contrast the texture is no stronger than the noise (README, Performance): 69.6 / 61.2 % before
-# the census compared with Lee-filtered centres, 9.37 / 4.44 % since, against 7.68 / 2.84 %.
-UNSEEN_NOT_MET = {"  faint (1/10 contrast) + noise": 2.5}
+# The unseen scenes allowed some slack over OpenCV's best: worse than it is printed as NOT MET,
+# and fails beyond this multiple of it. At a tenth of the contrast the texture is far weaker
+# than the noise (README, Performance): 69.6 / 61.2 % before the census compared with
+# Lee-filtered centres, 9.37 / 4.44 % since, 7.65 / 2.81 % since such a pair is matched coarse
+# to fine, against OpenCV's 7.68 / 2.84 %: met by under 1 %, which a few pixels' change in the
+# scene's rendering (numpy's sine, whose last bits differ between its CPU builds) could undo.
+UNSEEN_SLACK = {"  faint (1/10 contrast) + noise": 1.05}
 # Goal 2 (5.9 MP, 400 disparities): 0.85 x OpenCV's best on it, since the census spreads its
 # samples over the scale the images are smooth at (measured 0.77 x and 0.71 x at stride 4; 0.94 x
 # and 0.80 x with them one pixel apart); the goal itself, 0.75 x, is printed and not yet met for
@@ -510,7 +512,7 @@ def main():
               f"OpenCV best {best['bad1']:6.2f} {best['bad2']:6.2f}   ratio "
               f"{mine['bad1'] / best['bad1']:.2f} {mine['bad2'] / best['bad2']:.2f}")
         worse = [m for m in ("bad1", "bad2") if mine[m] > best[m]]
-        allowed = UNSEEN_NOT_MET.get(name)
+        allowed = UNSEEN_SLACK.get(name)
         if worse and allowed is None:
             failures.append(f"unseen {name.strip()}: {', '.join(worse)} above OpenCV's best")
         elif worse:

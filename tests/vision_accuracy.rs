@@ -193,7 +193,7 @@ fn deep(width: usize, height: usize, k: f32) -> Scene {
 /// range searched at every pixel finds them.
 #[test]
 fn a_wide_range_is_matched_coarse_to_fine() {
-    assert_eq!(vision::pyramid::levels(960, 640, 320), 3);
+    assert_eq!(vision::pyramid::levels(960, 640, 320, false), 3);
     let pair = synthetic::render(&deep(960, 640, 8.0));
     let wide = Params::new(&Settings {
         max_disparity: Some(320),
@@ -299,4 +299,70 @@ fn a_smooth_pair_is_matched_with_its_census_spread() {
         "stride {}: {spread:.4} against {adjacent:.4} one pixel apart",
         seen.stride
     );
+}
+
+/// The layered scene at `contrast` times its contrast around mid-grey, with noise of σ
+/// `sigma` grey levels in each image, quantised to 8 bits as a camera's.
+fn faded(pair: &Pair, contrast: f32, sigma: f32) -> (vision::Gray, vision::Gray) {
+    let mut rng = synthetic::Rng::new(23);
+    let mut fade = |image: &vision::Gray| {
+        let data = image
+            .data
+            .iter()
+            .map(|&v| {
+                let v = 128.0 + (f32::from(v) / 257.0 - 128.0) * contrast + sigma * rng.normal();
+                v.round().clamp(0.0, 255.0) as u16 * 257
+            })
+            .collect();
+        vision::Gray::new(image.width, image.height, data)
+    };
+    (fade(&pair.left), fade(&pair.right))
+}
+
+/// A faint pair (the layered scene at a tenth of its contrast under noise σ 3): its texture
+/// is far weaker than its noise, so the matcher starts from a pyramid down to 16
+/// disparities, and that leaves fewer visible pixels off by more than 1 px or missing than
+/// matching it at its own size does (0.164 against 0.179 when written).
+#[test]
+fn a_faint_pair_is_matched_coarse_to_fine() {
+    let pair = synthetic::render(&synthetic::layered(320, 240));
+    let (left, right) = faded(&pair, 0.1, 3.0);
+    let seen = vision::Seen::of(&left, &right);
+    assert!(seen.faint, "{seen:?}");
+    let bad1 = |seen: vision::Seen| {
+        let never = AtomicBool::new(false);
+        let (map, _, _) =
+            vision::disparity_probed_in(&left, &right, seen, &params(), &never, &[]).unwrap();
+        let (mut n, mut bad) = (0usize, 0usize);
+        for ((&d, &t), &visible) in map.data.iter().zip(&pair.truth).zip(&pair.visible) {
+            if visible {
+                n += 1;
+                bad += usize::from(d.is_nan() || (d - t).abs() > 1.0);
+            }
+        }
+        bad as f64 / n as f64
+    };
+    let (coarse_first, own_size) = (
+        bad1(seen),
+        bad1(vision::Seen {
+            faint: false,
+            ..seen
+        }),
+    );
+    assert!(
+        coarse_first < 0.95 * own_size,
+        "{coarse_first:.4} coarse to fine against {own_size:.4} at its own size"
+    );
+}
+
+/// At a fifth of the contrast under the same noise, or at full contrast, the layered scene is
+/// not faint: matched at its own size, as before.
+#[test]
+fn a_noisy_but_textured_pair_is_not_faint() {
+    let pair = synthetic::render(&synthetic::layered(320, 240));
+    for contrast in [0.2, 1.0] {
+        let (left, right) = faded(&pair, contrast, 3.0);
+        let seen = vision::Seen::of(&left, &right);
+        assert!(!seen.faint, "contrast {contrast}: {seen:?}");
+    }
 }

@@ -148,6 +148,16 @@ const LAGS: [usize; 6] = [1, 2, 3, 4, 6, 8];
 /// 4 ×, 10.41, 8.29, 5.77 and 4.14 from lags 1, 2, 3 and 4.
 const SMOOTH_GROWTH: f64 = 4.0;
 
+/// The share of the noise's variance below which a pair's texture is faint
+/// ([`Texture::faint`]). The ratio is 0.04 on the tenth of the rendered unseen scene's
+/// contrast under noise σ 3 and 0.03 on the tenth of the layered test scene's (where matching
+/// coarse to fine takes bad-1.0 from 9.36 to 7.65 % and from 17.9 to 16.4 %), against 0.14 on
+/// the unseen scene's fifth and 0.18 on the layered scene's fifth (1.51 → 1.67 % and no
+/// change: not faint), 0.52 on the layered scene and 2.9 on the unseen one at full contrast
+/// under the same noise, 5.2 on Motorcycle with noise σ 4 (13.33 → 13.80 % coarse to fine),
+/// 15–62 on clean pairs.
+pub const FAINT: f64 = 0.1;
+
 /// The pixels between the census window's samples for a pair: the largest lag `s` (up to
 /// [`MAX_STRIDE`]) such that the pair is smooth at every lag up to `s`: the variance of its
 /// second differences that far apart (along rows and columns, less the `6σ²` that the noise
@@ -158,12 +168,33 @@ const SMOOTH_GROWTH: f64 = 4.0;
 /// upscaled 2 × it gives 2 (12.30 → 12.70 %, the one pair it did not help); 3 × gives 3
 /// (20.79 → 18.59 %); 4 × gives 4 (30.96 → 25.53 %), each the best stride there but the first.
 pub fn stride(left: &Gray, right: &Gray, sigmas: (f32, f32)) -> usize {
+    texture(left, right, sigmas).stride
+}
+
+/// What a pair's texture calls for: the census's [`stride`], and whether the pair is
+/// [`Texture::faint`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Texture {
+    pub stride: usize,
+    /// The texture is far weaker than the noise at one pixel's scale: the variance of the
+    /// pair's second differences one pixel apart, less the noise's (`6σ²` an image and
+    /// direction), is at most [`FAINT`] of the noise's.
+    pub faint: bool,
+}
+
+/// The pair's [`Texture`], from the noise `sigmas` each image carries; a pair too small to
+/// tell has stride 1 and is not faint, and so is a pair without noise.
+pub fn texture(left: &Gray, right: &Gray, sigmas: (f32, f32)) -> Texture {
+    let plain = Texture {
+        stride: 1,
+        faint: false,
+    };
     let reach = 2 * LAGS[LAGS.len() - 1];
     if [left, right]
         .iter()
         .any(|i| i.width <= reach || i.height <= reach || i.data.len() != i.width * i.height)
     {
-        return 1;
+        return plain;
     }
     let (l, r) = rayon::join(|| second_differences(left), || second_differences(right));
     let noise = 6.0 * (f64::from(sigmas.0).powi(2) + f64::from(sigmas.1).powi(2));
@@ -179,7 +210,10 @@ pub fn stride(left: &Gray, right: &Gray, sigmas: (f32, f32)) -> usize {
         }
         stride = s;
     }
-    stride
+    Texture {
+        stride,
+        faint: noise > 0.0 && at(1) <= FAINT * noise,
+    }
 }
 
 /// The mean square (16-bit levels) of an image's second differences `I(x − s) − 2 I(x) +
@@ -445,6 +479,26 @@ mod tests {
         );
         let tiny = upscaled(8, 8, 4, 5);
         assert_eq!(stride(&tiny, &tiny, (0.0, 0.0)), 1);
+    }
+
+    /// Noise on a flat field is faint (there is nothing but noise to match); a sharp texture
+    /// under the same noise is not, nor is the field without noise (nothing to weigh the
+    /// texture against).
+    #[test]
+    fn faint_is_texture_far_below_the_noise() {
+        let flat = image(120, 90, 4.0, |_, _| 120.0);
+        let sigma = noise_sigma(&flat);
+        assert!(texture(&flat, &flat, (sigma, sigma)).faint);
+        let sharp = image(120, 90, 4.0, |x, y| {
+            if (x / 3 + y / 3) % 2 == 0 {
+                90.0
+            } else {
+                150.0
+            }
+        });
+        assert!(!texture(&sharp, &sharp, (sigma, sigma)).faint);
+        let clean = image(120, 90, 0.0, |_, _| 120.0);
+        assert!(!texture(&clean, &clean, (0.0, 0.0)).faint);
     }
 
     /// The noise's own share of the variogram is taken out: white noise on a flat field is

@@ -159,8 +159,12 @@ pub fn stripes(height: usize, rows: usize) -> Vec<(Range<usize>, Range<usize>)> 
 /// once (one a core): its cost volume (one byte a cell), the first pass's sums (two bytes a
 /// cell) and its windows (six bytes a pixel, eight counted). Below the coarsest level a pixel's
 /// window holds at most [`pyramid::MAX_WINDOW`] cells, whatever the range.
+///
+/// A faint pair's further levels ([`pyramid::levels`]) are not counted: they turn the
+/// coarsest level counted here into one of per-pixel windows, on fewer rows a stripe, and add
+/// smaller ones, so they hold less.
 pub fn bytes_needed(width: usize, height: usize, count: usize) -> usize {
-    let levels = pyramid::levels(width, height, count);
+    let levels = pyramid::levels(width, height, count, false);
     let (mut w, mut h, mut n) = (width, height, count);
     let mut stripes_peak = 0usize;
     for level in 0..=levels {
@@ -237,27 +241,31 @@ pub fn disparity_probed(
 /// What the census needs to know of the whole pair ([`census`]), measured once, so that a crop
 /// of it (the bands [`correspond`] matches) is matched as the whole pair is: the standard
 /// deviation of each image's noise (16-bit levels), which the census centres compare against,
-/// and the pixels between the census window's samples.
+/// the pixels between the census window's samples, and whether its texture is faint (the
+/// pyramid then goes further: [`pyramid::levels`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Seen {
     pub left: f32,
     pub right: f32,
     pub stride: usize,
+    pub faint: bool,
 }
 
 impl Seen {
     /// Each image's noise by the median form of Immerkær's estimate ([`census::noise_sigma`]),
-    /// and the stride the pair's smoothness calls for ([`census::stride`]).
+    /// and what the pair's texture calls for ([`census::texture`]).
     pub fn of(left_image: &Gray, right_image: &Gray) -> Seen {
         let (left, right) = rayon::join(
             || census::noise_sigma(left_image),
             || census::noise_sigma(right_image),
         );
-        let stride = census::stride(left_image, right_image, (left, right));
+        let census::Texture { stride, faint } =
+            census::texture(left_image, right_image, (left, right));
         Seen {
             left,
             right,
             stride,
+            faint,
         }
     }
 
@@ -270,6 +278,7 @@ impl Seen {
             left: self.left / 2.0,
             right: self.right / 2.0,
             stride: 1,
+            ..self
         }
     }
 }
@@ -284,7 +293,7 @@ pub fn disparity_probed_in(
     cancel: &AtomicBool,
     wanted: &[Vec<usize>],
 ) -> Result<(Disparity, Timings, Vec<Vec<Probe>>), Cancelled> {
-    let levels = pyramid::levels(left.width, left.height, params.count);
+    let levels = pyramid::levels(left.width, left.height, params.count, seen.faint);
     level((left, right), seen, params, levels, cancel, wanted)
 }
 
