@@ -3,7 +3,9 @@
 //!     cargo run --release --example rows_speed -- LEFT RIGHT MAX_DISPARITY
 use std::time::Instant;
 
-use stereo_distance::vision::{decode, rows};
+use stereo_distance::vision::rows;
+
+mod common;
 
 fn main() {
     let args: Vec<String> = std::env::args().collect();
@@ -11,13 +13,7 @@ fn main() {
         eprintln!("usage: rows_speed LEFT RIGHT MAX_DISPARITY");
         std::process::exit(2);
     };
-    let limits = decode::Limits {
-        max_side: 20_000,
-        max_pixels: 50_000_000,
-    };
-    let read =
-        |p: &str| decode::decode(&std::fs::read(p).expect("read"), limits, false).expect("decode");
-    let (l, r) = (read(left), read(right));
+    let (l, r) = common::read_pair(left, right);
     let max_d: i32 = max_d.parse().expect("max disparity");
     for _ in 0..3 {
         let t = Instant::now();

@@ -10,7 +10,9 @@
 use std::sync::atomic::AtomicBool;
 use std::time::Instant;
 
-use stereo_distance::vision::{self, Params, Settings, decode};
+use stereo_distance::vision::{self, Params, Settings};
+
+mod common;
 
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -18,15 +20,7 @@ fn main() {
         eprintln!("usage: time_matcher LEFT.png RIGHT.png COUNT RUNS");
         std::process::exit(2);
     };
-    let limits = decode::Limits {
-        max_side: 8192,
-        max_pixels: 50_000_000,
-    };
-    let read = |path: &str| {
-        let bytes = std::fs::read(path).expect("readable image");
-        decode::decode(&bytes, limits, false).expect("decodable image")
-    };
-    let (left, right) = (read(left), read(right));
+    let (left, right) = common::read_pair(left, right);
     let count: i32 = count.parse().expect("COUNT is a number");
     let runs: usize = runs.parse().expect("RUNS is a number");
     let params = Params::new(&Settings {

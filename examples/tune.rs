@@ -13,7 +13,9 @@
 use std::sync::atomic::AtomicBool;
 use std::time::Instant;
 
-use stereo_distance::vision::{self, Params, Settings, Subpixel, decode, refine, simd};
+use stereo_distance::vision::{self, Params, Settings, Subpixel, refine, simd};
+
+mod common;
 
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -22,12 +24,7 @@ fn main() {
         Ok("avx2") => simd::use_avx512(false),
         _ => {}
     }
-    let limits = decode::Limits {
-        max_side: 8192,
-        max_pixels: 50_000_000,
-    };
-    let left = decode::decode(&std::fs::read(&args[0]).unwrap(), limits, false).unwrap();
-    let right = decode::decode(&std::fs::read(&args[1]).unwrap(), limits, false).unwrap();
+    let (left, right) = common::read_pair(&args[0], &args[1]);
     let truth: Vec<f32> = std::fs::read(&args[2])
         .unwrap()
         .chunks_exact(4)

@@ -256,6 +256,26 @@ fn upscaled(image: &vision::Gray, k: usize) -> vision::Gray {
     vision::Gray::new(w * k, h * k, data)
 }
 
+/// The share of the pixels `truth` marks visible whose disparity, matched on `pair` with
+/// what is `seen` of it, is missing or more than 1 px off the truth.
+fn bad_or_missing(
+    (left, right): (&vision::Gray, &vision::Gray),
+    seen: vision::Seen,
+    params: &Params,
+    truth: &[(f32, bool)],
+) -> f64 {
+    let never = AtomicBool::new(false);
+    let (map, _, _) = vision::disparity_probed_in(left, right, seen, params, &never, &[]).unwrap();
+    let (mut n, mut bad) = (0usize, 0usize);
+    for (&d, &(t, visible)) in map.data.iter().zip(truth) {
+        if visible {
+            n += 1;
+            bad += usize::from(d.is_nan() || (d - t).abs() > 1.0);
+        }
+    }
+    bad as f64 / n as f64
+}
+
 /// A pair smooth over several pixels (the layered scene upscaled 4 ×, its truth scaled with
 /// it): the census spreads its samples (stride 3 here), and that halves the share of pixels
 /// off by more than 1 px or missing against samples one pixel apart on the same pair (3.6 %
@@ -280,19 +300,7 @@ fn a_smooth_pair_is_matched_with_its_census_spread() {
     .unwrap();
     let seen = vision::Seen::of(&left, &right);
     assert!(seen.stride >= 2, "{seen:?}");
-    let bad1 = |seen: vision::Seen| {
-        let never = AtomicBool::new(false);
-        let (map, _, _) =
-            vision::disparity_probed_in(&left, &right, seen, &params, &never, &[]).unwrap();
-        let (mut n, mut bad) = (0usize, 0usize);
-        for (&d, &(t, visible)) in map.data.iter().zip(&truth) {
-            if visible {
-                n += 1;
-                bad += usize::from(d.is_nan() || (d - t).abs() > 1.0);
-            }
-        }
-        bad as f64 / n as f64
-    };
+    let bad1 = |seen| bad_or_missing((&left, &right), seen, &params, &truth);
     let (spread, adjacent) = (bad1(seen), bad1(vision::Seen { stride: 1, ..seen }));
     assert!(
         spread < 0.5 * adjacent,
@@ -329,19 +337,13 @@ fn a_faint_pair_is_matched_coarse_to_fine() {
     let (left, right) = faded(&pair, 0.1, 3.0);
     let seen = vision::Seen::of(&left, &right);
     assert!(seen.faint, "{seen:?}");
-    let bad1 = |seen: vision::Seen| {
-        let never = AtomicBool::new(false);
-        let (map, _, _) =
-            vision::disparity_probed_in(&left, &right, seen, &params(), &never, &[]).unwrap();
-        let (mut n, mut bad) = (0usize, 0usize);
-        for ((&d, &t), &visible) in map.data.iter().zip(&pair.truth).zip(&pair.visible) {
-            if visible {
-                n += 1;
-                bad += usize::from(d.is_nan() || (d - t).abs() > 1.0);
-            }
-        }
-        bad as f64 / n as f64
-    };
+    let truth: Vec<(f32, bool)> = pair
+        .truth
+        .iter()
+        .copied()
+        .zip(pair.visible.iter().copied())
+        .collect();
+    let bad1 = |seen| bad_or_missing((&left, &right), seen, &params(), &truth);
     let (coarse_first, own_size) = (
         bad1(seen),
         bad1(vision::Seen {

@@ -12,7 +12,7 @@
 //! centre is the pixel itself; where it is not, the mean of nine. A gain scales `σ` and `v`
 //! alike and an offset changes neither, so the signatures stay invariant to both.
 //!
-//! The window's samples are `stride` pixels apart ([`stride`]): 1 for an image sharp at its
+//! The window's samples are `stride` pixels apart ([`Texture::stride`]): 1 for an image sharp at its
 //! pixels, more for one that is smooth over several (an upscale, a digital zoom, soft optics),
 //! where neighbours one pixel apart all lie on the same smooth ramp and the signature says little.
 
@@ -134,7 +134,7 @@ pub fn noise_sigma(image: &Gray) -> f32 {
     0.0
 }
 
-/// Lags (pixels) at which [`stride`] measures the images' second differences: every `s` and
+/// Lags (pixels) at which [`texture`] measures the images' second differences: every `s` and
 /// `2s` for `s` up to [`MAX_STRIDE`].
 const LAGS: [usize; 6] = [1, 2, 3, 4, 6, 8];
 
@@ -158,23 +158,19 @@ const SMOOTH_GROWTH: f64 = 4.0;
 /// 15–62 on clean pairs.
 pub const FAINT: f64 = 0.1;
 
-/// The pixels between the census window's samples for a pair: the largest lag `s` (up to
-/// [`MAX_STRIDE`]) such that the pair is smooth at every lag up to `s`: the variance of its
-/// second differences that far apart (along rows and columns, less the `6σ²` that the noise
-/// `sigmas` adds at every lag) grows at least [`SMOOTH_GROWTH`] times from that lag to twice
-/// it. 1 when it is smooth at no lag, or too small to tell.
-///
-/// Measured on Motorcycle (`examples/tune`, bad-1.0 %): at its own size the rule gives 1;
-/// upscaled 2 × it gives 2 (12.30 → 12.70 %, the one pair it did not help); 3 × gives 3
-/// (20.79 → 18.59 %); 4 × gives 4 (30.96 → 25.53 %), each the best stride there but the first.
-pub fn stride(left: &Gray, right: &Gray, sigmas: (f32, f32)) -> usize {
-    texture(left, right, sigmas).stride
-}
-
-/// What a pair's texture calls for: the census's [`stride`], and whether the pair is
+/// What a pair's texture calls for: the census's [`Texture::stride`], and whether the pair is
 /// [`Texture::faint`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Texture {
+    /// The pixels between the census window's samples: the largest lag `s` (up to
+    /// [`MAX_STRIDE`]) such that the pair is smooth at every lag up to `s`: the variance of its
+    /// second differences that far apart (along rows and columns, less the `6σ²` that the noise
+    /// `sigmas` adds at every lag) grows at least [`SMOOTH_GROWTH`] times from that lag to twice
+    /// it. 1 when it is smooth at no lag, or too small to tell.
+    ///
+    /// Measured on Motorcycle (`examples/tune`, bad-1.0 %): at its own size the rule gives 1;
+    /// upscaled 2 × it gives 2 (12.30 → 12.70 %, the one pair it did not help); 3 × gives 3
+    /// (20.79 → 18.59 %); 4 × gives 4 (30.96 → 25.53 %), each the best stride there but the first.
     pub stride: usize,
     /// The texture is far weaker than the noise at one pixel's scale: the variance of the
     /// pair's second differences one pixel apart, less the noise's (`6σ²` an image and
@@ -468,7 +464,7 @@ mod tests {
     fn the_stride_follows_the_images_smoothness() {
         let stride_of = |k: usize| {
             let (l, r) = (upscaled(240, 160, k, 3), upscaled(240, 160, k, 4));
-            stride(&l, &r, (noise_sigma(&l), noise_sigma(&r)))
+            texture(&l, &r, (noise_sigma(&l), noise_sigma(&r))).stride
         };
         assert_eq!(stride_of(1), 1);
         assert_eq!(stride_of(2), 1);
@@ -478,7 +474,7 @@ mod tests {
             stride_of(4)
         );
         let tiny = upscaled(8, 8, 4, 5);
-        assert_eq!(stride(&tiny, &tiny, (0.0, 0.0)), 1);
+        assert_eq!(texture(&tiny, &tiny, (0.0, 0.0)).stride, 1);
     }
 
     /// Noise on a flat field is faint (there is nothing but noise to match); a sharp texture
@@ -507,9 +503,9 @@ mod tests {
     fn noise_is_not_taken_for_smoothness() {
         let flat = image(120, 90, 4.0, |_, _| 120.0);
         let sigma = noise_sigma(&flat);
-        assert_eq!(stride(&flat, &flat, (sigma, sigma)), 1);
+        assert_eq!(texture(&flat, &flat, (sigma, sigma)).stride, 1);
         let sharp = upscaled(120, 90, 1, 8);
-        assert_eq!(stride(&sharp, &sharp, (sigma, sigma)), 1);
+        assert_eq!(texture(&sharp, &sharp, (sigma, sigma)).stride, 1);
     }
 
     /// On a flat field under noise, the plain census's bits all follow the centre's own noise
