@@ -256,18 +256,18 @@ fn upscaled(image: &vision::Gray, k: usize) -> vision::Gray {
     vision::Gray::new(w * k, h * k, data)
 }
 
-/// The share of the pixels `truth` marks visible whose disparity, matched on `pair` with
-/// what is `seen` of it, is missing or more than 1 px off the truth.
+/// The share of the pixels marked `visible` whose disparity, matched on the pair with what is
+/// `seen` of it, is missing or more than 1 px off the `truth`.
 fn bad_or_missing(
     (left, right): (&vision::Gray, &vision::Gray),
     seen: vision::Seen,
     params: &Params,
-    truth: &[(f32, bool)],
+    (truth, visible): (&[f32], &[bool]),
 ) -> f64 {
     let never = AtomicBool::new(false);
     let (map, _, _) = vision::disparity_probed_in(left, right, seen, params, &never, &[]).unwrap();
     let (mut n, mut bad) = (0usize, 0usize);
-    for (&d, &(t, visible)) in map.data.iter().zip(truth) {
+    for ((&d, &t), &visible) in map.data.iter().zip(truth).zip(visible) {
         if visible {
             n += 1;
             bad += usize::from(d.is_nan() || (d - t).abs() > 1.0);
@@ -286,13 +286,13 @@ fn a_smooth_pair_is_matched_with_its_census_spread() {
     let small = synthetic::render(&synthetic::layered(200, 120));
     let (left, right) = (upscaled(&small.left, K), upscaled(&small.right, K));
     let w = left.width;
-    let truth: Vec<(f32, bool)> = (0..left.data.len())
+    let (truth, visible): (Vec<f32>, Vec<bool>) = (0..left.data.len())
         .map(|i| {
             let (x, y) = ((i % w) / K, (i / w) / K);
             let s = y * small.left.width + x;
             (small.truth[s] * K as f32, small.visible[s])
         })
-        .collect();
+        .unzip();
     let params = Params::new(&Settings {
         max_disparity: Some(160),
         ..Settings::default()
@@ -300,7 +300,7 @@ fn a_smooth_pair_is_matched_with_its_census_spread() {
     .unwrap();
     let seen = vision::Seen::of(&left, &right);
     assert!(seen.stride >= 2, "{seen:?}");
-    let bad1 = |seen| bad_or_missing((&left, &right), seen, &params, &truth);
+    let bad1 = |seen| bad_or_missing((&left, &right), seen, &params, (&truth, &visible));
     let (spread, adjacent) = (bad1(seen), bad1(vision::Seen { stride: 1, ..seen }));
     assert!(
         spread < 0.5 * adjacent,
@@ -337,13 +337,8 @@ fn a_faint_pair_is_matched_coarse_to_fine() {
     let (left, right) = faded(&pair, 0.1, 3.0);
     let seen = vision::Seen::of(&left, &right);
     assert!(seen.faint, "{seen:?}");
-    let truth: Vec<(f32, bool)> = pair
-        .truth
-        .iter()
-        .copied()
-        .zip(pair.visible.iter().copied())
-        .collect();
-    let bad1 = |seen| bad_or_missing((&left, &right), seen, &params(), &truth);
+    let truth = (pair.truth.as_slice(), pair.visible.as_slice());
+    let bad1 = |seen| bad_or_missing((&left, &right), seen, &params(), truth);
     let (coarse_first, own_size) = (
         bad1(seen),
         bad1(vision::Seen {
