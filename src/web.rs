@@ -6,8 +6,10 @@
 //! (`/sample/left.png`, `/sample/right.png`, `/sample/sample.json`, the rig as a `rig` part, and
 //! `/sample/calib.txt`, the same rig and its search range as a Middlebury file)
 //! is rendered by [`crate::vision::synthetic`] on first request, so the binary holds code, not
-//! a picture. Each asset is answered with an `ETag` (a hash of its bytes, so a new build is a new
-//! tag) and `Cache-Control: no-cache`, so browsers revalidate and get a 304 until the binary
+//! a picture; so is the calibration sample under `/sample/boards/` (board pairs seen through
+//! two distorted cameras, and the raw pair of a wall at a known distance, from
+//! [`crate::calibrate::synthetic`]), each file rendered when first asked for. Each asset is
+//! answered with an `ETag` (a hash of its bytes, so a new build is a new tag) and `Cache-Control: no-cache`, so browsers revalidate and get a 304 until the binary
 //! changes. The tag is weak because the compression layer may send the same asset gzip- or
 //! br-encoded, and a strong tag must differ between such representations. The page carries a Content-Security-Policy that allows only this origin.
 
@@ -36,9 +38,30 @@ pub struct Asset {
 }
 
 /// Everything the page needs, and nothing from anywhere else.
-pub const ASSETS: [Asset; 4] = [
+/// The script is ES modules under `/js/`, loaded by `<script type="module">` from
+/// `/js/app.js`, which imports the rest (one per mode, the rig form, drawing, the API).
+pub const ASSETS: [Asset; 11] = [
     asset("/", HTML, include_str!("web/index.html")),
-    asset("/app.js", JAVASCRIPT, include_str!("web/app.js")),
+    asset("/js/app.js", JAVASCRIPT, include_str!("web/js/app.js")),
+    asset("/js/api.js", JAVASCRIPT, include_str!("web/js/api.js")),
+    asset("/js/draw.js", JAVASCRIPT, include_str!("web/js/draw.js")),
+    asset(
+        "/js/findings.js",
+        JAVASCRIPT,
+        include_str!("web/js/findings.js"),
+    ),
+    asset(
+        "/js/images.js",
+        JAVASCRIPT,
+        include_str!("web/js/images.js"),
+    ),
+    asset(
+        "/js/numbers.js",
+        JAVASCRIPT,
+        include_str!("web/js/numbers.js"),
+    ),
+    asset("/js/rig.js", JAVASCRIPT, include_str!("web/js/rig.js")),
+    asset("/js/util.js", JAVASCRIPT, include_str!("web/js/util.js")),
     asset("/app.css", CSS, include_str!("web/app.css")),
     asset("/favicon.svg", SVG, include_str!("web/favicon.svg")),
 ];
@@ -213,6 +236,143 @@ pub const SAMPLE_FILES: [&str; 4] = [
     "/sample/calib.txt",
 ];
 
+/// The calibration sample's views: rendered board pairs, and one more whose board the right
+/// camera does not see whole (so that the page shows a view the service could not use).
+pub const BOARD_VIEWS: usize = 12;
+/// The distance of the calibration sample's raw wall, mm.
+pub const WALL_DISTANCE_MM: f64 = 2000.0;
+
+/// Where the calibration sample's files are served: `/sample/boards/left_NN.png` and
+/// `right_NN.png` for each view, `raw_left.png` and `raw_right.png` (a textured wall
+/// [`WALL_DISTANCE_MM`] away, seen through the same raw cameras) and `boards.json` (the
+/// board, the files and the wall's distance).
+pub fn board_files() -> Vec<String> {
+    let mut files: Vec<String> = (0..=BOARD_VIEWS)
+        .flat_map(|i| ["left", "right"].map(|side| format!("/sample/boards/{side}_{i:02}.png")))
+        .collect();
+    files.extend(
+        ["raw_left.png", "raw_right.png", "boards.json"].map(|f| format!("/sample/boards/{f}")),
+    );
+    files
+}
+
+/// What every file of the calibration sample is rendered from: [`BOARD_VIEWS`] poses of a
+/// 9 × 6 board of 25 mm squares seen by [`crate::calibrate::synthetic::sample_rig`], one more
+/// the right camera sees only in part, and the cameras' rays.
+struct BoardSample {
+    rig: crate::camera::StereoPair,
+    board: crate::calibrate::Board,
+    poses: Vec<nalgebra::Isometry3<f64>>,
+    rays: [crate::calibrate::synthetic::Rays; 2],
+    style: crate::calibrate::synthetic::Style,
+}
+
+const BOARD_SIZE: crate::camera::Size = crate::camera::Size {
+    width: 640,
+    height: 480,
+};
+
+static BOARD_SAMPLE: OnceLock<BoardSample> = OnceLock::new();
+/// Each view's rendered pair, and the wall's, rendered when first asked for.
+static BOARD_VIEW_FILES: [OnceLock<[Served; 2]>; BOARD_VIEWS + 2] =
+    [const { OnceLock::new() }; BOARD_VIEWS + 2];
+
+fn board_sample() -> &'static BoardSample {
+    BOARD_SAMPLE.get_or_init(|| {
+        use crate::calibrate::synthetic::{Rays, Style, corners, poses, right_pose, sample_rig};
+        let rig = sample_rig();
+        let size = BOARD_SIZE;
+        let board =
+            crate::calibrate::Board::new(9, 6, 25.0, crate::physics::LengthUnit::Millimetre)
+                .expect("a 9 × 6 board");
+        let mut found = poses(&rig, size, &board, BOARD_VIEWS, 40.0, 7);
+        // The last view: the first one's board moved left until the right camera loses part
+        // of it while the left still sees all of it.
+        let (w, h) = (f64::from(size.width), f64::from(size.height));
+        let inside = |c: &[[f64; 2]]| {
+            c.iter()
+                .all(|&[u, v]| u > 8.0 && v > 8.0 && u < w - 8.0 && v < h - 8.0)
+        };
+        let mut partial = found[0];
+        for step in 0..400 {
+            let mut pose = found[0];
+            pose.translation.vector.x -= f64::from(step) * 2.0;
+            let left = corners(&board, &pose, &rig.left).unwrap_or_default();
+            let right = corners(&board, &right_pose(&rig, &pose), &rig.right).unwrap_or_default();
+            if inside(&left) && right.iter().filter(|c| c[0] < 0.0).count() >= 6 {
+                partial = pose;
+                break;
+            }
+        }
+        found.push(partial);
+        let style = Style {
+            supersampling: 2,
+            seed: 7,
+            ..Style::default()
+        };
+        let rays = [
+            Rays::new(&rig.left, size, style.supersampling),
+            Rays::new(&rig.right, size, style.supersampling),
+        ];
+        BoardSample {
+            rig,
+            board,
+            poses: found,
+            rays,
+            style,
+        }
+    })
+}
+
+/// The calibration sample's file `i` (in [`board_files`] order), rendered on first use.
+fn board_file_rendered(i: usize) -> Served {
+    let png = |image: &crate::calibrate::synthetic::Image| -> Bytes {
+        encode::png_grey(image.width as usize, image.height as usize, &image.pixels).into()
+    };
+    let views = BOARD_VIEWS + 1;
+    if i == 2 * views + 2 {
+        let paths = board_files();
+        let about = serde_json::json!({
+            "board": {"columns": 9, "rows": 6, "square_size": 25, "unit": "mm"},
+            "model": "plumb_bob",
+            "left": (0..views).map(|v| &paths[2 * v]).collect::<Vec<_>>(),
+            "right": (0..views).map(|v| &paths[2 * v + 1]).collect::<Vec<_>>(),
+            "raw": {
+                "left": paths[2 * views], "right": paths[2 * views + 1],
+                "distance": WALL_DISTANCE_MM, "unit": "mm", "max_disparity": 96,
+            },
+        });
+        return Served::of(JSON, about.to_string().into());
+    }
+    let sample = board_sample();
+    let view = i / 2;
+    let pair = BOARD_VIEW_FILES[view].get_or_init(|| {
+        let images = if view < views {
+            let v = crate::calibrate::synthetic::stereo_view(
+                &sample.rig,
+                &sample.board,
+                &sample.poses[view],
+                view,
+                &sample.rays,
+                &sample.style,
+            );
+            [v.left, v.right]
+        } else {
+            crate::calibrate::synthetic::raw_wall(&sample.rig, BOARD_SIZE, WALL_DISTANCE_MM, 11)
+                .expect("the sample rig rectifies")
+        };
+        images.map(|image| Served::of(PNG, png(&image)))
+    });
+    pair[i % 2].clone()
+}
+
+async fn board_file(i: usize, headers: HeaderMap) -> Response {
+    match tokio::task::spawn_blocking(move || board_file_rendered(i)).await {
+        Ok(file) => file.answer(&headers),
+        Err(_) => StatusCode::INTERNAL_SERVER_ERROR.into_response(),
+    }
+}
+
 /// The page's routes (GET and HEAD).
 pub fn router() -> Router {
     let router = ASSETS.into_iter().fold(Router::new(), |router, asset| {
@@ -222,11 +382,17 @@ pub fn router() -> Router {
             get(move |headers: HeaderMap| async move { served.answer(&headers) }),
         )
     });
-    SAMPLE_FILES
+    let router = SAMPLE_FILES
         .into_iter()
         .enumerate()
         .fold(router, |router, (i, path)| {
             router.route(path, get(move |headers: HeaderMap| sample_file(i, headers)))
+        });
+    board_files()
+        .into_iter()
+        .enumerate()
+        .fold(router, |router, (i, path)| {
+            router.route(&path, get(move |headers: HeaderMap| board_file(i, headers)))
         })
 }
 

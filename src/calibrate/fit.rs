@@ -435,6 +435,47 @@ impl Fit {
         (count > 0).then(|| sum / count as f64)
     }
 
+    /// Each corner's residual in a view used, px: where the calibrated model projects the
+    /// board's corner minus where it was found (`[left, right]`, `None` for a camera whose
+    /// board was not found or a view left out). What Kalibr's report draws as arrows.
+    pub fn residuals(
+        &self,
+        board: &Board,
+        index: usize,
+        view: &Corners,
+    ) -> [Option<Vec<[f64; 2]>>; 2] {
+        let fit = self.views.get(index);
+        let Some(pose) = fit
+            .filter(|f| f.status == Status::Used)
+            .and_then(|f| f.pose)
+        else {
+            return [None, None];
+        };
+        let points = board.object_points();
+        let side = |camera: &Camera, found: &Option<Vec<[f64; 2]>>, right: bool| {
+            let found = found.as_ref()?;
+            found
+                .iter()
+                .zip(&points)
+                .map(|(c, p)| {
+                    let mut x = pose.apply(p);
+                    if right {
+                        let e = self.extrinsics?;
+                        x = e.rotation * x + e.translation;
+                    }
+                    let [u, v] = camera.project(&x)?;
+                    Some([u - c[0], v - c[1]])
+                })
+                .collect::<Option<Vec<_>>>()
+        };
+        [
+            side(&self.left.camera, &view.left, false),
+            self.right
+                .as_ref()
+                .and_then(|r| side(&r.camera, &view.right, true)),
+        ]
+    }
+
     /// Bouguet's rectification of the calibrated pair.
     pub fn rectify(&self, options: Options) -> Option<Rectification> {
         stereo_rectify(&self.pair()?, self.size, options).ok()

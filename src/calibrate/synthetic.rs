@@ -299,34 +299,124 @@ pub fn stereo_views(
     poses: &[Isometry3<f64>],
     style: &Style,
 ) -> Vec<StereoView> {
-    let left_rays = Rays::new(&pair.left, size, style.supersampling);
-    let right_rays = Rays::new(&pair.right, size, style.supersampling);
+    let rays = [
+        Rays::new(&pair.left, size, style.supersampling),
+        Rays::new(&pair.right, size, style.supersampling),
+    ];
     poses
         .iter()
         .enumerate()
-        .map(|(i, pose)| {
-            let right = right_pose(pair, pose);
-            let seed = style.seed.wrapping_mul(1000).wrapping_add(2 * i as u64);
-            let mut rng = Rng::new(seed);
-            let mut vary = || 0.85 + 0.3 * f64::from(rng.unit());
-            let left_style = Style {
-                seed,
-                exposure: style.exposure * vary(),
-                ..*style
-            };
-            let right_style = Style {
-                seed: seed + 1,
-                exposure: style.exposure * vary(),
-                slope: [-style.slope[0], style.slope[1]],
-                ..*style
-            };
-            StereoView {
-                pose: *pose,
-                left: render(board, pose, &left_rays, &left_style),
-                right: render(board, &right, &right_rays, &right_style),
-                left_corners: corners(board, pose, &pair.left).unwrap_or_default(),
-                right_corners: corners(board, &right, &pair.right).unwrap_or_default(),
-            }
-        })
+        .map(|(i, pose)| stereo_view(pair, board, pose, i, &rays, style))
         .collect()
+}
+
+/// The `i`-th of [`stereo_views`], with the cameras' rays computed once by the caller.
+pub fn stereo_view(
+    pair: &StereoPair,
+    board: &Board,
+    pose: &Isometry3<f64>,
+    i: usize,
+    [left_rays, right_rays]: &[Rays; 2],
+    style: &Style,
+) -> StereoView {
+    let right = right_pose(pair, pose);
+    let seed = style.seed.wrapping_mul(1000).wrapping_add(2 * i as u64);
+    let mut rng = Rng::new(seed);
+    let mut vary = || 0.85 + 0.3 * f64::from(rng.unit());
+    let left_style = Style {
+        seed,
+        exposure: style.exposure * vary(),
+        ..*style
+    };
+    let right_style = Style {
+        seed: seed + 1,
+        exposure: style.exposure * vary(),
+        slope: [-style.slope[0], style.slope[1]],
+        ..*style
+    };
+    StereoView {
+        pose: *pose,
+        left: render(board, pose, left_rays, &left_style),
+        right: render(board, &right, right_rays, &right_style),
+        left_corners: corners(board, pose, &pair.left).unwrap_or_default(),
+        right_corners: corners(board, &right, &pair.right).unwrap_or_default(),
+    }
+}
+
+/// The rig the page's calibration sample is rendered with: two 640 × 480 cameras with barrel
+/// distortion (k1 about −0.25), each a little different, turned a degree or two from
+/// parallel, 120 mm apart. Its raw frames need rectifying before they can be matched.
+pub fn sample_rig() -> StereoPair {
+    let camera = |fx: f64, cx: f64, cy: f64, d: [f64; 5]| {
+        Camera::new(
+            crate::camera::Intrinsics {
+                fx,
+                fy: fx * 1.002,
+                cx,
+                cy,
+            },
+            crate::camera::Distortion::new(crate::camera::Model::PlumbBob, &d)
+                .expect("five plumb_bob coefficients"),
+        )
+        .expect("a valid camera")
+    };
+    StereoPair {
+        left: camera(805.0, 322.0, 243.0, [-0.25, 0.1, 0.0004, -0.0006, -0.01]),
+        right: camera(798.0, 317.0, 238.0, [-0.23, 0.08, -0.0003, 0.0005, 0.0]),
+        rotation: Rotation3::from_scaled_axis(Vector3::new(0.012, -0.025, 0.006)),
+        translation: Vector3::new(-120.0, 1.5, -0.8),
+    }
+}
+
+/// A textured wall `distance` in front of `pair`, square to its rectified cameras (so that
+/// every point of it is at depth `distance` in the rectified frame, the depth a distance
+/// along the optical axis is measured in), seen through each raw camera with its
+/// distortion: the raw left and right frames. `None` when `pair` cannot
+/// be rectified.
+pub fn raw_wall(pair: &StereoPair, size: Size, distance: f64, seed: u64) -> Option<[Image; 2]> {
+    let rectification =
+        crate::camera::stereo_rectify(pair, size, crate::camera::Options::default()).ok()?;
+    let r1 = rectification.r1;
+    // Texture pixels are the rectified camera's: the wall's texture has the band limit the
+    // matcher expects at this distance.
+    let scale = rectification.p1[(0, 0)] / distance;
+    let texture = crate::vision::synthetic::Texture::new(seed);
+    let centre = r1 * (-(pair.rotation.inverse() * pair.translation));
+    let to_world = [r1, r1 * pair.rotation.matrix().transpose()];
+    let origins = [Vector3::zeros(), centre];
+    let cameras = [&pair.left, &pair.right];
+    // One sample a pixel: the texture holds nothing above 0.4 cycles a pixel.
+    let n = 1u32;
+    let mut rng = Rng::new(seed ^ 0x5EED);
+    let frames = [0, 1].map(|side| {
+        let mut pixels = Vec::with_capacity((size.width * size.height) as usize);
+        for v in 0..size.height {
+            for u in 0..size.width {
+                let mut sum = 0.0f64;
+                for sy in 0..n {
+                    for sx in 0..n {
+                        let at = [
+                            f64::from(u) + (f64::from(sx) + 0.5) / f64::from(n) - 0.5,
+                            f64::from(v) + (f64::from(sy) + 0.5) / f64::from(n) - 0.5,
+                        ];
+                        let Some([x, y]) = cameras[side].normalize(at) else {
+                            continue;
+                        };
+                        let ray = to_world[side] * Vector3::new(x, y, 1.0);
+                        let t = (distance - origins[side].z) / ray.z;
+                        let p = origins[side] + ray * t;
+                        sum += f64::from(texture.at((p.x * scale) as f32, (p.y * scale) as f32));
+                    }
+                }
+                let grey = 30.0 + 200.0 * sum / f64::from(n * n) + 1.0 * f64::from(rng.normal());
+                pixels.push(grey.round().clamp(0.0, 255.0) as u8);
+            }
+        }
+        Image {
+            width: size.width,
+            height: size.height,
+            pixels,
+        }
+    });
+    Some(frames)
 }

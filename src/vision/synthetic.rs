@@ -107,12 +107,12 @@ impl Rng {
 }
 
 /// A band-limited texture: a sum of plane waves below 0.4 cycles a pixel, in [0, 1].
-struct Texture {
+pub struct Texture {
     waves: Vec<([f32; 2], f32, f32)>,
 }
 
 impl Texture {
-    fn new(seed: u64) -> Self {
+    pub fn new(seed: u64) -> Self {
         let mut rng = Rng::new(seed);
         let waves = (0..24)
             .map(|i| {
@@ -130,7 +130,8 @@ impl Texture {
         Self { waves }
     }
 
-    fn at(&self, x: f32, y: f32) -> f32 {
+    /// The texture's value at (x, y), in its own pixels.
+    pub fn at(&self, x: f32, y: f32) -> f32 {
         let total: f32 = self.waves.iter().map(|w| w.2).sum();
         let v: f32 = self
             .waves

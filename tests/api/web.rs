@@ -2,16 +2,16 @@
 //! on the page answered by this server, caching by ETag, and the page's worked examples
 //! agreeing with the API. The page's behaviour in a browser is tested in `tests/browser.rs`.
 
-use std::collections::BTreeSet;
+use std::collections::{BTreeMap, BTreeSet};
 
 use reqwest::{
     StatusCode,
     header::{CACHE_CONTROL, CONTENT_TYPE, ETAG, IF_NONE_MATCH},
 };
 
-use serde_json::json;
+use serde_json::{Value, json};
 
-use crate::helpers::{assert_close, number_at, ok_json, problem, spawn_app};
+use crate::helpers::{TestApp, assert_close, number_at, ok_json, problem, spawn_app};
 
 /// Every `href="…"` and `src="…"` value in `html`, with `&amp;` decoded.
 fn references(html: &str) -> Vec<String> {
@@ -56,7 +56,7 @@ async fn the_page_and_its_assets_are_served_from_the_binary() {
     let html = page.text().await.unwrap();
     assert!(html.contains("<title>Stereo vision distance calculator</title>"));
     for (path, content_type) in [
-        ("/app.js", "text/javascript; charset=utf-8"),
+        ("/js/app.js", "text/javascript; charset=utf-8"),
         ("/app.css", "text/css; charset=utf-8"),
         ("/favicon.svg", "image/svg+xml"),
     ] {
@@ -101,58 +101,104 @@ async fn every_link_on_the_page_is_local_and_answers() {
     }
 }
 
+/// The page's script, every ES module reachable from its entry `/js/app.js` by `import … from
+/// './x.js'`, each answered 200 as JavaScript: the module graph the browser loads.
+async fn page_script(app: &TestApp) -> BTreeMap<String, String> {
+    let mut modules = BTreeMap::new();
+    let mut pending = vec!["/js/app.js".to_owned()];
+    while let Some(path) = pending.pop() {
+        if modules.contains_key(&path) {
+            continue;
+        }
+        let response = app.get(&path).await;
+        assert_eq!(response.status(), StatusCode::OK, "{path}");
+        assert_eq!(
+            response.headers()[CONTENT_TYPE],
+            "text/javascript; charset=utf-8",
+            "{path}"
+        );
+        let text = response.text().await.unwrap();
+        for (at, needle) in text.match_indices("from './") {
+            let rest = &text[at + needle.len()..];
+            pending.push(format!(
+                "/js/{}",
+                &rest[..rest.find('\'').expect("a closing quote")]
+            ));
+        }
+        modules.insert(path, text);
+    }
+    modules
+}
+
 /// The script calls only the public API's documented routes: the page is a client of
 /// `/distance`, `/table` and `/chart-data` (GET), `/depth-map`, `/match` and `/calibration`
 /// (POST), with no physics or private endpoint of its own; besides them it fetches only the
-/// sample's files.
+/// sample's files. Every module is under 600 lines.
 #[tokio::test]
 async fn the_page_calls_only_the_public_api() {
     // Arrange
     let app = spawn_app().await;
-    let script = app.get("/app.js").await.text().await.unwrap();
+    let modules = page_script(&app).await;
     let spec = ok_json(app.get("/openapi.json").await).await;
 
     // Act: every path the script calls, by how it calls it.
-    let paths = |needle: &str| -> BTreeSet<&str> {
-        script
-            .match_indices(needle)
-            .map(|(at, needle)| {
-                let rest = &script[at + needle.len()..];
-                &rest[..rest.find(['\'', '`']).expect("a closing quote")]
+    let paths = |needle: &str| -> BTreeSet<String> {
+        modules
+            .values()
+            .flat_map(|script| {
+                script.match_indices(needle).map(|(at, needle)| {
+                    let rest = &script[at + needle.len()..];
+                    rest[..rest.find(['\'', '`']).expect("a closing quote")].to_owned()
+                })
             })
             .collect()
     };
+    let set = |paths: &[&str]| {
+        paths
+            .iter()
+            .map(|p| (*p).to_owned())
+            .collect::<BTreeSet<_>>()
+    };
     let got = paths("call('");
-    let posted = paths("post('");
-    // `call` and `post` fetch their path; the rest is the calibration and the sample.
-    let fetched: BTreeSet<&str> = paths("fetch('").union(&paths("fetch(`")).copied().collect();
+    let posted: BTreeSet<String> = paths("post('")
+        .union(&paths("postJson('"))
+        .cloned()
+        .collect();
+    // `call`, `post` and `postJson` fetch the path they are given, `fetchFile` a sample's.
+    let fetched: BTreeSet<String> = paths("fetch('").union(&paths("fetch(`")).cloned().collect();
+    let files = paths("fetchFile(`");
 
     // Assert
-    assert_eq!(got, BTreeSet::from(["/chart-data", "/distance", "/table"]));
-    assert_eq!(posted, BTreeSet::from(["/depth-map", "/match"]));
+    assert!(modules.len() >= 6, "{:?}", modules.keys());
+    for (path, script) in &modules {
+        assert!(
+            script.lines().count() <= 600,
+            "{path} has {} lines",
+            script.lines().count()
+        );
+    }
+    assert_eq!(got, set(&["/chart-data", "/distance", "/table"]));
+    assert_eq!(posted, set(&["/calibration", "/depth-map", "/match"]));
     assert_eq!(
         fetched,
-        BTreeSet::from([
-            "${path}?${params}",
-            "${path}?${query}",
-            "/calibration",
-            "/sample/${side}.png",
-            "/sample/calib.txt"
-        ])
+        set(&["${path}?${params}", "${path}?${query}", "/sample/calib.txt"])
     );
-    for path in got {
+    assert_eq!(files, set(&["/sample/${side}.png"]));
+    for path in &got {
         assert!(
-            spec["paths"][path]["get"].is_object(),
+            spec["paths"][path.as_str()]["get"].is_object(),
             "GET {path} is in the spec"
         );
     }
-    for path in ["/depth-map", "/match", "/calibration"] {
+    for path in &posted {
         assert!(
-            spec["paths"][path]["post"].is_object(),
+            spec["paths"][path.as_str()]["post"].is_object(),
             "POST {path} is in the spec"
         );
     }
-    assert!(!script.contains("fetch('http") && !script.contains("fetch(\"http"));
+    for script in modules.values() {
+        assert!(!script.contains("fetch('http") && !script.contains("fetch(\"http"));
+    }
 }
 
 /// Assets carry a weak ETag and `no-cache`: a browser revalidating with the tag gets a 304
@@ -162,14 +208,14 @@ async fn the_page_calls_only_the_public_api() {
 async fn assets_are_revalidated_by_etag() {
     // Arrange
     let app = spawn_app().await;
-    let first = app.get("/app.js").await;
+    let first = app.get("/js/app.js").await;
     assert_eq!(first.headers()[CACHE_CONTROL], "no-cache");
     let tag = first.headers()[ETAG].to_str().unwrap().to_owned();
     assert!(tag.starts_with("W/\"") && tag.ends_with('"'), "{tag}");
 
     let revalidate = |tag: String, encoding: &'static str| {
         app.client
-            .get(format!("{}/app.js", app.address))
+            .get(format!("{}/js/app.js", app.address))
             .header(IF_NONE_MATCH, tag)
             .header("accept-encoding", encoding)
             .send()
@@ -332,4 +378,126 @@ async fn the_sample_files_are_parts_as_they_are() {
         with_file["valid_fraction"].as_f64().unwrap() > 0.8,
         "{with_file}"
     );
+}
+
+/// The calibration sample is the project's own render: its board pairs, sent to `/calibrate`
+/// as the page sends them, calibrate to the rig they were rendered with (f and B within
+/// 0.5 %); its last view is refused with the reason (the right camera sees the board only in
+/// part); `corners=true` gives each used view's residuals, small and one per corner; and the
+/// raw wall, sent to `/match` with the calibration's `opencv.yml`, is rectified by the service
+/// and measured at the distance it was rendered at, within 1 %.
+#[tokio::test]
+async fn the_calibration_sample_calibrates_and_measures_its_wall() {
+    use reqwest::multipart::{Form, Part};
+    use stereo_distance::calibrate::synthetic::sample_rig;
+    use stereo_distance::camera::{Options, Size, stereo_rectify};
+    use stereo_distance::physics::LengthUnit;
+
+    // Arrange: the sample's files, fetched as the page fetches them.
+    let app = spawn_app().await;
+    let about = ok_json(app.get("/sample/boards/boards.json").await).await;
+    let mut files = BTreeMap::new();
+    let paths = about["left"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .chain(about["right"].as_array().unwrap());
+    for path in paths.chain([&about["raw"]["left"], &about["raw"]["right"]]) {
+        let path = path.as_str().unwrap().to_owned();
+        let response = app.get(&path).await;
+        assert_eq!(response.status(), StatusCode::OK, "{path}");
+        assert_eq!(response.headers()[CONTENT_TYPE], "image/png", "{path}");
+        files.insert(path, response.bytes().await.unwrap().to_vec());
+    }
+    let part = |path: &Value| {
+        let path = path.as_str().unwrap();
+        let name = path.rsplit('/').next().unwrap().to_owned();
+        Part::bytes(files[path].clone())
+            .file_name(name)
+            .mime_str("image/png")
+            .unwrap()
+    };
+    let views = about["left"].as_array().unwrap().len();
+    let boards = || {
+        (0..views)
+            .fold(Form::new(), |form, i| {
+                form.part("left", part(&about["left"][i]))
+                    .part("right", part(&about["right"][i]))
+            })
+            .text("board", about["board"].to_string())
+    };
+
+    // Act
+    let summary = ok_json(app.post_form("/calibrate?corners=true", boards()).await).await;
+    let yaml = app
+        .post_form("/calibrate?output=opencv.yml", boards())
+        .await;
+    assert_eq!(yaml.status(), StatusCode::OK);
+    let yaml = yaml.text().await.unwrap();
+
+    // Assert: the rig it was rendered with.
+    let size = Size {
+        width: 640,
+        height: 480,
+    };
+    let truth = stereo_rectify(&sample_rig(), size, Options::default())
+        .unwrap()
+        .rig(LengthUnit::Millimetre)
+        .unwrap();
+    let f = summary["rig"]["focal_length_px"].as_f64().unwrap();
+    let b = summary["rig"]["baseline"].as_f64().unwrap();
+    assert!(
+        (f / truth.focal_px() - 1.0).abs() < 0.005,
+        "f {f} against {}",
+        truth.focal_px()
+    );
+    assert!(
+        (b / truth.baseline() - 1.0).abs() < 0.005,
+        "B {b} against {}",
+        truth.baseline()
+    );
+    assert!(summary["rms"].as_f64().unwrap() < 0.2, "{}", summary["rms"]);
+    let last = &summary["views"][views - 1];
+    assert_eq!(last["status"], "board_not_found", "{last}");
+    assert_eq!(last["failed"], json!(["right"]), "{last}");
+    let all = summary["views"].as_array().unwrap();
+    let used: Vec<&Value> = all.iter().filter(|v| v["status"] == "used").collect();
+    assert_eq!(used.len(), views - 1);
+    for view in &used {
+        for side in ["left", "right"] {
+            let residuals = view[format!("residuals_{side}")].as_array().unwrap();
+            assert_eq!(residuals.len(), 54, "{side}");
+            let worst = residuals
+                .iter()
+                .map(|r| r[0].as_f64().unwrap().hypot(r[1].as_f64().unwrap()))
+                .fold(0.0, f64::max);
+            assert!(worst < 1.0, "{side} residual {worst} px");
+        }
+    }
+
+    // Act: the raw wall with the calibration's own file.
+    let points = json!([{"x": 320, "y": 240}, {"x": 150, "y": 120}, {"x": 500, "y": 380}]);
+    let form = Form::new()
+        .part("left", part(&about["raw"]["left"]))
+        .part("right", part(&about["raw"]["right"]))
+        .part("calibration", Part::text(yaml).file_name("stereo.yml"))
+        .text("points", points.to_string());
+    let max = about["raw"]["max_disparity"].as_u64().unwrap();
+    let answer = ok_json(
+        app.post_form(&format!("/match?max_disparity={max}"), form)
+            .await,
+    )
+    .await;
+
+    // Assert: rectified by the service, and at the wall's distance.
+    let distance = about["raw"]["distance"].as_f64().unwrap();
+    for m in answer["matches"].as_array().unwrap() {
+        assert_eq!(m["status"], "ok", "{m}");
+        let z = m["distance"].as_f64().unwrap();
+        assert!(
+            (z / distance - 1.0).abs() < 0.01,
+            "{z} against {distance}: {m}"
+        );
+        assert!(m["x_right_raw"].is_number(), "{m}");
+    }
 }

@@ -629,6 +629,13 @@ fn summarize(
                     why.push(format!("{side}: {reason}"));
                 }
             }
+            let [residuals_left, residuals_right] = if settings.corners {
+                fit.residuals(&settings.board, i, &views[i]).map(|r| {
+                    r.map(|r| r.iter().map(|d| [round(d[0], 4), round(d[1], 4)]).collect())
+                })
+            } else {
+                [None, None]
+            };
             ViewSummary {
                 status: match v.status {
                     Status::Used => ViewStatus::Used,
@@ -642,6 +649,8 @@ fn summarize(
                 tilt_deg: tilt(v),
                 corners_left: settings.corners.then(|| views[i].left.clone()).flatten(),
                 corners_right: settings.corners.then(|| views[i].right.clone()).flatten(),
+                residuals_left,
+                residuals_right,
             }
         })
         .collect();

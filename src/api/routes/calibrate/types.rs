@@ -169,6 +169,15 @@ pub struct ViewSummary {
     #[serde(skip_serializing_if = "Option::is_none")]
     #[schema(nullable = false)]
     pub corners_right: Option<Vec<[f64; 2]>>,
+    /// Each corner's residual in a view used, px (with `corners=true`): where the calibrated
+    /// model projects the board's corner minus where it was found, `[dx, dy]` in the order
+    /// of the corners.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub residuals_left: Option<Vec<[f64; 2]>>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub residuals_right: Option<Vec<[f64; 2]>>,
 }
 
 /// The standard deviation of each of a camera's parameters.

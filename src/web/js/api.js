@@ -1,0 +1,95 @@
+// Talking to the service: GET with query members, POST of JSON or multipart forms, the
+// problem+json answers turned into `{ field, message }` lists, NumPy arrays read from
+// /depth-map's NPZ, and answers saved as files. Every request the page makes goes through here.
+
+/** A GET of `path` with `params`, its JSON body (or null) and status. */
+export async function call(path, params, signal) {
+  const response = await fetch(`${path}?${params}`, { headers: { accept: 'application/json' }, signal });
+  const type = response.headers.get('content-type') || '';
+  const body = type.includes('json') ? await response.json() : null;
+  return { ok: response.ok, status: response.status, body };
+}
+
+/** A POST of JSON, answered in JSON: `{ ok, status, body }`. */
+export async function postJson(path, request, signal) {
+  const response = await fetch(path, {
+    method: 'POST',
+    headers: { 'content-type': 'application/json', accept: 'application/json' },
+    body: JSON.stringify(request),
+    signal,
+  });
+  const type = response.headers.get('content-type') || '';
+  const body = type.includes('json') ? await response.json() : null;
+  return { ok: response.ok, status: response.status, body };
+}
+
+/** Sends a multipart form, with the answer's problem as `{ errors }`. */
+export async function post(path, query, body, signal) {
+  const response = await fetch(`${path}?${query}`, { method: 'POST', body, signal });
+  if (response.ok) return { response, errors: null };
+  const type = response.headers.get('content-type') || '';
+  const problem = type.includes('json') ? await response.json() : null;
+  return { response, errors: problemsOf({ status: response.status, body: problem }) };
+}
+
+/** A problem's field errors, or one general error for an answer without them. */
+export function problemsOf(answer) {
+  const errors = answer.body && Array.isArray(answer.body.errors) ? answer.body.errors : [];
+  if (errors.length > 0) return errors;
+  const detail = (answer.body && (answer.body.detail || answer.body.title)) || `HTTP ${answer.status}`;
+  return [{ field: 'request', message: detail }];
+}
+
+/** The sum of a response's Server-Timing durations, ms. */
+export function serverTime(response) {
+  return (response.headers.get('server-timing') || '').split(',')
+    .map((entry) => Number((/dur=([\d.]+)/.exec(entry) || [])[1] || 0))
+    .reduce((a, b) => a + b, 0);
+}
+
+/** Offers `blob` as a download named `name`. */
+export function save(blob, name) {
+  const url = URL.createObjectURL(blob);
+  const link = document.createElement('a');
+  link.href = url;
+  link.download = name;
+  document.body.append(link);
+  link.click();
+  link.remove();
+  setTimeout(() => URL.revokeObjectURL(url), 60000);
+}
+
+/** A file fetched from this origin (the samples), as a File named `name`. */
+export async function fetchFile(path, name) {
+  const response = await fetch(path);
+  if (!response.ok) throw new Error(`${path} answered ${response.status}`);
+  const blob = await response.blob();
+  return new File([blob], name, { type: blob.type || 'application/octet-stream' });
+}
+
+// NumPy's NPZ as /depth-map writes it: a zip of stored (uncompressed) NPY files.
+export function readNpz(buffer) {
+  const view = new DataView(buffer);
+  const arrays = {};
+  let at = 0;
+  while (at + 30 <= buffer.byteLength && view.getUint32(at, true) === 0x04034b50) {
+    const method = view.getUint16(at + 8, true);
+    const size = view.getUint32(at + 18, true);
+    const nameLength = view.getUint16(at + 26, true);
+    const extra = view.getUint16(at + 28, true);
+    const name = new TextDecoder().decode(new Uint8Array(buffer, at + 30, nameLength));
+    const start = at + 30 + nameLength + extra;
+    if (method !== 0) throw new Error(`${name} is compressed`);
+    arrays[name.replace(/\.npy$/, '')] = readNpy(buffer.slice(start, start + size));
+    at = start + size;
+  }
+  return arrays;
+}
+
+export function readNpy(buffer) {
+  const headerLength = new DataView(buffer).getUint16(8, true);
+  const header = new TextDecoder().decode(new Uint8Array(buffer, 10, headerLength));
+  const shape = /'shape': \((\d+), (\d+)\)/.exec(header);
+  if (!header.includes("'<f4'") || !shape) throw new Error('an array that is not a float32 image');
+  return { height: Number(shape[1]), width: Number(shape[2]), data: new Float32Array(buffer, 10 + headerLength) };
+}

@@ -1,0 +1,307 @@
+// What is found on a pair: the match of a clicked point and the median distance of a dragged
+// box (/match), the markers drawn over the images, the distance under the pointer from the
+// depth map's arrays, and the pointer and keyboard that ask for them.
+
+import { post } from './api.js';
+import { svg } from './draw.js';
+import { clearImageErrors, NEEDS_RIG, pair, pairForm, rangeQuery, showImageErrors, showRigNeeded } from './images.js';
+import { compute } from './numbers.js';
+import { readForm, rigGiven } from './rig.js';
+import { $, fmt, percent } from './util.js';
+
+const status = $('status');
+
+/** The image pixel under a pointer event in `frame`. */
+export function pixelAt(event, frame) {
+  const rect = frame.getBoundingClientRect();
+  const x = Math.floor(((event.clientX - rect.left) * pair.width) / rect.width);
+  const y = Math.floor(((event.clientY - rect.top) * pair.height) / rect.height);
+  return { x: Math.min(pair.width - 1, Math.max(0, x)), y: Math.min(pair.height - 1, Math.max(0, y)) };
+}
+
+/** The distance under the pointer, from the arrays fetched once. */
+export function showHover({ x, y }) {
+  const a = pair.arrays;
+  const hover = $('hover');
+  if (!a) return;
+  const i = y * a.width + x;
+  const d = a.disparity[i];
+  const z = a.depth ? a.depth[i] : NaN;
+  hover.dataset.x = String(x);
+  hover.dataset.y = String(y);
+  if (Number.isFinite(z)) {
+    hover.textContent = `(${x}, ${y}): ${fmt(z, 5)} ${pair.unit} ± ${fmt(a.depth_error[i], 3)} ${pair.unit}, d = ${fmt(d, 4)} px`;
+  } else if (Number.isFinite(d)) {
+    hover.textContent = rigGiven()
+      ? `(${x}, ${y}): d = ${fmt(d, 4)} px, no depth (check the rig)`
+      : `(${x}, ${y}): d = ${fmt(d, 4)} px. ${NEEDS_RIG}`;
+  } else {
+    hover.textContent = `(${x}, ${y}): no reliable match here; click for /match's best guess and why`;
+  }
+}
+
+export function overlayShapes(id, shapes) {
+  $(id).replaceChildren(...shapes);
+}
+
+/** Markers in image pixels: the match on the left image and the depth map, its partner and
+ * row (the epipolar line) on the right image, the box, and the keyboard's crosshair. */
+export function drawMarkers() {
+  const r = Math.max(4, Math.max(pair.width, pair.height) / 60);
+  const left = [];
+  const right = [];
+  const c = pair.crosshair;
+  const crosshair = svg('g', { class: 'crosshair', id: 'crosshair', 'data-x': c.x, 'data-y': c.y });
+  crosshair.append(
+    svg('line', { x1: c.x + 0.5, x2: c.x + 0.5, y1: c.y + 0.5 - 2 * r, y2: c.y + 0.5 + 2 * r }),
+    svg('line', { y1: c.y + 0.5, y2: c.y + 0.5, x1: c.x + 0.5 - 2 * r, x2: c.x + 0.5 + 2 * r }),
+  );
+  const box = pair.region ?? (pair.anchor ? boxOf(pair.anchor, c) : null);
+  const shapes = [];
+  if (box) {
+    const attributes = { x: box.x, y: box.y, width: box.width, height: box.height };
+    shapes.push(svg('rect', { ...attributes, class: 'box' }), svg('rect', { ...attributes, class: 'box-core', id: 'box' }));
+  }
+  const m = pair.match;
+  if (m) {
+    const at = { cx: m.x + 0.5, cy: m.y + 0.5, r };
+    shapes.push(svg('circle', { ...at, class: 'marker' }), svg('circle', { ...at, class: 'marker-core', id: 'left-marker' }));
+    right.push(svg('line', { class: 'epipolar', id: 'epipolar', x1: 0, x2: pair.width, y1: m.y + 0.5, y2: m.y + 0.5 }));
+    if (m.x_right !== undefined) {
+      const there = { cx: m.x_right + 0.5, cy: m.y + 0.5, r, 'data-x': m.x_right, 'data-y': m.y };
+      right.push(svg('circle', { ...there, class: 'marker' }), svg('circle', { ...there, class: 'marker-core', id: 'right-marker' }));
+    }
+  }
+  left.push(...shapes, crosshair);
+  overlayShapes('left-overlay', left);
+  overlayShapes('depth-overlay', shapes.map((s) => s.cloneNode(true)).map((s) => {
+    s.removeAttribute('id');
+    return s;
+  }));
+  overlayShapes('right-overlay', right);
+}
+
+export function boxOf(a, b) {
+  const x = Math.min(a.x, b.x);
+  const y = Math.min(a.y, b.y);
+  return { x, y, width: Math.abs(a.x - b.x) + 1, height: Math.abs(a.y - b.y) + 1 };
+}
+
+const STATUS_MEANING = {
+  ok: 'a reliable match',
+  occluded: 'hidden from the right camera (the left-right check failed)',
+  ambiguous: 'several places in the right image match as well',
+  textureless: 'too little texture to match',
+  out_of_range: 'the match lies outside the disparity search range',
+  inconsistent: 'disagrees with its neighbours (often a depth edge)',
+  outside_image: 'outside the image',
+};
+
+export function showMatch(m) {
+  const values = $('match-values');
+  if (m === null) {
+    $('match-summary').textContent = 'Click the left image (or press Enter on it) for a match.';
+    values.hidden = true;
+    return;
+  }
+  const meaning = STATUS_MEANING[m.status] ?? m.status;
+  $('match-summary').textContent = m.x_right !== undefined
+    ? `(${m.x}, ${m.y}) in the left image is at x = ${fmt(m.x_right, 7)} px in the right image: ${m.status}, ${meaning}.`
+    : `(${m.x}, ${m.y}): no match, ${m.status}: ${meaning}.`;
+  $('match-left').textContent = `(${m.x}, ${m.y}) px`;
+  $('match-x-right').textContent = m.x_right !== undefined ? `${fmt(m.x_right, 7)} px` : '–';
+  $('match-disparity').textContent = m.disparity_px !== undefined ? `${fmt(m.disparity_px, 6)} px` : '–';
+  const statusCell = $('match-status');
+  statusCell.textContent = m.status;
+  statusCell.className = m.status === 'ok' ? 'status-ok' : 'status-other';
+  $('match-confidence').textContent = fmt(m.confidence, 3);
+  values.hidden = false;
+}
+
+export function showRegion(r) {
+  const summaryLine = $('region-summary');
+  if (r === null) {
+    summaryLine.textContent = 'Drag a box on the left image for its median distance.';
+    delete summaryLine.dataset.distance;
+    return;
+  }
+  const where = `Box at (${r.x}, ${r.y}), ${r.width} × ${r.height} px`;
+  if (r.status !== 'ok' || r.distance === undefined) {
+    summaryLine.textContent = `${where}: ${r.status === 'outside_image' ? 'outside the image' : 'no valid pixel'}.`;
+    delete summaryLine.dataset.distance;
+    return;
+  }
+  const u = r.unit;
+  summaryLine.dataset.distance = String(r.distance);
+  summaryLine.textContent =
+    `${where}: median ${fmt(r.distance, 5)} ${u} (p10–p90 ${fmt(r.distance_p10, 5)}–${fmt(r.distance_p90, 5)} ${u}), ` +
+    `± ${fmt(r.depth_error, 3)} ${u} at its centre, d = ${fmt(r.disparity_px, 5)} px, ${percent(r.valid_fraction)} of its pixels valid.`;
+}
+
+/** The lines "Copy results" adds in Images mode. */
+export function findings() {
+  const lines = [];
+  const m = pair.match;
+  if (m) {
+    lines.push(`Match: left (${m.x}, ${m.y}) px -> right x ${m.x_right !== undefined ? `${fmt(m.x_right, 7)} px` : 'none'}; ` +
+      `status ${m.status}; confidence ${fmt(m.confidence, 3)}`);
+  }
+  const r = pair.region;
+  if (r && r.distance !== undefined) {
+    lines.push(`Region: (${r.x}, ${r.y}) ${r.width} x ${r.height} px, median ${fmt(r.distance)} ${r.unit} ` +
+      `(p10 ${fmt(r.distance_p10)}, p90 ${fmt(r.distance_p90)}), ${percent(r.valid_fraction)} valid`);
+  }
+  return lines;
+}
+
+let findController = null;
+
+/** Asks /match for the points or regions in `parts`. */
+export async function find(parts, what) {
+  const state = readForm();
+  const body = pairForm(state);
+  for (const [name, value] of Object.entries(parts)) body.append(name, JSON.stringify(value));
+  if (findController) findController.abort();
+  findController = new AbortController();
+  document.body.dataset.match = 'computing';
+  try {
+    const { response, errors } = await post('/match', rangeQuery(state), body, findController.signal);
+    clearImageErrors();
+    if (errors) {
+      showImageErrors(errors);
+      status.textContent = `No ${what}: the service refused the request.`;
+      return null;
+    }
+    return { answer: await response.json(), state };
+  } catch (error) {
+    if (error.name !== 'AbortError') status.textContent = `No ${what}: ${error.message}.`;
+    return null;
+  } finally {
+    document.body.dataset.match = 'done';
+  }
+}
+
+/** A click or a box without a rig: /match answers distances, so it needs one; say so and
+ * offer the import. */
+export function askForRig() {
+  $('match-summary').textContent = NEEDS_RIG;
+  $('region-summary').textContent = NEEDS_RIG;
+  status.textContent = NEEDS_RIG;
+  showRigNeeded();
+  drawMarkers();
+}
+
+export async function matchAt(x, y) {
+  if (!pair.files.left || !pair.files.right) return;
+  pair.crosshair = { x, y };
+  if (!rigGiven()) {
+    askForRig();
+    return;
+  }
+  $('match-summary').textContent = `Matching (${x}, ${y})…`;
+  const found = await find({ points: [{ x, y }] }, 'match');
+  if (!found) return;
+  const m = found.answer.matches[0];
+  pair.match = m;
+  showMatch(m);
+  drawMarkers();
+  if (m.x_right !== undefined) {
+    $('x_left').value = String(m.x);
+    $('x_right').value = String(m.x_right);
+    $('y').value = String(m.y);
+  }
+  await compute(`Matched (${x}, ${y}): ${m.status}.`);
+}
+
+export async function measureRegion(a, b) {
+  if (!pair.files.left || !pair.files.right) return;
+  const box = boxOf(a, b);
+  pair.region = box;
+  pair.anchor = null;
+  if (!rigGiven()) {
+    askForRig();
+    return;
+  }
+  drawMarkers();
+  $('region-summary').textContent = `Measuring the box at (${box.x}, ${box.y}), ${box.width} × ${box.height} px…`;
+  const found = await find({ regions: [box] }, 'region');
+  if (!found) return;
+  pair.region = { ...found.answer.regions[0], unit: found.answer.unit };
+  showRegion(pair.region);
+  drawMarkers();
+  status.textContent = pair.region.distance !== undefined
+    ? `Region: median ${fmt(pair.region.distance)} ${pair.region.unit}.`
+    : 'Region: no distance.';
+}
+
+/** Pointing at the left image or the depth map: hover reads the arrays; a click matches; a
+ * drag measures a box. The keyboard does the same on the left image. */
+export function wirePointing() {
+  let drag = null;
+  for (const frame of [$('left-frame'), $('depth-frame')]) {
+    frame.addEventListener('pointerdown', (event) => {
+      if (!pair.arrays || event.button !== 0) return;
+      event.preventDefault();
+      frame.setPointerCapture(event.pointerId);
+      const start = pixelAt(event, frame);
+      drag = { frame, start, startX: event.clientX, startY: event.clientY, moved: false };
+    });
+    frame.addEventListener('pointermove', (event) => {
+      if (!pair.arrays) return;
+      const at = pixelAt(event, frame);
+      showHover(at);
+      if (drag && drag.frame === frame) {
+        if (Math.hypot(event.clientX - drag.startX, event.clientY - drag.startY) > 6) drag.moved = true;
+        if (drag.moved) {
+          pair.region = boxOf(drag.start, at);
+          drawMarkers();
+        }
+      }
+    });
+    frame.addEventListener('pointerup', (event) => {
+      if (!drag || drag.frame !== frame) return;
+      const done = drag;
+      drag = null;
+      if (done.moved) measureRegion(done.start, pixelAt(event, frame));
+      else matchAt(done.start.x, done.start.y);
+    });
+    frame.addEventListener('pointercancel', () => {
+      drag = null;
+    });
+  }
+  $('left-frame').addEventListener('keydown', (event) => {
+    if (!pair.arrays) return;
+    const step = event.shiftKey ? 10 : 1;
+    const moves = { ArrowLeft: [-step, 0], ArrowRight: [step, 0], ArrowUp: [0, -step], ArrowDown: [0, step] };
+    const c = pair.crosshair;
+    if (event.key in moves) {
+      event.preventDefault();
+      const [dx, dy] = moves[event.key];
+      pair.crosshair = {
+        x: Math.min(pair.width - 1, Math.max(0, c.x + dx)),
+        y: Math.min(pair.height - 1, Math.max(0, c.y + dy)),
+      };
+      showHover(pair.crosshair);
+      drawMarkers();
+    } else if (event.key === 'Enter') {
+      event.preventDefault();
+      if (pair.anchor) measureRegion(pair.anchor, c);
+      else matchAt(c.x, c.y);
+    } else if (event.key === ' ') {
+      event.preventDefault();
+      pair.anchor = pair.anchor ? null : { ...c };
+      pair.region = null;
+      status.textContent = pair.anchor
+        ? `Box corner at (${c.x}, ${c.y}): move to the opposite corner and press Enter.`
+        : 'Box cancelled.';
+      drawMarkers();
+    } else if (event.key === 'Escape') {
+      pair.anchor = null;
+      pair.region = null;
+      drawMarkers();
+    }
+  });
+  $('left-frame').addEventListener('focus', () => {
+    if (pair.arrays) showHover(pair.crosshair);
+  });
+}

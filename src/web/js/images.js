@@ -1,0 +1,375 @@
+// Images mode: a pair, its depth map (/depth-map, read as NumPy arrays so that hovering costs
+// no request), the downloads, and the project's sample pair. What is found on the pair by a
+// click or a box (/match) is in findings.js.
+
+import { fetchFile, post, postJson, readNpz, save, serverTime } from './api.js';
+import { colourRange, drawColourBar, sizeCanvas, turbo } from './draw.js';
+import { drawMarkers, showMatch, showRegion } from './findings.js';
+import { compute, schedule } from './numbers.js';
+import { applyRig, readForm, rigGiven, rigPart, showErrors, writeForm } from './rig.js';
+import { $, DEBOUNCE_MS, fmt, listItem, page, percent } from './util.js';
+
+export const pair = {
+  files: { left: null, right: null },
+  bitmaps: { left: null, right: null },
+  width: 0,
+  height: 0,
+  /** The depth map: { width, height, disparity, depth, depth_error } (Float32Array, NaN
+   * where invalid) and the unit of the depths. */
+  arrays: null,
+  unit: 'mm',
+  match: null,
+  region: null,
+  crosshair: { x: 0, y: 0 },
+  anchor: null,
+  sample: false,
+};
+
+export function matched() {
+  return pair.match !== null && pair.match.x_right !== undefined;
+}
+
+/** Images mode without a rig: say so, and offer the calibration import. */
+export function showRigNeeded() {
+  const given = rigGiven();
+  $('rig-needed').hidden = !(page.mode === 'images' && !given);
+  // Once a rig is given, the cards that asked for it invite a click again.
+  if (given && $('match-summary').textContent === NEEDS_RIG) showMatch(pair.match);
+  if (given && $('region-summary').textContent === NEEDS_RIG) showRegion(pair.region);
+}
+
+export const NEEDS_RIG = 'Distances need the rig: import a calibration file or type f and B under Rig.';
+
+export function pairForm(state) {
+  const body = new FormData();
+  body.append('left', pair.files.left);
+  body.append('right', pair.files.right);
+  if (rigGiven(state)) body.append('rig', rigPart(state));
+  return body;
+}
+
+export function rangeQuery(state, output = null) {
+  const query = new URLSearchParams();
+  if (output) query.set('output', output);
+  for (const name of ['min_disparity', 'max_disparity']) if (state[name] !== '') query.set(name, state[name]);
+  return query;
+}
+
+/** Where an image request's problem is shown: next to the file input or range field it
+ * names, or in the list under the inputs. */
+export const IMAGE_INPUTS = { left: 'left_image', right: 'right_image', min_disparity: 'min_disparity', max_disparity: 'max_disparity' };
+
+export function clearImageErrors() {
+  for (const input of Object.values(IMAGE_INPUTS)) {
+    $(input).removeAttribute('aria-invalid');
+    $(`${input}-error`).hidden = true;
+    $(`${input}-error`).textContent = '';
+  }
+  $('images-errors').hidden = true;
+  $('images-errors-list').replaceChildren();
+}
+
+export function showImageErrors(errors) {
+  const general = [];
+  // The rig's members are marked on their fields under Inputs too.
+  const rig = errors.filter(({ field }) => field.startsWith('rig.'));
+  if (rig.length > 0) showErrors(rig, readForm());
+  for (const { field, message } of errors) {
+    const input = IMAGE_INPUTS[field];
+    if (input) {
+      const slot = $(`${input}-error`);
+      slot.textContent = slot.textContent ? `${slot.textContent} ${message}` : message;
+      slot.hidden = false;
+      $(input).setAttribute('aria-invalid', 'true');
+    } else {
+      general.push(listItem(`${field}: ${message}`));
+    }
+  }
+  if (general.length > 0) {
+    $('images-errors-list').replaceChildren(...general);
+    $('images-errors').hidden = false;
+  }
+}
+
+export async function chooseImage(side, file) {
+  pair.files[side] = file;
+  pair.bitmaps[side] = null;
+  if (file) {
+    try {
+      pair.bitmaps[side] = await createImageBitmap(file);
+    } catch {
+      // Not an image the browser can show; the service will say what it is.
+    }
+  }
+  drawImage(side);
+}
+
+/** A new pair (or one new image): forget the old findings, show the images, and match. */
+export async function loadPair(files) {
+  for (const [side, file] of Object.entries(files)) await chooseImage(side, file);
+  pair.match = null;
+  pair.region = null;
+  pair.anchor = null;
+  pair.arrays = null;
+  clearDepth();
+  showMatch(null);
+  showRegion(null);
+  const { left, right } = pair.bitmaps;
+  if (left) {
+    pair.width = left.width;
+    pair.height = left.height;
+    pair.crosshair = { x: Math.floor(left.width / 2), y: Math.floor(left.height / 2) };
+    if (right && right.width === left.width && right.height === left.height && !page.sizeFromCalibration) {
+      const state = readForm();
+      state.image_width = String(left.width);
+      state.image_height = String(left.height);
+      writeForm(state);
+    }
+  }
+  drawMarkers();
+  compute();
+  await requestDepth();
+}
+
+export function drawImage(side) {
+  const bitmap = pair.bitmaps[side];
+  const canvas = $(`${side}-canvas`);
+  const width = bitmap ? bitmap.width : 320;
+  const height = bitmap ? bitmap.height : 240;
+  sizeCanvas(canvas, width, height);
+  const context = canvas.getContext('2d');
+  context.clearRect(0, 0, width, height);
+  if (bitmap) context.drawImage(bitmap, 0, 0);
+  $(`${side}-overlay`).setAttribute('viewBox', `0 0 ${width} ${height}`);
+  $(`${side}-caption`).textContent = bitmap
+    ? `${side === 'left' ? 'Left' : 'Right'} image, ${width} × ${height}`
+    : `${side === 'left' ? 'Left' : 'Right'} image`;
+  if (side === 'left') {
+    sizeCanvas($('depth-canvas'), width, height);
+    sizeCanvas($('blend-canvas'), width, height);
+    $('depth-overlay').setAttribute('viewBox', `0 0 ${width} ${height}`);
+  }
+}
+
+export let depthController = null;
+let depthToken = 0;
+let depthDebounce = null;
+
+export function scheduleDepth() {
+  clearTimeout(depthDebounce);
+  if (page.mode !== 'images' || !pair.files.left || !pair.files.right) return;
+  document.body.dataset.depth = 'pending';
+  depthDebounce = setTimeout(() => requestDepth(), DEBOUNCE_MS);
+}
+
+/** Asks /depth-map for the pair's arrays (disparity, depth and its error) once; hovering
+ * reads them, so no pixel costs a request. */
+export async function requestDepth() {
+  clearTimeout(depthDebounce);
+  if (!pair.files.left || !pair.files.right) return;
+  const state = readForm();
+  const token = ++depthToken;
+  if (depthController) depthController.abort();
+  depthController = new AbortController();
+  document.body.dataset.depth = 'computing';
+  $('depth-status').textContent = 'Matching the pair…';
+  const started = performance.now();
+  try {
+    const { response, errors } = await post('/depth-map', rangeQuery(state, 'arrays.npz'), pairForm(state), depthController.signal);
+    if (token !== depthToken) return;
+    clearImageErrors();
+    if (errors) {
+      showImageErrors(errors);
+      pair.arrays = null;
+      clearDepth();
+      $('depth-status').textContent = `No depth map: the service refused the request (${errors.length} ${errors.length === 1 ? 'problem' : 'problems'}).`;
+      return;
+    }
+    const arrays = readNpz(await response.arrayBuffer());
+    if (token !== depthToken) return;
+    const { width, height } = arrays.disparity;
+    pair.width = width;
+    pair.height = height;
+    pair.unit = state.unit;
+    pair.arrays = {
+      width,
+      height,
+      disparity: arrays.disparity.data,
+      depth: arrays.depth ? arrays.depth.data : null,
+      depth_error: arrays.depth_error ? arrays.depth_error.data : null,
+    };
+    const elapsed = performance.now() - started;
+    const server = serverTime(response);
+    let valid = 0;
+    for (const d of pair.arrays.disparity) if (!Number.isNaN(d)) valid += 1;
+    const fraction = valid / (width * height);
+    drawDepth();
+    $('downloads').hidden = false;
+    $('depth-status').dataset.valid = String(fraction);
+    $('depth-status').textContent =
+      `Depth map ${width} × ${height}: ${percent(fraction)} of the pixels matched, in ${fmt(elapsed, 3)} ms ` +
+      `(${fmt(server, 3)} ms of it on the server).`;
+  } catch (error) {
+    if (error.name === 'AbortError' || token !== depthToken) return;
+    $('depth-status').textContent = `No depth map: ${error.message}.`;
+  } finally {
+    if (token === depthToken) document.body.dataset.depth = 'done';
+  }
+}
+
+export function clearDepth() {
+  for (const id of ['depth-canvas', 'blend-canvas']) {
+    const canvas = $(id);
+    canvas.getContext('2d').clearRect(0, 0, canvas.width, canvas.height);
+  }
+  const bar = $('colour-bar');
+  $('colour-bar-title').textContent = 'No depth map yet.';
+  bar.replaceChildren($('colour-bar-title'));
+  $('downloads').hidden = true;
+  delete $('depth-status').dataset.valid;
+}
+
+/** The depth map in Turbo on inverse depth, near warm, beside the left image and in the
+ * blend layer over it (where invalid pixels are clear). */
+export function drawDepth() {
+  const a = pair.arrays;
+  const values = a.depth ?? a.disparity.map((d) => (d > 0 ? 1 / d : NaN));
+  const range = colourRange(values);
+  const depthImage = new ImageData(a.width, a.height);
+  const blendImage = new ImageData(a.width, a.height);
+  if (range) {
+    const [near, far] = range;
+    const span = 1 / near - 1 / far;
+    for (let i = 0; i < values.length; i += 1) {
+      const z = values[i];
+      const o = i * 4;
+      depthImage.data[o + 3] = 255;
+      if (!(z > 0)) continue;
+      const [r, g, b] = turbo((1 / z - 1 / far) / span);
+      depthImage.data.set([r, g, b], o);
+      blendImage.data.set([r, g, b, 255], o);
+    }
+  }
+  $('depth-canvas').getContext('2d').putImageData(depthImage, 0, 0);
+  $('blend-canvas').getContext('2d').putImageData(blendImage, 0, 0);
+  drawColourBar(range, a.depth ? pair.unit : rigGiven() ? null : 'px');
+  drawMarkers();
+}
+
+export async function download(output) {
+  const line = $('download-status');
+  if (!pair.files.left || !pair.files.right) return;
+  line.textContent = `Preparing ${output}…`;
+  const state = readForm();
+  try {
+    const { response, errors } = await post('/depth-map', rangeQuery(state, output), pairForm(state));
+    if (errors) {
+      line.textContent = `No ${output}: ${errors.map((e) => `${e.field}: ${e.message}`).join(' ')}`;
+      return;
+    }
+    const blob = await response.blob();
+    save(blob, output);
+    line.textContent = `Saved ${output} (${fmt(blob.size / 1024, 3)} KiB).`;
+  } catch (error) {
+    line.textContent = `No ${output}: ${error.message}.`;
+  }
+}
+
+/** `/?mode=images&sample=1`: the project's own rendered pair and its rig, matched at once. */
+export async function openSample() {
+  try {
+    // The sample's calibration file, read by /calibration as an imported file is: the rig and,
+    // from its ndisp, the search range.
+    const text = await (await fetch('/sample/calib.txt')).text();
+    const read = await postJson('/calibration', { text });
+    if (!read.ok) throw new Error(`/calibration answered ${read.status}`);
+    const about = read.body;
+    const files = {};
+    for (const side of ['left', 'right']) {
+      files[side] = await fetchFile(`/sample/${side}.png`, `sample-${side}.png`);
+      const transfer = new DataTransfer();
+      transfer.items.add(files[side]);
+      $(`${side}_image`).files = transfer.files;
+    }
+    applyRig(about.rig, about.max_disparity_px);
+    page.sizeFromCalibration = false;
+    pair.sample = true;
+    $('depth-status').textContent = 'The project\'s own rendered scene: a slanted textured wall, '
+      + 'a box and a disc in front of it; the disparities are known exactly.';
+    await loadPair(files);
+  } catch (error) {
+    $('depth-status').textContent = `The sample could not be loaded (${error.message}).`;
+    compute();
+  }
+}
+
+/** Forgets the last click's match and box (made with another rig or pair). */
+export function forgetFindings() {
+  pair.match = null;
+  pair.region = null;
+  pair.anchor = null;
+  showMatch(null);
+  showRegion(null);
+  drawMarkers();
+}
+
+/** The Images mode's controls: the sample link, the file inputs and drops, the search range,
+ * the blend and the downloads. */
+export function wireImages() {
+  $('sample-link').addEventListener('click', (event) => {
+    if (event.ctrlKey || event.metaKey || event.shiftKey || event.button !== 0) return;
+    event.preventDefault();
+    openSample();
+  });
+  for (const side of ['left', 'right']) {
+    $(`${side}_image`).addEventListener('change', (event) => {
+      pair.sample = false;
+      loadPair({ [side]: event.target.files[0] ?? null });
+    });
+  }
+  // Drops: one file on an input's box is that image; two files anywhere are the pair, in the
+  // order of their names (left before right, im0 before im1).
+  const imagesSection = $('images');
+  imagesSection.addEventListener('dragover', (event) => {
+    event.preventDefault();
+    const zone = event.target.closest('.drop');
+    for (const drop of imagesSection.querySelectorAll('.drop')) drop.classList.toggle('over', drop === zone);
+  });
+  imagesSection.addEventListener('dragleave', (event) => {
+    if (event.target.closest('.drop')) event.target.closest('.drop').classList.remove('over');
+  });
+  imagesSection.addEventListener('drop', (event) => {
+    event.preventDefault();
+    for (const drop of imagesSection.querySelectorAll('.drop')) drop.classList.remove('over');
+    const files = [...event.dataTransfer.files];
+    if (files.length === 0) return;
+    pair.sample = false;
+    if (files.length >= 2) {
+      const [left, right] = files.slice(0, 2).sort((a, b) => a.name.localeCompare(b.name));
+      loadPair({ left, right });
+      return;
+    }
+    const zone = event.target.closest('.drop');
+    const side = zone && zone.id === 'right_image-field' ? 'right' : 'left';
+    loadPair({ [side]: files[0] });
+  });
+  for (const name of ['min_disparity', 'max_disparity']) {
+    $(name).addEventListener('input', () => {
+      scheduleDepth();
+      schedule();
+    });
+  }
+  $('blend').addEventListener('change', () => {
+    const on = $('blend').checked;
+    $('views').dataset.blend = String(on);
+    $('opacity').disabled = !on;
+    $('blend-canvas').style.opacity = on ? String(Number($('opacity').value) / 100) : '0';
+  });
+  $('opacity').addEventListener('input', () => {
+    $('blend-canvas').style.opacity = String(Number($('opacity').value) / 100);
+  });
+  $('downloads').addEventListener('click', (event) => {
+    const button = event.target.closest('button[data-output]');
+    if (button) download(button.dataset.output);
+  });
+}
