@@ -1,17 +1,20 @@
-//! The web calculator at `/`: one HTML page with its script, style sheet and icon, embedded in
-//! the binary (`include_str!`), so nothing is read from disk or fetched from a CDN at run time.
+//! The web calculator at `/`: one HTML page with its script (ES modules under `/js/`), style
+//! sheet and icon, embedded in the binary (`include_str!`), so nothing is read from disk or
+//! fetched from a CDN at run time.
 //!
 //! The page is a client of the public API (`/distance`, `/table`, `/chart-data`,
-//! `/calibration`, `/depth-map`, `/match`) and holds no physics or stereo. Its sample pair
-//! (`/sample/left.png`, `/sample/right.png`, `/sample/sample.json`, the rig as a `rig` part, and
-//! `/sample/calib.txt`, the same rig and its search range as a Middlebury file)
-//! is rendered by [`crate::vision::synthetic`] on first request, so the binary holds code, not
-//! a picture; so is the calibration sample under `/sample/boards/` (board pairs seen through
+//! `/calibration`, `/calibrate`, `/rectify`, `/depth-map`, `/match`) and holds no physics or
+//! stereo. Its sample pair (`/sample/left.png`, `/sample/right.png`, `/sample/sample.json`,
+//! the rig as a `rig` part, and `/sample/calib.txt`, the same rig and its search range as a
+//! Middlebury file) is rendered by [`crate::vision::synthetic`] on first request, so the
+//! binary holds code, not a picture; so is the calibration sample under `/sample/boards/` (board pairs seen through
 //! two distorted cameras, and the raw pair of a wall at a known distance, from
 //! [`crate::calibrate::synthetic`]), each file rendered when first asked for. Each asset is
-//! answered with an `ETag` (a hash of its bytes, so a new build is a new tag) and `Cache-Control: no-cache`, so browsers revalidate and get a 304 until the binary
-//! changes. The tag is weak because the compression layer may send the same asset gzip- or
-//! br-encoded, and a strong tag must differ between such representations. The page carries a Content-Security-Policy that allows only this origin.
+//! answered with an `ETag` (a hash of its bytes, so a new build is a new tag) and
+//! `Cache-Control: no-cache`, so browsers revalidate and get a 304 until the binary changes.
+//! The tag is weak because the compression layer may send the same asset gzip- or br-encoded,
+//! and a strong tag must differ between such representations. The page carries a
+//! Content-Security-Policy that allows only this origin.
 
 use std::sync::{Arc, OnceLock};
 
@@ -40,10 +43,21 @@ pub struct Asset {
 /// Everything the page needs, and nothing from anywhere else.
 /// The script is ES modules under `/js/`, loaded by `<script type="module">` from
 /// `/js/app.js`, which imports the rest (one per mode, the rig form, drawing, the API).
-pub const ASSETS: [Asset; 11] = [
+pub const ASSETS: [Asset; 14] = [
     asset("/", HTML, include_str!("web/index.html")),
+    asset("/guide.html", HTML, include_str!("web/guide.html")),
     asset("/js/app.js", JAVASCRIPT, include_str!("web/js/app.js")),
     asset("/js/api.js", JAVASCRIPT, include_str!("web/js/api.js")),
+    asset(
+        "/js/calibrate.js",
+        JAVASCRIPT,
+        include_str!("web/js/calibrate.js"),
+    ),
+    asset(
+        "/js/calibrate-view.js",
+        JAVASCRIPT,
+        include_str!("web/js/calibrate-view.js"),
+    ),
     asset("/js/draw.js", JAVASCRIPT, include_str!("web/js/draw.js")),
     asset(
         "/js/findings.js",
@@ -239,13 +253,15 @@ pub const SAMPLE_FILES: [&str; 4] = [
 /// The calibration sample's views: rendered board pairs, and one more whose board the right
 /// camera does not see whole (so that the page shows a view the service could not use).
 pub const BOARD_VIEWS: usize = 12;
-/// The distance of the calibration sample's raw wall, mm.
+/// The calibration sample's raw wall: its depth on the rectified left camera's axis, mm, and
+/// its slope (depth Z = distance + slope·X in that camera's frame).
 pub const WALL_DISTANCE_MM: f64 = 2000.0;
+pub const WALL_SLOPE: f64 = 0.5;
 
 /// Where the calibration sample's files are served: `/sample/boards/left_NN.png` and
-/// `right_NN.png` for each view, `raw_left.png` and `raw_right.png` (a textured wall
-/// [`WALL_DISTANCE_MM`] away, seen through the same raw cameras) and `boards.json` (the
-/// board, the files and the wall's distance).
+/// `right_NN.png` for each view, `raw_left.png` and `raw_right.png` (a slanted textured wall
+/// [`WALL_DISTANCE_MM`] away on the axis, seen through the same raw cameras) and
+/// `boards.json` (the board, the files and the wall's distance and slope).
 pub fn board_files() -> Vec<String> {
     let mut files: Vec<String> = (0..=BOARD_VIEWS)
         .flat_map(|i| ["left", "right"].map(|side| format!("/sample/boards/{side}_{i:02}.png")))
@@ -339,7 +355,8 @@ fn board_file_rendered(i: usize) -> Served {
             "right": (0..views).map(|v| &paths[2 * v + 1]).collect::<Vec<_>>(),
             "raw": {
                 "left": paths[2 * views], "right": paths[2 * views + 1],
-                "distance": WALL_DISTANCE_MM, "unit": "mm", "max_disparity": 96,
+                "distance": WALL_DISTANCE_MM, "slope": WALL_SLOPE, "unit": "mm",
+                "max_disparity": 96,
             },
         });
         return Served::of(JSON, about.to_string().into());
@@ -358,8 +375,14 @@ fn board_file_rendered(i: usize) -> Served {
             );
             [v.left, v.right]
         } else {
-            crate::calibrate::synthetic::raw_wall(&sample.rig, BOARD_SIZE, WALL_DISTANCE_MM, 11)
-                .expect("the sample rig rectifies")
+            crate::calibrate::synthetic::raw_wall(
+                &sample.rig,
+                BOARD_SIZE,
+                WALL_DISTANCE_MM,
+                WALL_SLOPE,
+                11,
+            )
+            .expect("the sample rig rectifies")
         };
         images.map(|image| Served::of(PNG, png(&image)))
     });

@@ -368,18 +368,24 @@ pub fn sample_rig() -> StereoPair {
     }
 }
 
-/// A textured wall `distance` in front of `pair`, square to its rectified cameras (so that
-/// every point of it is at depth `distance` in the rectified frame, the depth a distance
-/// along the optical axis is measured in), seen through each raw camera with its
-/// distortion: the raw left and right frames. `None` when `pair` cannot
-/// be rectified.
-pub fn raw_wall(pair: &StereoPair, size: Size, distance: f64, seed: u64) -> Option<[Image; 2]> {
+/// A textured wall in front of `pair`, turned about the vertical: in the frame of the pair's
+/// rectified left camera (where a distance along the optical axis is measured) its points
+/// are at depth Z = `distance` + `slope`·X, so a pixel x of the rectified left image sees
+/// depth `distance` / (1 − `slope`·(x − cx)/f). Seen through each raw camera with its
+/// distortion: the raw left and right frames. `None` when `pair` cannot be rectified.
+pub fn raw_wall(
+    pair: &StereoPair,
+    size: Size,
+    distance: f64,
+    slope: f64,
+    seed: u64,
+) -> Option<[Image; 2]> {
     let rectification =
         crate::camera::stereo_rectify(pair, size, crate::camera::Options::default()).ok()?;
     let r1 = rectification.r1;
-    // Texture pixels are the rectified camera's: the wall's texture has the band limit the
-    // matcher expects at this distance.
-    let scale = rectification.p1[(0, 0)] / distance;
+    // A texture pixel is two thirds of a rectified pixel on the axis, so that the far side
+    // of the wall, foreshortened, still holds nothing finer than a pixel can.
+    let scale = rectification.p1[(0, 0)] / (1.5 * distance);
     let texture = crate::vision::synthetic::Texture::new(seed);
     let centre = r1 * (-(pair.rotation.inverse() * pair.translation));
     let to_world = [r1, r1 * pair.rotation.matrix().transpose()];
@@ -403,8 +409,9 @@ pub fn raw_wall(pair: &StereoPair, size: Size, distance: f64, seed: u64) -> Opti
                             continue;
                         };
                         let ray = to_world[side] * Vector3::new(x, y, 1.0);
-                        let t = (distance - origins[side].z) / ray.z;
-                        let p = origins[side] + ray * t;
+                        let o = origins[side];
+                        let t = (distance + slope * o.x - o.z) / (ray.z - slope * ray.x);
+                        let p = o + ray * t;
                         sum += f64::from(texture.at((p.x * scale) as f32, (p.y * scale) as f32));
                     }
                 }

@@ -76,16 +76,19 @@ async fn the_page_and_its_assets_are_served_from_the_binary() {
     }
 }
 
-/// Every link and source on the page is local and answered 200 by this server: the assets,
-/// the API documentation, the SVG chart and the worked examples' permalinks. Nothing comes
+/// Every link and source on the page and its guide is local and answered 200 by this server:
+/// the assets, the API documentation, the SVG chart and the worked examples' permalinks. Nothing comes
 /// from a CDN.
 #[tokio::test]
 async fn every_link_on_the_page_is_local_and_answers() {
     // Arrange
     let app = spawn_app().await;
-    let html = app.get("/").await.text().await.unwrap();
-    let references = references(&html);
+    let mut references = references(&app.get("/").await.text().await.unwrap());
     assert!(references.len() >= 10, "{references:?}");
+    assert!(references.iter().any(|r| r == "/guide.html"));
+    references.extend(self::references(
+        &app.get("/guide.html").await.text().await.unwrap(),
+    ));
 
     for reference in references {
         if reference.starts_with('#') {
@@ -131,9 +134,9 @@ async fn page_script(app: &TestApp) -> BTreeMap<String, String> {
 }
 
 /// The script calls only the public API's documented routes: the page is a client of
-/// `/distance`, `/table` and `/chart-data` (GET), `/depth-map`, `/match` and `/calibration`
-/// (POST), with no physics or private endpoint of its own; besides them it fetches only the
-/// sample's files. Every module is under 600 lines.
+/// `/distance`, `/table` and `/chart-data` (GET), `/depth-map`, `/match`, `/rectify`,
+/// `/calibration` and `/calibrate` (POST), with no physics or private endpoint of its own;
+/// besides them it fetches only the samples' files. Every module is under 600 lines.
 #[tokio::test]
 async fn the_page_calls_only_the_public_api() {
     // Arrange
@@ -160,13 +163,15 @@ async fn the_page_calls_only_the_public_api() {
             .collect::<BTreeSet<_>>()
     };
     let got = paths("call('");
-    let posted: BTreeSet<String> = paths("post('")
-        .union(&paths("postJson('"))
-        .cloned()
+    let posted: BTreeSet<String> = ["post('", "postJson('", "postWithProgress('"]
+        .iter()
+        .flat_map(|needle| paths(needle))
         .collect();
-    // `call`, `post` and `postJson` fetch the path they are given, `fetchFile` a sample's.
+    // `call`, `post`, `postJson` and `postWithProgress` send to the path they are given,
+    // `fetchFile` and `fetchJson` fetch a sample's file.
     let fetched: BTreeSet<String> = paths("fetch('").union(&paths("fetch(`")).cloned().collect();
     let files = paths("fetchFile(`");
+    let described = paths("fetchJson('");
 
     // Assert
     assert!(modules.len() >= 6, "{:?}", modules.keys());
@@ -178,12 +183,37 @@ async fn the_page_calls_only_the_public_api() {
         );
     }
     assert_eq!(got, set(&["/chart-data", "/distance", "/table"]));
-    assert_eq!(posted, set(&["/calibration", "/depth-map", "/match"]));
+    assert_eq!(
+        posted,
+        set(&[
+            "/calibrate",
+            "/calibration",
+            "/depth-map",
+            "/match",
+            "/rectify"
+        ])
+    );
     assert_eq!(
         fetched,
         set(&["${path}?${params}", "${path}?${query}", "/sample/calib.txt"])
     );
     assert_eq!(files, set(&["/sample/${side}.png"]));
+    // The calibration sample's files are the ones its description names, all its own.
+    assert_eq!(described, set(&["/sample/boards/boards.json"]));
+    let about = ok_json(app.get("/sample/boards/boards.json").await).await;
+    for side in ["left", "right"] {
+        let named = about[side]
+            .as_array()
+            .unwrap()
+            .iter()
+            .chain([&about["raw"][side]]);
+        for path in named {
+            assert!(
+                path.as_str().unwrap().starts_with("/sample/boards/"),
+                "{path}"
+            );
+        }
+    }
     for path in &got {
         assert!(
             spec["paths"][path.as_str()]["get"].is_object(),
@@ -256,14 +286,14 @@ async fn the_page_takes_get_and_head_only() {
     assert_eq!(problem["errors"][0]["field"], "method");
 }
 
-/// The guide's worked examples say what the API answers for their permalinks: 105 mm for
+/// The guide's (`/guide.html`, linked from the page) worked examples say what the API answers for their permalinks: 105 mm for
 /// f = 35 px; about 30.4 m when the 35 is millimetres on 3.45 µm pixels; 40 mm, with the
 /// negative-disparity warning, for the inspection example.
 #[tokio::test]
 async fn the_worked_examples_agree_with_the_api() {
     // Arrange
     let app = spawn_app().await;
-    let html = app.get("/").await.text().await.unwrap();
+    let html = app.get("/guide.html").await.text().await.unwrap();
     let examples: Vec<String> = references(&html)
         .into_iter()
         .filter(|r| r.starts_with("/?focal_mode="))
@@ -385,7 +415,7 @@ async fn the_sample_files_are_parts_as_they_are() {
 /// 0.5 %); its last view is refused with the reason (the right camera sees the board only in
 /// part); `corners=true` gives each used view's residuals, small and one per corner; and the
 /// raw wall, sent to `/match` with the calibration's `opencv.yml`, is rectified by the service
-/// and measured at the distance it was rendered at, within 1 %.
+/// and measured at the depth it was rendered at, within 1 %.
 #[tokio::test]
 async fn the_calibration_sample_calibrates_and_measures_its_wall() {
     use reqwest::multipart::{Form, Part};
@@ -489,14 +519,19 @@ async fn the_calibration_sample_calibrates_and_measures_its_wall() {
     )
     .await;
 
-    // Assert: rectified by the service, and at the wall's distance.
+    // Assert: rectified by the service, and at the wall's depth there (Z = distance + slope·X
+    // in the rectified left camera's frame).
     let distance = about["raw"]["distance"].as_f64().unwrap();
+    let slope = about["raw"]["slope"].as_f64().unwrap();
+    let cx = truth.cx().unwrap();
     for m in answer["matches"].as_array().unwrap() {
         assert_eq!(m["status"], "ok", "{m}");
+        let x = m["x_rectified"].as_f64().unwrap();
+        let expected = distance / (1.0 - slope * (x - cx) / truth.focal_px());
         let z = m["distance"].as_f64().unwrap();
         assert!(
-            (z / distance - 1.0).abs() < 0.01,
-            "{z} against {distance}: {m}"
+            (z / expected - 1.0).abs() < 0.01,
+            "{z} against {expected}: {m}"
         );
         assert!(m["x_right_raw"].is_number(), "{m}");
     }

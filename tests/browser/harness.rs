@@ -228,6 +228,17 @@ impl Browser {
     }
 
     /// Chooses the option with `value` in the select `#id`.
+    /// Attribute `name` of the first element matching the CSS selector `css`.
+    pub async fn attr_css(&self, css: &str, name: &str) -> Option<String> {
+        self.client
+            .find(Locator::Css(css))
+            .await
+            .unwrap_or_else(|e| panic!("{css}: {e}"))
+            .attr(name)
+            .await
+            .expect("an attribute read")
+    }
+
     pub async fn choose(&self, id: &str, value: &str) {
         self.find(id)
             .await
@@ -268,7 +279,17 @@ impl Browser {
     }
 
     /// Polls `probe` until it gives a value; panics naming `what` after [`PATIENCE`].
-    pub async fn until<T, F, Fut>(&self, what: &str, mut probe: F) -> T
+    pub async fn until<T, F, Fut>(&self, what: &str, probe: F) -> T
+    where
+        F: FnMut() -> Fut,
+        Fut: std::future::Future<Output = Option<T>>,
+    {
+        self.until_within(what, PATIENCE, probe).await
+    }
+
+    /// As [`Browser::until`], with a bound of its own: a calibration in a debug build (the
+    /// corners of 26 images found by unoptimised code) takes longer than a click.
+    pub async fn until_within<T, F, Fut>(&self, what: &str, patience: Duration, mut probe: F) -> T
     where
         F: FnMut() -> Fut,
         Fut: std::future::Future<Output = Option<T>>,
@@ -278,7 +299,7 @@ impl Browser {
             if let Some(value) = probe().await {
                 return value;
             }
-            assert!(started.elapsed() < PATIENCE, "timed out waiting for {what}");
+            assert!(started.elapsed() < patience, "timed out waiting for {what}");
             tokio::time::sleep(Duration::from_millis(50)).await;
         }
     }

@@ -33,7 +33,7 @@ fn synthetic_pair() -> [PathBuf; 2] {
 }
 
 /// The first number in `text` after `after`.
-fn number_after(text: &str, after: &str) -> f64 {
+pub(crate) fn number_after(text: &str, after: &str) -> f64 {
     let rest = &text[text
         .find(after)
         .unwrap_or_else(|| panic!("{after:?} in {text:?}"))
@@ -51,7 +51,7 @@ fn number_after(text: &str, after: &str) -> f64 {
 impl Browser {
     /// Waits until the depth map has been fetched and drawn, and returns the share of valid
     /// pixels the page reports.
-    async fn depth_map_shown(&self) -> f64 {
+    pub(crate) async fn depth_map_shown(&self) -> f64 {
         self.until("the depth map", || async {
             let valid = self
                 .script(
@@ -76,7 +76,7 @@ impl Browser {
     }
 
     /// Waits until no `/match` request is in flight and the page has settled.
-    async fn found(&self) {
+    pub(crate) async fn found(&self) {
         self.until_done("match").await;
         self.settled().await;
     }
@@ -98,13 +98,13 @@ impl Browser {
 
     /// No console error or CSP violation, and every request went to this origin and to a
     /// path the service documents: its OpenAPI paths, the page's assets and the sample.
-    async fn assert_clean(&self) {
+    pub(crate) async fn assert_clean(&self) {
         self.assert_clean_but(&[]).await;
     }
 
     /// As [`Browser::assert_clean`], except the console's note of each refused request with
     /// one of the `statuses` the test provoked.
-    async fn assert_clean_but(&self, statuses: &[&str]) {
+    pub(crate) async fn assert_clean_but(&self, statuses: &[&str]) {
         let errors: Vec<String> = self
             .console_errors()
             .await
@@ -138,6 +138,7 @@ impl Browser {
                 .iter()
                 .map(|p| (*p).to_owned()),
         );
+        documented.extend(stereo_distance::web::board_files());
         for (origin, path) in self.requests().await {
             assert_eq!(origin, self.base, "a request to another origin: {path}");
             assert!(

@@ -7,6 +7,7 @@
 //! `cargo test --test browser -- --ignored --test-threads=1`. Screenshots are written to
 //! `target/tmp/e2e/` (`E2E_ARTIFACTS` overrides), and kept as the run's artifacts.
 
+mod calibrate;
 mod harness;
 mod images;
 

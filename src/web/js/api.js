@@ -93,3 +93,35 @@ export function readNpy(buffer) {
   if (!header.includes("'<f4'") || !shape) throw new Error('an array that is not a float32 image');
   return { height: Number(shape[1]), width: Number(shape[2]), data: new Float32Array(buffer, 10 + headerLength) };
 }
+
+/** A multipart POST that reports the upload's progress (`onUpload(fraction)`), as `post`
+ * answers: `{ status, ok, blob, json, errors }`. Aborted through `signal` (AbortError). */
+export function postWithProgress(path, query, body, { onUpload, signal } = {}) {
+  return new Promise((resolve, reject) => {
+    const request = new XMLHttpRequest();
+    request.open('POST', `${path}?${query}`);
+    request.responseType = 'blob';
+    request.upload.addEventListener('progress', (event) => {
+      if (event.lengthComputable && onUpload) onUpload(event.loaded / event.total);
+    });
+    request.upload.addEventListener('load', () => onUpload && onUpload(1));
+    request.addEventListener('error', () => reject(new Error('the service could not be reached')));
+    request.addEventListener('abort', () => reject(new DOMException('cancelled', 'AbortError')));
+    request.addEventListener('load', async () => {
+      const blob = request.response;
+      const type = request.getResponseHeader('content-type') || '';
+      const json = type.includes('json') ? JSON.parse(await blob.text()) : null;
+      const ok = request.status >= 200 && request.status < 300;
+      resolve({ status: request.status, ok, blob, json, errors: ok ? null : problemsOf({ status: request.status, body: json }) });
+    });
+    if (signal) signal.addEventListener('abort', () => request.abort());
+    request.send(body);
+  });
+}
+
+/** A JSON file from this origin (a sample's description). */
+export async function fetchJson(path) {
+  const response = await fetch(path);
+  if (!response.ok) throw new Error(`${path} answered ${response.status}`);
+  return response.json();
+}

@@ -1,17 +1,20 @@
-// The page's entry (loaded as `<script type="module">`): its modes (Numbers, Images), each
-// a module of its own, switched in place and kept in the address; and the wiring of the
+// The page's entry (loaded as `<script type="module">`): its modes (Numbers, Images,
+// Calibrate), each a module of its own, switched in place and kept in the address; and the wiring of the
 // form every mode shares. Every number comes from the service's API: the page computes
 // nothing itself.
 
-import { openSample, pair, requestDepth, scheduleDepth, wireImages } from './images.js';
+import { openCalibrationSample, readCalibrateQuery, rememberCalibrate, wireCalibrate } from './calibrate.js';
+import { fetchFile } from './api.js';
+import { loadPair, openSample, pair, requestDepth, scheduleDepth, wireImages } from './images.js';
 import { wirePointing } from './findings.js';
 import { compute, copyResults, copyText, reset, schedule } from './numbers.js';
 import {
-  FOCAL_MODES, RIG_INPUTS, forgetUnknown, forgetUnknownScale, importCalibration, showFocalMode, showUnit, stateFromQuery, writeForm,
+  FOCAL_MODES, RIG_INPUTS, forgetUnknown, forgetUnknownScale, importCalibration, readForm, showFocalMode, showUnit,
+  stateFromQuery, writeForm,
 } from './rig.js';
 import { $, page } from './util.js';
 
-const MODES = ['numbers', 'images'];
+const MODES = ['numbers', 'images', 'calibrate'];
 const status = $('status');
 
 function modeFromQuery(search) {
@@ -23,6 +26,7 @@ function setMode(next) {
   page.mode = next;
   document.body.dataset.mode = next;
   $('images').hidden = next !== 'images';
+  $('calibrate').hidden = next !== 'calibrate';
   for (const name of MODES) {
     const link = $(`mode-${name}`);
     if (name === next) link.setAttribute('aria-current', 'page');
@@ -36,14 +40,60 @@ function imported(note) {
   if (page.mode === 'images') requestDepth();
 }
 
+/** Shows a mode: Calibrate keeps its own address (the board and the model); the others
+ * compute the form, and Images matches its pair if it has not yet. */
+function enter(name) {
+  setMode(name);
+  if (name === 'calibrate') {
+    if ($('board_columns').value === '') readCalibrateQuery('');
+    rememberCalibrate();
+    document.body.dataset.state = 'done';
+    return;
+  }
+  compute();
+  if (name === 'images' && pair.files.left && pair.files.right && !pair.arrays) requestDepth();
+}
+
 for (const name of MODES) {
   $(`mode-${name}`).addEventListener('click', (event) => {
     if (event.ctrlKey || event.metaKey || event.shiftKey || event.button !== 0) return;
     event.preventDefault();
-    setMode(name);
-    compute();
-    if (name === 'images' && pair.files.left && pair.files.right && !pair.arrays) requestDepth();
+    enter(name);
   });
+}
+
+/** "Use this calibration": Images mode with the calibration imported as a file would be (so
+ * raw frames are rectified by the service), the rig's σ in its fields, and for the sample its
+ * raw pair, matched at once. */
+async function useCalibration(summary, yaml, sample) {
+  setMode('images');
+  $('calibration_text').value = yaml;
+  $('calibration_right_text').value = '';
+  $('calibration_unit').value = '';
+  await importCalibration(async (note) => {
+    const state = readForm();
+    state.focal_length_std_px = String(summary.rig.focal_length_std_px ?? '');
+    state.baseline_std = String(summary.rig.baseline_std ?? '');
+    if (sample) state.max_disparity = String(sample.raw.max_disparity);
+    writeForm(state);
+    if (sample) {
+      const files = {};
+      for (const side of ['left', 'right']) {
+        files[side] = await fetchFile(sample.raw[side], `raw_${side}.png`);
+        const transfer = new DataTransfer();
+        transfer.items.add(files[side]);
+        $(`${side}_image`).files = transfer.files;
+      }
+      $('depth-status').textContent = `The sample's raw pair: a textured wall ${sample.raw.distance} ${sample.raw.unit} from the cameras.`;
+      compute(`${note} From Calibrate mode, with its σ.`);
+      await loadPair(files);
+      return;
+    }
+    compute(`${note} From Calibrate mode, with its σ.`);
+    if (pair.files.left && pair.files.right) requestDepth();
+    else $('depth-status').textContent = 'Calibration in use: choose a raw left and right image from these cameras; the service rectifies them.';
+  });
+  if (!$('import-errors').hidden) $('import').open = true;
 }
 $('import-button').addEventListener('click', () => importCalibration(imported));
 $('calibration_file').addEventListener('change', async (event) => {
@@ -54,6 +104,7 @@ $('calibration_file').addEventListener('change', async (event) => {
 });
 wireImages();
 wirePointing();
+wireCalibrate(useCalibration);
 
 
 $('calculator').addEventListener('input', (event) => {
@@ -105,12 +156,19 @@ $('permalink').addEventListener('click', async (event) => {
 window.addEventListener('popstate', () => {
   setMode(modeFromQuery(location.search));
   writeForm(stateFromQuery(location.search));
-  compute();
+  if (page.mode === 'calibrate') readCalibrateQuery(location.search);
+  else compute();
 });
 
 setMode(modeFromQuery(location.search));
 writeForm(stateFromQuery(location.search));
-if (page.mode === 'images' && new URLSearchParams(location.search).get('sample') === '1') {
+const sample = new URLSearchParams(location.search).get('sample') === '1';
+if (page.mode === 'calibrate') {
+  readCalibrateQuery(location.search);
+  rememberCalibrate();
+  document.body.dataset.state = 'done';
+  if (sample) openCalibrationSample();
+} else if (page.mode === 'images' && sample) {
   openSample();
 } else {
   compute();

@@ -4,7 +4,9 @@
 
 import { post } from './api.js';
 import { svg } from './draw.js';
-import { clearImageErrors, NEEDS_RIG, pair, pairForm, rangeQuery, showImageErrors, showRigNeeded } from './images.js';
+import {
+  clearImageErrors, frameShown, NEEDS_RIG, pair, pairForm, rangeQuery, rawPair, showImageErrors, showRigNeeded,
+} from './images.js';
 import { compute } from './numbers.js';
 import { readForm, rigGiven } from './rig.js';
 import { $, fmt, percent } from './util.js';
@@ -20,10 +22,17 @@ export function pixelAt(event, frame) {
 }
 
 /** The distance under the pointer, from the arrays fetched once. */
-export function showHover({ x, y }) {
+export function showHover({ x, y }, onRaw = false) {
   const a = pair.arrays;
   const hover = $('hover');
   if (!a) return;
+  hover.dataset.x = String(x);
+  hover.dataset.y = String(y);
+  if (onRaw) {
+    // The arrays are the rectified frame's: a raw pixel's distance is a click away.
+    hover.textContent = `(${x}, ${y}) on the raw left image: click for the distance there (the depth map is rectified).`;
+    return;
+  }
   const i = y * a.width + x;
   const d = a.disparity[i];
   const z = a.depth ? a.depth[i] : NaN;
@@ -56,29 +65,56 @@ export function drawMarkers() {
     svg('line', { x1: c.x + 0.5, x2: c.x + 0.5, y1: c.y + 0.5 - 2 * r, y2: c.y + 0.5 + 2 * r }),
     svg('line', { y1: c.y + 0.5, y2: c.y + 0.5, x1: c.x + 0.5 - 2 * r, x2: c.x + 0.5 + 2 * r }),
   );
-  const box = pair.region ?? (pair.anchor ? boxOf(pair.anchor, c) : null);
+  const region = pair.region && (pair.region.frame ?? frameShown()) === frameShown() ? pair.region : null;
+  const box = region ?? (pair.anchor ? boxOf(pair.anchor, c) : null);
   const shapes = [];
   if (box) {
     const attributes = { x: box.x, y: box.y, width: box.width, height: box.height };
     shapes.push(svg('rect', { ...attributes, class: 'box' }), svg('rect', { ...attributes, class: 'box-core', id: 'box' }));
   }
   const m = pair.match;
+  const depth = [];
   if (m) {
-    const at = { cx: m.x + 0.5, cy: m.y + 0.5, r };
-    shapes.push(svg('circle', { ...at, class: 'marker' }), svg('circle', { ...at, class: 'marker-core', id: 'left-marker' }));
-    right.push(svg('line', { class: 'epipolar', id: 'epipolar', x1: 0, x2: pair.width, y1: m.y + 0.5, y2: m.y + 0.5 }));
-    if (m.x_right !== undefined) {
-      const there = { cx: m.x_right + 0.5, cy: m.y + 0.5, r, 'data-x': m.x_right, 'data-y': m.y };
-      right.push(svg('circle', { ...there, class: 'marker' }), svg('circle', { ...there, class: 'marker-core', id: 'right-marker' }));
+    const at = placed(m);
+    const dot = ([x, y], id, extra = {}) => {
+      const where = { cx: x + 0.5, cy: y + 0.5, r, ...extra };
+      const core = svg('circle', { ...where, class: 'marker-core' });
+      if (id) core.id = id;
+      return [svg('circle', { ...where, class: 'marker' }), core];
+    };
+    if (at.left) shapes.push(...dot(at.left, 'left-marker'));
+    if (at.depth) depth.push(...dot(at.depth, null));
+    if (at.row !== null) right.push(svg('line', { class: 'epipolar', id: 'epipolar', x1: 0, x2: pair.width, y1: at.row + 0.5, y2: at.row + 0.5 }));
+    if (at.right) right.push(...dot(at.right, 'right-marker', { 'data-x': at.right[0], 'data-y': at.right[1] }));
+  }
+  if (frameShown() === 'rectified') {
+    // The rectified pair's rows line up: lines every 32 rows show it, as /rectify's pair.png.
+    for (let y = 16; y < pair.height; y += 32) {
+      const line = { class: 'epipolar-grid', x1: 0, x2: pair.width, y1: y, y2: y };
+      left.push(svg('line', line));
+      right.push(svg('line', line));
     }
   }
   left.push(...shapes, crosshair);
   overlayShapes('left-overlay', left);
-  overlayShapes('depth-overlay', shapes.map((s) => s.cloneNode(true)).map((s) => {
-    s.removeAttribute('id');
-    return s;
-  }));
+  const boxes = rawPair() ? [] : shapes.filter((s) => s.tagName === 'rect').map((s) => s.cloneNode(true));
+  boxes.forEach((s) => s.removeAttribute('id'));
+  overlayShapes('depth-overlay', [...boxes, ...depth]);
   overlayShapes('right-overlay', right);
+}
+
+/** Where a match is drawn in the frame shown: on the left image, on the depth map (always
+ * the rectified frame), its row on the right image, and its partner there. A match made on the
+ * raw frame knows both frames (`x_rectified` and `x_right_raw`); one made on the rectified view
+ * knows only that. */
+function placed(m) {
+  const rectified = m.x_rectified !== undefined ? [m.x_rectified, m.y_rectified] : m.frame !== 'raw' ? [m.x, m.y] : null;
+  const rightRectified = rectified && m.x_right !== undefined ? [m.x_right, rectified[1]] : null;
+  if (frameShown() !== 'raw') {
+    return { left: rectified, depth: rectified, row: rectified ? rectified[1] : null, right: rightRectified };
+  }
+  const rawRight = m.x_right_raw !== undefined ? [m.x_right_raw, m.y_right_raw] : null;
+  return { left: m.frame === 'raw' ? [m.x, m.y] : null, depth: rectified, row: null, right: rawRight };
 }
 
 export function boxOf(a, b) {
@@ -105,8 +141,12 @@ export function showMatch(m) {
     return;
   }
   const meaning = STATUS_MEANING[m.status] ?? m.status;
+  const raw = m.x_right_raw !== undefined
+    ? ` On the raw frames: (${fmt(m.x_right_raw, 6)}, ${fmt(m.y_right_raw, 6)}) in the right image; rectified, (${fmt(m.x_rectified, 6)}, ${fmt(m.y_rectified, 6)}) in the left.`
+    : '';
+  const where = m.frame === 'raw' ? 'raw left image' : m.frame === 'rectified' ? 'rectified left image' : 'left image';
   $('match-summary').textContent = m.x_right !== undefined
-    ? `(${m.x}, ${m.y}) in the left image is at x = ${fmt(m.x_right, 7)} px in the right image: ${m.status}, ${meaning}.`
+    ? `(${m.x}, ${m.y}) in the ${where} is at x = ${fmt(m.x_right, 7)} px in the ${m.frame === 'plain' || !m.frame ? 'right image' : 'rectified right image'}: ${m.status}, ${meaning}.${raw}`
     : `(${m.x}, ${m.y}): no match, ${m.status}: ${meaning}.`;
   $('match-left').textContent = `(${m.x}, ${m.y}) px`;
   $('match-x-right').textContent = m.x_right !== undefined ? `${fmt(m.x_right, 7)} px` : '–';
@@ -157,9 +197,9 @@ export function findings() {
 let findController = null;
 
 /** Asks /match for the points or regions in `parts`. */
-export async function find(parts, what) {
+export async function find(parts, what, frame) {
   const state = readForm();
-  const body = pairForm(state);
+  const body = pairForm(state, frame);
   for (const [name, value] of Object.entries(parts)) body.append(name, JSON.stringify(value));
   if (findController) findController.abort();
   findController = new AbortController();
@@ -199,16 +239,19 @@ export async function matchAt(x, y) {
     return;
   }
   $('match-summary').textContent = `Matching (${x}, ${y})…`;
-  const found = await find({ points: [{ x, y }] }, 'match');
+  const frame = frameShown();
+  const found = await find({ points: [{ x, y }] }, 'match', frame);
   if (!found) return;
-  const m = found.answer.matches[0];
+  const m = { ...found.answer.matches[0], frame };
   pair.match = m;
   showMatch(m);
   drawMarkers();
   if (m.x_right !== undefined) {
-    $('x_left').value = String(m.x);
+    // /distance takes the rectified pair's coordinates: a raw click's are x_rectified, y_rectified.
+    const rectified = m.x_rectified !== undefined;
+    $('x_left').value = String(rectified ? m.x_rectified : m.x);
     $('x_right').value = String(m.x_right);
-    $('y').value = String(m.y);
+    $('y').value = String(rectified ? m.y_rectified : m.y);
   }
   await compute(`Matched (${x}, ${y}): ${m.status}.`);
 }
@@ -224,9 +267,10 @@ export async function measureRegion(a, b) {
   }
   drawMarkers();
   $('region-summary').textContent = `Measuring the box at (${box.x}, ${box.y}), ${box.width} × ${box.height} px…`;
-  const found = await find({ regions: [box] }, 'region');
+  const frame = frameShown();
+  const found = await find({ regions: [box] }, 'region', frame);
   if (!found) return;
-  pair.region = { ...found.answer.regions[0], unit: found.answer.unit };
+  pair.region = { ...found.answer.regions[0], unit: found.answer.unit, frame };
   showRegion(pair.region);
   drawMarkers();
   status.textContent = pair.region.distance !== undefined
@@ -249,7 +293,7 @@ export function wirePointing() {
     frame.addEventListener('pointermove', (event) => {
       if (!pair.arrays) return;
       const at = pixelAt(event, frame);
-      showHover(at);
+      showHover(at, frame.id === 'left-frame' && frameShown() === 'raw');
       if (drag && drag.frame === frame) {
         if (Math.hypot(event.clientX - drag.startX, event.clientY - drag.startY) > 6) drag.moved = true;
         if (drag.moved) {
@@ -281,7 +325,7 @@ export function wirePointing() {
         x: Math.min(pair.width - 1, Math.max(0, c.x + dx)),
         y: Math.min(pair.height - 1, Math.max(0, c.y + dy)),
       };
-      showHover(pair.crosshair);
+      showHover(pair.crosshair, frameShown() === 'raw');
       drawMarkers();
     } else if (event.key === 'Enter') {
       event.preventDefault();
@@ -302,6 +346,6 @@ export function wirePointing() {
     }
   });
   $('left-frame').addEventListener('focus', () => {
-    if (pair.arrays) showHover(pair.crosshair);
+    if (pair.arrays) showHover(pair.crosshair, frameShown() === 'raw');
   });
 }

@@ -23,7 +23,23 @@ export const pair = {
   crosshair: { x: 0, y: 0 },
   anchor: null,
   sample: false,
+  /** With a calibration of raw cameras: the pair the service rectified (bitmaps, and the
+   * PNG files /rectify answered), and which of the two is shown, `raw` or `rectified`. */
+  rectified: { left: null, right: null },
+  rectifiedFiles: { left: null, right: null },
+  view: 'raw',
 };
+
+/** Whether the pair is raw frames the service rectifies: a calibration of raw cameras was
+ * imported (or came from Calibrate mode). */
+export function rawPair() {
+  return page.calibration !== null;
+}
+
+/** The frame clicks and boxes are in: `plain` for a rectified pair, else the view shown. */
+export function frameShown() {
+  return rawPair() ? pair.view : 'plain';
+}
 
 export function matched() {
   return pair.match !== null && pair.match.x_right !== undefined;
@@ -40,12 +56,64 @@ export function showRigNeeded() {
 
 export const NEEDS_RIG = 'Distances need the rig: import a calibration file or type f and B under Rig.';
 
-export function pairForm(state) {
+/** An image request's form. A raw pair goes with its calibration, for the service to
+ * rectify (`frame` `raw`), or, for points on the rectified view, as the rectified pair with
+ * the rectified rig (`frame` `rectified`); a rectified pair goes with the rig. */
+export function pairForm(state, frame = 'raw') {
   const body = new FormData();
+  if (rawPair() && frame === 'rectified' && pair.rectifiedFiles.left) {
+    body.append('left', pair.rectifiedFiles.left);
+    body.append('right', pair.rectifiedFiles.right);
+    body.append('rig', rigPart(state));
+    return body;
+  }
   body.append('left', pair.files.left);
   body.append('right', pair.files.right);
-  if (rigGiven(state)) body.append('rig', rigPart(state));
+  if (rawPair()) {
+    const { request } = page.calibration;
+    body.append('calibration', new Blob([request.text], { type: 'text/plain' }), 'calibration');
+    if (request.right_text) body.append('right_calibration', new Blob([request.right_text], { type: 'text/plain' }), 'right_calibration');
+    if (request.calibration_unit) body.append('calibration_unit', request.calibration_unit);
+  } else if (rigGiven(state)) {
+    body.append('rig', rigPart(state));
+  }
   return body;
+}
+
+/** The raw pair rectified by /rectify, to show beside the raw one. */
+async function requestRectified(state) {
+  pair.rectified = { left: null, right: null };
+  pair.rectifiedFiles = { left: null, right: null };
+  if (!rawPair()) return;
+  for (const side of ['left', 'right']) {
+    const { response, errors } = await post('/rectify', new URLSearchParams({ output: `${side}.png` }), pairForm(state, 'raw'));
+    if (errors) return;
+    const blob = await response.blob();
+    pair.rectifiedFiles[side] = new File([blob], `rectified-${side}.png`, { type: 'image/png' });
+    pair.rectified[side] = await createImageBitmap(blob);
+  }
+}
+
+/** The raw/rectified toggle, and the depth map's caption, for the pair as it is. */
+export function showFrames() {
+  const raw = rawPair();
+  $('frames').hidden = !(raw && pair.rectified.left !== null);
+  $('depth-caption').textContent = raw
+    ? 'Depth map, over the rectified left image (the service rectified the raw pair)'
+    : 'Depth map';
+}
+
+/** Shows the raw or the rectified pair (`view`), with the markers where each frame has them. */
+export function showView(view) {
+  pair.view = view;
+  $(`frames-${view}`).checked = true;
+  if (view === 'raw' && $('blend').checked) {
+    $('blend').checked = false;
+    $('blend').dispatchEvent(new Event('change'));
+  }
+  drawImage('left');
+  drawImage('right');
+  drawMarkers();
 }
 
 export function rangeQuery(state, output = null) {
@@ -106,6 +174,10 @@ export async function chooseImage(side, file) {
 
 /** A new pair (or one new image): forget the old findings, show the images, and match. */
 export async function loadPair(files) {
+  pair.rectified = { left: null, right: null };
+  pair.rectifiedFiles = { left: null, right: null };
+  pair.view = 'raw';
+  showFrames();
   for (const [side, file] of Object.entries(files)) await chooseImage(side, file);
   pair.match = null;
   pair.region = null;
@@ -132,7 +204,8 @@ export async function loadPair(files) {
 }
 
 export function drawImage(side) {
-  const bitmap = pair.bitmaps[side];
+  const rectified = rawPair() && pair.view === 'rectified' && pair.rectified[side] !== null;
+  const bitmap = rectified ? pair.rectified[side] : pair.bitmaps[side];
   const canvas = $(`${side}-canvas`);
   const width = bitmap ? bitmap.width : 320;
   const height = bitmap ? bitmap.height : 240;
@@ -141,8 +214,9 @@ export function drawImage(side) {
   context.clearRect(0, 0, width, height);
   if (bitmap) context.drawImage(bitmap, 0, 0);
   $(`${side}-overlay`).setAttribute('viewBox', `0 0 ${width} ${height}`);
+  const which = !rawPair() ? '' : rectified ? ' (rectified by the service)' : ' (raw)';
   $(`${side}-caption`).textContent = bitmap
-    ? `${side === 'left' ? 'Left' : 'Right'} image, ${width} × ${height}`
+    ? `${side === 'left' ? 'Left' : 'Right'} image${which}, ${width} × ${height}`
     : `${side === 'left' ? 'Left' : 'Right'} image`;
   if (side === 'left') {
     sizeCanvas($('depth-canvas'), width, height);
@@ -203,12 +277,18 @@ export async function requestDepth() {
     let valid = 0;
     for (const d of pair.arrays.disparity) if (!Number.isNaN(d)) valid += 1;
     const fraction = valid / (width * height);
+    if (rawPair()) {
+      await requestRectified(state);
+      if (token !== depthToken) return;
+    }
+    showFrames();
     drawDepth();
     $('downloads').hidden = false;
     $('depth-status').dataset.valid = String(fraction);
     $('depth-status').textContent =
       `Depth map ${width} × ${height}: ${percent(fraction)} of the pixels matched, in ${fmt(elapsed, 3)} ms ` +
-      `(${fmt(server, 3)} ms of it on the server).`;
+      `(${fmt(server, 3)} ms of it on the server).` +
+      (rawPair() ? ' The service rectified the raw pair first: the depth map is drawn in the rectified left image\'s frame.' : '');
   } catch (error) {
     if (error.name === 'AbortError' || token !== depthToken) return;
     $('depth-status').textContent = `No depth map: ${error.message}.`;
@@ -359,8 +439,13 @@ export function wireImages() {
       schedule();
     });
   }
+  for (const view of ['raw', 'rectified']) {
+    $(`frames-${view}`).addEventListener('change', () => showView(view));
+  }
   $('blend').addEventListener('change', () => {
     const on = $('blend').checked;
+    // A raw pair's depth map lies over the rectified left image, not the raw one.
+    if (on && rawPair() && pair.view === 'raw') showView('rectified');
     $('views').dataset.blend = String(on);
     $('opacity').disabled = !on;
     $('blend-canvas').style.opacity = on ? String(Number($('opacity').value) / 100) : '0';

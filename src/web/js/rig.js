@@ -39,10 +39,13 @@ const COMPANIONS = ['sensor_width_mm', 'pixel_size_um'];
 export const TEXT_FIELDS = [
   'focal', 'sensor_width_mm', 'pixel_size_um', 'image_width', 'image_height', 'baseline',
   'x_left', 'x_right', 'y', 'disparity_error_px', 'doffs', 'cx', 'cy', 'min_disparity', 'max_disparity',
+  'focal_length_std_px', 'baseline_std',
 ];
 /** Members every request carries, as they are in the form. */
-const RIG_FIELDS = ['baseline', 'image_width', 'image_height', 'disparity_error_px', 'doffs', 'cx', 'cy'];
-export const OPTIONAL_FIELDS = ['y', 'disparity_error_px', 'doffs', 'cx', 'cy'];
+const RIG_FIELDS = [
+  'baseline', 'image_width', 'image_height', 'disparity_error_px', 'doffs', 'cx', 'cy', 'focal_length_std_px', 'baseline_std',
+];
+export const OPTIONAL_FIELDS = ['y', 'disparity_error_px', 'doffs', 'cx', 'cy', 'focal_length_std_px', 'baseline_std'];
 
 /** The original calculator's first example, with its focal length read as pixels. */
 export const DEFAULTS = Object.freeze({
@@ -63,6 +66,8 @@ export const DEFAULTS = Object.freeze({
   cy: '',
   min_disparity: '',
   max_disparity: '',
+  focal_length_std_px: '',
+  baseline_std: '',
   rows: '10',
   scale: 'log',
 });
@@ -279,6 +284,8 @@ export function applyRig(rig, maxDisparity) {
     doffs: text(rig.doffs),
     cx: text(rig.cx),
     cy: text(rig.cy),
+    focal_length_std_px: text(rig.focal_length_std_px),
+    baseline_std: text(rig.baseline_std),
   });
   if (rig.image_width !== undefined) state.image_width = text(rig.image_width);
   if (rig.image_height !== undefined) state.image_height = text(rig.image_height);
@@ -334,7 +341,10 @@ export async function importCalibration(onImported) {
 
 /** Whether the person gave a rig (imported, the sample's, typed, or in the address), not
  * the Numbers mode's example, which would label a real scene's depths with a made-up rig. */
-export const RIG_INPUTS = ['focal_mode', 'focal', 'sensor_width_mm', 'pixel_size_um', 'baseline', 'unit', 'doffs', 'cx', 'cy'];
+export const RIG_INPUTS = [
+  'focal_mode', 'focal', 'sensor_width_mm', 'pixel_size_um', 'baseline', 'unit', 'doffs', 'cx', 'cy', 'focal_length_std_px',
+  'baseline_std',
+];
 
 export function rigGiven(state = readForm()) {
   return page.rigTouched || ['focal_mode', 'focal', 'baseline', 'unit'].some((name) => state[name] !== DEFAULTS[name]);
