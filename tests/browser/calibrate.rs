@@ -422,13 +422,7 @@ async fn calibrate_mode_fits_a_phone() {
     browser.calibrated().await;
 
     // Assert
-    let overflow = browser
-        .script("return document.documentElement.scrollWidth - window.innerWidth")
-        .await;
-    assert!(
-        overflow.as_i64().is_some_and(|o| o <= 0),
-        "scrolls sideways by {overflow}"
-    );
+    browser.assert_no_sideways_scroll().await;
     let inside = browser
         .script(
             "return ['view-bars', 'coverage', 'thumbs', 'calibrate-button']\

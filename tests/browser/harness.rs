@@ -423,6 +423,17 @@ impl Browser {
         copied.as_str().expect("text").to_owned()
     }
 
+    /// Nothing scrolls sideways: the document is no wider than the window.
+    pub async fn assert_no_sideways_scroll(&self) {
+        let overflow = self
+            .script("return document.documentElement.scrollWidth - window.innerWidth")
+            .await;
+        assert!(
+            overflow.as_i64().is_some_and(|o| o <= 0),
+            "scrolls sideways by {overflow}"
+        );
+    }
+
     /// No alert box is open: the page reports errors inline only.
     pub async fn assert_no_alert(&self) {
         assert!(

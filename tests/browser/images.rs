@@ -695,13 +695,7 @@ async fn the_images_stack_on_a_phone() {
     browser.depth_map_shown().await;
 
     // Assert
-    let overflow = browser
-        .script("return document.documentElement.scrollWidth - window.innerWidth")
-        .await;
-    assert!(
-        overflow.as_i64().is_some_and(|o| o <= 0),
-        "scrolls sideways by {overflow}"
-    );
+    browser.assert_no_sideways_scroll().await;
     let stacked = browser
         .script(
             "const r = ['left-frame', 'depth-frame', 'right-frame']\

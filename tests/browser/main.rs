@@ -544,13 +544,7 @@ async fn the_page_fits_a_phone_and_every_control_is_labelled() {
         )
         .await;
     assert_eq!(in_view, json!(true), "the sticky distance is on screen");
-    let overflow = browser
-        .script("return document.documentElement.scrollWidth - window.innerWidth")
-        .await;
-    assert!(
-        overflow.as_i64().is_some_and(|o| o <= 0),
-        "scrolls sideways by {overflow}"
-    );
+    browser.assert_no_sideways_scroll().await;
     let unlabelled = browser
         .script(
             "return [...document.querySelectorAll('input, select, button')]\

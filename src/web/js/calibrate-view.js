@@ -329,6 +329,11 @@ export function showCalibration(calibration) {
   }
   $('calibration-advice').replaceChildren(...(advice.length > 0 ? advice : [listItem('None: enough views, tilted, and corners all over both images.')]));
   drawParameters(summary);
+  // A rig, its rectification and the right camera's file need both cameras' images.
+  const stereo = summary.rig !== undefined;
+  $('use-calibration').disabled = !stereo;
+  $('calibration-results').querySelector("button[data-output='ros-right.yaml']").disabled = !stereo;
+  $('calibration-download-status').textContent = stereo ? '' : 'Only the left camera was calibrated: a rig needs right images too.';
   $('calibration-results').hidden = false;
   return drawThumbs(calibration);
 }
