@@ -1,6 +1,7 @@
 """POST /calibrate against OpenCV 4.14 on the same rendered stereo checkerboards (see
 scripts/eval-calibration): the errors against the truth in f, cx, cy, k1, |T| and the rotation,
-the RMS and the time, for both, per set; accuracy floors only."""
+the RMS and the time, for both, per set; and our per-corner residuals (what the page draws as
+arrows) against OpenCV's projectPoints; accuracy floors only."""
 
 import argparse
 import http.client
@@ -53,7 +54,7 @@ def ours(url, truth, files, runs):
     times, answer = [], None
     for _ in range(runs + 1):  # the first warms the connection and the allocator
         t = time.perf_counter()
-        conn.request("POST", f"/calibrate?model={truth['model']}", body=body,
+        conn.request("POST", f"/calibrate?model={truth['model']}&corners=true", body=body,
                      headers={"Content-Type": ctype})
         response = conn.getresponse()
         answer = response.read()
@@ -66,7 +67,34 @@ def ours(url, truth, files, runs):
     return dict(K1=np.array(s["left"]["camera_matrix"]), D1=np.array(s["left"]["distortion"]),
                 K2=np.array(s["right"]["camera_matrix"]), D2=np.array(s["right"]["distortion"]),
                 R=np.array(s["rotation"]), T=np.array(s["translation"]), rms=s["rms"], used=used,
-                ms=1e3 * statistics.median(times[1:] if runs > 0 else times))
+                ms=1e3 * statistics.median(times[1:] if runs > 0 else times), summary=s)
+
+
+def residuals_against_opencv(truth, s):
+    """Our per-corner residuals (corners=true, the model's projection minus the corner) against
+    OpenCV's projectPoints of the same corners with our K and D and a pose from solvePnP: the
+    largest difference in a view's RMS and in one corner's residual, px. OpenCV's pose is each
+    camera's own, ours the joint one (the right camera's through R, T), so they differ by
+    what the joint fit moves. None for equidistant lenses (cv2.fisheye has no solvePnP)."""
+    if truth["model"] == "equidistant":
+        return None
+    cols, rows = truth["board"]["columns"], truth["board"]["rows"]
+    obj = np.zeros((cols * rows, 3))
+    obj[:, :2] = np.mgrid[0:cols, 0:rows].T.reshape(-1, 2) * truth["board"]["square_size"]
+    worst_rms, worst_corner = 0.0, 0.0
+    for side in ("left", "right"):
+        k, d = np.array(s[side]["camera_matrix"]), np.array(s[side]["distortion"])
+        for v in s["views"]:
+            if v["status"] != "used":
+                continue
+            c, r = np.array(v[f"corners_{side}"]), np.array(v[f"residuals_{side}"])
+            _, rvec, tvec = cv2.solvePnP(obj, c, k, d)
+            p, _ = cv2.projectPoints(obj, rvec, tvec, k, d)
+            r_cv = p.reshape(-1, 2) - c
+            rms = lambda e: float(np.sqrt((e ** 2).sum(1).mean()))
+            worst_rms = max(worst_rms, abs(rms(r) - rms(r_cv)))
+            worst_corner = max(worst_corner, float(np.abs(r - r_cv).max()))
+    return worst_rms, worst_corner
 
 
 def opencv_once(truth, files):
@@ -161,6 +189,13 @@ def main():
             print(f"{name:24} {who:7} " + " ".join(f"{e[c]:8.4f}" for c in COLUMNS)
                   + f" {got['rms']:7.4f} {got['used']:5d} {got['ms']:7.0f}")
             if who == "ours":
+                check = residuals_against_opencv(truth, got["summary"])
+                if check is not None:
+                    print(f"{name:24} residuals against OpenCV projectPoints (solvePnP pose): view RMS "
+                          f"within {check[0]:.4f} px, each corner within {check[1]:.4f} px")
+                    if check[0] > 0.02 or check[1] > 0.2:
+                        failures.append(f"{name}: residuals {check} differ from OpenCV's by more than "
+                                        "0.02 px (view RMS) or 0.2 px (a corner)")
                 for goal, limit in GOALS.items():
                     if e[goal] > limit:
                         failures.append(f"{name}: our {goal} {e[goal]:.4f} above the goal {limit}")
