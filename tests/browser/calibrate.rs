@@ -286,7 +286,8 @@ async fn uploaded_board_pairs_calibrate_and_a_view_is_left_out_by_a_click() {
 /// calibration" opens Images mode with the rig and its σ in the fields and the sample's raw
 /// pair of a wall, which the service rectifies: the toggle shows the rectified pair with its
 /// epipolar lines, and a click on the raw left image is marked on the raw right image and
-/// reads the wall's depth there within 1 % of its rendered truth.
+/// reads the wall's depth there within 1 % of its rendered truth, as does a click on the
+/// rectified view.
 #[tokio::test]
 #[ignore = "needs chromium and chromedriver; .ci/run runs it"]
 async fn the_sample_calibration_measures_a_raw_pair_in_images_mode() {
@@ -404,10 +405,32 @@ async fn the_sample_calibration_measures_a_raw_pair_in_images_mode() {
         (marker[0].as_f64().expect("y") - y_rectified).abs() < 1e-6,
         "{marker}"
     );
+    browser.screenshot("calibrate-raw-pair.png").await;
+
+    // Act: a click on the rectified view is matched there, on the rectified pair.
+    browser.click_pixel("left-frame", 200.0, 300.0).await;
+    browser.found().await;
+    browser.until_done("state").await;
+
+    // Assert: made in the rectified frame, at the wall's depth there.
+    let summary = browser.text("match-summary").await;
+    assert!(
+        summary.contains("in the rectified left image") && summary.contains(": ok,"),
+        "{summary}"
+    );
+    // The click's own x: the pointer lands within a pixel or two of (200, 300) on the scaled
+    // canvas, and the match fills x_left with it.
+    let x_clicked: f64 = browser.value("x_left").await.parse().expect("x");
+    assert!((x_clicked - 200.0).abs() <= 3.0, "{x_clicked}");
+    let expected = 2000.0 / (1.0 - 0.5 * (x_clicked - cx) / f_true);
+    let distance = number_after(&browser.text("distance").await, "");
+    assert!(
+        (distance / expected - 1.0).abs() < 0.01,
+        "{distance} mm against the wall's {expected} mm there"
+    );
 
     browser.assert_clean().await;
     browser.assert_no_alert().await;
-    browser.screenshot("calibrate-raw-pair.png").await;
     browser.close().await;
 }
 
