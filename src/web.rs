@@ -283,10 +283,26 @@ struct BoardSample {
     style: crate::calibrate::synthetic::Style,
 }
 
-const BOARD_SIZE: crate::camera::Size = crate::camera::Size {
+/// The calibration sample's image size, and its board: inner corners along a row and a
+/// column, and the squares' side in mm.
+pub const BOARD_SIZE: crate::camera::Size = crate::camera::Size {
     width: 640,
     height: 480,
 };
+pub const BOARD: (u32, u32, f64) = (9, 6, 25.0);
+/// The search range that covers the sample wall's disparities (about 39 to 59 px).
+const WALL_MAX_DISPARITY: u32 = 96;
+
+/// The rectified rig the calibration sample was rendered with (OpenCV's `stereoRectify`,
+/// `alpha` 0, of [`crate::calibrate::synthetic::sample_rig`]): what calibrating it should
+/// give.
+pub fn board_sample_rig() -> crate::physics::Rig {
+    let rig = crate::calibrate::synthetic::sample_rig();
+    crate::camera::stereo_rectify(&rig, BOARD_SIZE, crate::camera::Options::default())
+        .expect("the sample rig rectifies")
+        .rig(crate::physics::LengthUnit::Millimetre)
+        .expect("a rectified rig with a baseline")
+}
 
 static BOARD_SAMPLE: OnceLock<BoardSample> = OnceLock::new();
 /// Each view's rendered pair, and the wall's, rendered when first asked for.
@@ -298,9 +314,14 @@ fn board_sample() -> &'static BoardSample {
         use crate::calibrate::synthetic::{Rays, Style, corners, poses, right_pose, sample_rig};
         let rig = sample_rig();
         let size = BOARD_SIZE;
-        let board =
-            crate::calibrate::Board::new(9, 6, 25.0, crate::physics::LengthUnit::Millimetre)
-                .expect("a 9 × 6 board");
+        let (columns, rows, square) = BOARD;
+        let board = crate::calibrate::Board::new(
+            columns,
+            rows,
+            square,
+            crate::physics::LengthUnit::Millimetre,
+        )
+        .expect("a 9 × 6 board");
         let mut found = poses(&rig, size, &board, BOARD_VIEWS, 40.0, 7);
         // The last view: the first one's board moved left until the right camera loses part
         // of it while the left still sees all of it.
@@ -340,31 +361,35 @@ fn board_sample() -> &'static BoardSample {
     })
 }
 
-/// The calibration sample's file `i` (in [`board_files`] order), rendered on first use.
-fn board_file_rendered(i: usize) -> Served {
+/// `boards.json`: the board, the model, each view's files and the raw wall's, with the
+/// wall's distance and slope.
+fn boards_json() -> Served {
+    let paths = board_files();
+    let views = BOARD_VIEWS + 1;
+    let (columns, rows, square_size) = BOARD;
+    let about = serde_json::json!({
+        "board": {"columns": columns, "rows": rows, "square_size": square_size, "unit": "mm"},
+        "model": "plumb_bob",
+        "left": (0..views).map(|v| &paths[2 * v]).collect::<Vec<_>>(),
+        "right": (0..views).map(|v| &paths[2 * v + 1]).collect::<Vec<_>>(),
+        "raw": {
+            "left": paths[2 * views], "right": paths[2 * views + 1],
+            "distance": WALL_DISTANCE_MM, "slope": WALL_SLOPE, "unit": "mm",
+            "max_disparity": WALL_MAX_DISPARITY,
+        },
+    });
+    Served::of(JSON, about.to_string().into())
+}
+
+/// The calibration sample's image `i` (in [`board_files`] order), rendered on first use.
+fn board_image(i: usize) -> Served {
     let png = |image: &crate::calibrate::synthetic::Image| -> Bytes {
         encode::png_grey(image.width as usize, image.height as usize, &image.pixels).into()
     };
-    let views = BOARD_VIEWS + 1;
-    if i == 2 * views + 2 {
-        let paths = board_files();
-        let about = serde_json::json!({
-            "board": {"columns": 9, "rows": 6, "square_size": 25, "unit": "mm"},
-            "model": "plumb_bob",
-            "left": (0..views).map(|v| &paths[2 * v]).collect::<Vec<_>>(),
-            "right": (0..views).map(|v| &paths[2 * v + 1]).collect::<Vec<_>>(),
-            "raw": {
-                "left": paths[2 * views], "right": paths[2 * views + 1],
-                "distance": WALL_DISTANCE_MM, "slope": WALL_SLOPE, "unit": "mm",
-                "max_disparity": 96,
-            },
-        });
-        return Served::of(JSON, about.to_string().into());
-    }
-    let sample = board_sample();
     let view = i / 2;
     let pair = BOARD_VIEW_FILES[view].get_or_init(|| {
-        let images = if view < views {
+        let images = if view <= BOARD_VIEWS {
+            let sample = board_sample();
             let v = crate::calibrate::synthetic::stereo_view(
                 &sample.rig,
                 &sample.board,
@@ -376,7 +401,7 @@ fn board_file_rendered(i: usize) -> Served {
             [v.left, v.right]
         } else {
             crate::calibrate::synthetic::raw_wall(
-                &sample.rig,
+                &crate::calibrate::synthetic::sample_rig(),
                 BOARD_SIZE,
                 WALL_DISTANCE_MM,
                 WALL_SLOPE,
@@ -390,7 +415,7 @@ fn board_file_rendered(i: usize) -> Served {
 }
 
 async fn board_file(i: usize, headers: HeaderMap) -> Response {
-    match tokio::task::spawn_blocking(move || board_file_rendered(i)).await {
+    match tokio::task::spawn_blocking(move || board_image(i)).await {
         Ok(file) => file.answer(&headers),
         Err(_) => StatusCode::INTERNAL_SERVER_ERROR.into_response(),
     }
@@ -411,7 +436,14 @@ pub fn router() -> Router {
         .fold(router, |router, (i, path)| {
             router.route(path, get(move |headers: HeaderMap| sample_file(i, headers)))
         });
-    board_files()
+    // The images are rendered on first use; the description is built here, once.
+    let mut paths = board_files();
+    let about = Arc::new(boards_json());
+    let router = router.route(
+        &paths.pop().expect("boards.json comes last"),
+        get(move |headers: HeaderMap| async move { about.answer(&headers) }),
+    );
+    paths
         .into_iter()
         .enumerate()
         .fold(router, |router, (i, path)| {

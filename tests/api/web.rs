@@ -168,9 +168,9 @@ async fn the_page_calls_only_the_public_api() {
         .flat_map(|needle| paths(needle))
         .collect();
     // `call`, `post`, `postJson` and `postWithProgress` send to the path they are given,
-    // `fetchFile` and `fetchJson` fetch a sample's file.
+    // `fetchPair` and `fetchJson` fetch a sample's files.
     let fetched: BTreeSet<String> = paths("fetch('").union(&paths("fetch(`")).cloned().collect();
-    let files = paths("fetchFile(`");
+    let files = paths("fetchPair((side) => [`");
     let described = paths("fetchJson('");
 
     // Assert
@@ -419,9 +419,6 @@ async fn the_sample_files_are_parts_as_they_are() {
 #[tokio::test]
 async fn the_calibration_sample_calibrates_and_measures_its_wall() {
     use reqwest::multipart::{Form, Part};
-    use stereo_distance::calibrate::synthetic::sample_rig;
-    use stereo_distance::camera::{Options, Size, stereo_rectify};
-    use stereo_distance::physics::LengthUnit;
 
     // Arrange: the sample's files, fetched as the page fetches them.
     let app = spawn_app().await;
@@ -466,14 +463,7 @@ async fn the_calibration_sample_calibrates_and_measures_its_wall() {
     let yaml = yaml.text().await.unwrap();
 
     // Assert: the rig it was rendered with.
-    let size = Size {
-        width: 640,
-        height: 480,
-    };
-    let truth = stereo_rectify(&sample_rig(), size, Options::default())
-        .unwrap()
-        .rig(LengthUnit::Millimetre)
-        .unwrap();
+    let truth = stereo_distance::web::board_sample_rig();
     let f = summary["rig"]["focal_length_px"].as_f64().unwrap();
     let b = summary["rig"]["baseline"].as_f64().unwrap();
     assert!(

@@ -10,9 +10,6 @@ use std::path::PathBuf;
 use std::time::Duration;
 
 use serde_json::{Value, json};
-use stereo_distance::calibrate::synthetic::sample_rig;
-use stereo_distance::camera::{Options, Size, stereo_rectify};
-use stereo_distance::physics::LengthUnit;
 
 use crate::harness::Browser;
 use crate::images::number_after;
@@ -23,14 +20,7 @@ const CALIBRATING: Duration = Duration::from_secs(180);
 /// The rectified focal length, baseline and principal point's x of the rig the sample was
 /// rendered with.
 fn truth() -> (f64, f64, f64) {
-    let size = Size {
-        width: 640,
-        height: 480,
-    };
-    let rig = stereo_rectify(&sample_rig(), size, Options::default())
-        .expect("the sample rig rectifies")
-        .rig(LengthUnit::Millimetre)
-        .expect("a rig");
+    let rig = stereo_distance::web::board_sample_rig();
     (rig.focal_px(), rig.baseline(), rig.cx().expect("cx"))
 }
 
@@ -78,6 +68,40 @@ impl Browser {
         })
         .await;
         self.calibrated().await
+    }
+
+    /// Shows the raw or the rectified pair with the toggle.
+    async fn show_frames(&self, view: &str) {
+        self.find(&format!("frames-{view}"))
+            .await
+            .click()
+            .await
+            .expect("the toggle");
+    }
+
+    /// Clicks image pixel (`x`, `y`) of the left image and waits for the match and the
+    /// distance it leads to; answers the match card's summary.
+    async fn match_at(&self, x: f64, y: f64) -> String {
+        self.click_pixel("left-frame", x, y).await;
+        self.found().await;
+        self.until_done("state").await;
+        self.text("match-summary").await
+    }
+
+    /// The Distance card against the sample wall's rendered depth at the rectified x the
+    /// match filled in (x_left): Z = distance + slope·X in the rectified left camera's frame,
+    /// so distance / (1 − slope·(x − cx)/f) there. Answers that x.
+    async fn assert_wall_depth(&self) -> f64 {
+        let (f, _, cx) = truth();
+        let x: f64 = self.value("x_left").await.parse().expect("x");
+        let expected = stereo_distance::web::WALL_DISTANCE_MM
+            / (1.0 - stereo_distance::web::WALL_SLOPE * (x - cx) / f);
+        let distance = number_after(&self.text("distance").await, "");
+        assert!(
+            (distance / expected - 1.0).abs() < 0.01,
+            "{distance} mm against the wall's {expected} mm at x {x}"
+        );
+        x
     }
 
     /// Keeps the next file the page saves (through `URL.createObjectURL`) on `window`, so
@@ -331,12 +355,7 @@ async fn the_sample_calibration_measures_a_raw_pair_in_images_mode() {
     assert!(browser.text("left-caption").await.contains("(raw)"));
 
     // Act / Assert: the rectified view, with lines on both images.
-    browser
-        .find("frames-rectified")
-        .await
-        .click()
-        .await
-        .expect("click");
+    browser.show_frames("rectified").await;
     assert!(
         browser
             .text("left-caption")
@@ -349,18 +368,10 @@ async fn the_sample_calibration_measures_a_raw_pair_in_images_mode() {
     assert!(lines.as_u64().is_some_and(|n| n >= 10), "{lines}");
 
     // Act: back to the raw pair, and a click on the raw left image.
-    browser
-        .find("frames-raw")
-        .await
-        .click()
-        .await
-        .expect("click");
-    browser.click_pixel("left-frame", 450.0, 200.0).await;
-    browser.found().await;
-    browser.until_done("state").await;
+    browser.show_frames("raw").await;
+    let summary = browser.match_at(450.0, 200.0).await;
 
     // Assert: the match on the raw right image, and the wall's distance.
-    let summary = browser.text("match-summary").await;
     assert!(
         summary.contains("raw left image") && summary.contains(": ok,"),
         "{summary}"
@@ -371,63 +382,36 @@ async fn the_sample_calibration_measures_a_raw_pair_in_images_mode() {
         .expect("a marker on the raw right image");
     let raw_x: f64 = raw_x.parse().expect("x");
     assert!((0.0..640.0).contains(&raw_x), "{raw_x}");
-    // The wall's depth at the rectified x the match was made at: Z = 2000 + 0.5·X mm.
-    let (f_true, _, cx) = truth();
-    let x_rectified: f64 = browser.value("x_left").await.parse().expect("x");
-    let expected = 2000.0 / (1.0 - 0.5 * (x_rectified - cx) / f_true);
-    let distance = number_after(&browser.text("distance").await, "");
-    assert!(
-        (distance / expected - 1.0).abs() < 0.01,
-        "{distance} mm against the wall's {expected} mm there"
-    );
+    browser.assert_wall_depth().await;
     let detail = browser.text("depth-error").await;
     assert!(detail.starts_with("± "), "{detail}");
 
     // Act / Assert: the same match on the rectified view sits on its row.
-    browser
-        .find("frames-rectified")
+    browser.show_frames("rectified").await;
+    let marker_y: f64 = browser
+        .attr("right-marker", "data-y")
         .await
-        .click()
-        .await
-        .expect("click");
-    let marker = browser
-        .script(
-            "const m = document.getElementById('right-marker'); \
-             return [Number(m.getAttribute('data-y')), Number(m.getAttribute('data-x'))]",
-        )
-        .await;
-    let y_rectified: f64 = browser
-        .script("return Number(document.getElementById('y').value)")
-        .await
-        .as_f64()
+        .expect("a marker on the rectified right image")
+        .parse()
         .expect("y");
+    let y_rectified: f64 = browser.value("y").await.parse().expect("y");
     assert!(
-        (marker[0].as_f64().expect("y") - y_rectified).abs() < 1e-6,
-        "{marker}"
+        (marker_y - y_rectified).abs() < 1e-6,
+        "{marker_y} against {y_rectified}"
     );
     browser.screenshot("calibrate-raw-pair.png").await;
 
     // Act: a click on the rectified view is matched there, on the rectified pair.
-    browser.click_pixel("left-frame", 200.0, 300.0).await;
-    browser.found().await;
-    browser.until_done("state").await;
+    let summary = browser.match_at(200.0, 300.0).await;
 
-    // Assert: made in the rectified frame, at the wall's depth there.
-    let summary = browser.text("match-summary").await;
+    // Assert: made in the rectified frame, at the wall's depth there; the pointer lands within
+    // a pixel or two of (200, 300) on the scaled canvas, and the match fills x_left with it.
     assert!(
         summary.contains("in the rectified left image") && summary.contains(": ok,"),
         "{summary}"
     );
-    // The click's own x: the pointer lands within a pixel or two of (200, 300) on the scaled
-    // canvas, and the match fills x_left with it.
-    let x_clicked: f64 = browser.value("x_left").await.parse().expect("x");
+    let x_clicked = browser.assert_wall_depth().await;
     assert!((x_clicked - 200.0).abs() <= 3.0, "{x_clicked}");
-    let expected = 2000.0 / (1.0 - 0.5 * (x_clicked - cx) / f_true);
-    let distance = number_after(&browser.text("distance").await, "");
-    assert!(
-        (distance / expected - 1.0).abs() < 0.01,
-        "{distance} mm against the wall's {expected} mm there"
-    );
 
     browser.assert_clean().await;
     browser.assert_no_alert().await;

@@ -4,8 +4,7 @@
 // nothing itself.
 
 import { openCalibrationSample, readCalibrateQuery, rememberCalibrate, wireCalibrate } from './calibrate.js';
-import { fetchFile } from './api.js';
-import { loadPair, openSample, pair, requestDepth, scheduleDepth, wireImages } from './images.js';
+import { fetchPair, loadPair, openSample, pair, requestDepth, scheduleDepth, wireImages } from './images.js';
 import { wirePointing } from './findings.js';
 import { compute, copyResults, copyText, reset, schedule } from './numbers.js';
 import {
@@ -77,13 +76,7 @@ async function useCalibration(summary, yaml, sample) {
     if (sample) state.max_disparity = String(sample.raw.max_disparity);
     writeForm(state);
     if (sample) {
-      const files = {};
-      for (const side of ['left', 'right']) {
-        files[side] = await fetchFile(sample.raw[side], `raw_${side}.png`);
-        const transfer = new DataTransfer();
-        transfer.items.add(files[side]);
-        $(`${side}_image`).files = transfer.files;
-      }
+      const files = await fetchPair((side) => [sample.raw[side], `raw_${side}.png`]);
       $('depth-status').textContent = `The sample's raw pair: a textured wall ${sample.raw.distance} ${sample.raw.unit} from the cameras.`;
       compute(`${note} From Calibrate mode, with its σ.`);
       await loadPair(files);

@@ -6,7 +6,7 @@
 
 import { fetchFile, fetchJson, postWithProgress, save } from './api.js';
 import { drawInnerCorners, showCalibration, wireBars } from './calibrate-view.js';
-import { $, fmt, listItem, page } from './util.js';
+import { $, clearFieldErrors, fmt, page, setFiles, showFieldErrors } from './util.js';
 
 /** The board fields, the `board` part's member each is, and its default (a board of 10 × 7
  * squares of 25 mm, OpenCV's sample's). */
@@ -135,37 +135,20 @@ function calibrationForm() {
 }
 
 function clearCalibrationErrors() {
-  for (const id of [...Object.keys(BOARD_FIELDS), 'board_files']) {
-    $(id).removeAttribute('aria-invalid');
-    $(`${id}-error`).hidden = true;
-    $(`${id}-error`).textContent = '';
-  }
-  $('calibrate-errors').hidden = true;
-  $('calibrate-errors-list').replaceChildren();
+  clearFieldErrors([...Object.keys(BOARD_FIELDS), 'board_files'], 'calibrate-errors');
 }
 
 /** The problem's errors next to the board field they name, a view's under the file input
  * with the file's name, and the rest in the list. */
 function showCalibrationErrors(errors, sent) {
-  const general = [];
   const fieldOf = { 'board.columns': 'board_columns', 'board.rows': 'board_rows', 'board.square_size': 'square_size' };
-  for (const { field, message } of errors) {
+  showFieldErrors(errors, ({ field, message }) => {
     const view = /^(left|right)\[(\d+)\]$/.exec(field);
-    const id = fieldOf[field] ?? (view || field === 'left' || field === 'right' ? 'board_files' : null);
-    const text = view ? `${calibration.pairs[sent[Number(view[2])]]?.[view[1]]?.name ?? field} (${field}) ${message}` : message;
-    if (id) {
-      const slot = $(`${id}-error`);
-      slot.textContent = slot.textContent ? `${slot.textContent} ${text}` : text;
-      slot.hidden = false;
-      $(id).setAttribute('aria-invalid', 'true');
-    } else {
-      general.push(listItem(`${field}: ${message}`));
-    }
-  }
-  if (general.length > 0) {
-    $('calibrate-errors-list').replaceChildren(...general);
-    $('calibrate-errors').hidden = false;
-  }
+    const input = fieldOf[field] ?? (view || field === 'left' || field === 'right' ? 'board_files' : null);
+    if (!input) return null;
+    const file = view ? calibration.pairs[sent[Number(view[2])]]?.[view[1]]?.name ?? field : null;
+    return { input, text: view ? `${file} (${field}) ${message}` : message };
+  }, 'calibrate-errors');
 }
 
 function query(output = null) {
@@ -309,9 +292,7 @@ export async function openCalibrationSample() {
     $('square_size').value = String(about.board.square_size);
     $('square_unit').value = about.board.unit;
     $('lens_model').value = about.model;
-    const transfer = new DataTransfer();
-    for (const file of files) transfer.items.add(file);
-    $('board_files').files = transfer.files;
+    setFiles('board_files', files);
     choosePairs(files, about);
     await calibrate();
   } catch (error) {

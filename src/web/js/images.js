@@ -7,7 +7,9 @@ import { colourRange, drawColourBar, sizeCanvas, turbo } from './draw.js';
 import { drawMarkers, showMatch, showRegion } from './findings.js';
 import { compute, schedule } from './numbers.js';
 import { applyRig, readForm, rigGiven, rigPart, showErrors, writeForm } from './rig.js';
-import { $, DEBOUNCE_MS, fmt, listItem, page, percent } from './util.js';
+import {
+  $, DEBOUNCE_MS, clearFieldErrors, fmt, page, percent, setFiles, showFieldErrors,
+} from './util.js';
 
 export const pair = {
   files: { left: null, right: null },
@@ -85,13 +87,14 @@ async function requestRectified(state) {
   pair.rectified = { left: null, right: null };
   pair.rectifiedFiles = { left: null, right: null };
   if (!rawPair()) return;
-  for (const side of ['left', 'right']) {
+  // Both images at once: /rectify answers one image a request, from maps it caches.
+  await Promise.all(['left', 'right'].map(async (side) => {
     const { response, errors } = await post('/rectify', new URLSearchParams({ output: `${side}.png` }), pairForm(state, 'raw'));
     if (errors) return;
     const blob = await response.blob();
     pair.rectifiedFiles[side] = new File([blob], `rectified-${side}.png`, { type: 'image/png' });
     pair.rectified[side] = await createImageBitmap(blob);
-  }
+  }));
 }
 
 /** The raw/rectified toggle, and the depth map's caption, for the pair as it is. */
@@ -128,35 +131,14 @@ export function rangeQuery(state, output = null) {
 export const IMAGE_INPUTS = { left: 'left_image', right: 'right_image', min_disparity: 'min_disparity', max_disparity: 'max_disparity' };
 
 export function clearImageErrors() {
-  for (const input of Object.values(IMAGE_INPUTS)) {
-    $(input).removeAttribute('aria-invalid');
-    $(`${input}-error`).hidden = true;
-    $(`${input}-error`).textContent = '';
-  }
-  $('images-errors').hidden = true;
-  $('images-errors-list').replaceChildren();
+  clearFieldErrors(Object.values(IMAGE_INPUTS), 'images-errors');
 }
 
 export function showImageErrors(errors) {
-  const general = [];
   // The rig's members are marked on their fields under Inputs too.
   const rig = errors.filter(({ field }) => field.startsWith('rig.'));
   if (rig.length > 0) showErrors(rig, readForm());
-  for (const { field, message } of errors) {
-    const input = IMAGE_INPUTS[field];
-    if (input) {
-      const slot = $(`${input}-error`);
-      slot.textContent = slot.textContent ? `${slot.textContent} ${message}` : message;
-      slot.hidden = false;
-      $(input).setAttribute('aria-invalid', 'true');
-    } else {
-      general.push(listItem(`${field}: ${message}`));
-    }
-  }
-  if (general.length > 0) {
-    $('images-errors-list').replaceChildren(...general);
-    $('images-errors').hidden = false;
-  }
+  showFieldErrors(errors, ({ field, message }) => (IMAGE_INPUTS[field] ? { input: IMAGE_INPUTS[field], text: message } : null), 'images-errors');
 }
 
 export async function chooseImage(side, file) {
@@ -355,6 +337,17 @@ export async function download(output) {
   }
 }
 
+/** A sample's pair from this origin, put into the file inputs as if chosen there: `where(side)`
+ * gives each file's path and name; the answer is `{ left, right }`. */
+export async function fetchPair(where) {
+  const files = {};
+  for (const side of ['left', 'right']) {
+    files[side] = await fetchFile(...where(side));
+    setFiles(`${side}_image`, [files[side]]);
+  }
+  return files;
+}
+
 /** `/?mode=images&sample=1`: the project's own rendered pair and its rig, matched at once. */
 export async function openSample() {
   try {
@@ -364,13 +357,7 @@ export async function openSample() {
     const read = await postJson('/calibration', { text });
     if (!read.ok) throw new Error(`/calibration answered ${read.status}`);
     const about = read.body;
-    const files = {};
-    for (const side of ['left', 'right']) {
-      files[side] = await fetchFile(`/sample/${side}.png`, `sample-${side}.png`);
-      const transfer = new DataTransfer();
-      transfer.items.add(files[side]);
-      $(`${side}_image`).files = transfer.files;
-    }
+    const files = await fetchPair((side) => [`/sample/${side}.png`, `sample-${side}.png`]);
     applyRig(about.rig, about.max_disparity_px);
     page.sizeFromCalibration = false;
     pair.sample = true;

@@ -329,7 +329,7 @@ export async function importCalibration(onImported) {
     $('import-status').textContent =
       `Read as ${format === 'OpenCV' ? 'an' : 'a'} ${format} calibration: f = ${fmt(rig.focal_length_px)} px, B = ${fmt(rig.baseline)} ${rig.unit}.${warnings}`;
     $('import-status').dataset.format = body.format;
-    page.calibration = body.raw_cameras ? { request, raw: body.raw } : null;
+    page.calibration = body.raw_cameras ? { request } : null;
     onImported(`Imported a ${format} calibration.`);
   } catch (error) {
     errors.replaceChildren(listItem(`service: could not be reached (${error.message}).`));

@@ -17,8 +17,8 @@ export const page = {
   /** Whether the image size in the fields came from an imported calibration (then a pair of
    * another size is the API's error to show, not something to paper over). */
   sizeFromCalibration: false,
-  /** The imported calibration when it describes raw cameras (`{ request, raw }`: what was
-   * sent to /calibration and its `raw` answer), else null. */
+  /** The imported calibration when it describes raw cameras (`{ request }`: what was sent to
+   * /calibration, for the image routes' `calibration` parts), else null. */
   calibration: null,
 };
 
@@ -38,4 +38,45 @@ export function listItem(text) {
   const item = document.createElement('li');
   item.textContent = text;
   return item;
+}
+
+/** Clears the errors shown next to `inputs` (each its `aria-invalid` and `{id}-error` slot)
+ * and in the box `box` (its list `{box}-list`). */
+export function clearFieldErrors(inputs, box) {
+  for (const id of inputs) {
+    $(id).removeAttribute('aria-invalid');
+    $(`${id}-error`).hidden = true;
+    $(`${id}-error`).textContent = '';
+  }
+  $(box).hidden = true;
+  $(`${box}-list`).replaceChildren();
+}
+
+/** Shows the API's `errors`: each next to the input `place(error)` names (`{ input, text }`),
+ * marked `aria-invalid`, several joined in its slot; those it places nowhere (null) listed in
+ * the box `box` as `field: message`. */
+export function showFieldErrors(errors, place, box) {
+  const general = [];
+  for (const error of errors) {
+    const at = place(error);
+    if (at) {
+      const slot = $(`${at.input}-error`);
+      slot.textContent = slot.textContent ? `${slot.textContent} ${at.text}` : at.text;
+      slot.hidden = false;
+      $(at.input).setAttribute('aria-invalid', 'true');
+    } else {
+      general.push(listItem(`${error.field}: ${error.message}`));
+    }
+  }
+  if (general.length > 0) {
+    $(`${box}-list`).replaceChildren(...general);
+    $(box).hidden = false;
+  }
+}
+
+/** Puts `files` into the file input `id`, as if chosen there (the samples' files). */
+export function setFiles(id, files) {
+  const transfer = new DataTransfer();
+  for (const file of files) transfer.items.add(file);
+  $(id).files = transfer.files;
 }
