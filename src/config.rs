@@ -38,6 +38,19 @@ pub const DEFAULT_SHUTDOWN_DELAY: Duration = Duration::ZERO;
 /// Default bound on draining in-flight requests after the listener closes: 10 s, twice the
 /// request timeout and well inside Kubernetes' default 30 s grace period.
 pub const DEFAULT_SHUTDOWN_TIMEOUT: Duration = Duration::from_secs(10);
+/// Default minimum request body rate: 1 KiB/s on average, from the request's start, once the
+/// grace period has passed. A phone on a poor uplink (GPRS's worst, 20 kbit/s) sends more than
+/// twice that; a client that trickles its body to hold the server's memory (a byte every two
+/// seconds) is cut off with 408 at the end of the grace period. Kestrel's default is 240 B/s,
+/// Apache's `mod_reqtimeout` 500 B/s.
+pub const DEFAULT_MIN_BODY_RATE: usize = 1024;
+/// Default grace period of the minimum body rate: 5 s (Kestrel's), for the connection's first
+/// round trips and a slow start over a poor link.
+pub const DEFAULT_BODY_RATE_GRACE: Duration = Duration::from_secs(5);
+/// Default write timeout: 30 s. A client reading its answer makes progress every few
+/// milliseconds, even over a poor downlink; one that reads nothing for 30 s has stopped, and
+/// holds the answer's memory for nothing.
+pub const DEFAULT_WRITE_TIMEOUT: Duration = Duration::from_secs(30);
 /// Default log filter.
 pub const DEFAULT_LOG_LEVEL: &str = "info";
 
@@ -52,8 +65,9 @@ pub const DEFAULT_HEAVY_REQUEST_TIMEOUT: Duration = Duration::from_secs(30);
 /// once (a 1280 × 720 pair with 128 disparities needs a few hundred MiB) within a pod of 2 GiB.
 pub const DEFAULT_HEAVY_MEMORY_BUDGET: usize = 1024 * 1024 * 1024;
 
-/// Default concurrency limit of the heavy routes: twice the number of CPUs, and at least 4.
-/// The requests in flight share the matcher's threads (one a core), so more of them than cores
+/// Default concurrency limit of the heavy routes: twice the number of CPUs, and at least 4. A
+/// request takes its slot when its work starts, once its body has arrived, so an upload does
+/// not hold one. The requests working share the matcher's threads (one a core), so more of them than cores
 /// each go slower rather than thrash; what keeps them within memory is the heavy budget, which
 /// every request reserves from first. A client feeding two or three cameras is then not refused
 /// while the budget holds their pairs.
@@ -158,6 +172,22 @@ pub struct Config {
     #[arg(long, env = "HEADER_READ_TIMEOUT", default_value = "10s", value_parser = timeout)]
     pub header_read_timeout: Duration,
 
+    /// Slowest accepted request body, in bytes a second (or with a unit: 512, 1KiB, 64KiB): a
+    /// body that, once --body-rate-grace has passed, has come slower than this on average since
+    /// its request started is cut off with 408 and its connection closed. 0 switches it off.
+    #[arg(long, env = "MIN_BODY_RATE", value_name = "SIZE", default_value = "1KiB",
+          value_parser = size::<0, 1_073_741_824>)]
+    pub min_body_rate: usize,
+
+    /// How long a request body may take before --min-body-rate applies.
+    #[arg(long, env = "BODY_RATE_GRACE", default_value = "5s", value_parser = delay)]
+    pub body_rate_grace: Duration,
+
+    /// Longest time an answer may wait for a client that reads nothing (its socket full);
+    /// then the connection is reset and the answer's memory freed.
+    #[arg(long, env = "WRITE_TIMEOUT", default_value = "30s", value_parser = timeout)]
+    pub write_timeout: Duration,
+
     /// Most API requests served at once; more are refused at once with 503 and Retry-After.
     #[arg(long, env = "CONCURRENCY_LIMIT", default_value_t = DEFAULT_CONCURRENCY_LIMIT,
           value_parser = count::<1, 1_000_000>)]
@@ -195,15 +225,17 @@ pub struct HeavyLimits {
           default_value = "30s", value_parser = timeout)]
     pub request_timeout: Duration,
 
-    /// Most image requests served at once (default: the number of CPUs); more are refused at
-    /// once with 503 and Retry-After.
+    /// Most image requests working at once (default: twice the number of CPUs, at least 4); a
+    /// request takes its slot when its work starts, not while its body is still arriving. One
+    /// past the limit is refused at once with 503 and Retry-After.
     #[arg(id = "heavy_concurrency_limit", long = "heavy-concurrency-limit", env = "HEAVY_CONCURRENCY_LIMIT", value_name = "N",
           default_value_t = default_heavy_concurrency(), value_parser = count::<1, 4096>)]
     pub concurrency_limit: usize,
 
     /// Memory shared by the image requests in flight, in bytes or with a unit (KiB, MiB, GiB).
-    /// Each reserves its body on arrival and its working memory before allocating it; one that
-    /// does not fit is refused with 503 and Retry-After. The matcher's buffer pools keep up to
+    /// Each reserves its body on arrival and its working memory before allocating it, and its
+    /// answer stays counted until it is sent; one that does not fit is refused with 503 and
+    /// Retry-After. The matcher's buffer pools keep up to
     /// an eighth of it each (96 MiB at most) between requests.
     #[arg(id = "heavy_memory_budget", long = "heavy-memory-budget", env = "HEAVY_MEMORY_BUDGET", value_name = "SIZE",
           default_value = "1GiB", value_parser = size::<1024, 1_099_511_627_776>)]
@@ -273,6 +305,9 @@ impl Default for Config {
             cors_allowed_origins: Vec::new(),
             request_timeout: DEFAULT_REQUEST_TIMEOUT,
             header_read_timeout: DEFAULT_HEADER_READ_TIMEOUT,
+            min_body_rate: DEFAULT_MIN_BODY_RATE,
+            body_rate_grace: DEFAULT_BODY_RATE_GRACE,
+            write_timeout: DEFAULT_WRITE_TIMEOUT,
             concurrency_limit: DEFAULT_CONCURRENCY_LIMIT,
             shutdown_delay: DEFAULT_SHUTDOWN_DELAY,
             shutdown_timeout: DEFAULT_SHUTDOWN_TIMEOUT,
@@ -465,9 +500,18 @@ mod tests {
             "1024",
             "--concurrency-limit",
             "3",
+            "--min-body-rate",
+            "4KiB",
+            "--body-rate-grace",
+            "2s",
+            "--write-timeout",
+            "45s",
         ])
         .unwrap();
         let config = cli.config;
+        assert_eq!(config.min_body_rate, 4096);
+        assert_eq!(config.body_rate_grace, Duration::from_secs(2));
+        assert_eq!(config.write_timeout, Duration::from_secs(45));
         assert_eq!(config.host.to_string(), "0.0.0.0");
         assert_eq!(config.port, 9000);
         assert_eq!(config.log_format, LogFormat::Json);
@@ -508,6 +552,9 @@ mod tests {
                 "expected a size",
             ),
             (&["--heavy-concurrency-limit", "0"][..], "from 1 to 4096"),
+            (&["--min-body-rate", "fast"][..], "expected a size"),
+            (&["--body-rate-grace", "10m"][..], "at most 5m"),
+            (&["--write-timeout", "0s"][..], "from 1ms"),
             (
                 &[
                     "--heavy-body-limit",

@@ -170,6 +170,13 @@ pub enum ApiError {
         after: Duration,
         body_received: bool,
     },
+    /// 408: the body arrived slower than the minimum rate (`min_rate` bytes a second on average
+    /// once the grace period had passed): `received` bytes in `after`. The connection is closed.
+    SlowBody {
+        received: u64,
+        after: Duration,
+        min_rate: u64,
+    },
     /// 503: more requests in flight than the concurrency limit; retry after the given seconds.
     Overloaded { retry_after_secs: u64 },
     /// 503 with `Retry-After` when the heavy requests in flight hold the memory budget; 413
@@ -200,7 +207,8 @@ impl ApiError {
             ApiError::Timeout {
                 body_received: false,
                 ..
-            } => StatusCode::REQUEST_TIMEOUT,
+            }
+            | ApiError::SlowBody { .. } => StatusCode::REQUEST_TIMEOUT,
             ApiError::Memory(Refusal::TooLarge { .. }) => StatusCode::PAYLOAD_TOO_LARGE,
             ApiError::Timeout { .. }
             | ApiError::Overloaded { .. }
@@ -292,6 +300,22 @@ impl ApiError {
                     after.as_millis()
                 ),
                 vec![FieldError::new("request", "timed out in the server")],
+            ),
+            ApiError::SlowBody {
+                received,
+                after,
+                min_rate,
+            } => plain(
+                format!(
+                    "the request body arrived at {:.0} B/s ({received} bytes in {:.1} s), slower \
+                     than the {min_rate} B/s this server requires; the connection is closed",
+                    *received as f64 / after.as_secs_f64().max(1e-3),
+                    after.as_secs_f64()
+                ),
+                vec![FieldError::new(
+                    "body",
+                    format!("arrived too slowly: send it at {min_rate} bytes a second or faster"),
+                )],
             ),
             ApiError::Overloaded { retry_after_secs } => plain(
                 format!("the server is at its concurrency limit; retry after {retry_after_secs} s"),
@@ -438,6 +462,10 @@ impl IntoResponse for ApiError {
             ApiError::Memory(Refusal::Busy { .. }) => {
                 headers.insert(header::RETRY_AFTER, HeaderValue::from(RETRY_AFTER_SECS));
             }
+            // The rest of the body is not waited for: the connection cannot be reused.
+            ApiError::SlowBody { .. } => {
+                headers.insert(header::CONNECTION, HeaderValue::from_static("close"));
+            }
             _ => {}
         }
         response
@@ -492,6 +520,25 @@ mod tests {
         assert_eq!(slow_body.status(), StatusCode::REQUEST_TIMEOUT);
         assert_eq!(slow_body.problem().errors[0].field, "body");
         assert_eq!(slow_answer.status(), StatusCode::SERVICE_UNAVAILABLE);
+        let trickle = ApiError::SlowBody {
+            received: 6,
+            after: Duration::from_secs(5),
+            min_rate: 1024,
+        };
+        assert_eq!(trickle.status(), StatusCode::REQUEST_TIMEOUT);
+        assert_eq!(trickle.problem().errors[0].field, "body");
+        assert!(
+            trickle
+                .problem()
+                .detail
+                .contains("1 B/s (6 bytes in 5.0 s)"),
+            "{}",
+            trickle.problem().detail
+        );
+        assert_eq!(
+            trickle.into_response().headers()[header::CONNECTION],
+            "close"
+        );
         assert!(slow_answer.problem().detail.contains("5000 ms"));
 
         let shed = ApiError::Overloaded {

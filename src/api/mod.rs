@@ -52,6 +52,8 @@ pub struct HeavyState {
     pub body_limit: BodyLimit,
     /// The rectification maps of the raw rigs seen lately.
     pub maps: std::sync::Arc<images::maps::MapCache>,
+    /// The group's concurrency limit: a slot taken by each request when its work starts.
+    pub slots: crate::budget::Slots,
 }
 
 impl Default for HeavyState {
@@ -59,6 +61,7 @@ impl Default for HeavyState {
         Self {
             body_limit: BodyLimit(crate::config::DEFAULT_HEAVY_BODY_LIMIT),
             maps: std::sync::Arc::default(),
+            slots: crate::budget::Slots::new(crate::config::default_heavy_concurrency()),
         }
     }
 }

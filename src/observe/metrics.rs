@@ -1,6 +1,7 @@
-//! Prometheus metrics: request counts and latency histograms by method, route and status, and
-//! the number of requests in flight, kept in a registry owned by each application instance and
-//! fed by [`crate::server::edge`].
+//! Prometheus metrics: request counts and latency histograms by method, route and status, the
+//! number of requests in flight, and the image requests' memory budget and compute slots in
+//! use, kept in a registry owned by each application instance and fed by
+//! [`crate::server::edge`] (and, for the image gauges, read when `/metrics` is asked).
 
 use axum::http::Method;
 use prometheus::{
@@ -20,6 +21,15 @@ pub struct Metrics {
     requests: IntCounterVec,
     latency: HistogramVec,
     in_flight: IntGauge,
+    heavy: HeavyGauges,
+}
+
+/// The image requests' shared resources, as gauges.
+#[derive(Clone)]
+struct HeavyGauges {
+    reserved: IntGauge,
+    budget: IntGauge,
+    working: IntGauge,
 }
 
 impl std::fmt::Debug for Metrics {
@@ -65,12 +75,40 @@ impl Metrics {
         registry
             .register(Box::new(in_flight.clone()))
             .expect(CHECKED);
+        let gauge = |name: &str, help: &str| {
+            let gauge = IntGauge::new(name, help).expect(CHECKED);
+            registry.register(Box::new(gauge.clone())).expect(CHECKED);
+            gauge
+        };
+        let heavy = HeavyGauges {
+            reserved: gauge(
+                "heavy_memory_reserved_bytes",
+                "Memory the image requests hold in the budget: bodies, work, unsent answers",
+            ),
+            budget: gauge(
+                "heavy_memory_budget_bytes",
+                "The image requests' memory budget",
+            ),
+            working: gauge(
+                "heavy_requests_working",
+                "Image requests holding a compute slot (working, not uploading)",
+            ),
+        };
         Self {
             registry,
             requests,
             latency,
             in_flight,
+            heavy,
         }
+    }
+
+    /// Sets the image requests' gauges: bytes reserved of the `budget`, and requests working.
+    pub fn set_heavy(&self, reserved: usize, budget: usize, working: usize) {
+        let int = |n: usize| i64::try_from(n).unwrap_or(i64::MAX);
+        self.heavy.reserved.set(int(reserved));
+        self.heavy.budget.set(int(budget));
+        self.heavy.working.set(int(working));
     }
 
     /// Every metric in the Prometheus text exposition format (version 0.0.4).
@@ -149,5 +187,13 @@ mod tests {
              status=\"200\",le=\"0.00025\"} 1"
         ));
         assert!(text.contains("http_requests_in_flight 0"));
+        metrics.set_heavy(3 << 20, 1 << 30, 2);
+        let text = metrics.render().unwrap();
+        assert!(
+            text.contains("heavy_memory_reserved_bytes 3145728"),
+            "{text}"
+        );
+        assert!(text.contains("heavy_memory_budget_bytes 1073741824"));
+        assert!(text.contains("heavy_requests_working 2"));
     }
 }

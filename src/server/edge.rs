@@ -2,10 +2,12 @@
 //! every request) gives the request its id, counts it in flight, records the metrics, writes
 //! the access log line and echoes the id; tower-http's `CatchPanic` right inside it turns a
 //! panic into a 500 problem ([`panic_answer`]). [`Guard`] wraps one route
-//! group with that group's limits: it sheds load past the group's concurrency limit (503 with
-//! `Retry-After`), enforces its request timeout (408 or 503) and, for the heavy group, admits a
-//! request only when its body fits in the memory budget (503 with `Retry-After`). The probes
-//! are a router of their own that no guard wraps.
+//! group with that group's limits: for the light group it sheds load past the group's
+//! concurrency limit (503 with `Retry-After`); for the heavy group it admits a request only when
+//! its body fits in the memory budget (503 with `Retry-After`) and keeps that memory counted
+//! until the answer is sent (the heavy handlers take their compute slot when their work
+//! starts); for both it cuts off a body slower than the minimum rate (408) and enforces the
+//! request timeout (408 or 503). The probes are a router of their own that no guard wraps.
 //!
 //! Why by hand: in axum, every `Router::layer` call boxes and clones each route's service on
 //! every request, and each `from_fn` middleware adds a boxed future of its own. With ten such
@@ -16,10 +18,7 @@ use std::{
     convert::Infallible,
     future::Future,
     pin::Pin,
-    sync::{
-        Arc,
-        atomic::{AtomicBool, AtomicUsize, Ordering},
-    },
+    sync::Arc,
     task::{Context, Poll},
     time::{Duration, Instant},
 };
@@ -32,10 +31,11 @@ use axum::{
 use http_body::Body as _;
 use tower::{Layer, Service};
 
-use super::watch::Watched;
+use super::answer;
+use super::watch::{MinRate, Progress, Watched};
 use crate::{
     api::error::{ApiError, RETRY_AFTER_SECS},
-    budget::{MemoryBudget, Refusal, Reservation},
+    budget::{MemoryBudget, Refusal, Reservation, Slots},
     config::AccessLog,
     observe::metrics::{InFlight, Metrics, method_label},
     observe::telemetry::{self, UNMATCHED_ROUTE, X_REQUEST_ID},
@@ -201,17 +201,18 @@ pub fn panic_answer(panic: Box<dyn Any + Send + 'static>) -> Response {
 // ---------------------------------------------------------------------------------------------
 // Guard
 
-/// Builds [`Guard`] services for one route group, all sharing one count of the group's
-/// requests in flight.
+/// Builds [`Guard`] services for one route group, all sharing its limits.
 #[derive(Clone)]
 pub struct GuardLayer {
     shared: Arc<GuardShared>,
 }
 
 struct GuardShared {
-    in_flight: AtomicUsize,
-    limit: usize,
+    /// The light group's requests in flight, a slot each from arrival; `None` for the heavy
+    /// group, whose handlers take a slot when their work starts (`api::images::work`).
+    slots: Option<Slots>,
     timeout: Duration,
+    body_rate: MinRate,
     memory: Option<Admission>,
 }
 
@@ -237,29 +238,43 @@ impl Admission {
 }
 
 impl GuardLayer {
-    /// At most `limit` requests of the group at once, each answered within `timeout`.
-    pub fn new(limit: usize, timeout: Duration) -> Self {
-        Self::with(limit, timeout, None)
+    /// At most `limit` requests of the group at once (a slot each from arrival), each answered
+    /// within `timeout`, its body arriving at `body_rate` at least.
+    pub fn new(limit: usize, timeout: Duration, body_rate: MinRate) -> Self {
+        Self::with(Some(Slots::new(limit)), timeout, body_rate, None)
     }
 
-    /// The same, admitting each request only when its body (at most `body_limit` bytes) fits in
-    /// `budget`; the [`crate::budget::Reservation`] made for it is a request extension, for the
-    /// handler to grow by what it will allocate.
+    /// The heavy group's guard: each request admitted only when its body (at most
+    /// `body_limit` bytes) fits in `budget`, answered within `timeout`, its body arriving at
+    /// `body_rate` at least. The [`crate::budget::Reservation`] made for it is a request
+    /// extension, for the handler to grow by what it will allocate; the answer holds it until
+    /// sent ([`super::answer`]). No slot is taken here: a request whose body is still arriving
+    /// holds none, and its handler takes one when its work starts.
     pub fn with_memory(
-        limit: usize,
         timeout: Duration,
+        body_rate: MinRate,
         budget: MemoryBudget,
         body_limit: usize,
     ) -> Self {
-        Self::with(limit, timeout, Some(Admission { budget, body_limit }))
+        Self::with(
+            None,
+            timeout,
+            body_rate,
+            Some(Admission { budget, body_limit }),
+        )
     }
 
-    fn with(limit: usize, timeout: Duration, memory: Option<Admission>) -> Self {
+    fn with(
+        slots: Option<Slots>,
+        timeout: Duration,
+        body_rate: MinRate,
+        memory: Option<Admission>,
+    ) -> Self {
         Self {
             shared: Arc::new(GuardShared {
-                in_flight: AtomicUsize::new(0),
-                limit,
+                slots,
                 timeout,
+                body_rate,
                 memory,
             }),
         }
@@ -274,25 +289,9 @@ impl<S> Layer<S> for GuardLayer {
     }
 }
 
-/// One route group's concurrency limit with shedding, request timeout and memory admission.
+/// One route group's concurrency limit with shedding, memory admission, minimum body rate and
+/// request timeout.
 pub type Guard<S> = Wrapped<S, GuardLayer>;
-
-/// A slot under the concurrency limit, given back when dropped.
-struct Slot(Arc<GuardShared>);
-
-impl Slot {
-    fn take(shared: &Arc<GuardShared>) -> Option<Self> {
-        let before = shared.in_flight.fetch_add(1, Ordering::AcqRel);
-        let slot = Slot(Arc::clone(shared));
-        (before < shared.limit).then_some(slot)
-    }
-}
-
-impl Drop for Slot {
-    fn drop(&mut self) {
-        self.0.in_flight.fetch_sub(1, Ordering::AcqRel);
-    }
-}
 
 impl Wrap for GuardLayer {
     fn wrap<S: Inner>(&self, inner: S, request: Request) -> ResponseFuture {
@@ -305,34 +304,59 @@ async fn guard<S: Inner>(
     mut inner: S,
     mut request: Request,
 ) -> Result<Response, Infallible> {
-    let Some(_slot) = Slot::take(&shared) else {
-        return Ok(ApiError::Overloaded {
-            retry_after_secs: RETRY_AFTER_SECS,
+    let started = Instant::now();
+    let _slot = match shared.slots.as_ref().map(Slots::take) {
+        Some(None) => {
+            return Ok(ApiError::Overloaded {
+                retry_after_secs: RETRY_AFTER_SECS,
+            }
+            .into_response());
         }
-        .into_response());
+        slot => slot.flatten(),
     };
-    // Held until the answer is made, whatever the handler does with its own clone.
-    let _reservation = match shared.memory.as_ref().map(|m| m.admit(&mut request)) {
+    // Held until the answer has been sent (the heavy group), whatever the handler does with
+    // its own clone.
+    let reservation = match shared.memory.as_ref().map(|m| m.admit(&mut request)) {
         Some(Err(refusal)) => return Ok(ApiError::Memory(refusal).into_response()),
         held => held.and_then(Result::ok),
     };
-    // Whether the body was all in when time ran out tells a slow client (408) from a
-    // slow server (503). A request without a body has nothing to wait for.
-    let received = if request.body().is_end_stream() {
+    // How far the body has come tells a body slower than the minimum rate, and, when time
+    // runs out, a slow client (408) from a slow server (503). A request without a body has
+    // nothing to wait for.
+    let progress = if request.body().is_end_stream() {
         None
     } else {
-        let received = Arc::new(AtomicBool::new(false));
-        let watched = Arc::clone(&received);
+        let progress = Arc::new(Progress::default());
+        let watched = Arc::clone(&progress);
         request = request.map(|body| Body::new(Watched::new(watched, body)));
-        Some(received)
+        Some(progress)
     };
-    match tokio::time::timeout(shared.timeout, inner.call(request)).await {
-        Ok(Ok(response)) => Ok(response.into_response()),
-        Ok(Err(never)) => match never {},
-        Err(_) => Ok(ApiError::Timeout {
-            after: shared.timeout,
-            body_received: received.is_none_or(|r| r.load(Ordering::Acquire)),
+    let answer = tokio::time::timeout(shared.timeout, inner.call(request));
+    let too_slow = async {
+        match &progress {
+            Some(progress) => progress.too_slow(started, shared.body_rate).await,
+            None => std::future::pending().await,
         }
-        .into_response()),
-    }
+    };
+    let response = tokio::select! {
+        answer = answer => match answer {
+            Ok(Ok(response)) => response.into_response(),
+            Ok(Err(never)) => match never {},
+            Err(_) => ApiError::Timeout {
+                after: shared.timeout,
+                body_received: progress.as_ref().is_none_or(|p| p.received()),
+            }
+            .into_response(),
+        },
+        () = too_slow => ApiError::SlowBody {
+            received: progress.as_ref().map_or(0, |p| p.bytes()),
+            after: started.elapsed(),
+            min_rate: shared.body_rate.bytes_per_second,
+        }
+        .into_response(),
+    };
+    Ok(match reservation {
+        Some(reservation) => answer::held(response, reservation),
+        None => response,
+    })
 }

@@ -1,5 +1,5 @@
 //! Building and running the server: the middleware stack, the HTTP/1.1 accept loop with its
-//! header read timeout, and graceful shutdown (readiness off, optional delay, bounded drain
+//! header read timeout and its sockets' write timeout, and graceful shutdown (readiness off, optional delay, bounded drain
 //! that loses no request a client has sent).
 
 use crate::api::images::maps::{self, MapCache};
@@ -37,6 +37,9 @@ use axum::http::{HeaderValue, Method, header};
 use tower_http::cors::{AllowOrigin, CorsLayer};
 
 use super::edge::{self, EdgeLayer, GuardLayer};
+use super::io::WriteTimeout;
+use super::watch::MinRate;
+use crate::budget::Slots;
 
 /// The complete application router for `config`, every layer included. `ops` carries the
 /// readiness flag and the metrics registry, shared with whoever runs the server.
@@ -56,15 +59,25 @@ pub fn app(config: &Config, ops: OpsState) -> Router {
 /// applied in one `Router::layer` call.
 fn app_with(config: &Config, ops: OpsState, extra_heavy: Router<HeavyState>) -> Router {
     let (limits, heavy) = (config.limits, config.heavy);
-    let budget = MemoryBudget::new(heavy.memory_budget);
     // What the matcher's buffer pools keep between requests is held outside the budget's
-    // reservations: an eighth of the budget each at most (a quarter together).
+    // reservations: an eighth of the budget each at most (a quarter together), and no more
+    // than the reservations leave free, so that both together stay within the budget.
+    let budget = MemoryBudget::with_spare(heavy.memory_budget, &crate::budget::MatcherPools);
     crate::vision::huge_pages::keep_at_most(heavy.memory_budget / 8);
     // glibc's thresholds as a warm server has them (a no-op under another allocator).
     let _ = crate::vision::huge_pages::settle_allocator();
     let heavy_state = HeavyState {
         body_limit: BodyLimit(heavy.body_bytes),
         maps: std::sync::Arc::new(MapCache::new(Some(budget.clone()), maps::MAX_ENTRIES)),
+        slots: Slots::new(heavy.concurrency_limit),
+    };
+    let ops = OpsState {
+        heavy: Some((budget.clone(), heavy_state.slots.clone())),
+        ..ops
+    };
+    let body_rate = MinRate {
+        bytes_per_second: config.min_body_rate as u64,
+        grace: config.body_rate_grace,
     };
     let Routers {
         light,
@@ -75,14 +88,16 @@ fn app_with(config: &Config, ops: OpsState, extra_heavy: Router<HeavyState>) -> 
     let light = light.merge(web::router()).layer(GuardLayer::new(
         config.concurrency_limit,
         config.request_timeout,
+        body_rate,
     ));
     // The form extractor's own cap (2 MB by default) raised to the group's body limit; the
-    // guard's admission and the form reader enforce that limit.
+    // guard's admission and the form reader enforce that limit. The group's concurrency limit
+    // is `heavy_state.slots`, taken by the handlers when their work starts.
     let images = images
         .layer(axum::extract::DefaultBodyLimit::max(heavy.body_bytes))
         .layer(GuardLayer::with_memory(
-            heavy.concurrency_limit,
             heavy.request_timeout,
+            body_rate,
             budget,
             heavy.body_bytes,
         ));
@@ -103,6 +118,7 @@ fn app_with(config: &Config, ops: OpsState, extra_heavy: Router<HeavyState>) -> 
 #[derive(Debug, Clone, Copy)]
 struct Serving {
     header_read_timeout: Duration,
+    write_timeout: Duration,
     shutdown_delay: Duration,
     shutdown_timeout: Duration,
 }
@@ -132,6 +148,7 @@ impl Application {
             router: app_with(&config, ops, extra_heavy),
             serving: Serving {
                 header_read_timeout: config.header_read_timeout,
+                write_timeout: config.write_timeout,
                 shutdown_delay: config.shutdown_delay,
                 shutdown_timeout: config.shutdown_timeout,
             },
@@ -164,6 +181,7 @@ impl Application {
             listener,
             router,
             http,
+            write_timeout: serving.write_timeout,
             stopping,
         };
 
@@ -213,6 +231,8 @@ struct Server {
     listener: TcpListener,
     router: Router,
     http: http1::Builder,
+    /// How long a write may stay blocked by a client that reads nothing.
+    write_timeout: Duration,
     /// Turns true when the server stops; every connection task holds a receiver, so
     /// `closed()` on it completes when the last connection is done.
     stopping: watch::Sender<bool>,
@@ -270,9 +290,10 @@ impl Server {
                 request
             })
             .service(self.router.clone());
-        let connection = self
-            .http
-            .serve_connection(TokioIo::new(stream), TowerToHyperService::new(router));
+        let connection = self.http.serve_connection(
+            TokioIo::new(WriteTimeout::new(stream, self.write_timeout)),
+            TowerToHyperService::new(router),
+        );
         let mut stopping = self.stopping.subscribe();
         tokio::spawn(async move {
             let mut connection = pin!(connection);

@@ -1,26 +1,81 @@
-//! The request body watcher behind the request timeout's 408/503 choice: a body that records
-//! when it has been read to the end, so that [`super::edge`] can tell a slow client from a
-//! slow server.
+//! The request body watcher behind the guard's body rules: a body that counts what has arrived
+//! and records when it has all arrived, so that [`super::edge`] can cut off a body slower than
+//! the minimum rate (408) and tell a slow client (408) from a slow server (503) at the timeout.
 
 use std::pin::Pin;
 use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::task::{Context, Poll};
+use std::time::{Duration, Instant};
 
 use axum::body::{Body, Bytes};
 use http_body::{Frame, SizeHint};
 
-/// A request body that records when it has been read to the end, so that a timeout can tell
-/// a slow client (408) from a slow server (503).
+/// The slowest a request body may arrive: on average at least `bytes_per_second` from the
+/// request's start, once `grace` has passed (as Kestrel's `MinRequestBodyDataRate`). A rate of
+/// 0 switches the rule off.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct MinRate {
+    pub bytes_per_second: u64,
+    pub grace: Duration,
+}
+
+impl MinRate {
+    /// When a body that has brought `bytes` since its request started falls below the rate:
+    /// `grace` after the start, or later once more has arrived.
+    fn due(&self, started: Instant, bytes: u64) -> Option<Instant> {
+        if self.bytes_per_second == 0 {
+            return None;
+        }
+        let earned = Duration::from_secs_f64(bytes as f64 / self.bytes_per_second as f64);
+        Some(started + self.grace.max(earned))
+    }
+}
+
+/// How far a request body has come: bytes received, and whether it has all arrived.
+#[derive(Debug, Default)]
+pub struct Progress {
+    bytes: AtomicU64,
+    received: AtomicBool,
+}
+
+impl Progress {
+    /// Whether the body has all arrived.
+    pub fn received(&self) -> bool {
+        self.received.load(Ordering::Acquire)
+    }
+
+    /// Bytes received so far.
+    pub fn bytes(&self) -> u64 {
+        self.bytes.load(Ordering::Acquire)
+    }
+
+    /// Completes when the body, still arriving, has come slower than `rate` since `started`;
+    /// never once it has all arrived (nor when the rule is off).
+    pub async fn too_slow(&self, started: Instant, rate: MinRate) {
+        loop {
+            let due = match rate.due(started, self.bytes()) {
+                Some(due) if !self.received() => due,
+                _ => return std::future::pending().await,
+            };
+            if Instant::now() >= due {
+                return;
+            }
+            tokio::time::sleep_until(due.into()).await;
+        }
+    }
+}
+
+/// A request body that reports its [`Progress`].
 pub struct Watched {
-    received: Arc<AtomicBool>,
+    progress: Arc<Progress>,
     inner: Body,
 }
 
 impl Watched {
-    /// Wraps `inner`, setting `received` once it has been read to the end.
-    pub fn new(received: Arc<AtomicBool>, inner: Body) -> Self {
-        Self { received, inner }
+    /// Wraps `inner`, counting into `progress`.
+    pub fn new(progress: Arc<Progress>, inner: Body) -> Self {
+        Self { progress, inner }
     }
 }
 
@@ -33,8 +88,15 @@ impl http_body::Body for Watched {
         cx: &mut Context<'_>,
     ) -> Poll<Option<Result<Frame<Bytes>, axum::Error>>> {
         let polled = Pin::new(&mut self.inner).poll_frame(cx);
+        if let Poll::Ready(Some(Ok(frame))) = &polled
+            && let Some(data) = frame.data_ref()
+        {
+            self.progress
+                .bytes
+                .fetch_add(data.len() as u64, Ordering::AcqRel);
+        }
         if matches!(polled, Poll::Ready(None)) || self.inner.is_end_stream() {
-            self.received.store(true, Ordering::Release);
+            self.progress.received.store(true, Ordering::Release);
         }
         polled
     }
@@ -45,5 +107,32 @@ impl http_body::Body for Watched {
 
     fn size_hint(&self) -> SizeHint {
         self.inner.size_hint()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The rule falls due at the grace period while too little has arrived, later as bytes
+    /// arrive (one second per `bytes_per_second`), and never when switched off.
+    #[test]
+    fn the_rate_falls_due_after_the_grace_and_the_bytes_earned() {
+        let start = Instant::now();
+        let rate = MinRate {
+            bytes_per_second: 1000,
+            grace: Duration::from_secs(5),
+        };
+        assert_eq!(rate.due(start, 0), Some(start + Duration::from_secs(5)));
+        assert_eq!(rate.due(start, 4_999), Some(start + Duration::from_secs(5)));
+        assert_eq!(
+            rate.due(start, 12_000),
+            Some(start + Duration::from_secs(12))
+        );
+        let off = MinRate {
+            bytes_per_second: 0,
+            ..rate
+        };
+        assert_eq!(off.due(start, 0), None);
     }
 }

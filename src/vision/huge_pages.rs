@@ -39,6 +39,18 @@ pub fn keep_at_most(bytes: usize) {
     WORDS.set_limit(bytes);
 }
 
+/// Bytes both pools keep now.
+pub fn kept() -> usize {
+    BYTES.kept_bytes().saturating_add(WORDS.kept_bytes())
+}
+
+/// Frees kept buffers until both pools together keep at most `bytes` (each its half, the
+/// cost volumes' pool any share the other leaves), their limits unchanged.
+pub fn release_to(bytes: usize) {
+    WORDS.release_to(bytes / 2);
+    BYTES.release_to(bytes.saturating_sub(WORDS.kept_bytes()));
+}
+
 /// The cost volumes' buffers ([`super::cost::volume`]).
 pub static BYTES: Pool<u8> = Pool::new(KEPT);
 /// The first aggregation pass's sums ([`super::sgm::aggregate`]).
@@ -66,11 +78,33 @@ impl<T: Copy + Default> Pool<T> {
         drop(freed);
     }
 
+    /// Bytes kept now.
+    pub fn kept_bytes(&self) -> usize {
+        self.kept()
+            .iter()
+            .map(|v| v.capacity().saturating_mul(size_of::<T>()))
+            .sum()
+    }
+
+    /// Frees the smallest kept buffers until at most `bytes` are kept, leaving the limit as it
+    /// is: for when the memory is wanted elsewhere now.
+    pub fn release_to(&self, bytes: usize) {
+        let freed = {
+            let mut kept = self.kept();
+            Self::trim_to(&mut kept, bytes)
+        };
+        drop(freed);
+    }
+
     /// Sorts `kept` largest first and splits off the smallest that do not fit the limit
     /// together, to be freed by the caller outside the lock.
     fn trim(&self, kept: &mut Vec<Vec<T>>) -> Vec<Vec<T>> {
+        Self::trim_to(kept, self.limit.load(Ordering::Relaxed))
+    }
+
+    /// [`Pool::trim`] to `limit` bytes.
+    fn trim_to(kept: &mut Vec<Vec<T>>, limit: usize) -> Vec<Vec<T>> {
         kept.sort_unstable_by_key(|v| std::cmp::Reverse(v.capacity()));
-        let limit = self.limit.load(Ordering::Relaxed);
         let mut total = 0usize;
         let fit = kept
             .iter()
@@ -257,5 +291,22 @@ mod tests {
         assert_eq!(kept(), vec![4000]);
         pool.set_limit(0);
         assert!(kept().is_empty());
+    }
+
+    /// Releasing frees the smallest kept buffers down to the bytes asked for and leaves the
+    /// limit as it was: buffers given afterwards are kept up to it again.
+    #[test]
+    fn releasing_frees_the_smallest_and_keeps_the_limit() {
+        let pool: Pool<u8> = Pool::new(10_000);
+        for len in [1000, 4000, 3000] {
+            pool.give(vec![0u8; len]);
+        }
+        assert_eq!(pool.kept_bytes(), 8000);
+        pool.release_to(7500);
+        assert_eq!(pool.kept_bytes(), 7000);
+        pool.release_to(0);
+        assert_eq!(pool.kept_bytes(), 0);
+        pool.give(vec![0u8; 9000]);
+        assert_eq!(pool.kept_bytes(), 9000, "the limit is still 10 000");
     }
 }

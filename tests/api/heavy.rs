@@ -3,13 +3,25 @@
 //! limit, its concurrency limit and its memory budget, while the light group and the probes
 //! keep answering.
 
-use axum::{Extension, Router, extract::Query, routing::post};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Duration;
+
+use axum::{
+    Extension, Router,
+    extract::{Query, State},
+    routing::post,
+};
 use reqwest::header::RETRY_AFTER;
 use serde::Deserialize;
 use serde_json::{Value, json};
 use stereo_distance::{
     Config,
-    api::{HeavyState, error::ApiError, extract::JsonBody},
+    api::{
+        HeavyState,
+        error::ApiError,
+        extract::JsonBody,
+        images::work::{self, Admitted},
+    },
     budget::Reservation,
     config::HeavyLimits,
 };
@@ -25,31 +37,68 @@ use crate::{
 const KIB: usize = 1024;
 
 /// The test route's query: bytes to hold besides the body, as an image route holds its cost
-/// volume once it knows the image size.
+/// volume once it knows the image size; or, with `hold`, work that takes a slot and runs until
+/// [`RELEASE`] is set.
 #[derive(Deserialize)]
 struct Work {
     work: Option<usize>,
+    hold: Option<bool>,
 }
 
+/// Ends the work of `POST /test/heavy?hold=true`.
+static RELEASE: AtomicBool = AtomicBool::new(false);
+
 /// `POST /test/heavy`: reads a JSON body within the group's body limit, grows its reservation
-/// by `?work=`, and answers the body's `data` length and the bytes it holds.
+/// by `?work=`, and answers the body's `data` length and the bytes it holds; with `?hold=true`
+/// its work takes one of the group's slots (as an image route's does) and holds it until
+/// [`RELEASE`].
 async fn upload(
+    State(state): State<HeavyState>,
     Extension(reservation): Extension<Reservation>,
-    Query(Work { work }): Query<Work>,
+    Query(Work { work, hold }): Query<Work>,
     JsonBody(body, _): JsonBody<Value>,
 ) -> Result<axum::Json<Value>, ApiError> {
     if let Some(more) = work {
         reservation.grow(more).map_err(ApiError::Memory)?;
     }
+    let bytes = reservation.bytes();
+    if hold == Some(true) {
+        let admitted = Admitted {
+            reservation,
+            slots: state.slots.clone(),
+        };
+        work::run_reserved(
+            admitted,
+            0,
+            |_| Vec::new(),
+            |_, _| {
+                while !RELEASE.load(Ordering::Acquire) {
+                    std::thread::sleep(Duration::from_millis(5));
+                }
+            },
+        )
+        .await?;
+    }
     let received = body["data"].as_str().map_or(0, str::len);
-    Ok(axum::Json(
-        json!({"received": received, "reserved": reservation.bytes()}),
-    ))
+    Ok(axum::Json(json!({"received": received, "reserved": bytes})))
 }
 
-/// `POST /test/panic`: a handler with a bug.
-async fn panics() -> &'static str {
-    panic!("a bug in an image handler")
+/// `POST /test/panic`: an image route whose work has a bug.
+async fn panics(
+    State(state): State<HeavyState>,
+    Extension(reservation): Extension<Reservation>,
+) -> Result<&'static str, ApiError> {
+    let admitted = Admitted {
+        reservation,
+        slots: state.slots.clone(),
+    };
+    work::run_reserved(
+        admitted,
+        1024,
+        |_| Vec::new(),
+        |_, _| panic!("a bug in an image handler"),
+    )
+    .await
 }
 
 /// A server whose heavy group has `heavy` limits and serves the test routes.
@@ -123,12 +172,13 @@ async fn heavy_body_limit_is_its_own() {
     );
 }
 
-/// Past the heavy group's concurrency limit an image request is refused at once with 503
-/// problem+json and `Retry-After`, while light requests and probes still answer; the held
-/// request completes once its body arrives.
+/// A request whose body is still arriving holds no slot of the heavy group: with one slot,
+/// another request is served meanwhile. Past the concurrency limit, a request whose work would
+/// start is refused at once with 503 problem+json and `Retry-After`, while light requests and
+/// probes still answer; the held requests complete, the half-sent one once its body arrives.
 #[tokio::test]
 async fn heavy_concurrency_limit_sheds_only_the_heavy_group() {
-    // Arrange: one heavy slot, taken by a request whose body is half sent.
+    // Arrange: one heavy slot; a request whose body is half sent.
     let app = spawn(HeavyLimits {
         concurrency_limit: 1,
         ..HeavyLimits::default()
@@ -140,13 +190,42 @@ async fn heavy_concurrency_limit_sheds_only_the_heavy_group() {
         .raw_partial(&post_head("/test/heavy", body.len()), first)
         .await;
     app.wait_in_flight(2.0).await; // the held request and this /metrics poll
+    let uploading = send(&app, 100, None).await;
 
-    // Act
-    let shed = send(&app, 100, None).await;
+    // Act: a request whose work holds the one slot, then another.
+    let working = {
+        let (client, address) = (app.client.clone(), app.address.clone());
+        tokio::spawn(async move {
+            client
+                .post(format!("{address}/test/heavy?hold=true"))
+                .header("content-type", "application/json")
+                .body(body_of(100))
+                .send()
+                .await
+                .unwrap()
+                .status()
+        })
+    };
+    for _ in 0..2000 {
+        if app.metric("heavy_requests_working").await == Some(1.0) {
+            break;
+        }
+        tokio::time::sleep(Duration::from_millis(5)).await;
+    }
+    let shed = app
+        .post_raw(
+            "/test/heavy?hold=true",
+            Some("application/json"),
+            body_of(100).into(),
+        )
+        .await;
     let light = app.post("/distance", &example_one()).await;
     let probe = app.get("/readyz").await;
+    RELEASE.store(true, Ordering::Release);
 
     // Assert
+    assert_eq!(ok_json(uploading).await["received"], 88);
+    assert_eq!(working.await.unwrap(), 200);
     assert_eq!(shed.headers()[RETRY_AFTER], "1");
     let shed = problem(shed, 503).await;
     assert!(
@@ -221,8 +300,8 @@ async fn heavy_memory_budget_refuses_what_does_not_fit() {
     assert_eq!(ok_json(retried).await["reserved"], 700 * KIB);
 }
 
-/// A panic in a handler is a 500 problem carrying the request's id, counted in the metrics; the
-/// slot and the memory it held are given back, so the group keeps serving.
+/// A panic in an image route's work is a 500 problem carrying the request's id, counted in
+/// the metrics; the slot and the memory it held are given back, so the group keeps serving.
 #[tokio::test]
 async fn a_panic_is_a_500_problem_and_frees_its_slot_and_memory() {
     // Arrange: one slot, and a budget that holds one body at a time.
@@ -254,6 +333,8 @@ async fn a_panic_is_a_500_problem_and_frees_its_slot_and_memory() {
         "a bug in an image handler"
     );
     assert_eq!(ok_json(after).await["reserved"], 60 * KIB);
+    assert_eq!(app.metric("heavy_requests_working").await, Some(0.0));
+    assert_eq!(app.metric("heavy_memory_reserved_bytes").await, Some(0.0));
     let count = app
         .metric("http_requests_total{method=\"POST\",route=\"/test/panic\",status=\"500\"}")
         .await;

@@ -17,7 +17,6 @@ use super::{limits, work};
 use crate::api::HeavyState;
 use crate::api::error::{ApiError, FieldError, FieldErrors};
 use crate::api::extract;
-use crate::budget::Reservation;
 use crate::vision::decode;
 
 /// The media type the image routes read.
@@ -63,8 +62,9 @@ pub struct ImagePair<F> {
     pub rig: Option<GivenRig>,
     /// Everything found wrong so far, each part named.
     pub problems: FieldErrors,
-    /// The memory the heavy group's guard reserved for this request, to grow before the work.
-    pub reservation: Reservation,
+    /// The memory the heavy group's guard reserved for this request, to grow before the work,
+    /// and the slots the work takes one of.
+    pub admitted: work::Admitted,
     /// How long the body took to arrive and be read into parts.
     pub read: Duration,
     form: PhantomData<F>,
@@ -74,11 +74,7 @@ impl<F: ImageForm> FromRequest<HeavyState> for ImagePair<F> {
     type Rejection = ApiError;
 
     async fn from_request(req: Request, state: &HeavyState) -> Result<Self, ApiError> {
-        let reservation = req
-            .extensions()
-            .get::<Reservation>()
-            .cloned()
-            .ok_or_else(|| ApiError::Internal("no memory reservation".to_owned()))?;
+        let admitted = work::Admitted::of(&req, state)?;
         let content_type = req.headers().get(header::CONTENT_TYPE).cloned();
         let form = Multipart::from_request(req, state)
             .await
@@ -99,7 +95,7 @@ impl<F: ImageForm> FromRequest<HeavyState> for ImagePair<F> {
             size: left,
             rig,
             problems,
-            reservation,
+            admitted,
             read,
             form: PhantomData,
         })
@@ -114,15 +110,15 @@ impl<F> ImagePair<F> {
         query
     }
 
-    /// Reserves the memory `need` says and runs `work` on a blocking thread with the form's
-    /// parts and rig ([`work::run`]).
+    /// Takes a compute slot, reserves the memory `need` says and runs `work` on a blocking
+    /// thread with the form's parts and rig ([`work::run`]).
     pub async fn run<T: Send + 'static>(
         self,
         need: work::Need<impl Fn(usize) -> usize>,
         work: impl FnOnce(Job<'_>) -> T + Send + 'static,
     ) -> Result<T, ApiError> {
         let (parts, rig, read) = (self.parts, self.rig, self.read);
-        work::run(self.reservation, need, move |cancel, started| {
+        work::run(self.admitted, need, move |cancel, started| {
             work(Job {
                 parts: &parts,
                 rig,

@@ -1,7 +1,8 @@
-//! The heavy work of an image request: the memory it needs reserved in the heavy group's
-//! budget (503 while others hold it, 413 naming what to shrink when it can never fit), then
-//! run on a blocking thread, off the async runtime, with a flag set when the request is
-//! abandoned; the pair decoded there; and the stages it took, as `Server-Timing`.
+//! The heavy work of an image request: one of the heavy group's compute slots taken (503 past
+//! the concurrency limit) and the memory it needs reserved in the group's budget (503 while
+//! others hold it, 413 naming what to shrink when it can never fit), both once its body has
+//! arrived, then run on a blocking thread, off the async runtime, with a flag set when the
+//! request is abandoned; the pair decoded there; and the stages it took, as `Server-Timing`.
 
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -11,8 +12,9 @@ use axum::body::Bytes;
 
 use super::form::Parts;
 use super::limits::{self, LIMITS};
-use crate::api::error::{ApiError, FieldError};
-use crate::budget::{Refusal, Reservation};
+use crate::api::HeavyState;
+use crate::api::error::{ApiError, FieldError, RETRY_AFTER_SECS};
+use crate::budget::{Refusal, Reservation, Slots};
 use crate::vision::Timings;
 use crate::vision::decode::{self, Decoded};
 
@@ -48,27 +50,56 @@ impl Started {
     }
 }
 
-/// Reserves the memory the work needs (or says why not), then runs `work` on a blocking
-/// thread, holding the reservation until it ends. The flag `work` gets is set when this
-/// future is dropped.
+/// What an image request's work is admitted with: the memory the heavy group's guard reserved
+/// for it (its body, so far), and the group's compute slots, one of which its work takes.
+#[derive(Debug, Clone)]
+pub struct Admitted {
+    pub reservation: Reservation,
+    pub slots: Slots,
+}
+
+impl Admitted {
+    /// The guard's reservation for `request` and the group's slots.
+    pub fn of<B>(request: &axum::http::Request<B>, state: &HeavyState) -> Result<Self, ApiError> {
+        let reservation = request
+            .extensions()
+            .get::<Reservation>()
+            .cloned()
+            .ok_or_else(|| ApiError::Internal("no memory reservation".to_owned()))?;
+        Ok(Self {
+            reservation,
+            slots: state.slots.clone(),
+        })
+    }
+}
+
+/// Takes a compute slot and reserves the memory the work needs (or says why not), then runs
+/// `work` on a blocking thread, holding both until it ends. The flag `work` gets is set when
+/// this future is dropped.
 pub async fn run<T: Send + 'static>(
-    reservation: Reservation,
+    admitted: Admitted,
     need: Need<impl Fn(usize) -> usize>,
     work: impl FnOnce(&AtomicBool, Started) -> T + Send + 'static,
 ) -> Result<T, ApiError> {
     let bytes = (need.need)(need.count);
     let too_large = |total| limits::shrink(need.size, need.count, total, &need.need);
-    run_reserved(reservation, bytes, too_large, work).await
+    run_reserved(admitted, bytes, too_large, work).await
 }
 
 /// [`run`] for work whose size is known in bytes: `too_large(total)` names what to shrink when
 /// it can never fit in the budget of `total` bytes.
 pub async fn run_reserved<T: Send + 'static>(
-    reservation: Reservation,
+    admitted: Admitted,
     bytes: usize,
     too_large: impl FnOnce(usize) -> Vec<FieldError>,
     work: impl FnOnce(&AtomicBool, Started) -> T + Send + 'static,
 ) -> Result<T, ApiError> {
+    let Admitted { reservation, slots } = admitted;
+    let Some(slot) = slots.take() else {
+        return Err(ApiError::Overloaded {
+            retry_after_secs: RETRY_AFTER_SECS,
+        });
+    };
     match reservation.grow(bytes) {
         Ok(()) => {}
         Err(Refusal::TooLarge { total, .. }) => return Err(ApiError::Oversized(too_large(total))),
@@ -78,7 +109,7 @@ pub async fn run_reserved<T: Send + 'static>(
     let _cancel = CancelOnDrop(Arc::clone(&flag));
     let queued = Instant::now();
     tokio::task::spawn_blocking(move || {
-        let _held = reservation;
+        let _held = (reservation, slot);
         let started = Started {
             queued,
             running: Instant::now(),

@@ -16,6 +16,7 @@ use utoipa_axum::{router::OpenApiRouter, routes};
 use crate::api::error::ApiError;
 use crate::api::respond::Json;
 use crate::api::wire::openapi::{DRAINING, METHOD, ProbeErrors, problem_responses};
+use crate::budget::{MemoryBudget, Slots};
 use crate::observe::metrics::{Metrics, TEXT_FORMAT};
 
 /// Whether the server wants traffic: false before it serves and while it drains.
@@ -37,6 +38,8 @@ impl Readiness {
 pub struct OpsState {
     pub readiness: Readiness,
     pub metrics: Metrics,
+    /// The image requests' memory budget and compute slots, read into the metrics when asked.
+    pub heavy: Option<(MemoryBudget, Slots)>,
 }
 
 /// `/healthz`, `/readyz` and `/metrics`: a router of their own, never shed nor timed out,
@@ -108,8 +111,10 @@ pub async fn readyz(State(state): State<OpsState>) -> Result<Json<Health>, ApiEr
     tag = "operations",
     summary = "Prometheus metrics: requests, latency histograms and in-flight requests",
     description = "For a Prometheus scrape: `http_requests_total` and the \
-                   `http_request_duration_seconds` histogram by method, route and status, and \
-                   `http_requests_in_flight`.",
+                   `http_request_duration_seconds` histogram by method, route and status, \
+                   `http_requests_in_flight`, and the image requests' gauges: \
+                   `heavy_memory_reserved_bytes` of `heavy_memory_budget_bytes` (bodies, work \
+                   and answers not yet sent) and `heavy_requests_working`.",
     responses((
         status = 200,
         description = "Metrics in the Prometheus text format, by method, route and status.",
@@ -118,6 +123,11 @@ pub async fn readyz(State(state): State<OpsState>) -> Result<Json<Health>, ApiEr
     ), ProbeErrors)
 )]
 pub async fn metrics(State(state): State<OpsState>) -> Response {
+    if let Some((budget, slots)) = &state.heavy {
+        state
+            .metrics
+            .set_heavy(budget.used(), budget.total(), slots.busy());
+    }
     match state.metrics.render() {
         Ok(text) => ([(header::CONTENT_TYPE, TEXT_FORMAT)], text).into_response(),
         Err(error) => ApiError::Internal(error).into_response(),

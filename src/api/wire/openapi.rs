@@ -17,7 +17,9 @@ use utoipa::openapi::{
 use crate::api::error::RETRY_AFTER_SECS;
 use crate::api::error::{ApiError, FieldError, PROBLEM_JSON};
 use crate::api::extract::{QueryForm, decode_query, malformed_json};
-use crate::config::{DEFAULT_BODY_LIMIT, DEFAULT_REQUEST_TIMEOUT};
+use crate::config::{
+    DEFAULT_BODY_LIMIT, DEFAULT_BODY_RATE_GRACE, DEFAULT_MIN_BODY_RATE, DEFAULT_REQUEST_TIMEOUT,
+};
 
 /// Documents each member of a request body schema as a query parameter, so that the GET form of
 /// an operation is described by the very type its POST form takes.
@@ -203,15 +205,27 @@ const INVALID: ErrorDoc = ErrorDoc {
 };
 const TIMEOUT: ErrorDoc = ErrorDoc {
     status: StatusCode::REQUEST_TIMEOUT,
-    description: "The request body did not arrive within the request timeout (5 s by default).",
+    description: "The request body did not arrive within the request timeout (5 s by default, \
+                  30 s for images), or arrived slower than the minimum rate (1 KiB/s on average \
+                  once the first 5 s have passed, by default); then the connection is closed.",
     examples: || {
-        vec![(
-            "A body still arriving at the deadline",
-            ApiError::Timeout {
-                after: DEFAULT_REQUEST_TIMEOUT,
-                body_received: false,
-            },
-        )]
+        vec![
+            (
+                "A body still arriving at the deadline",
+                ApiError::Timeout {
+                    after: DEFAULT_REQUEST_TIMEOUT,
+                    body_received: false,
+                },
+            ),
+            (
+                "A body slower than the minimum rate",
+                ApiError::SlowBody {
+                    received: 3,
+                    after: DEFAULT_BODY_RATE_GRACE,
+                    min_rate: DEFAULT_MIN_BODY_RATE as u64,
+                },
+            ),
+        ]
     },
 };
 const UNAVAILABLE: ErrorDoc = ErrorDoc {

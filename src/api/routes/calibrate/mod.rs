@@ -31,7 +31,6 @@ use crate::api::respond::Json;
 use crate::api::wire::openapi::ImageErrors;
 use crate::api::wire::params::Unit;
 use crate::api::wire::rig::CalibratedRig;
-use crate::budget::Reservation;
 use crate::calibrate::corners::{Luma, find_board};
 use crate::calibrate::{self, Board, CameraFit, Corners, Fit, FitFault, Status};
 use crate::camera::{Model, Options, Size};
@@ -52,18 +51,14 @@ pub struct Upload {
     right: Vec<Bytes>,
     board: Option<Bytes>,
     problems: FieldErrors,
-    reservation: Reservation,
+    admitted: work::Admitted,
 }
 
 impl FromRequest<HeavyState> for Upload {
     type Rejection = ApiError;
 
     async fn from_request(req: Request, state: &HeavyState) -> Result<Self, ApiError> {
-        let reservation = req
-            .extensions()
-            .get::<Reservation>()
-            .cloned()
-            .ok_or_else(|| ApiError::Internal("no memory reservation".to_owned()))?;
+        let admitted = work::Admitted::of(&req, state)?;
         let content_type = req.headers().get(header::CONTENT_TYPE).cloned();
         let form = Multipart::from_request(req, state).await.map_err(|_| {
             extract::unsupported(
@@ -86,7 +81,7 @@ impl FromRequest<HeavyState> for Upload {
             right: Vec::new(),
             board: None,
             problems,
-            reservation,
+            admitted,
         };
         for (name, bytes) in parts {
             match name.as_str() {
@@ -145,7 +140,7 @@ pub async fn post_calibrate(
         right,
         board,
         problems: form_problems,
-        reservation,
+        admitted,
     } = upload;
     let mut problems = query_problems;
     problems.extend(form_problems);
@@ -228,7 +223,7 @@ pub async fn post_calibrate(
         corners: query.corners.unwrap_or(false),
         size: Size { width, height },
     };
-    work::run_reserved(reservation, bytes, too_large, move |cancel, _| {
+    work::run_reserved(admitted, bytes, too_large, move |cancel, _| {
         compute(&left, &right, &settings, cancel)
     })
     .await?
