@@ -2,23 +2,27 @@
 
 Two phases, each on its own or both:
 
-- `uploads`: N connections declare a 30 MB body to /depth-map and send one byte every 2 s,
-  while real /depth-map requests (the service's own sample pair, from /sample/) are sent one
-  after another. Reports each real request's status and, for each slow connection, how long
-  the server took to answer or close it, and with what.
-- `readers`: N connections each send a whole /depth-map request for a W x H pair asking for
-  `output=arrays.npz` and never read the answer (a 4 KiB receive buffer). The server's memory
-  is sampled all along (`--pid`: its RSS; `--memory-file`: a cgroup's memory.current, for a
-  container). While they stall, a /distance and a small /depth-map are asked; after
-  `--stall` seconds every stalled connection is read to see what it got (a whole answer, a
-  503, or cut off), and one more /depth-map is asked.
+- `uploads`: N connections (`--slow`, 16) declare a 30 MB body to /depth-map and send one byte
+  every 2 s, while real /depth-map requests (the service's own sample pair, from /sample/) are
+  sent one after another. Reports each real request's status and, for each slow connection,
+  how long the server took to answer or close it, and with what.
+- `readers`: N connections (`--readers`, 48) each ask /depth-map for a W x H pair with
+  `output=arrays.npz` (2048 x 1536: 38 MB) until one is answered 200 (a 503 is retried after
+  its Retry-After), read the answer's head and nothing more (a 4 KiB receive buffer). The
+  server's memory is sampled all along (`--pid`: its RSS; `--memory-file`: a cgroup's usage,
+  for a container) with what its budget holds (`heavy_memory_reserved_bytes`). Halfway through
+  `--stall` seconds a /distance and a small /depth-map are asked; at the end every stalled
+  connection is read, to see what it got (the whole answer, or cut off), and one more
+  /depth-map is asked.
 
-Exit 0 when the checks hold (`--check`): every real request during the uploads answered 200
-and every slow connection answered 408 or closed within 15 s; during the readers the memory
-grew by at most `--budget` (bytes, e.g. 1073741824) plus `--slack`, the real requests were
-answered 200 or 503 with Retry-After, and the one after the stall 200.
+With `--check`, exits 1 unless: every real request during the uploads was answered 200 and
+every slow connection was answered or closed within 15 s; during the readers the memory grew by
+at most `--budget` plus `--slack` bytes, /distance was answered 200 and the small /depth-map 200
+or 503 with Retry-After, the /depth-map after the stall 200, and (`--expect-cut`) at least one
+stalled reader was cut off.
 
-    python3 scripts/slow_clients.py --url http://127.0.0.1:8080 --pid PID --phase both --check
+    python3 scripts/slow_clients.py --url http://127.0.0.1:8080 --pid PID --phase both \
+        --budget 1073741824 --slack 0 --check
 """
 
 import argparse
@@ -94,9 +98,10 @@ def request(url, method, path, body=b"", headers=None, timeout=60):
 class Memory:
     """Samples the server's memory every 100 ms: a process's RSS or a cgroup's usage."""
 
-    def __init__(self, pid=None, path=None):
-        self.pid, self.path = pid, path
+    def __init__(self, pid=None, path=None, url=None):
+        self.pid, self.path, self.url = pid, path, url
         self.samples = []  # (seconds, bytes)
+        self.reserved = []  # (seconds, bytes the budget holds, process memory then)
         self.started = time.perf_counter()
         self._stop = threading.Event()
         self._thread = None
@@ -118,10 +123,31 @@ class Memory:
                 value = self.read()
                 if value is not None:
                     self.samples.append((time.perf_counter() - self.started, value))
+                    held = self.budget_held()
+                    if held is not None:
+                        self.reserved.append((time.perf_counter() - self.started, held, value))
                 time.sleep(0.1)
         self._thread = threading.Thread(target=run, daemon=True)
         self._thread.start()
         return self
+
+    def budget_held(self):
+        """The service's heavy_memory_reserved_bytes gauge, when a URL was given."""
+        if not self.url:
+            return None
+        status, _, body, _ = request(self.url, "GET", "/metrics", timeout=5)
+        if status != 200:
+            return None
+        for line in body.decode().splitlines():
+            if line.startswith("heavy_memory_reserved_bytes "):
+                return int(float(line.split()[1]))
+        return None
+
+    def outside(self, baseline):
+        """The most the process held beyond its start and what the budget counted, and when."""
+        if not self.reserved:
+            return None
+        return max((value - baseline - held, held) for _, held, value in self.reserved)
 
     def stop(self):
         self._stop.set()
@@ -258,7 +284,7 @@ def phase_readers(args, failures):
                              "rig": (rig, "application/json", None)})
     path = f"/depth-map?max_disparity={args.disparities}&output=arrays.npz"
     small, small_type = sample_request(args.url)
-    memory = Memory(args.pid, args.memory_file).start()
+    memory = Memory(args.pid, args.memory_file, args.url).start()
     time.sleep(0.5)
     baseline = memory.peak()
     print(f"readers: {args.readers} connections each POST {path} ({args.width} x {args.height}, "
@@ -341,6 +367,10 @@ def phase_readers(args, failures):
           f"({refused[0]} refusals with 503 on the way); reading them now: {outcomes}")
     print(f"  memory: start {mib(baseline)}, peak {mib(peak)} (+{mib(peak - baseline)}), "
           f"at {stall_end:.0f} s {mib(at_end)}, 2 s after the readers are read or closed {mib(freed)}")
+    outside = memory.outside(baseline)
+    if outside:
+        print(f"  the budget held at most {mib(max(h for _, h, _ in memory.reserved))}; the growth "
+              f"beyond what it held peaked at {mib(outside[0])} (with {mib(outside[1])} held)")
     last = request(args.url, "POST", path, body, {"Content-Type": ctype}, timeout=180)
     print(f"  after the stall: POST {path} {last[0]}, {len(last[2]) / 1e6:.1f} MB")
 

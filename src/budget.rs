@@ -39,6 +39,11 @@ impl std::fmt::Debug for Shared {
     }
 }
 
+/// The share of the budget (one part in this many) that [`Spare`]s leave free beside the
+/// reservations, for the memory no reservation counts: connection buffers, the chunks of
+/// answers on their way, the multipart reader's copies.
+pub const UNCOUNTED: usize = 32;
+
 /// Memory a cache keeps outside any reservation, which gives way to them: whenever the
 /// reservations grow, the cache is told to keep no more than the budget leaves free, so that
 /// what is reserved and what is kept together stay within the budget.
@@ -49,16 +54,24 @@ pub trait Spare: Send + Sync {
     fn release_to(&self, bytes: usize);
 }
 
-/// The matcher's buffer pools ([`crate::vision::huge_pages`]) as a [`Spare`].
-pub struct MatcherPools;
+/// What the server keeps between requests outside every reservation, as a [`Spare`]: the
+/// matcher's buffer pools ([`crate::vision::huge_pages`]) and the free memory the allocator
+/// holds in its arenas. When the reservations leave too little room for both, the pools free
+/// what does not fit and the allocator gives its free pages back to the kernel (at most every
+/// [`crate::vision::huge_pages::TRIM_EVERY_MS`] ms), so that the process stays within the
+/// budget rather than the budget plus what the last requests left behind.
+pub struct Leftovers;
 
-impl Spare for MatcherPools {
+impl Spare for Leftovers {
     fn kept(&self) -> usize {
-        crate::vision::huge_pages::kept()
+        use crate::vision::huge_pages;
+        huge_pages::kept().saturating_add(huge_pages::allocator_free())
     }
 
     fn release_to(&self, bytes: usize) {
-        crate::vision::huge_pages::release_to(bytes);
+        use crate::vision::huge_pages;
+        huge_pages::release_to(bytes);
+        huge_pages::trim_allocator();
     }
 }
 
@@ -126,10 +139,14 @@ impl Shared {
             })
     }
 
-    /// Has the spare keep no more than what `used` bytes reserved leave of the total.
+    /// Has the spare keep no more than what `used` bytes reserved leave of the total, less a
+    /// [`UNCOUNTED`] share for what no reservation counts.
     fn make_room(&self, used: usize) {
         if let Some(spare) = self.spare {
-            let room = self.total.saturating_sub(used);
+            let room = self
+                .total
+                .saturating_sub(used)
+                .saturating_sub(self.total / UNCOUNTED);
             if spare.kept() > room {
                 spare.release_to(room);
             }
@@ -339,12 +356,12 @@ mod tests {
             }
         }
         static KEPT: Kept = Kept(AtomicUsize::new(300));
-        let budget = MemoryBudget::with_spare(1000, &KEPT);
-        let first = budget.reserve(600).unwrap();
-        assert_eq!(KEPT.kept(), 300, "600 + 300 fit in 1000");
-        first.grow(250).unwrap();
-        assert_eq!(KEPT.kept(), 150);
-        first.settle_alone(1000);
+        let budget = MemoryBudget::with_spare(3200, &KEPT);
+        let first = budget.reserve(2000).unwrap();
+        assert_eq!(KEPT.kept(), 300, "2000 + 300 fit in 3200 - 100 uncounted");
+        first.grow(850).unwrap();
+        assert_eq!(KEPT.kept(), 250, "3200 - 100 uncounted - 2850");
+        first.settle_alone(3200);
         assert_eq!(KEPT.kept(), 0);
     }
 

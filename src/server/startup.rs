@@ -60,9 +60,9 @@ pub fn app(config: &Config, ops: OpsState) -> Router {
 fn app_with(config: &Config, ops: OpsState, extra_heavy: Router<HeavyState>) -> Router {
     let (limits, heavy) = (config.limits, config.heavy);
     // What the matcher's buffer pools keep between requests is held outside the budget's
-    // reservations: an eighth of the budget each at most (a quarter together), and no more
-    // than the reservations leave free, so that both together stay within the budget.
-    let budget = MemoryBudget::with_spare(heavy.memory_budget, &crate::budget::MatcherPools);
+    // reservations: an eighth of the budget each at most (a quarter together), and, with what
+    // the allocator keeps free, no more than the reservations leave free.
+    let budget = MemoryBudget::with_spare(heavy.memory_budget, &crate::budget::Leftovers);
     crate::vision::huge_pages::keep_at_most(heavy.memory_budget / 8);
     // glibc's thresholds as a warm server has them (a no-op under another allocator).
     let _ = crate::vision::huge_pages::settle_allocator();

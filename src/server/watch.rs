@@ -32,7 +32,8 @@ impl MinRate {
     }
 }
 
-/// How far a request body has come: bytes received, and whether it has all arrived.
+/// How far a request body has come: bytes received, and whether it has all arrived (or the
+/// server stopped reading it: from then on, nothing is the client's to be slow at).
 #[derive(Debug, Default)]
 pub struct Progress {
     bytes: AtomicU64,
@@ -79,6 +80,15 @@ impl Watched {
     }
 }
 
+impl Drop for Watched {
+    /// A body dropped is no longer waited for (read to its end, or left unread by a handler
+    /// that answered without it; a multipart reader may stop at the closing boundary without
+    /// asking for the end of a chunked body).
+    fn drop(&mut self) {
+        self.progress.received.store(true, Ordering::Release);
+    }
+}
+
 impl http_body::Body for Watched {
     type Data = Bytes;
     type Error = axum::Error;
@@ -113,6 +123,27 @@ impl http_body::Body for Watched {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The bytes of each frame are counted; the body counts as received at its end, or once
+    /// dropped unread.
+    #[tokio::test]
+    async fn progress_counts_bytes_and_the_end() {
+        use http_body_util::BodyExt;
+        let progress = Arc::new(Progress::default());
+        let mut body = Watched::new(Arc::clone(&progress), Body::from("twelve bytes"));
+        assert!(!progress.received());
+        let frame = body.frame().await.unwrap().unwrap();
+        assert_eq!(frame.into_data().unwrap(), "twelve bytes");
+        assert_eq!(progress.bytes(), 12);
+        assert!(progress.received());
+
+        let unread = Arc::new(Progress::default());
+        let never = futures_util::stream::pending::<Result<Bytes, std::io::Error>>();
+        let body = Watched::new(Arc::clone(&unread), Body::from_stream(never));
+        assert!(!unread.received());
+        drop(body);
+        assert!(unread.received(), "a dropped body is no longer waited for");
+    }
 
     /// The rule falls due at the grace period while too little has arrived, later as bytes
     /// arrive (one second per `bytes_per_second`), and never when switched off.

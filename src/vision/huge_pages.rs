@@ -223,6 +223,53 @@ pub fn settle_allocator() -> bool {
     false
 }
 
+/// Bytes the allocator holds free in its arenas (glibc's `mallinfo2().fordblks`, resident or
+/// already given back by a trim); 0 on other allocators.
+pub fn allocator_free() -> usize {
+    #[cfg(all(target_os = "linux", target_env = "gnu"))]
+    {
+        // SAFETY: mallinfo2 only reads the allocator's statistics, under its own locks.
+        unsafe { libc::mallinfo2() }.fordblks
+    }
+    #[cfg(not(all(target_os = "linux", target_env = "gnu")))]
+    0
+}
+
+/// Gives the free memory of every arena back to the kernel (glibc's `malloc_trim(0)`), at
+/// most once every [`TRIM_EVERY_MS`] milliseconds: a trim walks every arena under its lock,
+/// and the pages it gives back are faulted in again by the next request that needs them, so
+/// it is for when the memory is wanted, not for every request. Whether it trimmed.
+pub fn trim_allocator() -> bool {
+    use std::sync::OnceLock;
+    static START: OnceLock<std::time::Instant> = OnceLock::new();
+    static LAST: AtomicUsize = AtomicUsize::new(0);
+    let now = START
+        .get_or_init(std::time::Instant::now)
+        .elapsed()
+        .as_millis() as usize
+        + 1;
+    let last = LAST.load(Ordering::Relaxed);
+    if last != 0 && now.saturating_sub(last) < TRIM_EVERY_MS {
+        return false;
+    }
+    if LAST
+        .compare_exchange(last, now, Ordering::AcqRel, Ordering::Relaxed)
+        .is_err()
+    {
+        return false;
+    }
+    #[cfg(all(target_os = "linux", target_env = "gnu"))]
+    // SAFETY: malloc_trim only returns free pages of the allocator's own arenas to the kernel,
+    // under the arenas' locks; no allocation in use is touched.
+    unsafe {
+        libc::malloc_trim(0);
+    }
+    true
+}
+
+/// The least time between two [`trim_allocator`] calls that trim, in milliseconds.
+pub const TRIM_EVERY_MS: usize = 100;
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -308,5 +355,22 @@ mod tests {
         assert_eq!(pool.kept_bytes(), 0);
         pool.give(vec![0u8; 9000]);
         assert_eq!(pool.kept_bytes(), 9000, "the limit is still 10 000");
+    }
+
+    /// Blocks freed in the allocator's arenas are reported as free memory it holds.
+    #[cfg(all(target_os = "linux", target_env = "gnu"))]
+    #[test]
+    fn freed_blocks_count_as_the_allocators_free_memory() {
+        // Below the mapping threshold: from an arena, kept there when freed. Every other one
+        // is kept, so that the freed ones cannot merge into the top and be given back.
+        let blocks: Vec<Vec<u8>> = (0..64).map(|i| vec![i as u8; 64 << 10]).collect();
+        let before = allocator_free();
+        let kept: Vec<Vec<u8>> = blocks.into_iter().step_by(2).collect();
+        let after = allocator_free();
+        assert!(
+            after >= before + 16 * (64 << 10),
+            "{before} -> {after} bytes free"
+        );
+        assert_eq!(kept.len(), 32);
     }
 }
