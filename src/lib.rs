@@ -9,8 +9,11 @@
 //! - **heavy**: image requests that take megabytes in, milliseconds to seconds of CPU and tens
 //!   of MB of memory each (`/depth-map`, `/match`, `/calibrate`, `/rectify`).
 //!
-//! Each is a route group with its own body limit, timeout and concurrency limit; the heavy group
-//! also shares a memory budget. The probes are a third router that no limit touches.
+//! Each is a route group with its own body limit, timeout and concurrency limit (the heavy
+//! group's taken when a request's work starts, not while its body arrives); the heavy group
+//! also shares a memory budget, which holds each answer until it is sent. Every body must
+//! arrive at a minimum rate, every answer be read within a write timeout. The probes are a
+//! third router that no limit touches.
 //!
 //! Layout, each layer using only those above it:
 //! - Pure code, no HTTP or serde in any signature:
@@ -38,7 +41,9 @@
 //!     that a pair sent as rectified has its rows in line (`vision::rows`).
 //! - [`config`]: flags and environment variables (clap) for both groups, defaults, start-up
 //!   checks.
-//! - [`budget`]: the memory budget shared by the heavy requests in flight.
+//! - [`budget`]: what the heavy requests in flight share: the memory budget (bodies, work and
+//!   answers not yet sent, with the matcher's pools and the allocator's free memory giving way
+//!   to it) and the compute slots taken when work starts.
 //! - [`observe`]: logs, request ids and the access log; Prometheus metrics.
 //! - [`api`]: the HTTP layer, read one way: [`api::error`] ← [`api::extract`] ←
 //!   [`api::wire`] ← [`api::validate`] ← [`api::images`] ← [`api::routes`]. The routes map

@@ -331,15 +331,11 @@ async fn guard<S: Inner>(
         request = request.map(|body| Body::new(Watched::new(watched, body)));
         Some(progress)
     };
-    let answer = tokio::time::timeout(shared.timeout, inner.call(request));
-    let too_slow = async {
-        match &progress {
-            Some(progress) => progress.too_slow(started, shared.body_rate).await,
-            None => std::future::pending().await,
-        }
-    };
-    let response = tokio::select! {
-        answer = answer => match answer {
+    let answer = async {
+        // Pinned here and awaited by reference, so that the call (and the body in it) still
+        // lives when the timeout is judged: a body dropped counts as no longer waited for.
+        let mut call = std::pin::pin!(tokio::time::timeout(shared.timeout, inner.call(request)));
+        match call.as_mut().await {
             Ok(Ok(response)) => response.into_response(),
             Ok(Err(never)) => match never {},
             Err(_) => ApiError::Timeout {
@@ -347,7 +343,19 @@ async fn guard<S: Inner>(
                 body_received: progress.as_ref().is_none_or(|p| p.received()),
             }
             .into_response(),
-        },
+        }
+    };
+    let too_slow = async {
+        match &progress {
+            Some(progress) => progress.too_slow(started, shared.body_rate).await,
+            None => std::future::pending().await,
+        }
+    };
+    // The answer first: a request whose body has all arrived is usually answered at its first
+    // poll, before the rate's timer is ever set.
+    let response = tokio::select! {
+        biased;
+        response = answer => response,
         () = too_slow => ApiError::SlowBody {
             received: progress.as_ref().map_or(0, |p| p.bytes()),
             after: started.elapsed(),

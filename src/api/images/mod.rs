@@ -7,8 +7,9 @@
 //! - [`maps`]: the rectification maps of the raw rigs seen lately, cached within the budget;
 //! - [`limits`]: what the server accepts: image sizes, the matcher's settings mapped onto the
 //!   query's names, and what to shrink when a request cannot fit;
-//! - [`work`]: the memory reserved and the work run on a blocking thread that stops when its
-//!   request is abandoned, the pair decoded, `Server-Timing`.
+//! - [`work`]: a compute slot taken and the memory reserved when the work starts (not while
+//!   the body arrives), the work run on a blocking thread that stops when its request is
+//!   abandoned, the pair decoded, `Server-Timing`.
 //!
 //! It sits between [`super::validate`] and [`super::routes`]: the routes use it, it uses
 //! none of them.
