@@ -58,7 +58,7 @@ pub trait Spare: Send + Sync {
 /// matcher's buffer pools ([`crate::vision::huge_pages`]) and the free memory the allocator
 /// holds in its arenas. When the reservations leave too little room for both, the pools free
 /// what does not fit and the allocator gives its free pages back to the kernel (at most every
-/// [`crate::vision::huge_pages::TRIM_EVERY_MS`] ms), so that the process stays within the
+/// [`crate::vision::huge_pages::TRIM_EVERY`]), so that the process stays within the
 /// budget rather than the budget plus what the last requests left behind.
 pub struct Leftovers;
 
@@ -88,19 +88,19 @@ pub enum Refusal {
 impl MemoryBudget {
     /// A budget of `total` bytes, none reserved.
     pub fn new(total: usize) -> Self {
-        Self(Arc::new(Shared {
-            total,
-            used: AtomicUsize::new(0),
-            spare: None,
-        }))
+        Self::build(total, None)
     }
 
     /// A budget of `total` bytes, none reserved, that `spare` gives way to.
     pub fn with_spare(total: usize, spare: &'static dyn Spare) -> Self {
+        Self::build(total, Some(spare))
+    }
+
+    fn build(total: usize, spare: Option<&'static dyn Spare>) -> Self {
         Self(Arc::new(Shared {
             total,
             used: AtomicUsize::new(0),
-            spare: Some(spare),
+            spare,
         }))
     }
 

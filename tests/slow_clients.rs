@@ -11,15 +11,14 @@ use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::{Duration, Instant};
 
-use axum::extract::{Query, State};
+use axum::extract::Query;
 use axum::response::{IntoResponse, Response};
-use axum::{Extension, Router, routing::post};
+use axum::{Router, routing::post};
 use reqwest::multipart::{Form, Part};
 use serde::Deserialize;
 use stereo_distance::api::HeavyState;
 use stereo_distance::api::error::ApiError;
 use stereo_distance::api::images::work::{self, Admitted};
-use stereo_distance::budget::Reservation;
 use stereo_distance::config::{Config, HeavyLimits};
 use stereo_distance::vision::{encode, synthetic};
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
@@ -220,14 +219,9 @@ struct Answer {
 /// slot and reserves `N` bytes, as `/depth-map` reserves its answer's, and makes an answer of
 /// `N` bytes (each page written, so that it is real memory).
 async fn answer(
-    State(state): State<HeavyState>,
-    Extension(reservation): Extension<Reservation>,
+    admitted: Admitted,
     Query(Answer { bytes }): Query<Answer>,
 ) -> Result<Response, ApiError> {
-    let admitted = Admitted {
-        reservation,
-        slots: state.slots.clone(),
-    };
     let made = work::run_reserved(
         admitted,
         bytes,

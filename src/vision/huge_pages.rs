@@ -13,6 +13,7 @@
 
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Mutex, PoisonError};
+use std::time::{Duration, Instant};
 
 /// A `Vec` of `len` zeros, huge-page backed where the kernel allows. A large one comes
 /// straight from the kernel already zeroed, so it is not written here at all.
@@ -236,27 +237,17 @@ pub fn allocator_free() -> usize {
 }
 
 /// Gives the free memory of every arena back to the kernel (glibc's `malloc_trim(0)`), at
-/// most once every [`TRIM_EVERY_MS`] milliseconds: a trim walks every arena under its lock,
+/// most once every [`TRIM_EVERY`]: a trim walks every arena under its lock,
 /// and the pages it gives back are faulted in again by the next request that needs them, so
 /// it is for when the memory is wanted, not for every request. Whether it trimmed.
 pub fn trim_allocator() -> bool {
-    use std::sync::OnceLock;
-    static START: OnceLock<std::time::Instant> = OnceLock::new();
-    static LAST: AtomicUsize = AtomicUsize::new(0);
-    let now = START
-        .get_or_init(std::time::Instant::now)
-        .elapsed()
-        .as_millis() as usize
-        + 1;
-    let last = LAST.load(Ordering::Relaxed);
-    if last != 0 && now.saturating_sub(last) < TRIM_EVERY_MS {
-        return false;
-    }
-    if LAST
-        .compare_exchange(last, now, Ordering::AcqRel, Ordering::Relaxed)
-        .is_err()
+    static LAST: Mutex<Option<Instant>> = Mutex::new(None);
     {
-        return false;
+        let mut last = LAST.lock().unwrap_or_else(PoisonError::into_inner);
+        if last.is_some_and(|at| at.elapsed() < TRIM_EVERY) {
+            return false;
+        }
+        *last = Some(Instant::now());
     }
     #[cfg(all(target_os = "linux", target_env = "gnu"))]
     // SAFETY: malloc_trim only returns free pages of the allocator's own arenas to the kernel,
@@ -267,8 +258,8 @@ pub fn trim_allocator() -> bool {
     true
 }
 
-/// The least time between two [`trim_allocator`] calls that trim, in milliseconds.
-pub const TRIM_EVERY_MS: usize = 100;
+/// The least time between two [`trim_allocator`] calls that trim.
+pub const TRIM_EVERY: Duration = Duration::from_millis(100);
 
 #[cfg(test)]
 mod tests {

@@ -6,11 +6,7 @@
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
 
-use axum::{
-    Extension, Router,
-    extract::{Query, State},
-    routing::post,
-};
+use axum::{Router, extract::Query, routing::post};
 use reqwest::header::RETRY_AFTER;
 use serde::Deserialize;
 use serde_json::{Value, json};
@@ -22,7 +18,6 @@ use stereo_distance::{
         extract::JsonBody,
         images::work::{self, Admitted},
     },
-    budget::Reservation,
     config::HeavyLimits,
 };
 use tokio::io::AsyncWriteExt;
@@ -53,20 +48,15 @@ static RELEASE: AtomicBool = AtomicBool::new(false);
 /// its work takes one of the group's slots (as an image route's does) and holds it until
 /// [`RELEASE`].
 async fn upload(
-    State(state): State<HeavyState>,
-    Extension(reservation): Extension<Reservation>,
+    admitted: Admitted,
     Query(Work { work, hold }): Query<Work>,
     JsonBody(body, _): JsonBody<Value>,
 ) -> Result<axum::Json<Value>, ApiError> {
     if let Some(more) = work {
-        reservation.grow(more).map_err(ApiError::Memory)?;
+        admitted.reservation.grow(more).map_err(ApiError::Memory)?;
     }
-    let bytes = reservation.bytes();
+    let bytes = admitted.reservation.bytes();
     if hold == Some(true) {
-        let admitted = Admitted {
-            reservation,
-            slots: state.slots.clone(),
-        };
         work::run_reserved(
             admitted,
             0,
@@ -84,14 +74,7 @@ async fn upload(
 }
 
 /// `POST /test/panic`: an image route whose work has a bug.
-async fn panics(
-    State(state): State<HeavyState>,
-    Extension(reservation): Extension<Reservation>,
-) -> Result<&'static str, ApiError> {
-    let admitted = Admitted {
-        reservation,
-        slots: state.slots.clone(),
-    };
+async fn panics(admitted: Admitted) -> Result<&'static str, ApiError> {
     work::run_reserved(
         admitted,
         1024,

@@ -74,7 +74,7 @@ impl<F: ImageForm> FromRequest<HeavyState> for ImagePair<F> {
     type Rejection = ApiError;
 
     async fn from_request(req: Request, state: &HeavyState) -> Result<Self, ApiError> {
-        let admitted = work::Admitted::of(&req, state)?;
+        let admitted = work::Admitted::of(req.extensions(), state)?;
         let content_type = req.headers().get(header::CONTENT_TYPE).cloned();
         let form = Multipart::from_request(req, state)
             .await

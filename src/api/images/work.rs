@@ -12,6 +12,9 @@ use axum::body::Bytes;
 
 use super::form::Parts;
 use super::limits::{self, LIMITS};
+use axum::extract::FromRequestParts;
+use axum::http::{Extensions, request::Parts as RequestParts};
+
 use crate::api::HeavyState;
 use crate::api::error::{ApiError, FieldError, RETRY_AFTER_SECS};
 use crate::budget::{Refusal, Reservation, Slots};
@@ -59,10 +62,9 @@ pub struct Admitted {
 }
 
 impl Admitted {
-    /// The guard's reservation for `request` and the group's slots.
-    pub fn of<B>(request: &axum::http::Request<B>, state: &HeavyState) -> Result<Self, ApiError> {
-        let reservation = request
-            .extensions()
+    /// The guard's reservation (among a request's `extensions`) and the group's slots.
+    pub fn of(extensions: &Extensions, state: &HeavyState) -> Result<Self, ApiError> {
+        let reservation = extensions
             .get::<Reservation>()
             .cloned()
             .ok_or_else(|| ApiError::Internal("no memory reservation".to_owned()))?;
@@ -70,6 +72,18 @@ impl Admitted {
             reservation,
             slots: state.slots.clone(),
         })
+    }
+}
+
+/// An image handler that reads its body its own way takes its admission as an extractor.
+impl FromRequestParts<HeavyState> for Admitted {
+    type Rejection = ApiError;
+
+    async fn from_request_parts(
+        parts: &mut RequestParts,
+        state: &HeavyState,
+    ) -> Result<Self, ApiError> {
+        Self::of(&parts.extensions, state)
     }
 }
 

@@ -58,7 +58,7 @@ impl FromRequest<HeavyState> for Upload {
     type Rejection = ApiError;
 
     async fn from_request(req: Request, state: &HeavyState) -> Result<Self, ApiError> {
-        let admitted = work::Admitted::of(&req, state)?;
+        let admitted = work::Admitted::of(req.extensions(), state)?;
         let content_type = req.headers().get(header::CONTENT_TYPE).cloned();
         let form = Multipart::from_request(req, state).await.map_err(|_| {
             extract::unsupported(
