@@ -26,8 +26,10 @@ COPY Cargo.toml Cargo.lock ./
 # The environment of the build (.cargo/config.toml) and the Swagger UI files it blanks.
 COPY .cargo ./.cargo
 COPY swagger-ui-trim ./swagger-ui-trim
-# The manifest names the bench targets, so their sources must exist for cargo to read it.
+# The manifest names the bench targets and the workspace's other member, so their sources
+# must exist for cargo to read it.
 COPY benches ./benches
+COPY crates ./crates
 RUN mkdir src \
  && printf 'fn main() {}\n' > src/main.rs \
  && touch src/lib.rs \

@@ -1,7 +1,6 @@
-//! Stereo distance service: turns a stereo correspondence into a distance with its expected
-//! error, a calibration file into the rig, and rectified image pairs into disparities, depths
-//! and matches, over HTTP and JSON; next, checkerboard pairs into a calibration and raw pairs
-//! into rectified ones.
+//! Stereo distance service, over HTTP and JSON: checkerboard pairs into a calibration (or a
+//! calibration file into the rig), raw pairs into rectified ones, pairs into disparities,
+//! depths and matches, and a correspondence into a distance with its expected error.
 //!
 //! Two kinds of work, kept apart from the router down:
 //! - **light**: JSON answers that take microseconds of CPU and kilobytes of memory (`/distance`,
@@ -15,9 +14,10 @@
 //! arrive at a minimum rate, every answer be read within a write timeout. The probes are a
 //! third router that no limit touches.
 //!
-//! Layout, each layer using only those above it:
+//! Layout, each layer using only those above it (`tests/layout.rs` holds the code to it):
 //! - Pure code, no HTTP or serde in any signature:
 //!   - [`numbers`]: every number written as text (messages, CSV), short and exact.
+//!   - [`noise`]: seeded random numbers and noise textures, for the renders with exact truth.
 //!   - [`physics`]: the triangulation model: the camera and the rectified rig, each built only
 //!     through its checking constructor (`Rig::new`), focal conversions,
 //!     `Z = B·f_px / |d + doffs|`, depth error, 3D point and range, sweeps for tables and
@@ -47,9 +47,12 @@
 //! - [`observe`]: logs, request ids and the access log; Prometheus metrics.
 //! - [`api`]: the HTTP layer, read one way: [`api::error`] ← [`api::extract`] ←
 //!   [`api::wire`] ← [`api::validate`] ← [`api::images`] ← [`api::routes`]. The routes map
-//!   the pure constructors' faults onto field names and nothing more; [`api::images`] holds
-//!   what every image route shares (the form and its `ImagePair` extractor, the rig from a
-//!   part, the limits, the blocking work), which `/calibrate` and `/rectify` use too.
+//!   the pure constructors' faults onto field names and nothing more, and never import one
+//!   another: what two routes share lives below them. [`api::images`] holds what every
+//!   image route shares (the form and its `ImagePair` extractor, the rig from a part, raw
+//!   pairs rectified and the row check, file answers and `Server-Timing`, the limits, the
+//!   blocking work); [`api::wire`] the wire types they share (the rig, `RectifyMode`,
+//!   `StageTimes`).
 //! - [`web`]: the calculator page at `/`, a client of the API, its assets embedded
 //!   (`src/web/`).
 //! - [`server`]: the route groups wrapped in their guards, the edge layers, the accept loop
@@ -66,6 +69,7 @@ pub mod calibrate;
 pub mod calibration;
 pub mod camera;
 pub mod config;
+pub mod noise;
 pub mod numbers;
 pub mod observe;
 pub mod physics;

@@ -42,8 +42,9 @@ pub struct Asset {
 
 /// Everything the page needs, and nothing from anywhere else.
 /// The script is ES modules under `/js/`, loaded by `<script type="module">` from
-/// `/js/app.js`, which imports the rest (one per mode, the rig form, drawing, the API).
-pub const ASSETS: [Asset; 14] = [
+/// `/js/app.js`, which imports the rest (one per mode, the state and events the modes share,
+/// the rig form, drawing, the API).
+pub const ASSETS: [Asset; 15] = [
     asset("/", HTML, include_str!("web/index.html")),
     asset("/guide.html", HTML, include_str!("web/guide.html")),
     asset("/js/app.js", JAVASCRIPT, include_str!("web/js/app.js")),
@@ -75,6 +76,7 @@ pub const ASSETS: [Asset; 14] = [
         include_str!("web/js/numbers.js"),
     ),
     asset("/js/rig.js", JAVASCRIPT, include_str!("web/js/rig.js")),
+    asset("/js/store.js", JAVASCRIPT, include_str!("web/js/store.js")),
     asset("/js/util.js", JAVASCRIPT, include_str!("web/js/util.js")),
     asset("/app.css", CSS, include_str!("web/app.css")),
     asset("/favicon.svg", SVG, include_str!("web/favicon.svg")),

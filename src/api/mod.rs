@@ -100,7 +100,7 @@ impl FromRef<HeavyState> for BodyLimit {
         routes::calibrate::types::CalibrateOutput,
         routes::rectify::types::RectifyOutput,
         routes::rectify::types::InterpolationChoice,
-        routes::rectify::types::RectifyMode
+        wire::images::RectifyMode
     )),
     tags(
         (name = "calibration", description = "Calibration files read into a rig"),

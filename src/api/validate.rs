@@ -3,6 +3,7 @@
 
 use super::error::FieldErrors;
 use super::wire::params::RangeParams;
+use crate::camera::Alpha;
 use crate::numbers::Num;
 use crate::physics::{
     Camera, CameraSpec, Correspondence, Fault, Member, Rig, RigSpec, SampleRange, Spacing,
@@ -17,6 +18,18 @@ impl FieldErrors {
             self.add(field, "is required");
         }
         value
+    }
+
+    /// `alpha` as a request states it, parsed once for every route that takes it: the value
+    /// when given and in 0..=1, its fault named `alpha` when not.
+    pub fn alpha(&mut self, value: Option<f64>) -> Option<Alpha> {
+        match Alpha::new(value?) {
+            Ok(alpha) => Some(alpha),
+            Err(out) => {
+                self.add("alpha", out.to_string());
+                None
+            }
+        }
     }
 
     /// `value` if it is finite and greater than zero.

@@ -8,7 +8,7 @@ use nalgebra::{Isometry3, Rotation3, Translation3, Vector3};
 
 use super::board::Board;
 use crate::camera::{Camera, Size, StereoPair};
-use crate::vision::synthetic::Rng;
+use crate::noise::Rng;
 
 /// How a board is lit and imaged.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -386,7 +386,7 @@ pub fn raw_wall(
     // A texture pixel is two thirds of a rectified pixel on the axis, so that the far side
     // of the wall, foreshortened, still holds nothing finer than a pixel can.
     let scale = rectification.p1[(0, 0)] / (1.5 * distance);
-    let texture = crate::vision::synthetic::Texture::new(seed);
+    let texture = crate::noise::Texture::new(seed);
     let centre = r1 * (-(pair.rotation.inverse() * pair.translation));
     let to_world = [r1, r1 * pair.rotation.matrix().transpose()];
     let origins = [Vector3::zeros(), centre];

@@ -102,7 +102,7 @@ fn recovers_a_rendered_rig() {
 /// The rectified rig's focal length and baseline from a calibration of `count` views whose
 /// corners are the exact projections plus Gaussian noise of `sigma` px, with their σ.
 fn noisy_rig(pair: &StereoPair, count: usize, sigma: f64, seed: u64) -> Option<[f64; 4]> {
-    use crate::vision::synthetic::Rng;
+    use crate::noise::Rng;
     let board = Board::new(7, 5, 30.0, LengthUnit::Millimetre).unwrap();
     let poses = poses(pair, SIZE, &board, count, 45.0, seed);
     let mut rng = Rng::new(seed ^ 0x5EED);

@@ -6,6 +6,7 @@
 //! `P[0,3]` divided by f: for the colour pair `(P_rect_02[0,3] − P_rect_03[0,3]) / f`, not
 //! `−P_rect_03[0,3] / f`, because camera 2 is itself 6 cm from camera 0.
 
+use crate::camera::Alpha;
 use nalgebra::{Matrix3, Matrix3x4, Vector3};
 
 use super::{Calibration, Format, KittiPair, ParseError, pixels, raw, yaml::number};
@@ -74,7 +75,7 @@ fn projection(entries: &[(String, Entry)], i: u8) -> Option<(&str, &Entry)> {
 pub fn parse(
     text: &str,
     pair: Option<KittiPair>,
-    alpha: Option<f64>,
+    alpha: Option<Alpha>,
 ) -> Result<Calibration, Vec<ParseError>> {
     let entries = entries(text)?;
     let mut warnings = Vec::new();
@@ -181,7 +182,7 @@ fn raw_pair(
     [pl, pr]: [&[f64]; 2],
     p_line: usize,
     rectified: Option<(u32, u32)>,
-    alpha: Option<f64>,
+    alpha: Option<Alpha>,
 ) -> Result<Option<raw::Raw>, Vec<ParseError>> {
     let get = |key: String| {
         entries

@@ -19,6 +19,7 @@ pub mod yaml;
 pub use raw::Raw;
 pub use read::{Fault, Input, Options, Read, UNIT_REQUIRED, read};
 
+use crate::camera::Alpha;
 use crate::numbers::{Num, clip};
 use std::fmt;
 
@@ -98,7 +99,7 @@ pub struct Source<'a> {
     pub kitti_pair: Option<KittiPair>,
     /// For a file that describes raw cameras: recompute the rectification with this `alpha`
     /// (0..=1) instead of using the file's own (`None`: the file's, or 0 when it has none).
-    pub alpha: Option<f64>,
+    pub alpha: Option<Alpha>,
     /// The raw images' size, when the file may not say (the images of the request).
     pub image_size: Option<(u32, u32)>,
 }

@@ -9,6 +9,7 @@
 //! rectified projections `P1`, `P2` when there is no `Q` (B = −P2[0,3]/P2[0,0]). Lengths are in
 //! the unit of the calibration target's squares, which the file does not record.
 
+use crate::camera::Alpha;
 use nalgebra::{Matrix3x4, Vector3};
 
 use super::yaml::{self, Node};
@@ -33,7 +34,7 @@ fn document(text: &str) -> Result<Node, ParseError> {
 pub fn parse(
     text: &str,
     second: Option<&str>,
-    alpha: Option<f64>,
+    alpha: Option<Alpha>,
     image_size: Option<(u32, u32)>,
 ) -> Result<Calibration, Vec<ParseError>> {
     let mut doc = document(text).map_err(|e| vec![e])?;

@@ -4,6 +4,7 @@
 //! [`crate::camera::Camera`], rotations checked to be rotations, and the rectification either
 //! the file's own or computed as `cv2.stereoRectify` computes it with the caller's `alpha`.
 
+use crate::camera::Alpha;
 use nalgebra::{Matrix3, Matrix3x4, Rotation3, Vector3};
 
 use super::{Calibration, Format, ParseError};
@@ -245,7 +246,7 @@ pub struct Parts {
 
 /// The raw pair and its rectification: the file's own unless the caller asks for an `alpha`,
 /// computed as `stereoRectify` does with that `alpha` (0 when the file gives none).
-pub fn pair(parts: Parts, alpha: Option<f64>) -> Result<Raw, ParseError> {
+pub fn pair(parts: Parts, alpha: Option<Alpha>) -> Result<Raw, ParseError> {
     let at = |message: String| ParseError::at(parts.line, message);
     let Some(size) = parts.size else {
         return Err(at(
@@ -315,7 +316,7 @@ pub fn pair(parts: Parts, alpha: Option<f64>) -> Result<Raw, ParseError> {
         }),
         (_, alpha) => {
             let options = Options {
-                alpha: alpha.unwrap_or(0.0),
+                alpha: alpha.unwrap_or(Alpha::ZERO),
                 new_size: Some(rectified_size),
                 ..Options::default()
             };

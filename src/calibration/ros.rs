@@ -3,6 +3,7 @@
 //! `ros2 topic echo` message (`width`, `height`, flat `k` and `p`) or a ROS 1 `rostopic echo`
 //! (`K`, `P`). The right camera's projection carries the baseline: `P_r[3] = −f·B`.
 
+use crate::camera::Alpha;
 use nalgebra::Matrix3x4;
 
 use super::yaml::{self, Node};
@@ -140,7 +141,7 @@ fn camera(text: &str) -> Result<Camera, ParseError> {
 fn raw_pair(
     left: &Camera,
     right: &Camera,
-    alpha: Option<f64>,
+    alpha: Option<Alpha>,
     image_size: Option<(u32, u32)>,
 ) -> Result<Option<raw::Raw>, Vec<ParseError>> {
     let (Some(l), Some(r)) = (&left.raw, &right.raw) else {
@@ -203,7 +204,7 @@ fn raw_pair(
 pub fn parse(
     text: &str,
     right_text: Option<&str>,
-    alpha: Option<f64>,
+    alpha: Option<Alpha>,
     image_size: Option<(u32, u32)>,
 ) -> Result<Calibration, Vec<ParseError>> {
     let left = camera(text);

@@ -75,11 +75,49 @@ impl Roi {
     }
 }
 
-/// How to rectify: `alpha` in 0..=1, OpenCV's `CALIB_ZERO_DISPARITY`, and the size of the
-/// rectified images (the raw size when `None`).
+/// OpenCV's free scaling parameter `alpha`: 0 keeps only valid pixels, 1 keeps every raw
+/// pixel. A value that exists is in 0..=1.
+#[derive(Debug, Clone, Copy, Default, PartialEq, PartialOrd)]
+pub struct Alpha(f64);
+
+impl Alpha {
+    /// Only valid pixels (OpenCV's default for a computed rectification).
+    pub const ZERO: Alpha = Alpha(0.0);
+
+    /// `value` if it is in 0..=1 (NaN is not).
+    pub fn new(value: f64) -> Result<Self, AlphaOutOfRange> {
+        if (0.0..=1.0).contains(&value) {
+            Ok(Self(value))
+        } else {
+            Err(AlphaOutOfRange(value))
+        }
+    }
+
+    /// The value, in 0..=1.
+    pub fn get(self) -> f64 {
+        self.0
+    }
+}
+
+/// An `alpha` outside 0..=1, said as every caller says it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AlphaOutOfRange(pub f64);
+
+impl fmt::Display for AlphaOutOfRange {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "must be from 0 (only valid pixels) to 1 (every raw pixel), got {}",
+            crate::numbers::Num(self.0)
+        )
+    }
+}
+
+/// How to rectify: `alpha`, OpenCV's `CALIB_ZERO_DISPARITY`, and the size of the rectified
+/// images (the raw size when `None`).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Options {
-    pub alpha: f64,
+    pub alpha: Alpha,
     pub zero_disparity: bool,
     pub new_size: Option<Size>,
 }
@@ -88,7 +126,7 @@ impl Default for Options {
     /// `alpha` 0 (only valid pixels) and `CALIB_ZERO_DISPARITY`, OpenCV's default flag.
     fn default() -> Self {
         Options {
-            alpha: 0.0,
+            alpha: Alpha::ZERO,
             zero_disparity: true,
             new_size: None,
         }
@@ -98,8 +136,6 @@ impl Default for Options {
 /// Why a pair cannot be rectified.
 #[derive(Debug, Clone, PartialEq)]
 pub enum RectifyFault {
-    /// `alpha` outside 0..=1.
-    Alpha,
     /// The cameras are at the same place (|T| = 0 or not finite).
     NoBaseline,
     /// A zero image size.
@@ -113,7 +149,6 @@ pub enum RectifyFault {
 impl fmt::Display for RectifyFault {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
-            RectifyFault::Alpha => f.write_str("alpha must be between 0 and 1"),
             RectifyFault::NoBaseline => {
                 f.write_str("the translation between the cameras must be finite and not zero")
             }
@@ -244,9 +279,6 @@ pub fn stereo_rectify(
     size: Size,
     options: Options,
 ) -> Result<Rectification, RectifyFault> {
-    if !(0.0..=1.0).contains(&options.alpha) {
-        return Err(RectifyFault::Alpha);
-    }
     if size.width == 0 || size.height == 0 {
         return Err(RectifyFault::Size);
     }
@@ -390,7 +422,7 @@ pub fn stereo_rectify(
             s1 = s1.min(v);
         }
     }
-    let s = s0 * (1.0 - options.alpha) + s1 * options.alpha;
+    let s = s0 * (1.0 - options.alpha.get()) + s1 * options.alpha.get();
     if !(s.is_finite() && s > 0.0) {
         return Err(RectifyFault::Degenerate);
     }
@@ -448,7 +480,7 @@ pub fn stereo_rectify(
         p1,
         p2,
         q,
-        alpha: Some(options.alpha),
+        alpha: Some(options.alpha.get()),
         roi_left,
         roi_right,
         size: new_size,
@@ -534,8 +566,8 @@ fn fisheye_projections(
     [r1, r2]: [Matrix3<f64>; 2],
     t: Vector3<f64>,
 ) -> Result<Rectification, RectifyFault> {
-    let k1 = fisheye_new_matrix(&pair.left, size, &r1, options.alpha, new_size);
-    let k2 = fisheye_new_matrix(&pair.right, size, &r2, options.alpha, new_size);
+    let k1 = fisheye_new_matrix(&pair.left, size, &r1, options.alpha.get(), new_size);
+    let k2 = fisheye_new_matrix(&pair.right, size, &r2, options.alpha.get(), new_size);
     let fc_new = k1[1].min(k2[1]);
     let mut cc = [[k1[2], k1[3]], [k2[2], k2[3]]];
     if options.zero_disparity {
@@ -591,7 +623,7 @@ fn fisheye_projections(
         p1,
         p2,
         q,
-        alpha: Some(options.alpha),
+        alpha: Some(options.alpha.get()),
         roi_left,
         roi_right,
         size: new_size,

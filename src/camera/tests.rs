@@ -111,7 +111,7 @@ fn stereo_rectify_reproduces_opencv() {
     ];
     for (alpha, f, tf, roi_l, roi_r) in cases {
         let options = Options {
-            alpha,
+            alpha: Alpha::new(alpha).unwrap(),
             ..Options::default()
         };
         let r = stereo_rectify(&opencv_pair(), SIZE, options).unwrap();
@@ -227,7 +227,7 @@ fn rectified_rows_agree_and_the_rig_gives_the_depth() {
     for (n, pair) in pairs.iter().enumerate() {
         for alpha in [0.0, 1.0] {
             let options = Options {
-                alpha,
+                alpha: Alpha::new(alpha).unwrap(),
                 ..Options::default()
             };
             let r = stereo_rectify(pair, SIZE, options).unwrap();
@@ -264,11 +264,8 @@ fn rectified_rows_agree_and_the_rig_gives_the_depth() {
 #[test]
 fn refuses_what_it_cannot_rectify() {
     let pair = opencv_pair();
-    let alpha = Options {
-        alpha: 1.5,
-        ..Options::default()
-    };
-    assert_eq!(stereo_rectify(&pair, SIZE, alpha), Err(RectifyFault::Alpha));
+    assert_eq!(Alpha::new(1.5), Err(AlphaOutOfRange(1.5)));
+    assert!(Alpha::new(f64::NAN).is_err() && Alpha::new(-0.1).is_err());
     let still = StereoPair {
         translation: Vector3::zeros(),
         ..pair

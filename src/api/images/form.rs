@@ -3,7 +3,6 @@
 //! [`ImagePair`], the extractor that opens every image route with the same steps in the same
 //! order: the parts, the sizes, the pair's check, the rig.
 
-use std::collections::BTreeMap;
 use std::marker::PhantomData;
 use std::time::{Duration, Instant};
 
@@ -12,6 +11,7 @@ use axum::extract::multipart::MultipartError;
 use axum::extract::{FromRequest, Multipart, Request};
 use axum::http::{StatusCode, header};
 
+use super::parts::Parts;
 use super::rig::{self, GivenRig};
 use super::{limits, work};
 use crate::api::HeavyState;
@@ -21,31 +21,6 @@ use crate::vision::decode;
 
 /// The media type the image routes read.
 pub const MULTIPART: &str = "multipart/form-data";
-
-/// The parts of a multipart form, by name.
-#[derive(Debug, Default)]
-pub struct Parts(BTreeMap<String, Bytes>);
-
-impl Parts {
-    pub fn get(&self, name: &str) -> Option<&Bytes> {
-        self.0.get(name)
-    }
-
-    /// The part as UTF-8 text, or an error naming it.
-    pub fn text(&self, name: &str, problems: &mut FieldErrors) -> Option<String> {
-        let bytes = self.get(name)?;
-        match std::str::from_utf8(bytes) {
-            Ok(text) => Some(text.to_owned()),
-            Err(e) => {
-                problems.add(
-                    name,
-                    format!("must be UTF-8 text; byte {} is not", e.valid_up_to()),
-                );
-                None
-            }
-        }
-    }
-}
 
 /// What one image route reads besides the pair and the rig's parts.
 pub trait ImageForm {
@@ -70,20 +45,73 @@ pub struct ImagePair<F> {
     form: PhantomData<F>,
 }
 
-impl<F: ImageForm> FromRequest<HeavyState> for ImagePair<F> {
-    type Rejection = ApiError;
+/// A heavy request's multipart form, read after its admission: every part in order, what
+/// was wrong with them, and how long the body took. Both [`ImagePair`] and `/calibrate`'s
+/// views are read through it.
+pub struct Form {
+    pub parts: Vec<(String, Bytes)>,
+    pub problems: FieldErrors,
+    pub admitted: work::Admitted,
+    pub read: Duration,
+}
 
-    async fn from_request(req: Request, state: &HeavyState) -> Result<Self, ApiError> {
+/// What a route's form holds: the parts it reads, those of them that may repeat, and how
+/// `curl` sends it (for the 415 of a body that is not a form).
+pub struct FormSpec<'a> {
+    pub known: &'a [&'a str],
+    pub repeatable: &'a [&'a str],
+    pub example: &'static str,
+}
+
+impl Form {
+    /// Takes the request's admission ([`work::Admitted`]), then reads its form.
+    pub async fn read(
+        req: Request,
+        state: &HeavyState,
+        spec: FormSpec<'_>,
+    ) -> Result<Self, ApiError> {
         let admitted = work::Admitted::of(req.extensions(), state)?;
         let content_type = req.headers().get(header::CONTENT_TYPE).cloned();
         let form = Multipart::from_request(req, state)
             .await
-            .map_err(|_| not_multipart(content_type.as_ref()))?;
-        let known = [&["left", "right"][..], F::PARTS, &rig::RIG_PARTS[..]].concat();
+            .map_err(|_| not_multipart(content_type.as_ref(), spec.example))?;
         let mut problems = FieldErrors::default();
         let started = Instant::now();
-        let parts = read_parts(form, &known, state.body_limit.0, &mut problems).await?;
-        let read = started.elapsed();
+        let parts = read_parts_with(
+            form,
+            spec.known,
+            spec.repeatable,
+            state.body_limit.0,
+            &mut problems,
+        )
+        .await?;
+        Ok(Form {
+            parts,
+            problems,
+            admitted,
+            read: started.elapsed(),
+        })
+    }
+}
+
+impl<F: ImageForm> FromRequest<HeavyState> for ImagePair<F> {
+    type Rejection = ApiError;
+
+    async fn from_request(req: Request, state: &HeavyState) -> Result<Self, ApiError> {
+        let known = [&["left", "right"][..], F::PARTS, &rig::RIG_PARTS[..]].concat();
+        let spec = FormSpec {
+            known: &known,
+            repeatable: &[],
+            example: "multipart/form-data: the images as file parts (curl -F left=@left.png \
+                      -F right=@right.png)",
+        };
+        let Form {
+            parts,
+            mut problems,
+            admitted,
+            read,
+        } = Form::read(req, state, spec).await?;
+        let parts: Parts = parts.into_iter().collect();
         let left = image_size(&parts, "left", &mut problems);
         let right = image_size(&parts, "right", &mut problems);
         if let (Some(l), Some(r)) = (left, right) {
@@ -142,7 +170,10 @@ pub struct Job<'a> {
 
 /// The 415 for a body that is not a multipart form, saying what was sent: another media type,
 /// none, or a form without its boundary.
-fn not_multipart(content_type: Option<&axum::http::HeaderValue>) -> ApiError {
+fn not_multipart(
+    content_type: Option<&axum::http::HeaderValue>,
+    example: &'static str,
+) -> ApiError {
     let is_form = content_type
         .and_then(|ct| ct.to_str().ok())
         .is_some_and(|ct| extract::essence(ct).eq_ignore_ascii_case(MULTIPART));
@@ -153,30 +184,14 @@ fn not_multipart(content_type: Option<&axum::http::HeaderValue>) -> ApiError {
                        send it)",
         }
     } else {
-        extract::unsupported(
-            content_type,
-            "multipart/form-data: the images as file parts (curl -F left=@left.png -F \
-             right=@right.png)",
-        )
+        extract::unsupported(content_type, example)
     }
-}
-
-/// Reads every part of the form. A part this route does not read, a part given twice or one
-/// without a name is recorded in `problems`, naming it; the form itself failing is an error.
-pub async fn read_parts(
-    form: Multipart,
-    known: &[&str],
-    limit: usize,
-    problems: &mut FieldErrors,
-) -> Result<Parts, ApiError> {
-    let read = read_parts_with(form, known, &[], limit, problems).await?;
-    Ok(Parts(read.into_iter().collect()))
 }
 
 /// Reads every part of the form in order; the parts named in `repeatable` may come more than
 /// once (a calibration's views), every other once. A part this route does not read, a part
 /// given twice or one without a name is recorded in `problems`, naming it.
-pub async fn read_parts_with(
+async fn read_parts_with(
     mut form: Multipart,
     known: &[&str],
     repeatable: &[&str],
@@ -235,7 +250,7 @@ pub fn image_size(parts: &Parts, name: &str, problems: &mut FieldErrors) -> Opti
     let Some(bytes) = parts.get(name) else {
         problems.add(
             name,
-            format!("is required: the {name} image of the rectified pair (PNG or JPEG)"),
+            format!("is required: the {name} image of the pair (PNG or JPEG)"),
         );
         return None;
     };

@@ -6,7 +6,7 @@
 use axum::body::Bytes;
 use serde_json::{Map, Value};
 
-use super::form::Parts;
+use super::parts::Parts;
 use crate::api::error::FieldErrors;
 use crate::api::extract::decode_object;
 use crate::api::validate;

@@ -10,8 +10,8 @@ use std::time::{Duration, Instant};
 
 use axum::body::Bytes;
 
-use super::form::Parts;
 use super::limits::{self, LIMITS};
+use super::parts::Parts;
 use axum::extract::FromRequestParts;
 use axum::http::{Extensions, request::Parts as RequestParts};
 
@@ -156,25 +156,21 @@ pub fn decode_pair(parts: &Parts, colour: bool) -> Result<(Decoded, Decoded), Ap
     }
 }
 
-/// `Server-Timing: read;dur=1.2, queue;dur=0.0, decode;dur=12.3, cost;dur=…`, in
-/// milliseconds: the body read, the wait for a thread and the decode, the matcher's stages,
-/// then the route's own (`after`).
-pub fn server_timing(
+/// The stages of a match for `Server-Timing`: the body read, the wait for a thread and the
+/// decode, the matcher's stages, then the route's own (`after`).
+pub fn matcher_stages<'a>(
     [read, queue, decode]: [Duration; 3],
     matcher: &Timings,
-    after: &[(&str, Duration)],
-) -> String {
-    [
+    after: &[(&'a str, Duration)],
+) -> Vec<(&'a str, Duration)> {
+    let mut stages = vec![
         ("read", read),
         ("queue", queue),
         ("decode", decode),
         ("cost", matcher.cost),
         ("aggregate", matcher.aggregate),
         ("refine", matcher.refine),
-    ]
-    .iter()
-    .chain(after)
-    .map(|(name, d)| format!("{name};dur={:.1}", d.as_secs_f64() * 1e3))
-    .collect::<Vec<_>>()
-    .join(", ")
+    ];
+    stages.extend_from_slice(after);
+    stages
 }

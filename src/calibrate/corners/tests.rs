@@ -6,8 +6,8 @@ use super::*;
 use crate::calibrate::Board;
 use crate::calibrate::synthetic::{Style, poses, stereo_views};
 use crate::camera::{Camera, Distortion, Intrinsics, Model, Size, StereoPair};
+use crate::noise::Rng;
 use crate::physics::LengthUnit;
-use crate::vision::synthetic::Rng;
 
 fn pair(model: Model, coefficients: &[f64], f: f64) -> StereoPair {
     pair_centred(model, coefficients, f, [322.0, 237.0])

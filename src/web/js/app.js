@@ -4,13 +4,14 @@
 // nothing itself.
 
 import { openCalibrationSample, readCalibrateQuery, rememberCalibrate, wireCalibrate } from './calibrate.js';
-import { fetchPair, loadPair, openSample, pair, requestDepth, scheduleDepth, wireImages } from './images.js';
+import { fetchPair, loadPair, openSample, requestDepth, scheduleDepth, wireImages } from './images.js';
 import { wirePointing } from './findings.js';
 import { compute, copyResults, copyText, reset, schedule } from './numbers.js';
 import {
   FOCAL_MODES, RIG_INPUTS, forgetUnknown, forgetUnknownScale, importCalibration, readForm, showFocalMode, showUnit,
   stateFromQuery, writeForm,
 } from './rig.js';
+import { pair } from './store.js';
 import { $, page } from './util.js';
 
 const MODES = ['numbers', 'images', 'calibrate'];

@@ -5,7 +5,6 @@
 // /calibrate's answer and computes nothing of the calibration itself.
 
 import { svg } from './draw.js';
-import { toggleView } from './calibrate.js';
 import { $, fmt, listItem } from './util.js';
 
 /** A verdict in plain words for an error in px: under 0.5 good, under 1 fair, else poor. */
@@ -338,8 +337,9 @@ export function showCalibration(calibration) {
   return drawThumbs(calibration);
 }
 
-/** Bar clicks and keys: leave a view out, or put it back. */
-export function wireBars() {
+/** Bar clicks and keys: leave a view out, or put it back (`toggleView`, with the view's
+ * index). */
+export function wireBars(toggleView) {
   const chart = $('view-bars');
   const act = (event) => {
     const group = event.target.closest('.view-bar');

@@ -304,7 +304,7 @@ export async function openCalibrationSample() {
  * Images mode. */
 export function wireCalibrate(useCalibration) {
   drawInnerCorners($('inner-corners-picture'));
-  wireBars();
+  wireBars(toggleView);
   for (const id of ['board_files', 'board_folder']) {
     $(id).addEventListener('change', (event) => choosePairs([...event.target.files]));
   }

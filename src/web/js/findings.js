@@ -4,11 +4,9 @@
 
 import { post } from './api.js';
 import { svg } from './draw.js';
-import {
-  clearImageErrors, frameShown, NEEDS_RIG, pair, pairForm, rangeQuery, rawPair, showImageErrors, showRigNeeded,
-} from './images.js';
-import { compute } from './numbers.js';
+import { clearImageErrors, pairForm, rangeQuery, showImageErrors, showRigNeeded } from './images.js';
 import { readForm, rigGiven } from './rig.js';
+import { EVENTS, NEEDS_RIG, emit, frameShown, on, pair, rawPair } from './store.js';
 import { $, fmt, percent } from './util.js';
 
 const status = $('status');
@@ -253,7 +251,7 @@ export async function matchAt(x, y) {
     $('x_right').value = String(m.x_right);
     $('y').value = String(rectified ? m.y_rectified : m.y);
   }
-  await compute(`Matched (${x}, ${y}): ${m.status}.`);
+  await Promise.all(emit(EVENTS.compute, `Matched (${x}, ${y}): ${m.status}.`));
 }
 
 export async function measureRegion(a, b) {
@@ -349,3 +347,8 @@ export function wirePointing() {
     if (pair.arrays) showHover(pair.crosshair, frameShown() === 'raw');
   });
 }
+
+on(EVENTS.drawMarkers, drawMarkers);
+on(EVENTS.showMatch, showMatch);
+on(EVENTS.showRegion, showRegion);
+on(EVENTS.findingsLines, findings);

@@ -4,59 +4,21 @@
 
 import { fetchFile, post, postJson, readNpz, save, serverTime } from './api.js';
 import { colourRange, drawColourBar, sizeCanvas, turbo } from './draw.js';
-import { drawMarkers, showMatch, showRegion } from './findings.js';
-import { compute, schedule } from './numbers.js';
 import { applyRig, readForm, rigGiven, rigPart, showErrors, writeForm } from './rig.js';
+import { EVENTS, NEEDS_RIG, emit, frameShown, on, pair, rawPair } from './store.js';
 import {
   $, DEBOUNCE_MS, clearFieldErrors, fmt, page, percent, setFiles, showFieldErrors,
 } from './util.js';
-
-export const pair = {
-  files: { left: null, right: null },
-  bitmaps: { left: null, right: null },
-  width: 0,
-  height: 0,
-  /** The depth map: { width, height, disparity, depth, depth_error } (Float32Array, NaN
-   * where invalid) and the unit of the depths. */
-  arrays: null,
-  unit: 'mm',
-  match: null,
-  region: null,
-  crosshair: { x: 0, y: 0 },
-  anchor: null,
-  sample: false,
-  /** With a calibration of raw cameras: the pair the service rectified (bitmaps, and the
-   * PNG files /rectify answered), and which of the two is shown, `raw` or `rectified`. */
-  rectified: { left: null, right: null },
-  rectifiedFiles: { left: null, right: null },
-  view: 'raw',
-};
-
-/** Whether the pair is raw frames the service rectifies: a calibration of raw cameras was
- * imported (or came from Calibrate mode). */
-export function rawPair() {
-  return page.calibration !== null;
-}
-
-/** The frame clicks and boxes are in: `plain` for a rectified pair, else the view shown. */
-export function frameShown() {
-  return rawPair() ? pair.view : 'plain';
-}
-
-export function matched() {
-  return pair.match !== null && pair.match.x_right !== undefined;
-}
 
 /** Images mode without a rig: say so, and offer the calibration import. */
 export function showRigNeeded() {
   const given = rigGiven();
   $('rig-needed').hidden = !(page.mode === 'images' && !given);
   // Once a rig is given, the cards that asked for it invite a click again.
-  if (given && $('match-summary').textContent === NEEDS_RIG) showMatch(pair.match);
-  if (given && $('region-summary').textContent === NEEDS_RIG) showRegion(pair.region);
+  if (given && $('match-summary').textContent === NEEDS_RIG) emit(EVENTS.showMatch, pair.match);
+  if (given && $('region-summary').textContent === NEEDS_RIG) emit(EVENTS.showRegion, pair.region);
 }
 
-export const NEEDS_RIG = 'Distances need the rig: import a calibration file or type f and B under Rig.';
 
 /** An image request's form. A raw pair goes with its calibration, for the service to
  * rectify (`frame` `raw`), or, for points on the rectified view, as the rectified pair with
@@ -116,7 +78,7 @@ export function showView(view) {
   }
   drawImage('left');
   drawImage('right');
-  drawMarkers();
+  emit(EVENTS.drawMarkers);
 }
 
 export function rangeQuery(state, output = null) {
@@ -166,8 +128,8 @@ export async function loadPair(files) {
   pair.anchor = null;
   pair.arrays = null;
   clearDepth();
-  showMatch(null);
-  showRegion(null);
+  emit(EVENTS.showMatch, null);
+  emit(EVENTS.showRegion, null);
   const { left, right } = pair.bitmaps;
   if (left) {
     pair.width = left.width;
@@ -180,8 +142,8 @@ export async function loadPair(files) {
       writeForm(state);
     }
   }
-  drawMarkers();
-  compute();
+  emit(EVENTS.drawMarkers);
+  emit(EVENTS.compute);
   await requestDepth();
 }
 
@@ -315,7 +277,7 @@ export function drawDepth() {
   $('depth-canvas').getContext('2d').putImageData(depthImage, 0, 0);
   $('blend-canvas').getContext('2d').putImageData(blendImage, 0, 0);
   drawColourBar(range, a.depth ? pair.unit : rigGiven() ? null : 'px');
-  drawMarkers();
+  emit(EVENTS.drawMarkers);
 }
 
 export async function download(output) {
@@ -366,7 +328,7 @@ export async function openSample() {
     await loadPair(files);
   } catch (error) {
     $('depth-status').textContent = `The sample could not be loaded (${error.message}).`;
-    compute();
+    emit(EVENTS.compute);
   }
 }
 
@@ -375,9 +337,9 @@ export function forgetFindings() {
   pair.match = null;
   pair.region = null;
   pair.anchor = null;
-  showMatch(null);
-  showRegion(null);
-  drawMarkers();
+  emit(EVENTS.showMatch, null);
+  emit(EVENTS.showRegion, null);
+  emit(EVENTS.drawMarkers);
 }
 
 /** The Images mode's controls: the sample link, the file inputs and drops, the search range,
@@ -423,7 +385,7 @@ export function wireImages() {
   for (const name of ['min_disparity', 'max_disparity']) {
     $(name).addEventListener('input', () => {
       scheduleDepth();
-      schedule();
+      emit(EVENTS.schedule);
     });
   }
   for (const view of ['raw', 'rectified']) {
@@ -445,3 +407,7 @@ export function wireImages() {
     if (button) download(button.dataset.output);
   });
 }
+
+on(EVENTS.scheduleDepth, scheduleDepth);
+on(EVENTS.showRigNeeded, showRigNeeded);
+on(EVENTS.forgetFindings, forgetFindings);

@@ -4,12 +4,11 @@
 
 import { call, problemsOf } from './api.js';
 import { showChart } from './draw.js';
-import { findings } from './findings.js';
-import { forgetFindings, matched, NEEDS_RIG, pair, scheduleDepth, showRigNeeded } from './images.js';
 import {
   CHART_POINTS, DEFAULTS, choiceErrors, clearErrors, readForm, rigGiven, rigParams, showErrors, withMembers,
   writeForm,
 } from './rig.js';
+import { EVENTS, NEEDS_RIG, emit, matched, on, pair } from './store.js';
 import { $, DEBOUNCE_MS, fmt, listItem, page, percent } from './util.js';
 
 const results = $('results');
@@ -66,7 +65,7 @@ export async function compute(note = '') {
     const rig = rigParams(state);
     // In Images mode the feature is the last click's match; until there is one, only the
     // rig's chart and table are asked for.
-    showRigNeeded();
+    emit(EVENTS.showRigNeeded);
     const noRig = page.mode === 'images' && !rigGiven(state);
     const measuring = page.mode === 'numbers' || (matched() && !noRig);
     const distance = measuring
@@ -197,7 +196,7 @@ function summary(answer) {
     answer.range === undefined ? 'Range: needs cx, cy or the image size' : `Range (straight line to the point): ${fmt(answer.range)} ${u}`,
     `Formula: ${answer.formula}`,
     `Warnings: ${answer.warnings.length > 0 ? answer.warnings.map((w) => w.message).join('; ') : 'none'}`,
-    ...(page.mode === 'images' ? findings() : []),
+    ...(page.mode === 'images' ? emit(EVENTS.findingsLines).flat() : []),
     `Permalink: ${location.href}`,
   ];
   return `${lines.join('\n')}\n`;
@@ -282,10 +281,13 @@ export function reset() {
   page.rigTouched = false;
   // The last click's match was made with the old rig and filled the feature's fields, which
   // the defaults replace: it is forgotten with them.
-  forgetFindings();
+  emit(EVENTS.forgetFindings);
   page.calibration = null;
   writeForm(state);
   $('optional').open = false;
   compute('Defaults restored.');
-  scheduleDepth();
+  emit(EVENTS.scheduleDepth);
 }
+
+on(EVENTS.compute, compute);
+on(EVENTS.schedule, schedule);

@@ -10,8 +10,7 @@ pub mod types;
 use std::time::{Duration, Instant};
 
 use axum::body::Bytes;
-use axum::extract::{FromRequest, Multipart, Request};
-use axum::http::{HeaderValue, header};
+use axum::extract::{FromRequest, Request};
 use axum::response::{IntoResponse, Response};
 use rayon::prelude::*;
 use utoipa_axum::{router::OpenApiRouter, routes};
@@ -24,8 +23,9 @@ use self::types::{
 use crate::api::HeavyState;
 use crate::api::error::{ApiError, FieldError, FieldErrors};
 use crate::api::extract::{self, QueryParams};
-use crate::api::images::form::read_parts_with;
+use crate::api::images::form::{Form, FormSpec};
 use crate::api::images::limits::{self, LIMITS, MAX_PIXELS, MAX_SIDE};
+use crate::api::images::output::{self, Disposition, set_server_timing};
 use crate::api::images::work;
 use crate::api::respond::Json;
 use crate::api::wire::openapi::ImageErrors;
@@ -33,7 +33,7 @@ use crate::api::wire::params::Unit;
 use crate::api::wire::rig::CalibratedRig;
 use crate::calibrate::corners::{Luma, find_board};
 use crate::calibrate::{self, Board, CameraFit, Corners, Fit, FitFault, Status};
-use crate::camera::{Model, Options, Size};
+use crate::camera::{Alpha, Model, Options, Size};
 use crate::physics::LengthUnit;
 use crate::vision::decode;
 
@@ -58,32 +58,22 @@ impl FromRequest<HeavyState> for Upload {
     type Rejection = ApiError;
 
     async fn from_request(req: Request, state: &HeavyState) -> Result<Self, ApiError> {
-        let admitted = work::Admitted::of(req.extensions(), state)?;
-        let content_type = req.headers().get(header::CONTENT_TYPE).cloned();
-        let form = Multipart::from_request(req, state).await.map_err(|_| {
-            extract::unsupported(
-                content_type.as_ref(),
-                "multipart/form-data: the views as repeated file parts (curl -F left=@l0.png \
-                 -F right=@r0.png -F left=@l1.png … -F board='{\"columns\":9,…}')",
-            )
-        })?;
-        let mut problems = FieldErrors::default();
-        let parts = read_parts_with(
-            form,
-            &["left", "right", "board"],
-            &["left", "right"],
-            state.body_limit.0,
-            &mut problems,
-        )
-        .await?;
+        let spec = FormSpec {
+            known: &["left", "right", "board"],
+            repeatable: &["left", "right"],
+            example: "multipart/form-data: the views as repeated file parts (curl -F \
+                      left=@l0.png -F right=@r0.png -F left=@l1.png … -F \
+                      board='{\"columns\":9,…}')",
+        };
+        let form = Form::read(req, state, spec).await?;
         let mut upload = Upload {
             left: Vec::new(),
             right: Vec::new(),
             board: None,
-            problems,
-            admitted,
+            problems: form.problems,
+            admitted: form.admitted,
         };
-        for (name, bytes) in parts {
+        for (name, bytes) in form.parts {
             match name.as_str() {
                 "left" => upload.left.push(bytes),
                 "right" => upload.right.push(bytes),
@@ -144,10 +134,7 @@ pub async fn post_calibrate(
     } = upload;
     let mut problems = query_problems;
     problems.extend(form_problems);
-    let alpha = query.alpha.unwrap_or(0.0);
-    if !(0.0..=1.0).contains(&alpha) {
-        problems.add("alpha", format!("must be from 0 to 1, not {alpha}"));
-    }
+    let alpha = problems.alpha(query.alpha).unwrap_or(Alpha::ZERO);
     let output = query.output.unwrap_or_default();
     let model: Model = query.model.unwrap_or_default().into();
     let stereo = !right.is_empty();
@@ -233,7 +220,7 @@ pub async fn post_calibrate(
 struct Settings {
     board: Board,
     model: Model,
-    alpha: f64,
+    alpha: Alpha,
     output: CalibrateOutput,
     corners: bool,
     size: Size,
@@ -430,12 +417,6 @@ fn compute(
     let rectification = fit.rectify(options);
     let rig_std = fit.rig_std(options);
     let rectify = rectifying.elapsed();
-    let timing = format!(
-        "detect;dur={:.1}, solve;dur={:.1}, rectify;dur={:.1}",
-        ms(detect),
-        ms(solve),
-        ms(rectify)
-    );
     let unit = settings.board.unit();
     let mut response = match settings.output {
         CalibrateOutput::Summary => {
@@ -489,9 +470,10 @@ fn compute(
             yaml(text, settings.output.name())
         }
     };
-    if let Ok(v) = HeaderValue::from_str(&timing) {
-        response.headers_mut().insert("server-timing", v);
-    }
+    set_server_timing(
+        &mut response,
+        &[("detect", detect), ("solve", solve), ("rectify", rectify)],
+    );
     Ok(response)
 }
 
@@ -506,18 +488,13 @@ fn not_rectifiable() -> ApiError {
     )])
 }
 
-fn yaml(text: String, file: &str) -> Response {
-    (
-        [
-            (header::CONTENT_TYPE, "application/x-yaml".to_owned()),
-            (
-                header::CONTENT_DISPOSITION,
-                format!("attachment; filename=\"{file}\""),
-            ),
-        ],
-        text,
+fn yaml(text: String, name: &str) -> Response {
+    output::file(
+        text.into_bytes(),
+        "application/x-yaml",
+        name,
+        Disposition::Attachment,
     )
-        .into_response()
 }
 
 /// A calibration that could not be made: a 422 naming each view that failed and why.

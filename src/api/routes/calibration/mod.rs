@@ -75,11 +75,8 @@ impl FromRequest<AppState> for CalibrationBody {
         request.cameras = query.cameras.or(request.cameras);
         request.calibration_unit = query.calibration_unit.or(request.calibration_unit);
         // A body alpha the query overrides is still checked: it was sent.
-        if query.alpha.is_some()
-            && let Some(alpha) = request.alpha
-            && !(0.0..=1.0).contains(&alpha)
-        {
-            problems.add("alpha", alpha_message(alpha));
+        if query.alpha.is_some() {
+            problems.alpha(request.alpha);
         }
         request.alpha = query.alpha.or(request.alpha);
         request.unit = query.unit.or(request.unit);
@@ -164,11 +161,7 @@ fn read(
     mut problems: FieldErrors,
 ) -> Result<CalibrationResponse, ApiError> {
     let text = problems.required("text", request.text.as_deref());
-    if let Some(alpha) = request.alpha
-        && !(0.0..=1.0).contains(&alpha)
-    {
-        problems.add("alpha", alpha_message(alpha));
-    }
+    let alpha = problems.alpha(request.alpha);
     if !problems.is_empty() {
         return Err(problems.into_error());
     }
@@ -177,7 +170,7 @@ fn read(
         right_text: request.right_text.as_deref(),
         format: request.format.unwrap_or_default().format(),
         kitti_pair: request.cameras.map(Into::into),
-        alpha: request.alpha,
+        alpha,
         image_size: None,
     };
     let options = Options {
@@ -209,12 +202,4 @@ fn read(
             Err(problems.into_error())
         }
     }
-}
-
-/// Why an `alpha` is refused.
-pub fn alpha_message(alpha: f64) -> String {
-    format!(
-        "must be from 0 (only valid pixels) to 1 (every raw pixel), got {}",
-        crate::numbers::Num(alpha)
-    )
 }

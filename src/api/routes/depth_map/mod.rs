@@ -8,9 +8,8 @@ pub mod types;
 
 use std::time::{Duration, Instant};
 
-use axum::http::{HeaderMap, HeaderValue, header};
+use axum::http::{HeaderMap, header};
 use axum::response::{IntoResponse, Response};
-use utoipa::ToSchema;
 use utoipa_axum::{router::OpenApiRouter, routes};
 
 use self::types::{
@@ -22,11 +21,12 @@ use axum::extract::State;
 use crate::api::HeavyState;
 use crate::api::error::ApiError;
 use crate::api::extract::QueryParams;
-use crate::api::images::maps::{MapCache, Maps};
+use crate::api::images::maps::MapCache;
+use crate::api::images::output::{self, Disposition, FileBody, set_server_timing};
+use crate::api::images::raw;
 use crate::api::images::work::{self, Need};
 use crate::api::images::{GivenRig, ImageForm, ImagePair, Job, limits, rig};
 use crate::api::respond::Json;
-use crate::api::routes::rectify;
 use crate::api::wire::openapi::ImageErrors;
 use crate::calibration::Raw;
 use crate::physics::LengthUnit;
@@ -41,11 +41,6 @@ pub fn router() -> OpenApiRouter<HeavyState> {
 impl ImageForm for DepthMapForm {
     const PARTS: &'static [&'static str] = &[];
 }
-
-/// A file answer's bytes, documented as binary.
-#[derive(ToSchema)]
-#[schema(value_type = String, format = Binary)]
-pub struct FileBody(pub Vec<u8>);
 
 #[utoipa::path(
     post,
@@ -110,10 +105,11 @@ pub async fn post_depth_map(
     mut pair: ImagePair<DepthMapForm>,
 ) -> Result<Response, ApiError> {
     let mut problems = pair.problems(problems);
-    let raw = rectify::plan(
+    let alpha = problems.alpha(query.alpha);
+    let raw = raw::plan(
         &mut pair,
         query.rectify.unwrap_or_default(),
-        query.alpha,
+        alpha,
         &mut problems,
     );
     let output = query.output.unwrap_or_else(|| {
@@ -140,24 +136,11 @@ pub async fn post_depth_map(
     }
     // A rectified pair is matched at the rectified size, after its maps are built (or found)
     // and both frames read through them.
-    let (width, height, extra) = match &raw {
-        Some(raw) => {
-            let s = raw.rectification.size;
-            let decoded = limits::decoded_bytes(raw_w as usize, raw_h as usize);
-            (
-                s.width,
-                s.height,
-                decoded.saturating_add(Maps::bytes_for(raw)),
-            )
-        }
-        None => (raw_w, raw_h, 0),
-    };
+    let ((width, height), extra) = raw::matched_size(raw.as_deref(), (raw_w, raw_h));
     let need = Need {
-        size: (width as usize, height as usize),
+        size: (width, height),
         count: params.count(),
-        need: move |count| {
-            bytes_needed(width as usize, height as usize, count, output).saturating_add(extra)
-        },
+        need: move |count| bytes_needed(width, height, count, output).saturating_add(extra),
     };
     let cache = state.maps.clone();
     pair.run(need, move |job| {
@@ -201,13 +184,13 @@ fn compute(
     let colour = output == DepthMapOutput::PointsPly;
     let (mut left, mut right) = work::decode_pair(parts, colour)?;
     let decode_time = started.elapsed();
-    let rectify_time = raw.map(|raw| rectify::rectify_raw_pair(&mut left, &mut right, raw, colour));
+    let rectify_time = raw.map(|raw| raw::rectify_raw_pair(&mut left, &mut right, raw, colour));
     let (map, timings) = vision::disparity(&left.grey, &right.grey, params, cancel)
         .map_err(|Cancelled| ApiError::Internal("cancelled".to_owned()))?;
     // A pair sent as rectified: do its matched corners lie on their rows? (Summary only: the
     // files have nowhere to say it.)
     let rows = (raw.is_none() && output == DepthMapOutput::Summary)
-        .then(|| rectify::row_check(&left, &right, params))
+        .then(|| raw::row_check(&left, &right, params))
         .flatten();
     drop(right);
     let started = Instant::now();
@@ -255,33 +238,21 @@ fn compute(
     let mut after = Vec::with_capacity(3);
     after.extend(rectify_time.map(|t| ("rectify", t)));
     after.extend([("encode", encode_time), ("drop", drop_time)]);
-    let timing = work::server_timing([read, queue, decode_time], &timings, &after);
     let mut response = match body {
         Ok(bytes) => {
-            let mut response = bytes.into_response();
-            let h = response.headers_mut();
-            h.insert(
-                header::CONTENT_TYPE,
-                HeaderValue::from_static(output.media_type()),
-            );
-            if let Ok(v) = HeaderValue::from_str(&format!(
-                "{}; filename=\"{}\"",
-                if output == DepthMapOutput::PreviewPng {
-                    "inline"
-                } else {
-                    "attachment"
-                },
-                output.name()
-            )) {
-                h.insert(header::CONTENT_DISPOSITION, v);
-            }
-            response
+            let how = if output == DepthMapOutput::PreviewPng {
+                Disposition::Inline
+            } else {
+                Disposition::Attachment
+            };
+            output::file(bytes, output.media_type(), output.name(), how)
         }
         Err(summary) => Json(summary).into_response(),
     };
-    if let Ok(v) = HeaderValue::from_str(&timing) {
-        response.headers_mut().insert("server-timing", v);
-    }
+    set_server_timing(
+        &mut response,
+        &work::matcher_stages([read, queue, decode_time], &timings, &after),
+    );
     Ok(response)
 }
 
@@ -367,7 +338,7 @@ fn summary(
              {} px, and the depths use the rectified rig",
             map.width, map.height
         ));
-    } else if let Some(warning) = rectify::unrectified_warning(Some(valid_fraction), rows) {
+    } else if let Some(warning) = raw::unrectified_warning(Some(valid_fraction), rows) {
         warnings.push(warning);
     }
     DepthMapSummary {

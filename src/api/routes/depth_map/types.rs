@@ -5,9 +5,10 @@ use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
 use crate::api::extract::QueryForm;
-use crate::api::routes::calibration::types::CalibratedRig;
-pub use crate::api::routes::rectify::types::RectifyMode;
-use crate::api::wire::de::{choice_members, image_form, request};
+use crate::api::wire::de::{choice_members, request};
+use crate::api::wire::images::image_form;
+pub use crate::api::wire::images::{RectifyMode, StageTimes};
+use crate::api::wire::rig::CalibratedRig;
 use crate::vision::{Settings, Subpixel};
 
 /// What `/depth-map` answers.
@@ -248,24 +249,6 @@ pub struct Spread {
     /// the mean of the two middle ones of an even count.
     pub median: f64,
     pub max: f64,
-}
-
-/// How long each stage took, in milliseconds (also in the `Server-Timing` header).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, ToSchema)]
-pub struct StageTimes {
-    /// Decoding both images.
-    pub decode: f64,
-    /// Census transform and cost volume.
-    pub cost: f64,
-    /// Semi-global aggregation.
-    pub aggregate: f64,
-    /// Winner-takes-all, sub-pixel, left-right check, speckle and median filters.
-    pub refine: f64,
-    /// Rectifying a raw pair (after decoding, before matching); absent for a pair sent as
-    /// rectified.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    #[schema(nullable = false)]
-    pub rectify: Option<f64>,
 }
 
 /// The matcher's parameters as used.

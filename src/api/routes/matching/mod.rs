@@ -9,7 +9,6 @@ pub mod types;
 use std::time::Instant;
 
 use axum::body::Bytes;
-use axum::http::HeaderValue;
 use axum::response::{IntoResponse, Response};
 use serde::de::DeserializeOwned;
 use serde_json::Value;
@@ -19,17 +18,18 @@ use self::types::{
     MatchDistance, MatchForm, MatchPoint, MatchQuery, MatchRegion, MatchResponse, MatchStatus,
     PointMatch, RegionMatch, RegionStatus,
 };
-use super::depth_map::types::StageTimes;
+use crate::api::wire::images::StageTimes;
 use axum::extract::State;
 
 use crate::api::HeavyState;
 use crate::api::error::{ApiError, FieldErrors};
 use crate::api::extract::{QueryParams, decode_object};
-use crate::api::images::maps::{MapCache, Maps};
+use crate::api::images::maps::MapCache;
+use crate::api::images::output::set_server_timing;
+use crate::api::images::raw;
 use crate::api::images::work::{self, Need};
 use crate::api::images::{ImageForm, ImagePair, Job, Parts, limits, rig};
 use crate::api::respond::Json;
-use crate::api::routes::rectify;
 use crate::api::wire::measured::Measured;
 use crate::api::wire::openapi::ImageErrors;
 use crate::calibration::Raw;
@@ -101,10 +101,11 @@ pub async fn post_match(
     mut pair: ImagePair<MatchForm>,
 ) -> Result<Response, ApiError> {
     let mut problems = pair.problems(problems);
-    let raw = rectify::plan(
+    let alpha = problems.alpha(query.alpha);
+    let raw = raw::plan(
         &mut pair,
         query.rectify.unwrap_or_default(),
-        query.alpha,
+        alpha,
         &mut problems,
     );
     let parts = &pair.parts;
@@ -134,18 +135,7 @@ pub async fn post_match(
     if !problems.is_empty() {
         return Err(problems.into_error());
     }
-    let (w, h, extra) = match &raw {
-        Some(raw) => {
-            let s = raw.rectification.size;
-            let decoded = limits::decoded_bytes(width as usize, height as usize);
-            (
-                s.width as usize,
-                s.height as usize,
-                decoded.saturating_add(Maps::bytes_for(raw)),
-            )
-        }
-        None => (width as usize, height as usize, 0),
-    };
+    let ((w, h), extra) = raw::matched_size(raw.as_deref(), (width, height));
     let need = Need {
         size: (w, h),
         count: params.count(),
@@ -351,7 +341,7 @@ fn compute(
     let started = Instant::now();
     let (mut left, mut right) = work::decode_pair(job.parts, false)?;
     let decode_time = started.elapsed();
-    let rectify_time = raw.map(|raw| rectify::rectify_raw_pair(&mut left, &mut right, raw, false));
+    let rectify_time = raw.map(|raw| raw::rectify_raw_pair(&mut left, &mut right, raw, false));
     let (w, h) = (left.grey.width, left.grey.height);
     // Points and boxes are clicked on the raw frame: matched where they land once rectified
     // (a box as the rectangle around its corners' images).
@@ -433,11 +423,9 @@ fn compute(
         .map(|(&b, r)| region_match(rig, &found.map, b, *r))
         .collect();
     // A pair sent as rectified: do its corners lie on their rows?
-    let rows = raw
-        .is_none()
-        .then(|| rectify::row_check(&left, &right, params));
+    let rows = raw.is_none().then(|| raw::row_check(&left, &right, params));
     let mut warnings = given.warnings.clone();
-    warnings.extend(rows.and_then(|r| rectify::unrectified_warning(None, r)));
+    warnings.extend(rows.and_then(|r| raw::unrectified_warning(None, r)));
     let ms = |d: std::time::Duration| (d.as_secs_f64() * 1e4).round() / 10.0;
     let t = found.timings;
     let answer = MatchResponse {
@@ -472,10 +460,10 @@ fn compute(
     let mut after = Vec::with_capacity(2);
     after.extend(rectify_time.map(|t| ("rectify", t)));
     after.push(("drop", drop_time));
-    let timing = work::server_timing([read, queue, decode_time], &t, &after);
-    if let Ok(v) = HeaderValue::from_str(&timing) {
-        response.headers_mut().insert("server-timing", v);
-    }
+    set_server_timing(
+        &mut response,
+        &work::matcher_stages([read, queue, decode_time], &t, &after),
+    );
     Ok(response)
 }
 

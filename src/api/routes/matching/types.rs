@@ -5,12 +5,12 @@ use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
 use crate::api::extract::QueryForm;
-use crate::api::routes::calibration::types::CalibratedRig;
-use crate::api::routes::depth_map::types::StageTimes;
-pub use crate::api::routes::rectify::types::RectifyMode;
-use crate::api::wire::de::{image_form, request};
+use crate::api::wire::de::request;
+use crate::api::wire::images::image_form;
+pub use crate::api::wire::images::{RectifyMode, StageTimes};
 use crate::api::wire::measured::{Point, Warning};
 use crate::api::wire::params::Unit;
+use crate::api::wire::rig::CalibratedRig;
 use crate::vision::correspond::Status;
 
 request! {

@@ -8,30 +8,28 @@ pub mod types;
 use std::time::Instant;
 
 use axum::body::Bytes;
-use axum::http::{HeaderValue, header};
 use axum::response::{IntoResponse, Response};
 use utoipa_axum::{router::OpenApiRouter, routes};
 
 use self::types::{
-    RectifyForm, RectifyMode, RectifyOutput, RectifyQuery, RectifySummary, RectifyTimes, ValidShare,
+    RectifyForm, RectifyOutput, RectifyQuery, RectifySummary, RectifyTimes, ValidShare,
 };
 use crate::api::HeavyState;
-use crate::api::error::{ApiError, FieldError, FieldErrors};
+use crate::api::error::{ApiError, FieldError};
 use crate::api::extract::QueryParams;
 use crate::api::images::maps::{MapCache, Maps, float_maps};
+use crate::api::images::output::{self, Disposition, FileBody, set_server_timing};
+use crate::api::images::raw;
 use crate::api::images::work::Need;
 use crate::api::images::{GivenRig, ImageForm, ImagePair, limits};
 use crate::api::respond::Json;
-use crate::api::routes::calibration::alpha_message;
-use crate::api::routes::calibration::types::{CalibratedRig, RawCameras};
-use crate::api::routes::depth_map::FileBody;
+use crate::api::wire::calibration::RawCameras;
 use crate::api::wire::openapi::ImageErrors;
+use crate::api::wire::rig::CalibratedRig;
 use crate::calibration::Raw;
-use crate::camera::{Options, stereo_rectify};
 use crate::vision::decode::{self, Decoded};
 use crate::vision::encode;
 use crate::vision::remap::{self, Fixed, Interpolation, Source};
-use crate::vision::rows::RowOffsets;
 
 /// `POST /rectify`.
 pub fn router() -> OpenApiRouter<HeavyState> {
@@ -40,54 +38,6 @@ pub fn router() -> OpenApiRouter<HeavyState> {
 
 impl ImageForm for RectifyForm {
     const PARTS: &'static [&'static str] = &[];
-}
-
-/// What a calibration that cannot rectify lacks.
-pub const NOT_RAW: &str = "describes only rectified images (a Middlebury or KITTI odometry \
-     file, a Q matrix, projections without the cameras): rectifying raw frames needs each \
-     camera's K and D and their pose or rectification: a stereoCalibrate file (M1 D1 M2 D2 R \
-     T), a ROS CameraInfo pair with K D R P, KITTI's calib_cam_to_cam.txt with K_0i D_0i \
-     R_rect_0i, or /calibrate's opencv.yml";
-
-/// Below this share of matched pixels, a pair sent as rectified may well be raw.
-pub const UNRECTIFIED_SHARE: f64 = 0.2;
-/// Matched corners this many rows apart (the median) mean the rows do not line up: a
-/// rectified pair's are a few tenths of a pixel.
-pub const UNRECTIFIED_ROWS: f64 = 1.0;
-/// The corners the row check needs before it speaks.
-pub const ROW_FEATURES: usize = 8;
-
-/// The summary's warning for a pair sent as rectified that looks raw: too few pixels matched
-/// (`valid_fraction`, when the whole map was matched), or its matched corners off their rows
-/// ([`crate::vision::rows`]). `None` when neither shows.
-pub fn unrectified_warning(
-    valid_fraction: Option<f64>,
-    rows: Option<RowOffsets>,
-) -> Option<String> {
-    let mut signs = Vec::new();
-    if let Some(share) = valid_fraction.filter(|&v| v < UNRECTIFIED_SHARE) {
-        signs.push(format!("only {:.1} % of the pixels matched", share * 100.0));
-    }
-    if let Some(rows) =
-        rows.filter(|r| r.features >= ROW_FEATURES && r.median_offset >= UNRECTIFIED_ROWS)
-    {
-        signs.push(format!(
-            "matched corners lie {:.1} px off their rows (the median of {}; a rectified pair's \
-             are under {UNRECTIFIED_ROWS} px)",
-            rows.median_offset, rows.features
-        ));
-    }
-    if signs.is_empty() {
-        return None;
-    }
-    Some(format!(
-        "{}: if these are raw frames (lens distortion, rows that do not line up between the \
-         cameras), they need rectifying: send the calibration of the raw cameras (a \
-         stereoCalibrate file, a ROS CameraInfo pair with D K R P, KITTI's \
-         calib_cam_to_cam.txt, /calibrate's opencv.yml) as the calibration part with \
-         rectify=auto, or rectify them with /rectify",
-        signs.join(", and ")
-    ))
 }
 
 #[utoipa::path(
@@ -137,8 +87,9 @@ pub async fn post_rectify(
     let mut problems = pair.problems(problems);
     let output = query.output.unwrap_or_default();
     let how: Interpolation = query.interpolation.unwrap_or_default().into();
-    let given = raw_rig(&pair, query.alpha, &mut problems);
-    let (Some((width, height)), Some(given)) = (pair.size, given) else {
+    let alpha = problems.alpha(query.alpha);
+    let given = raw::raw_rig(&pair, alpha, &mut problems);
+    let (Some(_), Some(given)) = (pair.size, given) else {
         return Err(problems.into_error());
     };
     if !problems.is_empty() {
@@ -149,9 +100,8 @@ pub async fn post_rectify(
     let (rw, rh) = (rect.width as usize, rect.height as usize);
     // The decoded pair, the maps while they are built, both remapped images in colour and
     // grey, and the PNG being written.
-    let bytes = limits::decoded_bytes(width as usize, height as usize)
-        .saturating_add(Maps::bytes_for(&raw))
-        .saturating_add(rw.saturating_mul(rh).saturating_mul(24));
+    let bytes =
+        raw::rectifying_bytes(&raw).saturating_add(rw.saturating_mul(rh).saturating_mul(24));
     let need = Need {
         size: (rw, rh),
         count: 1,
@@ -164,203 +114,11 @@ pub async fn post_rectify(
     .await?
 }
 
-/// Whether an image route rectifies its pair (`mode`, with `alpha`): the raw rig to rectify
-/// with, or `None` to match the pair as it is; each refusal in `problems`. The pair's rig
-/// becomes the rectified rig (with `alpha` applied).
-pub fn plan<F: ImageForm>(
-    pair: &mut ImagePair<F>,
-    mode: RectifyMode,
-    alpha: Option<f64>,
-    problems: &mut FieldErrors,
-) -> Option<Box<Raw>> {
-    let raw_frames = pair
-        .rig
-        .as_ref()
-        .and_then(|g| g.raw.as_ref())
-        .is_some_and(|raw| {
-            !raw.is_identity() && Some((raw.size.width, raw.size.height)) == pair.size
-        });
-    let wanted = match mode {
-        RectifyMode::No => false,
-        RectifyMode::Yes => true,
-        RectifyMode::Auto => raw_frames,
-    };
-    if !wanted {
-        if let Some(alpha) = alpha {
-            if !(0.0..=1.0).contains(&alpha) {
-                problems.add("alpha", alpha_message(alpha));
-            } else {
-                problems.add(
-                    "alpha",
-                    "applies only when the pair is rectified here (rectify=yes, or auto with a \
-                     calibration of raw cameras and frames of their size)",
-                );
-            }
-        }
-        return None;
-    }
-    let given = raw_rig(pair, alpha, problems)?;
-    let raw = given.raw.clone();
-    pair.rig = Some(given);
-    raw
-}
-
-/// The raw rig of the request, with `alpha` applied; `None` with the reasons in `problems`
-/// when the form has no calibration of raw cameras for these images.
-pub fn raw_rig(
-    pair: &ImagePair<impl ImageForm>,
-    alpha: Option<f64>,
-    problems: &mut FieldErrors,
-) -> Option<GivenRig> {
-    if let Some(alpha) = alpha
-        && !(0.0..=1.0).contains(&alpha)
-    {
-        problems.add("alpha", alpha_message(alpha));
-        return None;
-    }
-    if pair.parts.get("rig").is_some() {
-        problems.add(
-            "rig",
-            "describes rectified images only: rectifying needs a calibration part with the \
-             raw cameras",
-        );
-        return None;
-    }
-    if pair.parts.get("calibration").is_none() {
-        problems.add(
-            "calibration",
-            "is required: the calibration of the raw cameras (a stereoCalibrate file, a ROS \
-             CameraInfo pair, KITTI's calib_cam_to_cam.txt or /calibrate's opencv.yml)",
-        );
-        return None;
-    }
-    let given = pair.rig.clone()?;
-    let Some(raw) = &given.raw else {
-        problems.add("calibration", NOT_RAW);
-        return None;
-    };
-    if let Some((w, h)) = pair.size
-        && (raw.size.width, raw.size.height) != (w, h)
-    {
-        problems.add(
-            "left",
-            format!(
-                "is {w} × {h}, but the calibration's raw frames are {} × {}: send the frames \
-                 the cameras deliver, at the calibrated size",
-                raw.size.width, raw.size.height
-            ),
-        );
-        return None;
-    }
-    match alpha {
-        Some(alpha) => with_alpha(given, alpha, problems),
-        None => Some(given),
-    }
-}
-
-/// The rig rectified again with `alpha`, as `cv2.stereoRectify` would.
-fn with_alpha(mut given: GivenRig, alpha: f64, problems: &mut FieldErrors) -> Option<GivenRig> {
-    let raw = given.raw.as_deref()?;
-    let options = Options {
-        alpha,
-        new_size: Some(raw.rectification.size),
-        ..Options::default()
-    };
-    let rectification = match stereo_rectify(&raw.pair, raw.size, options) {
-        Ok(r) => r,
-        Err(e) => {
-            problems.add("calibration", format!("cannot be rectified: {e}"));
-            return None;
-        }
-    };
-    let rig = match rectification.rig(given.file_unit) {
-        Ok(rig) => rig,
-        Err(_) => {
-            problems.add(
-                "calibration",
-                "the rectified cameras are one above the other (vertical stereo); this \
-                 service measures horizontal disparities",
-            );
-            return None;
-        }
-    };
-    given.raw = Some(Box::new(Raw {
-        rectification,
-        computed: true,
-        ..raw.clone()
-    }));
-    given.rig = rig;
-    Some(given)
-}
-
 /// Whether a decoded image has colour (any pixel whose channels differ).
 fn has_colour(d: &Decoded) -> bool {
     d.rgb
         .as_deref()
         .is_some_and(|rgb| rgb.chunks_exact(3).any(|p| p[0] != p[1] || p[1] != p[2]))
-}
-
-/// A raw pair rectified in place for `/depth-map` and `/match`: the rig's maps from `cache`
-/// (built on a miss), then [`rectify_pair`]. The time it took, for `Server-Timing`.
-pub fn rectify_raw_pair(
-    left: &mut Decoded,
-    right: &mut Decoded,
-    (raw, cache): (&Raw, &MapCache),
-    colour: bool,
-) -> std::time::Duration {
-    let started = Instant::now();
-    let (maps, _) = cache.get(raw);
-    rectify_pair(left, right, &maps, colour);
-    started.elapsed()
-}
-
-/// The row check of a pair sent as rectified ([`crate::vision::rows`]), over the matcher's
-/// disparity range.
-pub fn row_check(
-    left: &Decoded,
-    right: &Decoded,
-    params: &crate::vision::Params,
-) -> Option<RowOffsets> {
-    let range = (params.min_disparity(), params.max_disparity());
-    crate::vision::rows::row_offsets(&left.grey, &right.grey, range)
-}
-
-/// Both frames of a pair read through their maps: grey always, the left colours too when
-/// `colour` (a point cloud's).
-fn rectify_pair(left: &mut Decoded, right: &mut Decoded, maps: &Maps, colour: bool) {
-    let grey = |d: &Decoded, map: &Fixed| {
-        let g = &d.grey;
-        crate::vision::Gray::new(
-            map.width,
-            map.height,
-            remap::remap_fixed(
-                Source {
-                    width: g.width,
-                    height: g.height,
-                    channels: 1,
-                    data: &g.data,
-                },
-                map,
-                Interpolation::Linear,
-            ),
-        )
-    };
-    let (l, r) = rayon::join(|| grey(left, &maps.left), || grey(right, &maps.right));
-    if colour && let Some(rgb) = left.rgb.as_deref() {
-        let g = &left.grey;
-        left.rgb = Some(remap::remap_fixed(
-            Source {
-                width: g.width,
-                height: g.height,
-                channels: 3,
-                data: rgb,
-            },
-            &maps.left,
-            Interpolation::Linear,
-        ));
-    }
-    left.grey = l;
-    right.grey = r;
 }
 
 /// A rectified image as PNG: RGB when the frame has colour, else grey, 8 bits when the frame
@@ -480,7 +238,7 @@ fn compute(
         let bytes = encode::npz(&entries)
             .map_err(|e| ApiError::Internal(format!("the NPZ was not written: {e}")))?;
         let mut response = file(bytes, output);
-        set_timing(
+        set_server_timing(
             &mut response,
             &[
                 ("read", read),
@@ -541,7 +299,7 @@ fn compute(
                 warnings: given.warnings.clone(),
             };
             let mut response = Json(summary).into_response();
-            set_timing(&mut response, &timing);
+            set_server_timing(&mut response, &timing);
             return Ok(response);
         }
         _ => {
@@ -562,39 +320,16 @@ fn compute(
         }
     };
     let mut response = file(body, output);
-    set_timing(&mut response, &timing);
+    set_server_timing(&mut response, &timing);
     Ok(response)
 }
 
-/// A file answer with its media type and name.
+/// `output`'s file: the maps to save, the pictures to show.
 fn file(bytes: Vec<u8>, output: RectifyOutput) -> Response {
-    let mut response = bytes.into_response();
-    let h = response.headers_mut();
-    h.insert(
-        header::CONTENT_TYPE,
-        HeaderValue::from_static(output.media_type()),
-    );
-    if let Ok(v) = HeaderValue::from_str(&format!(
-        "{}; filename=\"{}\"",
-        if output == RectifyOutput::MapsNpz {
-            "attachment"
-        } else {
-            "inline"
-        },
-        output.name()
-    )) {
-        h.insert(header::CONTENT_DISPOSITION, v);
-    }
-    response
-}
-
-fn set_timing(response: &mut Response, stages: &[(&str, std::time::Duration)]) {
-    let text = stages
-        .iter()
-        .map(|(name, d)| format!("{name};dur={:.1}", d.as_secs_f64() * 1e3))
-        .collect::<Vec<_>>()
-        .join(", ");
-    if let Ok(v) = HeaderValue::from_str(&text) {
-        response.headers_mut().insert("server-timing", v);
-    }
+    let how = if output == RectifyOutput::MapsNpz {
+        Disposition::Attachment
+    } else {
+        Disposition::Inline
+    };
+    output::file(bytes, output.media_type(), output.name(), how)
 }

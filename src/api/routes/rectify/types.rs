@@ -5,8 +5,11 @@ use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
 use crate::api::extract::QueryForm;
-use crate::api::routes::calibration::types::{CalibratedRig, RawCameras};
-use crate::api::wire::de::{choice_members, image_form, request};
+use crate::api::wire::calibration::RawCameras;
+use crate::api::wire::de::{choice_members, request};
+pub use crate::api::wire::images::RectifyMode;
+use crate::api::wire::images::image_form;
+use crate::api::wire::rig::CalibratedRig;
 use crate::vision::remap::Interpolation;
 
 /// What `/rectify` answers.
@@ -77,21 +80,7 @@ impl From<InterpolationChoice> for Interpolation {
     }
 }
 
-/// Whether an image route rectifies the pair before matching.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize, Serialize, ToSchema)]
-#[serde(rename_all = "lowercase")]
-pub enum RectifyMode {
-    /// Rectify when the calibration describes raw cameras and the frames are their raw size
-    /// (the default).
-    #[default]
-    Auto,
-    /// Rectify; a calibration without the raw cameras is refused, saying what is missing.
-    Yes,
-    /// Take the pair as rectified.
-    No,
-}
-
-choice_members!(RectifyOutput, InterpolationChoice, RectifyMode);
+choice_members!(RectifyOutput, InterpolationChoice);
 
 request! {
     /// The options of `/rectify`, in the query string.

@@ -1,0 +1,91 @@
+//! How an image route answers: a file with its `Content-Type` and `Content-Disposition`
+//! ([`file`]), documented as binary ([`FileBody`]), and the `Server-Timing` header of its
+//! stages ([`set_server_timing`]).
+
+use std::time::Duration;
+
+use axum::http::{HeaderValue, header};
+use axum::response::{IntoResponse, Response};
+use utoipa::ToSchema;
+
+/// A file answer's bytes, documented as binary.
+#[derive(ToSchema)]
+#[schema(value_type = String, format = Binary)]
+pub struct FileBody(pub Vec<u8>);
+
+/// Whether a browser shows a file answer or saves it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Disposition {
+    /// Shown in place (a picture).
+    Inline,
+    /// Saved under its name (data for a tool).
+    Attachment,
+}
+
+/// A file answer: `bytes` with their media type and the name to save them under.
+pub fn file(bytes: Vec<u8>, media_type: &'static str, name: &str, how: Disposition) -> Response {
+    let mut response = bytes.into_response();
+    let headers = response.headers_mut();
+    headers.insert(header::CONTENT_TYPE, HeaderValue::from_static(media_type));
+    let how = match how {
+        Disposition::Inline => "inline",
+        Disposition::Attachment => "attachment",
+    };
+    if let Ok(v) = HeaderValue::from_str(&format!("{how}; filename=\"{name}\"")) {
+        headers.insert(header::CONTENT_DISPOSITION, v);
+    }
+    response
+}
+
+/// `Server-Timing: read;dur=1.2, queue;dur=0.0, …`: each stage's time in milliseconds, in the
+/// order given.
+pub fn set_server_timing(response: &mut Response, stages: &[(&str, Duration)]) {
+    let text = stages
+        .iter()
+        .map(|(name, d)| format!("{name};dur={:.1}", d.as_secs_f64() * 1e3))
+        .collect::<Vec<_>>()
+        .join(", ");
+    if let Ok(v) = HeaderValue::from_str(&text) {
+        response.headers_mut().insert("server-timing", v);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A file answer carries its media type and name, inline or as an attachment.
+    #[test]
+    fn a_file_answer_names_its_type_and_file() {
+        let r = file(vec![1, 2], "image/png", "left.png", Disposition::Inline);
+        assert_eq!(r.headers()[header::CONTENT_TYPE], "image/png");
+        assert_eq!(
+            r.headers()[header::CONTENT_DISPOSITION],
+            "inline; filename=\"left.png\""
+        );
+        let r = file(
+            vec![],
+            "application/zip",
+            "maps.npz",
+            Disposition::Attachment,
+        );
+        assert_eq!(
+            r.headers()[header::CONTENT_DISPOSITION],
+            "attachment; filename=\"maps.npz\""
+        );
+    }
+
+    /// `Server-Timing` lists the stages in order, in milliseconds to a tenth.
+    #[test]
+    fn server_timing_lists_the_stages_in_milliseconds() {
+        let mut r = Vec::<u8>::new().into_response();
+        set_server_timing(
+            &mut r,
+            &[
+                ("read", Duration::from_micros(1250)),
+                ("queue", Duration::ZERO),
+            ],
+        );
+        assert_eq!(r.headers()["server-timing"], "read;dur=1.2, queue;dur=0.0");
+    }
+}

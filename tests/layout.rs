@@ -1,0 +1,498 @@
+//! The house rules a newcomer relies on, checked on the source itself: the route modules share
+//! downward and never import each other, no module circle (in the Rust or in the page's
+//! JavaScript modules), the pure layers in the order `lib.rs` states, every module with its
+//! `//!` line, and no file in `src/` over 600 lines before its tests.
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::fs;
+use std::path::{Path, PathBuf};
+
+const SRC: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/src");
+
+/// The most lines a file in `src/` may have before its `#[cfg(test)]` part.
+const MAX_LINES: usize = 600;
+
+/// The files still over [`MAX_LINES`], each held to the lines it has now until it is split
+/// (a ratchet: none may grow, and none may join them).
+const STILL_LONG: &[(&str, usize)] = &[
+    ("api/routes/calibrate/mod.rs", 769),
+    ("camera/rectify.rs", 752),
+    ("vision/refine.rs", 725),
+];
+
+/// The top-level modules in the order of `lib.rs`'s map: each uses only those before it.
+const LAYERS: &[&str] = &[
+    "numbers",
+    "noise",
+    "physics",
+    "camera",
+    "calibration",
+    "calibrate",
+    "vision",
+    "config",
+    "budget",
+    "observe",
+    "api",
+    "web",
+    "server",
+];
+
+/// Every `.rs` file under `src/` (but `main.rs`) with its module path (`api::routes::rectify`).
+fn modules() -> BTreeMap<Vec<String>, PathBuf> {
+    fn walk(dir: &Path, out: &mut Vec<PathBuf>) {
+        for entry in fs::read_dir(dir).expect("src/ readable") {
+            let path = entry.expect("an entry").path();
+            if path.is_dir() {
+                walk(&path, out);
+            } else if path.extension().is_some_and(|e| e == "rs") {
+                out.push(path);
+            }
+        }
+    }
+    let mut files = Vec::new();
+    walk(Path::new(SRC), &mut files);
+    files
+        .into_iter()
+        .filter(|f| !f.ends_with("main.rs"))
+        .map(|file| {
+            let rel = file.strip_prefix(SRC).expect("under src/");
+            let mut path: Vec<String> = rel
+                .with_extension("")
+                .iter()
+                .map(|p| p.to_string_lossy().into_owned())
+                .collect();
+            if matches!(path.last().map(String::as_str), Some("mod" | "lib")) {
+                path.pop();
+            }
+            (path, file)
+        })
+        .collect()
+}
+
+/// The code of a file without its comments, strings and `#[cfg(test)]` part.
+fn code_of(text: &str) -> String {
+    let text = match text.find("#[cfg(test)]") {
+        Some(at) => &text[..at],
+        None => text,
+    };
+    let bytes = text.as_bytes();
+    let mut out = String::with_capacity(text.len());
+    let mut i = 0;
+    while i < bytes.len() {
+        match bytes[i] {
+            b'/' if bytes.get(i + 1) == Some(&b'/') => {
+                while i < bytes.len() && bytes[i] != b'\n' {
+                    i += 1;
+                }
+            }
+            b'/' if bytes.get(i + 1) == Some(&b'*') => {
+                i += 2;
+                while i + 1 < bytes.len() && !(bytes[i] == b'*' && bytes[i + 1] == b'/') {
+                    i += 1;
+                }
+                i += 2;
+            }
+            b'"' => {
+                i += 1;
+                while i < bytes.len() && bytes[i] != b'"' {
+                    i += if bytes[i] == b'\\' { 2 } else { 1 };
+                }
+                i += 1;
+                out.push_str("\"\"");
+            }
+            b'\'' if bytes.get(i + 2) == Some(&b'\'') || bytes.get(i + 1) == Some(&b'\\') => {
+                // A char literal ('a', '\n', '\''); a lifetime has no closing quote.
+                i += 1;
+                while i < bytes.len() && bytes[i] != b'\'' {
+                    i += if bytes[i] == b'\\' { 2 } else { 1 };
+                }
+                i += 1;
+            }
+            b => {
+                out.push(b as char);
+                i += 1;
+            }
+        }
+    }
+    out
+}
+
+/// The paths a file's code names: each `use` tree expanded, and every `crate::…`, `super::…`
+/// and `self::…` path written inline.
+fn paths_in(code: &str) -> Vec<Vec<String>> {
+    let mut paths = Vec::new();
+    let words = |s: &str| -> Vec<String> {
+        s.split("::")
+            .map(|w| w.trim().to_owned())
+            .filter(|w| !w.is_empty())
+            .collect()
+    };
+    // `use` trees.
+    let mut rest = code;
+    while let Some(at) = find_word(rest, "use") {
+        let after = &rest[at + 3..];
+        let end = after.find(';').unwrap_or(after.len());
+        expand(&mut paths, Vec::new(), &after[..end]);
+        rest = &after[end..];
+    }
+    // Inline paths.
+    for start in ["crate::", "super::", "self::"] {
+        let mut from = 0;
+        while let Some(at) = code[from..].find(start) {
+            let begin = from + at;
+            from = begin + start.len();
+            if code[..begin]
+                .chars()
+                .last()
+                .is_some_and(|c| c.is_alphanumeric() || c == '_' || c == ':')
+            {
+                continue;
+            }
+            let end = code[begin..]
+                .find(|c: char| !(c.is_alphanumeric() || c == '_' || c == ':'))
+                .map_or(code.len(), |e| begin + e);
+            paths.push(words(&code[begin..end]));
+        }
+    }
+    paths
+}
+
+/// The index of `word` in `s` as a whole word.
+fn find_word(s: &str, word: &str) -> Option<usize> {
+    let mut from = 0;
+    while let Some(at) = s[from..].find(word) {
+        let i = from + at;
+        let before = s[..i].chars().last();
+        let after = s[i + word.len()..].chars().next();
+        let edge = |c: Option<char>| !c.is_some_and(|c| c.is_alphanumeric() || c == '_');
+        if edge(before) && after.is_some_and(char::is_whitespace) {
+            return Some(i);
+        }
+        from = i + word.len();
+    }
+    None
+}
+
+/// Expands one `use` tree (`a::{b, c::{d, e}}`) onto `prefix`.
+fn expand(out: &mut Vec<Vec<String>>, prefix: Vec<String>, tree: &str) {
+    let tree = tree.trim();
+    let tree = tree.split(" as ").next().unwrap_or(tree).trim();
+    if let Some(open) = tree.find('{') {
+        let mut head = prefix;
+        head.extend(
+            tree[..open]
+                .split("::")
+                .map(str::trim)
+                .filter(|w| !w.is_empty())
+                .map(str::to_owned),
+        );
+        let inner = &tree[open + 1..tree.rfind('}').unwrap_or(tree.len())];
+        let mut depth = 0;
+        let mut start = 0;
+        for (i, c) in inner.char_indices() {
+            match c {
+                '{' => depth += 1,
+                '}' => depth -= 1,
+                ',' if depth == 0 => {
+                    expand(out, head.clone(), &inner[start..i]);
+                    start = i + 1;
+                }
+                _ => {}
+            }
+        }
+        expand(out, head, &inner[start..]);
+    } else if !tree.is_empty() {
+        let mut path = prefix;
+        path.extend(tree.split("::").map(|w| w.trim().to_owned()));
+        out.push(path);
+    }
+}
+
+/// The module a path names (the longest known module it starts with), from the module `at`
+/// (whose file is a `mod.rs` or `lib.rs` when `dir`).
+fn resolve(
+    path: &[String],
+    at: &[String],
+    dir: bool,
+    known: &BTreeSet<Vec<String>>,
+) -> Option<Vec<String>> {
+    let mut base: Vec<String> = at.to_vec();
+    let mut rest = path;
+    match rest.first().map(String::as_str) {
+        Some("crate") => {
+            base.clear();
+            rest = &rest[1..];
+        }
+        Some("self") => rest = &rest[1..],
+        Some("super") => {
+            while rest.first().is_some_and(|w| w == "super") {
+                base.pop();
+                rest = &rest[1..];
+            }
+        }
+        Some(first) => {
+            // A child module named bare (`use types::X;` in a `mod.rs`).
+            let mut child = at.to_vec();
+            child.push(first.to_owned());
+            if !(dir && known.contains(&child)) {
+                return None;
+            }
+        }
+        None => return None,
+    }
+    let mut full = base;
+    let mut found = None;
+    if known.contains(&full) {
+        found = Some(full.clone());
+    }
+    for word in rest {
+        full.push(word.clone());
+        if known.contains(&full) {
+            found = Some(full.clone());
+        }
+    }
+    found
+}
+
+/// Module → the modules its code names.
+fn graph() -> BTreeMap<Vec<String>, BTreeSet<Vec<String>>> {
+    let modules = modules();
+    let known: BTreeSet<Vec<String>> = modules.keys().cloned().collect();
+    modules
+        .iter()
+        .map(|(module, file)| {
+            let dir = file.ends_with("mod.rs") || file.ends_with("lib.rs");
+            let code = code_of(&fs::read_to_string(file).expect("readable"));
+            let uses = paths_in(&code)
+                .iter()
+                .filter_map(|p| resolve(p, module, dir, &known))
+                .filter(|m| m != module)
+                .collect();
+            (module.clone(), uses)
+        })
+        .collect()
+}
+
+/// The circles among the siblings under each module: each child stands for its whole
+/// subtree, an edge from a child's subtree to another's is an edge between the two, and a
+/// strongly connected set of more than one child is a circle.
+fn circles<N: Ord + Clone + std::fmt::Debug>(edges: &BTreeMap<N, BTreeSet<N>>) -> Vec<BTreeSet<N>> {
+    // Tarjan's algorithm would do; the graphs are small, so reachability both ways.
+    let reach = |from: &N| -> BTreeSet<N> {
+        let mut seen = BTreeSet::new();
+        let mut stack = vec![from.clone()];
+        while let Some(n) = stack.pop() {
+            for m in edges.get(&n).into_iter().flatten() {
+                if seen.insert(m.clone()) {
+                    stack.push(m.clone());
+                }
+            }
+        }
+        seen
+    };
+    let nodes: BTreeSet<N> = edges.keys().cloned().collect();
+    let reaches: BTreeMap<N, BTreeSet<N>> = nodes.iter().map(|n| (n.clone(), reach(n))).collect();
+    let mut found: Vec<BTreeSet<N>> = Vec::new();
+    for n in &nodes {
+        let set: BTreeSet<N> = nodes
+            .iter()
+            .filter(|m| *m == n || (reaches[n].contains(*m) && reaches[*m].contains(n)))
+            .cloned()
+            .collect();
+        if set.len() > 1 && !found.contains(&set) {
+            found.push(set);
+        }
+    }
+    found
+}
+
+/// The sibling graph under `parent`: the child each module lies in → the children it uses.
+fn siblings(
+    graph: &BTreeMap<Vec<String>, BTreeSet<Vec<String>>>,
+    parent: &[String],
+) -> BTreeMap<String, BTreeSet<String>> {
+    let child_of = |m: &[String]| -> Option<String> {
+        (m.len() > parent.len() && m.starts_with(parent)).then(|| m[parent.len()].clone())
+    };
+    let mut edges: BTreeMap<String, BTreeSet<String>> = BTreeMap::new();
+    for (from, uses) in graph {
+        let Some(a) = child_of(from) else { continue };
+        let entry = edges.entry(a.clone()).or_default();
+        for to in uses {
+            if let Some(b) = child_of(to).filter(|b| *b != a) {
+                entry.insert(b);
+            }
+        }
+    }
+    edges
+}
+
+fn show(m: &[String]) -> String {
+    if m.is_empty() {
+        "crate".to_owned()
+    } else {
+        m.join("::")
+    }
+}
+
+/// No module under `api::routes::X` names anything under `api::routes::Y`: what two routes
+/// share lives below them.
+#[test]
+fn no_route_imports_another() {
+    let graph = graph();
+    let routes: Vec<String> = ["api", "routes"].map(str::to_owned).to_vec();
+    let sideways: Vec<String> = siblings(&graph, &routes)
+        .iter()
+        .flat_map(|(a, uses)| uses.iter().map(move |b| format!("{a} → {b}")))
+        .collect();
+    assert!(
+        sideways.is_empty(),
+        "route modules import each other: {sideways:?}"
+    );
+}
+
+/// No circle among the modules of any level: at every module, its children (each standing
+/// for its subtree) use one another one way only.
+#[test]
+fn no_module_circle() {
+    let graph = graph();
+    let mut found = Vec::new();
+    for parent in graph.keys() {
+        for circle in circles(&siblings(&graph, parent)) {
+            found.push(format!("under {}: {circle:?}", show(parent)));
+        }
+    }
+    assert!(found.is_empty(), "import circles: {found:#?}");
+}
+
+/// The top-level modules use only those before them in `lib.rs`'s map.
+#[test]
+fn layers_use_only_those_above() {
+    let graph = graph();
+    let top = siblings(&graph, &[]);
+    let mut wrong = Vec::new();
+    for (a, uses) in &top {
+        let Some(i) = LAYERS.iter().position(|l| l == a) else {
+            wrong.push(format!("{a} is not in the layer list"));
+            continue;
+        };
+        for b in uses {
+            let j = LAYERS.iter().position(|l| l == b);
+            if j.is_none_or(|j| j >= i) {
+                wrong.push(format!("{a} uses {b}, which is not above it"));
+            }
+        }
+    }
+    assert!(wrong.is_empty(), "{wrong:#?}");
+}
+
+/// Every module opens with a `//!` line saying what it is for, and none has over 600 lines
+/// before its tests (but those still being split, which may not grow).
+#[test]
+fn every_module_says_what_it_is_for_and_is_short() {
+    let mut wrong = Vec::new();
+    for (module, file) in modules() {
+        let text = fs::read_to_string(&file).expect("readable");
+        if !text.trim_start().starts_with("//!") {
+            wrong.push(format!("{} has no //! line", show(&module)));
+        }
+        let lines = match text.find("#[cfg(test)]") {
+            Some(at) => text[..at].lines().count(),
+            None => text.lines().count(),
+        };
+        let rel = file
+            .strip_prefix(SRC)
+            .expect("under src/")
+            .to_string_lossy();
+        let most = STILL_LONG
+            .iter()
+            .find(|(name, _)| *name == rel)
+            .map_or(MAX_LINES, |&(_, n)| n);
+        if lines > most {
+            wrong.push(format!(
+                "{rel} has {lines} lines before its tests, over {most}"
+            ));
+        }
+    }
+    main_too(&mut wrong);
+    assert!(wrong.is_empty(), "{wrong:#?}");
+}
+
+fn main_too(wrong: &mut Vec<String>) {
+    let main = fs::read_to_string(Path::new(SRC).join("main.rs")).expect("main.rs");
+    if !main.trim_start().starts_with("//!") {
+        wrong.push("main.rs has no //! line".to_owned());
+    }
+}
+
+/// The page's JavaScript modules import one another one way only.
+#[test]
+fn no_circle_in_the_page_modules() {
+    let dir = Path::new(SRC).join("web/js");
+    let mut edges: BTreeMap<String, BTreeSet<String>> = BTreeMap::new();
+    for entry in fs::read_dir(&dir).expect("src/web/js") {
+        let path = entry.expect("an entry").path();
+        if path.extension().is_none_or(|e| e != "js") {
+            continue;
+        }
+        let name = path
+            .file_name()
+            .expect("a name")
+            .to_string_lossy()
+            .into_owned();
+        let text = fs::read_to_string(&path).expect("readable");
+        let uses = edges.entry(name).or_default();
+        for line in text.lines() {
+            let Some(from) = line.find("from './") else {
+                continue;
+            };
+            let rest = &line[from + 8..];
+            if let Some(end) = rest.find('\'') {
+                uses.insert(rest[..end].to_owned());
+            }
+        }
+    }
+    assert!(edges.len() >= 5, "the page's modules found: {edges:?}");
+    let found = circles(&edges);
+    assert!(found.is_empty(), "import circles in src/web/js: {found:?}");
+}
+
+/// The checker itself finds a circle and a route importing another, so that its silence means
+/// something.
+#[test]
+fn the_checker_sees_what_it_looks_for() {
+    let code = code_of(
+        "//! x\nuse crate::api::{routes::rectify::plan, wire::{rig::Rig, de}};\n\
+         // use crate::budget;\nfn f() { let s = \"crate::vision\"; super::images::work::run(); }",
+    );
+    let paths = paths_in(&code);
+    assert!(
+        paths.contains(
+            &["crate", "api", "routes", "rectify", "plan"]
+                .map(String::from)
+                .to_vec()
+        )
+    );
+    assert!(paths.contains(&["crate", "api", "wire", "de"].map(String::from).to_vec()));
+    assert!(
+        paths.contains(
+            &["super", "images", "work", "run"]
+                .map(String::from)
+                .to_vec()
+        )
+    );
+    assert!(
+        !paths
+            .iter()
+            .any(|p| p.contains(&"budget".to_owned()) || p.contains(&"vision".to_owned()))
+    );
+    let edges: BTreeMap<&str, BTreeSet<&str>> = [
+        ("a", BTreeSet::from(["b"])),
+        ("b", BTreeSet::from(["c"])),
+        ("c", BTreeSet::from(["a"])),
+        ("d", BTreeSet::from(["a"])),
+    ]
+    .into_iter()
+    .collect();
+    assert_eq!(circles(&edges), vec![BTreeSet::from(["a", "b", "c"])]);
+}
