@@ -17,9 +17,9 @@ use std::path::PathBuf;
 
 use nalgebra::{Rotation3, Vector3};
 use serde_json::json;
-use stereo_distance::calibrate::Board;
-use stereo_distance::calibrate::corners::{self, Luma};
-use stereo_distance::calibrate::synthetic::{Style, poses, stereo_views};
+use stereo_distance::calibration::boards::Board;
+use stereo_distance::calibration::boards::corners::{self, Luma};
+use stereo_distance::calibration::boards::synthetic::{Style, poses, stereo_views};
 use stereo_distance::camera::{Camera, Distortion, Intrinsics, Model, Size, StereoPair};
 use stereo_distance::physics::LengthUnit;
 use stereo_distance::vision::synthetic::Rng;
@@ -64,7 +64,7 @@ fn refine(dir: &std::path::Path) {
 
 fn calibrate(dir: &std::path::Path) {
     use rayon::prelude::*;
-    use stereo_distance::calibrate::{self, Corners};
+    use stereo_distance::calibration::boards::{self, Corners};
     let truth: serde_json::Value =
         serde_json::from_slice(&std::fs::read(dir.join("truth.json")).expect("truth.json"))
             .expect("truth.json");
@@ -99,7 +99,7 @@ fn calibrate(dir: &std::path::Path) {
         width: images[0].width as u32,
         height: images[0].height as u32,
     };
-    let fit = calibrate::calibrate(&board, size, model, &views, true).expect("calibration");
+    let fit = boards::calibrate(&board, size, model, &views, true).expect("calibration");
     let total = started.elapsed();
     let pair = fit.pair().expect("pair");
     let cam = |c: &Camera| {
@@ -112,7 +112,7 @@ fn calibrate(dir: &std::path::Path) {
         "translation": pair.translation.as_slice(),
         "rms": fit.rms,
         "found": found.iter().filter(|f| f.is_some()).count(),
-        "used": fit.views.iter().filter(|v| v.status == calibrate::Status::Used).count(),
+        "used": fit.views.iter().filter(|v| v.status == boards::ViewOutcome::Used).count(),
         "detect_ms": detected.as_secs_f64() * 1e3,
         "total_ms": total.as_secs_f64() * 1e3,
     });

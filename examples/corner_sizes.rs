@@ -14,9 +14,9 @@
 use nalgebra::{Rotation3, Vector3};
 use std::process::ExitCode;
 use std::time::Instant;
-use stereo_distance::calibrate::Board;
-use stereo_distance::calibrate::corners::{self, Luma};
-use stereo_distance::calibrate::synthetic::{Style, poses, stereo_views};
+use stereo_distance::calibration::boards::Board;
+use stereo_distance::calibration::boards::corners::{self, Luma};
+use stereo_distance::calibration::boards::synthetic::{Style, poses, stereo_views};
 use stereo_distance::camera::{Camera, Distortion, Intrinsics, Model, Size, StereoPair};
 use stereo_distance::physics::LengthUnit;
 

@@ -8,7 +8,7 @@ use std::time::Instant;
 
 use nalgebra::{Matrix3, Rotation3, Vector3};
 use stereo_distance::camera::{Camera, Distortion, Intrinsics, Model, Size, undistort_rectify_map};
-use stereo_distance::vision::remap::{Fixed, Interpolation, Source, remap_fixed};
+use stereo_distance::vision::remap::{Fixed, Interpolation, RawImage, remap_fixed};
 
 fn main() {
     let size = Size {
@@ -55,7 +55,7 @@ fn main() {
         for _ in 0..if only_linear { 200 } else { 9 } {
             let t = Instant::now();
             let out = remap_fixed(
-                Source {
+                RawImage {
                     width: 1280,
                     height: 720,
                     channels: 1,
@@ -72,7 +72,7 @@ fn main() {
         for _ in 0..9 {
             let t = Instant::now();
             let out = remap_fixed(
-                Source {
+                RawImage {
                     width: 1280,
                     height: 720,
                     channels: 3,

@@ -69,7 +69,7 @@ fn main() {
             .collect();
     }
     let w = left.grey.width;
-    let seen = vision::Seen::of(&left.grey, &right.grey);
+    let seen = vision::PairNoise::of(&left.grey, &right.grey);
     println!(
         "noise {:.2} / {:.2} grey levels, census stride {}{}",
         seen.left / 257.0,

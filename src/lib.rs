@@ -26,12 +26,15 @@
 //!     (`plumb_bob`, `rational_polynomial`, `equidistant`), projection and undistortion,
 //!     `stereoRectify` (R1 R2 P1 P2 Q, `alpha`, ROIs), whose rectified rig is a
 //!     `physics::Rig`, and `initUndistortRectifyMap`'s maps.
-//!   - [`calibration`]: calibration files (Middlebury, KITTI, ROS, OpenCV) read into a checked
-//!     rig (`calibration::read`), and the raw cameras the files of raw rigs describe.
-//!   - [`calibrate`]: calibration from checkerboard images: the board, the board finder and
-//!     the sub-pixel corner refinement, Zhang's first guess, the Levenberg–Marquardt
-//!     refinements of each camera and of the pair with each parameter's deviation, and boards
-//!     rendered with exact corners.
+//!   - [`calibration`], in two parts:
+//!     - [`calibration::files`]: calibration files (Middlebury, KITTI, ROS, OpenCV) read into
+//!       a checked rig (`files::read`) with the raw cameras they describe, and the OpenCV and
+//!       ROS files written, each format's reader and writer in one file;
+//!     - [`calibration::boards`]: a calibration from checkerboard views: the board, the board
+//!       finder and the sub-pixel corner refinement, Zhang's first guess, the
+//!       Levenberg–Marquardt refinements of each camera and of the pair with each parameter's
+//!       deviation, the report (coverage, tilt, warnings), and boards rendered with exact
+//!       corners.
 //!   - [`vision`]: the matcher, the heavy group's engine: its parameters checked by
 //!     `vision::Params::new` (the one set of defaults, and the search range's arithmetic),
 //!     census costs, SGM, refinement (coarse to fine through `vision::pyramid` for ranges
@@ -65,7 +68,6 @@
 
 pub mod api;
 pub mod budget;
-pub mod calibrate;
 pub mod calibration;
 pub mod camera;
 pub mod config;

@@ -1,7 +1,8 @@
 //! Numbers written as text, in one place: into messages for people ([`Num`], the shortest form
 //! that reads back as the same number, so that an echoed `1e308` stays `1e308` and not 309
-//! digits) and into CSV as the JSON writes them ([`push_json`]). Formulas' rounded numbers
-//! (`api::format`) are written through [`Num`] too; only this module calls ryu.
+//! digits), into CSV as the JSON writes them ([`push_json`]), and rounded for reading in
+//! formulas, summaries and chart labels ([`short`], [`percent`]; never in JSON values, which
+//! keep full precision). Only this module calls ryu.
 
 use std::fmt;
 
@@ -39,6 +40,25 @@ pub fn clip(text: &str, max: usize) -> String {
     }
 }
 
+/// A number for reading: at most four decimals, no trailing zeros; scientific notation for
+/// magnitudes below 10⁻³ or from 10¹² up.
+///
+/// Rounds in binary (`round(v·10⁴)/10⁴`) and writes the shortest form ([`crate::numbers::Num`],
+/// ryu's): ten times
+/// cheaper than `format!("{:.4}")`, whose exact decimal expansion showed in the profile of
+/// `/distance`. The two differ only on exact ties of the fifth decimal.
+pub fn short(value: f64) -> String {
+    if value != 0.0 && !(1e-3..1e12).contains(&value.abs()) {
+        return format!("{value:e}");
+    }
+    Num((value * 1e4).round() / 1e4).to_string()
+}
+
+/// A fraction as a percentage for reading, such as `2 %` for 0.02.
+pub fn percent(fraction: f64) -> String {
+    format!("{} %", short(fraction * 100.0))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -63,5 +83,29 @@ mod tests {
         assert_eq!(clip("short", 10), "short");
         assert_eq!(clip("ééééé", 3), "ééé…");
         assert_eq!(clip(&"x".repeat(1000), 40).chars().count(), 41);
+    }
+
+    /// Formula numbers are short and readable.
+    #[test]
+    fn short_numbers() {
+        assert_eq!(short(105.0), "105");
+        assert_eq!(short(0.23333333), "0.2333");
+        assert_eq!(short(-15.0), "-15");
+        assert_eq!(short(0.0), "0");
+        assert_eq!(short(1e-7), "1e-7");
+        assert_eq!(short(2.5e12), "2.5e12");
+        assert_eq!(short(0.001), "0.001");
+        assert_eq!(short(-0.0), "0");
+        assert_eq!(short(0.00104), "0.001");
+        assert_eq!(short(168.254_237_288), "168.2542");
+        assert_eq!(short(999_999_999_999.0), "999999999999");
+        assert_eq!(short(5300.0), "5300");
+    }
+
+    /// Fractions read as percentages.
+    #[test]
+    fn percentages() {
+        assert_eq!(percent(0.02), "2 %");
+        assert_eq!(percent(0.007547169811320755), "0.7547 %");
     }
 }

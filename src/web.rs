@@ -9,7 +9,7 @@
 //! Middlebury file) is rendered by [`crate::vision::synthetic`] on first request, so the
 //! binary holds code, not a picture; so is the calibration sample under `/sample/boards/` (board pairs seen through
 //! two distorted cameras, and the raw pair of a wall at a known distance, from
-//! [`crate::calibrate::synthetic`]), each file rendered when first asked for. Each asset is
+//! [`crate::calibration::boards::synthetic`]), each file rendered when first asked for. Each asset is
 //! answered with an `ETag` (a hash of its bytes, so a new build is a new tag) and
 //! `Cache-Control: no-cache`, so browsers revalidate and get a 304 until the binary changes.
 //! The tag is weak because the compression layer may send the same asset gzip- or br-encoded,
@@ -275,14 +275,14 @@ pub fn board_files() -> Vec<String> {
 }
 
 /// What every file of the calibration sample is rendered from: [`BOARD_VIEWS`] poses of a
-/// 9 × 6 board of 25 mm squares seen by [`crate::calibrate::synthetic::sample_rig`], one more
+/// 9 × 6 board of 25 mm squares seen by [`crate::calibration::boards::synthetic::sample_rig`], one more
 /// the right camera sees only in part, and the cameras' rays.
 struct BoardSample {
     rig: crate::camera::StereoPair,
-    board: crate::calibrate::Board,
+    board: crate::calibration::boards::Board,
     poses: Vec<nalgebra::Isometry3<f64>>,
-    rays: [crate::calibrate::synthetic::Rays; 2],
-    style: crate::calibrate::synthetic::Style,
+    rays: [crate::calibration::boards::synthetic::Rays; 2],
+    style: crate::calibration::boards::synthetic::Style,
 }
 
 /// The calibration sample's image size, and its board: inner corners along a row and a
@@ -296,11 +296,11 @@ pub const BOARD: (u32, u32, f64) = (9, 6, 25.0);
 const WALL_MAX_DISPARITY: u32 = 96;
 
 /// The rectified rig the calibration sample was rendered with (OpenCV's `stereoRectify`,
-/// `alpha` 0, of [`crate::calibrate::synthetic::sample_rig`]): what calibrating it should
+/// `alpha` 0, of [`crate::calibration::boards::synthetic::sample_rig`]): what calibrating it should
 /// give.
 pub fn board_sample_rig() -> crate::physics::Rig {
-    let rig = crate::calibrate::synthetic::sample_rig();
-    crate::camera::stereo_rectify(&rig, BOARD_SIZE, crate::camera::Options::default())
+    let rig = crate::calibration::boards::synthetic::sample_rig();
+    crate::camera::stereo_rectify(&rig, BOARD_SIZE, crate::camera::RectifyOptions::default())
         .expect("the sample rig rectifies")
         .rig(crate::physics::LengthUnit::Millimetre)
         .expect("a rectified rig with a baseline")
@@ -313,11 +313,13 @@ static BOARD_VIEW_FILES: [OnceLock<[Served; 2]>; BOARD_VIEWS + 2] =
 
 fn board_sample() -> &'static BoardSample {
     BOARD_SAMPLE.get_or_init(|| {
-        use crate::calibrate::synthetic::{Rays, Style, corners, poses, right_pose, sample_rig};
+        use crate::calibration::boards::synthetic::{
+            Rays, Style, corners, poses, right_pose, sample_rig,
+        };
         let rig = sample_rig();
         let size = BOARD_SIZE;
         let (columns, rows, square) = BOARD;
-        let board = crate::calibrate::Board::new(
+        let board = crate::calibration::boards::Board::new(
             columns,
             rows,
             square,
@@ -385,14 +387,14 @@ fn boards_json() -> Served {
 
 /// The calibration sample's image `i` (in [`board_files`] order), rendered on first use.
 fn board_image(i: usize) -> Served {
-    let png = |image: &crate::calibrate::synthetic::Image| -> Bytes {
+    let png = |image: &crate::calibration::boards::synthetic::Image| -> Bytes {
         encode::png_grey(image.width as usize, image.height as usize, &image.pixels).into()
     };
     let view = i / 2;
     let pair = BOARD_VIEW_FILES[view].get_or_init(|| {
         let images = if view <= BOARD_VIEWS {
             let sample = board_sample();
-            let v = crate::calibrate::synthetic::stereo_view(
+            let v = crate::calibration::boards::synthetic::stereo_view(
                 &sample.rig,
                 &sample.board,
                 &sample.poses[view],
@@ -402,8 +404,8 @@ fn board_image(i: usize) -> Served {
             );
             [v.left, v.right]
         } else {
-            crate::calibrate::synthetic::raw_wall(
-                &crate::calibrate::synthetic::sample_rig(),
+            crate::calibration::boards::synthetic::raw_wall(
+                &crate::calibration::boards::synthetic::sample_rig(),
                 BOARD_SIZE,
                 WALL_DISTANCE_MM,
                 WALL_SLOPE,

@@ -2,7 +2,7 @@
 //! own tools write it) and read back is the same rig, and no text at all makes a reader panic.
 
 use proptest::prelude::*;
-use stereo_distance::calibration::{self, Calibration, Format, KittiPair, Source};
+use stereo_distance::calibration::files::{self, Calibration, Format, KittiPair, Source};
 
 /// A rectified rig as the files describe it, lengths in the format's unit.
 #[derive(Debug, Clone, Copy)]
@@ -74,7 +74,7 @@ fn same(parsed: &Calibration, rig: &Rig, sized: bool) -> Result<(), TestCaseErro
 }
 
 fn read(text: &str, right: Option<&str>) -> Calibration {
-    calibration::parse(Source {
+    files::parse(Source {
         text,
         right_text: right,
         ..Source::default()
@@ -252,7 +252,7 @@ proptest! {
         let parsed = read(&kitti_raw(&r), None);
         prop_assert_eq!(parsed.format, Format::Kitti);
         same(&parsed, &r, true)?;
-        let parsed = calibration::parse(Source {
+        let parsed = files::parse(Source {
             text: &kitti_odometry(&r),
             kitti_pair: Some(KittiPair::Grey),
             ..Source::default()
@@ -292,7 +292,7 @@ proptest! {
             Just(Format::Middlebury), Just(Format::Kitti), Just(Format::Ros), Just(Format::OpenCv)
         ]),
     ) {
-        let _ = calibration::parse(Source { text: &text, right_text: right.as_deref(), format,
+        let _ = files::parse(Source { text: &text, right_text: right.as_deref(), format,
                                             ..Source::default() });
     }
 
@@ -306,9 +306,9 @@ proptest! {
         let i = at.index(chars.len());
         chars[i] = c;
         let damaged: String = chars.into_iter().collect();
-        let _ = calibration::parse(Source { text: &damaged, right_text: Some(&ros1(&r, r.cx, -1.0)),
+        let _ = files::parse(Source { text: &damaged, right_text: Some(&ros1(&r, r.cx, -1.0)),
                                             ..Source::default() });
         let half: String = damaged.chars().take(damaged.chars().count() / 2).collect();
-        let _ = calibration::parse(Source { text: &half, ..Source::default() });
+        let _ = files::parse(Source { text: &half, ..Source::default() });
     }
 }

@@ -15,7 +15,6 @@ const MAX_LINES: usize = 600;
 /// The files still over [`MAX_LINES`], each held to the lines it has now until it is split
 /// (a ratchet: none may grow, and none may join them).
 const STILL_LONG: &[(&str, usize)] = &[
-    ("api/routes/calibrate/mod.rs", 769),
     ("camera/rectify.rs", 752),
     ("vision/refine.rs", 725),
 ];
@@ -27,7 +26,6 @@ const LAYERS: &[&str] = &[
     "physics",
     "camera",
     "calibration",
-    "calibrate",
     "vision",
     "config",
     "budget",

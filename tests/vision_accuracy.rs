@@ -260,7 +260,7 @@ fn upscaled(image: &vision::Gray, k: usize) -> vision::Gray {
 /// `seen` of it, is missing or more than 1 px off the `truth`.
 fn bad_or_missing(
     (left, right): (&vision::Gray, &vision::Gray),
-    seen: vision::Seen,
+    seen: vision::PairNoise,
     params: &Params,
     (truth, visible): (&[f32], &[bool]),
 ) -> f64 {
@@ -298,10 +298,10 @@ fn a_smooth_pair_is_matched_with_its_census_spread() {
         ..Settings::default()
     })
     .unwrap();
-    let seen = vision::Seen::of(&left, &right);
+    let seen = vision::PairNoise::of(&left, &right);
     assert!(seen.stride >= 2, "{seen:?}");
     let bad1 = |seen| bad_or_missing((&left, &right), seen, &params, (&truth, &visible));
-    let (spread, adjacent) = (bad1(seen), bad1(vision::Seen { stride: 1, ..seen }));
+    let (spread, adjacent) = (bad1(seen), bad1(vision::PairNoise { stride: 1, ..seen }));
     assert!(
         spread < 0.5 * adjacent,
         "stride {}: {spread:.4} against {adjacent:.4} one pixel apart",
@@ -335,13 +335,13 @@ fn faded(pair: &Pair, contrast: f32, sigma: f32) -> (vision::Gray, vision::Gray)
 fn a_faint_pair_is_matched_coarse_to_fine() {
     let pair = synthetic::render(&synthetic::layered(320, 240));
     let (left, right) = faded(&pair, 0.1, 3.0);
-    let seen = vision::Seen::of(&left, &right);
+    let seen = vision::PairNoise::of(&left, &right);
     assert!(seen.faint, "{seen:?}");
     let truth = (pair.truth.as_slice(), pair.visible.as_slice());
     let bad1 = |seen| bad_or_missing((&left, &right), seen, &params(), truth);
     let (coarse_first, own_size) = (
         bad1(seen),
-        bad1(vision::Seen {
+        bad1(vision::PairNoise {
             faint: false,
             ..seen
         }),
@@ -359,7 +359,7 @@ fn a_noisy_but_textured_pair_is_not_faint() {
     let pair = synthetic::render(&synthetic::layered(320, 240));
     for contrast in [0.2, 1.0] {
         let (left, right) = faded(&pair, contrast, 3.0);
-        let seen = vision::Seen::of(&left, &right);
+        let seen = vision::PairNoise::of(&left, &right);
         assert!(!seen.faint, "contrast {contrast}: {seen:?}");
     }
 }

@@ -5,7 +5,7 @@ use stereo_distance::vision::decode::{self, Decoded};
 /// The pair at `left` and `right`, decoded (grey, no colour) with limits wide enough for any
 /// camera's frames; exits with the reason when a file cannot be read or decoded.
 pub fn read_pair(left: &str, right: &str) -> (Decoded, Decoded) {
-    let limits = decode::Limits {
+    let limits = decode::DecodeLimits {
         max_side: 20_000,
         max_pixels: 50_000_000,
     };

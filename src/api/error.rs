@@ -1,7 +1,7 @@
 //! The one error type of the HTTP layer, [`ApiError`], rendered as RFC 9457
 //! `application/problem+json`, and [`FieldErrors`], the collector that decoding and validation
 //! fill so that one answer names every offending field. The bottom layer of the API: of
-//! the API's modules it uses only [`super::format`], for numbers in messages.
+//! the API's modules it uses none ([`crate::numbers`] writes its numbers).
 
 use std::time::Duration;
 
@@ -18,7 +18,7 @@ use crate::{budget::Refusal, observe::telemetry, physics::PhysicsError};
 fn mib(bytes: usize) -> String {
     format!(
         "{} MiB",
-        super::format::short(bytes as f64 / (1024.0 * 1024.0))
+        crate::numbers::short(bytes as f64 / (1024.0 * 1024.0))
     )
 }
 

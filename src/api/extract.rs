@@ -16,7 +16,7 @@ use serde::de::DeserializeOwned;
 use serde_json::{Map, Value};
 
 use super::error::{ApiError, FieldError, FieldErrors};
-use super::wording::{self, Complaint, ECHO};
+use super::member_messages::{self, Complaint, ECHO};
 use crate::numbers::clip;
 
 /// A JSON request body, decoded as far as it could be, with the members it refused and the
@@ -295,7 +295,7 @@ fn diagnose<T: DeserializeOwned>(
             Some(raw) if alone(key, &raw).is_ok() => as_text.push((key.clone(), raw)),
             _ => refused.push((
                 key.clone(),
-                wording::message(&error.to_string(), Some(value)),
+                member_messages::message(&error.to_string(), Some(value)),
             )),
         }
     }
@@ -317,11 +317,11 @@ fn diagnose<T: DeserializeOwned>(
         // Not attributable to one member alone, such as a member given twice.
         _ => {
             let text = whole.to_string();
-            let field = match wording::parse(&text) {
+            let field = match member_messages::parse(&text) {
                 Complaint::Duplicate { name } if !name.is_empty() => clip(name, ECHO),
                 _ => itself.to_owned(),
             };
-            problems.add(&field, wording::message(&text, None));
+            problems.add(&field, member_messages::message(&text, None));
             Err(problems.into_error())
         }
     }

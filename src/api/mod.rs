@@ -9,21 +9,22 @@
 //! - [`validate`]: the caller's members turned into the physics module's types, through their
 //!   checking constructors ([`crate::physics::Rig::new`]), the faults named as fields.
 //! - [`images`]: what the image routes share: the multipart form and the [`images::ImagePair`]
-//!   extractor, the rig from a part, the limits, the blocking work.
+//!   extractor, the rig from a part, raw pairs rectified, file answers and `Server-Timing`, the
+//!   limits, the blocking work.
 //! - [`routes`]: one module per resource (handlers, wire types, `router()`), merged into the
-//!   route groups: light (JSON), heavy (images) and the probes.
-//! - [`respond`], [`format`]: JSON answers in one buffer; numbers written for people.
+//!   route groups: light (JSON), heavy (images) and the probes. No route imports another.
+//! - [`respond`], [`csv`]: JSON answers in one buffer, and CSV answers.
+//! - [`member_messages`]: serde's refusal of a request member said in the API's words.
 
 pub mod csv;
 pub mod error;
 pub mod extract;
-pub mod format;
 pub mod images;
+pub mod member_messages;
 pub mod respond;
 pub mod routes;
 pub mod validate;
 pub mod wire;
-pub mod wording;
 
 use axum::{Router, extract::FromRef, http::header, routing::get};
 use utoipa::OpenApi;
@@ -97,7 +98,7 @@ impl FromRef<HeavyState> for BodyLimit {
         error::Problem,
         error::FieldError,
         routes::depth_map::types::DepthMapOutput,
-        routes::calibrate::types::CalibrateOutput,
+        routes::board_calibration::types::CalibrateOutput,
         routes::rectify::types::RectifyOutput,
         routes::rectify::types::InterpolationChoice,
         wire::images::RectifyMode

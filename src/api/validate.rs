@@ -6,7 +6,7 @@ use super::wire::params::RangeParams;
 use crate::camera::Alpha;
 use crate::numbers::Num;
 use crate::physics::{
-    Camera, CameraSpec, Correspondence, Fault, Member, Rig, RigSpec, SampleRange, Spacing,
+    CameraSpec, Correspondence, Fault, Member, RectifiedCamera, Rig, RigSpec, SampleRange, Spacing,
 };
 
 /// The range checks validation makes: each records its own error and returns the value only
@@ -137,9 +137,9 @@ pub fn faults(faults: Vec<Fault>, prefix: &str, problems: &mut FieldErrors) {
     }
 }
 
-/// The camera a request states, through [`Camera::new`].
-pub fn camera(spec: CameraSpec, problems: &mut FieldErrors) -> Option<Camera> {
-    Camera::new(&marked(spec, problems))
+/// The camera a request states, through [`RectifiedCamera::new`].
+pub fn camera(spec: CameraSpec, problems: &mut FieldErrors) -> Option<RectifiedCamera> {
+    RectifiedCamera::new(&marked(spec, problems))
         .map_err(|f| faults(f, "", problems))
         .ok()
 }

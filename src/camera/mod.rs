@@ -17,8 +17,8 @@ pub use distortion::{Distorted, Distortion, DistortionFault, Model};
 pub use maps::{Map, undistort_rectify_map};
 pub use pinhole::{Camera, CameraFault, Intrinsics};
 pub use rectify::{
-    Alpha, AlphaOutOfRange, GivenFault, Options, Rectification, RectifyFault, RigFault, Roi, Side,
-    Size, StereoPair, stereo_rectify,
+    Alpha, AlphaOutOfRange, GivenFault, Rectification, RectifyFault, RectifyOptions, RigFault, Roi,
+    Side, Size, StereoPair, stereo_rectify,
 };
 
 #[cfg(test)]

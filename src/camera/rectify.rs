@@ -116,16 +116,16 @@ impl fmt::Display for AlphaOutOfRange {
 /// How to rectify: `alpha`, OpenCV's `CALIB_ZERO_DISPARITY`, and the size of the rectified
 /// images (the raw size when `None`).
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Options {
+pub struct RectifyOptions {
     pub alpha: Alpha,
     pub zero_disparity: bool,
     pub new_size: Option<Size>,
 }
 
-impl Default for Options {
+impl Default for RectifyOptions {
     /// `alpha` 0 (only valid pixels) and `CALIB_ZERO_DISPARITY`, OpenCV's default flag.
     fn default() -> Self {
-        Options {
+        RectifyOptions {
             alpha: Alpha::ZERO,
             zero_disparity: true,
             new_size: None,
@@ -277,7 +277,7 @@ fn project_ray(
 pub fn stereo_rectify(
     pair: &StereoPair,
     size: Size,
-    options: Options,
+    options: RectifyOptions,
 ) -> Result<Rectification, RectifyFault> {
     if size.width == 0 || size.height == 0 {
         return Err(RectifyFault::Size);
@@ -562,7 +562,7 @@ fn fisheye_projections(
     pair: &StereoPair,
     size: Size,
     new_size: Size,
-    options: Options,
+    options: RectifyOptions,
     [r1, r2]: [Matrix3<f64>; 2],
     t: Vector3<f64>,
 ) -> Result<Rectification, RectifyFault> {

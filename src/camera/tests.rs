@@ -110,9 +110,9 @@ fn stereo_rectify_reproduces_opencv() {
         0.9997805245054511,
     ];
     for (alpha, f, tf, roi_l, roi_r) in cases {
-        let options = Options {
+        let options = RectifyOptions {
             alpha: Alpha::new(alpha).unwrap(),
-            ..Options::default()
+            ..RectifyOptions::default()
         };
         let r = stereo_rectify(&opencv_pair(), SIZE, options).unwrap();
         close("R1", &rows(&r.r1), &r1, 1e-12);
@@ -154,9 +154,9 @@ fn stereo_rectify_reproduces_opencv() {
 /// 299.911, cy 241.549 and f 809.026 at alpha 0.
 #[test]
 fn without_zero_disparity_the_principal_points_differ_in_x() {
-    let options = Options {
+    let options = RectifyOptions {
         zero_disparity: false,
-        ..Options::default()
+        ..RectifyOptions::default()
     };
     let r = stereo_rectify(&opencv_pair(), SIZE, options).unwrap();
     close(
@@ -226,9 +226,9 @@ fn rectified_rows_agree_and_the_rig_gives_the_depth() {
     ];
     for (n, pair) in pairs.iter().enumerate() {
         for alpha in [0.0, 1.0] {
-            let options = Options {
+            let options = RectifyOptions {
                 alpha: Alpha::new(alpha).unwrap(),
-                ..Options::default()
+                ..RectifyOptions::default()
             };
             let r = stereo_rectify(pair, SIZE, options).unwrap();
             let rig = r.rig(LengthUnit::Millimetre).unwrap();
@@ -271,7 +271,7 @@ fn refuses_what_it_cannot_rectify() {
         ..pair
     };
     assert_eq!(
-        stereo_rectify(&still, SIZE, Options::default()),
+        stereo_rectify(&still, SIZE, RectifyOptions::default()),
         Err(RectifyFault::NoBaseline)
     );
     let empty = Size {
@@ -279,14 +279,14 @@ fn refuses_what_it_cannot_rectify() {
         height: 480,
     };
     assert_eq!(
-        stereo_rectify(&pair, empty, Options::default()),
+        stereo_rectify(&pair, empty, RectifyOptions::default()),
         Err(RectifyFault::Size)
     );
     let vertical = StereoPair {
         translation: Vector3::new(1.0, -80.0, 0.5),
         ..pair
     };
-    let r = stereo_rectify(&vertical, SIZE, Options::default()).unwrap();
+    let r = stereo_rectify(&vertical, SIZE, RectifyOptions::default()).unwrap();
     assert!(r.vertical);
     assert_eq!(r.rig(LengthUnit::Millimetre), Err(RigFault::Vertical));
 }

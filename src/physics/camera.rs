@@ -1,6 +1,6 @@
 //! The camera as stated and as checked: the [`Member`]s a camera and a rig are stated in, the
 //! [`Fault`]s a constructor names them by, the focal length in any of its four forms converted
-//! to pixels, and [`Camera::new`], the one way to a [`Camera`].
+//! to pixels, and [`RectifiedCamera::new`], the one way to a [`RectifiedCamera`].
 
 use crate::numbers::Num;
 
@@ -158,9 +158,11 @@ pub struct CameraSpec {
     pub unreadable: Vec<Member>,
 }
 
-/// A checked camera: the focal lengths in pixels and what goes with them.
+/// A camera of the rectified rig as triangulation sees it, checked: the focal lengths in
+/// pixels and what goes with them (the raw camera, with K and distortion, is
+/// [`crate::camera::Camera`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Camera {
+pub struct RectifiedCamera {
     pub(super) focal_px: f64,
     pub(super) focal_y_px: f64,
     pub(super) focal_member: Member,
@@ -170,10 +172,10 @@ pub struct Camera {
     pub(super) disparity_error_px: f64,
 }
 
-impl Camera {
+impl RectifiedCamera {
     /// Checks a camera: exactly one focal option (converted to pixels), image extents of at
     /// least a pixel, a positive fy, a disparity error of 0 or more.
-    pub fn new(spec: &CameraSpec) -> Result<Camera, Vec<Fault>> {
+    pub fn new(spec: &CameraSpec) -> Result<RectifiedCamera, Vec<Fault>> {
         let mut faults = Faults {
             found: Vec::new(),
             unreadable: &spec.unreadable,
@@ -220,7 +222,7 @@ fn image_extent(member: Member, value: Option<u32>, faults: &mut Faults) -> Opti
     }
 }
 
-pub(super) fn camera(spec: &CameraSpec, faults: &mut Faults) -> Option<Camera> {
+pub(super) fn camera(spec: &CameraSpec, faults: &mut Faults) -> Option<RectifiedCamera> {
     let width = image_extent(Member::ImageWidth, spec.image_width, faults);
     let height = image_extent(Member::ImageHeight, spec.image_height, faults);
     let focal_px = focal_length(&spec.focal, width, faults);
@@ -233,7 +235,7 @@ pub(super) fn camera(spec: &CameraSpec, faults: &mut Faults) -> Option<Camera> {
             .unwrap_or(DEFAULT_DISPARITY_ERROR_PX),
     );
     let focal_px = focal_px?;
-    Some(Camera {
+    Some(RectifiedCamera {
         focal_px,
         focal_y_px: focal_y_px.unwrap_or(Some(focal_px))?,
         focal_member: spec.focal.member(),

@@ -17,7 +17,9 @@ use std::fmt;
 mod camera;
 mod rig;
 
-pub use camera::{Camera, CameraSpec, DEFAULT_DISPARITY_ERROR_PX, Fault, Focal, MM_ALONE, Member};
+pub use camera::{
+    CameraSpec, DEFAULT_DISPARITY_ERROR_PX, Fault, Focal, MM_ALONE, Member, RectifiedCamera,
+};
 pub use rig::{DepthErrorTerms, Rig, RigSpec};
 
 /// Relative depth error above which a measurement carries a [`Warning::LargeRelativeError`].

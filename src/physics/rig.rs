@@ -1,12 +1,12 @@
 //! The camera and the rectified rig, each built only through its checking constructor
-//! ([`Camera::new`], [`Rig::new`]): a value that exists is a valid one, whichever way its
+//! ([`RectifiedCamera::new`], [`Rig::new`]): a value that exists is a valid one, whichever way its
 //! members arrived (a JSON rig, a calibration file, a rig part of an image request). What the
 //! constructors refuse is a list of [`Fault`]s, each naming the [`Member`] at fault, which the
 //! HTTP layer maps onto its field names and nothing more.
 
 use crate::numbers::Num;
 
-use super::camera::{Camera, CameraSpec, Fault, Faults, Focal, Member, camera};
+use super::camera::{CameraSpec, Fault, Faults, Focal, Member, RectifiedCamera, camera};
 use super::{LengthUnit, PhysicsError, Point3, field_of_view_deg, finite};
 
 /// A rig as stated, before it is checked: the camera, the baseline and the principal points,
@@ -68,7 +68,7 @@ impl RigSpec {
 /// on its image, and a disparity error of 0 or more.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Rig {
-    camera: Camera,
+    camera: RectifiedCamera,
     baseline: f64,
     cx: Option<f64>,
     cy: Option<f64>,
@@ -78,7 +78,7 @@ pub struct Rig {
 }
 
 impl Rig {
-    /// Checks a rig: the camera ([`Camera::new`]), a positive baseline whose product and ratio
+    /// Checks a rig: the camera ([`RectifiedCamera::new`]), a positive baseline whose product and ratio
     /// with the focal length are finite, a principal point within the image when its size is
     /// known (by default the image centre; unknown without a size, when only depths can be
     /// computed), a finite `doffs` (default 0).
@@ -137,7 +137,7 @@ impl Rig {
 
     /// The rig a checked camera makes with a second one `baseline` away, principal points at
     /// the image centre (unknown without the image size) and no doffs.
-    pub fn from_camera(camera: Camera, baseline: f64) -> Result<Rig, Vec<Fault>> {
+    pub fn from_camera(camera: RectifiedCamera, baseline: f64) -> Result<Rig, Vec<Fault>> {
         let mut faults = Faults {
             found: Vec::new(),
             unreadable: &[],
@@ -163,7 +163,7 @@ impl Rig {
     /// The same rig with its lengths in `unit`.
     pub fn in_unit(self, unit: LengthUnit) -> Rig {
         Rig {
-            camera: Camera {
+            camera: RectifiedCamera {
                 unit,
                 ..self.camera
             },
@@ -177,7 +177,7 @@ impl Rig {
     pub fn with_disparity_error(self, px: f64) -> Result<Rig, Fault> {
         if px.is_finite() && px >= 0.0 {
             Ok(Rig {
-                camera: Camera {
+                camera: RectifiedCamera {
                     disparity_error_px: px,
                     ..self.camera
                 },
@@ -202,7 +202,7 @@ impl Rig {
         let cy = principal(Member::Cy, self.cy, Some(h), &mut faults);
         match (cx, cy) {
             (Some(cx), Some(cy)) if width > 0 && height > 0 && faults.found.is_empty() => Ok(Rig {
-                camera: Camera {
+                camera: RectifiedCamera {
                     image_width: Some(w),
                     image_height: Some(h),
                     ..self.camera
@@ -216,7 +216,7 @@ impl Rig {
     }
 
     /// The checked camera.
-    pub fn camera(&self) -> Camera {
+    pub fn camera(&self) -> RectifiedCamera {
         self.camera
     }
     /// Horizontal focal length `fx`, the one every disparity is measured with.
@@ -436,7 +436,7 @@ fn principal(
 
 /// Refuses a focal length and baseline whose product or ratio leaves the range of an f64,
 /// blaming both.
-fn balanced(camera: &Camera, baseline: f64, faults: &mut Faults) {
+fn balanced(camera: &RectifiedCamera, baseline: f64, faults: &mut Faults) {
     let focal_px = camera.focal_px;
     if (focal_px * baseline).is_normal() && (focal_px / baseline).is_normal() {
         return;

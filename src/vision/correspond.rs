@@ -61,7 +61,7 @@ pub const MARGIN_FULL: f32 = 0.5;
 
 /// Whether to trust a correspondence, or why not.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Status {
+pub enum MatchOutcome {
     Ok,
     OutsideImage,
     OutOfRange,
@@ -74,7 +74,7 @@ pub enum Status {
 /// A point's correspondence.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Found {
-    pub status: Status,
+    pub status: MatchOutcome,
     /// The disparity `x_left − x_right` at the point's pixel, in pixels; `None` when the point
     /// is outside the left image or no right pixel lies in the range.
     pub disparity: Option<f32>,
@@ -144,7 +144,7 @@ pub fn correspond(
     let bands = bands(&needed, h);
     let started = std::time::Instant::now();
     // The whole pair's noise and stride, so that each band's census is the whole image's there.
-    let seen = super::Seen::of(left, right);
+    let seen = super::PairNoise::of(left, right);
     // The bands side by side on the cores (each band's stripes too).
     let matched: Vec<Result<Band, Cancelled>> = bands
         .par_iter()
@@ -195,7 +195,7 @@ pub fn correspond(
         .map(|&p| {
             let Some((x, y)) = p else {
                 return Found {
-                    status: Status::OutsideImage,
+                    status: MatchOutcome::OutsideImage,
                     disparity: None,
                     confidence: 0.0,
                 };
@@ -258,7 +258,7 @@ fn judge(
     let lo = (x as i64 - min - (w - 1)).max(0);
     let hi = (x as i64 - min).min(count - 1);
     let Some(probe) = probe.filter(|_| lo <= hi) else {
-        return none(Status::OutOfRange);
+        return none(MatchOutcome::OutOfRange);
     };
     let raw = probe.subpixel + params.min_disparity as f32;
     let filtered = map.data[y * map.width + x];
@@ -267,29 +267,29 @@ fn judge(
     let (invalid, spread, agree) = neighbourhood(map, x, y, filtered);
     let edge = near_edge(map, x, y, filtered);
     let status = if index >= hi || index < lo || (index == lo && (lo > 0 || min > 0)) {
-        Status::OutOfRange
+        MatchOutcome::OutOfRange
     } else if texture < TEXTURE_MIN {
-        Status::Textureless
+        MatchOutcome::Textureless
     } else if !probe.consistent {
-        Status::Occluded
+        MatchOutcome::Occluded
     } else if !probe.unique || probe.window_second < probe.window_best + WINDOW_MARGIN_MIN {
-        Status::Ambiguous
+        MatchOutcome::Ambiguous
     } else if probe.window_cost > MATCH_COST_RATIO * probe.window_mean {
-        Status::OutOfRange
+        MatchOutcome::OutOfRange
     } else if filtered.is_nan() || invalid > INVALID_NEIGHBOURS_MAX || spread > SPREAD_MAX || edge {
-        Status::Inconsistent
+        MatchOutcome::Inconsistent
     } else {
-        Status::Ok
+        MatchOutcome::Ok
     };
     let disparity = match status {
-        Status::Ambiguous | Status::Occluded | Status::OutOfRange => raw,
+        MatchOutcome::Ambiguous | MatchOutcome::Occluded | MatchOutcome::OutOfRange => raw,
         _ if filtered.is_nan() => raw,
         _ => filtered,
     };
     let margin = f32::from(probe.second.saturating_sub(probe.best)) / f32::from(probe.best.max(1));
     let mut confidence =
         (margin / MARGIN_FULL).min(1.0) * agree * (texture / (4.0 * TEXTURE_MIN)).min(1.0);
-    if status != Status::Ok {
+    if status != MatchOutcome::Ok {
         confidence *= 0.5;
     }
     Found {

@@ -14,7 +14,7 @@ use super::Gray;
 
 /// What a decode may take.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct Limits {
+pub struct DecodeLimits {
     /// The widest and tallest image accepted, in pixels.
     pub max_side: u32,
     /// The most pixels (width × height) accepted.
@@ -23,7 +23,7 @@ pub struct Limits {
 
 /// The two formats read.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Format {
+pub enum Codec {
     Png,
     Jpeg,
 }
@@ -39,7 +39,7 @@ pub enum DecodeError {
     TooLarge {
         width: u32,
         height: u32,
-        limits: Limits,
+        limits: DecodeLimits,
     },
     /// The header or the data is damaged (the decoder's words).
     Corrupt(String),
@@ -48,14 +48,14 @@ pub enum DecodeError {
 /// A decoded image: its grey levels for matching and, when asked, its colours for a point cloud.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Decoded {
-    pub format: Format,
+    pub format: Codec,
     pub grey: Gray,
     /// RGB, 8 bits a channel, row-major; present when decoding was asked to keep colour.
     pub rgb: Option<Vec<u8>>,
 }
 
 /// The format of `bytes` from its signature, or why it is not one read here.
-pub fn sniff(bytes: &[u8]) -> Result<Format, DecodeError> {
+pub fn sniff(bytes: &[u8]) -> Result<Codec, DecodeError> {
     const OTHERS: [(&[u8], &str); 9] = [
         (b"GIF8", "GIF"),
         (b"BM", "BMP"),
@@ -68,10 +68,10 @@ pub fn sniff(bytes: &[u8]) -> Result<Format, DecodeError> {
         (b"\0\0\0\x0cjP  ", "JPEG 2000"),
     ];
     if bytes.starts_with(b"\x89PNG\r\n\x1a\n") {
-        return Ok(Format::Png);
+        return Ok(Codec::Png);
     }
     if bytes.starts_with(&[0xFF, 0xD8, 0xFF]) {
-        return Ok(Format::Jpeg);
+        return Ok(Codec::Jpeg);
     }
     if bytes.len() >= 12 && &bytes[4..8] == b"ftyp" {
         return Err(DecodeError::Unsupported("HEIF/AVIF"));
@@ -113,7 +113,7 @@ fn turns(orientation: Orientation) -> bool {
 }
 
 /// Decodes `bytes` within `limits`, keeping the colours when `colour` is set.
-pub fn decode(bytes: &[u8], limits: Limits, colour: bool) -> Result<Decoded, DecodeError> {
+pub fn decode(bytes: &[u8], limits: DecodeLimits, colour: bool) -> Result<Decoded, DecodeError> {
     let format = sniff(bytes)?;
     let (width, height) = dimensions(bytes)?;
     let too_large = || DecodeError::TooLarge {
@@ -184,12 +184,12 @@ fn grey_levels(image: &DynamicImage) -> Vec<u16> {
     }
 }
 
-fn reader(bytes: &[u8], format: Format) -> ImageReader<Cursor<&[u8]>> {
+fn reader(bytes: &[u8], format: Codec) -> ImageReader<Cursor<&[u8]>> {
     ImageReader::with_format(
         Cursor::new(bytes),
         match format {
-            Format::Png => ImageFormat::Png,
-            Format::Jpeg => ImageFormat::Jpeg,
+            Codec::Png => ImageFormat::Png,
+            Codec::Jpeg => ImageFormat::Jpeg,
         },
     )
 }
@@ -202,7 +202,7 @@ fn corrupt(e: &ImageError) -> DecodeError {
 mod tests {
     use super::*;
 
-    const LIMITS: Limits = Limits {
+    const LIMITS: DecodeLimits = DecodeLimits {
         max_side: 4096,
         max_pixels: 4_000_000,
     };
@@ -247,7 +247,7 @@ mod tests {
     #[test]
     fn decodes_png() {
         let d = decode(&png(5, 3), LIMITS, true).unwrap();
-        assert_eq!((d.grey.width, d.grey.height, d.format), (5, 3, Format::Png));
+        assert_eq!((d.grey.width, d.grey.height, d.format), (5, 3, Codec::Png));
         assert!(d.grey.data.iter().all(|&v| v == 7 * 257));
         assert_eq!(d.rgb.unwrap().len(), 5 * 3 * 3);
     }

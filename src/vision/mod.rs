@@ -12,7 +12,7 @@
 //! window around what the level above found everywhere below it:
 //! - [`census`]: a 9 × 7 census transform of both images (62 bits a pixel), each pixel's
 //!   neighbours compared with its Lee-filtered value, the neighbours 1 to 4 pixels apart as
-//!   the pair is smooth over (the noise and that spacing measured once, [`Seen`]);
+//!   the pair is smooth over (the noise and that spacing measured once, [`PairNoise`]);
 //! - [`cost`]: the Hamming cost volume, `[y][x][d]` over each pixel's window, one byte a cell;
 //! - [`sgm`]: semi-global aggregation along 8 paths in two passes, the second handing each
 //!   finished row to
@@ -235,7 +235,14 @@ pub fn disparity_probed(
     cancel: &AtomicBool,
     wanted: &[Vec<usize>],
 ) -> Result<(Disparity, Timings, Vec<Vec<Probe>>), Cancelled> {
-    disparity_probed_in(left, right, Seen::of(left, right), params, cancel, wanted)
+    disparity_probed_in(
+        left,
+        right,
+        PairNoise::of(left, right),
+        params,
+        cancel,
+        wanted,
+    )
 }
 
 /// What the census needs to know of the whole pair ([`census`]), measured once, so that a crop
@@ -244,24 +251,24 @@ pub fn disparity_probed(
 /// the pixels between the census window's samples, and whether its texture is faint (the
 /// pyramid then goes further: [`pyramid::levels`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Seen {
+pub struct PairNoise {
     pub left: f32,
     pub right: f32,
     pub stride: usize,
     pub faint: bool,
 }
 
-impl Seen {
+impl PairNoise {
     /// Each image's noise by the median form of Immerkær's estimate ([`census::noise_sigma`]),
     /// and what the pair's texture calls for ([`census::texture`]).
-    pub fn of(left_image: &Gray, right_image: &Gray) -> Seen {
+    pub fn of(left_image: &Gray, right_image: &Gray) -> PairNoise {
         let (left, right) = rayon::join(
             || census::noise_sigma(left_image),
             || census::noise_sigma(right_image),
         );
         let census::Texture { stride, faint } =
             census::texture(left_image, right_image, (left, right));
-        Seen {
+        PairNoise {
             left,
             right,
             stride,
@@ -273,8 +280,8 @@ impl Seen {
     /// the census's samples one pixel apart. (Those levels only bound the finest level's
     /// search; halving the stride there instead, 4 → 2 on Motorcycle upscaled 4 ×, measured
     /// 26.03 % bad-1.0 against 25.53.)
-    fn halved(self) -> Seen {
-        Seen {
+    fn halved(self) -> PairNoise {
+        PairNoise {
             left: self.left / 2.0,
             right: self.right / 2.0,
             stride: 1,
@@ -288,7 +295,7 @@ impl Seen {
 pub fn disparity_probed_in(
     left: &Gray,
     right: &Gray,
-    seen: Seen,
+    seen: PairNoise,
     params: &Params,
     cancel: &AtomicBool,
     wanted: &[Vec<usize>],
@@ -302,7 +309,7 @@ pub fn disparity_probed_in(
 /// the whole range at the coarsest level.
 fn level(
     (left, right): (&Gray, &Gray),
-    seen: Seen,
+    seen: PairNoise,
     params: &Params,
     above: usize,
     cancel: &AtomicBool,

@@ -122,7 +122,7 @@ impl Sample for u16 {
 
 /// A raw image: `width × height` pixels of `channels` interleaved samples.
 #[derive(Debug, Clone, Copy)]
-pub struct Source<'a, T> {
+pub struct RawImage<'a, T> {
     pub width: usize,
     pub height: usize,
     pub channels: usize,
@@ -397,12 +397,12 @@ static CUBIC: std::sync::LazyLock<Vec<[f32; 4]>> =
 
 /// `source` read through `map` into an image of the map's size, with the same channels (1 to
 /// 4); pixels read from outside the raw image are black.
-pub fn remap<T: Sample>(source: Source<'_, T>, map: &Map, how: Interpolation) -> Vec<T> {
+pub fn remap<T: Sample>(source: RawImage<'_, T>, map: &Map, how: Interpolation) -> Vec<T> {
     remap_fixed(source, &Fixed::new(map), how)
 }
 
 /// [`remap`] through a map already in fixed point.
-pub fn remap_fixed<T: Sample>(source: Source<'_, T>, map: &Fixed, how: Interpolation) -> Vec<T> {
+pub fn remap_fixed<T: Sample>(source: RawImage<'_, T>, map: &Fixed, how: Interpolation) -> Vec<T> {
     match source.channels {
         1 => remap_with::<T, 1>(source, map, how),
         2 => remap_with::<T, 2>(source, map, how),
@@ -417,7 +417,7 @@ pub fn remap_fixed<T: Sample>(source: Source<'_, T>, map: &Fixed, how: Interpola
 
 /// [`remap`] for `C` channels, known when compiled so that each pixel's loop unrolls.
 fn remap_with<T: Sample, const C: usize>(
-    source: Source<'_, T>,
+    source: RawImage<'_, T>,
     map: &Fixed,
     how: Interpolation,
 ) -> Vec<T> {
@@ -541,7 +541,7 @@ mod tests {
         let data: Vec<u8> = (0..w * h)
             .map(|i| (i % w) as u8 * 10 + (i / w) as u8)
             .collect();
-        let src = Source {
+        let src = RawImage {
             width: w,
             height: h,
             channels: 1,
@@ -569,7 +569,7 @@ mod tests {
     fn channels_and_depths() {
         let rgb: Vec<u8> = vec![10, 200, 30, 20, 100, 60];
         let out = remap(
-            Source {
+            RawImage {
                 width: 2,
                 height: 1,
                 channels: 3,
@@ -583,7 +583,7 @@ mod tests {
         // `cv2.remap(..., INTER_CUBIC)` gives (A = −0.75 overshoots a ramp by 47).
         let grey: Vec<u16> = (0..6 * 4).map(|i| 59000 + 1000 * (i % 6) as u16).collect();
         let out = remap(
-            Source {
+            RawImage {
                 width: 6,
                 height: 4,
                 channels: 1,
@@ -645,7 +645,7 @@ mod tests {
                 (v + 0.5).floor() as u16
             })
             .collect();
-        let source = Source {
+        let source = RawImage {
             width: sw,
             height: sh,
             channels: 1,

@@ -7,10 +7,10 @@ use std::sync::OnceLock;
 use nalgebra::{Rotation3, Vector3};
 use reqwest::multipart::{Form, Part};
 use serde_json::json;
-use stereo_distance::calibrate::Board;
-use stereo_distance::calibrate::synthetic::{Style, poses, stereo_views};
+use stereo_distance::calibration::boards::Board;
+use stereo_distance::calibration::boards::synthetic::{Style, poses, stereo_views};
 use stereo_distance::camera::{
-    Camera, Distortion, Intrinsics, Model, Options, Size, StereoPair, stereo_rectify,
+    Camera, Distortion, Intrinsics, Model, RectifyOptions, Size, StereoPair, stereo_rectify,
 };
 use stereo_distance::physics::LengthUnit;
 use stereo_distance::vision::encode;
@@ -60,7 +60,7 @@ fn views() -> &'static Vec<(Vec<u8>, Vec<u8>)> {
         stereo_views(&pair, SIZE, &board(), &found, &style)
             .into_iter()
             .map(|v| {
-                let png = |i: &stereo_distance::calibrate::synthetic::Image| {
+                let png = |i: &stereo_distance::calibration::boards::synthetic::Image| {
                     gray_png(i.width as usize, i.height as usize, &i.pixels)
                 };
                 (png(&v.left), png(&v.right))
@@ -120,7 +120,7 @@ async fn calibrates_a_rendered_rig() {
     let app = spawn_app().await;
     let summary =
         ok_json(calibrate(&app, "?corners=true", form(8, false, Some(BOARD))).await).await;
-    let expected = stereo_rectify(&truth(), SIZE, Options::default())
+    let expected = stereo_rectify(&truth(), SIZE, RectifyOptions::default())
         .unwrap()
         .rig(LengthUnit::Millimetre)
         .unwrap();

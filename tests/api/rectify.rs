@@ -8,7 +8,7 @@ use nalgebra::{Matrix3, Rotation3, Vector3};
 use reqwest::multipart::Form;
 use serde_json::{Value, json};
 use stereo_distance::camera::{
-    Camera, Distortion, Intrinsics, Model, Options, Size, StereoPair, stereo_rectify,
+    Camera, Distortion, Intrinsics, Model, RectifyOptions, Size, StereoPair, stereo_rectify,
 };
 
 use crate::depth_map::{floats, image_part, npz_entries};
@@ -173,7 +173,7 @@ async fn rectified_frames_match_the_scene_for_every_model() {
             width: W,
             height: H,
         };
-        let rect = stereo_rectify(&pair, size, Options::default()).unwrap();
+        let rect = stereo_rectify(&pair, size, RectifyOptions::default()).unwrap();
         let [left, right] = render_raw(&pair, &rect);
         let yml = stereo_calibrate_yml(&pair);
         let parts = |l: &[u8], r: &[u8]| {
@@ -235,7 +235,7 @@ async fn outputs_cache_pair_and_maps() {
         width: W,
         height: H,
     };
-    let rect = stereo_rectify(&pair, size, Options::default()).unwrap();
+    let rect = stereo_rectify(&pair, size, RectifyOptions::default()).unwrap();
     let [left, right] = render_raw(&pair, &rect);
     let yml = stereo_calibrate_yml(&pair);
     let parts = || {

@@ -214,7 +214,7 @@ async fn read_parts_with(
             problems.add("body", "has a part without a name; name each part");
         } else if !known.contains(&name.as_str()) {
             problems.add_new(
-                crate::numbers::clip(&name, crate::api::wording::ECHO),
+                crate::numbers::clip(&name, crate::api::member_messages::ECHO),
                 format!(
                     "is not a part of this request; the parts are {}",
                     known.join(", ")

@@ -3,7 +3,7 @@
 //! parameters), and, when a request cannot fit in the memory budget, what to shrink.
 
 use crate::api::error::{ApiError, FieldError, FieldErrors};
-use crate::vision::decode::{DecodeError, Limits};
+use crate::vision::decode::{DecodeError, DecodeLimits};
 use crate::vision::{Params, Settings};
 
 /// The widest or tallest image accepted, in pixels.
@@ -12,7 +12,7 @@ pub const MAX_SIDE: u32 = 8192;
 pub const MAX_PIXELS: u64 = 12_000_000;
 
 /// The decoder's limits for every image route.
-pub const LIMITS: Limits = Limits {
+pub const LIMITS: DecodeLimits = DecodeLimits {
     max_side: MAX_SIDE,
     max_pixels: MAX_PIXELS,
 };
@@ -39,6 +39,12 @@ fn too_many_pixels(width: u32, height: u32) -> String {
     )
 }
 
+/// Why an image of `(width, height)` pixels is refused (413), when it is past the limits.
+pub fn over_the_limits((w, h): (u32, u32)) -> Option<String> {
+    (w > MAX_SIDE || h > MAX_SIDE || u64::from(w) * u64::from(h) > MAX_PIXELS)
+        .then(|| too_many_pixels(w, h))
+}
+
 /// Checks the pair's sizes: each within the limits (413 otherwise), and the right the same
 /// size as the left (naming `right`).
 pub fn check_pair(
@@ -46,13 +52,10 @@ pub fn check_pair(
     right: (u32, u32),
     problems: &mut FieldErrors,
 ) -> Result<(), ApiError> {
-    let over = |(w, h): (u32, u32)| {
-        w > MAX_SIDE || h > MAX_SIDE || u64::from(w) * u64::from(h) > MAX_PIXELS
-    };
     let mut oversized = Vec::new();
     for (name, size) in [("left", left), ("right", right)] {
-        if over(size) {
-            oversized.push(FieldError::new(name, too_many_pixels(size.0, size.1)));
+        if let Some(message) = over_the_limits(size) {
+            oversized.push(FieldError::new(name, message));
         }
     }
     if !oversized.is_empty() {

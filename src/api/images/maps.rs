@@ -11,7 +11,7 @@ use std::hash::{Hash, Hasher};
 use std::sync::{Arc, Mutex};
 
 use crate::budget::{MemoryBudget, Reservation};
-use crate::calibration::Raw;
+use crate::calibration::files::Raw;
 use crate::camera::{Map, undistort_rectify_map};
 use crate::vision::remap::Fixed;
 

@@ -10,10 +10,10 @@ use super::maps::{MapCache, Maps};
 use super::rig::GivenRig;
 use crate::api::error::FieldErrors;
 use crate::api::wire::images::RectifyMode;
-use crate::calibration::Raw;
-use crate::camera::{Alpha, Options, stereo_rectify};
+use crate::calibration::files::Raw;
+use crate::camera::{Alpha, RectifyOptions, stereo_rectify};
 use crate::vision::decode::Decoded;
-use crate::vision::remap::{self, Fixed, Interpolation, Source};
+use crate::vision::remap::{self, Fixed, Interpolation, RawImage};
 use crate::vision::rows::RowOffsets;
 
 /// What a calibration that cannot rectify lacks.
@@ -151,10 +151,10 @@ pub fn raw_rig(
 /// The rig rectified again with `alpha`, as `cv2.stereoRectify` would.
 fn with_alpha(mut given: GivenRig, alpha: Alpha, problems: &mut FieldErrors) -> Option<GivenRig> {
     let raw = given.raw.as_deref()?;
-    let options = Options {
+    let options = RectifyOptions {
         alpha,
         new_size: Some(raw.rectification.size),
-        ..Options::default()
+        ..RectifyOptions::default()
     };
     let rectification = match stereo_rectify(&raw.pair, raw.size, options) {
         Ok(r) => r,
@@ -236,7 +236,7 @@ fn rectify_pair(left: &mut Decoded, right: &mut Decoded, maps: &Maps, colour: bo
             map.width,
             map.height,
             remap::remap_fixed(
-                Source {
+                RawImage {
                     width: g.width,
                     height: g.height,
                     channels: 1,
@@ -251,7 +251,7 @@ fn rectify_pair(left: &mut Decoded, right: &mut Decoded, maps: &Maps, colour: bo
     if colour && let Some(rgb) = left.rgb.as_deref() {
         let g = &left.grey;
         left.rgb = Some(remap::remap_fixed(
-            Source {
+            RawImage {
                 width: g.width,
                 height: g.height,
                 channels: 3,

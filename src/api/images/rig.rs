@@ -14,7 +14,7 @@ use crate::api::wire::calibration::{Cameras, FormatChoice};
 use crate::api::wire::de::request;
 use crate::api::wire::params::Unit;
 use crate::api::wire::rig::{CalibratedRig, StereoRig};
-use crate::calibration::{self, Input, Options, Raw, Source};
+use crate::calibration::files::{self, Input, Raw, ReadOptions, Source};
 use crate::physics::{LengthUnit, Rig};
 
 /// The rig of a request, and what its calibration file adds.
@@ -104,7 +104,7 @@ fn rig_part(
                 "rig",
                 format!(
                     "must be a JSON object of rig members, got {}",
-                    crate::api::wording::describe(&other)
+                    crate::api::member_messages::describe(&other)
                 ),
             );
             return None;
@@ -192,9 +192,9 @@ fn calibration_parts(
         alpha: None,
         image_size: size,
     };
-    let read = calibration::read(
+    let read = files::read(
         source,
-        Options {
+        ReadOptions {
             calibration_unit: options.calibration_unit.map(LengthUnit::from),
             unit: None,
         },

@@ -3,15 +3,15 @@
 //! [`ops::router`] the probes, each group to be wrapped in its own limits by
 //! [`crate::server::startup`].
 
-pub mod calibrate;
-pub mod calibration;
+pub mod board_calibration;
 pub mod chart;
 pub mod depth_map;
 pub mod distance;
+pub mod file_calibration;
 pub mod matching;
 pub mod ops;
-pub mod planning;
 pub mod rectify;
+pub mod rig_design;
 pub mod table;
 
 use axum::http::{Method, Uri};
@@ -143,14 +143,14 @@ pub fn light() -> OpenApiRouter<AppState> {
         .merge(distance::router())
         .merge(table::router())
         .merge(chart::router())
-        .merge(planning::router())
-        .merge(calibration::router())
+        .merge(rig_design::router())
+        .merge(file_calibration::router())
 }
 
 /// The image requests: megabytes in, milliseconds to seconds of CPU each.
 pub fn heavy() -> OpenApiRouter<HeavyState> {
     OpenApiRouter::new()
-        .merge(calibrate::router())
+        .merge(board_calibration::router())
         .merge(depth_map::router())
         .merge(matching::router())
         .merge(rectify::router())

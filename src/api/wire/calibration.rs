@@ -9,7 +9,7 @@ use nalgebra::Matrix3;
 
 use crate::api::wire::de::choice_members;
 use crate::api::wire::params::Unit;
-use crate::calibration::{Format, KittiPair, Raw};
+use crate::calibration::files::{Format, KittiPair, Raw};
 use crate::camera::{Camera, Roi};
 use crate::physics::LengthUnit;
 

@@ -7,7 +7,7 @@
 
 use serde::Deserialize;
 
-use crate::api::wording;
+use crate::api::member_messages;
 
 /// The type of a request member: how it is read when present. Every member is read through
 /// [`member`], which refuses `null`, so the rule is stated once for all of them.
@@ -67,7 +67,7 @@ where
             Err(error) => error,
         },
     };
-    Err(D::Error::custom(wording::message(
+    Err(D::Error::custom(member_messages::message(
         &refusal.to_string(),
         Some(&value),
     )))
@@ -198,7 +198,7 @@ impl Member for i32 {
         let refuse = || {
             D::Error::custom(format!(
                 "must be a whole number, got {}",
-                wording::describe(&value)
+                member_messages::describe(&value)
             ))
         };
         let x = value.as_f64().ok_or_else(refuse)?;
@@ -229,7 +229,7 @@ impl Member for bool {
             serde_json::Value::String(s) if s == "false" => Ok(false),
             other => Err(D::Error::custom(format!(
                 "must be true or false, got {}",
-                wording::describe(&other)
+                member_messages::describe(&other)
             ))),
         }
     }
@@ -328,7 +328,7 @@ macro_rules! camera_request {
         }
 
         impl $name {
-            /// The camera this request states, for [`crate::physics::Camera::new`].
+            /// The camera this request states, for [`crate::physics::RectifiedCamera::new`].
             pub fn camera_spec(&self) -> crate::physics::CameraSpec {
                 crate::physics::CameraSpec {
                     focal: crate::physics::Focal {

@@ -14,8 +14,8 @@ use std::time::Instant;
 use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt};
 use na34::{DMatrix, DVector, Dyn, Owned, SVector};
 use num_dual::DualSVec64;
-use stereo_distance::calibrate::solve::{Lens, Pose, Seen, State, refine};
-use stereo_distance::calibrate::zhang;
+use stereo_distance::calibration::boards::solve::{Lens, Pose, ViewCorners, State, refine};
+use stereo_distance::calibration::boards::zhang;
 use stereo_distance::camera::{Distortion, Model, Size};
 use tiny_solver::Optimizer;
 
@@ -267,9 +267,9 @@ fn main() {
         .iter()
         .map(|p| nalgebra::Vector3::new(p[0], p[1], p[2]))
         .collect();
-    let seen: Vec<Seen> = views
+    let seen: Vec<ViewCorners> = views
         .iter()
-        .map(|v| Seen {
+        .map(|v| ViewCorners {
             left: Some(v.as_slice()),
             right: None,
         })

@@ -16,9 +16,9 @@ use crate::api::AppState;
 use crate::api::csv;
 use crate::api::error::{ApiError, FieldErrors};
 use crate::api::extract::{JsonBody, QueryParams};
-use crate::api::format::short;
 use crate::api::validate::{self, Bounds, Feature};
 use crate::api::wire::openapi::{BodyErrors, QueryErrors};
+use crate::numbers::short;
 use crate::physics;
 
 /// `GET` and `POST /chart-data` and `/chart-data.csv`, `GET /chart.svg`.

@@ -28,7 +28,7 @@ use crate::api::images::work::{self, Need};
 use crate::api::images::{GivenRig, ImageForm, ImagePair, Job, limits, rig};
 use crate::api::respond::Json;
 use crate::api::wire::openapi::ImageErrors;
-use crate::calibration::Raw;
+use crate::calibration::files::Raw;
 use crate::physics::LengthUnit;
 use crate::vision::rows::RowOffsets;
 use crate::vision::{self, Cancelled, Disparity, Params, encode};

@@ -12,11 +12,11 @@ use self::types::{DistanceInput, DistanceOutput, DistanceRequest, DistanceRespon
 use crate::api::AppState;
 use crate::api::error::{ApiError, FieldErrors};
 use crate::api::extract::QueryParams;
-use crate::api::format::short;
 use crate::api::respond::Json;
 use crate::api::validate::{self, Bounds, Feature};
 use crate::api::wire::measured::Measured;
 use crate::api::wire::openapi::{BodyErrors, QueryErrors};
+use crate::numbers::short;
 use crate::physics;
 
 /// `GET` and `POST /distance`.

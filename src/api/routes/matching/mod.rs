@@ -32,7 +32,7 @@ use crate::api::images::{ImageForm, ImagePair, Job, Parts, limits, rig};
 use crate::api::respond::Json;
 use crate::api::wire::measured::Measured;
 use crate::api::wire::openapi::ImageErrors;
-use crate::calibration::Raw;
+use crate::calibration::files::Raw;
 use crate::physics::{self, Correspondence, Rig};
 use crate::vision::correspond::{self, Found, Rect};
 use crate::vision::{self, Cancelled, Params, Settings};
@@ -201,7 +201,7 @@ fn list<T: DeserializeOwned + Default>(
                 name,
                 format!(
                     "must be a JSON array of objects, got {}",
-                    crate::api::wording::describe(&other)
+                    crate::api::member_messages::describe(&other)
                 ),
             );
             return None;
@@ -243,7 +243,7 @@ fn list<T: DeserializeOwned + Default>(
                 prefix,
                 format!(
                     "must be an object, got {}",
-                    crate::api::wording::describe(&other)
+                    crate::api::member_messages::describe(&other)
                 ),
             ),
         }

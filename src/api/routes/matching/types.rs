@@ -11,7 +11,7 @@ pub use crate::api::wire::images::{RectifyMode, StageTimes};
 use crate::api::wire::measured::{Point, Warning};
 use crate::api::wire::params::Unit;
 use crate::api::wire::rig::CalibratedRig;
-use crate::vision::correspond::Status;
+use crate::vision::correspond::MatchOutcome;
 
 request! {
     /// The disparity range of `/match`, in the query string.
@@ -106,16 +106,16 @@ pub enum MatchStatus {
     OutsideImage,
 }
 
-impl From<Status> for MatchStatus {
-    fn from(s: Status) -> Self {
+impl From<MatchOutcome> for MatchStatus {
+    fn from(s: MatchOutcome) -> Self {
         match s {
-            Status::Ok => MatchStatus::Ok,
-            Status::Occluded => MatchStatus::Occluded,
-            Status::Ambiguous => MatchStatus::Ambiguous,
-            Status::Textureless => MatchStatus::Textureless,
-            Status::OutOfRange => MatchStatus::OutOfRange,
-            Status::Inconsistent => MatchStatus::Inconsistent,
-            Status::OutsideImage => MatchStatus::OutsideImage,
+            MatchOutcome::Ok => MatchStatus::Ok,
+            MatchOutcome::Occluded => MatchStatus::Occluded,
+            MatchOutcome::Ambiguous => MatchStatus::Ambiguous,
+            MatchOutcome::Textureless => MatchStatus::Textureless,
+            MatchOutcome::OutOfRange => MatchStatus::OutOfRange,
+            MatchOutcome::Inconsistent => MatchStatus::Inconsistent,
+            MatchOutcome::OutsideImage => MatchStatus::OutsideImage,
         }
     }
 }

@@ -26,10 +26,10 @@ use crate::api::respond::Json;
 use crate::api::wire::calibration::RawCameras;
 use crate::api::wire::openapi::ImageErrors;
 use crate::api::wire::rig::CalibratedRig;
-use crate::calibration::Raw;
+use crate::calibration::files::Raw;
 use crate::vision::decode::{self, Decoded};
 use crate::vision::encode;
-use crate::vision::remap::{self, Fixed, Interpolation, Source};
+use crate::vision::remap::{self, Fixed, Interpolation, RawImage};
 
 /// `POST /rectify`.
 pub fn router() -> OpenApiRouter<HeavyState> {
@@ -129,7 +129,7 @@ fn png(image: &Decoded, map: &Fixed, how: Interpolation) -> Vec<u8> {
     if has_colour(image) {
         let rgb = image.rgb.as_deref().unwrap_or_default();
         let out = remap::remap_fixed(
-            Source {
+            RawImage {
                 width: g.width,
                 height: g.height,
                 channels: 3,
@@ -141,7 +141,7 @@ fn png(image: &Decoded, map: &Fixed, how: Interpolation) -> Vec<u8> {
         return encode::png_rgb(w, h, &out);
     }
     let out = remap::remap_fixed(
-        Source {
+        RawImage {
             width: g.width,
             height: g.height,
             channels: 1,
@@ -172,7 +172,7 @@ fn side_by_side(
     let rgb = |d: &Decoded, map| {
         let g = &d.grey;
         remap::remap_fixed(
-            Source {
+            RawImage {
                 width: g.width,
                 height: g.height,
                 channels: 3,
@@ -263,7 +263,7 @@ fn compute(
             let t = Instant::now();
             let grey = |d: &Decoded, map| {
                 remap::remap_fixed(
-                    Source {
+                    RawImage {
                         width: d.grey.width,
                         height: d.grey.height,
                         channels: 1,

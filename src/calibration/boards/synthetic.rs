@@ -381,7 +381,7 @@ pub fn raw_wall(
     seed: u64,
 ) -> Option<[Image; 2]> {
     let rectification =
-        crate::camera::stereo_rectify(pair, size, crate::camera::Options::default()).ok()?;
+        crate::camera::stereo_rectify(pair, size, crate::camera::RectifyOptions::default()).ok()?;
     let r1 = rectification.r1;
     // A texture pixel is two thirds of a rectified pixel on the axis, so that the far side
     // of the wall, foreshortened, still holds nothing finer than a pixel can.

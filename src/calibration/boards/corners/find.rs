@@ -13,7 +13,7 @@ use calib_targets_chessboard::{
 };
 
 use super::{Luma, refine_all};
-use crate::calibrate::Board;
+use crate::calibration::boards::Board;
 
 /// Why a board was not found in an image.
 #[derive(Debug, Clone, PartialEq)]

@@ -2,14 +2,18 @@
 //! (`image_width`, `camera_matrix`, `projection_matrix` with `rows`, `cols`, `data`), a ROS 2
 //! `ros2 topic echo` message (`width`, `height`, flat `k` and `p`) or a ROS 1 `rostopic echo`
 //! (`K`, `P`). The right camera's projection carries the baseline: `P_r[3] = −f·B`.
+//!
+//! [`write`] writes one camera's `camera_calibration` YAML (`/calibrate`'s `ros-left.yaml`
+//! and `ros-right.yaml`), which [`parse`] reads back to the same numbers.
 
-use crate::camera::Alpha;
-use nalgebra::Matrix3x4;
+use crate::camera::{Alpha, Camera as RawCameraModel};
+use nalgebra::{Matrix3, Matrix3x4};
 
 use super::yaml::{self, Node};
 use super::{Calibration, Format, ParseError, pixels, raw};
 use crate::camera::{Model, Size};
 use crate::numbers::Num;
+use crate::physics::LengthUnit;
 
 /// What one camera's file gives.
 struct Camera {
@@ -179,7 +183,7 @@ fn raw_pair(
         // Without the raw size the raw images cannot be rectified; the rectified rig stands.
         return Ok(None);
     };
-    let parts = raw::Parts {
+    let parts = raw::RawParts {
         left: lc,
         right: rc,
         extrinsics: None,
@@ -283,4 +287,136 @@ pub fn parse(
     calibration
         .checked(Some(right.p_line))
         .map_err(|errors| errors.into_iter().map(ParseError::in_right).collect())
+}
+
+/// One camera of a calibration as ROS `camera_calibration` writes it and
+/// `camera_info_manager` reads it.
+#[derive(Debug, Clone, Copy)]
+pub struct CameraInfo<'a> {
+    /// `camera_name`: `left` or `right`.
+    pub name: &'a str,
+    /// The raw images' size.
+    pub size: Size,
+    pub camera: &'a RawCameraModel,
+    /// The rectifying rotation (R1 or R2).
+    pub rotation: Matrix3<f64>,
+    /// The rectified projection (P1 or P2), its translation in `unit`.
+    pub projection: Matrix3x4<f64>,
+    pub unit: LengthUnit,
+}
+
+impl<'a> CameraInfo<'a> {
+    /// A camera calibrated alone: nothing to rectify, so R = I and P = [K | 0].
+    pub fn alone(name: &'a str, size: Size, camera: &'a RawCameraModel, unit: LengthUnit) -> Self {
+        let mut projection = Matrix3x4::zeros();
+        projection
+            .fixed_view_mut::<3, 3>(0, 0)
+            .copy_from(&camera.matrix());
+        CameraInfo {
+            name,
+            size,
+            camera,
+            rotation: Matrix3::identity(),
+            projection,
+            unit,
+        }
+    }
+}
+
+/// The camera's YAML: K, D with its model, the rectifying rotation and the rectified
+/// projection, whose translation is written in metres, as ROS has it.
+pub fn write(info: &CameraInfo<'_>) -> String {
+    let mut p = info.projection;
+    for row in 0..3 {
+        p[(row, 3)] = info.unit.convert(p[(row, 3)], LengthUnit::Metre);
+    }
+    let list = |data: &[f64]| {
+        data.iter()
+            .map(|&v| yaml::write_number(v))
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    let d = info.camera.distortion();
+    format!(
+        "image_width: {}\nimage_height: {}\ncamera_name: {}\ncamera_matrix:\n  rows: 3\n  \
+         cols: 3\n  data: [{}]\ndistortion_model: {}\ndistortion_coefficients:\n  rows: 1\n  \
+         cols: {}\n  data: [{}]\nrectification_matrix:\n  rows: 3\n  cols: 3\n  data: [{}]\n\
+         projection_matrix:\n  rows: 3\n  cols: 4\n  data: [{}]\n",
+        info.size.width,
+        info.size.height,
+        info.name,
+        list(&yaml::row_major(&info.camera.matrix())),
+        d.model().name(),
+        d.coefficients().len(),
+        list(d.coefficients()),
+        list(&yaml::row_major(&info.rotation)),
+        list(&yaml::row_major(&p)),
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::camera::{RectifyOptions, stereo_rectify};
+
+    /// What [`write`] writes for both cameras, [`parse`] reads back to the same numbers: K, D,
+    /// the rectifying rotations and the projections (whose translation is written in metres),
+    /// and so the baseline in metres.
+    #[test]
+    fn written_camera_infos_read_back_the_same() {
+        let (pair, size) = crate::calibration::files::sample_pair();
+        let rect = stereo_rectify(&pair, size, RectifyOptions::default()).expect("rectified");
+        let info = |name, camera, rotation, projection| {
+            write(&CameraInfo {
+                name,
+                size,
+                camera,
+                rotation,
+                projection,
+                unit: LengthUnit::Millimetre,
+            })
+        };
+        let left = info("left", &pair.left, rect.r1, rect.p1);
+        let right = info("right", &pair.right, rect.r2, rect.p2);
+        let read = parse(&left, Some(&right), None, None).expect("our own files read");
+        let raw = read.raw.expect("the raw cameras");
+        for (ours, theirs) in [(&raw.pair.left, &pair.left), (&raw.pair.right, &pair.right)] {
+            assert_eq!(ours.matrix(), theirs.matrix());
+            assert_eq!(ours.distortion(), theirs.distortion());
+        }
+        // The reader rebuilds R1 R2 as rotations: equal to the last bits.
+        let r = &raw.rectification;
+        assert!((r.r1 - rect.r1).amax() < 1e-14 && (r.r2 - rect.r2).amax() < 1e-14);
+        let mut p2 = rect.p2;
+        p2[(0, 3)] /= 1000.0;
+        assert!(
+            (r.p2 - p2).amax() < 1e-12 && r.p1 == rect.p1,
+            "{} vs {p2}",
+            r.p2
+        );
+        let b = rect.p2[(0, 3)].abs() / rect.p2[(0, 0)] / 1000.0;
+        assert!(
+            (read.baseline - b).abs() < 1e-15,
+            "{} m vs {b} m",
+            read.baseline
+        );
+    }
+
+    /// A camera calibrated alone is written with R = I and P = [K | 0], and reads back as a
+    /// camera with that K and D.
+    #[test]
+    fn a_camera_alone_has_no_rectification() {
+        let (pair, size) = crate::calibration::files::sample_pair();
+        let info = CameraInfo::alone("left", size, &pair.left, LengthUnit::Millimetre);
+        assert_eq!(info.rotation, Matrix3::identity());
+        assert_eq!(info.projection.fixed_view::<3, 3>(0, 0), pair.left.matrix());
+        assert_eq!(info.projection.column(3).amax(), 0.0);
+        let text = write(&info);
+        assert!(text.contains("camera_name: left\n"), "{text}");
+        assert!(text.contains("distortion_model: plumb_bob\n"), "{text}");
+        assert!(
+            text.contains("rectification_matrix:\n  rows: 3\n  cols: 3\n  data: [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]"),
+            "{text}"
+        );
+    }
 }

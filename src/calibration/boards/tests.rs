@@ -96,7 +96,7 @@ fn recovers_a_rendered_rig() {
     assert!(t_error < 0.002);
     assert!(r_error < 0.05);
     assert!(fit.rms < 0.1, "rms {}", fit.rms);
-    assert!(fit.views.iter().all(|v| v.status == Status::Used));
+    assert!(fit.views.iter().all(|v| v.status == ViewOutcome::Used));
 }
 
 /// The rectified rig's focal length and baseline from a calibration of `count` views whose
@@ -126,9 +126,10 @@ fn noisy_rig(pair: &StereoPair, count: usize, sigma: f64, seed: u64) -> Option<[
         })
         .collect();
     let fit = calibrate(&board, SIZE, Model::PlumbBob, &views, true).ok()?;
-    let rect = crate::camera::stereo_rectify(&fit.pair()?, SIZE, crate::camera::Options::default())
-        .ok()?;
-    let [sf, sb] = fit.rig_std(crate::camera::Options::default())?;
+    let rect =
+        crate::camera::stereo_rectify(&fit.pair()?, SIZE, crate::camera::RectifyOptions::default())
+            .ok()?;
+    let [sf, sb] = fit.rig_std(crate::camera::RectifyOptions::default())?;
     Some([rect.p1[(0, 0)], fit.extrinsics?.translation.norm(), sf, sb])
 }
 
@@ -139,7 +140,7 @@ fn noisy_rig(pair: &StereoPair, count: usize, sigma: f64, seed: u64) -> Option<[
 #[test]
 fn standard_deviations_are_honest() {
     let pair = truth(Model::PlumbBob, &[-0.2, 0.08, 0.0008, -0.0004, -0.01]);
-    let options = crate::camera::Options::default();
+    let options = crate::camera::RectifyOptions::default();
     let rect = crate::camera::stereo_rectify(&pair, SIZE, options).unwrap();
     let (f_true, b_true) = (rect.p1[(0, 0)], pair.translation.norm());
     let trials = 40;

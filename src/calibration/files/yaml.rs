@@ -344,6 +344,17 @@ fn unquote(text: &str) -> &str {
     text
 }
 
+/// A number as the OpenCV and ROS files are written: the shortest form that reads back as
+/// the same `f64`, always with a `.` or an exponent (as both OpenCV's and [`number`] read it).
+pub fn write_number(v: f64) -> String {
+    format!("{v:?}")
+}
+
+/// A matrix's numbers row by row, as OpenCV and ROS files list them.
+pub fn row_major<const R: usize, const C: usize>(m: &nalgebra::SMatrix<f64, R, C>) -> Vec<f64> {
+    m.transpose().as_slice().to_vec()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -9,8 +9,8 @@ use nalgebra::{Matrix3, Matrix3x4, Rotation3, Vector3};
 
 use super::{Calibration, Format, ParseError};
 use crate::camera::{
-    Camera, CameraFault, Distortion, GivenFault, Intrinsics, Model, Options, Rectification,
-    RectifyFault, Size, StereoPair, stereo_rectify,
+    Camera, CameraFault, Distortion, GivenFault, Intrinsics, Model, Rectification, RectifyFault,
+    RectifyOptions, Size, StereoPair, stereo_rectify,
 };
 use crate::numbers::Num;
 
@@ -231,7 +231,7 @@ pub struct Given {
 }
 
 /// What a file gives toward the raw pair.
-pub struct Parts {
+pub struct RawParts {
     pub left: Camera,
     pub right: Camera,
     /// R and T (X_right = R·X_left + T), when the file gives them.
@@ -246,7 +246,7 @@ pub struct Parts {
 
 /// The raw pair and its rectification: the file's own unless the caller asks for an `alpha`,
 /// computed as `stereoRectify` does with that `alpha` (0 when the file gives none).
-pub fn pair(parts: Parts, alpha: Option<Alpha>) -> Result<Raw, ParseError> {
+pub fn pair(parts: RawParts, alpha: Option<Alpha>) -> Result<Raw, ParseError> {
     let at = |message: String| ParseError::at(parts.line, message);
     let Some(size) = parts.size else {
         return Err(at(
@@ -315,10 +315,10 @@ pub fn pair(parts: Parts, alpha: Option<Alpha>) -> Result<Raw, ParseError> {
             computed: false,
         }),
         (_, alpha) => {
-            let options = Options {
+            let options = RectifyOptions {
                 alpha: alpha.unwrap_or(Alpha::ZERO),
                 new_size: Some(rectified_size),
-                ..Options::default()
+                ..RectifyOptions::default()
             };
             let rectification = stereo_rectify(&pair, size, options).map_err(fault)?;
             Ok(Raw {

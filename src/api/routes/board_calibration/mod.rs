@@ -1,13 +1,13 @@
 //! `/calibrate`: checkerboard views in (multipart, repeated `left` and `right` parts and a
 //! `board`), a calibrated camera or stereo rig out, as a JSON summary with each parameter's
-//! standard deviation or as OpenCV's and ROS's files. The engine is [`crate::calibrate`]; this
+//! standard deviation or as OpenCV's and ROS's files. The engine is [`crate::calibration::boards`]; this
 //! module reads the form, judges it against the limits, finds the boards over the cores off the
 //! async runtime and writes the answer.
 
-pub mod files;
+mod summary;
 pub mod types;
 
-use std::time::{Duration, Instant};
+use std::time::Instant;
 
 use axum::body::Bytes;
 use axum::extract::{FromRequest, Request};
@@ -15,25 +15,21 @@ use axum::response::{IntoResponse, Response};
 use rayon::prelude::*;
 use utoipa_axum::{router::OpenApiRouter, routes};
 
-use self::types::{
-    BoardSpec, BoardUsed, CalibrateForm, CalibrateOutput, CalibrateQuery, CalibrateTimes,
-    CalibrationSummary, CameraStd, CameraSummary, Coverage, CoverageSummary, RectificationSummary,
-    RigStd, ViewStatus, ViewSummary,
-};
+use self::types::{BoardSpec, CalibrateForm, CalibrateOutput, CalibrateQuery, CalibrationSummary};
 use crate::api::HeavyState;
 use crate::api::error::{ApiError, FieldError, FieldErrors};
 use crate::api::extract::{self, QueryParams};
 use crate::api::images::form::{Form, FormSpec};
-use crate::api::images::limits::{self, LIMITS, MAX_PIXELS, MAX_SIDE};
+use crate::api::images::limits::{self, LIMITS};
 use crate::api::images::output::{self, Disposition, set_server_timing};
 use crate::api::images::work;
 use crate::api::respond::Json;
 use crate::api::wire::openapi::ImageErrors;
-use crate::api::wire::params::Unit;
-use crate::api::wire::rig::CalibratedRig;
-use crate::calibrate::corners::{Luma, find_board};
-use crate::calibrate::{self, Board, CameraFit, Corners, Fit, FitFault, Status};
-use crate::camera::{Alpha, Model, Options, Size};
+use crate::calibration::boards::corners::{Luma, find_board};
+use crate::calibration::boards::report::Detections;
+use crate::calibration::boards::{self, Board, FitFault};
+use crate::calibration::files::{opencv, ros};
+use crate::camera::{Alpha, Model, RectifyOptions, Size};
 use crate::physics::LengthUnit;
 use crate::vision::decode;
 
@@ -289,15 +285,8 @@ fn image_sizes(
             let name = format!("{side}[{i}]");
             match decode::dimensions(bytes) {
                 Ok((w, h)) => {
-                    if w > MAX_SIDE || h > MAX_SIDE || u64::from(w) * u64::from(h) > MAX_PIXELS {
-                        oversized.push(FieldError::new(
-                            name,
-                            format!(
-                                "is {w} × {h} pixels; this server takes at most {MAX_SIDE} \
-                                 pixels a side and {} megapixels",
-                                MAX_PIXELS / 1_000_000
-                            ),
-                        ));
+                    if let Some(message) = limits::over_the_limits((w, h)) {
+                        oversized.push(FieldError::new(name, message));
                         continue;
                     }
                     match first {
@@ -375,32 +364,10 @@ fn compute(
     }
     let stereo = !right.is_empty();
     let n = left.len();
-    let reason = |r: &Result<Vec<[f64; 2]>, String>| r.as_ref().err().cloned();
-    let views: Vec<Corners> = (0..n)
-        .map(|i| Corners {
-            left: results[i].as_ref().ok().cloned(),
-            right: if stereo {
-                results[n + i].as_ref().ok().cloned()
-            } else {
-                None
-            },
-        })
-        .collect();
-    let reasons: Vec<[Option<String>; 2]> = (0..n)
-        .map(|i| {
-            [
-                reason(&results[i]),
-                if stereo {
-                    reason(&results[n + i])
-                } else {
-                    None
-                },
-            ]
-        })
-        .collect();
+    let Detections { views, reasons } = Detections::assemble(&results, stereo);
     let detect = started.elapsed();
     let solving = Instant::now();
-    let fit = calibrate::calibrate(
+    let fit = boards::calibrate(
         &settings.board,
         settings.size,
         settings.model,
@@ -410,9 +377,9 @@ fn compute(
     .map_err(|fault| fit_error(&fault, &reasons, n))?;
     let solve = solving.elapsed();
     let rectifying = Instant::now();
-    let options = Options {
+    let options = RectifyOptions {
         alpha: settings.alpha,
-        ..Options::default()
+        ..RectifyOptions::default()
     };
     let rectification = fit.rectify(options);
     let rig_std = fit.rig_std(options);
@@ -420,7 +387,7 @@ fn compute(
     let unit = settings.board.unit();
     let mut response = match settings.output {
         CalibrateOutput::Summary => {
-            let summary = summarize(
+            let summary = summary::summarize(
                 &fit,
                 &views,
                 &reasons,
@@ -432,40 +399,46 @@ fn compute(
             Json(summary).into_response()
         }
         CalibrateOutput::OpencvYml => {
-            let rect = rectification.ok_or_else(not_rectifiable)?;
-            let text =
-                files::opencv_yml(&fit, &settings.board, &rect).ok_or_else(not_rectifiable)?;
+            let rect = rectification.as_ref().ok_or_else(not_rectifiable)?;
+            let (Some(pair), Some(essential), Some(fundamental)) =
+                (fit.pair(), fit.essential(), fit.fundamental())
+            else {
+                return Err(not_rectifiable());
+            };
+            let text = opencv::write(&opencv::StereoFile {
+                size: fit.size,
+                pair: &pair,
+                essential,
+                fundamental,
+                rectification: rect,
+                target: settings.board.target(),
+            });
             yaml(text, "opencv.yml")
         }
         CalibrateOutput::RosLeftYaml | CalibrateOutput::RosRightYaml => {
             let right_side = settings.output == CalibrateOutput::RosRightYaml;
             let text = match (&rectification, fit.pair()) {
                 (Some(r), Some(pair)) => {
-                    let (camera, name, rot, p) = if right_side {
+                    let (camera, name, rotation, projection) = if right_side {
                         (pair.right, "right", r.r2, r.p2)
                     } else {
                         (pair.left, "left", r.r1, r.p1)
                     };
-                    files::ros_yaml(&camera, name, &fit, &rot, &p, unit)
-                }
-                _ => {
-                    // One camera: no rectification; R = I and P = [K | 0].
-                    let camera = fit.left.camera;
-                    let p = nalgebra::Matrix3x4::from_columns(&[
-                        camera.matrix().column(0).into_owned(),
-                        camera.matrix().column(1).into_owned(),
-                        camera.matrix().column(2).into_owned(),
-                        nalgebra::Vector3::zeros(),
-                    ]);
-                    files::ros_yaml(
-                        &camera,
-                        "left",
-                        &fit,
-                        &nalgebra::Matrix3::identity(),
-                        &p,
+                    ros::write(&ros::CameraInfo {
+                        name,
+                        size: fit.size,
+                        camera: &camera,
+                        rotation,
+                        projection,
                         unit,
-                    )
+                    })
                 }
+                _ => ros::write(&ros::CameraInfo::alone(
+                    "left",
+                    fit.size,
+                    &fit.left.camera,
+                    unit,
+                )),
             };
             yaml(text, settings.output.name())
         }
@@ -475,10 +448,6 @@ fn compute(
         &[("detect", detect), ("solve", solve), ("rectify", rectify)],
     );
     Ok(response)
-}
-
-fn ms(d: Duration) -> f64 {
-    (d.as_secs_f64() * 1e4).round() / 10.0
 }
 
 fn not_rectifiable() -> ApiError {
@@ -515,255 +484,4 @@ fn fit_error(fault: &FitFault, reasons: &[[Option<String>; 2]], n: usize) -> Api
         format!("{fault} (of {n} views sent)"),
     ));
     ApiError::Invalid(errors)
-}
-
-const MIN_GOOD_VIEWS: usize = 10;
-const MIN_SPAN: f64 = 0.6;
-const MIN_TILT_DEG: f64 = 15.0;
-const HIGH_RMS_PX: f64 = 1.0;
-
-fn round(v: f64, digits: i32) -> f64 {
-    let s = 10f64.powi(digits);
-    (v * s).round() / s
-}
-
-fn matrix3(m: &nalgebra::Matrix3<f64>) -> [[f64; 3]; 3] {
-    std::array::from_fn(|r| std::array::from_fn(|c| m[(r, c)]))
-}
-
-fn camera_summary(fit: &CameraFit) -> CameraSummary {
-    CameraSummary {
-        camera_matrix: matrix3(&fit.camera.matrix()),
-        distortion: fit.camera.distortion().coefficients().to_vec(),
-        rms: fit.rms,
-        std: CameraStd {
-            fx: fit.std[0],
-            fy: fit.std[1],
-            cx: fit.std[2],
-            cy: fit.std[3],
-            distortion: fit.std[4..].to_vec(),
-        },
-    }
-}
-
-fn coverage(views: &[Corners], fit: &Fit, right: bool, size: Size) -> Coverage {
-    let (w, h) = (f64::from(size.width), f64::from(size.height));
-    let mut x = [f64::INFINITY, f64::NEG_INFINITY];
-    let mut y = [f64::INFINITY, f64::NEG_INFINITY];
-    let mut cells = [false; 16];
-    for (view, v) in views.iter().zip(&fit.views) {
-        if v.status != Status::Used {
-            continue;
-        }
-        let corners = if right { &view.right } else { &view.left };
-        for c in corners.iter().flatten() {
-            let (fx, fy) = ((c[0] / w).clamp(0.0, 1.0), (c[1] / h).clamp(0.0, 1.0));
-            x = [x[0].min(fx), x[1].max(fx)];
-            y = [y[0].min(fy), y[1].max(fy)];
-            let cell = ((fy * 4.0).min(3.0) as usize) * 4 + (fx * 4.0).min(3.0) as usize;
-            cells[cell] = true;
-        }
-    }
-    Coverage {
-        x: [round(x[0], 3), round(x[1], 3)],
-        y: [round(y[0], 3), round(y[1], 3)],
-        cells: cells.iter().filter(|&&c| c).count() as f64 / 16.0,
-    }
-}
-
-#[allow(clippy::too_many_arguments)]
-fn summarize(
-    fit: &Fit,
-    views: &[Corners],
-    reasons: &[[Option<String>; 2]],
-    settings: &Settings,
-    rectification: Option<&crate::camera::Rectification>,
-    rig_std: Option<[f64; 2]>,
-    [detect, solve, rectify]: [Duration; 3],
-) -> CalibrationSummary {
-    let tilt = |v: &calibrate::ViewFit| {
-        v.pose.map(|p| {
-            let z = p.rotation * nalgebra::Vector3::z();
-            round(z.z.abs().clamp(0.0, 1.0).acos().to_degrees(), 2)
-        })
-    };
-    let view_summaries: Vec<ViewSummary> = fit
-        .views
-        .iter()
-        .enumerate()
-        .map(|(i, v)| {
-            let [l, r] = &reasons[i];
-            let mut failed = Vec::new();
-            let mut why = Vec::new();
-            for (side, reason) in [("left", l), ("right", r)] {
-                if let Some(reason) = reason {
-                    failed.push(side.to_owned());
-                    why.push(format!("{side}: {reason}"));
-                }
-            }
-            let [residuals_left, residuals_right] = if settings.corners {
-                fit.residuals(&settings.board, i, &views[i]).map(|r| {
-                    r.map(|r| r.iter().map(|d| [round(d[0], 4), round(d[1], 4)]).collect())
-                })
-            } else {
-                [None, None]
-            };
-            ViewSummary {
-                status: match v.status {
-                    Status::Used => ViewStatus::Used,
-                    Status::BoardNotFound => ViewStatus::BoardNotFound,
-                    Status::Outlier => ViewStatus::Outlier,
-                },
-                failed,
-                reasons: why,
-                rms_left: v.rms_left.map(|r| round(r, 4)),
-                rms_right: v.rms_right.map(|r| round(r, 4)),
-                tilt_deg: tilt(v),
-                corners_left: settings.corners.then(|| views[i].left.clone()).flatten(),
-                corners_right: settings.corners.then(|| views[i].right.clone()).flatten(),
-                residuals_left,
-                residuals_right,
-            }
-        })
-        .collect();
-    let tilts: Vec<f64> = fit.views.iter().filter_map(tilt).collect();
-    let tilt_range = [
-        tilts.iter().copied().fold(f64::INFINITY, f64::min),
-        tilts.iter().copied().fold(0.0, f64::max),
-    ];
-    let stereo = fit.right.is_some();
-    let cover = CoverageSummary {
-        left: coverage(views, fit, false, settings.size),
-        right: stereo.then(|| coverage(views, fit, true, settings.size)),
-        tilt_deg: tilt_range,
-    };
-    let used = fit
-        .views
-        .iter()
-        .filter(|v| v.status == Status::Used)
-        .count();
-    let mut warnings = Vec::new();
-    if used < MIN_GOOD_VIEWS {
-        warnings.push(format!(
-            "only {used} views were used: 10 to 20 views at different places and tilts give a \
-             trustworthy calibration"
-        ));
-    }
-    for (name, c) in [("left", Some(&cover.left)), ("right", cover.right.as_ref())] {
-        if let Some(c) = c
-            && (c.x[1] - c.x[0] < MIN_SPAN || c.y[1] - c.y[0] < MIN_SPAN)
-        {
-            warnings.push(format!(
-                "the corners covered only x {:.2}–{:.2} and y {:.2}–{:.2} of the {name} image: \
-                 show the board near the edges and corners too, where the distortion is \
-                 strongest",
-                c.x[0], c.x[1], c.y[0], c.y[1]
-            ));
-        }
-    }
-    if tilt_range[1] < MIN_TILT_DEG {
-        warnings.push(format!(
-            "the board never tilted more than {:.0}°: tilt it 20–45° in some views, or the \
-             focal length is poorly determined",
-            tilt_range[1]
-        ));
-    }
-    if fit.rms > HIGH_RMS_PX {
-        warnings.push(format!(
-            "the RMS error is {:.2} px (a good calibration is below 0.5): check that the board is \
-             flat, the images sharp and the board's size right",
-            fit.rms
-        ));
-    }
-    let outliers: Vec<String> = fit
-        .views
-        .iter()
-        .enumerate()
-        .filter(|(_, v)| v.status == Status::Outlier)
-        .map(|(i, _)| i.to_string())
-        .collect();
-    if !outliers.is_empty() {
-        warnings.push(format!(
-            "views {} were left out: their error was far above the others'",
-            outliers.join(", ")
-        ));
-    }
-    let unit = settings.board.unit();
-    // The rig carries its σ, so that it can be sent to `/distance` as it is.
-    let rig = rectification.and_then(|r| r.rig(unit).ok()).map(|rig| {
-        rig_std
-            .and_then(|[f, b]| rig.with_calibration_std(f, b).ok())
-            .unwrap_or(rig)
-    });
-    if stereo && rectification.is_none() {
-        warnings.push(
-            "the pair could not be rectified: the fitted distortion cannot be inverted over the \
-             image (show the board near the image's corners so that the distortion is measured \
-             there); no rectification or rig"
-                .to_owned(),
-        );
-    } else if stereo && rig.is_none() {
-        warnings.push(
-            "the cameras are one above the other: no horizontal rig for /distance".to_owned(),
-        );
-    }
-    let e = fit.extrinsics;
-    CalibrationSummary {
-        image_width: settings.size.width,
-        image_height: settings.size.height,
-        model: match settings.model {
-            Model::PlumbBob => types::ModelChoice::PlumbBob,
-            Model::RationalPolynomial => types::ModelChoice::RationalPolynomial,
-            Model::Equidistant => types::ModelChoice::Equidistant,
-        },
-        board: BoardUsed {
-            columns: settings.board.columns(),
-            rows: settings.board.rows(),
-            square_size: settings.board.square_size(),
-            unit: Unit::from(unit),
-        },
-        views: view_summaries,
-        rms: fit.rms,
-        epipolar_error: fit.epipolar_error(views),
-        left: camera_summary(&fit.left),
-        right: fit.right.as_ref().map(camera_summary),
-        rotation: e.map(|e| matrix3(e.rotation.matrix())),
-        translation: e.map(|e| [e.translation.x, e.translation.y, e.translation.z]),
-        rotation_std_deg: e.map(|e| e.rotation_std.map(f64::to_degrees)),
-        translation_std: e.map(|e| e.translation_std),
-        essential: fit.essential().map(|m| matrix3(&m)),
-        fundamental: fit.fundamental().map(|m| matrix3(&m)),
-        rectification: rectification.map(|r| RectificationSummary {
-            R1: matrix3(&r.r1),
-            R2: matrix3(&r.r2),
-            P1: std::array::from_fn(|i| std::array::from_fn(|j| r.p1[(i, j)])),
-            P2: std::array::from_fn(|i| std::array::from_fn(|j| r.p2[(i, j)])),
-            Q: std::array::from_fn(|i| std::array::from_fn(|j| r.q[(i, j)])),
-            alpha: r.alpha.unwrap_or_default(),
-            roi_left: [
-                r.roi_left.x,
-                r.roi_left.y,
-                r.roi_left.width,
-                r.roi_left.height,
-            ],
-            roi_right: [
-                r.roi_right.x,
-                r.roi_right.y,
-                r.roi_right.width,
-                r.roi_right.height,
-            ],
-        }),
-        rig: rig.as_ref().map(CalibratedRig::from),
-        rig_std: rig.as_ref().and(rig_std).map(|[f, b]| RigStd {
-            focal_length_px: f,
-            baseline: b,
-        }),
-        coverage: cover,
-        warnings,
-        timings_ms: CalibrateTimes {
-            detect: ms(detect),
-            solve: ms(solve),
-            rectify: ms(rectify),
-        },
-    }
 }

@@ -269,7 +269,7 @@ fn raw_pair(
     else {
         return Err(errors);
     };
-    let parts = raw::Parts {
+    let parts = raw::RawParts {
         left,
         right,
         extrinsics,

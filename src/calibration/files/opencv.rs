@@ -8,9 +8,15 @@
 //! (f = Q[2,3], cx = −Q[0,3], cy = −Q[1,3], B = 1/Q[3,2], doffs = Q[3,3]/Q[3,2]), or from the
 //! rectified projections `P1`, `P2` when there is no `Q` (B = −P2[0,3]/P2[0,0]). Lengths are in
 //! the unit of the calibration target's squares, which the file does not record.
+//!
+//! [`write`] writes the file `/calibrate` answers (`opencv.yml`: M1 D1 M2 D2 R T E F R1 R2 P1
+//! P2 Q, as `stereo_calib.cpp` writes `intrinsics.yml` and `extrinsics.yml`, in one file),
+//! which [`parse`] reads back to the same numbers.
 
-use crate::camera::Alpha;
-use nalgebra::{Matrix3x4, Vector3};
+use std::fmt::Write;
+
+use crate::camera::{Alpha, Rectification, StereoPair};
+use nalgebra::{Matrix3, Matrix3x4, Vector3};
 
 use super::yaml::{self, Node};
 use super::{Calibration, Format, ParseError, pixels, raw};
@@ -60,6 +66,82 @@ pub fn parse(
     };
     calibration.unit = unit;
     Ok(calibration)
+}
+
+/// The printed target a calibration was made with, as `opencv.yml` records it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Target {
+    /// Inner corners along a row and a column (OpenCV's `patternSize`).
+    pub columns: u32,
+    pub rows: u32,
+    pub square_size: f64,
+    /// The unit of `square_size`, and so of T and P2's translation.
+    pub unit: LengthUnit,
+}
+
+/// A stereo calibration as `opencv.yml` holds it.
+#[derive(Debug, Clone, Copy)]
+pub struct StereoFile<'a> {
+    /// The raw images' size.
+    pub size: Size,
+    pub pair: &'a StereoPair,
+    pub essential: Matrix3<f64>,
+    pub fundamental: Matrix3<f64>,
+    pub rectification: &'a Rectification,
+    pub target: Target,
+}
+
+/// OpenCV FileStorage YAML with M1 D1 M2 D2 R T E F R1 R2 P1 P2 Q, `imageSize` and the target
+/// (`cv2.FileStorage(path, cv2.FILE_STORAGE_READ).getNode("M1").mat()`). Lengths are in the
+/// target's unit, which is recorded as `unit`.
+pub fn write(file: &StereoFile<'_>) -> String {
+    let matrix = |out: &mut String, name: &str, rows: usize, cols: usize, data: &[f64]| {
+        let data: Vec<String> = data.iter().map(|&v| yaml::write_number(v)).collect();
+        let _ = writeln!(
+            out,
+            "{name}: !!opencv-matrix\n   rows: {rows}\n   cols: {cols}\n   dt: d\n   data: [ {} ]",
+            data.join(", ")
+        );
+    };
+    let (pair, rect, target) = (file.pair, file.rectification, file.target);
+    let mut out = String::from("%YAML:1.0\n---\n");
+    let _ = writeln!(
+        out,
+        "imageSize: [ {}, {} ]",
+        file.size.width, file.size.height
+    );
+    let _ = writeln!(
+        out,
+        "boardSize: [ {}, {} ]\nsquareSize: {}\nunit: \"{}\"\ndistortionModel: \"{}\"",
+        target.columns,
+        target.rows,
+        yaml::write_number(target.square_size),
+        target.unit.symbol(),
+        pair.left.distortion().model().name()
+    );
+    for (k, camera) in [(1, &pair.left), (2, &pair.right)] {
+        let m = yaml::row_major(&camera.matrix());
+        matrix(&mut out, &format!("M{k}"), 3, 3, &m);
+        let d = camera.distortion();
+        let d = d.coefficients();
+        matrix(&mut out, &format!("D{k}"), 1, d.len(), d);
+    }
+    matrix(
+        &mut out,
+        "R",
+        3,
+        3,
+        &yaml::row_major(pair.rotation.matrix()),
+    );
+    matrix(&mut out, "T", 3, 1, pair.translation.as_slice());
+    matrix(&mut out, "E", 3, 3, &yaml::row_major(&file.essential));
+    matrix(&mut out, "F", 3, 3, &yaml::row_major(&file.fundamental));
+    matrix(&mut out, "R1", 3, 3, &yaml::row_major(&rect.r1));
+    matrix(&mut out, "R2", 3, 3, &yaml::row_major(&rect.r2));
+    matrix(&mut out, "P1", 3, 4, &yaml::row_major(&rect.p1));
+    matrix(&mut out, "P2", 3, 4, &yaml::row_major(&rect.p2));
+    matrix(&mut out, "Q", 4, 4, &yaml::row_major(&rect.q));
+    out
 }
 
 /// The `unit` our own `opencv.yml` records.
@@ -118,7 +200,7 @@ fn first<'a>(doc: &Node, names: &[&'a str]) -> Option<&'a str> {
 fn raw_parts(
     doc: &Node,
     image_size: Option<(u32, u32)>,
-) -> Result<Option<raw::Parts>, Vec<ParseError>> {
+) -> Result<Option<raw::RawParts>, Vec<ParseError>> {
     let names = [
         first(doc, &["M1", "K1", "cameraMatrix1"]),
         first(doc, &["D1", "distCoeffs1"]),
@@ -258,7 +340,7 @@ fn raw_parts(
     let (Some(left), Some(right)) = (left, right) else {
         return Err(errors);
     };
-    Ok(Some(raw::Parts {
+    Ok(Some(raw::RawParts {
         left,
         right,
         extrinsics,
@@ -504,6 +586,62 @@ fn value(text: &str, line: usize) -> Node {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::camera::{RectifyOptions, stereo_rectify};
+
+    /// What [`write`] writes, [`parse`] reads back to the same numbers: the unit, both
+    /// cameras, R and T, the raw size and the file's own R1 R2 P1 P2 Q.
+    #[test]
+    fn a_written_file_reads_back_the_same() {
+        let (pair, size) = crate::calibration::files::sample_pair();
+        let rect = stereo_rectify(&pair, size, RectifyOptions::default()).expect("rectified");
+        let text = write(&StereoFile {
+            size,
+            pair: &pair,
+            essential: Matrix3::identity(),
+            fundamental: Matrix3::identity(),
+            rectification: &rect,
+            target: Target {
+                columns: 9,
+                rows: 6,
+                square_size: 25.0,
+                unit: LengthUnit::Millimetre,
+            },
+        });
+        let read = parse(&text, None, None, None).expect("our own file reads");
+        assert_eq!(read.unit, Some(LengthUnit::Millimetre));
+        let raw = read.raw.expect("the raw cameras");
+        assert_eq!((raw.size, raw.computed), (size, false));
+        for (ours, theirs) in [(&raw.pair.left, &pair.left), (&raw.pair.right, &pair.right)] {
+            assert_eq!(ours.matrix(), theirs.matrix());
+            assert_eq!(ours.distortion(), theirs.distortion());
+        }
+        assert!((raw.pair.rotation.matrix() - pair.rotation.matrix()).amax() < 1e-15);
+        assert_eq!(raw.pair.translation, pair.translation);
+        // The reader rebuilds R1 R2 as rotations and Q from P1 P2: equal to the last bits.
+        let r = &raw.rectification;
+        let close = |a: &[f64], b: &[f64]| {
+            a.iter()
+                .zip(b)
+                .all(|(a, b)| (a - b).abs() <= 1e-12 * b.abs().max(1.0))
+        };
+        assert!(
+            close(r.r1.as_slice(), rect.r1.as_slice())
+                && close(r.r2.as_slice(), rect.r2.as_slice())
+        );
+        assert_eq!((r.p1, r.p2), (rect.p1, rect.p2));
+        assert!(
+            close(r.q.as_slice(), rect.q.as_slice()),
+            "{} vs {}",
+            r.q,
+            rect.q
+        );
+        let b = 120.0_f64.hypot(1.8).hypot(2.4);
+        assert!(
+            (read.baseline - b).abs() < 1e-12 * b,
+            "{} vs |T| {b}",
+            read.baseline
+        );
+    }
 
     const Q: &str = "<Q type_id=\"opencv-matrix\"><rows>4</rows><cols>4</cols><dt>d</dt>\n\
                      <data>1. 0. 0. -640. 0. 1. 0. -360. 0. 0. 0. 900. 0. 0. 0.02 0.</data></Q>";

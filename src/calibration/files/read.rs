@@ -8,7 +8,7 @@ use crate::physics::{self, LengthUnit, Rig, RigSpec};
 
 /// What the caller adds to a file's text.
 #[derive(Debug, Clone, Copy, Default)]
-pub struct Options {
+pub struct ReadOptions {
     /// The unit the file's lengths are in; required for OpenCV files, an override for the
     /// others.
     pub calibration_unit: Option<LengthUnit>,
@@ -34,7 +34,7 @@ pub struct Read {
 
 /// Why a file gives no rig.
 #[derive(Debug, Clone, PartialEq)]
-pub enum Fault {
+pub enum ReadFault {
     /// The text (or the right camera's) cannot be read.
     Parse(ParseError),
     /// An OpenCV file without `calibration_unit`.
@@ -50,7 +50,7 @@ pub const UNIT_REQUIRED: &str = "is required for OpenCV files: their lengths (T,
 
 /// Reads `source` into a rig. Every fault is reported: those of the text and the unit
 /// together, the rig's once the text is read.
-pub fn read(source: Source, options: Options) -> Result<Read, Vec<Fault>> {
+pub fn read(source: Source, options: ReadOptions) -> Result<Read, Vec<ReadFault>> {
     let mut faults = Vec::new();
     let (parsed, format) = match parse(source) {
         Ok(calibration) => {
@@ -58,7 +58,7 @@ pub fn read(source: Source, options: Options) -> Result<Read, Vec<Fault>> {
             (Some(calibration), Some(format))
         }
         Err(rejected) => {
-            faults.extend(rejected.errors.into_iter().map(Fault::Parse));
+            faults.extend(rejected.errors.into_iter().map(ReadFault::Parse));
             (None, rejected.format)
         }
     };
@@ -82,7 +82,7 @@ pub fn read(source: Source, options: Options) -> Result<Read, Vec<Fault>> {
         (Some(given), None) => Some(given),
         (None, Some(own)) => Some(own),
         (None, None) if format == Some(Format::OpenCv) => {
-            faults.push(Fault::UnitRequired);
+            faults.push(ReadFault::UnitRequired);
             None
         }
         (None, None) => None,
@@ -116,7 +116,7 @@ pub fn read(source: Source, options: Options) -> Result<Read, Vec<Fault>> {
     spec.cx = Some(parsed.cx);
     spec.cy = Some(parsed.cy);
     spec.doffs = Some(parsed.doffs);
-    let rig = Rig::new(&spec).map_err(|f| f.into_iter().map(Fault::Rig).collect::<Vec<_>>())?;
+    let rig = Rig::new(&spec).map_err(|f| f.into_iter().map(ReadFault::Rig).collect::<Vec<_>>())?;
     warnings.extend(parsed.warnings);
     Ok(Read {
         format: parsed.format,
@@ -128,13 +128,13 @@ pub fn read(source: Source, options: Options) -> Result<Read, Vec<Fault>> {
     })
 }
 
-impl Fault {
+impl ReadFault {
     /// What is wrong, in words that follow the name of the field at fault.
     pub fn message(&self) -> String {
         match self {
-            Fault::Parse(e) => e.to_string(),
-            Fault::UnitRequired => UNIT_REQUIRED.to_owned(),
-            Fault::Rig(f) => f.message.clone(),
+            ReadFault::Parse(e) => e.to_string(),
+            ReadFault::UnitRequired => UNIT_REQUIRED.to_owned(),
+            ReadFault::Rig(f) => f.message.clone(),
         }
     }
 }
@@ -152,16 +152,16 @@ pub enum Input {
     Rig(physics::Member),
 }
 
-impl Fault {
+impl ReadFault {
     /// The input the fault is in.
     pub fn input(&self) -> Input {
         match self {
-            Fault::Parse(ParseError {
+            ReadFault::Parse(ParseError {
                 part: Part::Text, ..
             }) => Input::Text,
-            Fault::Parse(_) => Input::RightText,
-            Fault::UnitRequired => Input::CalibrationUnit,
-            Fault::Rig(f) => Input::Rig(f.member),
+            ReadFault::Parse(_) => Input::RightText,
+            ReadFault::UnitRequired => Input::CalibrationUnit,
+            ReadFault::Rig(f) => Input::Rig(f.member),
         }
     }
 }
@@ -182,16 +182,16 @@ mod tests {
             text: MIDDLEBURY,
             ..Source::default()
         };
-        let read = read(source, Options::default()).unwrap();
+        let read = read(source, ReadOptions::default()).unwrap();
         assert_eq!(read.rig.unit(), LengthUnit::Millimetre);
         assert_eq!(read.rig.baseline(), 193.001);
         assert_eq!(read.rig.image_width(), Some(2964.0));
         assert_eq!(read.max_disparity_px, Some(270));
         let metres = super::read(
             source,
-            Options {
+            ReadOptions {
                 unit: Some(LengthUnit::Metre),
-                ..Options::default()
+                ..ReadOptions::default()
             },
         )
         .unwrap();
@@ -208,7 +208,7 @@ mod tests {
                 text: &text,
                 ..Source::default()
             },
-            Options::default(),
+            ReadOptions::default(),
         )
         .unwrap_err();
         assert_eq!(faults.len(), 1);
@@ -227,11 +227,11 @@ mod tests {
                 text,
                 ..Source::default()
             },
-            Options::default(),
+            ReadOptions::default(),
         )
         .unwrap_err();
         assert_eq!(
-            faults.iter().map(Fault::input).collect::<Vec<_>>(),
+            faults.iter().map(ReadFault::input).collect::<Vec<_>>(),
             [Input::CalibrationUnit]
         );
     }

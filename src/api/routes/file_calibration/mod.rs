@@ -17,7 +17,7 @@ use crate::api::error::{ApiError, FieldErrors};
 use crate::api::extract::{self, BodyLimit, QueryParams};
 use crate::api::respond::Json;
 use crate::api::wire::openapi::BodyErrors;
-use crate::calibration::{self, Input, Options, Source};
+use crate::calibration::files::{self, Input, ReadOptions, Source};
 use crate::physics::LengthUnit;
 
 /// `POST /calibration`.
@@ -173,11 +173,11 @@ fn read(
         alpha,
         image_size: None,
     };
-    let options = Options {
+    let options = ReadOptions {
         calibration_unit: request.calibration_unit.map(LengthUnit::from),
         unit: request.unit.map(LengthUnit::from),
     };
-    match calibration::read(source, options) {
+    match files::read(source, options) {
         Ok(read) => Ok(CalibrationResponse {
             format: read.format.into(),
             rig: CalibratedRig::from(&read.rig),

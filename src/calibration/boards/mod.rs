@@ -8,11 +8,14 @@
 //! - [`solve`]: Levenberg–Marquardt over lenses, extrinsics and poses, with the covariance.
 //! - [`fit`]: one camera or a pair calibrated, outlier views left out, E, F, the epipolar
 //!   check and the rectified rig's uncertainty.
+//! - [`report`]: the detections per view, coverage, tilt and the warnings a user checks a
+//!   calibration by.
 //! - [`synthetic`]: boards rendered through the camera model with exact truth.
 
 pub mod board;
 pub mod corners;
 pub mod fit;
+pub mod report;
 pub mod solve;
 pub mod synthetic;
 pub mod zhang;
@@ -21,4 +24,4 @@ pub use board::{Board, BoardFault, BoardMember};
 #[cfg(test)]
 mod tests;
 
-pub use fit::{CameraFit, Corners, Extrinsics, Fit, FitFault, Status, ViewFit, calibrate};
+pub use fit::{CameraFit, Corners, Extrinsics, Fit, FitFault, ViewFit, ViewOutcome, calibrate};

@@ -6,6 +6,7 @@ use std::fmt;
 
 use nalgebra::Vector3;
 
+use crate::calibration::files::opencv::Target;
 use crate::physics::LengthUnit;
 
 /// The fewest inner corners a side may have (OpenCV's `findChessboardCorners` needs 3).
@@ -107,6 +108,16 @@ impl Board {
 
     pub fn unit(&self) -> LengthUnit {
         self.unit
+    }
+
+    /// The board as `opencv.yml` records it.
+    pub fn target(&self) -> Target {
+        Target {
+            columns: self.columns,
+            rows: self.rows,
+            square_size: self.square_size,
+            unit: self.unit,
+        }
     }
 
     /// How many inner corners the board has.

@@ -7,10 +7,10 @@
 use nalgebra::{DMatrix, Matrix3, Rotation3, Vector3};
 
 use super::Board;
-use super::solve::{Lens, Pose, Seen, Solution, SolveFault, State, refine};
+use super::solve::{Lens, Pose, Solution, SolveFault, State, ViewCorners, refine};
 use super::zhang;
 use crate::camera::{
-    Camera, Distortion, Model, Options, Rectification, Size, StereoPair, stereo_rectify,
+    Camera, Distortion, Model, Rectification, RectifyOptions, Size, StereoPair, stereo_rectify,
 };
 
 /// The fewest views a calibration takes.
@@ -30,7 +30,7 @@ pub struct Corners {
 
 /// What became of one view.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Status {
+pub enum ViewOutcome {
     Used,
     BoardNotFound,
     Outlier,
@@ -38,7 +38,7 @@ pub enum Status {
 
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ViewFit {
-    pub status: Status,
+    pub status: ViewOutcome,
     pub rms_left: Option<f64>,
     pub rms_right: Option<f64>,
     /// The board's pose in the left camera, where it was estimated.
@@ -175,9 +175,9 @@ pub fn calibrate(
     };
     let mut kept = keep;
     loop {
-        let seen: Vec<Seen> = kept
+        let seen: Vec<ViewCorners> = kept
             .iter()
-            .map(|&v| Seen {
+            .map(|&v| ViewCorners {
                 left: Some(left_of(v)),
                 right: Some(right_of(v)),
             })
@@ -245,9 +245,9 @@ fn single<'a>(
         poses,
     };
     loop {
-        let seen: Vec<Seen> = kept
+        let seen: Vec<ViewCorners> = kept
             .iter()
-            .map(|&v| Seen {
+            .map(|&v| ViewCorners {
                 left: Some(corners_of(v)),
                 right: None,
             })
@@ -344,7 +344,7 @@ fn finish(
             if let Some(i) = kept.iter().position(|&k| k == v) {
                 let e = solution.views[i];
                 ViewFit {
-                    status: Status::Used,
+                    status: ViewOutcome::Used,
                     rms_left: e.rms(0),
                     rms_right: e.rms(1),
                     pose: Some(solution.state.poses[i]),
@@ -352,9 +352,9 @@ fn finish(
             } else {
                 ViewFit {
                     status: if found[v] {
-                        Status::Outlier
+                        ViewOutcome::Outlier
                     } else {
-                        Status::BoardNotFound
+                        ViewOutcome::BoardNotFound
                     },
                     rms_left: None,
                     rms_right: None,
@@ -417,7 +417,7 @@ impl Fit {
         };
         let (mut sum, mut count) = (0.0, 0usize);
         for (view, fit) in views.iter().zip(&self.views) {
-            if fit.status != Status::Used {
+            if fit.status != ViewOutcome::Used {
                 continue;
             }
             let (Some(left), Some(right)) = (&view.left, &view.right) else {
@@ -446,7 +446,7 @@ impl Fit {
     ) -> [Option<Vec<[f64; 2]>>; 2] {
         let fit = self.views.get(index);
         let Some(pose) = fit
-            .filter(|f| f.status == Status::Used)
+            .filter(|f| f.status == ViewOutcome::Used)
             .and_then(|f| f.pose)
         else {
             return [None, None];
@@ -477,13 +477,13 @@ impl Fit {
     }
 
     /// Bouguet's rectification of the calibrated pair.
-    pub fn rectify(&self, options: Options) -> Option<Rectification> {
+    pub fn rectify(&self, options: RectifyOptions) -> Option<Rectification> {
         stereo_rectify(&self.pair()?, self.size, options).ok()
     }
 
     /// The standard deviations of the rectified rig's focal length (px) and baseline (board
     /// unit), propagated from the covariance through `stereoRectify` by central differences.
-    pub fn rig_std(&self, options: Options) -> Option<[f64; 2]> {
+    pub fn rig_std(&self, options: RectifyOptions) -> Option<[f64; 2]> {
         let pair = self.pair()?;
         let e = self.extrinsics?;
         let lenses = [

@@ -3,8 +3,8 @@
 use nalgebra::{Rotation3, Vector3};
 
 use super::*;
-use crate::calibrate::Board;
-use crate::calibrate::synthetic::{Style, poses, stereo_views};
+use crate::calibration::boards::Board;
+use crate::calibration::boards::synthetic::{Style, poses, stereo_views};
 use crate::camera::{Camera, Distortion, Intrinsics, Model, Size, StereoPair};
 use crate::noise::Rng;
 use crate::physics::LengthUnit;

@@ -76,7 +76,7 @@ impl Pose {
 
 /// The corners one view gives each camera (`None` when that camera's are not used).
 #[derive(Debug, Clone, Copy)]
-pub struct Seen<'a> {
+pub struct ViewCorners<'a> {
     pub left: Option<&'a [[f64; 2]]>,
     pub right: Option<&'a [[f64; 2]]>,
 }
@@ -220,7 +220,7 @@ fn project(lens: &Lens, distortion: &Distortion, x: &Vector3<f64>) -> Option<Pro
     })
 }
 
-fn linearize(state: &State, object: &[Vector3<f64>], seen: &[Seen]) -> Option<Linear> {
+fn linearize(state: &State, object: &[Vector3<f64>], seen: &[ViewCorners]) -> Option<Linear> {
     let distortions: Vec<Distortion> = state
         .lenses
         .iter()
@@ -360,7 +360,7 @@ const MAX_ITERATIONS: usize = 200;
 pub fn refine(
     start: State,
     object: &[Vector3<f64>],
-    seen: &[Seen],
+    seen: &[ViewCorners],
 ) -> Result<Solution, SolveFault> {
     debug_assert_eq!(start.poses.len(), seen.len());
     let mut state = start;

@@ -15,10 +15,10 @@ use self::types::{
 use super::json_operation;
 use crate::api::error::{ApiError, FieldErrors};
 use crate::api::extract::{JsonBody, QueryParams};
-use crate::api::format::{percent, short};
 use crate::api::respond::Json;
 use crate::api::wire::openapi::{BodyErrors, QueryErrors};
 use crate::api::{AppState, validate};
+use crate::numbers::{percent, short};
 use crate::physics::{self, Rig, finite};
 
 /// `GET` and `POST /rig` and `/baseline`.

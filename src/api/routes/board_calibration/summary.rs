@@ -1,0 +1,181 @@
+//! `/calibrate`'s JSON summary: the fit, its report ([`crate::calibration::boards::report`])
+//! and the rectification mapped onto the wire types, and nothing computed here.
+
+use std::time::Duration;
+
+use super::Settings;
+use super::types::{
+    self, BoardUsed, CalibrateTimes, CalibrationSummary, CameraStd, CameraSummary, Coverage,
+    CoverageSummary, RectificationSummary, RigStd, ViewStatus, ViewSummary,
+};
+use crate::api::wire::params::Unit;
+use crate::api::wire::rig::CalibratedRig;
+use crate::calibration::boards::report::{self, Rectified};
+use crate::calibration::boards::{CameraFit, Corners, Fit, ViewOutcome};
+use crate::camera::Model;
+
+fn round(v: f64, digits: i32) -> f64 {
+    let s = 10f64.powi(digits);
+    (v * s).round() / s
+}
+
+fn matrix3(m: &nalgebra::Matrix3<f64>) -> [[f64; 3]; 3] {
+    std::array::from_fn(|r| std::array::from_fn(|c| m[(r, c)]))
+}
+
+fn camera_summary(fit: &CameraFit) -> CameraSummary {
+    CameraSummary {
+        camera_matrix: matrix3(&fit.camera.matrix()),
+        distortion: fit.camera.distortion().coefficients().to_vec(),
+        rms: fit.rms,
+        std: CameraStd {
+            fx: fit.std[0],
+            fy: fit.std[1],
+            cx: fit.std[2],
+            cy: fit.std[3],
+            distortion: fit.std[4..].to_vec(),
+        },
+    }
+}
+
+#[allow(clippy::too_many_arguments)]
+pub fn summarize(
+    fit: &Fit,
+    views: &[Corners],
+    reasons: &[[Option<String>; 2]],
+    settings: &Settings,
+    rectification: Option<&crate::camera::Rectification>,
+    rig_std: Option<[f64; 2]>,
+    [detect, solve, rectify]: [Duration; 3],
+) -> CalibrationSummary {
+    let view_summaries: Vec<ViewSummary> = fit
+        .views
+        .iter()
+        .enumerate()
+        .map(|(i, v)| {
+            let [l, r] = &reasons[i];
+            let mut failed = Vec::new();
+            let mut why = Vec::new();
+            for (side, reason) in [("left", l), ("right", r)] {
+                if let Some(reason) = reason {
+                    failed.push(side.to_owned());
+                    why.push(format!("{side}: {reason}"));
+                }
+            }
+            let [residuals_left, residuals_right] = if settings.corners {
+                fit.residuals(&settings.board, i, &views[i]).map(|r| {
+                    r.map(|r| r.iter().map(|d| [round(d[0], 4), round(d[1], 4)]).collect())
+                })
+            } else {
+                [None, None]
+            };
+            ViewSummary {
+                status: match v.status {
+                    ViewOutcome::Used => ViewStatus::Used,
+                    ViewOutcome::BoardNotFound => ViewStatus::BoardNotFound,
+                    ViewOutcome::Outlier => ViewStatus::Outlier,
+                },
+                failed,
+                reasons: why,
+                rms_left: v.rms_left.map(|r| round(r, 4)),
+                rms_right: v.rms_right.map(|r| round(r, 4)),
+                tilt_deg: report::tilt_deg(v),
+                corners_left: settings.corners.then(|| views[i].left.clone()).flatten(),
+                corners_right: settings.corners.then(|| views[i].right.clone()).flatten(),
+                residuals_left,
+                residuals_right,
+            }
+        })
+        .collect();
+    let stereo = fit.right.is_some();
+    let left = report::Coverage::of(views, fit, false, settings.size);
+    let right = stereo.then(|| report::Coverage::of(views, fit, true, settings.size));
+    let tilt_range = report::tilt_range(fit);
+    let unit = settings.board.unit();
+    // The rig carries its σ, so that it can be sent to `/distance` as it is.
+    let rig = rectification.and_then(|r| r.rig(unit).ok()).map(|rig| {
+        rig_std
+            .and_then(|[f, b]| rig.with_calibration_std(f, b).ok())
+            .unwrap_or(rig)
+    });
+    let rectified = match (stereo, rectification, &rig) {
+        (false, _, _) => Rectified::Alone,
+        (true, None, _) => Rectified::Failed,
+        (true, Some(_), None) => Rectified::Vertical,
+        (true, Some(_), Some(_)) => Rectified::Horizontal,
+    };
+    let warnings = report::warnings(fit, [Some(&left), right.as_ref()], tilt_range, rectified);
+    let coverage = |c: report::Coverage| Coverage {
+        x: c.x,
+        y: c.y,
+        cells: c.cells,
+    };
+    let cover = CoverageSummary {
+        left: coverage(left),
+        right: right.map(coverage),
+        tilt_deg: tilt_range,
+    };
+    let e = fit.extrinsics;
+    CalibrationSummary {
+        image_width: settings.size.width,
+        image_height: settings.size.height,
+        model: match settings.model {
+            Model::PlumbBob => types::ModelChoice::PlumbBob,
+            Model::RationalPolynomial => types::ModelChoice::RationalPolynomial,
+            Model::Equidistant => types::ModelChoice::Equidistant,
+        },
+        board: BoardUsed {
+            columns: settings.board.columns(),
+            rows: settings.board.rows(),
+            square_size: settings.board.square_size(),
+            unit: Unit::from(unit),
+        },
+        views: view_summaries,
+        rms: fit.rms,
+        epipolar_error: fit.epipolar_error(views),
+        left: camera_summary(&fit.left),
+        right: fit.right.as_ref().map(camera_summary),
+        rotation: e.map(|e| matrix3(e.rotation.matrix())),
+        translation: e.map(|e| [e.translation.x, e.translation.y, e.translation.z]),
+        rotation_std_deg: e.map(|e| e.rotation_std.map(f64::to_degrees)),
+        translation_std: e.map(|e| e.translation_std),
+        essential: fit.essential().map(|m| matrix3(&m)),
+        fundamental: fit.fundamental().map(|m| matrix3(&m)),
+        rectification: rectification.map(|r| RectificationSummary {
+            R1: matrix3(&r.r1),
+            R2: matrix3(&r.r2),
+            P1: std::array::from_fn(|i| std::array::from_fn(|j| r.p1[(i, j)])),
+            P2: std::array::from_fn(|i| std::array::from_fn(|j| r.p2[(i, j)])),
+            Q: std::array::from_fn(|i| std::array::from_fn(|j| r.q[(i, j)])),
+            alpha: r.alpha.unwrap_or_default(),
+            roi_left: [
+                r.roi_left.x,
+                r.roi_left.y,
+                r.roi_left.width,
+                r.roi_left.height,
+            ],
+            roi_right: [
+                r.roi_right.x,
+                r.roi_right.y,
+                r.roi_right.width,
+                r.roi_right.height,
+            ],
+        }),
+        rig: rig.as_ref().map(CalibratedRig::from),
+        rig_std: rig.as_ref().and(rig_std).map(|[f, b]| RigStd {
+            focal_length_px: f,
+            baseline: b,
+        }),
+        coverage: cover,
+        warnings,
+        timings_ms: CalibrateTimes {
+            detect: ms(detect),
+            solve: ms(solve),
+            rectify: ms(rectify),
+        },
+    }
+}
+
+pub fn ms(d: Duration) -> f64 {
+    (d.as_secs_f64() * 1e4).round() / 10.0
+}
