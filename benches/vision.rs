@@ -14,7 +14,9 @@ use std::hint::black_box;
 use std::sync::atomic::AtomicBool;
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use stereo_distance::vision::{self, Params, census, cost, pyramid, refine, sgm, simd, synthetic};
+use stereo_distance::vision::{
+    self, Params, census, cost, filters, pyramid, refine, sgm, simd, synthetic,
+};
 
 fn stages(c: &mut Criterion) {
     let pair = synthetic::render(&synthetic::Scene {
@@ -107,12 +109,12 @@ fn stages(c: &mut Criterion) {
     group.bench_function("speckle filter (whole map, by bands)", |b| {
         b.iter_batched_ref(
             || unfiltered.clone(),
-            |map| refine::speckles(map, w, 100, 2.0),
+            |map| filters::speckles(map, w, 100, 2.0),
             criterion::BatchSize::LargeInput,
         )
     });
     group.bench_function("3 x 3 median (whole map)", |b| {
-        b.iter(|| refine::median(black_box(&unfiltered), w))
+        b.iter(|| filters::median(black_box(&unfiltered), w))
     });
     for (name, simd_on, avx512) in [
         ("whole matcher, the best build present", true, true),

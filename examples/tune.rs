@@ -13,7 +13,7 @@
 use std::sync::atomic::AtomicBool;
 use std::time::Instant;
 
-use stereo_distance::vision::{self, Params, Settings, Subpixel, refine, simd};
+use stereo_distance::vision::{self, Params, Settings, Subpixel, filters, simd};
 
 mod common;
 
@@ -86,7 +86,7 @@ fn main() {
         let density =
             map.data.iter().filter(|d| !d.is_nan()).count() as f64 / map.data.len() as f64;
         let mut filled = map.data.clone();
-        refine::fill(&mut filled, w);
+        filters::fill(&mut filled, w);
         let (mut n, mut bad) = (0usize, [0usize; 3]);
         for (&d, &g) in filled.iter().zip(&truth) {
             if !g.is_finite() {

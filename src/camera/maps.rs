@@ -8,7 +8,7 @@ use rayon::prelude::*;
 
 use super::distortion::Model;
 use super::pinhole::Camera;
-use super::rectify::Size;
+use super::rectification::Size;
 
 /// Where each rectified pixel is read from in the raw image, row-major `f32`, as OpenCV's
 /// `map_x` and `map_y`.

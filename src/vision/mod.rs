@@ -17,7 +17,8 @@
 //! - [`sgm`]: semi-global aggregation along 8 paths in two passes, the second handing each
 //!   finished row to
 //! - [`refine`]: winner-takes-all with uniqueness and a sub-pixel fit, the left-right check;
-//!   then, over the whole map, speckle removal, a 3 × 3 median and optional filling.
+//!   then, over the whole map,
+//! - [`filters`]: speckle removal, a 3 × 3 median and optional filling.
 //!
 //! The image is matched in horizontal stripes ([`stripes`]), side by side on the cores. The hot
 //! loops are dispatched between a portable and an AVX2 build by [`simd`], and the large
@@ -40,6 +41,7 @@ pub mod correspond;
 pub mod cost;
 pub mod decode;
 pub mod encode;
+pub mod filters;
 pub mod huge_pages;
 mod params;
 pub mod pyramid;
@@ -397,12 +399,12 @@ fn level(
     checkpoint()?;
 
     let started = Instant::now();
-    refine::speckles(&mut data, w, params.speckle_size, params.speckle_range);
+    filters::speckles(&mut data, w, params.speckle_size, params.speckle_range);
     if params.median {
-        data = refine::median(&data, w);
+        data = filters::median(&data, w);
     }
     if params.fill {
-        refine::fill(&mut data, w);
+        filters::fill(&mut data, w);
     }
     let min = params.min_disparity as f32;
     for d in &mut data {

@@ -12,7 +12,7 @@
 use std::ops::Range;
 
 use super::cost::{self, LANES, Windows};
-use super::{Disparity, Gray, refine};
+use super::{Disparity, Gray, filters};
 
 /// Coarser levels are added while the range holds more than this many disparities: up to it,
 /// the whole range is searched at every pixel (narrowing it there cost accuracy on Motorcycle:
@@ -91,7 +91,7 @@ impl Prior {
     pub fn new(map: &Disparity, min: i32) -> Prior {
         let (w, h) = (map.width, map.height);
         let mut own = map.data.clone();
-        refine::fill(&mut own, w);
+        filters::fill(&mut own, w);
         for d in &mut own {
             if d.is_nan() {
                 *d = min as f32;

@@ -1,0 +1,591 @@
+//! The disparity map's filters after the winners are chosen: speckle removal (OpenCV's
+//! `filterSpeckles`, by union-find in bands), the 3 × 3 median that ignores invalid pixels,
+//! and hole filling for the pyramid's coarse levels.
+//!
+//! Invalid pixels are `f32::NAN` throughout.
+
+use rayon::prelude::*;
+
+/// Invalidates the connected regions of fewer than `max_size` pixels whose neighbours differ by
+/// at most `range` (OpenCV's `filterSpeckles`): small islands are usually mismatches.
+///
+/// The regions are found by union-find in horizontal bands side by side (one a core), each
+/// pixel joined to its left and upper neighbours, every tree's root holding its size; then the
+/// bands' regions that touch across a seam are joined, their sizes added; then every pixel
+/// whose region is small is invalidated, band by band again. Which pixels go does not depend
+/// on the bands.
+pub fn speckles(disparity: &mut [f32], width: usize, max_size: usize, range: f32) {
+    if max_size == 0 || disparity.is_empty() || width == 0 {
+        return;
+    }
+    let height = disparity.len() / width;
+    let per = height.div_ceil(rayon::current_num_threads().max(1)).max(1);
+    let band = per * width;
+    let n = disparity.len();
+    // `parent[p]` leads to the root of p's region (a pixel index); `size[r]` is root r's region
+    // size. Both `u32`: the pixel limits keep an image far below 2^32 pixels.
+    let mut parent = vec![0u32; n];
+    let mut size = vec![0u32; n];
+    let joined = |a: f32, b: f32| (a - b).abs() <= range;
+    parent
+        .par_chunks_mut(band)
+        .zip(size.par_chunks_mut(band))
+        .zip(disparity.par_chunks(band))
+        .enumerate()
+        .for_each(|(b, ((parent, size), d))| {
+            let offset = (b * band) as u32;
+            label_band(d, width, offset, parent, size, &joined);
+        });
+    // The seams: the last row of each band against the first row of the next.
+    for seam in (band..n).step_by(band) {
+        for p in seam - width..seam {
+            let q = p + width;
+            if joined(disparity[p], disparity[q]) {
+                unite(&mut parent, &mut size, p, q);
+            }
+        }
+    }
+    let (parent, size) = (&parent, &size);
+    disparity
+        .par_chunks_mut(band)
+        .enumerate()
+        .for_each(|(b, d)| {
+            for (i, v) in d.iter_mut().enumerate() {
+                if !v.is_nan() && (size[root(parent, b * band + i)] as usize) < max_size {
+                    *v = f32::NAN;
+                }
+            }
+        });
+}
+
+/// Union-find over one band of a map (`d`, `width` pixels a row; its first pixel is pixel
+/// `offset` of the map): each valid pixel joined to its left and upper neighbours when
+/// `joined`, and then every pixel pointed straight at its root, each root's `size` its
+/// region's pixel count in the band. `parent` and `size` are the band's slices (map indices).
+fn label_band(
+    d: &[f32],
+    width: usize,
+    offset: u32,
+    parent: &mut [u32],
+    size: &mut [u32],
+    joined: &impl Fn(f32, f32) -> bool,
+) {
+    let find = |parent: &mut [u32], mut p: usize| {
+        // Path halving, on band-local indices.
+        while parent[p] as usize != p + offset as usize {
+            let up = parent[p] as usize - offset as usize;
+            parent[p] = parent[up];
+            p = parent[p] as usize - offset as usize;
+        }
+        p
+    };
+    for (p, &v) in d.iter().enumerate() {
+        parent[p] = p as u32 + offset;
+        if v.is_nan() {
+            continue;
+        }
+        let x = p % width;
+        if x > 0 && joined(v, d[p - 1]) {
+            parent[p] = parent[find(parent, p - 1)];
+        }
+        if p >= width && joined(v, d[p - width]) {
+            let (a, b) = (find(parent, p), find(parent, p - width));
+            if a != b {
+                // The later root joins the earlier one.
+                let (lo, hi) = (a.min(b), a.max(b));
+                parent[hi] = lo as u32 + offset;
+            }
+        }
+    }
+    for p in 0..d.len() {
+        if !d[p].is_nan() {
+            let r = find(parent, p);
+            parent[p] = r as u32 + offset;
+            size[r] += 1;
+        }
+    }
+}
+
+/// The root of pixel `p`'s region (no path compression: bands read it side by side; after
+/// [`label_band`] every pixel points at its band's root, and seams add at most one step per
+/// band).
+fn root(parent: &[u32], mut p: usize) -> usize {
+    while parent[p] as usize != p {
+        p = parent[p] as usize;
+    }
+    p
+}
+
+/// Joins the regions of `p` and `q` across a seam, the smaller-indexed root keeping both sizes.
+fn unite(parent: &mut [u32], size: &mut [u32], p: usize, q: usize) {
+    let (a, b) = (root(parent, p), root(parent, q));
+    if a != b {
+        let (lo, hi) = (a.min(b), a.max(b));
+        parent[hi] = lo as u32;
+        size[lo] += size[hi];
+    }
+}
+
+/// A 3 × 3 median of the valid pixels around each valid pixel (invalid ones stay invalid and
+/// are not counted), which removes single-pixel outliers and keeps edges.
+pub fn median(disparity: &[f32], width: usize) -> Vec<f32> {
+    let height = disparity.len() / width;
+    let mut out = disparity.to_vec();
+    out.par_chunks_mut(width).enumerate().for_each_init(
+        || (vec![true; width], Columns::new(width)),
+        |(slow, columns), (y, row)| {
+            slow.fill(true);
+            if y > 0 && y + 1 < height {
+                let at = |yy: usize| &disparity[yy * width..(yy + 1) * width];
+                median_interior([at(y - 1), at(y), at(y + 1)], columns, row, slow);
+            }
+            let mut window = [0f32; 9];
+            for x in (0..width).filter(|&x| slow[x]) {
+                if row[x].is_nan() {
+                    continue;
+                }
+                let mut n = 0;
+                for yy in y.saturating_sub(1)..(y + 2).min(height) {
+                    for &v in &disparity
+                        [yy * width + x.saturating_sub(1)..yy * width + (x + 2).min(width)]
+                    {
+                        if !v.is_nan() {
+                            window[n] = v;
+                            n += 1;
+                        }
+                    }
+                }
+                row[x] = if n == 9 {
+                    median9(window)
+                } else {
+                    let w = &mut window[..n];
+                    w.sort_unstable_by(f32::total_cmp);
+                    if n % 2 == 1 {
+                        w[n / 2]
+                    } else {
+                        0.5 * (w[n / 2 - 1] + w[n / 2])
+                    }
+                };
+            }
+        },
+    );
+    out
+}
+
+/// The 25 exchanges of a 9-input sorting network (checked on all 512 inputs of zeros and ones
+/// in the tests, which by the 0-1 principle proves it sorts any input), each handed to
+/// `$exchange!(a, b)`, which puts the smaller of elements `a` and `b` at `a`. A macro, so that
+/// every index is a constant for the vectorised median as for the scalar one.
+macro_rules! sorting_network {
+    ($exchange:ident) => {
+        $exchange!(0, 1);
+        $exchange!(3, 4);
+        $exchange!(6, 7);
+        $exchange!(1, 2);
+        $exchange!(4, 5);
+        $exchange!(7, 8);
+        $exchange!(0, 1);
+        $exchange!(3, 4);
+        $exchange!(6, 7);
+        $exchange!(0, 3);
+        $exchange!(3, 6);
+        $exchange!(0, 3);
+        $exchange!(1, 4);
+        $exchange!(4, 7);
+        $exchange!(1, 4);
+        $exchange!(2, 5);
+        $exchange!(5, 8);
+        $exchange!(2, 5);
+        $exchange!(1, 3);
+        $exchange!(5, 7);
+        $exchange!(2, 6);
+        $exchange!(4, 6);
+        $exchange!(2, 4);
+        $exchange!(2, 3);
+        $exchange!(5, 6);
+    };
+}
+
+/// Lanes of the vectorised median.
+const MEDIAN_LANES: usize = 16;
+
+crate::dispatch! {
+    /// The 3 × 3 median of the valid values around a row's inner valid pixels (`rows`: above,
+    /// the row, below), [`MEDIAN_LANES`] pixels at a time, written to `out`: the nine values
+    /// with the invalid ones made +∞ go through a sorting network ([`sorting_network`]), and
+    /// with `n` of them valid the median is the mean of sorted elements `(n − 1) / 2` and
+    /// `n / 2` (one element when `n` is odd), as [`median`] defines it. Clears `slow` for the
+    /// pixels it did; the others (the row's ends, a last partial chunk) are left to the caller.
+    fn median_interior(
+        rows: [&[f32]; 3],
+        columns: &mut Columns,
+        out: &mut [f32],
+        slow: &mut [bool],
+    ) {
+        const M: usize = MEDIAN_LANES;
+        let inner = out.len().saturating_sub(2);
+        columns.sort(rows);
+        let Columns { low, mid, high, holes } = columns;
+        for base in (0..inner / M * M).step_by(M) {
+            // Every value of the chunk's nine neighbourhoods valid (most chunks): the median of
+            // each is the median of its columns' greatest low, median middle and least high
+            // (exact for 3 × 3, and the same element the network below picks).
+            if holes[base..base + M + 2].iter().all(|&h| !h) {
+                let out = &mut out[base + 1..base + 1 + M];
+                for (i, out) in out.iter_mut().enumerate() {
+                    let x = base + i;
+                    let lo = max(max(low[x], low[x + 1]), low[x + 2]);
+                    let hi = min(min(high[x], high[x + 1]), high[x + 2]);
+                    let md = median3(mid[x], mid[x + 1], mid[x + 2]);
+                    *out = median3(lo, md, hi);
+                }
+                slow[base + 1..base + 1 + M].fill(false);
+                continue;
+            }
+            let mut p = [[0f32; M]; 9];
+            for (k, row) in rows.iter().enumerate() {
+                for dx in 0..3 {
+                    p[k * 3 + dx].copy_from_slice(&row[base + dx..base + dx + M]);
+                }
+            }
+            let centre = p[4];
+            let mut valid = [0u32; M];
+            for q in &mut p {
+                for i in 0..M {
+                    let ok = !q[i].is_nan();
+                    valid[i] += u32::from(ok);
+                    q[i] = if ok { q[i] } else { f32::INFINITY };
+                }
+            }
+            macro_rules! exchange {
+                ($a:literal, $b:literal) => {
+                    let (x, y) = (p[$a], p[$b]);
+                    p[$a] = std::array::from_fn(|i| if x[i] < y[i] { x[i] } else { y[i] });
+                    p[$b] = std::array::from_fn(|i| if x[i] < y[i] { y[i] } else { x[i] });
+                };
+            }
+            sorting_network!(exchange);
+            let mut lo = [0f32; M];
+            let mut hi = [0f32; M];
+            for (k, sorted) in p.iter().enumerate() {
+                for i in 0..M {
+                    let n = valid[i] as usize;
+                    lo[i] = if k + 1 == n.div_ceil(2) { sorted[i] } else { lo[i] };
+                    hi[i] = if k == n / 2 { sorted[i] } else { hi[i] };
+                }
+            }
+            let out = &mut out[base + 1..base + 1 + M];
+            for i in 0..M {
+                out[i] = if centre[i].is_nan() {
+                    f32::NAN
+                } else {
+                    0.5 * (lo[i] + hi[i])
+                };
+            }
+            slow[base + 1..base + 1 + M].fill(false);
+        }
+    }
+}
+
+/// A row's 3-pixel columns (the pixel above, itself, below) sorted: the least, middle and
+/// greatest of each, and whether any of the three is invalid. Kept per thread across rows.
+struct Columns {
+    low: Vec<f32>,
+    mid: Vec<f32>,
+    high: Vec<f32>,
+    holes: Vec<bool>,
+}
+
+impl Columns {
+    fn new(width: usize) -> Columns {
+        Columns {
+            low: vec![0.0; width],
+            mid: vec![0.0; width],
+            high: vec![0.0; width],
+            holes: vec![false; width],
+        }
+    }
+
+    /// Sorts the columns of `rows` (above, the row, below). A column holding an invalid value
+    /// is marked in `holes`, its sorted values meaningless.
+    #[inline(always)]
+    fn sort(&mut self, [above, row, below]: [&[f32]; 3]) {
+        let n = row.len();
+        let columns = self.low[..n]
+            .iter_mut()
+            .zip(&mut self.mid[..n])
+            .zip(&mut self.high[..n])
+            .zip(&mut self.holes[..n]);
+        for ((((low, mid), high), hole), ((&a, &b), &c)) in
+            columns.zip(above.iter().zip(row).zip(below))
+        {
+            *hole = a.is_nan() | b.is_nan() | c.is_nan();
+            let (a, b) = (min(a, b), max(a, b));
+            let (b, c) = (min(b, c), max(b, c));
+            let (a, b) = (min(a, b), max(a, b));
+            (*low, *mid, *high) = (a, b, c);
+        }
+    }
+}
+
+/// The smaller of two values none of which is NaN, as one instruction (`f32::min` also
+/// checks for NaN).
+#[inline(always)]
+fn min(a: f32, b: f32) -> f32 {
+    if a < b { a } else { b }
+}
+
+/// The greater of two values none of which is NaN, as one instruction.
+#[inline(always)]
+fn max(a: f32, b: f32) -> f32 {
+    if a > b { a } else { b }
+}
+
+/// The median of three values (none NaN).
+#[inline(always)]
+fn median3(a: f32, b: f32, c: f32) -> f32 {
+    max(min(a, b), min(max(a, b), c))
+}
+
+/// The median of 9 values (none NaN) by the sorting network ([`sorting_network`]).
+fn median9(mut p: [f32; 9]) -> f32 {
+    macro_rules! exchange {
+        ($a:literal, $b:literal) => {
+            (p[$a], p[$b]) = (p[$a].min(p[$b]), p[$a].max(p[$b]));
+        };
+    }
+    sorting_network!(exchange);
+    p[4]
+}
+
+/// Fills each invalid pixel with the smaller of the nearest valid disparities to its left and
+/// right on its row (the background, in an occlusion), as Middlebury's evaluation does. A row
+/// with no valid pixel stays invalid.
+pub fn fill(disparity: &mut [f32], width: usize) {
+    for row in disparity.chunks_exact_mut(width) {
+        let mut left_valid = vec![f32::NAN; width];
+        let mut last = f32::NAN;
+        for (x, &d) in row.iter().enumerate() {
+            if !d.is_nan() {
+                last = d;
+            }
+            left_valid[x] = last;
+        }
+        let mut next = f32::NAN;
+        for x in (0..width).rev() {
+            if !row[x].is_nan() {
+                next = row[x];
+                continue;
+            }
+            row[x] = match (left_valid[x].is_nan(), next.is_nan()) {
+                (false, false) => left_valid[x].min(next),
+                (false, true) => left_valid[x],
+                (true, false) => next,
+                (true, true) => f32::NAN,
+            };
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The filter, vectorised or not, gives each valid pixel the median of the valid values
+    /// around it (the mean of the middle two for an even count) and leaves invalid ones
+    /// invalid, on maps with many holes, few and none (where most or all chunks take the
+    /// sorted columns), in the portable and the AVX2 build.
+    #[test]
+    fn median_filter_matches_its_definition() {
+        let (w, h) = (53, 9);
+        let mut rng = crate::vision::synthetic::Rng::new(12345);
+        // Invalid often enough that windows with every count of valid values occur; rarely,
+        // so that most chunks take the column path; and never.
+        for share in [0.3, 0.01, 0.0] {
+            let map: Vec<f32> = (0..w * h)
+                .map(|_| {
+                    let v = rng.unit();
+                    if v < share { f32::NAN } else { v * 128.0 }
+                })
+                .collect();
+            let expected: Vec<f32> = (0..w * h)
+                .map(|i| {
+                    let (x, y) = (i % w, i / w);
+                    if map[i].is_nan() {
+                        return f32::NAN;
+                    }
+                    let mut v: Vec<f32> = (y.saturating_sub(1)..(y + 2).min(h))
+                        .flat_map(|yy| {
+                            (x.saturating_sub(1)..(x + 2).min(w)).map(move |xx| (xx, yy))
+                        })
+                        .map(|(xx, yy)| map[yy * w + xx])
+                        .filter(|v| !v.is_nan())
+                        .collect();
+                    v.sort_by(f32::total_cmp);
+                    let n = v.len();
+                    if n % 2 == 1 {
+                        v[n / 2]
+                    } else {
+                        0.5 * (v[n / 2 - 1] + v[n / 2])
+                    }
+                })
+                .collect();
+            if share > 0.1 {
+                assert!(map.iter().filter(|v| v.is_nan()).count() > 10);
+            }
+            for simd in [false, true] {
+                crate::vision::simd::use_simd(simd);
+                let got = median(&map, w);
+                for (i, (g, e)) in got.iter().zip(&expected).enumerate() {
+                    assert_eq!(g.to_bits(), e.to_bits(), "{share}, SIMD {simd}, pixel {i}");
+                }
+            }
+        }
+    }
+
+    /// The network sorts every input of zeros and ones, so (by the 0-1 principle) every input.
+    #[test]
+    fn sorting_network_sorts_every_input_of_zeros_and_ones() {
+        for bits in 0u32..512 {
+            let mut p: [u8; 9] = std::array::from_fn(|i| ((bits >> i) & 1) as u8);
+            let mut expected = p;
+            expected.sort_unstable();
+            macro_rules! exchange {
+                ($a:literal, $b:literal) => {
+                    (p[$a], p[$b]) = (p[$a].min(p[$b]), p[$a].max(p[$b]));
+                };
+            }
+            sorting_network!(exchange);
+            assert_eq!(p, expected, "input {bits:09b}");
+        }
+    }
+
+    /// The network finds the median of every arrangement of distinct values.
+    #[test]
+    fn median_of_nine() {
+        let mut rng = crate::vision::synthetic::Rng::new(3);
+        for _ in 0..2000 {
+            let mut v = [0f32; 9];
+            for x in &mut v {
+                *x = rng.unit();
+            }
+            let mut sorted = v;
+            sorted.sort_by(f32::total_cmp);
+            assert_eq!(median9(v), sorted[4]);
+        }
+    }
+
+    /// An island smaller than the window is removed, a large region is kept.
+    #[test]
+    fn speckles_remove_small_islands() {
+        let mut d = vec![10.0f32; 100];
+        d[55] = 30.0;
+        speckles(&mut d, 10, 5, 1.0);
+        assert!(d[55].is_nan());
+        assert_eq!(d.iter().filter(|v| v.is_nan()).count(), 1);
+    }
+
+    /// Islands on the image's edges are measured like any other: a 2-pixel one in a corner
+    /// goes, a 6-pixel one along the right edge stays, and holes stay holes.
+    #[test]
+    fn speckles_at_the_edges() {
+        let (w, h) = (12, 7);
+        let mut d = vec![10.0f32; w * h];
+        (d[6 * w], d[6 * w + 1]) = (40.0, 40.5);
+        for y in 1..4 {
+            (d[y * w + w - 2], d[y * w + w - 1]) = (25.0, 25.0);
+        }
+        d[3 * w + 4] = f32::NAN;
+        speckles(&mut d, w, 5, 1.0);
+        assert!(d[6 * w].is_nan() && d[6 * w + 1].is_nan());
+        assert_eq!(d[2 * w + w - 1], 25.0);
+        assert!(d[3 * w + 4].is_nan());
+        assert_eq!(d.iter().filter(|v| v.is_nan()).count(), 3);
+    }
+
+    /// The filter by bands removes exactly the regions a flood fill over the whole map finds
+    /// too small, on maps of many small regions and holes, with one band and with many.
+    #[test]
+    fn speckles_by_bands_match_a_flood_fill() {
+        fn flood(d: &[f32], w: usize, max_size: usize, range: f32) -> Vec<f32> {
+            let h = d.len() / w;
+            let mut out = d.to_vec();
+            let mut seen = vec![false; d.len()];
+            for start in 0..d.len() {
+                if seen[start] || d[start].is_nan() {
+                    continue;
+                }
+                seen[start] = true;
+                let (mut stack, mut members) = (vec![start], Vec::new());
+                while let Some(p) = stack.pop() {
+                    members.push(p);
+                    let (x, y) = (p % w, p / w);
+                    let mut near = Vec::new();
+                    if x > 0 {
+                        near.push(p - 1);
+                    }
+                    if x + 1 < w {
+                        near.push(p + 1);
+                    }
+                    if y > 0 {
+                        near.push(p - w);
+                    }
+                    if y + 1 < h {
+                        near.push(p + w);
+                    }
+                    for q in near {
+                        if !seen[q] && (d[q] - d[p]).abs() <= range {
+                            seen[q] = true;
+                            stack.push(q);
+                        }
+                    }
+                }
+                if members.len() < max_size {
+                    for p in members {
+                        out[p] = f32::NAN;
+                    }
+                }
+            }
+            out
+        }
+        let mut rng = crate::vision::synthetic::Rng::new(11);
+        for (w, h) in [(37, 23), (64, 64), (5, 101)] {
+            // Levels 0..6 a step apart (joined at range 1) with 20 % holes: regions of every
+            // size, snaking across any band's seams.
+            let d: Vec<f32> = (0..w * h)
+                .map(|_| {
+                    let u = rng.unit();
+                    if u < 0.2 {
+                        f32::NAN
+                    } else {
+                        (rng.unit() * 6.0).floor() * 1.5
+                    }
+                })
+                .collect();
+            for max_size in [2, 5, 30] {
+                let expected = flood(&d, w, max_size, 1.0);
+                for threads in [1, 3, 8] {
+                    let pool = rayon::ThreadPoolBuilder::new()
+                        .num_threads(threads)
+                        .build()
+                        .unwrap();
+                    let mut got = d.clone();
+                    pool.install(|| speckles(&mut got, w, max_size, 1.0));
+                    let same = got
+                        .iter()
+                        .zip(&expected)
+                        .all(|(a, b)| a.to_bits() == b.to_bits());
+                    assert!(same, "{w} x {h}, size {max_size}, {threads} bands");
+                }
+            }
+        }
+    }
+
+    /// Holes take the smaller of their row neighbours, and row ends the only one they have.
+    #[test]
+    fn fill_takes_the_background() {
+        let mut d = vec![f32::NAN, 5.0, f32::NAN, f32::NAN, 9.0, f32::NAN];
+        fill(&mut d, 6);
+        assert_eq!(d, vec![5.0, 5.0, 5.0, 5.0, 9.0, 9.0]);
+    }
+}
