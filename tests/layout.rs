@@ -405,6 +405,38 @@ fn every_module_says_what_it_is_for_and_is_short() {
     assert!(wrong.is_empty(), "{wrong:#?}");
 }
 
+/// Every file in `src/` is a module its parent declares (`mod name;`), so that none (a test
+/// file above all) is silently left out of the build.
+#[test]
+fn every_file_is_declared_by_its_parent() {
+    let modules = modules();
+    let mut wrong = Vec::new();
+    for (module, file) in &modules {
+        let Some((name, parent)) = module.split_last() else {
+            continue;
+        };
+        let Some(parent_file) = modules.get(parent) else {
+            wrong.push(format!("{} has no parent module", file.display()));
+            continue;
+        };
+        let text = fs::read_to_string(parent_file).expect("readable");
+        let declared = text.lines().any(|line| {
+            let line = line.trim_start();
+            let line = line.strip_prefix("pub ").unwrap_or(line);
+            let line = line.strip_prefix("pub(crate) ").unwrap_or(line);
+            line == format!("mod {name};")
+        });
+        if !declared {
+            wrong.push(format!(
+                "{} is not declared in {}",
+                file.display(),
+                parent_file.display()
+            ));
+        }
+    }
+    assert!(wrong.is_empty(), "{wrong:#?}");
+}
+
 fn main_too(wrong: &mut Vec<String>) {
     let main = fs::read_to_string(Path::new(SRC).join("main.rs")).expect("main.rs");
     if !main.trim_start().starts_with("//!") {

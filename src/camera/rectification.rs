@@ -1,8 +1,8 @@
 //! What a rectification is: the raw pair it rectifies ([`StereoPair`]), `alpha` and the
 //! options, and the result, [`Rectification`] (R1 R2 P1 P2 Q, the valid ROIs, the rectified
 //! size) with the rectified rig it gives; also a rectification a file states
-//! ([`Rectification::given`]). Both it and [`super::rectify::stereo_rectify`] build Q through
-//! [`reprojection`].
+//! ([`Rectification::given`]). Both it and [`super::rectify::stereo_rectify`] build Q in one
+//! place, [`Rectification::from_projections`].
 
 use std::fmt;
 
@@ -200,6 +200,20 @@ pub(super) struct Rectangles {
     pub(super) outer: [f64; 4],
 }
 
+impl Rectangles {
+    /// The valid region of interest: the inner rectangle rounded inwards, within the rectified
+    /// image of `size` (the fisheye's and a file's own, which OpenCV does not scale).
+    pub(super) fn inner_roi(&self, size: Size) -> Roi {
+        Roi {
+            x: self.inner[0].ceil() as i64,
+            y: self.inner[1].ceil() as i64,
+            width: self.inner[2].floor() as i64,
+            height: self.inner[3].floor() as i64,
+        }
+        .within(size.width, size.height)
+    }
+}
+
 pub(super) fn rectangles(
     camera: &Camera,
     rotation: &Matrix3<f64>,
@@ -270,7 +284,7 @@ pub(super) fn project_ray(
 /// The reprojection matrix Q that `stereoRectify` writes, for rectified principal points
 /// `c1`, `c2`, focal length `f` and the translation `t` along the baseline (x, or y when
 /// `vertical`): `[1 0 0 −cx; 0 1 0 −cy; 0 0 0 f; 0 0 −1/t (c1 − c2)/t]`.
-pub fn reprojection(c1: [f64; 2], c2: [f64; 2], f: f64, t: f64, vertical: bool) -> Matrix4<f64> {
+fn reprojection(c1: [f64; 2], c2: [f64; 2], f: f64, t: f64, vertical: bool) -> Matrix4<f64> {
     let shift = if vertical {
         c1[1] - c2[1]
     } else {
@@ -307,9 +321,35 @@ pub enum GivenFault {
 }
 
 impl Rectification {
+    /// A rectification from its rotations and projections, with Q as `stereoRectify` writes
+    /// it (from P1's focal length and both principal points) for the translation `t` along
+    /// the baseline: x, or y when `vertical`.
+    pub(super) fn from_projections(
+        [r1, r2]: [Matrix3<f64>; 2],
+        [p1, p2]: [Matrix3x4<f64>; 2],
+        (t, vertical): (f64, bool),
+        [roi_left, roi_right]: [Roi; 2],
+        alpha: Option<f64>,
+        size: Size,
+    ) -> Rectification {
+        let (c1, c2) = ([p1[(0, 2)], p1[(1, 2)]], [p2[(0, 2)], p2[(1, 2)]]);
+        Rectification {
+            r1,
+            r2,
+            p1,
+            p2,
+            q: reprojection(c1, c2, p1[(0, 0)], t, vertical),
+            alpha,
+            roi_left,
+            roi_right,
+            size,
+            vertical,
+        }
+    }
+
     /// The rectification a file states (ROS's R and P, KITTI's `R_rect` and `P_rect`,
     /// OpenCV's R1 R2 P1 P2 without recomputing them), with Q as `stereoRectify` would write
-    /// it and the valid ROIs found on the same grid as [`stereo_rectify`]'s. `size` is the raw
+    /// it and the valid ROIs found on the same grid as [`super::rectify::stereo_rectify`]'s. `size` is the raw
     /// images', `new_size` the rectified ones'.
     pub fn given(
         pair: &StereoPair,
@@ -334,33 +374,20 @@ impl Rectification {
         if t == 0.0 || !t.is_finite() {
             return Err(GivenFault::NoBaseline);
         }
-        let (c1, c2) = ([p1[(0, 2)], p1[(1, 2)]], [p2[(0, 2)], p2[(1, 2)]]);
-        let q = reprojection(c1, c2, f, t, vertical);
         let roi = |camera: &Camera, rotation: &Matrix3<f64>, p: &Matrix3x4<f64>, side| {
             let matrix = p.fixed_view::<3, 3>(0, 0).into_owned();
-            let rect = rectangles(camera, rotation, &matrix, size, side)?;
-            Ok(Roi {
-                x: rect.inner[0].ceil() as i64,
-                y: rect.inner[1].ceil() as i64,
-                width: rect.inner[2].floor() as i64,
-                height: rect.inner[3].floor() as i64,
-            }
-            .within(new_size.width, new_size.height))
+            Ok(rectangles(camera, rotation, &matrix, size, side)?.inner_roi(new_size))
         };
         let roi_left = roi(&pair.left, &r1, &p1, Side::Left).map_err(GivenFault::Rectify)?;
         let roi_right = roi(&pair.right, &r2, &p2, Side::Right).map_err(GivenFault::Rectify)?;
-        Ok(Rectification {
-            r1,
-            r2,
-            p1,
-            p2,
-            q,
-            alpha: None,
-            roi_left,
-            roi_right,
-            size: new_size,
-            vertical,
-        })
+        Ok(Rectification::from_projections(
+            [r1, r2],
+            [p1, p2],
+            (t, vertical),
+            [roi_left, roi_right],
+            None,
+            new_size,
+        ))
     }
 
     /// The raw pair these rectified cameras came from, when a file gives only R1 R2 P1 P2 (a

@@ -6,13 +6,13 @@
 //! built from R and P by whoever remaps. The types it works with are in
 //! [`super::rectification`].
 
-use nalgebra::{Matrix3, Matrix3x4, Matrix4, Rotation3, Vector3};
+use nalgebra::{Matrix3, Matrix3x4, Rotation3, Vector3};
 
 use super::distortion::Model;
 use super::pinhole::Camera;
 use super::rectification::{
     Rectangles, Rectification, RectifyFault, RectifyOptions, Roi, Side, Size, StereoPair,
-    rectangles, reprojection,
+    rectangles,
 };
 
 /// Rectifies a stereo pair whose raw images are `size` as OpenCV does: `stereoRectify` for
@@ -197,19 +197,14 @@ pub fn stereo_rectify(
     p2[(1, 2)] = c2[1];
     p2[(idx, 3)] = t[idx] * fc_new;
 
-    let q = reprojection(c1, c2, fc_new, t[idx], idx == 1);
-    Ok(Rectification {
-        r1,
-        r2,
-        p1,
-        p2,
-        q,
-        alpha: Some(options.alpha.get()),
-        roi_left,
-        roi_right,
-        size: new_size,
-        vertical: idx == 1,
-    })
+    Ok(Rectification::from_projections(
+        [r1, r2],
+        [p1, p2],
+        (t[idx], idx == 1),
+        [roi_left, roi_right],
+        Some(options.alpha.get()),
+        new_size,
+    ))
 }
 
 /// The new camera matrix (fx, fy, cx, cy) of one fisheye camera as OpenCV's
@@ -307,14 +302,7 @@ fn fisheye_projections(
     }
     let matrix = |c: [f64; 2]| Matrix3::new(fc_new, 0.0, c[0], 0.0, fc_new, c[1], 0.0, 0.0, 1.0);
     let roi = |camera: &Camera, rotation: &Matrix3<f64>, c: [f64; 2], side| {
-        let rect = rectangles(camera, rotation, &matrix(c), size, side)?;
-        Ok(Roi {
-            x: rect.inner[0].ceil() as i64,
-            y: rect.inner[1].ceil() as i64,
-            width: rect.inner[2].floor() as i64,
-            height: rect.inner[3].floor() as i64,
-        }
-        .within(new_size.width, new_size.height))
+        Ok(rectangles(camera, rotation, &matrix(c), size, side)?.inner_roi(new_size))
     };
     let roi_left = roi(&pair.left, &r1, cc[0], Side::Left)?;
     let roi_right = roi(&pair.right, &r2, cc[1], Side::Right)?;
@@ -323,34 +311,12 @@ fn fisheye_projections(
     let mut p2 = Matrix3x4::zeros();
     p2.fixed_view_mut::<3, 3>(0, 0).copy_from(&matrix(cc[1]));
     p2[(0, 3)] = t.x * fc_new;
-    let q = Matrix4::new(
-        1.0,
-        0.0,
-        0.0,
-        -cc[0][0],
-        0.0,
-        1.0,
-        0.0,
-        -cc[0][1],
-        0.0,
-        0.0,
-        0.0,
-        fc_new,
-        0.0,
-        0.0,
-        -1.0 / t.x,
-        (cc[0][0] - cc[1][0]) / t.x,
-    );
-    Ok(Rectification {
-        r1,
-        r2,
-        p1,
-        p2,
-        q,
-        alpha: Some(options.alpha.get()),
-        roi_left,
-        roi_right,
-        size: new_size,
-        vertical: false,
-    })
+    Ok(Rectification::from_projections(
+        [r1, r2],
+        [p1, p2],
+        (t.x, false),
+        [roi_left, roi_right],
+        Some(options.alpha.get()),
+        new_size,
+    ))
 }

@@ -129,6 +129,18 @@ pub struct RawImage<'a, T> {
     pub data: &'a [T],
 }
 
+impl<'a> RawImage<'a, u16> {
+    /// A grey image's levels, one channel.
+    pub fn grey(image: &'a super::Gray) -> Self {
+        RawImage {
+            width: image.width,
+            height: image.height,
+            channels: 1,
+            data: &image.data,
+        }
+    }
+}
+
 /// The subpixel steps a coordinate is rounded to (OpenCV's `INTER_TAB_SIZE`).
 const STEPS: f32 = 32.0;
 

@@ -539,16 +539,19 @@ mod tests {
         let mut outs = [[0u16; LANES + 2]; 4];
         // The first pass writes its sums over whatever the buffer held.
         let mut sum = [999u16; LANES];
-        let [o0, o1, o2, o3] = &mut outs;
-        let least = step4(
-            &cost,
-            [&prev, &start, &start, &start],
-            [0; 4],
-            (2, [30; 4]),
-            [o0, o1, o2, o3],
-            &mut sum,
-            false,
-        );
+        let pass = |outs: &mut [[u16; LANES + 2]; 4], sum: &mut [u16; LANES], second| {
+            let [o0, o1, o2, o3] = outs;
+            step4(
+                &cost,
+                [&prev, &start, &start, &start],
+                [0; 4],
+                (2, [30; 4]),
+                [o0, o1, o2, o3],
+                sum,
+                second,
+            )
+        };
+        let least = pass(&mut outs, &mut sum, false);
         // d0 stays at 0; d1 comes from d0 + P1; d2 and d4 from d3 + P1; d3 stays at 3; the
         // others jump from the minimum for P2 (30), cheaper than staying at 40.
         assert_eq!(&outs[0][1..7], &[5, 7, 10, 8, 65, 90]);
@@ -556,16 +559,7 @@ mod tests {
         assert_eq!(&outs[1][1..6], &[5, 5, 5, 5, 60]);
         assert_eq!(&sum[..6], &[20, 22, 25, 23, 245, 270]);
         // The second pass adds its sums to the first's.
-        let [o0, o1, o2, o3] = &mut outs;
-        step4(
-            &cost,
-            [&prev, &start, &start, &start],
-            [0; 4],
-            (2, [30; 4]),
-            [o0, o1, o2, o3],
-            &mut sum,
-            true,
-        );
+        pass(&mut outs, &mut sum, true);
         assert_eq!(&sum[..6], &[40, 44, 50, 46, 490, 540]);
         assert_eq!(least, [5, 5, 5, 5]);
     }

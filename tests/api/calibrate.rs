@@ -223,8 +223,8 @@ async fn left_parts_alone_calibrate_one_camera() {
 }
 
 /// Bad forms are 4xx problems naming the part: counts that differ name `right`, a board with
-/// too few columns names `board.columns`, a missing board names `board`, a bad alpha names
-/// `alpha`.
+/// too few columns names `board.columns`, a missing board names `board` (and one that is not
+/// JSON says what JSON it takes), a bad alpha names `alpha`.
 #[tokio::test]
 async fn bad_forms_name_the_part() {
     let app = spawn_app().await;
@@ -251,6 +251,17 @@ async fn bad_forms_name_the_part() {
 
     let p = problem(calibrate(&app, "", form(3, false, None)).await, 422).await;
     assert_names(&p, &["board"]);
+
+    // `board=9x6`, as a user may type it, is told the JSON the part takes, not the decoder's
+    // words.
+    let p = problem(calibrate(&app, "", form(3, false, Some("9x6"))).await, 422).await;
+    assert_names(&p, &["board"]);
+    let said = message_for(&p, "board");
+    assert!(
+        said.contains(r#"such as {"columns": 9, "rows": 6"#) && said.contains("not `9x6`"),
+        "{said}"
+    );
+    assert!(!said.contains("line 1 column"), "{said}");
 }
 
 /// Images of another size name their view; views whose board is not found are each named

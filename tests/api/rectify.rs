@@ -518,8 +518,8 @@ async fn bad_raw_calibrations_are_named() {
 }
 
 /// `/rectify`'s bad input, each a 422 naming the part: a rectified-only calibration
-/// (Middlebury), a rig part, no calibration, frames of another size (with the scale), and an
-/// alpha outside 0–1.
+/// (Middlebury), a rig part, no calibration, frames of another size (with the scale, and no
+/// rig part suggested), an alpha outside 0–1, no right image, and a lone ROS file.
 #[tokio::test]
 async fn rectify_refuses_what_it_cannot_rectify() {
     let app = spawn_app().await;
@@ -578,6 +578,12 @@ async fn rectify_refuses_what_it_cannot_rectify() {
     )
     .await;
     check(&body, "calibration", "1/2 of the calibrated size");
+    // /rectify takes no rig part, so it does not suggest one.
+    assert!(
+        !message_for(&body, "calibration").contains("rig part"),
+        "{body}"
+    );
+    let yml2 = yml.clone();
     let body = problem(
         rectify(
             &app,
@@ -589,6 +595,46 @@ async fn rectify_refuses_what_it_cannot_rectify() {
     )
     .await;
     check(&body, "alpha", "from 0");
+    // Without a right image, the pair (not a "rectified pair") is what is missing.
+    let body = problem(
+        rectify(
+            &app,
+            "",
+            Form::new()
+                .part("left", image_part(img.clone()))
+                .text("calibration", yml2.clone()),
+        )
+        .await,
+        422,
+    )
+    .await;
+    assert_eq!(
+        message_for(&body, "right"),
+        "is required: the right image of the pair (PNG or JPEG)"
+    );
+    // A lone ROS CameraInfo is told of the form's part for the right camera, not of
+    // /calibration's JSON members.
+    let ros_left = std::fs::read_to_string(
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("tests/data/calibration/ros_left.yaml"),
+    )
+    .expect("the ROS reference file");
+    let body = problem(
+        rectify(
+            &app,
+            "",
+            with(&[
+                ("calibration", ros_left),
+                ("calibration_format", "ros".into()),
+            ]),
+        )
+        .await,
+        422,
+    )
+    .await;
+    let said = message_for(&body, "right_calibration");
+    assert!(said.contains("right camera's CameraInfo"), "{body}");
+    assert!(!body.to_string().contains("right_text"), "{body}");
 }
 
 /// The synthetic layered scene as raw frames, with the calibration that describes them.

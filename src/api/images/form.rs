@@ -26,6 +26,9 @@ pub const MULTIPART: &str = "multipart/form-data";
 pub trait ImageForm {
     /// The route's own parts.
     const PARTS: &'static [&'static str];
+    /// Whether the route takes a `rig` part (`/rectify` needs the raw cameras of a
+    /// calibration, so its messages never suggest one).
+    const TAKES_RIG: bool = true;
 }
 
 /// The pair of an image request, read and judged before anything is decoded.
@@ -117,7 +120,7 @@ impl<F: ImageForm> FromRequest<HeavyState> for ImagePair<F> {
         if let (Some(l), Some(r)) = (left, right) {
             limits::check_pair(l, r, &mut problems)?;
         }
-        let rig = rig::rig(&parts, left, &mut problems);
+        let rig = rig::rig(&parts, left, F::TAKES_RIG, &mut problems);
         Ok(ImagePair {
             parts,
             size: left,

@@ -8,6 +8,7 @@ use super::form::{ImageForm, ImagePair};
 use super::limits;
 use super::maps::{MapCache, Maps};
 use super::rig::GivenRig;
+use super::work::Need;
 use crate::api::error::FieldErrors;
 use crate::api::wire::images::RectifyMode;
 use crate::calibration::files::Raw;
@@ -69,10 +70,11 @@ pub fn unrectified_warning(
 /// becomes the rectified rig (with `alpha` applied).
 pub fn plan<F: ImageForm>(
     pair: &mut ImagePair<F>,
-    mode: RectifyMode,
-    alpha: Option<Alpha>,
+    mode: Option<RectifyMode>,
+    alpha: Option<f64>,
     problems: &mut FieldErrors,
 ) -> Option<Box<Raw>> {
+    let alpha = problems.alpha(alpha);
     let raw_frames = pair
         .rig
         .as_ref()
@@ -80,7 +82,7 @@ pub fn plan<F: ImageForm>(
         .is_some_and(|raw| {
             !raw.is_identity() && Some((raw.size.width, raw.size.height)) == pair.size
         });
-    let wanted = match mode {
+    let wanted = match mode.unwrap_or_default() {
         RectifyMode::No => false,
         RectifyMode::Yes => true,
         RectifyMode::Auto => raw_frames,
@@ -183,16 +185,27 @@ fn with_alpha(mut given: GivenRig, alpha: Alpha, problems: &mut FieldErrors) -> 
     Some(given)
 }
 
-/// The size a pair is matched at and the bytes its rectification holds besides the matcher's:
-/// a raw pair is decoded at its own size, its maps built (or found), and matched at the
-/// rectified size; a pair sent as rectified is matched as it is.
-pub fn matched_size(raw: Option<&Raw>, (width, height): (u32, u32)) -> ((usize, usize), usize) {
-    match raw {
+/// What matching a pair of `size` over `count` disparities needs: a raw pair is decoded at
+/// its own size, its maps built (or found), and matched at the rectified size; a pair sent as
+/// rectified is matched as it is. `bytes(w, h, count)` is the route's own need at the size
+/// matched; the rectification's is added to it.
+pub fn match_need<B: Fn(usize, usize, usize) -> usize>(
+    raw: Option<&Raw>,
+    (width, height): (u32, u32),
+    count: usize,
+    bytes: B,
+) -> Need<impl Fn(usize) -> usize + use<B>> {
+    let ((w, h), extra) = match raw {
         Some(raw) => {
             let s = raw.rectification.size;
             ((s.width as usize, s.height as usize), rectifying_bytes(raw))
         }
         None => ((width as usize, height as usize), 0),
+    };
+    Need {
+        size: (w, h),
+        count,
+        need: move |count| bytes(w, h, count).saturating_add(extra),
     }
 }
 
@@ -235,16 +248,7 @@ fn rectify_pair(left: &mut Decoded, right: &mut Decoded, maps: &Maps, colour: bo
         crate::vision::Gray::new(
             map.width,
             map.height,
-            remap::remap_fixed(
-                RawImage {
-                    width: g.width,
-                    height: g.height,
-                    channels: 1,
-                    data: &g.data,
-                },
-                map,
-                Interpolation::Linear,
-            ),
+            remap::remap_fixed(RawImage::grey(g), map, Interpolation::Linear),
         )
     };
     let (l, r) = rayon::join(|| grey(left, &maps.left), || grey(right, &maps.right));

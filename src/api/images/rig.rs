@@ -55,6 +55,7 @@ const RIG: &str = "rig.";
 pub fn rig(
     parts: &Parts,
     size: Option<(u32, u32)>,
+    takes_rig: bool,
     problems: &mut FieldErrors,
 ) -> Option<GivenRig> {
     let has_calibration = parts.get("calibration").is_some();
@@ -65,7 +66,7 @@ pub fn rig(
             None
         }
         (Some(json), false) => rig_part(json, size, problems),
-        (None, true) => calibration_parts(parts, size, problems),
+        (None, true) => calibration_parts(parts, size, takes_rig, problems),
         (None, false) => {
             for option in &RIG_PARTS[2..] {
                 if parts.get(option).is_some() {
@@ -163,6 +164,7 @@ request! {
 fn calibration_parts(
     parts: &Parts,
     size: Option<(u32, u32)>,
+    takes_rig: bool,
     problems: &mut FieldErrors,
 ) -> Option<GivenRig> {
     let mut local = FieldErrors::default();
@@ -236,7 +238,7 @@ fn calibration_parts(
         let (cw, ch) = read.raw.as_ref().map_or((cw, ch), |r| {
             (f64::from(r.size.width), f64::from(r.size.height))
         });
-        problems.add("calibration", size_mismatch((cw, ch), (w, h)));
+        problems.add("calibration", size_mismatch((cw, ch), (w, h), takes_rig));
         return None;
     }
     match read.rig.with_image_size(w, h) {
@@ -250,7 +252,7 @@ fn calibration_parts(
 
 /// Why images of `(w, h)` do not fit a calibration of `(cw, ch)`, with the scale when it is a
 /// whole ratio (half-size frames, or a calibration made at half size).
-fn size_mismatch((cw, ch): (f64, f64), (w, h): (u32, u32)) -> String {
+fn size_mismatch((cw, ch): (f64, f64), (w, h): (u32, u32), takes_rig: bool) -> String {
     let (w, h) = (f64::from(w), f64::from(h));
     let whole = |a: f64, b: f64| {
         let r = a / b;
@@ -271,9 +273,14 @@ fn size_mismatch((cw, ch): (f64, f64), (w, h): (u32, u32)) -> String {
         }
         _ => String::new(),
     };
+    let or_a_rig = if takes_rig {
+        ", or a rig part with f, cx, cy and doffs scaled to them"
+    } else {
+        ""
+    };
     format!(
         "is for {} × {} images, but these are {} × {}{scale}: give the calibration of these \
-         images, or a rig part with f, cx, cy and doffs scaled to them",
+         images{or_a_rig}",
         crate::numbers::Num(cw),
         crate::numbers::Num(ch),
         crate::numbers::Num(w),

@@ -357,48 +357,19 @@ pub fn detect(text: &str, has_right: bool) -> Result<Format, Vec<ParseError>> {
         "not a calibration file this service reads; tried middlebury (a calib.txt with \
          cam0=[...] and cam1=[...]), kitti (P_rect_02/P_rect_03 or P0..P3 lines), opencv \
          (FileStorage YAML or XML with Q, or P1 and P2) and ros (a CameraInfo YAML with \
-         projection_matrix, or k and p, and the right camera's in right_text)",
+         projection_matrix, or k and p, with the right camera's beside it)",
     )])
 }
 
-/// A raw pair with distortion, rotated and offset, and its images' size: what the writers'
+/// The camera tests' pair (OpenCV's reference) and its images' size: what the writers'
 /// round-trip tests write and read back.
 #[cfg(test)]
 fn sample_pair() -> (crate::camera::StereoPair, crate::camera::Size) {
-    use crate::camera::{Camera, Distortion, Intrinsics, Model, Size, StereoPair};
-    use nalgebra::{Rotation3, Vector3};
-    let camera = |fx, fy, cx, cy, d: &[f64]| {
-        Camera::new(
-            Intrinsics { fx, fy, cx, cy },
-            Distortion::new(Model::PlumbBob, d).expect("a plumb_bob distortion"),
-        )
-        .expect("a camera")
+    let size = crate::camera::Size {
+        width: 640,
+        height: 480,
     };
-    let pair = StereoPair {
-        left: camera(
-            812.5,
-            809.0,
-            331.2,
-            238.9,
-            &[-0.21, 0.11, 0.001, -0.0006, -0.03],
-        ),
-        right: camera(
-            806.0,
-            804.5,
-            318.4,
-            243.7,
-            &[-0.19, 0.08, -0.0008, 0.0011, 0.01],
-        ),
-        rotation: Rotation3::from_scaled_axis(Vector3::new(0.012, -0.021, 0.006)),
-        translation: Vector3::new(-120.0, 1.8, -2.4),
-    };
-    (
-        pair,
-        Size {
-            width: 640,
-            height: 480,
-        },
-    )
+    (crate::camera::opencv_pair(), size)
 }
 
 #[cfg(test)]

@@ -215,8 +215,8 @@ pub fn parse(
     let Some(right_text) = right_text else {
         let mut errors = vec![
             ParseError::whole(
-                "a ROS rig needs both cameras' CameraInfo: the left camera's in text and the \
-             right camera's in right_text (its projection matrix holds the baseline)",
+                "is required for a ROS rig: the right camera's CameraInfo, beside the left \
+                 camera's (its projection matrix holds the baseline)",
             )
             .in_right(),
         ];
@@ -272,8 +272,9 @@ pub fn parse(
             ParseError::at(
                 left.p_line,
                 format!(
-                    "the baseline from these files is negative ({} m): text must be the left \
-                     camera's CameraInfo and right_text the right camera's; they look swapped",
+                    "the baseline from these files is negative ({} m): the first must be the \
+                     left camera's CameraInfo and the second the right camera's; they look \
+                     swapped",
                     Num(calibration.baseline)
                 ),
             ),

@@ -222,26 +222,27 @@ struct Settings {
     size: Size,
 }
 
+/// A `board` part as the messages show it.
+const BOARD_EXAMPLE: &str = r#"{"columns": 9, "rows": 6, "square_size": 25, "unit": "mm"}"#;
+
 /// The `board` part read into a board, each fault named `board.<member>`.
 fn read_board(bytes: Option<&Bytes>, problems: &mut FieldErrors) -> Option<Board> {
     let Some(bytes) = bytes else {
         problems.add(
             "board",
-            "is required: JSON {\"columns\": 9, \"rows\": 6, \"square_size\": 25, \"unit\": \"mm\"} \
-             (inner corners)",
+            format!("is required: JSON such as {BOARD_EXAMPLE} (inner corners)"),
         );
         return None;
     };
-    let (spec, refused) = match extract::decode_json::<BoardSpec>(bytes) {
-        Ok(read) => read,
-        Err(ApiError::Malformed(e)) => {
-            problems.add("board", e.message);
-            return None;
-        }
-        Err(_) => {
-            problems.add("board", "must be a JSON object");
-            return None;
-        }
+    let Ok((spec, refused)) = extract::decode_json::<BoardSpec>(bytes) else {
+        problems.add(
+            "board",
+            format!(
+                "must be a JSON object such as {BOARD_EXAMPLE} (inner corners), not `{}`",
+                crate::numbers::clip(&String::from_utf8_lossy(bytes), 40)
+            ),
+        );
+        return None;
     };
     let refused_any = !refused.is_empty();
     problems.extend(FieldErrors::from(refused.prefixed("board.")));

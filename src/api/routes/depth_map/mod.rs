@@ -24,7 +24,7 @@ use crate::api::extract::QueryParams;
 use crate::api::images::maps::MapCache;
 use crate::api::images::output::{self, Disposition, FileBody, set_server_timing};
 use crate::api::images::raw;
-use crate::api::images::work::{self, Need};
+use crate::api::images::work;
 use crate::api::images::{GivenRig, ImageForm, ImagePair, Job, limits, rig};
 use crate::api::respond::Json;
 use crate::api::wire::openapi::ImageErrors;
@@ -105,13 +105,7 @@ pub async fn post_depth_map(
     mut pair: ImagePair<DepthMapForm>,
 ) -> Result<Response, ApiError> {
     let mut problems = pair.problems(problems);
-    let alpha = problems.alpha(query.alpha);
-    let raw = raw::plan(
-        &mut pair,
-        query.rectify.unwrap_or_default(),
-        alpha,
-        &mut problems,
-    );
+    let raw = raw::plan(&mut pair, query.rectify, query.alpha, &mut problems);
     let output = query.output.unwrap_or_else(|| {
         headers
             .get(header::ACCEPT)
@@ -134,14 +128,12 @@ pub async fn post_depth_map(
     if !problems.is_empty() {
         return Err(problems.into_error());
     }
-    // A rectified pair is matched at the rectified size, after its maps are built (or found)
-    // and both frames read through them.
-    let ((width, height), extra) = raw::matched_size(raw.as_deref(), (raw_w, raw_h));
-    let need = Need {
-        size: (width, height),
-        count: params.count(),
-        need: move |count| bytes_needed(width, height, count, output).saturating_add(extra),
-    };
+    let need = raw::match_need(
+        raw.as_deref(),
+        (raw_w, raw_h),
+        params.count(),
+        move |w, h, n| bytes_needed(w, h, n, output),
+    );
     let cache = state.maps.clone();
     pair.run(need, move |job| {
         compute(job, &params, output, raw.as_deref().map(|r| (r, &*cache)))

@@ -27,7 +27,7 @@ use crate::api::extract::{QueryParams, decode_object};
 use crate::api::images::maps::MapCache;
 use crate::api::images::output::set_server_timing;
 use crate::api::images::raw;
-use crate::api::images::work::{self, Need};
+use crate::api::images::work;
 use crate::api::images::{ImageForm, ImagePair, Job, Parts, limits, rig};
 use crate::api::respond::Json;
 use crate::api::wire::measured::Measured;
@@ -101,13 +101,7 @@ pub async fn post_match(
     mut pair: ImagePair<MatchForm>,
 ) -> Result<Response, ApiError> {
     let mut problems = pair.problems(problems);
-    let alpha = problems.alpha(query.alpha);
-    let raw = raw::plan(
-        &mut pair,
-        query.rectify.unwrap_or_default(),
-        alpha,
-        &mut problems,
-    );
+    let raw = raw::plan(&mut pair, query.rectify, query.alpha, &mut problems);
     let parts = &pair.parts;
     rig::require_rig(parts, "for the distances", &mut problems);
     let points = list::<MatchPoint>(parts, "points", MAX_POINTS, &mut problems);
@@ -135,12 +129,12 @@ pub async fn post_match(
     if !problems.is_empty() {
         return Err(problems.into_error());
     }
-    let ((w, h), extra) = raw::matched_size(raw.as_deref(), (width, height));
-    let need = Need {
-        size: (w, h),
-        count: params.count(),
-        need: move |count| bytes_needed(w, h, count).saturating_add(extra),
-    };
+    let need = raw::match_need(
+        raw.as_deref(),
+        (width, height),
+        params.count(),
+        bytes_needed,
+    );
     let points = points.unwrap_or_default();
     let regions = regions.unwrap_or_default();
     let cache = state.maps.clone();

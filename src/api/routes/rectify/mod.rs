@@ -38,6 +38,7 @@ pub fn router() -> OpenApiRouter<HeavyState> {
 
 impl ImageForm for RectifyForm {
     const PARTS: &'static [&'static str] = &[];
+    const TAKES_RIG: bool = false;
 }
 
 #[utoipa::path(
@@ -140,16 +141,7 @@ fn png(image: &Decoded, map: &Fixed, how: Interpolation) -> Vec<u8> {
         );
         return encode::png_rgb(w, h, &out);
     }
-    let out = remap::remap_fixed(
-        RawImage {
-            width: g.width,
-            height: g.height,
-            channels: 1,
-            data: &g.data,
-        },
-        map,
-        how,
-    );
+    let out = remap::remap_fixed(RawImage::grey(g), map, how);
     if g.data.iter().all(|v| v % 257 == 0) {
         // Exact for 8-bit frames (v = 257·g); rounded for the in-between levels remapping made.
         let bytes: Vec<u8> = out
@@ -261,18 +253,7 @@ fn compute(
             let (left, right) = decode_both(parts)?;
             let decode_time = t.elapsed();
             let t = Instant::now();
-            let grey = |d: &Decoded, map| {
-                remap::remap_fixed(
-                    RawImage {
-                        width: d.grey.width,
-                        height: d.grey.height,
-                        channels: 1,
-                        data: &d.grey.data,
-                    },
-                    map,
-                    how,
-                )
-            };
+            let grey = |d: &Decoded, map| remap::remap_fixed(RawImage::grey(&d.grey), map, how);
             let _ = rayon::join(|| grey(&left, &maps.left), || grey(&right, &maps.right));
             let remap_time = t.elapsed();
             let (w, h) = (raw.size.width as usize, raw.size.height as usize);

@@ -32,6 +32,15 @@ fn pair_centred(model: Model, coefficients: &[f64], f: f64, [cx, cy]: [f64; 2]) 
     }
 }
 
+/// A board turned by `angle` about its normal and its own `centre`, the centre 600 mm in
+/// front of the left camera, a little right of and below its axis.
+fn turned_about_its_centre(angle: f64, centre: Vector3<f64>) -> nalgebra::Isometry3<f64> {
+    let turn = Rotation3::from_axis_angle(&Vector3::z_axis(), angle);
+    nalgebra::Isometry3::from_parts(
+        (Vector3::new(60.0, 10.0, 600.0) - turn * centre).into(),
+        turn.into(),
+    )
+}
 /// The median and 95th percentile of the refined corners' distance from the truth, started
 /// up to a pixel off in each axis, through `refine_all` (the window from the local spacing).
 fn errors(pair: &StereoPair, style: &Style, views: usize, seed: u64) -> (f64, f64, usize) {
@@ -190,12 +199,7 @@ fn finds_the_whole_board_in_opencv_order() {
 fn an_upside_down_board_keeps_its_order() {
     let pair = pair(Model::PlumbBob, &[-0.1, 0.02, 0.0, 0.0, 0.0], 800.0);
     let board = Board::new(9, 6, 25.0, LengthUnit::Millimetre).unwrap();
-    let turn = Rotation3::from_axis_angle(&Vector3::z_axis(), std::f64::consts::PI);
-    let centre = Vector3::new(100.0, 62.5, 0.0);
-    let pose = nalgebra::Isometry3::from_parts(
-        (Vector3::new(60.0, 10.0, 600.0) - turn * centre).into(),
-        turn.into(),
-    );
+    let pose = turned_about_its_centre(std::f64::consts::PI, Vector3::new(100.0, 62.5, 0.0));
     let found = find_rendered(&board, &[pose], &pair);
     for (result, truth) in &found {
         let corners = result.as_ref().expect("board found");
@@ -212,12 +216,7 @@ fn an_upside_down_board_keeps_its_order() {
 fn a_symmetric_board_is_ordered_alike_in_both_cameras() {
     let pair = pair(Model::PlumbBob, &[-0.1, 0.02, 0.0, 0.0, 0.0], 800.0);
     let board = Board::new(8, 6, 25.0, LengthUnit::Millimetre).unwrap();
-    let turn = Rotation3::from_axis_angle(&Vector3::z_axis(), std::f64::consts::PI - 0.2);
-    let centre = Vector3::new(87.5, 62.5, 0.0);
-    let pose = nalgebra::Isometry3::from_parts(
-        (Vector3::new(60.0, 10.0, 600.0) - turn * centre).into(),
-        turn.into(),
-    );
+    let pose = turned_about_its_centre(std::f64::consts::PI - 0.2, Vector3::new(87.5, 62.5, 0.0));
     let found = find_rendered(&board, &[pose], &pair);
     for (result, truth) in &found {
         let corners = result.as_ref().expect("board found");
