@@ -65,6 +65,12 @@ pub const DEFAULT_HEAVY_REQUEST_TIMEOUT: Duration = Duration::from_secs(30);
 /// once (a 1280 × 720 pair with 128 disparities needs a few hundred MiB) within a pod of 2 GiB.
 pub const DEFAULT_HEAVY_MEMORY_BUDGET: usize = 1024 * 1024 * 1024;
 
+/// Default cap on an image's pixels: 34 megapixels. It admits an 8K UHD frame (7680 × 4320,
+/// 33.2 MP), a 24 MP camera's photograph (6000 × 4000) and a phone's 12 MP one (4032 × 3024);
+/// what a request may do with them is governed by the memory budget, which every request
+/// reserves from first.
+pub const DEFAULT_MAX_IMAGE_PIXELS: usize = 34_000_000;
+
 /// Default concurrency limit of the heavy routes: twice the number of CPUs, and at least 4. A
 /// request takes its slot when its work starts, once its body has arrived, so an upload does
 /// not hold one. The requests working share the matcher's threads (one a core), so more of them than cores
@@ -86,7 +92,10 @@ pub fn default_heavy_concurrency() -> usize {
     about = "HTTP JSON service that turns a stereo correspondence into a distance with its error",
     long_about = "HTTP JSON service that turns a stereo correspondence into a distance with its \
                   error.\n\nEvery option can also be set through the environment variable shown \
-                  with it; a flag wins over its variable. Durations take units: 500ms, 5s, 1m."
+                  with it; a flag wins over its variable. Durations take units: 500ms, 5s, 1m.",
+    after_help = "Fixed caps, not options: an image is at most 8192 pixels a side; a match \
+                  searches at most 512 disparities (max_disparity − min_disparity); /calibrate \
+                  takes at most 60 views in one request."
 )]
 pub struct Cli {
     #[command(subcommand)]
@@ -240,6 +249,12 @@ pub struct HeavyLimits {
     #[arg(id = "heavy_memory_budget", long = "heavy-memory-budget", env = "HEAVY_MEMORY_BUDGET", value_name = "SIZE",
           default_value = "1GiB", value_parser = size::<1024, 1_099_511_627_776>)]
     pub memory_budget: usize,
+
+    /// Most pixels (width × height) of one image; a larger one gets 413 naming it, judged from
+    /// its header before any pixel is decoded. Every side is at most 8192 pixels besides.
+    #[arg(id = "max_image_pixels", long = "max-image-pixels", env = "MAX_IMAGE_PIXELS", value_name = "PIXELS",
+          default_value_t = DEFAULT_MAX_IMAGE_PIXELS, value_parser = count::<1, 67_108_864>)]
+    pub max_image_pixels: usize,
 }
 
 impl Default for HeavyLimits {
@@ -249,6 +264,7 @@ impl Default for HeavyLimits {
             request_timeout: DEFAULT_HEAVY_REQUEST_TIMEOUT,
             concurrency_limit: default_heavy_concurrency(),
             memory_budget: DEFAULT_HEAVY_MEMORY_BUDGET,
+            max_image_pixels: DEFAULT_MAX_IMAGE_PIXELS,
         }
     }
 }
@@ -593,10 +609,65 @@ mod tests {
                 memory_budget: 512 << 20,
                 concurrency_limit: 3,
                 request_timeout: Duration::from_secs(2),
+                max_image_pixels: DEFAULT_MAX_IMAGE_PIXELS,
             }
         );
         assert_eq!(size::<1, 4096>("2KiB"), Ok(2048));
         assert_eq!(size::<1, 4096>("100"), Ok(100));
+    }
+
+    /// `--help` tells what the code does: each default as the code computes it (the heavy
+    /// concurrency from this machine's CPUs), the pixel cap as an option, and the fixed caps
+    /// with the values the code enforces.
+    #[test]
+    fn help_matches_the_config() {
+        let help = Cli::command().render_long_help().to_string();
+        let flat = help.split_whitespace().collect::<Vec<_>>().join(" ");
+        let defaults = Config::default();
+        for (flag, default) in [
+            (
+                "--heavy-concurrency-limit <N>",
+                defaults.heavy.concurrency_limit.to_string(),
+            ),
+            (
+                "--max-image-pixels <PIXELS>",
+                DEFAULT_MAX_IMAGE_PIXELS.to_string(),
+            ),
+            (
+                "--concurrency-limit <CONCURRENCY_LIMIT>",
+                DEFAULT_CONCURRENCY_LIMIT.to_string(),
+            ),
+            (
+                "--max-table-rows <ROWS>",
+                DEFAULT_MAX_TABLE_ROWS.to_string(),
+            ),
+            ("--body-limit <BYTES>", DEFAULT_BODY_LIMIT.to_string()),
+        ] {
+            let at = flat
+                .find(flag)
+                .unwrap_or_else(|| panic!("{flag} in --help"));
+            let next = flat[at + flag.len()..]
+                .find(" --")
+                .map_or(flat.len(), |n| at + flag.len() + n);
+            let text = &flat[at..next];
+            assert!(
+                text.contains(&format!("[default: {default}]")),
+                "{flag}'s default is {default}: {text}"
+            );
+        }
+        let cpus = std::thread::available_parallelism().map_or(1, usize::from);
+        assert_eq!(defaults.heavy.concurrency_limit, (2 * cpus).max(4));
+        assert!(
+            flat.contains("default: twice the number of CPUs, at least 4"),
+            "{flat}"
+        );
+        for cap in [
+            format!("at most {} pixels a side", crate::vision::decode::MAX_SIDE),
+            format!("at most {} disparities", crate::vision::MAX_DISPARITIES),
+            format!("at most {} views", crate::calibration::boards::MAX_VIEWS),
+        ] {
+            assert!(flat.contains(&cap), "--help states the cap: {cap}");
+        }
     }
 
     /// `healthcheck` is a subcommand with its own timeout.

@@ -2,7 +2,7 @@
 //! that reads back as the same number, so that an echoed `1e308` stays `1e308` and not 309
 //! digits), into CSV as the JSON writes them ([`push_json`]), and rounded for reading in
 //! formulas, summaries and chart labels ([`short`], [`percent`]; never in JSON values, which
-//! keep full precision). Only this module calls ryu.
+//! keep full precision unless they state theirs, [`round_to`]). Only this module calls ryu.
 
 use std::fmt;
 
@@ -51,7 +51,14 @@ pub fn short(value: f64) -> String {
     if value != 0.0 && !(1e-3..1e12).contains(&value.abs()) {
         return format!("{value:e}");
     }
-    Num((value * 1e4).round() / 1e4).to_string()
+    Num(round_to(value, 4)).to_string()
+}
+
+/// `value` rounded to `places` decimals, for values an answer gives to a stated precision
+/// (corners to 1/10 000 px, a view's spread to 1/1000).
+pub fn round_to(value: f64, places: i32) -> f64 {
+    let scale = 10f64.powi(places);
+    (value * scale).round() / scale
 }
 
 /// A fraction as a percentage for reading, such as `2 %` for 0.02.

@@ -55,6 +55,8 @@ pub struct HeavyState {
     pub maps: std::sync::Arc<images::maps::MapCache>,
     /// The group's concurrency limit: a slot taken by each request when its work starts.
     pub slots: crate::budget::Slots,
+    /// The largest image decoded (`--max-image-pixels`, [`crate::vision::decode::MAX_SIDE`] a side).
+    pub image_limits: crate::vision::decode::DecodeLimits,
 }
 
 impl Default for HeavyState {
@@ -63,6 +65,7 @@ impl Default for HeavyState {
             body_limit: BodyLimit(crate::config::DEFAULT_HEAVY_BODY_LIMIT),
             maps: std::sync::Arc::default(),
             slots: crate::budget::Slots::new(crate::config::default_heavy_concurrency()),
+            image_limits: images::limits::decode_limits(crate::config::DEFAULT_MAX_IMAGE_PIXELS),
         }
     }
 }
@@ -101,7 +104,12 @@ impl FromRef<HeavyState> for BodyLimit {
         routes::board_calibration::types::CalibrateOutput,
         routes::rectify::types::RectifyOutput,
         routes::rectify::types::InterpolationChoice,
-        wire::images::RectifyMode
+        wire::images::RectifyMode,
+        // The image routes' answers, which their `IntoResponses` name by reference.
+        images::output::FileBody,
+        routes::depth_map::types::DepthMapSummary,
+        routes::rectify::types::RectifySummary,
+        routes::board_calibration::types::CalibrationSummary
     )),
     tags(
         (name = "calibration", description = "Calibration files read into a rig"),

@@ -70,6 +70,7 @@ fn app_with(config: &Config, ops: OpsState, extra_heavy: Router<HeavyState>) -> 
         body_limit: BodyLimit(heavy.body_bytes),
         maps: std::sync::Arc::new(MapCache::new(Some(budget.clone()), maps::MAX_ENTRIES)),
         slots: Slots::new(heavy.concurrency_limit),
+        image_limits: api::images::limits::decode_limits(heavy.max_image_pixels),
     };
     let ops = OpsState {
         heavy: Some((budget.clone(), heavy_state.slots.clone())),

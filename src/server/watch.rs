@@ -8,7 +8,7 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::task::{Context, Poll};
 use std::time::{Duration, Instant};
 
-use axum::body::{Body, Bytes};
+use axum::body::Body;
 use http_body::{Frame, SizeHint};
 
 /// The slowest a request body may arrive: on average at least `bytes_per_second` from the
@@ -89,14 +89,15 @@ impl Drop for Watched {
     }
 }
 
+/// The wrapped body's frames, passed on as they come: its data and its errors.
 impl http_body::Body for Watched {
-    type Data = Bytes;
-    type Error = axum::Error;
+    type Data = <Body as http_body::Body>::Data;
+    type Error = <Body as http_body::Body>::Error;
 
     fn poll_frame(
         mut self: Pin<&mut Self>,
         cx: &mut Context<'_>,
-    ) -> Poll<Option<Result<Frame<Bytes>, axum::Error>>> {
+    ) -> Poll<Option<Result<Frame<Self::Data>, Self::Error>>> {
         let polled = Pin::new(&mut self.inner).poll_frame(cx);
         if let Poll::Ready(Some(Ok(frame))) = &polled
             && let Some(data) = frame.data_ref()
@@ -138,7 +139,7 @@ mod tests {
         assert!(progress.received());
 
         let unread = Arc::new(Progress::default());
-        let never = futures_util::stream::pending::<Result<Bytes, std::io::Error>>();
+        let never = futures_util::stream::pending::<Result<axum::body::Bytes, std::io::Error>>();
         let body = Watched::new(Arc::clone(&unread), Body::from_stream(never));
         assert!(!unread.received());
         drop(body);

@@ -12,6 +12,9 @@ use image::{
 
 use super::Gray;
 
+/// The widest or tallest image any route decodes, in pixels.
+pub const MAX_SIDE: u32 = 8192;
+
 /// What a decode may take.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct DecodeLimits {
@@ -19,6 +22,15 @@ pub struct DecodeLimits {
     pub max_side: u32,
     /// The most pixels (width × height) accepted.
     pub max_pixels: u64,
+}
+
+impl DecodeLimits {
+    /// Whether a `width × height` image is within the limits.
+    pub fn admit(self, width: u32, height: u32) -> bool {
+        width <= self.max_side
+            && height <= self.max_side
+            && u64::from(width) * u64::from(height) <= self.max_pixels
+    }
 }
 
 /// The two formats read.
@@ -121,10 +133,7 @@ pub fn decode(bytes: &[u8], limits: DecodeLimits, colour: bool) -> Result<Decode
         height,
         limits,
     };
-    if width > limits.max_side
-        || height > limits.max_side
-        || u64::from(width) * u64::from(height) > limits.max_pixels
-    {
+    if !limits.admit(width, height) {
         return Err(too_large());
     }
     if width == 0 || height == 0 {

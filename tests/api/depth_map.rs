@@ -434,17 +434,66 @@ async fn a_json_body_is_415() {
     );
 }
 
+/// A one-pixel PNG whose header claims `width × height` pixels.
+fn png_claiming(width: u32, height: u32) -> Vec<u8> {
+    let mut bytes = png(&[0, 0, 0], 1, 1);
+    bytes[16..20].copy_from_slice(&width.to_be_bytes());
+    bytes[20..24].copy_from_slice(&height.to_be_bytes());
+    let mut crc = flate2::Crc::new();
+    crc.update(&bytes[12..29]);
+    bytes[29..33].copy_from_slice(&crc.sum().to_be_bytes());
+    bytes
+}
+
+/// A pair of images whose headers claim `width × height` pixels.
+fn pair_claiming(width: u32, height: u32) -> Form {
+    Form::new()
+        .part("left", image_part(png_claiming(width, height)))
+        .part("right", image_part(png_claiming(width, height)))
+}
+
+/// A phone's 4032 × 3024 photograph (12.19 MP) passes the pixel cap by default: a request
+/// whose only fault is its disparity range is refused for that alone. With
+/// `--max-image-pixels 12000000` the same pair is a 413 naming both images and the cap. (The
+/// whole request on such a JPEG pair is `scale.rs`'s, in release.)
+#[tokio::test]
+async fn the_pixel_cap_admits_a_phone_photo_and_is_an_option() {
+    let app = spawn_app().await;
+    let body = problem(
+        depth_map(&app, "?max_disparity=4000", pair_claiming(4032, 3024)).await,
+        422,
+    )
+    .await;
+    assert_eq!(fields(&body), vec!["max_disparity"], "{body}");
+    let capped = spawn_app_with(Config {
+        port: 0,
+        heavy: HeavyLimits {
+            max_image_pixels: 12_000_000,
+            ..HeavyLimits::default()
+        },
+        ..Config::default()
+    })
+    .await;
+    let body = problem(
+        depth_map(&capped, "?max_disparity=4000", pair_claiming(4032, 3024)).await,
+        413,
+    )
+    .await;
+    assert_eq!(fields(&body), vec!["left", "right"]);
+    assert!(
+        message_for(&body, "left").contains(
+            "4032 × 3024 pixels; this server takes at most 8192 pixels a side and 12 megapixels"
+        ),
+        "{body}"
+    );
+}
+
 /// A small PNG whose header claims 20 000 × 20 000 pixels is a 413 naming the image, found
 /// from the header alone; the service then answers normally.
 #[tokio::test]
 async fn an_image_claiming_too_many_pixels_is_413() {
     let app = spawn_app().await;
-    let mut bytes = png(&[0, 0, 0], 1, 1);
-    bytes[16..20].copy_from_slice(&20_000u32.to_be_bytes());
-    bytes[20..24].copy_from_slice(&20_000u32.to_be_bytes());
-    let mut crc = flate2::Crc::new();
-    crc.update(&bytes[12..29]);
-    bytes[29..33].copy_from_slice(&crc.sum().to_be_bytes());
+    let bytes = png_claiming(20_000, 20_000);
     let form = Form::new()
         .part("left", image_part(bytes.clone()))
         .part("right", image_part(bytes));

@@ -1,4 +1,4 @@
-//! The heavy route group's limits over a real socket, before any image route exists: a
+//! The heavy route group's limits over a real socket, apart from any image route: a
 //! test-only route is mounted in the group (`Application::build_with`) and driven past its body
 //! limit, its concurrency limit and its memory budget, while the light group and the probes
 //! keep answering.

@@ -261,9 +261,24 @@ impl Browser {
             .unwrap_or_else(|e| panic!("script {source}: {e}"))
     }
 
-    /// Waits until the page is not computing and no typing is pending.
+    /// Waits until the page is not computing and no typing is pending, then checks that
+    /// nothing it hides is displayed.
     pub async fn settled(&self) {
         self.until_done("state").await;
+        self.assert_hidden_not_shown().await;
+    }
+
+    /// Every element with the `hidden` attribute is not displayed: a class's `display` must
+    /// not override it. Names (by id, or tag) those that are.
+    pub async fn assert_hidden_not_shown(&self) {
+        let shown = self
+            .script(
+                "return [...document.querySelectorAll('[hidden]')]\
+                 .filter((e) => getComputedStyle(e).display !== 'none')\
+                 .map((e) => e.id || e.tagName)",
+            )
+            .await;
+        assert_eq!(shown, json!([]), "hidden elements displayed");
     }
 
     /// Waits until the page's `data-{flag}` on `<body>` reads `done`: the work it tracks (the
@@ -356,20 +371,25 @@ impl Browser {
     }
 
     /// Moves the pointer over the image pixel (`x`, `y`) (its centre) of the element `#id`,
-    /// whose canvas holds the image at its own size and is shown scaled to the element.
+    /// whose canvas holds the image at its own size and is shown scaled to the element. The
+    /// element is scrolled into view and the pointer placed in the window's coordinates, to
+    /// the nearest CSS pixel: an offset from the element's centre would be rounded twice (the
+    /// centre and the offset), which at a fractional layout position lands a pixel or two off.
     pub async fn pointer_to(&self, id: &str, x: f64, y: f64) -> PointerAction {
         let geometry = self
             .script(&format!(
-                "const f = document.getElementById('{id}'); const c = f.querySelector('canvas');                 const r = f.getBoundingClientRect();                 return [r.width, r.height, c.width, c.height];"
+                "const f = document.getElementById('{id}'); \
+                 f.scrollIntoView({{block: 'center', inline: 'center'}}); \
+                 const c = f.querySelector('canvas'); const r = f.getBoundingClientRect(); \
+                 return [r.left, r.top, r.width, r.height, c.width, c.height];"
             ))
             .await;
-        let [width, height, w, h]: [f64; 4] =
+        let [left, top, width, height, w, h]: [f64; 6] =
             serde_json::from_value(geometry).expect("the element's geometry");
-        PointerAction::MoveToElement {
-            element: self.find(id).await,
+        PointerAction::MoveTo {
             duration: None,
-            x: ((x + 0.5) * width / w - width / 2.0).round(),
-            y: ((y + 0.5) * height / h - height / 2.0).round(),
+            x: (left + (x + 0.5) * width / w).round(),
+            y: (top + (y + 0.5) * height / h).round(),
         }
     }
 

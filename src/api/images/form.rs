@@ -17,7 +17,7 @@ use super::{limits, work};
 use crate::api::HeavyState;
 use crate::api::error::{ApiError, FieldError, FieldErrors};
 use crate::api::extract;
-use crate::vision::decode;
+use crate::vision::decode::{self, DecodeLimits};
 
 /// The media type the image routes read.
 pub const MULTIPART: &str = "multipart/form-data";
@@ -45,6 +45,8 @@ pub struct ImagePair<F> {
     pub admitted: work::Admitted,
     /// How long the body took to arrive and be read into parts.
     pub read: Duration,
+    /// What the decoder takes (`--max-image-pixels`).
+    pub limits: DecodeLimits,
     form: PhantomData<F>,
 }
 
@@ -115,10 +117,11 @@ impl<F: ImageForm> FromRequest<HeavyState> for ImagePair<F> {
             read,
         } = Form::read(req, state, spec).await?;
         let parts: Parts = parts.into_iter().collect();
-        let left = image_size(&parts, "left", &mut problems);
-        let right = image_size(&parts, "right", &mut problems);
+        let image_limits = state.image_limits;
+        let left = image_size(&parts, "left", image_limits, &mut problems);
+        let right = image_size(&parts, "right", image_limits, &mut problems);
         if let (Some(l), Some(r)) = (left, right) {
-            limits::check_pair(l, r, &mut problems)?;
+            limits::check_pair(l, r, image_limits, &mut problems)?;
         }
         let rig = rig::rig(&parts, left, F::TAKES_RIG, &mut problems);
         Ok(ImagePair {
@@ -128,6 +131,7 @@ impl<F: ImageForm> FromRequest<HeavyState> for ImagePair<F> {
             problems,
             admitted,
             read,
+            limits: image_limits,
             form: PhantomData,
         })
     }
@@ -148,10 +152,11 @@ impl<F> ImagePair<F> {
         need: work::Need<impl Fn(usize) -> usize>,
         work: impl FnOnce(Job<'_>) -> T + Send + 'static,
     ) -> Result<T, ApiError> {
-        let (parts, rig, read) = (self.parts, self.rig, self.read);
+        let (parts, rig, read, limits) = (self.parts, self.rig, self.read, self.limits);
         work::run(self.admitted, need, move |cancel, started| {
             work(Job {
                 parts: &parts,
+                limits,
                 rig,
                 cancel,
                 waited: [read, started.queue()],
@@ -164,6 +169,8 @@ impl<F> ImagePair<F> {
 /// What an image request's blocking work gets.
 pub struct Job<'a> {
     pub parts: &'a Parts,
+    /// What the decoder takes (`--max-image-pixels`).
+    pub limits: DecodeLimits,
     pub rig: Option<GivenRig>,
     /// Set when the request is abandoned: stop at the next check.
     pub cancel: &'a std::sync::atomic::AtomicBool,
@@ -249,7 +256,12 @@ fn multipart_error(e: &MultipartError, limit: usize) -> ApiError {
 
 /// The size of one image of the pair, from its header (turned as its EXIF orientation turns
 /// it), or why it cannot be read.
-pub fn image_size(parts: &Parts, name: &str, problems: &mut FieldErrors) -> Option<(u32, u32)> {
+pub fn image_size(
+    parts: &Parts,
+    name: &str,
+    allowed: DecodeLimits,
+    problems: &mut FieldErrors,
+) -> Option<(u32, u32)> {
     let Some(bytes) = parts.get(name) else {
         problems.add(
             name,
@@ -260,7 +272,7 @@ pub fn image_size(parts: &Parts, name: &str, problems: &mut FieldErrors) -> Opti
     match decode::dimensions(bytes) {
         Ok(size) => Some(size),
         Err(e) => {
-            problems.add(name, limits::describe(&e));
+            problems.add(name, limits::describe(&e, allowed));
             None
         }
     }

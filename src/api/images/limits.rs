@@ -3,46 +3,44 @@
 //! parameters), and, when a request cannot fit in the memory budget, what to shrink.
 
 use crate::api::error::{ApiError, FieldError, FieldErrors};
-use crate::vision::decode::{DecodeError, DecodeLimits};
+use crate::vision::decode::{DecodeError, DecodeLimits, MAX_SIDE};
 use crate::vision::{Params, Settings};
 
-/// The widest or tallest image accepted, in pixels.
-pub const MAX_SIDE: u32 = 8192;
-/// The most pixels an image may have: 12 megapixels (4000 × 3000).
-pub const MAX_PIXELS: u64 = 12_000_000;
+/// The decoder's limits for every image route: [`MAX_SIDE`] a side and the server's
+/// `--max-image-pixels`.
+pub fn decode_limits(max_pixels: usize) -> DecodeLimits {
+    DecodeLimits {
+        max_side: MAX_SIDE,
+        max_pixels: max_pixels as u64,
+    }
+}
 
-/// The decoder's limits for every image route.
-pub const LIMITS: DecodeLimits = DecodeLimits {
-    max_side: MAX_SIDE,
-    max_pixels: MAX_PIXELS,
-};
-
-/// What a decode error says about a part.
-pub fn describe(e: &DecodeError) -> String {
+/// What a decode error says about a part, with the limits it was decoded under.
+pub fn describe(e: &DecodeError, limits: DecodeLimits) -> String {
     match e {
         DecodeError::NotAnImage => "is not an image: send a PNG or JPEG file".to_owned(),
         DecodeError::Unsupported(format) => {
             format!("is a {format} file; send the image as PNG or JPEG")
         }
-        DecodeError::TooLarge { width, height, .. } => too_many_pixels(*width, *height),
+        DecodeError::TooLarge { width, height, .. } => too_many_pixels(*width, *height, limits),
         DecodeError::Corrupt(what) => {
             format!("could not be decoded: {}", crate::numbers::clip(what, 120))
         }
     }
 }
 
-fn too_many_pixels(width: u32, height: u32) -> String {
+fn too_many_pixels(width: u32, height: u32, limits: DecodeLimits) -> String {
     format!(
-        "is {width} × {height} pixels; this server takes at most {MAX_SIDE} pixels a side and \
-         {} megapixels: send smaller images (scale the rig with them)",
-        MAX_PIXELS / 1_000_000
+        "is {width} × {height} pixels; this server takes at most {} pixels a side and {} \
+         megapixels: send smaller images (scale the rig with them)",
+        limits.max_side,
+        crate::numbers::short(limits.max_pixels as f64 / 1e6)
     )
 }
 
-/// Why an image of `(width, height)` pixels is refused (413), when it is past the limits.
-pub fn over_the_limits((w, h): (u32, u32)) -> Option<String> {
-    (w > MAX_SIDE || h > MAX_SIDE || u64::from(w) * u64::from(h) > MAX_PIXELS)
-        .then(|| too_many_pixels(w, h))
+/// Why an image of `(width, height)` pixels is refused (413), when it is past `limits`.
+pub fn over_the_limits((w, h): (u32, u32), limits: DecodeLimits) -> Option<String> {
+    (!limits.admit(w, h)).then(|| too_many_pixels(w, h, limits))
 }
 
 /// Checks the pair's sizes: each within the limits (413 otherwise), and the right the same
@@ -50,11 +48,12 @@ pub fn over_the_limits((w, h): (u32, u32)) -> Option<String> {
 pub fn check_pair(
     left: (u32, u32),
     right: (u32, u32),
+    limits: DecodeLimits,
     problems: &mut FieldErrors,
 ) -> Result<(), ApiError> {
     let mut oversized = Vec::new();
     for (name, size) in [("left", left), ("right", right)] {
-        if let Some(message) = over_the_limits(size) {
+        if let Some(message) = over_the_limits(size, limits) {
             oversized.push(FieldError::new(name, message));
         }
     }

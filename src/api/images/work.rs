@@ -10,7 +10,7 @@ use std::time::{Duration, Instant};
 
 use axum::body::Bytes;
 
-use super::limits::{self, LIMITS};
+use super::limits;
 use super::parts::Parts;
 use axum::extract::FromRequestParts;
 use axum::http::{Extensions, request::Parts as RequestParts};
@@ -19,7 +19,7 @@ use crate::api::HeavyState;
 use crate::api::error::{ApiError, FieldError, RETRY_AFTER_SECS};
 use crate::budget::{Refusal, Reservation, Slots};
 use crate::vision::Timings;
-use crate::vision::decode::{self, Decoded};
+use crate::vision::decode::{self, DecodeLimits, Decoded};
 
 /// Sets its flag when dropped: the request's future was dropped (timed out, or its client
 /// went away), so the blocking work should stop at its next check.
@@ -140,15 +140,20 @@ pub async fn run_reserved<T: Send + 'static>(
     })
 }
 
-/// Both images of the pair decoded at once (on the matcher's pool), the left in colour too
-/// when `colour`; a 422 naming each image that cannot be decoded.
-pub fn decode_pair(parts: &Parts, colour: bool) -> Result<(Decoded, Decoded), ApiError> {
-    let read = |name: &str| {
+/// Both images of the pair decoded at once (on the matcher's pool) within `allowed`, each in
+/// colour too when `colour` says so (`[left, right]`); a 422 naming each image that cannot be
+/// decoded.
+pub fn decode_pair(
+    parts: &Parts,
+    allowed: DecodeLimits,
+    colour: [bool; 2],
+) -> Result<(Decoded, Decoded), ApiError> {
+    let read = |name: &str, colour: bool| {
         let bytes = parts.get(name).map_or(&[][..], Bytes::as_ref);
-        decode::decode(bytes, LIMITS, colour && name == "left")
-            .map_err(|e| FieldError::new(name, limits::describe(&e)))
+        decode::decode(bytes, allowed, colour)
+            .map_err(|e| FieldError::new(name, limits::describe(&e, allowed)))
     };
-    match rayon::join(|| read("left"), || read("right")) {
+    match rayon::join(|| read("left", colour[0]), || read("right", colour[1])) {
         (Ok(l), Ok(r)) => Ok((l, r)),
         (l, r) => Err(ApiError::Invalid(
             [l.err(), r.err()].into_iter().flatten().collect(),

@@ -278,6 +278,65 @@ impl utoipa::IntoResponses for BodyErrors {
     }
 }
 
+/// An answer's body in the document: a component schema, by its type.
+pub fn named<T: utoipa::ToSchema>() -> RefOr<Schema> {
+    utoipa::openapi::Ref::from_schema_name(T::name()).into()
+}
+
+/// An answer's body in the document: text.
+pub fn text() -> RefOr<Schema> {
+    ObjectBuilder::new().schema_type(Type::String).into()
+}
+
+/// The responses of an image operation: its 200, `description` with the `Server-Timing` of its
+/// stages and a body for each media type in `bodies`, then [`ImageErrors`]. Declared for each
+/// route by [`image_answers!`].
+pub fn image_responses(
+    description: &str,
+    bodies: Vec<(&str, RefOr<Schema>)>,
+) -> BTreeMap<String, RefOr<OpenApiResponse>> {
+    let timing = HeaderBuilder::new()
+        .schema(ObjectBuilder::new().schema_type(Type::String))
+        .description(Some("Stage times in milliseconds."))
+        .build();
+    let ok = bodies.into_iter().fold(
+        ResponseBuilder::new()
+            .description(description)
+            .header("Server-Timing", timing),
+        |ok, (media, schema)| ok.content(media, ContentBuilder::new().schema(Some(schema)).build()),
+    );
+    let mut responses = <ImageErrors as utoipa::IntoResponses>::responses();
+    responses.insert("200".to_owned(), ok.build().into());
+    responses
+}
+
+/// Declares an image route's responses for `#[utoipa::path(responses(…))]`:
+/// `image_answers! { pub struct Answers: "what the 200 is" { "media/type" => body, … } }`,
+/// each body [`named`] or [`text`] (see [`image_responses`]).
+macro_rules! image_answers {
+    (
+        $(#[$meta:meta])*
+        pub struct $name:ident: $description:literal { $($media:literal => $body:expr),+ $(,)? }
+    ) => {
+        $(#[$meta])*
+        pub struct $name;
+
+        impl ::utoipa::IntoResponses for $name {
+            fn responses() -> ::std::collections::BTreeMap<
+                String,
+                ::utoipa::openapi::RefOr<::utoipa::openapi::response::Response>,
+            > {
+                $crate::api::wire::openapi::image_responses(
+                    $description,
+                    vec![$(($media, $body)),+],
+                )
+            }
+        }
+    };
+}
+
+pub(crate) use image_answers;
+
 /// Error responses of an image operation (multipart form, query options, memory budget).
 pub struct ImageErrors;
 
@@ -311,14 +370,14 @@ const BAD_FORM: ErrorDoc = ErrorDoc {
 const IMAGES_TOO_LARGE: ErrorDoc = ErrorDoc {
     status: StatusCode::PAYLOAD_TOO_LARGE,
     description: "The body is larger than the heavy group's limit (32 MiB by default), an image \
-                  is beyond 8192 px a side or 12 megapixels, or the request would need more \
+                  is beyond 8192 px a side or `--max-image-pixels` (34 megapixels by default), or the request would need more \
                   memory than the heavy group's whole budget; `errors` names what to shrink.",
     examples: || {
         vec![(
             "Images too large",
             ApiError::Oversized(vec![FieldError::new(
                 "left",
-                "is 20000 × 20000 pixels; this server takes at most 8192 pixels a side and 12 \
+                "is 20000 × 20000 pixels; this server takes at most 8192 pixels a side and 34 \
                  megapixels: send smaller images (scale the rig with them)",
             )]),
         )]

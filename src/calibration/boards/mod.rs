@@ -25,3 +25,8 @@ pub use board::{Board, BoardFault, BoardMember};
 mod tests;
 
 pub use fit::{CameraFit, Corners, Extrinsics, Fit, FitFault, ViewFit, ViewOutcome, calibrate};
+
+/// The most views (pairs, or one camera's images) one calibration takes: 60 holds every board
+/// pose a careful calibration needs several times over, while bounding the solver's work (its
+/// normal equations grow with six unknowns a view).
+pub const MAX_VIEWS: usize = 60;

@@ -5,6 +5,7 @@
 
 use super::fit::{Corners, Fit, ViewFit, ViewOutcome};
 use crate::camera::Size;
+use crate::numbers::round_to;
 
 /// Below this many views used, a calibration is not to be trusted.
 pub const MIN_GOOD_VIEWS: usize = 10;
@@ -79,8 +80,8 @@ impl Coverage {
             }
         }
         Coverage {
-            x: [round(x[0], 3), round(x[1], 3)],
-            y: [round(y[0], 3), round(y[1], 3)],
+            x: [round_to(x[0], 3), round_to(x[1], 3)],
+            y: [round_to(y[0], 3), round_to(y[1], 3)],
             cells: cells.iter().filter(|&&c| c).count() as f64 / 16.0,
         }
     }
@@ -96,7 +97,7 @@ impl Coverage {
 pub fn tilt_deg(view: &ViewFit) -> Option<f64> {
     view.pose.map(|p| {
         let z = p.rotation * nalgebra::Vector3::z();
-        round(z.z.abs().clamp(0.0, 1.0).acos().to_degrees(), 2)
+        round_to(z.z.abs().clamp(0.0, 1.0).acos().to_degrees(), 2)
     })
 }
 
@@ -192,11 +193,6 @@ pub fn warnings(
         Rectified::Alone | Rectified::Horizontal => {}
     }
     warnings
-}
-
-fn round(v: f64, digits: i32) -> f64 {
-    let s = 10f64.powi(digits);
-    (v * s).round() / s
 }
 
 #[cfg(test)]

@@ -6,7 +6,7 @@
 //! [`write`] writes one camera's `camera_calibration` YAML (`/calibrate`'s `ros-left.yaml`
 //! and `ros-right.yaml`), which [`parse`] reads back to the same numbers.
 
-use crate::camera::{Alpha, Camera as RawCameraModel};
+use crate::camera::{Alpha, Camera};
 use nalgebra::{Matrix3, Matrix3x4};
 
 use super::yaml::{self, Node};
@@ -16,7 +16,7 @@ use crate::numbers::Num;
 use crate::physics::LengthUnit;
 
 /// What one camera's file gives.
-struct Camera {
+struct CameraFile {
     /// The 3×4 projection, row-major.
     p: Vec<f64>,
     p_line: usize,
@@ -82,7 +82,7 @@ fn raw_camera(doc: &Node) -> Result<Option<RawCamera>, ParseError> {
     Ok(Some(RawCamera { k, d, r, model }))
 }
 
-fn camera(text: &str) -> Result<Camera, ParseError> {
+fn camera(text: &str) -> Result<CameraFile, ParseError> {
     let doc = yaml::parse(text)?;
     if !matches!(doc, Node::Map(..)) {
         return Err(ParseError::whole(
@@ -132,7 +132,7 @@ fn camera(text: &str) -> Result<Camera, ParseError> {
     };
     let width = extent(["image_width", "width"])?;
     let height = extent(["image_height", "height"])?;
-    Ok(Camera {
+    Ok(CameraFile {
         p,
         p_line: data.line(),
         size: width.zip(height),
@@ -143,8 +143,8 @@ fn camera(text: &str) -> Result<Camera, ParseError> {
 /// The raw pair of two CameraInfos that both give K, D and R: the rectification is theirs
 /// (R and P), or recomputed with `alpha` from the pose they imply.
 fn raw_pair(
-    left: &Camera,
-    right: &Camera,
+    left: &CameraFile,
+    right: &CameraFile,
     alpha: Option<Alpha>,
     image_size: Option<(u32, u32)>,
 ) -> Result<Option<raw::Raw>, Vec<ParseError>> {
@@ -298,7 +298,7 @@ pub struct CameraInfo<'a> {
     pub name: &'a str,
     /// The raw images' size.
     pub size: Size,
-    pub camera: &'a RawCameraModel,
+    pub camera: &'a Camera,
     /// The rectifying rotation (R1 or R2).
     pub rotation: Matrix3<f64>,
     /// The rectified projection (P1 or P2), its translation in `unit`.
@@ -308,7 +308,7 @@ pub struct CameraInfo<'a> {
 
 impl<'a> CameraInfo<'a> {
     /// A camera calibrated alone: nothing to rectify, so R = I and P = [K | 0].
-    pub fn alone(name: &'a str, size: Size, camera: &'a RawCameraModel, unit: LengthUnit) -> Self {
+    pub fn alone(name: &'a str, size: Size, camera: &'a Camera, unit: LengthUnit) -> Self {
         let mut projection = Matrix3x4::zeros();
         projection
             .fixed_view_mut::<3, 3>(0, 0)

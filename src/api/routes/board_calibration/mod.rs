@@ -15,26 +15,22 @@ use axum::response::{IntoResponse, Response};
 use rayon::prelude::*;
 use utoipa_axum::{router::OpenApiRouter, routes};
 
-use self::types::{BoardSpec, CalibrateForm, CalibrateOutput, CalibrateQuery, CalibrationSummary};
+use self::types::{BoardSpec, CalibrateAnswers, CalibrateForm, CalibrateOutput, CalibrateQuery};
 use crate::api::HeavyState;
 use crate::api::error::{ApiError, FieldError, FieldErrors};
 use crate::api::extract::{self, QueryParams};
 use crate::api::images::form::{Form, FormSpec};
-use crate::api::images::limits::{self, LIMITS};
+use crate::api::images::limits;
 use crate::api::images::output::{self, Disposition, set_server_timing};
 use crate::api::images::work;
 use crate::api::respond::Json;
-use crate::api::wire::openapi::ImageErrors;
 use crate::calibration::boards::corners::{Luma, find_board};
 use crate::calibration::boards::report::Detections;
-use crate::calibration::boards::{self, Board, FitFault};
+use crate::calibration::boards::{self, Board, FitFault, MAX_VIEWS};
 use crate::calibration::files::{opencv, ros};
 use crate::camera::{Alpha, Model, RectifyOptions, Size};
 use crate::physics::LengthUnit;
-use crate::vision::decode;
-
-/// The most views one request may carry.
-pub const MAX_VIEWS: usize = 60;
+use crate::vision::decode::{self, DecodeLimits};
 
 /// `POST /calibrate`.
 pub fn router() -> OpenApiRouter<HeavyState> {
@@ -48,6 +44,8 @@ pub struct Upload {
     board: Option<Bytes>,
     problems: FieldErrors,
     admitted: work::Admitted,
+    /// What the decoder takes (`--max-image-pixels`).
+    limits: DecodeLimits,
 }
 
 impl FromRequest<HeavyState> for Upload {
@@ -68,6 +66,7 @@ impl FromRequest<HeavyState> for Upload {
             board: None,
             problems: form.problems,
             admitted: form.admitted,
+            limits: state.image_limits,
         };
         for (name, bytes) in form.parts {
             match name.as_str() {
@@ -99,23 +98,11 @@ impl FromRequest<HeavyState> for Upload {
                    Outputs (`output`): `summary` (JSON), `opencv.yml` (FileStorage with M1 D1 \
                    M2 D2 R T E F R1 R2 P1 P2 Q), `ros-left.yaml` and `ros-right.yaml` (ROS \
                    `camera_calibration`). `/calibration` reads all three.\n\n\
-                   Limits: at most 60 views; images up to 8192 px a side and 12 megapixels, \
+                   Limits: at most 60 views; images up to 8192 px a side and the server's `--max-image-pixels` (34 megapixels by default), \
                    one size; fewer than 3 usable views is a 422 naming each view and why.",
     params(CalibrateQuery),
-    request_body(
-        content = CalibrateForm,
-        content_type = "multipart/form-data",
-        description = "The views and the board."
-    ),
-    responses(
-        (status = 200, description = "The calibration in the `output` asked for.",
-         headers(("Server-Timing" = String, description = "Stage times in milliseconds.")),
-         content(
-            (CalibrationSummary = "application/json"),
-            (String = "application/x-yaml")
-         )),
-        ImageErrors
-    )
+    request_body(content = CalibrateForm, content_type = "multipart/form-data", description = "The views and the board."),
+    responses(CalibrateAnswers)
 )]
 pub async fn post_calibrate(
     QueryParams(query, query_problems): QueryParams<CalibrateQuery>,
@@ -127,6 +114,7 @@ pub async fn post_calibrate(
         board,
         problems: form_problems,
         admitted,
+        limits: allowed,
     } = upload;
     let mut problems = query_problems;
     problems.extend(form_problems);
@@ -174,7 +162,7 @@ pub async fn post_calibrate(
             ),
         )]));
     }
-    let size = image_sizes(&left, &right, &mut problems)?;
+    let size = image_sizes(&left, &right, allowed, &mut problems)?;
     let (Some(board), Some((width, height))) = (board, size) else {
         return Err(problems.into_error());
     };
@@ -205,6 +193,7 @@ pub async fn post_calibrate(
         output,
         corners: query.corners.unwrap_or(false),
         size: Size { width, height },
+        allowed,
     };
     work::run_reserved(admitted, bytes, too_large, move |cancel, _| {
         compute(&left, &right, &settings, cancel)
@@ -220,6 +209,7 @@ struct Settings {
     output: CalibrateOutput,
     corners: bool,
     size: Size,
+    allowed: DecodeLimits,
 }
 
 /// A `board` part as the messages show it.
@@ -277,6 +267,7 @@ fn read_board(bytes: Option<&Bytes>, problems: &mut FieldErrors) -> Option<Board
 fn image_sizes(
     left: &[Bytes],
     right: &[Bytes],
+    allowed: DecodeLimits,
     problems: &mut FieldErrors,
 ) -> Result<Option<(u32, u32)>, ApiError> {
     let mut first: Option<(u32, u32)> = None;
@@ -286,7 +277,7 @@ fn image_sizes(
             let name = format!("{side}[{i}]");
             match decode::dimensions(bytes) {
                 Ok((w, h)) => {
-                    if let Some(message) = limits::over_the_limits((w, h)) {
+                    if let Some(message) = limits::over_the_limits((w, h), allowed) {
                         oversized.push(FieldError::new(name, message));
                         continue;
                     }
@@ -302,7 +293,7 @@ fn image_sizes(
                         Some(_) => {}
                     }
                 }
-                Err(e) => problems.add_new(name, limits::describe(&e)),
+                Err(e) => problems.add_new(name, limits::describe(&e, allowed)),
             }
         }
     }
@@ -315,9 +306,9 @@ fn image_sizes(
 /// One image's board: decoded, found and refined; the outer error is the image's decoding.
 type Found = Result<Result<Vec<[f64; 2]>, String>, FieldError>;
 
-fn find(name: String, bytes: &Bytes, board: &Board) -> Found {
-    let decoded = decode::decode(bytes, LIMITS, false)
-        .map_err(|e| FieldError::new(name, limits::describe(&e)))?;
+fn find(name: String, bytes: &Bytes, board: &Board, allowed: DecodeLimits) -> Found {
+    let decoded = decode::decode(bytes, allowed, false)
+        .map_err(|e| FieldError::new(name, limits::describe(&e, allowed)))?;
     let grey = decoded.grey;
     let luma = Luma::from_u16(grey.width, grey.height, &grey.data);
     Ok(find_board(&luma, board).map_err(|m| m.to_string()))
@@ -340,8 +331,14 @@ fn compute(
     let found: Vec<Option<Found>> = jobs
         .par_iter()
         .map(|&(side, i, bytes)| {
-            (!cancel.load(std::sync::atomic::Ordering::Relaxed))
-                .then(|| find(format!("{side}[{i}]"), bytes, &settings.board))
+            (!cancel.load(std::sync::atomic::Ordering::Relaxed)).then(|| {
+                find(
+                    format!("{side}[{i}]"),
+                    bytes,
+                    &settings.board,
+                    settings.allowed,
+                )
+            })
         })
         .collect();
     if found.iter().any(Option::is_none) {

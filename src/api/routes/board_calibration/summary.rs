@@ -13,11 +13,7 @@ use crate::api::wire::rig::CalibratedRig;
 use crate::calibration::boards::report::{self, Rectified};
 use crate::calibration::boards::{CameraFit, Corners, Fit, ViewOutcome};
 use crate::camera::Model;
-
-fn round(v: f64, digits: i32) -> f64 {
-    let s = 10f64.powi(digits);
-    (v * s).round() / s
-}
+use crate::numbers::round_to;
 
 fn matrix3(m: &nalgebra::Matrix3<f64>) -> [[f64; 3]; 3] {
     std::array::from_fn(|r| std::array::from_fn(|c| m[(r, c)]))
@@ -64,7 +60,11 @@ pub fn summarize(
             }
             let [residuals_left, residuals_right] = if settings.corners {
                 fit.residuals(&settings.board, i, &views[i]).map(|r| {
-                    r.map(|r| r.iter().map(|d| [round(d[0], 4), round(d[1], 4)]).collect())
+                    r.map(|r| {
+                        r.iter()
+                            .map(|d| [round_to(d[0], 4), round_to(d[1], 4)])
+                            .collect()
+                    })
                 })
             } else {
                 [None, None]
@@ -77,8 +77,8 @@ pub fn summarize(
                 },
                 failed,
                 reasons: why,
-                rms_left: v.rms_left.map(|r| round(r, 4)),
-                rms_right: v.rms_right.map(|r| round(r, 4)),
+                rms_left: v.rms_left.map(|r| round_to(r, 4)),
+                rms_right: v.rms_right.map(|r| round_to(r, 4)),
                 tilt_deg: report::tilt_deg(v),
                 corners_left: settings.corners.then(|| views[i].left.clone()).flatten(),
                 corners_right: settings.corners.then(|| views[i].right.clone()).flatten(),

@@ -6,6 +6,7 @@ use utoipa::ToSchema;
 
 use crate::api::extract::QueryForm;
 use crate::api::wire::de::{choice_members, request};
+use crate::api::wire::openapi::{image_answers, named, text};
 use crate::api::wire::params::Unit;
 use crate::api::wire::rig::CalibratedRig;
 use crate::camera::Model;
@@ -315,4 +316,12 @@ pub struct CalibrationSummary {
     /// Things that make the calibration less trustworthy, and what to do.
     pub warnings: Vec<String>,
     pub timings_ms: CalibrateTimes,
+}
+
+image_answers! {
+    /// `/calibrate`'s responses: the calibration in the `output` asked for, or the errors.
+    pub struct CalibrateAnswers: "The calibration in the `output` asked for." {
+        "application/json" => named::<CalibrationSummary>(),
+        "application/x-yaml" => text(),
+    }
 }

@@ -13,8 +13,8 @@ use axum::response::{IntoResponse, Response};
 use utoipa_axum::{router::OpenApiRouter, routes};
 
 use self::types::{
-    DepthMapForm, DepthMapOutput, DepthMapQuery, DepthMapSummary, MatcherParameters, Spread,
-    StageTimes,
+    DepthMapAnswers, DepthMapForm, DepthMapOutput, DepthMapQuery, DepthMapSummary,
+    MatcherParameters, Spread, StageTimes,
 };
 use axum::extract::State;
 
@@ -22,12 +22,11 @@ use crate::api::HeavyState;
 use crate::api::error::ApiError;
 use crate::api::extract::QueryParams;
 use crate::api::images::maps::MapCache;
-use crate::api::images::output::{self, Disposition, FileBody, set_server_timing};
+use crate::api::images::output::{self, Disposition, set_server_timing};
 use crate::api::images::raw;
 use crate::api::images::work;
 use crate::api::images::{GivenRig, ImageForm, ImagePair, Job, limits, rig};
 use crate::api::respond::Json;
-use crate::api::wire::openapi::ImageErrors;
 use crate::calibration::files::Raw;
 use crate::physics::LengthUnit;
 use crate::vision::rows::RowOffsets;
@@ -46,7 +45,7 @@ impl ImageForm for DepthMapForm {
     post,
     path = "/depth-map",
     tag = "images",
-    summary = "Dense disparity and depth maps from a rectified pair",
+    summary = "Dense disparity and depth maps from a stereo pair, rectified or raw with its calibration",
     description = "Matches a rectified stereo pair with semi-global matching on census costs \
                    (9 × 7 census, 8 paths, a P2 that shrinks across intensity edges, sub-pixel \
                    fit, left-right check, uniqueness, speckle and median filters) and answers \
@@ -74,29 +73,13 @@ impl ImageForm for DepthMapForm {
                    x y z in the rig's unit in the left camera's frame, coloured). Every answer \
                    carries `Server-Timing` with the stages decode, cost, aggregate, refine, \
                    encode and, for raw pairs, rectify.\n\n\
-                   Limits: images up to 8192 px a side and 12 megapixels, at most 512 \
+                   Limits: images up to 8192 px a side and the server's `--max-image-pixels` (34 megapixels by default), at most 512 \
                    disparities, and the memory the request needs within the heavy group's \
                    budget (413 naming what to shrink when it can never fit, 503 with \
                    `Retry-After` while other image requests hold it).",
     params(DepthMapQuery),
-    request_body(
-        content = DepthMapForm,
-        content_type = "multipart/form-data",
-        description = "The rectified pair and, for depths, the rig or a calibration file."
-    ),
-    responses(
-        (status = 200, description = "The depth map in the `output` asked for.",
-         headers(("Server-Timing" = String, description = "Stage times in milliseconds.")),
-         content(
-            (DepthMapSummary = "application/json"),
-            (FileBody = "image/png"),
-            (FileBody = "image/x-portable-floatmap"),
-            (FileBody = "application/x-npy"),
-            (FileBody = "application/x-ply"),
-            (FileBody = "application/zip")
-         )),
-        ImageErrors
-    )
+    request_body(content = DepthMapForm, content_type = "multipart/form-data", description = "The pair (rectified, or raw with its calibration) and, for depths, the rig or a calibration file."),
+    responses(DepthMapAnswers)
 )]
 pub async fn post_depth_map(
     State(state): State<HeavyState>,
@@ -168,13 +151,14 @@ fn compute(
 ) -> Result<Response, ApiError> {
     let Job {
         parts,
+        limits: allowed,
         rig: given,
         cancel,
         waited: [read, queue],
     } = job;
     let started = Instant::now();
     let colour = output == DepthMapOutput::PointsPly;
-    let (mut left, mut right) = work::decode_pair(parts, colour)?;
+    let (mut left, mut right) = work::decode_pair(parts, allowed, [colour, false])?;
     let decode_time = started.elapsed();
     let rectify_time = raw.map(|raw| raw::rectify_raw_pair(&mut left, &mut right, raw, colour));
     let (map, timings) = vision::disparity(&left.grey, &right.grey, params, cancel)

@@ -5,9 +5,11 @@ use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
 use crate::api::extract::QueryForm;
+use crate::api::images::output::FileBody;
 use crate::api::wire::de::{choice_members, request};
 use crate::api::wire::images::image_form;
 pub use crate::api::wire::images::{RectifyMode, StageTimes};
+use crate::api::wire::openapi::{image_answers, named};
 use crate::api::wire::rig::CalibratedRig;
 use crate::vision::{Settings, Subpixel};
 
@@ -166,7 +168,7 @@ request! {
         /// Fill invalid pixels from their row's background (the smaller of the nearest valid
         /// disparities left and right) instead of leaving them invalid. Default false.
         fill: bool,
-        /// SGM penalty for a disparity step of one pixel, in census bits. Default 12.
+        /// SGM penalty for a disparity step of one pixel, in census bits. Default 16.
         #[schema(minimum = 1, maximum = 255)]
         p1: u32,
         /// SGM penalty for a larger jump, in census bits, where the intensity is flat.
@@ -178,7 +180,7 @@ request! {
         #[schema(minimum = 0, maximum = 255)]
         p2_edge: u32,
         /// How much lower (in percent) the best cost must be than any other more than one
-        /// pixel away; otherwise the pixel is invalid. Default 5.
+        /// pixel away; otherwise the pixel is invalid. Default 15.
         #[schema(minimum = 0, maximum = 100)]
         uniqueness: u32,
         /// The left-right check: whether to run it. Default true.
@@ -315,4 +317,16 @@ pub struct DepthMapSummary {
     pub rectified: bool,
     /// Things to know about the answer (such as a calibration option that did not apply).
     pub warnings: Vec<String>,
+}
+
+image_answers! {
+    /// `/depth-map`'s responses: the map in the `output` asked for, or the errors.
+    pub struct DepthMapAnswers: "The depth map in the `output` asked for." {
+        "application/json" => named::<DepthMapSummary>(),
+        "image/png" => named::<FileBody>(),
+        "image/x-portable-floatmap" => named::<FileBody>(),
+        "application/x-npy" => named::<FileBody>(),
+        "application/x-ply" => named::<FileBody>(),
+        "application/zip" => named::<FileBody>(),
+    }
 }

@@ -19,6 +19,7 @@ use self::types::{
     PointMatch, RegionMatch, RegionStatus,
 };
 use crate::api::wire::images::StageTimes;
+use crate::numbers::round_to;
 use axum::extract::State;
 
 use crate::api::HeavyState;
@@ -333,7 +334,7 @@ fn compute(
     };
     let cancel = job.cancel;
     let started = Instant::now();
-    let (mut left, mut right) = work::decode_pair(job.parts, false)?;
+    let (mut left, mut right) = work::decode_pair(job.parts, job.limits, [false, false])?;
     let decode_time = started.elapsed();
     let rectify_time = raw.map(|raw| raw::rectify_raw_pair(&mut left, &mut right, raw, false));
     let (w, h) = (left.grey.width, left.grey.height);
@@ -399,14 +400,14 @@ fn compute(
             answer.x = x;
             answer.y = y;
             if xr.is_finite() {
-                answer.x_rectified = Some(round(xr, 3));
-                answer.y_rectified = Some(round(yr, 3));
+                answer.x_rectified = Some(round_to(xr, 3));
+                answer.y_rectified = Some(round_to(yr, 3));
             }
             if let Some(xm) = answer.x_right
                 && let Some([u, v]) = to_raw_right(raw, xm, yr)
             {
-                answer.x_right_raw = Some(round(u, 3));
-                answer.y_right_raw = Some(round(v, 3));
+                answer.x_right_raw = Some(round_to(u, 3));
+                answer.y_right_raw = Some(round_to(v, 3));
             }
             answer
         })
@@ -461,12 +462,6 @@ fn compute(
     Ok(response)
 }
 
-/// Rounds to `places` decimals.
-fn round(v: f64, places: i32) -> f64 {
-    let scale = 10f64.powi(places);
-    (v * scale).round() / scale
-}
-
 /// A point's answer: its status and confidence, and with a disparity (to 1/1000 px, the value
 /// the distance is computed from) its match and its `/distance` answer.
 fn point_match(rig: &Rig, x: f64, y: f64, found: &Found) -> PointMatch {
@@ -474,7 +469,7 @@ fn point_match(rig: &Rig, x: f64, y: f64, found: &Found) -> PointMatch {
         x,
         y,
         status: found.status.into(),
-        confidence: round(f64::from(found.confidence), 3),
+        confidence: round_to(f64::from(found.confidence), 3),
         x_right: None,
         x_rectified: None,
         y_rectified: None,
@@ -486,8 +481,8 @@ fn point_match(rig: &Rig, x: f64, y: f64, found: &Found) -> PointMatch {
         error: None,
     };
     if let Some(d) = found.disparity {
-        let d = round(f64::from(d), 3);
-        answer.x_right = Some(round(x - d, 3));
+        let d = round_to(f64::from(d), 3);
+        answer.x_right = Some(round_to(x - d, 3));
         answer.measured.disparity_px = Some(d);
         let c = Correspondence::at(x, y, d);
         match physics::measure(rig, c) {
@@ -529,14 +524,14 @@ fn region_match(rig: &Rig, map: &vision::Disparity, b: [f64; 4], r: Option<Rect>
         .filter(|d| d + rig.doffs() > 0.0)
         .collect();
     values.sort_by(f64::total_cmp);
-    answer.valid_fraction = round(values.len() as f64 / pixels.max(1) as f64, 4);
+    answer.valid_fraction = round_to(values.len() as f64 / pixels.max(1) as f64, 4);
     answer.status = RegionStatus::NoValidPixels;
     if values.is_empty() {
         return answer;
     }
     // Nearest rank on the disparities, largest first: depth falls as disparity grows.
     let at = |q: f64| values[((1.0 - q) * (values.len() - 1) as f64).round() as usize];
-    let median = round(at(0.5), 3);
+    let median = round_to(at(0.5), 3);
     let centre = (
         (r.x0 + r.x1 - 1) as f64 / 2.0,
         (r.y0 + r.y1 - 1) as f64 / 2.0,

@@ -7,27 +7,26 @@ pub mod types;
 
 use std::time::Instant;
 
-use axum::body::Bytes;
 use axum::response::{IntoResponse, Response};
 use utoipa_axum::{router::OpenApiRouter, routes};
 
 use self::types::{
-    RectifyForm, RectifyOutput, RectifyQuery, RectifySummary, RectifyTimes, ValidShare,
+    RectifyAnswers, RectifyForm, RectifyOutput, RectifyQuery, RectifySummary, RectifyTimes,
+    ValidShare,
 };
 use crate::api::HeavyState;
-use crate::api::error::{ApiError, FieldError};
+use crate::api::error::ApiError;
 use crate::api::extract::QueryParams;
 use crate::api::images::maps::{MapCache, Maps, float_maps};
-use crate::api::images::output::{self, Disposition, FileBody, set_server_timing};
+use crate::api::images::output::{self, Disposition, set_server_timing};
 use crate::api::images::raw;
-use crate::api::images::work::Need;
-use crate::api::images::{GivenRig, ImageForm, ImagePair, limits};
+use crate::api::images::work::{self, Need};
+use crate::api::images::{GivenRig, ImageForm, ImagePair, Job};
 use crate::api::respond::Json;
 use crate::api::wire::calibration::RawCameras;
-use crate::api::wire::openapi::ImageErrors;
 use crate::api::wire::rig::CalibratedRig;
 use crate::calibration::files::Raw;
-use crate::vision::decode::{self, Decoded};
+use crate::vision::decode::Decoded;
 use crate::vision::encode;
 use crate::vision::remap::{self, Fixed, Interpolation, RawImage};
 
@@ -64,21 +63,8 @@ impl ImageForm for RectifyForm {
                    `right_map_x`, `right_map_y`, float32, for `cv2.remap`). The maps of the \
                    last rigs seen are cached, so a stream of frames pays for them once.",
     params(RectifyQuery),
-    request_body(
-        content = RectifyForm,
-        content_type = "multipart/form-data",
-        description = "The raw pair and the calibration of its cameras."
-    ),
-    responses(
-        (status = 200, description = "The rectified pair in the `output` asked for.",
-         headers(("Server-Timing" = String, description = "Stage times in milliseconds.")),
-         content(
-            (RectifySummary = "application/json"),
-            (FileBody = "image/png"),
-            (FileBody = "application/zip")
-         )),
-        ImageErrors
-    )
+    request_body(content = RectifyForm, content_type = "multipart/form-data", description = "The raw pair and the calibration of its cameras."),
+    responses(RectifyAnswers)
 )]
 pub async fn post_rectify(
     axum::extract::State(state): axum::extract::State<HeavyState>,
@@ -110,7 +96,7 @@ pub async fn post_rectify(
     };
     let cache = state.maps.clone();
     pair.run(need, move |job| {
-        compute(job.parts, &cache, &given, &raw, output, how, job.waited)
+        compute(job, &cache, &given, &raw, output, how)
     })
     .await?
 }
@@ -190,29 +176,16 @@ fn side_by_side(
     (w * 2, h, out)
 }
 
-fn decode_both(parts: &crate::api::images::Parts) -> Result<(Decoded, Decoded), ApiError> {
-    let read = |name: &str| {
-        let bytes = parts.get(name).map_or(&[][..], Bytes::as_ref);
-        decode::decode(bytes, limits::LIMITS, true)
-            .map_err(|e| FieldError::new(name, limits::describe(&e)))
-    };
-    match rayon::join(|| read("left"), || read("right")) {
-        (Ok(l), Ok(r)) => Ok((l, r)),
-        (l, r) => Err(ApiError::Invalid(
-            [l.err(), r.err()].into_iter().flatten().collect(),
-        )),
-    }
-}
-
 fn compute(
-    parts: &crate::api::images::Parts,
+    job: Job,
     cache: &MapCache,
     given: &GivenRig,
     raw: &Raw,
     output: RectifyOutput,
     how: Interpolation,
-    [read, queue]: [std::time::Duration; 2],
 ) -> Result<Response, ApiError> {
+    let [read, queue] = job.waited;
+    let decode_both = || work::decode_pair(job.parts, job.limits, [true, true]);
     let started = Instant::now();
     let ms = |d: std::time::Duration| (d.as_secs_f64() * 1e4).round() / 10.0;
     if output == RectifyOutput::MapsNpz {
@@ -250,7 +223,7 @@ fn compute(
     let body = match output {
         RectifyOutput::Summary => {
             let t = Instant::now();
-            let (left, right) = decode_both(parts)?;
+            let (left, right) = decode_both()?;
             let decode_time = t.elapsed();
             let t = Instant::now();
             let grey = |d: &Decoded, map| remap::remap_fixed(RawImage::grey(&d.grey), map, how);
@@ -285,7 +258,7 @@ fn compute(
         }
         _ => {
             let t = Instant::now();
-            let (left, right) = decode_both(parts)?;
+            let (left, right) = decode_both()?;
             timing.push(("decode", t.elapsed()));
             let t = Instant::now();
             let bytes = match output {

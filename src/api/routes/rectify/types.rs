@@ -5,10 +5,12 @@ use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
 use crate::api::extract::QueryForm;
+use crate::api::images::output::FileBody;
 use crate::api::wire::calibration::RawCameras;
 use crate::api::wire::de::{choice_members, request};
 pub use crate::api::wire::images::RectifyMode;
 use crate::api::wire::images::image_form;
+use crate::api::wire::openapi::{image_answers, named};
 use crate::api::wire::rig::CalibratedRig;
 use crate::vision::remap::Interpolation;
 
@@ -139,4 +141,13 @@ pub struct RectifySummary {
     pub maps_cached: bool,
     pub timings_ms: RectifyTimes,
     pub warnings: Vec<String>,
+}
+
+image_answers! {
+    /// `/rectify`'s responses: the rectified pair in the `output` asked for, or the errors.
+    pub struct RectifyAnswers: "The rectified pair in the `output` asked for." {
+        "application/json" => named::<RectifySummary>(),
+        "image/png" => named::<FileBody>(),
+        "application/zip" => named::<FileBody>(),
+    }
 }
