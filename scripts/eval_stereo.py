@@ -55,7 +55,7 @@ FLOORS = {
 FLOORS["noise"] = {"bad1": 13.70, "bad2": 9.15}
 # The unseen scenes allowed some slack over OpenCV's best: worse than it is printed as NOT MET,
 # and fails beyond this multiple of it. At a tenth of the contrast the texture is far weaker
-# than the noise (README, Performance): 69.6 / 61.2 % before the census compared with
+# than the noise (docs/matcher.md): 69.6 / 61.2 % before the census compared with
 # Lee-filtered centres, 9.37 / 4.44 % since, 7.65 / 2.81 % since such a pair is matched coarse
 # to fine, against OpenCV's 7.68 / 2.84 %: met by under 1 %, which a few pixels' change in the
 # scene's rendering (numpy's sine, whose last bits differ between its CPU builds) could undo.

@@ -11,7 +11,7 @@
 //!
 //! Why by hand: in axum, every `Router::layer` call boxes and clones each route's service on
 //! every request, and each `from_fn` middleware adds a boxed future of its own. With ten such
-//! layers the stack cost more than the handler; see the README's Performance section.
+//! layers the stack cost more than the handler; see docs/performance.md.
 
 use std::{
     any::Any,

@@ -92,7 +92,7 @@ pub struct Params {
 }
 
 impl Default for Params {
-    /// The tuned defaults (the README's Performance section gives the measurements that chose
+    /// The tuned defaults (docs/matcher.md gives the measurements that chose
     /// them), searching `0 .. DEFAULT_MAX_DISPARITY`.
     fn default() -> Self {
         Self {
