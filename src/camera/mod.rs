@@ -29,9 +29,9 @@ pub use rectify::stereo_rectify;
 /// of whatever takes a pair use (the calibration files' writers too):
 /// K1 = [[812.5,0,331.2],[0,809,238.9],[0,0,1]], D1 = [-0.21,0.11,0.001,-0.0006,-0.03],
 /// K2 = [[806,0,318.4],[0,804.5,243.7],[0,0,1]], D2 = [-0.19,0.08,-0.0008,0.0011,0.01],
-/// R = Rodrigues([0.012,-0.021,0.006]), T = [-120,1.8,-2.4], size (640, 480).
-#[cfg(test)]
-pub(crate) fn opencv_pair() -> StereoPair {
+/// R = Rodrigues([0.012,-0.021,0.006]), T = [-120,1.8,-2.4], size (640, 480). Public for the
+/// integration tests, which check the service against the same reference.
+pub fn opencv_pair() -> StereoPair {
     use nalgebra::{Rotation3, Vector3};
     let camera = |fx, fy, cx, cy, d: &[f64]| {
         Camera::new(

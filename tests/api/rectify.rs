@@ -302,31 +302,7 @@ async fn outputs_cache_pair_and_maps() {
 #[tokio::test]
 async fn a_stereo_calibrate_file_is_rectified_as_opencv_does() {
     let app = spawn_app().await;
-    let camera = |fx, fy, cx, cy, d: &[f64]| {
-        Camera::new(
-            Intrinsics { fx, fy, cx, cy },
-            Distortion::new(Model::PlumbBob, d).unwrap(),
-        )
-        .unwrap()
-    };
-    let pair = StereoPair {
-        left: camera(
-            812.5,
-            809.0,
-            331.2,
-            238.9,
-            &[-0.21, 0.11, 0.001, -0.0006, -0.03],
-        ),
-        right: camera(
-            806.0,
-            804.5,
-            318.4,
-            243.7,
-            &[-0.19, 0.08, -0.0008, 0.0011, 0.01],
-        ),
-        rotation: Rotation3::from_scaled_axis(Vector3::new(0.012, -0.021, 0.006)),
-        translation: Vector3::new(-120.0, 1.8, -2.4),
-    };
+    let pair = stereo_distance::camera::opencv_pair();
     let text = stereo_calibrate_yml(&pair).replace(
         &format!("imageSize: [ {W}, {H} ]"),
         "imageSize: [ 640, 480 ]",

@@ -10,11 +10,11 @@ use super::parts::Parts;
 use crate::api::error::FieldErrors;
 use crate::api::extract::decode_object;
 use crate::api::validate;
-use crate::api::wire::calibration::{Cameras, FormatChoice};
+use crate::api::wire::calibration::{Cameras, FormatChoice, add_read_faults};
 use crate::api::wire::de::request;
 use crate::api::wire::params::Unit;
 use crate::api::wire::rig::{CalibratedRig, StereoRig};
-use crate::calibration::files::{self, Input, Raw, ReadOptions, Source};
+use crate::calibration::files::{self, Raw, ReadOptions, Source};
 use crate::physics::{LengthUnit, Rig};
 
 /// The rig of a request, and what its calibration file adds.
@@ -204,15 +204,7 @@ fn calibration_parts(
     let read = match read {
         Ok(read) => read,
         Err(faults) => {
-            for fault in faults {
-                let field = match fault.input() {
-                    Input::Text => "calibration".to_owned(),
-                    Input::RightText => "right_calibration".to_owned(),
-                    Input::CalibrationUnit => "calibration_unit".to_owned(),
-                    Input::Rig(member) => format!("{RIG}{}", member.name()),
-                };
-                problems.add(&field, fault.message());
-            }
+            add_read_faults(faults, ["calibration", "right_calibration"], problems);
             return None;
         }
     };

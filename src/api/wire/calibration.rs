@@ -1,17 +1,38 @@
 //! The calibration options the image routes share with `/calibration`: the format to read
 //! a file as, and KITTI's camera pair, each a closed choice read as a string; and the raw
-//! cameras a file describes, as both answer them.
+//! cameras a file describes, as both answer them; and a file's faults named as each takes it.
 
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
 use nalgebra::Matrix3;
 
+use crate::api::error::FieldErrors;
 use crate::api::wire::de::choice_members;
 use crate::api::wire::params::Unit;
-use crate::calibration::files::{Format, KittiPair, Raw};
+use crate::calibration::files::{Format, Input, KittiPair, Raw, ReadFault};
 use crate::camera::{Camera, Roi};
 use crate::physics::LengthUnit;
+
+/// Names each fault of reading a calibration in `problems`, by where the route takes what it
+/// came from: the file as `text` and the right camera's file as `right_text` (a JSON member or a
+/// form part, as the route names them), the unit as `calibration_unit`, a rig member as
+/// `rig.<member>`.
+pub fn add_read_faults(
+    faults: Vec<ReadFault>,
+    [text, right_text]: [&str; 2],
+    problems: &mut FieldErrors,
+) {
+    for fault in faults {
+        let field = match fault.input() {
+            Input::Text => text.to_owned(),
+            Input::RightText => right_text.to_owned(),
+            Input::CalibrationUnit => "calibration_unit".to_owned(),
+            Input::Rig(member) => format!("rig.{}", member.name()),
+        };
+        problems.add(&field, fault.message());
+    }
+}
 
 /// The calibration formats, or `auto` to detect the format from the file.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize, Serialize, ToSchema)]

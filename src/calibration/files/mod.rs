@@ -361,15 +361,21 @@ pub fn detect(text: &str, has_right: bool) -> Result<Format, Vec<ParseError>> {
     )])
 }
 
-/// The camera tests' pair (OpenCV's reference) and its images' size: what the writers'
-/// round-trip tests write and read back.
+/// The camera tests' pair (OpenCV's reference), its images' size and its rectification at the
+/// default options: what the writers' round-trip tests write and read back.
 #[cfg(test)]
-fn sample_pair() -> (crate::camera::StereoPair, crate::camera::Size) {
+fn sample_pair() -> (
+    crate::camera::StereoPair,
+    crate::camera::Size,
+    crate::camera::Rectification,
+) {
     let size = crate::camera::Size {
         width: 640,
         height: 480,
     };
-    (crate::camera::opencv_pair(), size)
+    let pair = crate::camera::opencv_pair();
+    let rect = crate::camera::stereo_rectify(&pair, size, Default::default()).expect("rectified");
+    (pair, size, rect)
 }
 
 #[cfg(test)]

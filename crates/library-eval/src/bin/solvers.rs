@@ -14,7 +14,7 @@ use std::time::Instant;
 use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt};
 use na34::{DMatrix, DVector, Dyn, Owned, SVector};
 use num_dual::DualSVec64;
-use stereo_distance::calibration::boards::solve::{Lens, Pose, ViewCorners, State, refine};
+use stereo_distance::calibration::boards::solve::{Lens, Pose, State, ViewCorners, refine};
 use stereo_distance::calibration::boards::zhang;
 use stereo_distance::camera::{Distortion, Model, Size};
 use tiny_solver::Optimizer;

@@ -16,8 +16,9 @@ use crate::api::AppState;
 use crate::api::error::{ApiError, FieldErrors};
 use crate::api::extract::{self, BodyLimit, QueryParams};
 use crate::api::respond::Json;
+use crate::api::wire::calibration::add_read_faults;
 use crate::api::wire::openapi::BodyErrors;
-use crate::calibration::files::{self, Input, ReadOptions, Source};
+use crate::calibration::files::{self, ReadOptions, Source};
 use crate::physics::LengthUnit;
 
 /// `POST /calibration`.
@@ -190,15 +191,7 @@ fn read(
                 .map(|raw| RawCameras::new(raw, read.file_unit)),
         }),
         Err(faults) => {
-            for fault in faults {
-                let field = match fault.input() {
-                    Input::Text => "text".to_owned(),
-                    Input::RightText => "right_text".to_owned(),
-                    Input::CalibrationUnit => "calibration_unit".to_owned(),
-                    Input::Rig(member) => format!("rig.{}", member.name()),
-                };
-                problems.add(&field, fault.message());
-            }
+            add_read_faults(faults, ["text", "right_text"], &mut problems);
             Err(problems.into_error())
         }
     }
