@@ -97,7 +97,7 @@ def residuals_against_opencv(truth, s):
     return worst_rms, worst_corner
 
 
-def opencv_once(truth, files):
+def opencv_once(truth, files, found=False):
     model = truth["model"]
     cols, rows = truth["board"]["columns"], truth["board"]["rows"]
     square = truth["board"]["square_size"]
@@ -106,12 +106,13 @@ def opencv_once(truth, files):
     t0 = time.perf_counter()
     imgs = [(cv2.imdecode(np.frombuffer(l, np.uint8), 0), cv2.imdecode(np.frombuffer(r, np.uint8), 0))
             for l, r in files]
-    left, right = [], []
+    left, right, seen = [], [], []
     crit = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 30, 0.01)
     flags = cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE
     for a, b in imgs:
         ok1, c1 = cv2.findChessboardCorners(a, (cols, rows), flags=flags)
         ok2, c2 = cv2.findChessboardCorners(b, (cols, rows), flags=flags)
+        seen.append((ok1, ok2))
         if ok1 and ok2:
             left.append(cv2.cornerSubPix(a, c1, (11, 11), (-1, -1), crit))
             right.append(cv2.cornerSubPix(b, c2, (11, 11), (-1, -1), crit))
@@ -133,8 +134,12 @@ def opencv_once(truth, files):
         rms, k1, d1, k2, d2, r, t, _, _ = cv2.stereoCalibrate(
             o, left, right, k1, d1, k2, d2, size, flags=cv2.CALIB_USE_INTRINSIC_GUESS | fl)
     ms = 1e3 * (time.perf_counter() - t0)
-    return dict(K1=k1, D1=d1.ravel(), K2=k2, D2=d2.ravel(), R=r, T=t.ravel(), rms=rms,
-                used=len(left), ms=ms)
+    out = dict(K1=k1, D1=d1.ravel(), K2=k2, D2=d2.ravel(), R=r, T=t.ravel(), rms=rms,
+               used=len(left), ms=ms)
+    if found:
+        out["found"] = seen
+        out["corners"] = list(zip(left, right))
+    return out
 
 
 def opencv(truth, files, runs):
@@ -161,11 +166,112 @@ def errors(truth, got):
     return e
 
 
+PHOTO_NAMES = ["01", "02", "03", "04", "05", "06", "07", "08", "09", "11", "12", "13", "14"]
+PHOTO_BOARD = {"columns": 9, "rows": 6, "square_size": 1.0, "unit": "mm"}
+
+
+def photographs(url, path, runs):
+    """OpenCV's 13 real stereo pairs (640 x 480, a 9 x 6 board whose square size is not
+    published, so lengths are in squares): the boards each finds, the RMS and the parameters
+    side by side with our sigma, and the time taking turns (medians of `runs`). Returns the
+    failures: a board OpenCV finds that we miss."""
+    files = [(open(f"{path}/left{n}.jpg", "rb").read(), open(f"{path}/right{n}.jpg", "rb").read())
+             for n in PHOTO_NAMES]
+    parts = []
+    for n, (l, r) in zip(PHOTO_NAMES, files):
+        parts.append(("left", l, f"left{n}.jpg", "image/jpeg"))
+        parts.append(("right", r, f"right{n}.jpg", "image/jpeg"))
+    parts.append(("board", json.dumps(PHOTO_BOARD).encode(), None, "application/json"))
+    body, ctype = multipart(parts)
+    target = urllib.parse.urlsplit(url)
+    conn = http.client.HTTPConnection(target.hostname, target.port, timeout=120)
+    truth = {"model": "plumb_bob", "board": PHOTO_BOARD}
+    ours_ms, cv_ms, summary, cv = [], [], None, None
+    for k in range(runs + 1):  # taking turns; the first of each warms up and is not counted
+        t = time.perf_counter()
+        conn.request("POST", "/calibrate", body=body, headers={"Content-Type": ctype})
+        response = conn.getresponse()
+        answer = response.read()
+        if response.status != 200:
+            sys.exit(f"/calibrate answered {response.status}: {answer[:800]!r}")
+        elapsed = time.perf_counter() - t
+        if k > 0:
+            ours_ms.append(1e3 * elapsed)
+        summary = json.loads(answer)
+        cv = opencv_once(truth, files, found=True)
+        if k > 0:
+            cv_ms.append(cv["ms"])
+    # Once more with the corners, to calibrate OpenCV on ours: which corners make the difference.
+    conn.request("POST", "/calibrate?corners=true", body=body, headers={"Content-Type": ctype})
+    with_corners = json.loads(conn.getresponse().read())
+    conn.close()
+    ours_found = []
+    for v in summary["views"]:
+        failed = v.get("failed", []) if v["status"] == "board_not_found" else []
+        ours_found.append(("left" not in failed, "right" not in failed))
+    count = lambda found, i: sum(f[i] for f in found)
+    print(f"\nreal photographs: OpenCV's samples/data (Debian opencv-doc 4.6.0, Apache-2.0 / "
+          f"BSD-3-Clause), 13 pairs of 640 x 480, 9 x 6 board, lengths in squares")
+    print(f"  boards found, left / right / pairs used: ours {count(ours_found, 0)} / "
+          f"{count(ours_found, 1)} / {sum(v['status'] == 'used' for v in summary['views'])}; "
+          f"OpenCV {count(cv['found'], 0)} / {count(cv['found'], 1)} / {cv['used']}")
+    print(f"  RMS: ours {summary['rms']:.4f} px, OpenCV {cv['rms']:.4f} px")
+    # Each camera calibrated by OpenCV on its own corners (with its sigma, from
+    # calibrateCameraExtended) and on ours, from the same views.
+    cols, rows = PHOTO_BOARD["columns"], PHOTO_BOARD["rows"]
+    obj = np.zeros((cols * rows, 3), np.float32)
+    obj[:, :2] = np.mgrid[0:cols, 0:rows].T.reshape(-1, 2)
+    size = (summary["image_width"], summary["image_height"])
+    print(f"  {'parameter':12} {'ours':>10} {'sigma':>8} {'OpenCV':>10} {'sigma':>8} "
+          f"{'difference/sigma':>16} {'OpenCV on our corners':>22}")
+    for i, (side, k, d) in enumerate((("left", cv["K1"], cv["D1"]), ("right", cv["K2"], cv["D2"]))):
+        o = summary[side]
+        std = o["std"]
+        theirs = [c[i] for c in cv["corners"]]
+        _, _, _, _, _, cv_std, _, _ = cv2.calibrateCameraExtended([obj] * len(theirs), theirs, size,
+                                                                  None, None)
+        cv_std = cv_std.ravel()
+        mine = [np.array(v[f"corners_{side}"], np.float32).reshape(-1, 1, 2)
+                for v in with_corners["views"] if v["status"] == "used"]
+        rms_on_ours, k_on_ours, d_on_ours, _, _ = cv2.calibrateCamera([obj] * len(mine), mine, size,
+                                                                      None, None)
+        d_on_ours = d_on_ours.ravel()
+        for j, (name, ours_v, sd, cv_v, on_ours) in enumerate((
+                ("fx", o["camera_matrix"][0][0], std["fx"], k[0][0], k_on_ours[0][0]),
+                ("fy", o["camera_matrix"][1][1], std["fy"], k[1][1], k_on_ours[1][1]),
+                ("cx", o["camera_matrix"][0][2], std["cx"], k[0][2], k_on_ours[0][2]),
+                ("cy", o["camera_matrix"][1][2], std["cy"], k[1][2], k_on_ours[1][2]),
+                ("k1", o["distortion"][0], std["distortion"][0], d[0], d_on_ours[0]),
+                ("k2", o["distortion"][1], std["distortion"][1], d[1], d_on_ours[1]))):
+            both = float(np.hypot(sd, cv_std[j]))
+            print(f"  {side + ' ' + name:12} {ours_v:10.4f} {sd:8.4f} {cv_v:10.4f} {cv_std[j]:8.4f} "
+                  f"{(cv_v - ours_v) / both:16.2f} {on_ours:22.4f}")
+        print(f"  {side + ' RMS':12} OpenCV's calibrateCamera on our corners {rms_on_ours:.4f} px")
+    t_ours, t_cv = np.array(summary["translation"]), np.asarray(cv["T"])
+    t_sd = float(np.linalg.norm(np.array(summary["translation_std"]) * t_ours) / np.linalg.norm(t_ours))
+    print(f"  {'|T|':12} {np.linalg.norm(t_ours):10.4f} {t_sd:8.4f} {np.linalg.norm(t_cv):10.4f} "
+          f"{(np.linalg.norm(t_cv) - np.linalg.norm(t_ours)) / t_sd:16.2f}")
+    dr = np.asarray(cv["R"]) @ np.array(summary["rotation"]).T
+    angle = float(np.degrees(np.arccos(np.clip((np.trace(dr) - 1) / 2, -1, 1))))
+    print(f"  rotation between the two estimates {angle:.4f} deg (our sigma "
+          f"{' / '.join(f'{v:.4f}' for v in summary['rotation_std_deg'])} deg)")
+    print(f"  time, taking turns, median of {runs}: the whole /calibrate request "
+          f"{statistics.median(ours_ms):.0f} ms; OpenCV findChessboardCorners + cornerSubPix + "
+          f"calibrateCamera x2 + stereoCalibrate {statistics.median(cv_ms):.0f} ms")
+    failures = []
+    for n, (o, c) in zip(PHOTO_NAMES, zip(ours_found, cv["found"])):
+        for i, side in enumerate(("left", "right")):
+            if c[i] and not o[i]:
+                failures.append(f"real photographs: OpenCV finds the board in {side}{n}.jpg, we do not")
+    return failures
+
+
 def main():
     parser = argparse.ArgumentParser()
     parser.add_argument("--url", required=True)
     parser.add_argument("--data", required=True)
     parser.add_argument("--sets", nargs="+", required=True)
+    parser.add_argument("--photographs", help="OpenCV's real stereo set (left01.jpg ...)")
     parser.add_argument("--json")
     args = parser.parse_args()
     rows, failures = [], []
@@ -214,6 +320,8 @@ def main():
     print(f"\ntime for {timed[0]['set']} (15 pairs, 640 x 480, median of {RUNS}): the whole "
           f"/calibrate request {timed[0]['ms']:.0f} ms; OpenCV detection + calibration "
           f"{timed[1]['ms']:.0f} ms")
+    if args.photographs:
+        failures += photographs(args.url, args.photographs, RUNS)
     if args.json:
         with open(args.json, "w") as f:
             json.dump(rows, f, indent=1)

@@ -181,7 +181,8 @@ async fn calibrates_a_rendered_rig() {
     assert!(answer["depth_error"].as_f64().unwrap() > terms["disparity"].as_f64().unwrap());
 }
 
-/// The OpenCV file and the two ROS files, read back by `/calibration`, give the summary's rig.
+/// The OpenCV file and the two ROS files, read back by `/calibration`, give the summary's rig,
+/// with its σ (which the files carry as extra nodes).
 #[tokio::test]
 async fn the_files_read_back_into_the_same_rig() {
     let app = spawn_app().await;
@@ -199,7 +200,15 @@ async fn the_files_read_back_into_the_same_rig() {
         json!({"text": left, "right_text": right, "unit": "mm"}),
     ] {
         let read = ok_json(app.post("/calibration", &request).await).await;
-        for member in ["focal_length_px", "baseline", "cx", "cy", "doffs"] {
+        for member in [
+            "focal_length_px",
+            "baseline",
+            "cx",
+            "cy",
+            "doffs",
+            "focal_length_std_px",
+            "baseline_std",
+        ] {
             let (got, want) = (
                 read["rig"][member].as_f64().unwrap(),
                 summary["rig"][member].as_f64().unwrap(),
@@ -212,7 +221,8 @@ async fn the_files_read_back_into_the_same_rig() {
     }
 }
 
-/// Only `left` parts calibrate one camera: no pair members, no rig.
+/// Only `left` parts calibrate one camera: no pair members, no rig, and a warning that says
+/// so and how to calibrate the pair.
 #[tokio::test]
 async fn left_parts_alone_calibrate_one_camera() {
     let app = spawn_app().await;
@@ -220,6 +230,68 @@ async fn left_parts_alone_calibrate_one_camera() {
     let fx = summary["left"]["camera_matrix"][0][0].as_f64().unwrap();
     assert!((fx / 360.0 - 1.0).abs() < 0.005, "fx {fx}");
     assert!(summary.get("rig").is_none() && summary.get("right").is_none());
+    let warnings = summary["warnings"].to_string();
+    assert!(
+        warnings.contains("only one camera's images were sent (no `right` parts)"),
+        "{warnings}"
+    );
+    assert_eq!(summary["determined"], true);
+}
+
+/// Squares counted instead of inner corners (the 7 × 5 board given as 8 × 6), or a smaller
+/// board named (6 × 4, where the views show 7 × 5): one 422 naming `board.columns` and
+/// `board.rows` with the size the views show, not a miss per view.
+#[tokio::test]
+async fn a_board_counted_in_squares_is_named_once() {
+    let app = spawn_app().await;
+    for given in [
+        r#"{"columns": 8, "rows": 6, "square_size": 20}"#,
+        r#"{"columns": 6, "rows": 4, "square_size": 20}"#,
+    ] {
+        let p = problem(calibrate(&app, "", form(4, false, Some(given))).await, 422).await;
+        assert_names(&p, &["board.columns", "board.rows"]);
+        let said = message_for(&p, "board.columns");
+        assert!(
+            said.contains("of the 8 images show 7 this way: a chessboard of 7 × 5 inner corners"),
+            "{given}: {said}"
+        );
+    }
+}
+
+/// Copies of one pair cannot determine a lens: refused with a 422 that names the cause
+/// (near-identical poses, the focal length's σ as large as itself), where it used to be a
+/// 200 with a low RMS.
+#[tokio::test]
+async fn copies_of_one_view_are_refused_as_undetermined() {
+    let app = spawn_app().await;
+    let (l, r) = &views()[0];
+    let mut copies = Form::new().text("board", BOARD);
+    for i in 0..12 {
+        copies = copies
+            .part("left", image(l, &format!("l{i}.png")))
+            .part("right", image(r, &format!("r{i}.png")));
+    }
+    let p = problem(calibrate(&app, "", copies).await, 422).await;
+    let said = message_for(&p, "left");
+    assert!(said.contains("the calibration is not determined"), "{said}");
+    assert!(said.contains("nearly one pose"), "{said}");
+}
+
+/// A board with three bad members names all three at once.
+#[tokio::test]
+async fn every_bad_board_member_is_named_at_once() {
+    let app = spawn_app().await;
+    let board = r#"{"columns": 0, "rows": 100, "square_size": -1, "unit": "furlong"}"#;
+    let p = problem(calibrate(&app, "", form(3, false, Some(board))).await, 422).await;
+    assert_names(
+        &p,
+        &[
+            "board.columns",
+            "board.rows",
+            "board.square_size",
+            "board.unit",
+        ],
+    );
 }
 
 /// Bad forms are 4xx problems naming the part: counts that differ name `right`, a board with

@@ -207,6 +207,88 @@ async fn opencv_xml_from_projections() {
     );
 }
 
+/// The stereo file's cameras and R, T alone (no rectification, no size): the first 37 lines
+/// of `opencv_stereo.yml`.
+fn bare_stereo_file() -> String {
+    data(&own_vectors(), "opencv_stereo.yml")
+        .lines()
+        .take(37)
+        .collect::<Vec<_>>()
+        .join("\n")
+}
+
+/// OpenCV's `stereo_calib` sample writes its cameras without the image size: `/calibration`
+/// takes `image_width` and `image_height` beside the text (in the JSON body or the query),
+/// and reads `imageSize` as C++ writes it (`[1280, 720]`) and as Python's `fs.write` writes
+/// it (a 2 × 1 `!!opencv-matrix`); all three give the rig of the file with its size.
+#[tokio::test]
+async fn a_bare_file_takes_the_image_size_beside_it() {
+    let app = spawn_app().await;
+    let full = calibrate(
+        &app,
+        &json!({"text": data(&own_vectors(), "opencv_stereo.yml"), "calibration_unit": "mm", "alpha": 0}),
+    )
+    .await;
+    let bare = bare_stereo_file();
+    let refused = problem(
+        app.post(
+            "/calibration",
+            &json!({"text": bare, "calibration_unit": "mm"}),
+        )
+        .await,
+        422,
+    )
+    .await;
+    assert!(
+        message_for(&refused, "text").contains("image_width"),
+        "{refused}"
+    );
+    let python = format!(
+        "{bare}\nimageSize: !!opencv-matrix\n   rows: 2\n   cols: 1\n   dt: i\n   data: [ 1280, 720 ]\n"
+    );
+    let cpp = format!("{bare}\nimageSize: [ 1280, 720 ]\n");
+    for request in [
+        json!({"text": bare, "calibration_unit": "mm", "image_width": 1280, "image_height": 720}),
+        json!({"text": python, "calibration_unit": "mm"}),
+        json!({"text": cpp, "calibration_unit": "mm"}),
+    ] {
+        let body = calibrate(&app, &request).await;
+        assert_eq!(body["raw_cameras"], true, "{request}");
+        for member in [
+            "focal_length_px",
+            "baseline",
+            "cx",
+            "cy",
+            "image_width",
+            "image_height",
+        ] {
+            assert_close(
+                number_at(&body, &format!("rig.{member}")),
+                number_at(&full, &format!("rig.{member}")),
+                member,
+            );
+        }
+    }
+    let query = app
+        .post_raw(
+            "/calibration?calibration_unit=mm&image_width=1280&image_height=720",
+            Some("text/plain"),
+            bare.clone().into_bytes(),
+        )
+        .await;
+    assert_eq!(ok_json(query).await["rig"]["image_width"], 1280);
+    let half = problem(
+        app.post(
+            "/calibration",
+            &json!({"text": bare, "calibration_unit": "mm", "image_width": 0}),
+        )
+        .await,
+        422,
+    )
+    .await;
+    assert_eq!(fields(&half), ["image_width", "image_height"]);
+}
+
 /// A ROS 2 `ros2 topic echo` pair (flat `k`, `p`, block lists) reads like the ROS 1 YAML;
 /// swapped files are refused, naming both.
 #[tokio::test]

@@ -15,7 +15,8 @@ use stereo_distance::{
 };
 
 use crate::helpers::{
-    TestApp, assert_names, fields, message_for, ok_json, problem, spawn_app, spawn_app_with,
+    TestApp, assert_close, assert_names, fields, message_for, number_at, ok_json, problem,
+    spawn_app, spawn_app_with,
 };
 
 pub(crate) const W: usize = 160;
@@ -384,7 +385,39 @@ async fn rigs_are_checked_against_the_images() {
         422,
     )
     .await;
-    assert_eq!(fields(&body), vec!["rig", "calibration"]);
+    assert_names(
+        &body,
+        &["rig.focal_length_px", "rig.baseline", "calibration"],
+    );
+}
+
+/// A calibration file from elsewhere carries no σ: a `rig` part beside it gives the
+/// calibration's σ (and only that), and the depth's error bar takes it.
+#[tokio::test]
+async fn the_calibrations_sigma_is_given_beside_its_file() {
+    let app = spawn_app().await;
+    let calib = "cam0=[500 0 80; 0 500 60; 0 0 1]\ncam1=[500 0 80; 0 500 60; 0 0 1]\n\
+                 doffs=0\nbaseline=100\nwidth=160\nheight=120\nndisp=48\n";
+    let std = json!({"focal_length_std_px": 2.5, "baseline_std": 0.04, "unit": "cm"});
+    let body = ok_json(
+        depth_map(
+            &app,
+            "",
+            form(
+                &pair(),
+                &[("calibration", calib.to_owned()), ("rig", std.to_string())],
+            ),
+        )
+        .await,
+    )
+    .await;
+    assert_eq!(body["rig"]["focal_length_px"], 500.0);
+    assert_eq!(body["rig"]["focal_length_std_px"], 2.5);
+    assert_close(
+        number_at(&body, "rig.baseline_std"),
+        0.4,
+        "0.04 cm in the file's mm",
+    );
 }
 
 /// The search range and the matcher's options are checked and named.

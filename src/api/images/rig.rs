@@ -60,10 +60,20 @@ pub fn rig(
 ) -> Option<GivenRig> {
     let has_calibration = parts.get("calibration").is_some();
     match (parts.get("rig"), has_calibration) {
-        (Some(_), true) => {
-            problems.add("rig", "give rig or calibration, not both");
-            problems.add("calibration", "give rig or calibration, not both");
-            None
+        (Some(json), true) => {
+            // Beside a calibration, a rig part may carry only the calibration's σ.
+            let std = std_beside(json, problems);
+            let given = calibration_parts(parts, size, takes_rig, problems)?;
+            let (focal, baseline, unit) = std?;
+            let unit = unit.map_or(given.rig.unit(), LengthUnit::from);
+            let baseline = unit.convert(baseline, given.rig.unit());
+            match given.rig.with_calibration_std(focal, baseline) {
+                Ok(rig) => Some(GivenRig { rig, ..given }),
+                Err(faults) => {
+                    validate::faults(faults, RIG, problems);
+                    None
+                }
+            }
         }
         (Some(json), false) => rig_part(json, size, problems),
         (None, true) => calibration_parts(parts, size, takes_rig, problems),
@@ -75,6 +85,63 @@ pub fn rig(
             }
             None
         }
+    }
+}
+
+/// The members a `rig` part may hold beside a `calibration` part: the calibration's σ, which
+/// a file from elsewhere does not carry.
+const STD_MEMBERS: [&str; 3] = ["focal_length_std_px", "baseline_std", "unit"];
+
+/// A `rig` part beside a `calibration` part: `focal_length_std_px` and `baseline_std` (in
+/// `unit`, default the calibration's), each 0 when absent; any other member is named.
+fn std_beside(json: &Bytes, problems: &mut FieldErrors) -> Option<(f64, f64, Option<Unit>)> {
+    let Ok(Value::Object(map)) = serde_json::from_slice::<Value>(json) else {
+        problems.add(
+            "rig",
+            "beside a calibration part, must be a JSON object holding only the calibration's \
+             σ: {\"focal_length_std_px\": …, \"baseline_std\": …}",
+        );
+        return None;
+    };
+    let mut ok = true;
+    for key in map.keys() {
+        if !STD_MEMBERS.contains(&key.as_str()) {
+            problems.add(
+                &format!("{RIG}{key}"),
+                "is given by the calibration part: beside it, rig holds only \
+                 focal_length_std_px, baseline_std and their unit",
+            );
+            ok = false;
+        }
+    }
+    let mut number = |key: &str| match map.get(key) {
+        None => Some(0.0),
+        Some(Value::Number(n)) => n.as_f64(),
+        Some(other) => {
+            problems.add(
+                &format!("{RIG}{key}"),
+                format!(
+                    "must be a number, got {}",
+                    crate::api::member_messages::describe(other)
+                ),
+            );
+            None
+        }
+    };
+    let (focal, baseline) = (number("focal_length_std_px"), number("baseline_std"));
+    let unit = match map.get("unit") {
+        None => Some(None),
+        Some(value) => match serde_json::from_value::<Unit>(value.clone()) {
+            Ok(unit) => Some(Some(unit)),
+            Err(_) => {
+                problems.add(&format!("{RIG}unit"), "must be one of mm, cm, m, in, ft");
+                None
+            }
+        },
+    };
+    match (ok, focal, baseline, unit) {
+        (true, Some(f), Some(b), Some(u)) => Some((f, b, u)),
+        _ => None,
     }
 }
 

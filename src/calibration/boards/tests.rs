@@ -99,9 +99,9 @@ fn recovers_a_rendered_rig() {
     assert!(fit.views.iter().all(|v| v.status == ViewOutcome::Used));
 }
 
-/// The rectified rig's focal length and baseline from a calibration of `count` views whose
-/// corners are the exact projections plus Gaussian noise of `sigma` px, with their σ.
-fn noisy_rig(pair: &StereoPair, count: usize, sigma: f64, seed: u64) -> Option<[f64; 4]> {
+/// The calibration of `count` views whose corners are the exact projections plus Gaussian
+/// noise of `sigma` px.
+fn noisy_fit(pair: &StereoPair, count: usize, sigma: f64, seed: u64) -> Option<Fit> {
     use crate::noise::Rng;
     let board = Board::new(7, 5, 30.0, LengthUnit::Millimetre).unwrap();
     let poses = poses(pair, SIZE, &board, count, 45.0, seed);
@@ -125,7 +125,13 @@ fn noisy_rig(pair: &StereoPair, count: usize, sigma: f64, seed: u64) -> Option<[
                 .map(&mut noisy),
         })
         .collect();
-    let fit = calibrate(&board, SIZE, Model::PlumbBob, &views, true).ok()?;
+    calibrate(&board, SIZE, Model::PlumbBob, &views, true).ok()
+}
+
+/// The rectified rig's focal length and baseline from a calibration of `count` views whose
+/// corners are the exact projections plus Gaussian noise of `sigma` px, with their σ.
+fn noisy_rig(pair: &StereoPair, count: usize, sigma: f64, seed: u64) -> Option<[f64; 4]> {
+    let fit = noisy_fit(pair, count, sigma, seed)?;
     let rect =
         crate::camera::stereo_rectify(&fit.pair()?, SIZE, crate::camera::RectifyOptions::default())
             .ok()?;
@@ -158,4 +164,62 @@ fn standard_deviations_are_honest() {
         "f {within_f}, B {within_b}"
     );
     assert!(tight < 40);
+}
+
+/// The σ are honest parameter by parameter, as mrcal asks of a calibration: over 48
+/// calibrations of 8 views whose corners carry 0.1 px of Gaussian noise, each of fx, fy, cx,
+/// cy of both cameras, |T| and the rotation about each axis is compared with the truth in
+/// units of its σ. Pooled, the truth lies within 1σ in 68 % ± 8 % of the cases and within 2σ
+/// in 95 % ± 4 %; the rates per parameter are printed.
+#[test]
+fn every_parameters_sigma_is_honest() {
+    let pair = truth(Model::PlumbBob, &[-0.2, 0.08, 0.0008, -0.0004, -0.01]);
+    let names = [
+        "left fx", "left fy", "left cx", "left cy", "right fx", "right fy", "right cx", "right cy",
+        "|T|", "rot x", "rot y", "rot z",
+    ];
+    let trials = 48;
+    let mut z: Vec<Vec<f64>> = vec![Vec::new(); names.len()];
+    for seed in 0..trials {
+        let fit = noisy_fit(&pair, 8, 0.1, 300 + seed).expect("calibrated");
+        let right = fit.right.as_ref().expect("a pair");
+        let e = fit.extrinsics.expect("extrinsics");
+        let mut k = 0;
+        for (camera, truth) in [(&fit.left, &pair.left), (right, &pair.right)] {
+            let (m, t) = (camera.camera.matrix(), truth.matrix());
+            for (i, (r, c)) in [(0, 0), (1, 1), (0, 2), (1, 2)].into_iter().enumerate() {
+                z[k].push((m[(r, c)] - t[(r, c)]) / camera.std[i]);
+                k += 1;
+            }
+        }
+        let norm = e.translation.norm();
+        let t_std = (0..3)
+            .map(|i| (e.translation[i] / norm * e.translation_std[i]).powi(2))
+            .sum::<f64>()
+            .sqrt();
+        z[8].push((norm - pair.translation.norm()) / t_std);
+        let delta = (e.rotation * pair.rotation.inverse()).scaled_axis();
+        for i in 0..3 {
+            z[9 + i].push(delta[i] / e.rotation_std[i]);
+        }
+    }
+    let rate =
+        |zs: &[f64], k: f64| zs.iter().filter(|v| v.abs() <= k).count() as f64 / zs.len() as f64;
+    for (name, zs) in names.iter().zip(&z) {
+        eprintln!(
+            "{name:9} within 1σ {:5.1} %, within 2σ {:5.1} %",
+            100.0 * rate(zs, 1.0),
+            100.0 * rate(zs, 2.0)
+        );
+    }
+    let pooled: Vec<f64> = z.concat();
+    let (one, two) = (rate(&pooled, 1.0), rate(&pooled, 2.0));
+    eprintln!(
+        "pooled over {} cases: within 1σ {:.1} %, within 2σ {:.1} %",
+        pooled.len(),
+        100.0 * one,
+        100.0 * two
+    );
+    assert!((0.60..=0.76).contains(&one), "within 1σ: {one}");
+    assert!((0.91..=0.99).contains(&two), "within 2σ: {two}");
 }

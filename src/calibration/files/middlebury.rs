@@ -158,6 +158,7 @@ pub fn parse(text: &str) -> Result<Calibration, Vec<ParseError>> {
         warnings,
         raw: None,
         unit: None,
+        rig_std: None,
     };
     let line = if baseline > 0.0 { line0 } else { baseline_line };
     calibration.checked(Some(line))

@@ -14,6 +14,7 @@ pub mod opencv;
 mod raw;
 mod read;
 pub mod ros;
+mod xml;
 pub mod yaml;
 
 pub use raw::Raw;
@@ -186,6 +187,19 @@ pub struct Calibration {
     pub raw: Option<Box<Raw>>,
     /// The length unit the file records (our own `opencv.yml` writes `unit`).
     pub unit: Option<LengthUnit>,
+    /// The rectified rig's standard deviations the file records (our own `opencv.yml` and
+    /// ROS files write them): the focal length's in pixels and the baseline's in the file's
+    /// unit.
+    pub rig_std: Option<RigStd>,
+}
+
+/// The calibration's uncertainty of the rectified rig, as our files record it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RigStd {
+    /// σ of the focal length, in pixels.
+    pub focal_px: f64,
+    /// σ of the baseline, in the file's unit.
+    pub baseline: f64,
 }
 
 impl Calibration {
@@ -215,6 +229,7 @@ impl Calibration {
             warnings,
             raw: None,
             unit: None,
+            rig_std: None,
         }
     }
 

@@ -18,8 +18,9 @@ use std::fmt::Write;
 use crate::camera::{Alpha, Rectification, StereoPair};
 use nalgebra::{Matrix3, Matrix3x4, Vector3};
 
+use super::xml;
 use super::yaml::{self, Node};
-use super::{Calibration, Format, ParseError, pixels, raw};
+use super::{Calibration, Format, ParseError, RigStd, pixels, raw};
 use crate::camera::{Model, Size};
 use crate::numbers::Num;
 use crate::physics::LengthUnit;
@@ -27,7 +28,7 @@ use crate::physics::LengthUnit;
 /// One FileStorage text, YAML or XML.
 fn document(text: &str) -> Result<Node, ParseError> {
     if text.trim_start().starts_with('<') {
-        xml(text)
+        xml::parse(text)
     } else {
         yaml::parse(text)
     }
@@ -65,7 +66,41 @@ pub fn parse(
         None => rig(&doc)?,
     };
     calibration.unit = unit;
+    calibration.rig_std = rig_std(&doc)?;
     Ok(calibration)
+}
+
+/// The rectified rig's σ our `opencv.yml` records (`rigFocalLengthStd` in pixels and
+/// `rigBaselineStd` in the file's unit), when both are there.
+fn rig_std(doc: &Node) -> Result<Option<RigStd>, Vec<ParseError>> {
+    let mut errors = Vec::new();
+    let mut read = |name: &str| {
+        let node = doc.get(name)?;
+        match node.number(name) {
+            Ok(v) if v.is_finite() && v >= 0.0 => Some(v),
+            Ok(v) => {
+                errors.push(ParseError::at(
+                    node.line(),
+                    format!(
+                        "{name} must be a standard deviation, 0 or more, got {}",
+                        Num(v)
+                    ),
+                ));
+                None
+            }
+            Err(e) => {
+                errors.push(e);
+                None
+            }
+        }
+    };
+    let (focal_px, baseline) = (read("rigFocalLengthStd"), read("rigBaselineStd"));
+    if !errors.is_empty() {
+        return Err(errors);
+    }
+    Ok(focal_px
+        .zip(baseline)
+        .map(|(focal_px, baseline)| RigStd { focal_px, baseline }))
 }
 
 /// The printed target a calibration was made with, as `opencv.yml` records it.
@@ -89,6 +124,9 @@ pub struct StereoFile<'a> {
     pub fundamental: Matrix3<f64>,
     pub rectification: &'a Rectification,
     pub target: Target,
+    /// The rectified rig's σ, written as `rigFocalLengthStd` and `rigBaselineStd` (nodes
+    /// `cv2.FileStorage` reads and OpenCV's functions never look for).
+    pub rig_std: Option<RigStd>,
 }
 
 /// OpenCV FileStorage YAML with M1 D1 M2 D2 R T E F R1 R2 P1 P2 Q, `imageSize` and the target
@@ -141,6 +179,14 @@ pub fn write(file: &StereoFile<'_>) -> String {
     matrix(&mut out, "P1", 3, 4, &yaml::row_major(&rect.p1));
     matrix(&mut out, "P2", 3, 4, &yaml::row_major(&rect.p2));
     matrix(&mut out, "Q", 4, 4, &yaml::row_major(&rect.q));
+    if let Some(std) = file.rig_std {
+        let _ = writeln!(
+            out,
+            "rigFocalLengthStd: {}\nrigBaselineStd: {}",
+            yaml::write_number(std.focal_px),
+            yaml::write_number(std.baseline)
+        );
+    }
     out
 }
 
@@ -407,7 +453,12 @@ fn image_size_of(doc: &Node) -> Result<Option<(u32, u32)>, ParseError> {
         })
     };
     if let Some(node) = doc.get("imageSize") {
-        let values = node.numbers("imageSize")?;
+        // C++ writes `[640, 480]`; Python's `fs.write("imageSize", np.array([640, 480]))`
+        // writes a 2 × 1 `!!opencv-matrix`.
+        let values = match node {
+            Node::Map(..) => any_matrix(doc, "imageSize")?.map_or_else(Vec::new, |(v, _)| v),
+            _ => node.numbers("imageSize")?,
+        };
         let size = match values.as_slice() {
             [w, h] => pixels(*w).zip(pixels(*h)),
             _ => None,
@@ -491,6 +542,7 @@ fn rig(doc: &Node) -> Result<Calibration, Vec<ParseError>> {
                 warnings: Vec::new(),
                 raw: None,
                 unit: None,
+                rig_std: None,
             };
             if let Some(p) = from_p {
                 let differs = |a: f64, b: f64| (a - b).abs() > 1e-6 * a.abs().max(b.abs()).max(1.0);
@@ -522,67 +574,6 @@ fn rig(doc: &Node) -> Result<Calibration, Vec<ParseError>> {
     calibration.checked(line)
 }
 
-/// Reads FileStorage XML (with roxmltree, which refuses DTDs and so entity expansion) into
-/// the same nodes as its YAML: each element of `<opencv_storage>` a member, a matrix a map of
-/// `rows`, `cols`, `dt` and `data`, text of several numbers a list.
-fn xml(text: &str) -> Result<Node, ParseError> {
-    let doc = roxmltree::Document::parse(text)
-        .map_err(|e| ParseError::at(e.pos().row as usize, format!("not well-formed XML: {e}")))?;
-    let root = doc.root_element();
-    if root.tag_name().name() != "opencv_storage" {
-        return Err(ParseError::whole(
-            "an OpenCV XML file must have <opencv_storage> as its root element",
-        ));
-    }
-    let line = |node: roxmltree::Node| doc.text_pos_at(node.range().start).row as usize;
-    let leaf = |node: roxmltree::Node| {
-        let text: Vec<&str> = node
-            .descendants()
-            .filter(roxmltree::Node::is_text)
-            .filter_map(|t| t.text())
-            .collect();
-        value(&text.join(" "), line(node))
-    };
-    let members = root
-        .children()
-        .filter(roxmltree::Node::is_element)
-        .map(|member| {
-            let children: Vec<_> = member
-                .children()
-                .filter(roxmltree::Node::is_element)
-                .collect();
-            let node = if children.is_empty() {
-                leaf(member)
-            } else {
-                Node::Map(
-                    children
-                        .into_iter()
-                        .map(|c| (c.tag_name().name().to_owned(), leaf(c)))
-                        .collect(),
-                    line(member),
-                )
-            };
-            (member.tag_name().name().to_owned(), node)
-        })
-        .collect();
-    Ok(Node::Map(members, 1))
-}
-
-/// Text as a scalar, or a list when it holds several words.
-fn value(text: &str, line: usize) -> Node {
-    let words: Vec<&str> = text.split_whitespace().collect();
-    match words.as_slice() {
-        [one] => Node::Scalar((*one).to_owned(), line),
-        _ => Node::Seq(
-            words
-                .into_iter()
-                .map(|w| Node::Scalar(w.to_owned(), line))
-                .collect(),
-            line,
-        ),
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -604,9 +595,20 @@ mod tests {
                 square_size: 25.0,
                 unit: LengthUnit::Millimetre,
             },
+            rig_std: Some(RigStd {
+                focal_px: 0.25,
+                baseline: 0.0125,
+            }),
         });
         let read = parse(&text, None, None, None).expect("our own file reads");
         assert_eq!(read.unit, Some(LengthUnit::Millimetre));
+        assert_eq!(
+            read.rig_std,
+            Some(RigStd {
+                focal_px: 0.25,
+                baseline: 0.0125
+            })
+        );
         let raw = read.raw.expect("the raw cameras");
         assert_eq!((raw.size, raw.computed), (size, false));
         for (ours, theirs) in [(&raw.pair.left, &pair.left), (&raw.pair.right, &pair.right)] {

@@ -116,6 +116,10 @@ pub fn read(source: Source, options: ReadOptions) -> Result<Read, Vec<ReadFault>
     spec.cx = Some(parsed.cx);
     spec.cy = Some(parsed.cy);
     spec.doffs = Some(parsed.doffs);
+    if let Some(std) = parsed.rig_std {
+        spec.focal_std_px = Some(std.focal_px);
+        spec.baseline_std = Some(file_unit.convert(std.baseline, unit));
+    }
     let rig = Rig::new(&spec).map_err(|f| f.into_iter().map(ReadFault::Rig).collect::<Vec<_>>())?;
     warnings.extend(parsed.warnings);
     Ok(Read {

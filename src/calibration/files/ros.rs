@@ -10,7 +10,7 @@ use crate::camera::{Alpha, Camera};
 use nalgebra::{Matrix3, Matrix3x4};
 
 use super::yaml::{self, Node};
-use super::{Calibration, Format, ParseError, pixels, raw};
+use super::{Calibration, Format, ParseError, RigStd, pixels, raw};
 use crate::camera::{Model, Size};
 use crate::numbers::Num;
 use crate::physics::LengthUnit;
@@ -21,6 +21,8 @@ struct CameraFile {
     p: Vec<f64>,
     p_line: usize,
     size: Option<(u32, u32)>,
+    /// The rectified rig's σ our files add (`rig_focal_length_std_px`, `rig_baseline_std_m`).
+    rig_std: Option<RigStd>,
     /// K, D and R with their lines, and the model the file names: the raw camera, when the
     /// file gives all three.
     raw: Option<RawCamera>,
@@ -132,10 +134,31 @@ fn camera(text: &str) -> Result<CameraFile, ParseError> {
     };
     let width = extent(["image_width", "width"])?;
     let height = extent(["image_height", "height"])?;
+    let std = |key: &str| -> Result<Option<f64>, ParseError> {
+        let Some(node) = doc.get(key) else {
+            return Ok(None);
+        };
+        let value = node.number(key)?;
+        if value.is_finite() && value >= 0.0 {
+            Ok(Some(value))
+        } else {
+            Err(ParseError::at(
+                node.line(),
+                format!(
+                    "{key} must be a standard deviation, 0 or more, got {}",
+                    Num(value)
+                ),
+            ))
+        }
+    };
+    let rig_std = std("rig_focal_length_std_px")?
+        .zip(std("rig_baseline_std_m")?)
+        .map(|(focal_px, baseline)| RigStd { focal_px, baseline });
     Ok(CameraFile {
         p,
         p_line: data.line(),
         size: width.zip(height),
+        rig_std,
         raw: raw_camera(&doc)?,
     })
 }
@@ -285,6 +308,8 @@ pub fn parse(
             .in_right(),
         ]);
     }
+    let mut calibration = calibration;
+    calibration.rig_std = right.rig_std.or(left.rig_std);
     calibration
         .checked(Some(right.p_line))
         .map_err(|errors| errors.into_iter().map(ParseError::in_right).collect())
@@ -304,6 +329,10 @@ pub struct CameraInfo<'a> {
     /// The rectified projection (P1 or P2), its translation in `unit`.
     pub projection: Matrix3x4<f64>,
     pub unit: LengthUnit,
+    /// The rectified rig's σ (the baseline's in `unit`), written in metres as
+    /// `rig_focal_length_std_px` and `rig_baseline_std_m`: keys `camera_calibration_parsers`
+    /// and `camera_info_manager` do not read, and so leave alone.
+    pub rig_std: Option<RigStd>,
 }
 
 impl<'a> CameraInfo<'a> {
@@ -320,6 +349,7 @@ impl<'a> CameraInfo<'a> {
             rotation: Matrix3::identity(),
             projection,
             unit,
+            rig_std: None,
         }
     }
 }
@@ -338,7 +368,14 @@ pub fn write(info: &CameraInfo<'_>) -> String {
             .join(", ")
     };
     let d = info.camera.distortion();
-    format!(
+    let std = info.rig_std.map_or_else(String::new, |std| {
+        format!(
+            "rig_focal_length_std_px: {}\nrig_baseline_std_m: {}\n",
+            yaml::write_number(std.focal_px),
+            yaml::write_number(info.unit.convert(std.baseline, LengthUnit::Metre))
+        )
+    });
+    let text = format!(
         "image_width: {}\nimage_height: {}\ncamera_name: {}\ncamera_matrix:\n  rows: 3\n  \
          cols: 3\n  data: [{}]\ndistortion_model: {}\ndistortion_coefficients:\n  rows: 1\n  \
          cols: {}\n  data: [{}]\nrectification_matrix:\n  rows: 3\n  cols: 3\n  data: [{}]\n\
@@ -352,7 +389,8 @@ pub fn write(info: &CameraInfo<'_>) -> String {
         list(d.coefficients()),
         list(&yaml::row_major(&info.rotation)),
         list(&yaml::row_major(&p)),
-    )
+    );
+    text + &std
 }
 
 #[cfg(test)]
@@ -373,6 +411,10 @@ mod tests {
                 rotation,
                 projection,
                 unit: LengthUnit::Millimetre,
+                rig_std: Some(RigStd {
+                    focal_px: 0.25,
+                    baseline: 12.5,
+                }),
             })
         };
         let left = info("left", &pair.left, rect.r1, rect.p1);
@@ -392,6 +434,14 @@ mod tests {
             (r.p2 - p2).amax() < 1e-12 && r.p1 == rect.p1,
             "{} vs {p2}",
             r.p2
+        );
+        // The rig's σ, its baseline's in metres as the files' lengths are.
+        assert_eq!(
+            read.rig_std,
+            Some(RigStd {
+                focal_px: 0.25,
+                baseline: 0.0125
+            })
         );
         let b = rect.p2[(0, 3)].abs() / rect.p2[(0, 0)] / 1000.0;
         assert!(

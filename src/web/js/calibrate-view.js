@@ -306,6 +306,17 @@ export function showCalibration(calibration) {
   const outliers = summary.views.filter((v) => v.status === 'outlier').length;
   const out = calibration.excluded.size;
   showVerdict('rms-verdict', 'RMS reprojection error', summary.rms, 'How far, on average, the calibrated model puts each corner from where it was found.');
+  if (summary.determined === false) {
+    // A low RMS over views that do not constrain the lens fits the corners and nothing more.
+    const box = $('rms-verdict');
+    box.className = 'verdict verdict-poor';
+    box.dataset.determined = 'false';
+    const strong = document.createElement('strong');
+    strong.textContent = `Not determined (RMS ${fmt(summary.rms, 3)} px)`;
+    const line = document.createElement('span');
+    line.textContent = ' The views do not constrain the model: the RMS only says that it fits these corners. See the advice below.';
+    box.replaceChildren(strong, line);
+  }
   if (summary.epipolar_error !== undefined) {
     showVerdict('epipolar-verdict', 'Epipolar error', summary.epipolar_error, 'How far each corner lies from the line its partner in the other image says it must be on: what matching will suffer.');
   } else {

@@ -24,10 +24,10 @@ use crate::api::images::limits;
 use crate::api::images::output::{self, Disposition, set_server_timing};
 use crate::api::images::work;
 use crate::api::respond::Json;
-use crate::calibration::boards::corners::{Luma, find_board};
-use crate::calibration::boards::report::Detections;
+use crate::calibration::boards::corners::{Luma, Miss, find_board};
+use crate::calibration::boards::report::{Detections, Determination, agreed_other_size};
 use crate::calibration::boards::{self, Board, FitFault, MAX_VIEWS};
-use crate::calibration::files::{opencv, ros};
+use crate::calibration::files::{RigStd, opencv, ros};
 use crate::camera::{Alpha, Model, RectifyOptions, Size};
 use crate::physics::LengthUnit;
 use crate::vision::decode::{self, DecodeLimits};
@@ -247,15 +247,23 @@ fn read_board(bytes: Option<&Bytes>, problems: &mut FieldErrors) -> Option<Board
             missing = true;
         }
     }
-    if missing || refused_any {
-        return None;
-    }
+    // The members that were read are judged even when others were missing or refused, so
+    // that every fault is named at once; an absent member is judged as a valid stand-in.
     let unit: LengthUnit = spec.unit.unwrap_or_default().into();
-    match Board::new(spec.columns?, spec.rows?, spec.square_size?, unit) {
-        Ok(board) => Some(board),
+    let judged = Board::new(
+        spec.columns.unwrap_or(9),
+        spec.rows.unwrap_or(6),
+        spec.square_size.unwrap_or(1.0),
+        unit,
+    );
+    match judged {
+        Ok(board) => (!missing && !refused_any).then_some(board),
         Err(faults) => {
             for fault in faults {
-                problems.add(&format!("board.{}", fault.member.name()), fault.message);
+                let name = format!("board.{}", fault.member.name());
+                if !problems.has(&name) {
+                    problems.add(&name, fault.message);
+                }
             }
             None
         }
@@ -304,14 +312,14 @@ fn image_sizes(
 }
 
 /// One image's board: decoded, found and refined; the outer error is the image's decoding.
-type Found = Result<Result<Vec<[f64; 2]>, String>, FieldError>;
+type Found = Result<Result<Vec<[f64; 2]>, Miss>, FieldError>;
 
 fn find(name: String, bytes: &Bytes, board: &Board, allowed: DecodeLimits) -> Found {
     let decoded = decode::decode(bytes, allowed, false)
         .map_err(|e| FieldError::new(name, limits::describe(&e, allowed)))?;
     let grey = decoded.grey;
     let luma = Luma::from_u16(grey.width, grey.height, &grey.data);
-    Ok(find_board(&luma, board).map_err(|m| m.to_string()))
+    Ok(find_board(&luma, board))
 }
 
 /// Finds the boards, calibrates and writes the answer, on a blocking thread.
@@ -347,19 +355,27 @@ fn compute(
         ));
     }
     let mut undecodable = Vec::new();
-    let mut results: Vec<Result<Vec<[f64; 2]>, String>> = Vec::with_capacity(found.len());
+    let mut misses: Vec<Result<Vec<[f64; 2]>, Miss>> = Vec::with_capacity(found.len());
     for f in found.into_iter().flatten() {
         match f {
-            Ok(r) => results.push(r),
+            Ok(r) => misses.push(r),
             Err(e) => {
                 undecodable.push(e);
-                results.push(Err(String::new()));
+                misses.push(Err(Miss::NoGrid));
             }
         }
     }
     if !undecodable.is_empty() {
         return Err(ApiError::Invalid(undecodable));
     }
+    let missed: Vec<Option<&Miss>> = misses.iter().map(|r| r.as_ref().err()).collect();
+    if let Some(size) = agreed_other_size(&missed, &settings.board) {
+        return Err(size_mistake(&settings.board, size, &missed));
+    }
+    let results: Vec<Result<Vec<[f64; 2]>, String>> = misses
+        .into_iter()
+        .map(|r| r.map_err(|m| m.to_string()))
+        .collect();
     let stereo = !right.is_empty();
     let n = left.len();
     let Detections { views, reasons } = Detections::assemble(&results, stereo);
@@ -373,6 +389,14 @@ fn compute(
         stereo,
     )
     .map_err(|fault| fit_error(&fault, &reasons, n))?;
+    let determination = Determination::of(&fit);
+    if determination.refused() {
+        let cause = determination.cause().unwrap_or_default();
+        return Err(ApiError::Invalid(vec![FieldError::new(
+            "left",
+            format!("refused, {cause} (of {n} views sent)"),
+        )]));
+    }
     let solve = solving.elapsed();
     let rectifying = Instant::now();
     let options = RectifyOptions {
@@ -410,6 +434,7 @@ fn compute(
                 fundamental,
                 rectification: rect,
                 target: settings.board.target(),
+                rig_std: rig_std.map(|[focal_px, baseline]| RigStd { focal_px, baseline }),
             });
             yaml(text, "opencv.yml")
         }
@@ -429,6 +454,7 @@ fn compute(
                         rotation,
                         projection,
                         unit,
+                        rig_std: rig_std.map(|[focal_px, baseline]| RigStd { focal_px, baseline }),
                     })
                 }
                 _ => ros::write(&ros::CameraInfo::alone(
@@ -462,6 +488,39 @@ fn yaml(text: String, name: &str) -> Response {
         name,
         Disposition::Attachment,
     )
+}
+
+/// Most images show a whole chessboard of another size than the board's: one 422 naming
+/// each member that differs, with the size found.
+fn size_mistake(
+    board: &Board,
+    (columns, rows): (usize, usize),
+    missed: &[Option<&Miss>],
+) -> ApiError {
+    let showing = missed
+        .iter()
+        .filter(|m| m.and_then(Miss::whole_grid) == Some((columns.max(rows), columns.min(rows))))
+        .count();
+    let (given_columns, given_rows) = (board.columns() as usize, board.rows() as usize);
+    let mut errors = Vec::new();
+    for (member, given, found) in [
+        ("columns", given_columns, columns),
+        ("rows", given_rows, rows),
+    ] {
+        if given != found {
+            errors.push(FieldError::new(
+                format!("board.{member}"),
+                format!(
+                    "is {given}, but {showing} of the {} images show {found} this way: a \
+                     chessboard of {columns} × {rows} inner corners, where the board says \
+                     {given_columns} × {given_rows}. Count the inner corners (where four squares \
+                     meet), not the squares: a board of 10 × 7 squares has 9 × 6",
+                    missed.len()
+                ),
+            ));
+        }
+    }
+    ApiError::Invalid(errors)
 }
 
 /// A calibration that could not be made: a 422 naming each view that failed and why.

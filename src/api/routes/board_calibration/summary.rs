@@ -132,6 +132,7 @@ pub fn summarize(
         },
         views: view_summaries,
         rms: fit.rms,
+        determined: report::Determination::of(fit).determined(),
         epipolar_error: fit.epipolar_error(views),
         left: camera_summary(&fit.left),
         right: fit.right.as_ref().map(camera_summary),

@@ -271,6 +271,11 @@ pub struct CalibrationSummary {
     pub views: Vec<ViewSummary>,
     /// The RMS reprojection error over every corner used, px.
     pub rms: f64,
+    /// Whether the views determine the model: false when a focal length's σ is over 2 % of
+    /// it, or the views repeat one pose (a warning then says which). A low RMS with
+    /// `determined: false` fits these corners and says nothing about the lens. Over 20 % the
+    /// calibration is refused (422).
+    pub determined: bool,
     /// The mean distance of a corner from its partner's epipolar line, both ways, after
     /// undistortion, px (OpenCV's `stereo_calib.cpp` check). Pairs only.
     #[serde(skip_serializing_if = "Option::is_none")]

@@ -20,6 +20,7 @@ use crate::api::wire::calibration::add_read_faults;
 use crate::api::wire::openapi::BodyErrors;
 use crate::calibration::files::{self, ReadOptions, Source};
 use crate::physics::LengthUnit;
+use crate::vision::decode::MAX_SIDE;
 
 /// `POST /calibration`.
 pub fn router() -> OpenApiRouter<AppState> {
@@ -81,6 +82,8 @@ impl FromRequest<AppState> for CalibrationBody {
         }
         request.alpha = query.alpha.or(request.alpha);
         request.unit = query.unit.or(request.unit);
+        request.image_width = query.image_width.or(request.image_width);
+        request.image_height = query.image_height.or(request.image_height);
         Ok(CalibrationBody(request, problems))
     }
 }
@@ -155,6 +158,31 @@ pub async fn post_calibration(
     read(&request, problems).map(Json)
 }
 
+/// The raw images' size given beside the file: both members or neither, each from 1 to
+/// [`MAX_SIDE`] pixels.
+fn image_size(request: &CalibrationRequest, problems: &mut FieldErrors) -> Option<(u32, u32)> {
+    let mut side = |name: &str, value: Option<u32>| {
+        let v = value?;
+        if (1..=MAX_SIDE).contains(&v) {
+            Some(v)
+        } else {
+            problems.add(
+                name,
+                format!("must be from 1 to {MAX_SIDE} pixels, not {v}"),
+            );
+            None
+        }
+    };
+    let width = side("image_width", request.image_width);
+    let height = side("image_height", request.image_height);
+    match (request.image_width, request.image_height) {
+        (Some(_), None) => problems.add("image_height", "is required with image_width"),
+        (None, Some(_)) => problems.add("image_width", "is required with image_height"),
+        _ => {}
+    }
+    width.zip(height)
+}
+
 /// Reads the file and states the rig in the requested unit; each fault named by its member
 /// (`text`, `right_text`, `calibration_unit`, or the rig's `rig.cx`…).
 fn read(
@@ -163,6 +191,7 @@ fn read(
 ) -> Result<CalibrationResponse, ApiError> {
     let text = problems.required("text", request.text.as_deref());
     let alpha = problems.alpha(request.alpha);
+    let image_size = image_size(request, &mut problems);
     if !problems.is_empty() {
         return Err(problems.into_error());
     }
@@ -172,7 +201,7 @@ fn read(
         format: request.format.unwrap_or_default().format(),
         kitti_pair: request.cameras.map(Into::into),
         alpha,
-        image_size: None,
+        image_size,
     };
     let options = ReadOptions {
         calibration_unit: request.calibration_unit.map(LengthUnit::from),

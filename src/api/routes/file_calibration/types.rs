@@ -45,6 +45,14 @@ request! {
         /// when the file has none.
         #[schema(minimum = 0.0, maximum = 1.0)]
         alpha: f64,
+        /// The raw images' width in pixels, for a file of raw cameras that does not record
+        /// it (OpenCV's `stereo_calib` sample writes `intrinsics.yml` and `extrinsics.yml`
+        /// without `imageSize`); given with `image_height`. The file's own size wins.
+        #[schema(minimum = 1, maximum = 8192)]
+        image_width: u32,
+        /// The raw images' height in pixels; given with `image_width`.
+        #[schema(minimum = 1, maximum = 8192)]
+        image_height: u32,
     }
 }
 
@@ -74,6 +82,14 @@ pub struct CalibrationQuery {
     #[serde(default, deserialize_with = "member")]
     #[param(nullable = false, minimum = 0.0, maximum = 1.0)]
     pub alpha: Option<f64>,
+    /// The raw images' width, for a file that does not record it (with `image_height`).
+    #[serde(default, deserialize_with = "member")]
+    #[param(nullable = false, minimum = 1, maximum = 8192)]
+    pub image_width: Option<u32>,
+    /// The raw images' height, for a file that does not record it (with `image_width`).
+    #[serde(default, deserialize_with = "member")]
+    #[param(nullable = false, minimum = 1, maximum = 8192)]
+    pub image_height: Option<u32>,
 }
 
 impl QueryForm for CalibrationQuery {}

@@ -12,6 +12,7 @@ use calib_targets_chessboard::{
     ChessboardDetector, ChessboardParams, GrayImageView, default_chess_config, detect_corners,
 };
 
+use super::grid::{self, Fitted, Grid};
 use super::{Luma, refine_all};
 use crate::calibration::boards::Board;
 
@@ -28,6 +29,9 @@ pub enum Miss {
         columns: usize,
         rows: usize,
     },
+    /// A chessboard larger than the board was found, whole: the board's size is wrong
+    /// (squares counted instead of inner corners, or columns and rows mixed up).
+    Larger { columns: usize, rows: usize },
     /// The squares' colours fit no orientation of the board (not a chessboard of this size,
     /// or too dark or washed out to tell).
     Colours,
@@ -49,10 +53,30 @@ impl std::fmt::Display for Miss {
                 f,
                 "found a grid of {columns}×{rows} inner corners ({found} of them), not the board's whole grid"
             ),
+            Miss::Larger { columns, rows } => write!(
+                f,
+                "found a chessboard of {columns}×{rows} inner corners, larger than the board"
+            ),
             Miss::Colours => write!(
                 f,
                 "the squares' colours do not fit the board in any orientation"
             ),
+        }
+    }
+}
+
+impl Miss {
+    /// The whole chessboard found instead of the board, as (longer, shorter) inner corners:
+    /// a complete grid of another size, or a larger chessboard.
+    pub fn whole_grid(&self) -> Option<(usize, usize)> {
+        match *self {
+            Miss::Incomplete {
+                found,
+                columns,
+                rows,
+            } if found == columns * rows => Some((columns.max(rows), columns.min(rows))),
+            Miss::Larger { columns, rows } => Some((columns.max(rows), columns.min(rows))),
+            _ => None,
         }
     }
 }
@@ -129,20 +153,6 @@ fn shrink(image: &Luma, factor: usize) -> Luma {
     }
 }
 
-/// The detector's labelled corners: a dense table `position[v][u]` over the grid's extent.
-struct Grid {
-    width: usize,
-    height: usize,
-    found: usize,
-    position: Vec<Option<[f64; 2]>>,
-}
-
-impl Grid {
-    fn at(&self, u: usize, v: usize) -> Option<[f64; 2]> {
-        self.position[v * self.width + u]
-    }
-}
-
 fn detect_grid(image: &Luma) -> Result<Grid, Miss> {
     let bytes: Vec<u8> = image
         .data
@@ -169,31 +179,11 @@ fn detect_grid(image: &Luma) -> Result<Grid, Miss> {
             )
         })
         .collect();
-    let (Some(u0), Some(v0)) = (
-        labels.iter().map(|l| l.0).min(),
-        labels.iter().map(|l| l.1).min(),
-    ) else {
-        return Err(Miss::NoGrid);
-    };
-    let width = (labels.iter().map(|l| l.0).max().unwrap_or(u0) - u0 + 1) as usize;
-    let height = (labels.iter().map(|l| l.1).max().unwrap_or(v0) - v0 + 1) as usize;
-    if width > 4096 || height > 4096 {
-        return Err(Miss::NoGrid);
-    }
-    let mut position = vec![None; width * height];
-    for (u, v, p) in labels {
-        position[(v - v0) as usize * width + (u - u0) as usize] = Some(p);
-    }
-    let mut grid = Grid {
-        width,
-        height,
-        found: detection.corners.len(),
-        position,
-    };
+    let mut grid = Grid::from_labels(&labels).ok_or(Miss::NoGrid)?;
     // Make the labelling keep the image's handedness (u rightward, v downward), so that the
     // board's orientations below are all rotations.
     if grid.width > 1 && grid.height > 1 && handedness(&grid) < 0.0 {
-        grid = transpose(&grid);
+        grid = grid.transposed();
     }
     Ok(grid)
 }
@@ -212,21 +202,6 @@ fn handedness(grid: &Grid) -> f64 {
         }
     }
     sum
-}
-
-fn transpose(grid: &Grid) -> Grid {
-    let mut position = vec![None; grid.width * grid.height];
-    for v in 0..grid.height {
-        for u in 0..grid.width {
-            position[u * grid.height + v] = grid.at(u, v);
-        }
-    }
-    Grid {
-        width: grid.height,
-        height: grid.width,
-        found: grid.found,
-        position,
-    }
 }
 
 /// The four quarter turns that take board corner (i, j) to grid label (u, v).
@@ -259,21 +234,28 @@ impl Turn {
 
 fn order(grid: &Grid, image: &Luma, board: &Board) -> Result<Vec<[f64; 2]>, Miss> {
     let (columns, rows) = (board.columns() as usize, board.rows() as usize);
-    let incomplete = Miss::Incomplete {
-        found: grid.found,
-        columns: grid.width,
-        rows: grid.height,
+    let grid = match grid::fit(grid, image, columns, rows) {
+        Fitted::Board(grid) => grid,
+        Fitted::Short(grid) => {
+            return Err(Miss::Incomplete {
+                found: grid.labelled(),
+                columns: grid.width,
+                rows: grid.height,
+            });
+        }
+        Fitted::Larger(grid) => {
+            return Err(Miss::Larger {
+                columns: grid.width,
+                rows: grid.height,
+            });
+        }
     };
-    if grid.found != columns * rows {
-        return Err(incomplete);
-    }
+    let grid = &grid;
     let mut best: Option<(f64, Vec<[f64; 2]>)> = None;
-    let mut fitted = false;
     for turn in [Turn::None, Turn::Half, Turn::Quarter, Turn::ThreeQuarters] {
         if !turn.fits(grid, columns, rows) {
             continue;
         }
-        fitted = true;
         let Some(points) = (0..rows)
             .flat_map(|j| (0..columns).map(move |i| (i, j)))
             .map(|(i, j)| {
@@ -282,7 +264,7 @@ fn order(grid: &Grid, image: &Luma, board: &Board) -> Result<Vec<[f64; 2]>, Miss
             })
             .collect::<Option<Vec<_>>>()
         else {
-            return Err(incomplete);
+            continue;
         };
         if contrast(&points, image, columns, rows) <= 0.0 {
             continue;
@@ -292,9 +274,6 @@ fn order(grid: &Grid, image: &Luma, board: &Board) -> Result<Vec<[f64; 2]>, Miss
         if best.as_ref().is_none_or(|(r, _)| rightward > *r) {
             best = Some((rightward, points));
         }
-    }
-    if !fitted {
-        return Err(incomplete);
     }
     best.map(|(_, points)| points).ok_or(Miss::Colours)
 }

@@ -1,7 +1,8 @@
 //! Finding a chessboard's inner corners in an image: the grey image they work on, the whole
-//! board found and ordered ([`find`]) and the sub-pixel refinement ([`refine`]).
+//! board found and ordered ([`find`]), the detector's grid fitted to the board ([`grid`]) and the sub-pixel refinement ([`refine`]).
 
 pub mod find;
+mod grid;
 pub mod refine;
 
 pub use find::{Miss, find_board};
