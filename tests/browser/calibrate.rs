@@ -162,7 +162,8 @@ async fn board_files(base: &str) -> Vec<PathBuf> {
 /// The project's rendered board pairs, uploaded through the file input, are paired by name
 /// (the stray file named); a first request is cancelled and says so; they calibrate to the rig they were rendered with (f and B within
 /// 0.5 %) with a good RMS, and the refused view is marked with its reason; a click on a view's
-/// bar leaves it out and calibrates again (one view fewer, another RMS); the OpenCV YAML the
+/// bar leaves it out and calibrates again (one view fewer, another RMS); the projection
+/// uncertainty is drawn over the coverage and the cross-validation told; the OpenCV YAML the
 /// page saves is read by `/calibration` as the same rig.
 #[tokio::test]
 #[ignore = "needs chromium and chromedriver; .ci/run runs it"]
@@ -233,6 +234,18 @@ async fn uploaded_board_pairs_calibrate_and_a_view_is_left_out_by_a_click() {
         .script("return document.querySelectorAll('#thumbs canvas').length")
         .await;
     assert_eq!(thumbs, json!(26), "a thumbnail per image");
+    // The projection uncertainty is drawn over each coverage picture, a cell of the 16 × 12
+    // grid each, and the cross-validation of the 12 views' halves is told.
+    let cells = browser
+        .script(
+            "return [document.querySelectorAll('#coverage-left .sigma-cell').length,\
+               document.querySelectorAll('#coverage-right .sigma-cell').length,\
+               document.getElementById('views-verdict').dataset.consistent]",
+        )
+        .await;
+    assert_eq!(cells, json!([192, 192, "true"]), "{cells}");
+    let views = browser.text("views-verdict").await;
+    assert!(views.contains("Cross-validation: consistent"), "{views}");
 
     // Act: leave the first view out by clicking its bar.
     browser
@@ -321,6 +334,10 @@ async fn the_sample_calibration_measures_a_raw_pair_in_images_mode() {
     let (_, used, f, _) = browser.calibrated().await;
     assert_eq!(used, 12);
     browser.screenshot("calibrate.png").await;
+    browser
+        .script("document.getElementById('coverage').scrollIntoView(); return true")
+        .await;
+    browser.screenshot("calibrate-uncertainty.png").await;
 
     // Act
     browser

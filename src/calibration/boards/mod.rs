@@ -10,6 +10,8 @@
 //!   check and the rectified rig's uncertainty.
 //! - [`report`]: the detections per view, coverage, tilt and the warnings a user checks a
 //!   calibration by.
+//! - [`uncertainty`]: the σ of a projection over each image, and cross-validation of two
+//!   halves of the views.
 //! - [`synthetic`]: boards rendered through the camera model with exact truth.
 
 pub mod board;
@@ -18,6 +20,7 @@ pub mod fit;
 pub mod report;
 pub mod solve;
 pub mod synthetic;
+pub mod uncertainty;
 pub mod zhang;
 
 pub use board::{Board, BoardFault, BoardMember};

@@ -223,3 +223,88 @@ fn every_parameters_sigma_is_honest() {
     assert!((0.60..=0.76).contains(&one), "within 1σ: {one}");
     assert!((0.91..=0.99).contains(&two), "within 2σ: {two}");
 }
+
+/// The projection σ is largest where no corners fell: boards kept to the image's middle leave
+/// its corners to extrapolation, and the grid's corner cells show it; boards over the whole
+/// image give a flatter, lower grid.
+#[test]
+fn projection_uncertainty_is_high_where_there_were_no_corners() {
+    use super::uncertainty::{GRID, projection_uncertainty};
+    let pair = truth(Model::PlumbBob, &[-0.2, 0.08, 0.0008, -0.0004, -0.01]);
+    let fit = noisy_fit(&pair, 10, 0.1, 41).expect("calibrated");
+    let p = projection_uncertainty(&fit, None).expect("the grid");
+    assert!(p.distance > 100.0, "distance {}", p.distance);
+    let right = p.right.as_ref().expect("a pair");
+    for grid in [&p.left, right] {
+        assert_eq!((grid.grid.len(), grid.grid[0].len()), (GRID.1, GRID.0));
+        assert!(grid.median_px > 0.0 && grid.median_px <= grid.worst_px);
+        assert!(grid.median_px < 0.5, "median {}", grid.median_px);
+    }
+    // Views whose corners stay within the middle of the image (the board far away).
+    let board = Board::new(7, 5, 30.0, LengthUnit::Millimetre).unwrap();
+    let mut rng = crate::noise::Rng::new(7);
+    let mut noisy = |points: Vec<[f64; 2]>| -> Vec<[f64; 2]> {
+        points
+            .into_iter()
+            .map(|[x, y]| {
+                [
+                    x + 0.1 * f64::from(rng.normal()),
+                    y + 0.1 * f64::from(rng.normal()),
+                ]
+            })
+            .collect()
+    };
+    let middle: Vec<Corners> = poses(&pair, SIZE, &board, 10, 45.0, 43)
+        .iter()
+        .map(|pose| {
+            let far = nalgebra::Isometry3::from_parts(
+                nalgebra::Translation3::new(0.0, 0.0, 2.0 * pose.translation.vector.z),
+                pose.rotation,
+            );
+            Corners {
+                left: synthetic::corners(&board, &far, &pair.left).map(&mut noisy),
+                right: synthetic::corners(&board, &synthetic::right_pose(&pair, &far), &pair.right)
+                    .map(&mut noisy),
+            }
+        })
+        .collect();
+    let narrow = calibrate(&board, SIZE, Model::PlumbBob, &middle, true).expect("calibrated");
+    let q = projection_uncertainty(&narrow, Some(p.distance)).expect("the grid");
+    let cell = |g: &super::uncertainty::CameraGrid, i: usize, j: usize| g.grid[j][i].unwrap();
+    let (centre, corner) = (cell(&q.left, 8, 6), cell(&q.left, 0, 0));
+    eprintln!(
+        "whole image: median {:.3} worst {:.3} px; middle only: centre {centre:.3}, corner {corner:.3}, worst {:.3} px",
+        p.left.median_px, p.left.worst_px, q.left.worst_px
+    );
+    assert!(corner > 3.0 * centre, "corner {corner}, centre {centre}");
+    assert!(q.left.worst_px > 3.0 * p.left.worst_px);
+}
+
+/// Cross-validation: two halves of one camera's views agree within what their σ predict;
+/// halves from two different cameras (f 2 % apart) do not.
+#[test]
+fn cross_validation_tells_a_consistent_calibration_from_another() {
+    use super::uncertainty::{board_distance, cross_validate};
+    let pair = truth(Model::PlumbBob, &[-0.2, 0.08, 0.0008, -0.0004, -0.01]);
+    let a = noisy_fit(&pair, 8, 0.1, 51).expect("calibrated");
+    let b = noisy_fit(&pair, 8, 0.1, 52).expect("calibrated");
+    let distance = board_distance(&a).unwrap();
+    let same = cross_validate(&a, &b, distance).expect("compared");
+    eprintln!("same rig: {same:?}");
+    assert!(same.consistent(), "{same:?}");
+    let mut other = pair;
+    other.left = Camera::new(
+        Intrinsics {
+            fx: 714.0,
+            fy: 716.0,
+            cx: 318.0,
+            cy: 243.0,
+        },
+        pair.left.distortion(),
+    )
+    .unwrap();
+    let c = noisy_fit(&other, 8, 0.1, 53).expect("calibrated");
+    let apart = cross_validate(&a, &c, distance).expect("compared");
+    eprintln!("another rig: {apart:?}");
+    assert!(!apart.consistent(), "{apart:?}");
+}

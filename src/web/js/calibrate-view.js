@@ -154,13 +154,31 @@ function drawCoverage(calibration) {
       }
       picture.append(svg('rect', { ...box, class: 'cell' }));
     }
+    // The projection σ as a heat map: green where the calibration places a point to a tenth
+    // of a pixel, red from a pixel up (a log scale between).
+    const uncertainty = summary.projection_uncertainty?.[side];
+    if (uncertainty) {
+      const rows = uncertainty.grid.length;
+      uncertainty.grid.forEach((row, j) => row.forEach((sigma, i) => {
+        const cols = row.length;
+        const box = { x: (i * w) / cols, y: (j * h) / rows, width: w / cols, height: h / rows };
+        const t = sigma === null ? 1 : Math.min(1, Math.max(0, Math.log10(sigma / 0.1)));
+        const cell = svg('rect', { ...box, class: 'sigma-cell', fill: `hsl(${Math.round(120 * (1 - t))}, 70%, 45%)` });
+        cell.append(svg('title', {}, sigma === null ? 'σ unknown here' : `σ ${fmt(sigma, 2)} px`));
+        picture.append(cell);
+      }));
+      picture.dataset.sigmaMedian = String(uncertainty.median_px);
+    }
     picture.append(...dots);
     picture.dataset.empty = String(empty);
     const words = `${side === 'left' ? 'Left' : 'Right'} camera: corners in ${16 - empty} of 16 cells, x ${fmt(cover.x[0] * 100, 3)}–${fmt(cover.x[1] * 100, 3)} % and y ${fmt(cover.y[0] * 100, 3)}–${fmt(cover.y[1] * 100, 3)} % of the image`;
     picture.append(svg('title', {}, words));
     const figure = document.createElement('figure');
     const caption = document.createElement('figcaption');
-    caption.textContent = `${words}${empty > 0 ? `; ${empty} empty ${empty === 1 ? 'cell' : 'cells'} shaded` : ''}.`;
+    const sigmaWords = uncertainty
+      ? ` Projection σ at ${fmt(summary.projection_uncertainty.distance, 3)} ${summary.board.unit}: median ${fmt(uncertainty.median_px, 2)} px, worst ${fmt(uncertainty.worst_px, 2)} px (green under 0.1 px, red from 1 px).`
+      : '';
+    caption.textContent = `${words}${empty > 0 ? `; ${empty} empty ${empty === 1 ? 'cell' : 'cells'} shaded` : ''}.${sigmaWords}`;
     figure.append(picture, caption);
     figures.push(figure);
   }
@@ -327,6 +345,13 @@ export function showCalibration(calibration) {
   views.textContent = `${used} of ${calibration.pairs.length} views used`
     + `${out > 0 ? `, ${out} left out by you` : ''}${failed > 0 ? `, ${failed} without the board` : ''}`
     + `${outliers > 0 ? `, ${outliers} left out as ${outliers === 1 ? 'an outlier' : 'outliers'}` : ''}.`;
+  const cross = summary.cross_validation;
+  if (cross) {
+    views.dataset.consistent = String(cross.consistent);
+    views.textContent += cross.consistent
+      ? ` Cross-validation: consistent (two halves of the views ${fmt(cross.median_px, 2)} px apart, within the ${fmt(cross.predicted_median_px, 2)} px their σ predict).`
+      : ` Cross-validation: not consistent (two halves ${fmt(cross.median_px, 2)} px apart, where their σ predict ${fmt(cross.predicted_median_px, 2)} px): take more views, try the rational_polynomial model, or check that the board is flat.`;
+  }
   drawBars(calibration);
   drawCoverage(calibration);
   const advice = summary.warnings.map((w) => listItem(w));

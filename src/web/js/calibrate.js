@@ -154,7 +154,12 @@ function showCalibrationErrors(errors, sent) {
 function query(output = null) {
   const q = new URLSearchParams({ model: $('lens_model').value });
   if (output) q.set('output', output);
-  else q.set('corners', 'true');
+  else {
+    q.set('corners', 'true');
+    // Two halves of the views calibrated apart say whether the calibration holds together.
+    const sending = calibration.pairs.length - calibration.excluded.size;
+    if (sending >= 6) q.set('cross_validate', 'true');
+  }
   return q;
 }
 

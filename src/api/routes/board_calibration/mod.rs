@@ -4,6 +4,7 @@
 //! module reads the form, judges it against the limits, finds the boards over the cores off the
 //! async runtime and writes the answer.
 
+mod checks;
 mod summary;
 pub mod types;
 
@@ -15,6 +16,7 @@ use axum::response::{IntoResponse, Response};
 use rayon::prelude::*;
 use utoipa_axum::{router::OpenApiRouter, routes};
 
+use self::checks::Checks;
 use self::types::{BoardSpec, CalibrateAnswers, CalibrateForm, CalibrateOutput, CalibrateQuery};
 use crate::api::HeavyState;
 use crate::api::error::{ApiError, FieldError, FieldErrors};
@@ -119,6 +121,14 @@ pub async fn post_calibrate(
     let mut problems = query_problems;
     problems.extend(form_problems);
     let alpha = problems.alpha(query.alpha).unwrap_or(Alpha::ZERO);
+    if let Some(d) = query.uncertainty_distance
+        && !(d.is_finite() && d > 0.0)
+    {
+        problems.add(
+            "uncertainty_distance",
+            format!("must be a distance greater than 0, in the board's unit, not {d}"),
+        );
+    }
     let output = query.output.unwrap_or_default();
     let model: Model = query.model.unwrap_or_default().into();
     let stereo = !right.is_empty();
@@ -192,6 +202,8 @@ pub async fn post_calibrate(
         alpha,
         output,
         corners: query.corners.unwrap_or(false),
+        cross_validate: query.cross_validate.unwrap_or(false),
+        uncertainty_distance: query.uncertainty_distance,
         size: Size { width, height },
         allowed,
     };
@@ -208,6 +220,8 @@ struct Settings {
     alpha: Alpha,
     output: CalibrateOutput,
     corners: bool,
+    cross_validate: bool,
+    uncertainty_distance: Option<f64>,
     size: Size,
     allowed: DecodeLimits,
 }
@@ -397,6 +411,7 @@ fn compute(
             format!("refused, {cause} (of {n} views sent)"),
         )]));
     }
+    let checks = Checks::of(&fit, &views, settings, stereo);
     let solve = solving.elapsed();
     let rectifying = Instant::now();
     let options = RectifyOptions {
@@ -416,6 +431,7 @@ fn compute(
                 settings,
                 rectification.as_ref(),
                 rig_std,
+                &checks,
                 [detect, solve, rectify],
             );
             Json(summary).into_response()

@@ -4,14 +4,16 @@
 use std::time::Duration;
 
 use super::Settings;
+use super::checks::Checks;
 use super::types::{
     self, BoardUsed, CalibrateTimes, CalibrationSummary, CameraStd, CameraSummary, Coverage,
-    CoverageSummary, RectificationSummary, RigStd, ViewStatus, ViewSummary,
+    CoverageSummary, CrossValidationSummary, ProjectionGrid, ProjectionUncertaintySummary,
+    RectificationSummary, RigStd, ViewStatus, ViewSummary,
 };
 use crate::api::wire::params::Unit;
 use crate::api::wire::rig::CalibratedRig;
 use crate::calibration::boards::report::{self, Rectified};
-use crate::calibration::boards::{CameraFit, Corners, Fit, ViewOutcome};
+use crate::calibration::boards::{CameraFit, Corners, Fit, ViewOutcome, uncertainty};
 use crate::camera::Model;
 use crate::numbers::round_to;
 
@@ -42,6 +44,7 @@ pub fn summarize(
     settings: &Settings,
     rectification: Option<&crate::camera::Rectification>,
     rig_std: Option<[f64; 2]>,
+    checks: &Checks,
     [detect, solve, rectify]: [Duration; 3],
 ) -> CalibrationSummary {
     let view_summaries: Vec<ViewSummary> = fit
@@ -104,7 +107,17 @@ pub fn summarize(
         (true, Some(_), None) => Rectified::Vertical,
         (true, Some(_), Some(_)) => Rectified::Horizontal,
     };
-    let warnings = report::warnings(fit, [Some(&left), right.as_ref()], tilt_range, rectified);
+    let mut warnings = report::warnings(fit, [Some(&left), right.as_ref()], tilt_range, rectified);
+    warnings.extend(checks.cross_warning.clone());
+    if let Some(c) = checks.cross.as_ref().filter(|c| !c.consistent()) {
+        warnings.push(format!(
+            "the two halves of the views project {:.2} px apart (median; {:.2} px at worst), more \
+             than their uncertainties predict ({:.2} px; {:.2} px): the model does not fit these \
+             views alike. Take more views, try the rational_polynomial model for a wide lens, \
+             or check that the board is flat",
+            c.median_px, c.worst_px, c.predicted_median_px, c.predicted_worst_px
+        ));
+    }
     let coverage = |c: report::Coverage| Coverage {
         x: c.x,
         y: c.y,
@@ -168,12 +181,39 @@ pub fn summarize(
             baseline: b,
         }),
         coverage: cover,
+        projection_uncertainty: checks
+            .uncertainty
+            .as_ref()
+            .map(|u| ProjectionUncertaintySummary {
+                distance: u.distance,
+                left: projection_grid(&u.left),
+                right: u.right.as_ref().map(projection_grid),
+            }),
+        cross_validation: checks.cross.as_ref().map(|c| CrossValidationSummary {
+            median_px: round_to(c.median_px, 4),
+            worst_px: round_to(c.worst_px, 4),
+            predicted_median_px: round_to(c.predicted_median_px, 4),
+            predicted_worst_px: round_to(c.predicted_worst_px, 4),
+            consistent: c.consistent(),
+        }),
         warnings,
         timings_ms: CalibrateTimes {
             detect: ms(detect),
             solve: ms(solve),
             rectify: ms(rectify),
         },
+    }
+}
+
+fn projection_grid(g: &uncertainty::CameraGrid) -> ProjectionGrid {
+    ProjectionGrid {
+        grid: g
+            .grid
+            .iter()
+            .map(|row| row.iter().map(|v| v.map(|v| round_to(v, 4))).collect())
+            .collect(),
+        median_px: round_to(g.median_px, 4),
+        worst_px: round_to(g.worst_px, 4),
     }
 }
 

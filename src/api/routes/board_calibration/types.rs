@@ -78,6 +78,14 @@ request! {
         output: CalibrateOutput,
         /// Whether the summary lists each view's corners (for drawing). Default false.
         corners: bool,
+        /// Whether to calibrate two disjoint halves of the views (alternate views used) and
+        /// report how far apart they project (`cross_validation`). Needs 6 views used.
+        /// Default false.
+        cross_validate: bool,
+        /// The distance of the points `projection_uncertainty` is computed for, in the
+        /// board's unit (default: the boards' median distance).
+        #[schema(exclusive_minimum = 0.0)]
+        uncertainty_distance: f64,
     }
 }
 
@@ -239,6 +247,49 @@ pub struct Coverage {
     pub cells: f64,
 }
 
+/// One camera's projection σ over a 16 × 12 grid of cells across its image.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct ProjectionGrid {
+    /// `grid[row][column]`: the σ (px, the worst direction's) of where a point at `distance`
+    /// on the cell centre's ray projects; `null` where the lens cannot be inverted.
+    pub grid: Vec<Vec<Option<f64>>>,
+    pub median_px: f64,
+    pub worst_px: f64,
+}
+
+/// How precisely the calibration places a point at `distance` in each image, from the
+/// parameters' covariance with the part a turn of the whole frame explains taken out (mrcal's
+/// projection uncertainty). High where no corners fell: take views there.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct ProjectionUncertaintySummary {
+    /// The points' distance from the camera, in the board's unit (the boards' median
+    /// distance unless `uncertainty_distance` is given).
+    pub distance: f64,
+    /// The left camera: its lens alone (it defines the rig's frame).
+    pub left: ProjectionGrid,
+    /// The right camera: its lens and the extrinsics, a point fixed in the left camera's frame.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub right: Option<ProjectionGrid>,
+}
+
+/// Two calibrations from disjoint halves of the views (alternate views used), compared over
+/// both cameras' grids after the frame turn that best aligns them, beside what their σ
+/// predict (`cross_validate=true`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct CrossValidationSummary {
+    /// The median and largest distance between the halves' projections, px.
+    pub median_px: f64,
+    pub worst_px: f64,
+    /// The median and largest sum of the two halves' σ in a cell, px.
+    pub predicted_median_px: f64,
+    pub predicted_worst_px: f64,
+    /// Whether the halves differ by no more than their σ predict (the median within the
+    /// predicted median, the largest within twice the predicted largest). When not: more
+    /// views, a richer model (`rational_polynomial`) or a flatter board.
+    pub consistent: bool,
+}
+
 /// Where the corners fell, and how much the board tilted.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
 pub struct CoverageSummary {
@@ -318,6 +369,12 @@ pub struct CalibrationSummary {
     #[schema(nullable = false)]
     pub rig_std: Option<RigStd>,
     pub coverage: CoverageSummary,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub projection_uncertainty: Option<ProjectionUncertaintySummary>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub cross_validation: Option<CrossValidationSummary>,
     /// Things that make the calibration less trustworthy, and what to do.
     pub warnings: Vec<String>,
     pub timings_ms: CalibrateTimes,

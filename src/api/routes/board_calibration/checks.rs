@@ -1,0 +1,54 @@
+//! What `/calibrate` checks a calibration by besides its RMS: the projection uncertainty over
+//! each image and, when asked, the cross-validation of two halves of the views (the engine is
+//! [`crate::calibration::boards::uncertainty`]).
+
+use super::Settings;
+use crate::calibration::boards::{self, uncertainty};
+
+/// What a user checks the calibration by besides its RMS: the projection σ over each image,
+/// and (when asked) the cross-validation of two halves of the views.
+pub struct Checks {
+    pub uncertainty: Option<uncertainty::ProjectionUncertainty>,
+    pub cross: Option<uncertainty::CrossValidation>,
+    /// Why the cross-validation asked for was not made.
+    pub cross_warning: Option<String>,
+}
+
+impl Checks {
+    pub fn of(
+        fit: &boards::Fit,
+        views: &[boards::Corners],
+        settings: &Settings,
+        stereo: bool,
+    ) -> Checks {
+        let uncertainty = uncertainty::projection_uncertainty(fit, settings.uncertainty_distance);
+        let (mut cross, mut cross_warning) = (None, None);
+        if settings.cross_validate {
+            let distance = uncertainty.as_ref().map(|u| u.distance);
+            let halves = distance.ok_or(0).and_then(|d| {
+                uncertainty::cross_validation(
+                    &settings.board,
+                    settings.model,
+                    fit,
+                    views,
+                    stereo,
+                    d,
+                )
+            });
+            match halves {
+                Ok(c) => cross = Some(c),
+                Err(used) => {
+                    cross_warning = Some(format!(
+                        "cross-validation needs two halves that each calibrate: at least 6 \
+                         views used ({used} were)"
+                    ));
+                }
+            }
+        }
+        Checks {
+            uncertainty,
+            cross,
+            cross_warning,
+        }
+    }
+}
