@@ -287,6 +287,17 @@ async fn a_bare_file_takes_the_image_size_beside_it() {
     )
     .await;
     assert_eq!(fields(&half), ["image_width", "image_height"]);
+    // A body size the query overrides is still checked: it was sent.
+    let overridden = problem(
+        app.post(
+            "/calibration?image_width=1280&image_height=720",
+            &json!({"text": bare, "calibration_unit": "mm", "image_height": 0}),
+        )
+        .await,
+        422,
+    )
+    .await;
+    assert_eq!(fields(&overridden), ["image_height"]);
 }
 
 /// A ROS 2 `ros2 topic echo` pair (flat `k`, `p`, block lists) reads like the ROS 1 YAML;

@@ -82,6 +82,15 @@ impl FromRequest<AppState> for CalibrationBody {
         }
         request.alpha = query.alpha.or(request.alpha);
         request.unit = query.unit.or(request.unit);
+        // A body size the query overrides is still checked, as alpha is: it was sent.
+        for (name, overridden, body) in [
+            ("image_width", query.image_width, request.image_width),
+            ("image_height", query.image_height, request.image_height),
+        ] {
+            if overridden.is_some() {
+                side(name, body, &mut problems);
+            }
+        }
         request.image_width = query.image_width.or(request.image_width);
         request.image_height = query.image_height.or(request.image_height);
         Ok(CalibrationBody(request, problems))
@@ -161,26 +170,28 @@ pub async fn post_calibration(
 /// The raw images' size given beside the file: both members or neither, each from 1 to
 /// [`MAX_SIDE`] pixels.
 fn image_size(request: &CalibrationRequest, problems: &mut FieldErrors) -> Option<(u32, u32)> {
-    let mut side = |name: &str, value: Option<u32>| {
-        let v = value?;
-        if (1..=MAX_SIDE).contains(&v) {
-            Some(v)
-        } else {
-            problems.add(
-                name,
-                format!("must be from 1 to {MAX_SIDE} pixels, not {v}"),
-            );
-            None
-        }
-    };
-    let width = side("image_width", request.image_width);
-    let height = side("image_height", request.image_height);
+    let width = side("image_width", request.image_width, problems);
+    let height = side("image_height", request.image_height, problems);
     match (request.image_width, request.image_height) {
         (Some(_), None) => problems.add("image_height", "is required with image_width"),
         (None, Some(_)) => problems.add("image_width", "is required with image_height"),
         _ => {}
     }
     width.zip(height)
+}
+
+/// One side of the image size, when given: from 1 to [`MAX_SIDE`] pixels, else named.
+fn side(name: &str, value: Option<u32>, problems: &mut FieldErrors) -> Option<u32> {
+    let v = value?;
+    if (1..=MAX_SIDE).contains(&v) {
+        Some(v)
+    } else {
+        problems.add(
+            name,
+            format!("must be from 1 to {MAX_SIDE} pixels, not {v}"),
+        );
+        None
+    }
 }
 
 /// Reads the file and states the rig in the requested unit; each fault named by its member
