@@ -41,28 +41,45 @@ def load(path, truth):
     return files
 
 
-def ours(url, truth, files, runs):
-    board = dict(truth["board"])
-    parts = []
-    for i, (l, r) in enumerate(files):
-        parts.append(("left", l, f"left_{i:02}.png", "image/png"))
-        parts.append(("right", r, f"right_{i:02}.png", "image/png"))
-    parts.append(("board", json.dumps(board).encode(), None, "application/json"))
-    body, ctype = multipart(parts)
-    target = urllib.parse.urlsplit(url)
-    conn = http.client.HTTPConnection(target.hostname, target.port, timeout=120)
-    times, answer = [], None
-    for _ in range(runs + 1):  # the first warms the connection and the allocator
+class Calibrate:
+    """One keep-alive connection to /calibrate with one form of pairs: `names` are the files'
+    stems after left/right, `mime` their type."""
+
+    def __init__(self, url, files, names, board, mime):
+        parts = []
+        ext = "png" if mime == "image/png" else "jpg"
+        for n, (l, r) in zip(names, files):
+            parts.append(("left", l, f"left{n}.{ext}", mime))
+            parts.append(("right", r, f"right{n}.{ext}", mime))
+        parts.append(("board", json.dumps(board).encode(), None, "application/json"))
+        self.body, self.ctype = multipart(parts)
+        target = urllib.parse.urlsplit(url)
+        self.conn = http.client.HTTPConnection(target.hostname, target.port, timeout=120)
+
+    def post(self, query=""):
+        """(seconds, the summary); exits on any answer but 200."""
         t = time.perf_counter()
-        conn.request("POST", f"/calibrate?model={truth['model']}&corners=true", body=body,
-                     headers={"Content-Type": ctype})
-        response = conn.getresponse()
+        self.conn.request("POST", f"/calibrate{query}", body=self.body,
+                          headers={"Content-Type": self.ctype})
+        response = self.conn.getresponse()
         answer = response.read()
-        times.append(time.perf_counter() - t)
+        elapsed = time.perf_counter() - t
         if response.status != 200:
             sys.exit(f"/calibrate answered {response.status}: {answer[:800]!r}")
-    conn.close()
-    s = json.loads(answer)
+        return elapsed, json.loads(answer)
+
+    def close(self):
+        self.conn.close()
+
+
+def ours(url, truth, files, runs):
+    names = [f"_{i:02}" for i in range(len(files))]
+    session = Calibrate(url, files, names, dict(truth["board"]), "image/png")
+    times, s = [], None
+    for _ in range(runs + 1):  # the first warms the connection and the allocator
+        elapsed, s = session.post(f"?model={truth['model']}&corners=true")
+        times.append(elapsed)
+    session.close()
     used = sum(v["status"] == "used" for v in s["views"])
     return dict(K1=np.array(s["left"]["camera_matrix"]), D1=np.array(s["left"]["distortion"]),
                 K2=np.array(s["right"]["camera_matrix"]), D2=np.array(s["right"]["distortion"]),
@@ -177,34 +194,18 @@ def photographs(url, path, runs):
     failures: a board OpenCV finds that we miss."""
     files = [(open(f"{path}/left{n}.jpg", "rb").read(), open(f"{path}/right{n}.jpg", "rb").read())
              for n in PHOTO_NAMES]
-    parts = []
-    for n, (l, r) in zip(PHOTO_NAMES, files):
-        parts.append(("left", l, f"left{n}.jpg", "image/jpeg"))
-        parts.append(("right", r, f"right{n}.jpg", "image/jpeg"))
-    parts.append(("board", json.dumps(PHOTO_BOARD).encode(), None, "application/json"))
-    body, ctype = multipart(parts)
-    target = urllib.parse.urlsplit(url)
-    conn = http.client.HTTPConnection(target.hostname, target.port, timeout=120)
+    session = Calibrate(url, files, PHOTO_NAMES, PHOTO_BOARD, "image/jpeg")
     truth = {"model": "plumb_bob", "board": PHOTO_BOARD}
     ours_ms, cv_ms, summary, cv = [], [], None, None
     for k in range(runs + 1):  # taking turns; the first of each warms up and is not counted
-        t = time.perf_counter()
-        conn.request("POST", "/calibrate", body=body, headers={"Content-Type": ctype})
-        response = conn.getresponse()
-        answer = response.read()
-        if response.status != 200:
-            sys.exit(f"/calibrate answered {response.status}: {answer[:800]!r}")
-        elapsed = time.perf_counter() - t
-        if k > 0:
-            ours_ms.append(1e3 * elapsed)
-        summary = json.loads(answer)
+        elapsed, summary = session.post()
         cv = opencv_once(truth, files, found=True)
         if k > 0:
+            ours_ms.append(1e3 * elapsed)
             cv_ms.append(cv["ms"])
     # Once more with the corners, to calibrate OpenCV on ours: which corners make the difference.
-    conn.request("POST", "/calibrate?corners=true", body=body, headers={"Content-Type": ctype})
-    with_corners = json.loads(conn.getresponse().read())
-    conn.close()
+    _, with_corners = session.post("?corners=true")
+    session.close()
     ours_found = []
     for v in summary["views"]:
         failed = v.get("failed", []) if v["status"] == "board_not_found" else []

@@ -420,6 +420,34 @@ async fn the_calibrations_sigma_is_given_beside_its_file() {
     );
 }
 
+/// Beside a calibration part, a `rig` part holding anything but the σ, or a σ of the wrong
+/// kind, has every such member named.
+#[tokio::test]
+async fn a_rig_beside_a_calibration_names_each_member_it_may_not_hold() {
+    let app = spawn_app().await;
+    let calib = "cam0=[500 0 80; 0 500 60; 0 0 1]\ncam1=[500 0 80; 0 500 60; 0 0 1]\n\
+                 doffs=0\nbaseline=100\nwidth=160\nheight=120\nndisp=48\n";
+    let rig = json!({"baseline": 100, "focal_length_std_px": "two", "unit": "yard"});
+    let body = problem(
+        depth_map(
+            &app,
+            "",
+            form(
+                &pair(),
+                &[("calibration", calib.to_owned()), ("rig", rig.to_string())],
+            ),
+        )
+        .await,
+        422,
+    )
+    .await;
+    assert_names(
+        &body,
+        &["rig.baseline", "rig.focal_length_std_px", "rig.unit"],
+    );
+    assert!(message_for(&body, "rig.baseline").contains("given by the calibration part"));
+}
+
 /// The search range and the matcher's options are checked and named.
 #[tokio::test]
 async fn options_out_of_range_are_named() {

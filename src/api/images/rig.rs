@@ -88,9 +88,15 @@ pub fn rig(
     }
 }
 
-/// The members a `rig` part may hold beside a `calibration` part: the calibration's σ, which
-/// a file from elsewhere does not carry.
-const STD_MEMBERS: [&str; 3] = ["focal_length_std_px", "baseline_std", "unit"];
+request! {
+    /// A `rig` part beside a `calibration` part: only the calibration's σ, which a file from
+    /// elsewhere does not carry.
+    pub struct StdBeside {
+        focal_length_std_px: f64,
+        baseline_std: f64,
+        unit: Unit,
+    }
+}
 
 /// A `rig` part beside a `calibration` part: `focal_length_std_px` and `baseline_std` (in
 /// `unit`, default the calibration's), each 0 when absent; any other member is named.
@@ -103,46 +109,30 @@ fn std_beside(json: &Bytes, problems: &mut FieldErrors) -> Option<(f64, f64, Opt
         );
         return None;
     };
-    let mut ok = true;
-    for key in map.keys() {
-        if !STD_MEMBERS.contains(&key.as_str()) {
-            problems.add(
-                &format!("{RIG}{key}"),
-                "is given by the calibration part: beside it, rig holds only \
-                 focal_length_std_px, baseline_std and their unit",
-            );
-            ok = false;
-        }
+    let foreign: Vec<String> = map
+        .keys()
+        .filter(|k| !["focal_length_std_px", "baseline_std", "unit"].contains(&k.as_str()))
+        .cloned()
+        .collect();
+    let (given, mut refused) = decode_object::<StdBeside>(map);
+    for key in &foreign {
+        refused.reword(
+            key,
+            "is given by the calibration part: beside it, rig holds only \
+             focal_length_std_px, baseline_std and their unit",
+        );
     }
-    let mut number = |key: &str| match map.get(key) {
-        None => Some(0.0),
-        Some(Value::Number(n)) => n.as_f64(),
-        Some(other) => {
-            problems.add(
-                &format!("{RIG}{key}"),
-                format!(
-                    "must be a number, got {}",
-                    crate::api::member_messages::describe(other)
-                ),
-            );
-            None
-        }
-    };
-    let (focal, baseline) = (number("focal_length_std_px"), number("baseline_std"));
-    let unit = match map.get("unit") {
-        None => Some(None),
-        Some(value) => match serde_json::from_value::<Unit>(value.clone()) {
-            Ok(unit) => Some(Some(unit)),
-            Err(_) => {
-                problems.add(&format!("{RIG}unit"), "must be one of mm, cm, m, in, ft");
-                None
-            }
-        },
-    };
-    match (ok, focal, baseline, unit) {
-        (true, Some(f), Some(b), Some(u)) => Some((f, b, u)),
-        _ => None,
+    let ok = refused.is_empty();
+    for error in refused.prefixed(RIG) {
+        problems.add_new(error.field, error.message);
     }
+    ok.then(|| {
+        (
+            given.focal_length_std_px.unwrap_or(0.0),
+            given.baseline_std.unwrap_or(0.0),
+            given.unit,
+        )
+    })
 }
 
 /// Names `rig` as required, saying `why`, when the form has neither a `rig` nor a

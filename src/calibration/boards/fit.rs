@@ -492,27 +492,22 @@ impl Fit {
         ];
         let n = self.covariance.nrows();
         let outputs = |step: &[f64]| -> Option<[f64; 2]> {
-            let mut l = lenses;
-            let mut at = 0;
-            for lens in &mut l {
-                for k in 0..lens.len() {
-                    lens.values[k] += step[at + k];
-                }
-                at += lens.len();
+            let left = lenses[0].moved(step);
+            let right = lenses[1].moved(&step[left.len()..]);
+            let at = left.len() + right.len();
+            let pose = Pose {
+                rotation: e.rotation,
+                translation: e.translation,
             }
-            let rotation =
-                Rotation3::from_scaled_axis(Vector3::new(step[at], step[at + 1], step[at + 2]))
-                    * e.rotation;
-            let translation =
-                e.translation + Vector3::new(step[at + 3], step[at + 4], step[at + 5]);
+            .moved(&step[at..]);
             let moved = StereoPair {
-                left: l[0].camera()?,
-                right: l[1].camera()?,
-                rotation,
-                translation,
+                left: left.camera()?,
+                right: right.camera()?,
+                rotation: pose.rotation,
+                translation: pose.translation,
             };
             let r = stereo_rectify(&moved, self.size, options).ok()?;
-            Some([r.p1[(0, 0)], translation.norm()])
+            Some([r.p1[(0, 0)], pose.translation.norm()])
         };
         let mut gradient = DMatrix::zeros(2, n);
         for i in 0..n {

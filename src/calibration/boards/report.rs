@@ -166,9 +166,12 @@ impl Determination {
 /// The chessboard most images show instead of the board described: when more than half of
 /// the images miss the board because they show one whole chessboard of another size (the
 /// same size in each, either way round), that size, as (columns, rows) in the board's own
-/// orientation where it can be told. A user who counted squares instead of inner corners,
+/// orientation where it can be told, with how many images show it. A user who counted squares instead of inner corners,
 /// or swapped a board's sizes for another board's, is told once, not once an image.
-pub fn agreed_other_size(misses: &[Option<&Miss>], board: &Board) -> Option<(usize, usize)> {
+pub fn agreed_other_size(
+    misses: &[Option<&Miss>],
+    board: &Board,
+) -> Option<((usize, usize), usize)> {
     let sizes: Vec<(usize, usize)> = misses
         .iter()
         .flatten()
@@ -183,11 +186,12 @@ pub fn agreed_other_size(misses: &[Option<&Miss>], board: &Board) -> Option<(usi
     }
     // In the board's orientation: the longer side along the longer member.
     let (columns, rows) = (board.columns() as usize, board.rows() as usize);
-    Some(if columns >= rows {
+    let oriented = if columns >= rows {
         size
     } else {
         (size.1, size.0)
-    })
+    };
+    Some((oriented, count))
 }
 
 /// Where one camera's corners fell over the views used.
@@ -269,11 +273,12 @@ pub enum Rectified {
 /// board that never tilted, a high RMS, views left out, a pair that could not be rectified.
 pub fn warnings(
     fit: &Fit,
+    determination: &Determination,
     coverage: [Option<&Coverage>; 2],
     tilt_range: [f64; 2],
     rectified: Rectified,
 ) -> Vec<String> {
-    let mut warnings: Vec<String> = Determination::of(fit).cause().into_iter().collect();
+    let mut warnings: Vec<String> = determination.cause().into_iter().collect();
     let used = fit
         .views
         .iter()
@@ -471,6 +476,7 @@ mod tests {
         };
         let none = warnings(
             &good,
+            &Determination::of(&good),
             [Some(&wide), None],
             tilt_range(&good),
             Rectified::Horizontal,
@@ -478,6 +484,7 @@ mod tests {
         assert!(none.is_empty(), "{none:?}");
         let alone = warnings(
             &good,
+            &Determination::of(&good),
             [Some(&wide), None],
             tilt_range(&good),
             Rectified::Alone,
@@ -496,6 +503,7 @@ mod tests {
         };
         let all = warnings(
             &poor,
+            &Determination::of(&poor),
             [Some(&wide), Some(&narrow)],
             [3.0, 8.0],
             Rectified::Failed,

@@ -46,6 +46,16 @@ impl Lens {
         }
     }
 
+    /// The lens with its parameters moved by the first `len()` values of `step`, in the
+    /// covariance's order (fx fy cx cy, then the coefficients).
+    pub fn moved(&self, step: &[f64]) -> Lens {
+        let mut lens = *self;
+        for (value, s) in lens.values.iter_mut().zip(step.iter().take(self.len())) {
+            *value += s;
+        }
+        lens
+    }
+
     pub fn camera(&self) -> Option<Camera> {
         let distortion = Distortion::new(self.model, &self.values[4..self.len()]).ok()?;
         Camera::new(self.intrinsics(), distortion).ok()
@@ -64,8 +74,9 @@ impl Pose {
         self.rotation * x + self.translation
     }
 
-    /// The pose moved by a step: a rotation ω applied on the left, then a translation.
-    fn moved(&self, step: &[f64]) -> Pose {
+    /// The pose moved by a step (ω, T), as the covariance orders the extrinsics: a rotation
+    /// ω applied on the left, then a translation.
+    pub fn moved(&self, step: &[f64]) -> Pose {
         Pose {
             rotation: Rotation3::from_scaled_axis(Vector3::new(step[0], step[1], step[2]))
                 * self.rotation,

@@ -14,7 +14,7 @@ use nalgebra::{DMatrix, Matrix2, Rotation3, Vector3};
 
 use super::Board;
 use super::fit::{Corners, Fit, ViewOutcome, calibrate};
-use super::solve::Lens;
+use super::solve::{Lens, Pose};
 use crate::camera::{Camera, Model as LensModel, Size};
 
 /// The grid's cells across and down each image.
@@ -84,7 +84,7 @@ fn cell_centre(size: Size, i: usize, j: usize) -> [f64; 2] {
 struct Model {
     lens: Lens,
     /// The extrinsics, for the right camera: R, T.
-    extrinsics: Option<(Rotation3<f64>, Vector3<f64>)>,
+    extrinsics: Option<Pose>,
     /// Where its parameters start in the covariance, and how many.
     at: usize,
     len: usize,
@@ -108,7 +108,10 @@ impl Model {
         Some(Model {
             len: lens.len() + 6,
             lens,
-            extrinsics: Some((e.rotation, e.translation)),
+            extrinsics: Some(Pose {
+                rotation: e.rotation,
+                translation: e.translation,
+            }),
             at: left_lens.len(),
         })
     }
@@ -123,7 +126,7 @@ impl Model {
         let [x, y] = self.camera()?.normalize(pixel)?;
         let ray = Vector3::new(x, y, 1.0).normalize() * distance;
         Some(match self.extrinsics {
-            Some((r, t)) => r.inverse() * (ray - t),
+            Some(pose) => pose.rotation.inverse() * (ray - pose.translation),
             None => ray,
         })
     }
@@ -142,18 +145,9 @@ impl Model {
         turn: Vector3<f64>,
     ) -> Option<[f64; 2]> {
         let point = &(Rotation3::from_scaled_axis(turn) * point);
-        let mut lens = self.lens;
-        let n = lens.len();
-        for (k, s) in step.iter().take(n).enumerate() {
-            lens.values[k] += s;
-        }
-        let camera = lens.camera()?;
+        let camera = self.lens.moved(step).camera()?;
         let seen = match self.extrinsics {
-            Some((r, t)) => {
-                let w = Vector3::new(step[n], step[n + 1], step[n + 2]);
-                let dt = Vector3::new(step[n + 3], step[n + 4], step[n + 5]);
-                Rotation3::from_scaled_axis(w) * r * point + t + dt
-            }
+            Some(pose) => pose.moved(&step[self.lens.len()..]).apply(point),
             None => *point,
         };
         camera.project(&seen)

@@ -3,11 +3,14 @@
 //! [`crate::calibration::boards::uncertainty`]).
 
 use super::Settings;
+use crate::calibration::boards::report::Determination;
 use crate::calibration::boards::{self, uncertainty};
 
-/// What a user checks the calibration by besides its RMS: the projection σ over each image,
-/// and (when asked) the cross-validation of two halves of the views.
+/// What a user checks the calibration by besides its RMS: whether the views determine it,
+/// the projection σ over each image, and (when asked) the cross-validation of two halves of
+/// the views.
 pub struct Checks {
+    pub determination: Determination,
     pub uncertainty: Option<uncertainty::ProjectionUncertainty>,
     pub cross: Option<uncertainty::CrossValidation>,
     /// Why the cross-validation asked for was not made.
@@ -20,6 +23,7 @@ impl Checks {
         views: &[boards::Corners],
         settings: &Settings,
         stereo: bool,
+        determination: Determination,
     ) -> Checks {
         let uncertainty = uncertainty::projection_uncertainty(fit, settings.uncertainty_distance);
         let (mut cross, mut cross_warning) = (None, None);
@@ -46,6 +50,7 @@ impl Checks {
             }
         }
         Checks {
+            determination,
             uncertainty,
             cross,
             cross_warning,

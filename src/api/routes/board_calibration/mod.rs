@@ -383,8 +383,8 @@ fn compute(
         return Err(ApiError::Invalid(undecodable));
     }
     let missed: Vec<Option<&Miss>> = misses.iter().map(|r| r.as_ref().err()).collect();
-    if let Some(size) = agreed_other_size(&missed, &settings.board) {
-        return Err(size_mistake(&settings.board, size, &missed));
+    if let Some((size, showing)) = agreed_other_size(&missed, &settings.board) {
+        return Err(size_mistake(&settings.board, size, showing, missed.len()));
     }
     let results: Vec<Result<Vec<[f64; 2]>, String>> = misses
         .into_iter()
@@ -411,7 +411,6 @@ fn compute(
             format!("refused, {cause} (of {n} views sent)"),
         )]));
     }
-    let checks = Checks::of(&fit, &views, settings, stereo);
     let solve = solving.elapsed();
     let rectifying = Instant::now();
     let options = RectifyOptions {
@@ -424,6 +423,7 @@ fn compute(
     let unit = settings.board.unit();
     let mut response = match settings.output {
         CalibrateOutput::Summary => {
+            let checks = Checks::of(&fit, &views, settings, stereo, determination);
             let summary = summary::summarize(
                 &fit,
                 &views,
@@ -511,12 +511,9 @@ fn yaml(text: String, name: &str) -> Response {
 fn size_mistake(
     board: &Board,
     (columns, rows): (usize, usize),
-    missed: &[Option<&Miss>],
+    showing: usize,
+    images: usize,
 ) -> ApiError {
-    let showing = missed
-        .iter()
-        .filter(|m| m.and_then(Miss::whole_grid) == Some((columns.max(rows), columns.min(rows))))
-        .count();
     let (given_columns, given_rows) = (board.columns() as usize, board.rows() as usize);
     let mut errors = Vec::new();
     for (member, given, found) in [
@@ -531,7 +528,7 @@ fn size_mistake(
                      chessboard of {columns} × {rows} inner corners, where the board says \
                      {given_columns} × {given_rows}. Count the inner corners (where four squares \
                      meet), not the squares: a board of 10 × 7 squares has 9 × 6",
-                    missed.len()
+                    images
                 ),
             ));
         }

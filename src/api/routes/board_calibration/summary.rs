@@ -107,7 +107,13 @@ pub fn summarize(
         (true, Some(_), None) => Rectified::Vertical,
         (true, Some(_), Some(_)) => Rectified::Horizontal,
     };
-    let mut warnings = report::warnings(fit, [Some(&left), right.as_ref()], tilt_range, rectified);
+    let mut warnings = report::warnings(
+        fit,
+        &checks.determination,
+        [Some(&left), right.as_ref()],
+        tilt_range,
+        rectified,
+    );
     warnings.extend(checks.cross_warning.clone());
     if let Some(c) = checks.cross.as_ref().filter(|c| !c.consistent()) {
         warnings.push(format!(
@@ -145,7 +151,7 @@ pub fn summarize(
         },
         views: view_summaries,
         rms: fit.rms,
-        determined: report::Determination::of(fit).determined(),
+        determined: checks.determination.determined(),
         epipolar_error: fit.epipolar_error(views),
         left: camera_summary(&fit.left),
         right: fit.right.as_ref().map(camera_summary),
