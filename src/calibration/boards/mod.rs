@@ -4,6 +4,7 @@
 //!
 //! - [`board`]: the printed target and its corners' positions on its plane.
 //! - [`corners`]: finding the inner corners, to hundredths of a pixel.
+//! - [`charuco`]: ChArUco boards, their markers read and their corners found by id.
 //! - [`zhang`]: homographies, Zhang's closed-form camera matrix and the views' poses.
 //! - [`solve`]: Levenberg–Marquardt over lenses, extrinsics and poses, with the covariance.
 //! - [`fit`]: one camera or a pair calibrated, outlier views left out, E, F, the epipolar
@@ -15,6 +16,7 @@
 //! - [`synthetic`]: boards rendered through the camera model with exact truth.
 
 pub mod board;
+pub mod charuco;
 pub mod corners;
 pub mod fit;
 pub mod report;

@@ -7,6 +7,7 @@
 use nalgebra::{Isometry3, Rotation3, Translation3, Vector3};
 
 use super::board::Board;
+use super::charuco::CharucoBoard;
 use crate::camera::{Camera, Size, StereoPair};
 use crate::noise::Rng;
 
@@ -86,9 +87,49 @@ pub struct Image {
 
 /// Renders `board` at `pose` (board to camera) as the camera whose `rays` are given.
 pub fn render(board: &Board, pose: &Isometry3<f64>, rays: &Rays, style: &Style) -> Image {
+    let s = board.square_size();
+    let (cols, rows) = (i64::from(board.columns()), i64::from(board.rows()));
+    // The printed sheet: the squares and one square of white margin around them.
+    let (lo_x, hi_x) = (-2.0 * s, (cols as f64 + 1.0) * s);
+    let (lo_y, hi_y) = (-2.0 * s, (rows as f64 + 1.0) * s);
+    render_sheet(pose, rays, style, |bx, by| {
+        if bx < lo_x || bx > hi_x || by < lo_y || by > hi_y {
+            return None;
+        }
+        let (i, j) = ((bx / s).floor() as i64, (by / s).floor() as i64);
+        Some((-1..=cols - 1).contains(&i) && (-1..=rows - 1).contains(&j) && Board::is_black(i, j))
+    })
+}
+
+/// Renders a ChArUco `board` at `pose` (board to camera), on a sheet with one square of white
+/// margin around it, as the camera whose `rays` are given.
+pub fn render_charuco(
+    board: &CharucoBoard,
+    pose: &Isometry3<f64>,
+    rays: &Rays,
+    style: &Style,
+) -> Image {
+    let s = board.square_size();
+    let (sx, sy) = board.squares();
+    let (w, h) = (f64::from(sx) * s, f64::from(sy) * s);
+    render_sheet(pose, rays, style, |bx, by| {
+        if bx < -s || by < -s || bx > w + s || by > h + s {
+            return None;
+        }
+        Some(board.shade(bx, by) == Some(false))
+    })
+}
+
+/// Renders a printed plane at `pose`: `black(x, y)` says whether the point (x, y) of the plane
+/// is printed black, or `None` off the sheet (where the background shows).
+fn render_sheet(
+    pose: &Isometry3<f64>,
+    rays: &Rays,
+    style: &Style,
+    black: impl Fn(f64, f64) -> Option<bool>,
+) -> Image {
     let Size { width, height } = rays.size;
     let n = rays.n;
-    let s = board.square_size();
     // The plane in plain numbers (this loop runs for every sample): its normal and distance
     // in the camera's frame, and the rotation back to the board's frame.
     let rotation = pose.rotation.to_rotation_matrix();
@@ -96,10 +137,6 @@ pub fn render(board: &Board, pose: &Isometry3<f64>, rays: &Rays, style: &Style) 
     let t = pose.translation.vector;
     let normal = [m[(0, 2)], m[(1, 2)], m[(2, 2)]];
     let reach = normal[0] * t.x + normal[1] * t.y + normal[2] * t.z;
-    let (cols, rows) = (i64::from(board.columns()), i64::from(board.rows()));
-    // The printed sheet: the squares and one square of white margin around them.
-    let (lo_x, hi_x) = (-2.0 * s, (cols as f64 + 1.0) * s);
-    let (lo_y, hi_y) = (-2.0 * s, (rows as f64 + 1.0) * s);
     let reflectance = |x: f32, y: f32| -> f64 {
         if x.is_nan() {
             return 0.0;
@@ -114,14 +151,10 @@ pub fn render(board: &Board, pose: &Isometry3<f64>, rays: &Rays, style: &Style) 
         let q = [lambda * x - t.x, lambda * y - t.y, lambda - t.z];
         let bx = m[(0, 0)] * q[0] + m[(1, 0)] * q[1] + m[(2, 0)] * q[2];
         let by = m[(0, 1)] * q[0] + m[(1, 1)] * q[1] + m[(2, 1)] * q[2];
-        if bx < lo_x || bx > hi_x || by < lo_y || by > hi_y {
-            return background(x, y);
-        }
-        let (i, j) = ((bx / s).floor() as i64, (by / s).floor() as i64);
-        if (-1..=cols - 1).contains(&i) && (-1..=rows - 1).contains(&j) && Board::is_black(i, j) {
-            style.black
-        } else {
-            style.white
+        match black(bx, by) {
+            None => background(x, y),
+            Some(true) => style.black,
+            Some(false) => style.white,
         }
     };
     let row = (width * n) as usize;

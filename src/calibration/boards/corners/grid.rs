@@ -5,7 +5,8 @@
 //! (a monitor, a keyboard, a shirt) are left out by taking the board-sized window the
 //! detector's labels fill best.
 
-use super::{Luma, refine};
+use super::Luma;
+use super::refine::verify;
 
 /// One labelled corner: where it is, and whether the detector labelled it or [`grow`] added it.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -268,26 +269,6 @@ fn predict_and_find(grid: &Grid, image: &Luma, u: i64, v: i64) -> Option<[f64; 2
         })
         .collect();
     let spacing = lines.iter().map(|l| l.1).fold(f64::INFINITY, f64::min);
-    if !spacing.is_finite() || spacing < 4.0 {
-        return None;
-    }
-    let radius = (0.4 * spacing).clamp(3.0, 8.0);
-    let first = refine(image, predicted, radius)?;
-    let found = refine(image, first.point, radius).unwrap_or(first);
-    let moved = (found.point[0] - predicted[0]).hypot(found.point[1] - predicted[1]);
-    // An edge along each line the prediction came from, within 15°.
-    let along = |line: [f64; 2]| {
-        found
-            .angles
-            .iter()
-            .map(|a| (a.cos() * line[0] + a.sin() * line[1]).abs())
-            .fold(0.0, f64::max)
-            >= 15f64.to_radians().cos()
-    };
-    // Within a quarter of a square of the prediction, and a clean corner: its model fits
-    // the pixels to a fifth of its contrast.
-    (moved <= 0.25 * spacing
-        && lines.iter().all(|l| along(l.0))
-        && found.rms < 0.2 * found.contrast)
-        .then_some(found.point)
+    let directions: Vec<[f64; 2]> = lines.iter().map(|l| l.0).collect();
+    verify(image, predicted, &directions, spacing, 0.4 * spacing)
 }

@@ -6,7 +6,7 @@ mod grid;
 pub mod refine;
 
 pub use find::{Miss, find_board};
-pub use refine::{Refined, refine, refine_all};
+pub use refine::{Refined, refine, refine_all, verify};
 
 /// A grey image as the corner finder reads it: grey levels 0..=255 as `f32`, row-major.
 #[derive(Debug, Clone, PartialEq)]

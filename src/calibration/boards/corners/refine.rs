@@ -279,6 +279,38 @@ pub fn refine(image: &Luma, start: [f64; 2], radius: f64) -> Option<Refined> {
 /// smooth saddle, and a saddle shifted sideways is the same saddle on a brightness slope, so
 /// the corner's position and the light's slope cannot be told apart. When the fitted blur is
 /// over a third of the window and the squares leave room, the corner is fitted again in a
+/// The corner expected at `predicted`, where the board's lines run along `directions` (unit
+/// vectors) and its squares are `spacing` pixels, found from the pixels within `radius`
+/// (clamped to 3–8 px) and checked: it must lie within a
+/// quarter of a square of the prediction, have an edge along each direction within 15°, and
+/// fit its model to a fifth of its contrast. `None` for anything else (a blank patch, an edge,
+/// a junction of the background).
+pub fn verify(
+    image: &Luma,
+    predicted: [f64; 2],
+    directions: &[[f64; 2]],
+    spacing: f64,
+    radius: f64,
+) -> Option<[f64; 2]> {
+    if !spacing.is_finite() || spacing < 4.0 {
+        return None;
+    }
+    let radius = radius.clamp(3.0, 8.0);
+    let first = refine(image, predicted, radius)?;
+    let found = refine(image, first.point, radius).unwrap_or(first);
+    let moved = (found.point[0] - predicted[0]).hypot(found.point[1] - predicted[1]);
+    let along = |line: &[f64; 2]| {
+        found
+            .angles
+            .iter()
+            .map(|a| (a.cos() * line[0] + a.sin() * line[1]).abs())
+            .fold(0.0, f64::max)
+            >= 15f64.to_radians().cos()
+    };
+    (moved <= 0.25 * spacing && directions.iter().all(along) && found.rms < 0.2 * found.contrast)
+        .then_some(found.point)
+}
+
 /// window of 3σ (up to half the distance to the nearest corner, and [`MAX_WINDOW`]).
 pub fn refine_all(image: &Luma, points: &[[f64; 2]]) -> Vec<Option<Refined>> {
     points
