@@ -4,6 +4,7 @@
 //!     cargo run --release --example boards -- render DIR [SEED] [VIEWS] [MODEL]
 //!     cargo run --release --example boards -- refine DIR
 //!     cargo run --release --example boards -- calibrate DIR
+//!     cargo run --release --example boards -- charuco DIR
 //!
 //! `render` writes stereo views with exact truth: `left_NN.png`, `right_NN.png` and
 //! `truth.json` (the rig, the board, each view's exact corners in OpenCV's order). `refine`
@@ -11,21 +12,27 @@
 //! detector) and writes `DIR/refined.json` in the same shape, each corner refined by
 //! `calibrate::corners::refine` with a window of half the distance to its nearest neighbour.
 //! `calibrate` finds the board in every image of DIR (as `render` wrote it), calibrates the
-//! pair and prints the result and its time as JSON.
+//! pair and prints the result and its time as JSON. `charuco` reads `DIR/board.json`
+//! (`squares_x`, `squares_y`, `square_size`, `marker_size`, `dictionary`, `legacy`) and each
+//! `DIR/*.png`, and prints `{"file.png": {"ids": […], "points": [[x, y], …], "ms": …}, …}`:
+//! the ChArUco corners found by `calibration::boards::charuco` and the time each took.
 
 use std::path::PathBuf;
 
 use nalgebra::{Rotation3, Vector3};
 use serde_json::json;
 use stereo_distance::calibration::boards::Board;
+use stereo_distance::calibration::boards::charuco::{
+    CharucoBoard, CharucoSpec, Dictionary, find_charuco,
+};
 use stereo_distance::calibration::boards::corners::{self, Luma};
 use stereo_distance::calibration::boards::synthetic::{Style, poses, stereo_views};
 use stereo_distance::camera::{Camera, Distortion, Intrinsics, Model, Size, StereoPair};
 use stereo_distance::physics::LengthUnit;
 use stereo_distance::vision::synthetic::Rng;
 
-const USAGE: &str =
-    "usage: boards render DIR [SEED] [VIEWS] [MODEL] | boards refine DIR | boards calibrate DIR";
+const USAGE: &str = "usage: boards render DIR [SEED] [VIEWS] [MODEL] | boards refine DIR | boards calibrate DIR \
+     | boards charuco DIR";
 
 fn main() {
     let mut args = std::env::args().skip(1);
@@ -33,6 +40,7 @@ fn main() {
         Some("render") => render(args),
         Some("refine") => refine(&PathBuf::from(args.next().expect(USAGE))),
         Some("calibrate") => calibrate(&PathBuf::from(args.next().expect(USAGE))),
+        Some("charuco") => charuco(&PathBuf::from(args.next().expect(USAGE))),
         _ => panic!("{USAGE}"),
     }
 }
@@ -219,4 +227,50 @@ fn render(mut args: impl Iterator<Item = String>) {
     )
     .expect("write truth");
     println!("{} views in {}", rendered.len(), out.display());
+}
+
+fn charuco(dir: &std::path::Path) {
+    let spec: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.join("board.json")).expect("board.json"))
+            .expect("board.json is JSON");
+    let number = |key: &str| spec[key].as_f64().expect(key);
+    let board = CharucoBoard::new(CharucoSpec {
+        squares_x: number("squares_x") as u32,
+        squares_y: number("squares_y") as u32,
+        square_size: number("square_size"),
+        marker_size: number("marker_size"),
+        dictionary: Dictionary::named(spec["dictionary"].as_str().expect("dictionary"))
+            .expect("a known dictionary"),
+        legacy: spec["legacy"].as_bool().unwrap_or(false),
+        unit: LengthUnit::Millimetre,
+    })
+    .expect("a valid board");
+    let mut files: Vec<PathBuf> = std::fs::read_dir(dir)
+        .expect("DIR")
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.extension().is_some_and(|e| e == "png"))
+        .collect();
+    files.sort();
+    let mut out = serde_json::Map::new();
+    for path in files {
+        let image = image::open(&path).expect("png").to_luma8();
+        let luma = Luma::from_u8(
+            image.width() as usize,
+            image.height() as usize,
+            image.as_raw(),
+        );
+        let start = std::time::Instant::now();
+        let found = find_charuco(&luma, &board);
+        let ms = start.elapsed().as_secs_f64() * 1e3;
+        let name = path
+            .file_name()
+            .expect("name")
+            .to_string_lossy()
+            .into_owned();
+        out.insert(
+            name,
+            json!({"ids": found.ids, "points": found.points, "markers": found.markers, "ms": ms}),
+        );
+    }
+    println!("{}", serde_json::Value::Object(out));
 }

@@ -7,7 +7,6 @@
 use nalgebra::{Isometry3, Rotation3, Translation3, Vector3};
 
 use super::board::Board;
-use super::charuco::CharucoBoard;
 use crate::camera::{Camera, Size, StereoPair};
 use crate::noise::Rng;
 
@@ -101,28 +100,9 @@ pub fn render(board: &Board, pose: &Isometry3<f64>, rays: &Rays, style: &Style) 
     })
 }
 
-/// Renders a ChArUco `board` at `pose` (board to camera), on a sheet with one square of white
-/// margin around it, as the camera whose `rays` are given.
-pub fn render_charuco(
-    board: &CharucoBoard,
-    pose: &Isometry3<f64>,
-    rays: &Rays,
-    style: &Style,
-) -> Image {
-    let s = board.square_size();
-    let (sx, sy) = board.squares();
-    let (w, h) = (f64::from(sx) * s, f64::from(sy) * s);
-    render_sheet(pose, rays, style, |bx, by| {
-        if bx < -s || by < -s || bx > w + s || by > h + s {
-            return None;
-        }
-        Some(board.shade(bx, by) == Some(false))
-    })
-}
-
 /// Renders a printed plane at `pose`: `black(x, y)` says whether the point (x, y) of the plane
 /// is printed black, or `None` off the sheet (where the background shows).
-fn render_sheet(
+pub fn render_sheet(
     pose: &Isometry3<f64>,
     rays: &Rays,
     style: &Style,

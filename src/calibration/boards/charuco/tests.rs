@@ -5,7 +5,7 @@ use nalgebra::{Isometry3, Point3, Rotation3, Vector3};
 
 use super::*;
 use crate::calibration::boards::corners::Luma;
-use crate::calibration::boards::synthetic::{Rays, Style, render_charuco};
+use crate::calibration::boards::synthetic::{Image, Rays, Style, render_sheet};
 use crate::camera::{Camera, Distortion, Intrinsics, Model, Size};
 
 fn spec(squares_x: u32, squares_y: u32, legacy: bool) -> CharucoSpec {
@@ -116,6 +116,25 @@ fn faults_name_each_member() {
         ..spec(12, 10, false)
     };
     assert!(CharucoBoard::new(roomy).is_ok());
+}
+
+/// Renders a ChArUco `board` at `pose` (board to camera), on a sheet with one square of white
+/// margin around it, as the camera whose `rays` are given.
+fn render_charuco(
+    board: &CharucoBoard,
+    pose: &Isometry3<f64>,
+    rays: &Rays,
+    style: &Style,
+) -> Image {
+    let s = board.square_size();
+    let (sx, sy) = board.squares();
+    let (w, h) = (f64::from(sx) * s, f64::from(sy) * s);
+    render_sheet(pose, rays, style, |bx, by| {
+        if bx < -s || by < -s || bx > w + s || by > h + s {
+            return None;
+        }
+        Some(board.shade(bx, by) == Some(false))
+    })
 }
 
 fn camera(model: Model, coefficients: &[f64]) -> Camera {
