@@ -72,7 +72,7 @@ fn refine(dir: &std::path::Path) {
 
 fn calibrate(dir: &std::path::Path) {
     use rayon::prelude::*;
-    use stereo_distance::calibration::boards::{self, Corners};
+    use stereo_distance::calibration::boards::{self, Corners, whole};
     let truth: serde_json::Value =
         serde_json::from_slice(&std::fs::read(dir.join("truth.json")).expect("truth.json"))
             .expect("truth.json");
@@ -98,8 +98,8 @@ fn calibrate(dir: &std::path::Path) {
     let views: Vec<Corners> = found
         .chunks(2)
         .map(|pair| Corners {
-            left: pair[0].clone(),
-            right: pair[1].clone(),
+            left: pair[0].as_deref().map(whole),
+            right: pair[1].as_deref().map(whole),
         })
         .collect();
     let detected = started.elapsed();
@@ -107,7 +107,8 @@ fn calibrate(dir: &std::path::Path) {
         width: images[0].width as u32,
         height: images[0].height as u32,
     };
-    let fit = boards::calibrate(&board, size, model, &views, true).expect("calibration");
+    let fit =
+        boards::calibrate(&board.object_points(), size, model, &views, true).expect("calibration");
     let total = started.elapsed();
     let pair = fit.pair().expect("pair");
     let cam = |c: &Camera| {

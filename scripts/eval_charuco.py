@@ -9,9 +9,19 @@ corners found of those in the frame, the median and 95th percentile error, ids w
 time per image taking turns (medians). Exits 1 when ours finds fewer corners than OpenCV's on a
 set or errs more (median), or reads a wrong id.
 
-    python3 scripts/eval_charuco.py BOARDS_BINARY OUT_DIR
+With --url, each set is also calibrated as a stereo pair (12 pairs, the last third with the
+board's middle on the left image's right edge): ours by POST /calibrate with the ChArUco board,
+OpenCV by CharucoDetector + calibrateCamera per camera + stereoCalibrate (CALIB_USE_INTRINSIC_GUESS)
+on the corners both cameras saw, as its samples do. Errors in f (%), the principal point (px),
+|T| (%) and the rotation (deg) against the truth, and the views each used. Exits 1 when ours is
+worse than OpenCV's on any of them, or uses fewer views.
+
+    python3 scripts/eval_charuco.py BOARDS_BINARY OUT_DIR [--url URL]
 """
+import http.client
 import json
+import urllib.parse
+import uuid
 import statistics
 import subprocess
 import sys
@@ -102,8 +112,131 @@ def poses(squares, rng, count):
     return out
 
 
+RIG_R = np.array([0.01, -0.02, 0.005])
+RIG_T = np.array([-120.0, 1.0, -1.5])
+
+
+def stereo(name, dictionary, squares, model, d, f, s, url, out):
+    """Both calibrations of one set against the truth; returns the failures."""
+    legacy = name.startswith("legacy")
+    board = board_of(dictionary, squares, legacy)
+    k1 = np.array([[f, 0, 322.0], [0, f * 1.002, 238.0], [0, 0, 1]])
+    k2 = np.array([[f * 0.99, 0, 318.0], [0, f * 0.993, 242.0], [0, 0, 1]])
+    d2 = [0.9 * v for v in d]
+    r_rig, _ = cv2.Rodrigues(RIG_R.reshape(3, 1))
+    rng = np.random.default_rng(200 + s)
+    files, sizes = [], []
+    for i, (rvec, tvec) in enumerate(poses(squares, rng, 12)):
+        if i >= 8:  # the board's middle onto the left image's right edge
+            r, _ = cv2.Rodrigues(rvec)
+            centre = r @ np.array([squares[0] * SQUARE / 2, squares[1] * SQUARE / 2, 0]) + tvec.ravel()
+            tvec = tvec + np.array([[(600 - 322) * centre[2] / f - centre[0]], [0], [0]])
+        r, _ = cv2.Rodrigues(rvec)
+        rvec2, _ = cv2.Rodrigues(r_rig @ r)
+        tvec2 = r_rig @ tvec + RIG_T.reshape(3, 1)
+        left = photograph(board, squares, model, k1, d, rvec, tvec, seed=5000 + 100 * s + i)
+        right = photograph(board, squares, model, k2, d2, rvec2, tvec2, seed=6000 + 100 * s + i)
+        files.append((cv2.imencode(".png", left)[1].tobytes(), cv2.imencode(".png", right)[1].tobytes()))
+    # Ours: one request.
+    boundary = uuid.uuid4().hex
+    body = bytearray()
+    def part(name, data, filename, ctype):
+        nonlocal body
+        disposition = f'form-data; name="{name}"' + (f'; filename="{filename}"' if filename else "")
+        body += f"--{boundary}\r\nContent-Disposition: {disposition}\r\nContent-Type: {ctype}\r\n\r\n".encode()
+        body += data + b"\r\n"
+    for i, (l, r) in enumerate(files):
+        part("left", l, f"left{i}.png", "image/png")
+        part("right", r, f"right{i}.png", "image/png")
+    spec = {"type": "charuco", "squares_x": squares[0], "squares_y": squares[1],
+            "square_size": SQUARE, "marker_size": MARKER, "dictionary": dictionary, "legacy": legacy}
+    part("board", json.dumps(spec).encode(), None, "application/json")
+    body += f"--{boundary}--\r\n".encode()
+    target = urllib.parse.urlsplit(url)
+    conn = http.client.HTTPConnection(target.hostname, target.port, timeout=300)
+    conn.request("POST", f"/calibrate?model={model}", body=bytes(body),
+                 headers={"Content-Type": f"multipart/form-data; boundary={boundary}"})
+    response = conn.getresponse()
+    answer = response.read()
+    conn.close()
+    if response.status != 200:
+        return [f"{name}: /calibrate answered {response.status}: {answer[:400]!r}"]
+    o = json.loads(answer)
+    ours = dict(K1=np.array(o["left"]["camera_matrix"]), K2=np.array(o["right"]["camera_matrix"]),
+                R=np.array(o["rotation"]), T=np.array(o["translation"]),
+                used=sum(v["status"] == "used" for v in o["views"]))
+    # OpenCV: CharucoDetector, calibrateCamera per camera, stereoCalibrate on shared ids.
+    detector = cv2.aruco.CharucoDetector(board)
+    found = []
+    for l, r in files:
+        views = []
+        for data in (l, r):
+            image = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_GRAYSCALE)
+            cc, ci, _, _ = detector.detectBoard(image)
+            views.append({} if ci is None else {int(i): c for i, c in zip(ci.ravel(), cc.reshape(-1, 2))})
+        found.append(views)
+    corners3 = board.getChessboardCorners().astype(np.float32)
+    cv = None
+    try:
+        mono = []
+        for side in (0, 1):
+            obj, img = [], []
+            for v in found:
+                ids = sorted(v[side])
+                if len(ids) >= 6:
+                    obj.append(corners3[ids].reshape(-1, 1, 3))
+                    img.append(np.array([v[side][i] for i in ids], np.float32).reshape(-1, 1, 2))
+            if model == "equidistant":
+                _, k, dd, _, _ = cv2.fisheye.calibrate(obj, img, SIZE, None, None,
+                                                       flags=cv2.fisheye.CALIB_RECOMPUTE_EXTRINSIC)
+            else:
+                flags = cv2.CALIB_RATIONAL_MODEL if model == "rational_polynomial" else 0
+                _, k, dd, _, _ = cv2.calibrateCamera(obj, img, SIZE, None, None, flags=flags)
+            mono.append((k, dd))
+        obj, img1, img2 = [], [], []
+        for v in found:
+            ids = sorted(set(v[0]) & set(v[1]))
+            if len(ids) >= 6:
+                obj.append(corners3[ids].reshape(-1, 1, 3))
+                img1.append(np.array([v[0][i] for i in ids], np.float32).reshape(-1, 1, 2))
+                img2.append(np.array([v[1][i] for i in ids], np.float32).reshape(-1, 1, 2))
+        if model == "equidistant":
+            res = cv2.fisheye.stereoCalibrate(obj, img1, img2, mono[0][0], mono[0][1], mono[1][0],
+                                              mono[1][1], SIZE, flags=cv2.fisheye.CALIB_FIX_INTRINSIC)
+            k1c, k2c, rc, tc = mono[0][0], mono[1][0], res[5], res[6]
+        else:
+            flags = cv2.CALIB_USE_INTRINSIC_GUESS | (cv2.CALIB_RATIONAL_MODEL if model == "rational_polynomial" else 0)
+            res = cv2.stereoCalibrate(obj, img1, img2, mono[0][0], mono[0][1], mono[1][0], mono[1][1],
+                                      SIZE, flags=flags)
+            k1c, k2c, rc, tc = res[1], res[3], res[5], res[6]
+        cv = dict(K1=k1c, K2=k2c, R=rc, T=tc.ravel(), used=len(obj))
+    except cv2.error as e:
+        print(f"{name:24} opencv  failed: {str(e).strip().splitlines()[-1]}")
+    def errors(got):
+        f_err = max(abs(got[k][0, 0] / t[0, 0] - 1) for k, t in (("K1", k1), ("K2", k2))) * 100
+        pp = max(float(np.hypot(*(got[k][:2, 2] - t[:2, 2]))) for k, t in (("K1", k1), ("K2", k2)))
+        t_err = abs(np.linalg.norm(got["T"]) / np.linalg.norm(RIG_T) - 1) * 100
+        rot = float(np.degrees(np.linalg.norm(cv2.Rodrigues(got["R"] @ r_rig.T)[0])))
+        return dict(f=f_err, pp=pp, T=t_err, rot=rot)
+    failures = []
+    e_ours = errors(ours)
+    print(f"{name:24} ours    f {e_ours['f']:.4f} %  pp {e_ours['pp']:.3f} px  |T| {e_ours['T']:.4f} %  "
+          f"rot {e_ours['rot']:.4f} deg  views {ours['used']}/12")
+    if cv is not None:
+        e_cv = errors(cv)
+        print(f"{name:24} opencv  f {e_cv['f']:.4f} %  pp {e_cv['pp']:.3f} px  |T| {e_cv['T']:.4f} %  "
+              f"rot {e_cv['rot']:.4f} deg  views {cv['used']}/12")
+        for key in e_ours:
+            if e_ours[key] > e_cv[key]:
+                failures.append(f"{name}: our {key} error {e_ours[key]:.4f} above OpenCV's {e_cv[key]:.4f}")
+        if ours["used"] < cv["used"]:
+            failures.append(f"{name}: ours used {ours['used']} views, OpenCV {cv['used']}")
+    return failures
+
+
 def main():
     binary, out = sys.argv[1], Path(sys.argv[2])
+    url = sys.argv[sys.argv.index("--url") + 1] if "--url" in sys.argv else None
     failures = []
     print("\nChArUco corners: ours against OpenCV's CharucoDetector on OpenCV's printed boards "
           "(generateImage) photographed through each lens; errors in px")
@@ -172,6 +305,12 @@ def main():
             failures.append(f"{name}: our median error {mo:.3f} px above OpenCV's {mc:.3f}")
         if wo:
             failures.append(f"{name}: {wo} corners of ours more than 3 px off (a wrong id)")
+    if url:
+        print("\nChArUco calibration of a pair, 12 views (the last 4 partial in the left camera): "
+              "ours (POST /calibrate) against OpenCV (CharucoDetector + calibrateCamera x2 + "
+              "stereoCalibrate on shared ids); errors against the truth")
+        for s, (name, dictionary, squares, model, d, f) in enumerate(SETS):
+            failures += stereo(name, dictionary, squares, model, d, f, s, url, out)
     if failures:
         print("\nFAILED:\n  " + "\n  ".join(failures))
         sys.exit(1)

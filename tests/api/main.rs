@@ -5,6 +5,7 @@ mod batch;
 mod calibrate;
 mod calibration;
 mod chart;
+mod charuco;
 mod depth_map;
 mod disparity;
 mod distance;

@@ -6,7 +6,6 @@
 
 use nalgebra::{DMatrix, Matrix3, Rotation3, Vector3};
 
-use super::Board;
 use super::solve::{Lens, Pose, Solution, SolveFault, State, ViewCorners, refine};
 use super::zhang;
 use crate::camera::{
@@ -21,11 +20,21 @@ pub const MIN_VIEWS: usize = 3;
 pub const OUTLIER_RATIO: f64 = 3.0;
 pub const OUTLIER_FLOOR_PX: f64 = 0.5;
 
+/// One camera's corners in one view, in the order of the target's object points: `None` for
+/// a corner it did not see (a ChArUco board partly out of the frame). A chessboard found
+/// gives every corner.
+pub type Seen = Vec<Option<[f64; 2]>>;
+
+/// Every corner of a chessboard found whole: each seen.
+pub fn whole(points: &[[f64; 2]]) -> Seen {
+    points.iter().copied().map(Some).collect()
+}
+
 /// The corners found in one view (`None` where the board was not found).
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Corners {
-    pub left: Option<Vec<[f64; 2]>>,
-    pub right: Option<Vec<[f64; 2]>>,
+    pub left: Option<Seen>,
+    pub right: Option<Seen>,
 }
 
 /// What became of one view.
@@ -118,15 +127,17 @@ impl From<SolveFault> for FitFault {
 }
 
 /// Calibrates one camera (`stereo` false: each view's `left`) or a pair (views whose board was
-/// found in both cameras).
+/// found in both cameras) from the target's corners on its plane (`object`, z = 0) and the
+/// views' corners in that order. Each camera uses every corner it saw; a pair's joint fit
+/// does not need a corner seen by both, since each camera's residuals hold on their own.
 pub fn calibrate(
-    board: &Board,
+    object: &[Vector3<f64>],
     size: Size,
     model: Model,
     views: &[Corners],
     stereo: bool,
 ) -> Result<Fit, FitFault> {
-    let object = board.object_points();
+    let object = object.to_vec();
     let found: Vec<bool> = views
         .iter()
         .map(|v| v.left.is_some() && (!stereo || v.right.is_some()))
@@ -216,12 +227,18 @@ fn single<'a>(
     size: Size,
     model: Model,
     used: &mut Vec<usize>,
-    corners_of: &dyn Fn(usize) -> &'a [[f64; 2]],
+    corners_of: &dyn Fn(usize) -> &'a [Option<[f64; 2]>],
 ) -> Result<(Solution, Vec<usize>), FitFault> {
-    let plane: Vec<[f64; 2]> = object.iter().map(|p| [p.x, p.y]).collect();
     let homographies: Vec<_> = used
         .iter()
-        .map(|&v| zhang::homography(&plane, corners_of(v)))
+        .map(|&v| {
+            let (plane, seen): (Vec<[f64; 2]>, Vec<[f64; 2]>) = object
+                .iter()
+                .zip(corners_of(v))
+                .filter_map(|(p, c)| c.map(|c| ([p.x, p.y], c)))
+                .unzip();
+            zhang::homography(&plane, &seen)
+        })
         .collect();
     let valid: Vec<_> = homographies.iter().flatten().copied().collect();
     let k = zhang::intrinsics(&valid, size).ok_or(FitFault::NoFirstGuess)?;
@@ -424,6 +441,9 @@ impl Fit {
                 continue;
             };
             for (l, r) in left.iter().zip(right) {
+                let (Some(l), Some(r)) = (l, r) else {
+                    continue;
+                };
                 let (pl, pr) = (ideal(&pair.left, *l)?, ideal(&pair.right, *r)?);
                 let line_r = f * pl;
                 let line_l = f.transpose() * pr;
@@ -435,12 +455,13 @@ impl Fit {
         (count > 0).then(|| sum / count as f64)
     }
 
-    /// Each corner's residual in a view used, px: where the calibrated model projects the
-    /// board's corner minus where it was found (`[left, right]`, `None` for a camera whose
-    /// board was not found or a view left out). What Kalibr's report draws as arrows.
+    /// Each seen corner's residual in a view used, px: where the calibrated model projects
+    /// the target's corner (`object`) minus where it was found (`[left, right]`, `None` for a
+    /// camera whose board was not found or a view left out). What Kalibr's report draws as
+    /// arrows.
     pub fn residuals(
         &self,
-        board: &Board,
+        object: &[Vector3<f64>],
         index: usize,
         view: &Corners,
     ) -> [Option<Vec<[f64; 2]>>; 2] {
@@ -451,12 +472,12 @@ impl Fit {
         else {
             return [None, None];
         };
-        let points = board.object_points();
-        let side = |camera: &Camera, found: &Option<Vec<[f64; 2]>>, right: bool| {
+        let side = |camera: &Camera, found: &Option<Seen>, right: bool| {
             let found = found.as_ref()?;
             found
                 .iter()
-                .zip(&points)
+                .zip(object)
+                .filter_map(|(c, p)| c.map(|c| (c, p)))
                 .map(|(c, p)| {
                     let mut x = pose.apply(p);
                     if right {

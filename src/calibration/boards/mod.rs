@@ -5,6 +5,8 @@
 //! - [`board`]: the printed target and its corners' positions on its plane.
 //! - [`corners`]: finding the inner corners, to hundredths of a pixel.
 //! - [`charuco`]: ChArUco boards, their markers read and their corners found by id.
+//! - [`target`]: the target shot, a chessboard or a ChArUco board, and its corners in an
+//!   image.
 //! - [`zhang`]: homographies, Zhang's closed-form camera matrix and the views' poses.
 //! - [`solve`]: Levenberg–Marquardt over lenses, extrinsics and poses, with the covariance.
 //! - [`fit`]: one camera or a pair calibrated, outlier views left out, E, F, the epipolar
@@ -22,14 +24,18 @@ pub mod fit;
 pub mod report;
 pub mod solve;
 pub mod synthetic;
+pub mod target;
 pub mod uncertainty;
 pub mod zhang;
 
 pub use board::{Board, BoardFault, BoardMember};
+pub use target::Target;
 #[cfg(test)]
 mod tests;
 
-pub use fit::{CameraFit, Corners, Extrinsics, Fit, FitFault, ViewFit, ViewOutcome, calibrate};
+pub use fit::{
+    CameraFit, Corners, Extrinsics, Fit, FitFault, Seen, ViewFit, ViewOutcome, calibrate, whole,
+};
 
 /// The most views (pairs, or one camera's images) one calibration takes: 60 holds every board
 /// pose a careful calibration needs several times over, while bounding the solver's work (its

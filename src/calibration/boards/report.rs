@@ -5,7 +5,7 @@
 
 use super::Board;
 use super::corners::Miss;
-use super::fit::{Corners, Fit, ViewFit, ViewOutcome};
+use super::fit::{Corners, Fit, Seen, ViewFit, ViewOutcome};
 use crate::camera::Size;
 use crate::numbers::round_to;
 
@@ -29,7 +29,7 @@ pub struct Detections {
 impl Detections {
     /// The views of `found`: the left images' results, then (for a pair) the right ones',
     /// each the corners or why the board was not found.
-    pub fn assemble(found: &[Result<Vec<[f64; 2]>, String>], stereo: bool) -> Detections {
+    pub fn assemble(found: &[Result<Seen, String>], stereo: bool) -> Detections {
         let n = if stereo { found.len() / 2 } else { found.len() };
         let right = |i: usize| stereo.then(|| &found[n + i]);
         let views = (0..n)
@@ -217,7 +217,7 @@ impl Coverage {
                 continue;
             }
             let corners = if right { &view.right } else { &view.left };
-            for c in corners.iter().flatten() {
+            for c in corners.iter().flatten().flatten() {
                 let (fx, fy) = ((c[0] / w).clamp(0.0, 1.0), (c[1] / h).clamp(0.0, 1.0));
                 x = [x[0].min(fx), x[1].max(fx)];
                 y = [y[0].min(fy), y[1].max(fy)];
@@ -407,16 +407,16 @@ mod tests {
     #[test]
     fn detections_pair_the_ith_left_with_the_ith_right() {
         let found = [
-            Ok(vec![[1.0, 2.0]]),
+            Ok(vec![Some([1.0, 2.0])]),
             Err("no board".to_owned()),
             Err("blurred".to_owned()),
-            Ok(vec![[3.0, 4.0]]),
+            Ok(vec![Some([3.0, 4.0])]),
         ];
         let d = Detections::assemble(&found, true);
         assert_eq!(d.views.len(), 2);
-        assert_eq!(d.views[0].left, Some(vec![[1.0, 2.0]]));
+        assert_eq!(d.views[0].left, Some(vec![Some([1.0, 2.0])]));
         assert_eq!(d.views[0].right, None);
-        assert_eq!(d.views[1].right, Some(vec![[3.0, 4.0]]));
+        assert_eq!(d.views[1].right, Some(vec![Some([3.0, 4.0])]));
         assert_eq!(d.reasons[0], [None, Some("blurred".to_owned())]);
         assert_eq!(d.reasons[1], [Some("no board".to_owned()), None]);
         let alone = Detections::assemble(&found[..2], false);
@@ -434,11 +434,11 @@ mod tests {
         );
         let views = [
             Corners {
-                left: Some(vec![[40.0, 20.0], [360.0, 180.0]]),
+                left: Some(vec![Some([40.0, 20.0]), None, Some([360.0, 180.0])]),
                 right: None,
             },
             Corners {
-                left: Some(vec![[0.0, 0.0], [399.0, 199.0]]),
+                left: Some(vec![Some([0.0, 0.0]), Some([399.0, 199.0]), None]),
                 right: None,
             },
         ];

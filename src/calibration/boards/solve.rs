@@ -85,11 +85,12 @@ impl Pose {
     }
 }
 
-/// The corners one view gives each camera (`None` when that camera's are not used).
+/// The corners one view gives each camera, in the object points' order (`None` when that
+/// camera's are not used; a corner `None` when it was not seen).
 #[derive(Debug, Clone, Copy)]
 pub struct ViewCorners<'a> {
-    pub left: Option<&'a [[f64; 2]]>,
-    pub right: Option<&'a [[f64; 2]]>,
+    pub left: Option<&'a [Option<[f64; 2]>]>,
+    pub right: Option<&'a [Option<[f64; 2]>]>,
 }
 
 /// Everything the solver moves: one lens (a single camera: every view's `left`) or two with
@@ -268,7 +269,7 @@ fn linearize(state: &State, object: &[Vector3<f64>], seen: &[ViewCorners]) -> Op
             let mut jtj = DMatrix::zeros(m, m);
             let mut jtr = DVector::zeros(m);
             let mut error = ViewError::default();
-            let sides: [(usize, Option<&[[f64; 2]]>); 2] = [(0, view.left), (1, view.right)];
+            let sides = [(0, view.left), (1, view.right)];
             for (side, corners) in sides {
                 let Some(corners) = corners else { continue };
                 if side == 1 && !stereo {
@@ -283,7 +284,11 @@ fn linearize(state: &State, object: &[Vector3<f64>], seen: &[ViewCorners]) -> Op
                         Some(state.lenses[0].len() + lens.len()),
                     )
                 };
-                for (p, observed) in object.iter().zip(corners) {
+                for (p, observed) in object
+                    .iter()
+                    .zip(corners)
+                    .filter_map(|(p, c)| c.map(|c| (p, c)))
+                {
                     let rp = pose.rotation * p;
                     let xl = rp + pose.translation;
                     let mut row = [[0.0f64; 2]; 36];

@@ -53,8 +53,8 @@ fn found(pair: &StereoPair, count: usize, seed: u64) -> (Board, Vec<Corners>) {
     let corners = views
         .iter()
         .map(|v| Corners {
-            left: find(&v.left),
-            right: find(&v.right),
+            left: find(&v.left).as_deref().map(whole),
+            right: find(&v.right).as_deref().map(whole),
         })
         .collect();
     (board, corners)
@@ -67,7 +67,7 @@ fn found(pair: &StereoPair, count: usize, seed: u64) -> (Board, Vec<Corners>) {
 fn recovers_a_rendered_rig() {
     let pair = truth(Model::PlumbBob, &[-0.2, 0.08, 0.0008, -0.0004, -0.01]);
     let (board, views) = found(&pair, 12, 3);
-    let fit = calibrate(&board, SIZE, Model::PlumbBob, &views, true).unwrap();
+    let fit = calibrate(&board.object_points(), SIZE, Model::PlumbBob, &views, true).unwrap();
     let got = fit.pair().unwrap();
     for (side, (g, t)) in [
         ("left", (&got.left, &pair.left)),
@@ -120,12 +120,17 @@ fn noisy_fit(pair: &StereoPair, count: usize, sigma: f64, seed: u64) -> Option<F
     let views: Vec<Corners> = poses
         .iter()
         .map(|pose| Corners {
-            left: synthetic::corners(&board, pose, &pair.left).map(&mut noisy),
+            left: synthetic::corners(&board, pose, &pair.left)
+                .map(&mut noisy)
+                .as_deref()
+                .map(whole),
             right: synthetic::corners(&board, &synthetic::right_pose(pair, pose), &pair.right)
-                .map(&mut noisy),
+                .map(&mut noisy)
+                .as_deref()
+                .map(whole),
         })
         .collect();
-    calibrate(&board, SIZE, Model::PlumbBob, &views, true).ok()
+    calibrate(&board.object_points(), SIZE, Model::PlumbBob, &views, true).ok()
 }
 
 /// The rectified rig's focal length and baseline from a calibration of `count` views whose
@@ -262,13 +267,19 @@ fn projection_uncertainty_is_high_where_there_were_no_corners() {
                 pose.rotation,
             );
             Corners {
-                left: synthetic::corners(&board, &far, &pair.left).map(&mut noisy),
+                left: synthetic::corners(&board, &far, &pair.left)
+                    .map(&mut noisy)
+                    .as_deref()
+                    .map(whole),
                 right: synthetic::corners(&board, &synthetic::right_pose(&pair, &far), &pair.right)
-                    .map(&mut noisy),
+                    .map(&mut noisy)
+                    .as_deref()
+                    .map(whole),
             }
         })
         .collect();
-    let narrow = calibrate(&board, SIZE, Model::PlumbBob, &middle, true).expect("calibrated");
+    let narrow = calibrate(&board.object_points(), SIZE, Model::PlumbBob, &middle, true)
+        .expect("calibrated");
     let q = projection_uncertainty(&narrow, Some(p.distance)).expect("the grid");
     let cell = |g: &super::uncertainty::CameraGrid, i: usize, j: usize| g.grid[j][i].unwrap();
     let (centre, corner) = (cell(&q.left, 8, 6), cell(&q.left, 0, 0));

@@ -12,7 +12,6 @@
 
 use nalgebra::{DMatrix, Matrix2, Rotation3, Vector3};
 
-use super::Board;
 use super::fit::{Corners, Fit, ViewOutcome, calibrate};
 use super::solve::{Lens, Pose};
 use crate::camera::{Camera, Model as LensModel, Size};
@@ -333,11 +332,12 @@ pub fn cross_validate(a: &Fit, b: &Fit, distance: f64) -> Option<CrossValidation
     })
 }
 
-/// Calibrates two disjoint halves of the views `fit` used (alternate ones, so that each half
+/// Calibrates two disjoint halves of the views `fit` used (with the target's corners
+/// `object`) (alternate ones, so that each half
 /// spans the session) and compares them over the grid ([`cross_validate`]); `Err` with the
 /// number of views used when the halves cannot both be calibrated (fewer than 6 views).
 pub fn cross_validation(
-    board: &Board,
+    object: &[Vector3<f64>],
     model: LensModel,
     fit: &Fit,
     views: &[Corners],
@@ -362,7 +362,7 @@ pub fn cross_validation(
                 },
             })
             .collect();
-        calibrate(board, fit.size, model, &views, stereo).ok()
+        calibrate(object, fit.size, model, &views, stereo).ok()
     };
     let (a, b) = (half(0).ok_or(used.len())?, half(1).ok_or(used.len())?);
     cross_validate(&a, &b, distance).ok_or(used.len())

@@ -267,7 +267,11 @@ fn main() {
         .iter()
         .map(|p| nalgebra::Vector3::new(p[0], p[1], p[2]))
         .collect();
-    let seen: Vec<ViewCorners> = views
+    let whole: Vec<Vec<Option<[f64; 2]>>> = views
+        .iter()
+        .map(|v| v.iter().copied().map(Some).collect())
+        .collect();
+    let seen: Vec<ViewCorners> = whole
         .iter()
         .map(|v| ViewCorners {
             left: Some(v.as_slice()),

@@ -4,6 +4,7 @@
 //! module reads the form, judges it against the limits, finds the boards over the cores off the
 //! async runtime and writes the answer.
 
+mod board;
 mod checks;
 mod summary;
 pub mod types;
@@ -16,22 +17,22 @@ use axum::response::{IntoResponse, Response};
 use rayon::prelude::*;
 use utoipa_axum::{router::OpenApiRouter, routes};
 
+use self::board::{read_board, size_mistake};
 use self::checks::Checks;
-use self::types::{BoardSpec, CalibrateAnswers, CalibrateForm, CalibrateOutput, CalibrateQuery};
+use self::types::{CalibrateAnswers, CalibrateForm, CalibrateOutput, CalibrateQuery};
 use crate::api::HeavyState;
 use crate::api::error::{ApiError, FieldError, FieldErrors};
-use crate::api::extract::{self, QueryParams};
+use crate::api::extract::QueryParams;
 use crate::api::images::form::{Form, FormSpec};
 use crate::api::images::limits;
 use crate::api::images::output::{self, Disposition, set_server_timing};
 use crate::api::images::work;
 use crate::api::respond::Json;
-use crate::calibration::boards::corners::{Luma, Miss, find_board};
+use crate::calibration::boards::corners::{Luma, Miss};
 use crate::calibration::boards::report::{Detections, Determination, agreed_other_size};
-use crate::calibration::boards::{self, Board, FitFault, MAX_VIEWS};
+use crate::calibration::boards::{self, FitFault, MAX_VIEWS, Target};
 use crate::calibration::files::{RigStd, opencv, ros};
 use crate::camera::{Alpha, Model, RectifyOptions, Size};
-use crate::physics::LengthUnit;
 use crate::vision::decode::{self, DecodeLimits};
 
 /// `POST /calibrate`.
@@ -96,7 +97,11 @@ impl FromRequest<HeavyState> for Upload {
                    Send `multipart/form-data`: `left` and `right` image parts, repeated, the \
                    i-th of each one view (only `left` parts calibrate one camera), and a \
                    `board` part, JSON `{\"columns\": 9, \"rows\": 6, \"square_size\": 25, \
-                   \"unit\": \"mm\"}` (inner corners, as OpenCV's `patternSize`).\n\n\
+                   \"unit\": \"mm\"}` (inner corners, as OpenCV's `patternSize`), or a \
+                   ChArUco board in OpenCV's `CharucoBoard` terms, `{\"type\": \"charuco\", \
+                   \"squares_x\": 8, \"squares_y\": 6, \"square_size\": 30, \"marker_size\": \
+                   22, \"dictionary\": \"DICT_4X4_50\"}`, whose views count with the corners \
+                   they show (6 or more, over two rows and two columns; OpenCV's ids).\n\n\
                    Outputs (`output`): `summary` (JSON), `opencv.yml` (FileStorage with M1 D1 \
                    M2 D2 R T E F R1 R2 P1 P2 Q), `ros-left.yaml` and `ros-right.yaml` (ROS \
                    `camera_calibration`). `/calibration` reads all three.\n\n\
@@ -182,8 +187,13 @@ pub async fn post_calibrate(
     let images = left.len() + right.len();
     let threads = rayon::current_num_threads().clamp(1, images);
     // Per image being worked on: its decoded buffer, the grey levels as f32 and u8, and the
-    // corner detector's response maps.
-    let per_image = (width as usize * height as usize).saturating_mul(10 + 4 + 1 + 16);
+    // corner detector's response maps; for ChArUco markers, the sums of the grey levels, the
+    // dark mask, the blobs' labels and the flood's stack instead of the response maps.
+    let finding = match board {
+        Target::Chessboard(_) => 16,
+        Target::Charuco(_) => 8 + 1 + 4 + 8,
+    };
+    let per_image = (width as usize * height as usize).saturating_mul(10 + 4 + 1 + finding);
     let bytes = threads.saturating_mul(per_image);
     let too_large = |total: usize| {
         vec![FieldError::new(
@@ -215,7 +225,7 @@ pub async fn post_calibrate(
 
 /// What the work needs to know besides the images.
 struct Settings {
-    board: Board,
+    board: Target,
     model: Model,
     alpha: Alpha,
     output: CalibrateOutput,
@@ -224,64 +234,6 @@ struct Settings {
     uncertainty_distance: Option<f64>,
     size: Size,
     allowed: DecodeLimits,
-}
-
-/// A `board` part as the messages show it.
-const BOARD_EXAMPLE: &str = r#"{"columns": 9, "rows": 6, "square_size": 25, "unit": "mm"}"#;
-
-/// The `board` part read into a board, each fault named `board.<member>`.
-fn read_board(bytes: Option<&Bytes>, problems: &mut FieldErrors) -> Option<Board> {
-    let Some(bytes) = bytes else {
-        problems.add(
-            "board",
-            format!("is required: JSON such as {BOARD_EXAMPLE} (inner corners)"),
-        );
-        return None;
-    };
-    let Ok((spec, refused)) = extract::decode_json::<BoardSpec>(bytes) else {
-        problems.add(
-            "board",
-            format!(
-                "must be a JSON object such as {BOARD_EXAMPLE} (inner corners), not `{}`",
-                crate::numbers::clip(&String::from_utf8_lossy(bytes), 40)
-            ),
-        );
-        return None;
-    };
-    let refused_any = !refused.is_empty();
-    problems.extend(FieldErrors::from(refused.prefixed("board.")));
-    let mut missing = false;
-    for (name, present) in [
-        ("board.columns", spec.columns.is_some()),
-        ("board.rows", spec.rows.is_some()),
-        ("board.square_size", spec.square_size.is_some()),
-    ] {
-        if !present && !problems.has(name) {
-            problems.add(name, "is required");
-            missing = true;
-        }
-    }
-    // The members that were read are judged even when others were missing or refused, so
-    // that every fault is named at once; an absent member is judged as a valid stand-in.
-    let unit: LengthUnit = spec.unit.unwrap_or_default().into();
-    let judged = Board::new(
-        spec.columns.unwrap_or(9),
-        spec.rows.unwrap_or(6),
-        spec.square_size.unwrap_or(1.0),
-        unit,
-    );
-    match judged {
-        Ok(board) => (!missing && !refused_any).then_some(board),
-        Err(faults) => {
-            for fault in faults {
-                let name = format!("board.{}", fault.member.name());
-                if !problems.has(&name) {
-                    problems.add(&name, fault.message);
-                }
-            }
-            None
-        }
-    }
 }
 
 /// Every image's size from its header: past the limits is a 413 naming the part, a size other
@@ -326,14 +278,14 @@ fn image_sizes(
 }
 
 /// One image's board: decoded, found and refined; the outer error is the image's decoding.
-type Found = Result<Result<Vec<[f64; 2]>, Miss>, FieldError>;
+type Found = Result<Result<boards::Seen, Miss>, FieldError>;
 
-fn find(name: String, bytes: &Bytes, board: &Board, allowed: DecodeLimits) -> Found {
+fn find(name: String, bytes: &Bytes, board: &Target, allowed: DecodeLimits) -> Found {
     let decoded = decode::decode(bytes, allowed, false)
         .map_err(|e| FieldError::new(name, limits::describe(&e, allowed)))?;
     let grey = decoded.grey;
     let luma = Luma::from_u16(grey.width, grey.height, &grey.data);
-    Ok(find_board(&luma, board))
+    Ok(board.find(&luma))
 }
 
 /// Finds the boards, calibrates and writes the answer, on a blocking thread.
@@ -369,7 +321,7 @@ fn compute(
         ));
     }
     let mut undecodable = Vec::new();
-    let mut misses: Vec<Result<Vec<[f64; 2]>, Miss>> = Vec::with_capacity(found.len());
+    let mut misses: Vec<Result<boards::Seen, Miss>> = Vec::with_capacity(found.len());
     for f in found.into_iter().flatten() {
         match f {
             Ok(r) => misses.push(r),
@@ -383,10 +335,12 @@ fn compute(
         return Err(ApiError::Invalid(undecodable));
     }
     let missed: Vec<Option<&Miss>> = misses.iter().map(|r| r.as_ref().err()).collect();
-    if let Some((size, showing)) = agreed_other_size(&missed, &settings.board) {
-        return Err(size_mistake(&settings.board, size, showing, missed.len()));
+    if let Target::Chessboard(board) = &settings.board
+        && let Some((size, showing)) = agreed_other_size(&missed, board)
+    {
+        return Err(size_mistake(board, size, showing, missed.len()));
     }
-    let results: Vec<Result<Vec<[f64; 2]>, String>> = misses
+    let results: Vec<Result<boards::Seen, String>> = misses
         .into_iter()
         .map(|r| r.map_err(|m| m.to_string()))
         .collect();
@@ -396,7 +350,7 @@ fn compute(
     let detect = started.elapsed();
     let solving = Instant::now();
     let fit = boards::calibrate(
-        &settings.board,
+        &settings.board.object_points(),
         settings.size,
         settings.model,
         &views,
@@ -449,7 +403,7 @@ fn compute(
                 essential,
                 fundamental,
                 rectification: rect,
-                target: settings.board.target(),
+                target: settings.board.recorded(),
                 rig_std: rig_std.map(|[focal_px, baseline]| RigStd { focal_px, baseline }),
             });
             yaml(text, "opencv.yml")
@@ -504,36 +458,6 @@ fn yaml(text: String, name: &str) -> Response {
         name,
         Disposition::Attachment,
     )
-}
-
-/// Most images show a whole chessboard of another size than the board's: one 422 naming
-/// each member that differs, with the size found.
-fn size_mistake(
-    board: &Board,
-    (columns, rows): (usize, usize),
-    showing: usize,
-    images: usize,
-) -> ApiError {
-    let (given_columns, given_rows) = (board.columns() as usize, board.rows() as usize);
-    let mut errors = Vec::new();
-    for (member, given, found) in [
-        ("columns", given_columns, columns),
-        ("rows", given_rows, rows),
-    ] {
-        if given != found {
-            errors.push(FieldError::new(
-                format!("board.{member}"),
-                format!(
-                    "is {given}, but {showing} of the {} images show {found} this way: a \
-                     chessboard of {columns} × {rows} inner corners, where the board says \
-                     {given_columns} × {given_rows}. Count the inner corners (where four squares \
-                     meet), not the squares: a board of 10 × 7 squares has 9 × 6",
-                    images
-                ),
-            ));
-        }
-    }
-    ApiError::Invalid(errors)
 }
 
 /// A calibration that could not be made: a 422 naming each view that failed and why.

@@ -6,14 +6,15 @@ use std::time::Duration;
 use super::Settings;
 use super::checks::Checks;
 use super::types::{
-    self, BoardUsed, CalibrateTimes, CalibrationSummary, CameraStd, CameraSummary, Coverage,
-    CoverageSummary, CrossValidationSummary, ProjectionGrid, ProjectionUncertaintySummary,
-    RectificationSummary, RigStd, ViewStatus, ViewSummary,
+    self, BoardType, BoardUsed, CalibrateTimes, CalibrationSummary, CameraStd, CameraSummary,
+    Coverage, CoverageSummary, CrossValidationSummary, ProjectionGrid,
+    ProjectionUncertaintySummary, RectificationSummary, RigStd, ViewStatus, ViewSummary,
 };
 use crate::api::wire::params::Unit;
 use crate::api::wire::rig::CalibratedRig;
+use crate::calibration::boards::charuco::CharucoBoard;
 use crate::calibration::boards::report::{self, Rectified};
-use crate::calibration::boards::{CameraFit, Corners, Fit, ViewOutcome, uncertainty};
+use crate::calibration::boards::{self, CameraFit, Corners, Fit, Target, ViewOutcome, uncertainty};
 use crate::camera::Model;
 use crate::numbers::round_to;
 
@@ -33,6 +34,57 @@ fn camera_summary(fit: &CameraFit) -> CameraSummary {
             cy: fit.std[3],
             distortion: fit.std[4..].to_vec(),
         },
+    }
+}
+
+/// How many corners a camera saw in a view.
+fn count(corners: &Option<boards::Seen>) -> Option<usize> {
+    corners.as_ref().map(|c| c.iter().flatten().count())
+}
+
+/// The corners a camera saw in a view, in the board's order.
+fn seen(corners: &Option<boards::Seen>) -> Option<Vec<[f64; 2]>> {
+    corners
+        .as_ref()
+        .map(|c| c.iter().flatten().copied().collect())
+}
+
+/// The ids of the corners a camera saw in a view (a ChArUco board's; a chessboard's are its
+/// order, so they are left out).
+fn ids(target: &Target, corners: &Option<boards::Seen>) -> Option<Vec<usize>> {
+    let Target::Charuco(_) = target else {
+        return None;
+    };
+    corners.as_ref().map(|c| {
+        c.iter()
+            .enumerate()
+            .filter_map(|(id, p)| p.map(|_| id))
+            .collect()
+    })
+}
+
+/// The board as the summary gives it back.
+fn board_used(target: &Target) -> BoardUsed {
+    let (columns, rows) = target.inner_corners();
+    let charuco = match target {
+        Target::Charuco(b) => Some(b),
+        Target::Chessboard(_) => None,
+    };
+    BoardUsed {
+        board_type: if charuco.is_some() {
+            BoardType::Charuco
+        } else {
+            BoardType::Chessboard
+        },
+        columns,
+        rows,
+        square_size: target.square_size(),
+        unit: Unit::from(target.unit()),
+        squares_x: charuco.map(|b| b.squares().0),
+        squares_y: charuco.map(|b| b.squares().1),
+        marker_size: charuco.map(CharucoBoard::marker_size),
+        dictionary: charuco.map(|b| b.dictionary().into()),
+        legacy: charuco.map(CharucoBoard::legacy),
     }
 }
 
@@ -62,13 +114,14 @@ pub fn summarize(
                 }
             }
             let [residuals_left, residuals_right] = if settings.corners {
-                fit.residuals(&settings.board, i, &views[i]).map(|r| {
-                    r.map(|r| {
-                        r.iter()
-                            .map(|d| [round_to(d[0], 4), round_to(d[1], 4)])
-                            .collect()
+                fit.residuals(&settings.board.object_points(), i, &views[i])
+                    .map(|r| {
+                        r.map(|r| {
+                            r.iter()
+                                .map(|d| [round_to(d[0], 4), round_to(d[1], 4)])
+                                .collect()
+                        })
                     })
-                })
             } else {
                 [None, None]
             };
@@ -83,8 +136,18 @@ pub fn summarize(
                 rms_left: v.rms_left.map(|r| round_to(r, 4)),
                 rms_right: v.rms_right.map(|r| round_to(r, 4)),
                 tilt_deg: report::tilt_deg(v),
-                corners_left: settings.corners.then(|| views[i].left.clone()).flatten(),
-                corners_right: settings.corners.then(|| views[i].right.clone()).flatten(),
+                corners_found_left: count(&views[i].left),
+                corners_found_right: count(&views[i].right),
+                corners_left: settings.corners.then(|| seen(&views[i].left)).flatten(),
+                corners_right: settings.corners.then(|| seen(&views[i].right)).flatten(),
+                ids_left: settings
+                    .corners
+                    .then(|| ids(&settings.board, &views[i].left))
+                    .flatten(),
+                ids_right: settings
+                    .corners
+                    .then(|| ids(&settings.board, &views[i].right))
+                    .flatten(),
                 residuals_left,
                 residuals_right,
             }
@@ -143,12 +206,7 @@ pub fn summarize(
             Model::RationalPolynomial => types::ModelChoice::RationalPolynomial,
             Model::Equidistant => types::ModelChoice::Equidistant,
         },
-        board: BoardUsed {
-            columns: settings.board.columns(),
-            rows: settings.board.rows(),
-            square_size: settings.board.square_size(),
-            unit: Unit::from(unit),
-        },
+        board: board_used(&settings.board),
         views: view_summaries,
         rms: fit.rms,
         determined: checks.determination.determined(),

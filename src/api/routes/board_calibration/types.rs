@@ -9,6 +9,7 @@ use crate::api::wire::de::{choice_members, request};
 use crate::api::wire::openapi::{image_answers, named, text};
 use crate::api::wire::params::Unit;
 use crate::api::wire::rig::CalibratedRig;
+use crate::calibration::boards::charuco::Dictionary;
 use crate::camera::Model;
 
 /// The distortion model to fit, as ROS names them.
@@ -63,7 +64,7 @@ impl CalibrateOutput {
     }
 }
 
-choice_members!(ModelChoice, CalibrateOutput);
+choice_members!(ModelChoice, CalibrateOutput, BoardType, DictionaryName);
 
 request! {
     /// The options of `/calibrate`, in the query string.
@@ -91,23 +92,90 @@ request! {
 
 impl QueryForm for CalibrateQuery {}
 
+/// The kind of board printed.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize, Serialize, ToSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum BoardType {
+    /// A chessboard, found whole in each view (`columns` × `rows` inner corners).
+    #[default]
+    Chessboard,
+    /// A ChArUco board (OpenCV's `CharucoBoard`): a chessboard with ArUco markers in its
+    /// white squares, so that a view showing part of it counts.
+    Charuco,
+}
+
+/// A ChArUco board's ArUco dictionary, by OpenCV's name.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize, ToSchema)]
+pub enum DictionaryName {
+    #[serde(rename = "DICT_4X4_50")]
+    Dict4x4_50,
+    #[serde(rename = "DICT_5X5_100")]
+    Dict5x5_100,
+    #[serde(rename = "DICT_6X6_250")]
+    Dict6x6_250,
+    #[serde(rename = "DICT_ARUCO_ORIGINAL")]
+    ArucoOriginal,
+}
+
+impl From<DictionaryName> for Dictionary {
+    fn from(d: DictionaryName) -> Self {
+        match d {
+            DictionaryName::Dict4x4_50 => Dictionary::Dict4x4_50,
+            DictionaryName::Dict5x5_100 => Dictionary::Dict5x5_100,
+            DictionaryName::Dict6x6_250 => Dictionary::Dict6x6_250,
+            DictionaryName::ArucoOriginal => Dictionary::ArucoOriginal,
+        }
+    }
+}
+
+impl From<Dictionary> for DictionaryName {
+    fn from(d: Dictionary) -> Self {
+        match d {
+            Dictionary::Dict4x4_50 => DictionaryName::Dict4x4_50,
+            Dictionary::Dict5x5_100 => DictionaryName::Dict5x5_100,
+            Dictionary::Dict6x6_250 => DictionaryName::Dict6x6_250,
+            Dictionary::ArucoOriginal => DictionaryName::ArucoOriginal,
+        }
+    }
+}
+
 request! {
-    /// The printed chessboard: its inner corners (as OpenCV's `patternSize`) and its squares'
-    /// side.
+    /// The printed board. A chessboard (the default): its inner corners (as OpenCV's
+    /// `patternSize`) and its squares' side. A ChArUco board (`"type": "charuco"`): OpenCV's
+    /// `CharucoBoard` terms, its squares along x and y, the square and marker sides, the
+    /// dictionary and the legacy pattern; its corners' ids and positions are OpenCV's.
     #[schema(example = json!({"columns": 9, "rows": 6, "square_size": 25, "unit": "mm"}))]
     pub struct BoardSpec {
-        /// Inner corners along a row (3 to 64).
-        #[schema(required = true, minimum = 3, maximum = 64)]
+        /// `chessboard` (default) or `charuco`.
+        #[serde(rename = "type")]
+        board_type: BoardType,
+        /// A chessboard's inner corners along a row (3 to 64).
+        #[schema(minimum = 3, maximum = 64)]
         columns: u32,
-        /// Inner corners along a column (3 to 64).
-        #[schema(required = true, minimum = 3, maximum = 64)]
+        /// A chessboard's inner corners along a column (3 to 64).
+        #[schema(minimum = 3, maximum = 64)]
         rows: u32,
         /// A square's side, in `unit`.
         #[schema(required = true, exclusive_minimum = 0.0)]
         square_size: f64,
-        /// The unit of `square_size` and of the translation and baseline answered (default
-        /// `mm`).
+        /// The unit of `square_size`, `marker_size` and of the translation and baseline
+        /// answered (default `mm`).
         unit: Unit,
+        /// A ChArUco board's squares along x (3 to 65; OpenCV's `size.width`).
+        #[schema(minimum = 3, maximum = 65)]
+        squares_x: u32,
+        /// A ChArUco board's squares along y (3 to 65; OpenCV's `size.height`).
+        #[schema(minimum = 3, maximum = 65)]
+        squares_y: u32,
+        /// A ChArUco marker's side, in `unit`, smaller than `square_size`.
+        #[schema(exclusive_minimum = 0.0)]
+        marker_size: f64,
+        /// A ChArUco board's ArUco dictionary.
+        dictionary: DictionaryName,
+        /// OpenCV's legacy ChArUco pattern (`setLegacyPattern(true)`, boards made before
+        /// OpenCV 4.6.0): for an even number of rows, the top-left square is white. Default
+        /// false.
+        legacy: bool,
     }
 }
 
@@ -128,13 +196,31 @@ pub struct CalibrateForm {
     board: BoardSpec,
 }
 
-/// The board as used.
+/// The board as used: its inner corners (for a ChArUco board, its squares less one each
+/// way) and, for a ChArUco board, its own terms.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, ToSchema)]
 pub struct BoardUsed {
+    #[serde(rename = "type")]
+    pub board_type: BoardType,
     pub columns: u32,
     pub rows: u32,
     pub square_size: f64,
     pub unit: Unit,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub squares_x: Option<u32>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub squares_y: Option<u32>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub marker_size: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub dictionary: Option<DictionaryName>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub legacy: Option<bool>,
 }
 
 /// What became of a view.
@@ -171,6 +257,14 @@ pub struct ViewSummary {
     #[serde(skip_serializing_if = "Option::is_none")]
     #[schema(nullable = false)]
     pub tilt_deg: Option<f64>,
+    /// How many of the board's corners each camera found in this view (a chessboard's all,
+    /// a ChArUco board's those it shows; absent for a camera whose board was not found).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub corners_found_left: Option<usize>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub corners_found_right: Option<usize>,
     /// The corners found, in OpenCV's order, px (with `corners=true`).
     #[serde(skip_serializing_if = "Option::is_none")]
     #[schema(nullable = false)]
@@ -178,6 +272,14 @@ pub struct ViewSummary {
     #[serde(skip_serializing_if = "Option::is_none")]
     #[schema(nullable = false)]
     pub corners_right: Option<Vec<[f64; 2]>>,
+    /// A ChArUco board's corner ids (OpenCV's) of `corners_left` and `corners_right`, in
+    /// their order (with `corners=true`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub ids_left: Option<Vec<usize>>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub ids_right: Option<Vec<usize>>,
     /// Each corner's residual in a view used, px (with `corners=true`): where the calibrated
     /// model projects the board's corner minus where it was found, `[dx, dy]` in the order
     /// of the corners.

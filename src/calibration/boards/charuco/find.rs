@@ -18,6 +18,35 @@ pub struct CharucoCorners {
     pub markers: usize,
 }
 
+/// The fewest corners a view of a ChArUco board counts with, and they must not all lie on
+/// one of the board's rows or columns: a pose needs four points off a line, and six leave a
+/// margin for one that is poorly placed. (OpenCV's `calibrateCameraCharuco` takes a view
+/// from 4 corners; a view of fewer than 6 adds little but its pose's six unknowns.)
+pub const MIN_VIEW_CORNERS: usize = 6;
+
+impl CharucoCorners {
+    /// Whether the view counts: at least [`MIN_VIEW_CORNERS`], over two rows and two columns
+    /// of the board (`columns` inner corners a row).
+    pub fn usable(&self, columns: usize) -> bool {
+        let spans = |key: &dyn Fn(usize) -> usize| {
+            let first = self.ids.first().map(|&id| key(id));
+            self.ids.iter().any(|&id| Some(key(id)) != first)
+        };
+        self.ids.len() >= MIN_VIEW_CORNERS && spans(&|id| id % columns) && spans(&|id| id / columns)
+    }
+
+    /// The corners in the board's order, `None` for those not found (`count` inner corners).
+    pub fn seen(&self, count: usize) -> Vec<Option<[f64; 2]>> {
+        let mut seen = vec![None; count];
+        for (&id, &p) in self.ids.iter().zip(&self.points) {
+            if let Some(slot) = seen.get_mut(id) {
+                *slot = Some(p);
+            }
+        }
+        seen
+    }
+}
+
 /// How far (in squares, from the corner) a marker helps predict a corner: the markers of the
 /// 4 × 4 squares around it, so that a lens's bending is followed.
 const REACH: f64 = 2.0;

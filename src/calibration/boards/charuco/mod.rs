@@ -14,7 +14,7 @@ pub mod markers;
 use nalgebra::Vector3;
 
 pub use dictionary::Dictionary;
-pub use find::{CharucoCorners, find_charuco};
+pub use find::{CharucoCorners, MIN_VIEW_CORNERS, find_charuco};
 
 use crate::physics::LengthUnit;
 
@@ -225,6 +225,13 @@ impl CharucoBoard {
             (y + 1.0) * self.square_size,
             0.0,
         )
+    }
+
+    /// Every inner corner on the board's plane, by id.
+    pub fn object_points(&self) -> Vec<Vector3<f64>> {
+        (0..self.corner_count())
+            .map(|id| self.corner_point(id))
+            .collect()
     }
 
     /// The printed grey level (0 black, 1 white) at (x, y) on the board's plane, for

@@ -1,0 +1,212 @@
+//! `POST /calibrate` with a ChArUco board over a real socket: pairs rendered through a known
+//! rig, some with the board partly out of the left frame, calibrate to the truth with every
+//! view counted; the corners come back with OpenCV's ids; bad boards are named member by
+//! member.
+
+use std::sync::OnceLock;
+
+use nalgebra::{Point3, Rotation3, Translation3, Vector3};
+use reqwest::multipart::{Form, Part};
+use stereo_distance::calibration::boards::Board;
+use stereo_distance::calibration::boards::charuco::{CharucoBoard, CharucoSpec, Dictionary};
+use stereo_distance::calibration::boards::synthetic::{
+    Image, Rays, Style, poses, render_sheet, right_pose,
+};
+use stereo_distance::camera::{Camera, Distortion, Intrinsics, Model, Size, StereoPair};
+use stereo_distance::physics::LengthUnit;
+use stereo_distance::vision::encode;
+
+use crate::helpers::{assert_names, message_for, ok_json, problem, spawn_app};
+
+const SIZE: Size = Size {
+    width: 480,
+    height: 360,
+};
+
+const BOARD: &str = r#"{"type": "charuco", "squares_x": 7, "squares_y": 5, "square_size": 30,
+    "marker_size": 22, "dictionary": "DICT_4X4_50", "unit": "mm"}"#;
+
+fn charuco() -> CharucoBoard {
+    CharucoBoard::new(CharucoSpec {
+        squares_x: 7,
+        squares_y: 5,
+        square_size: 30.0,
+        marker_size: 22.0,
+        dictionary: Dictionary::Dict4x4_50,
+        legacy: false,
+        unit: LengthUnit::Millimetre,
+    })
+    .unwrap()
+}
+
+fn truth() -> StereoPair {
+    let camera = |fx: f64, cx: f64| {
+        Camera::new(
+            Intrinsics {
+                fx,
+                fy: fx,
+                cx,
+                cy: 181.0,
+            },
+            Distortion::new(Model::PlumbBob, &[-0.18, 0.06, 0.0, 0.0, 0.0]).unwrap(),
+        )
+        .unwrap()
+    };
+    StereoPair {
+        left: camera(470.0, 238.0),
+        right: camera(472.0, 244.0),
+        rotation: Rotation3::from_scaled_axis(Vector3::new(0.003, -0.01, 0.002)),
+        translation: Vector3::new(-80.0, 0.5, 0.4),
+    }
+}
+
+/// The ChArUco board at `pose` (board to camera), on a sheet with a square of margin.
+fn render(board: &CharucoBoard, pose: &nalgebra::Isometry3<f64>, rays: &Rays) -> Image {
+    let style = Style {
+        supersampling: 2,
+        ..Style::default()
+    };
+    render_sheet(pose, rays, &style, |x, y| {
+        (x > -30.0 && y > -30.0 && x < 240.0 && y < 180.0).then(|| board.shade(x, y) == Some(false))
+    })
+}
+
+/// Nine rendered pairs as PNG files, the third, sixth and ninth with the board's middle on
+/// the left image's right edge (rendered once for every test here).
+fn views() -> &'static Vec<(Vec<u8>, Vec<u8>)> {
+    static VIEWS: OnceLock<Vec<(Vec<u8>, Vec<u8>)>> = OnceLock::new();
+    VIEWS.get_or_init(|| {
+        let pair = truth();
+        let board = charuco();
+        let rays = [
+            Rays::new(&pair.left, SIZE, 2),
+            Rays::new(&pair.right, SIZE, 2),
+        ];
+        // Poses of a chessboard of the board's inner corners, moved onto its corner 0.
+        let chess = Board::new(6, 4, 30.0, LengthUnit::Millimetre).unwrap();
+        poses(&pair, SIZE, &chess, 9, 40.0, 4)
+            .iter()
+            .enumerate()
+            .map(|(i, pose)| {
+                let mut pose = pose * Translation3::new(-30.0, -30.0, 0.0);
+                if i % 3 == 2 {
+                    let centre = pose * Point3::new(105.0, 75.0, 0.0);
+                    pose.translation.vector.x += (460.0 - 238.0) * centre.z / 470.0 - centre.x;
+                }
+                let png = |i: Image| {
+                    let rgb: Vec<u8> = i.pixels.iter().flat_map(|&v| [v, v, v]).collect();
+                    encode::png_rgb(i.width as usize, i.height as usize, &rgb)
+                };
+                (
+                    png(render(&board, &pose, &rays[0])),
+                    png(render(&board, &right_pose(&pair, &pose), &rays[1])),
+                )
+            })
+            .collect()
+    })
+}
+
+fn form(board: &str) -> Form {
+    let image = |bytes: &[u8], name: String| {
+        Part::bytes(bytes.to_vec())
+            .file_name(name)
+            .mime_str("image/png")
+            .unwrap()
+    };
+    let mut form = Form::new();
+    for (i, (l, r)) in views().iter().enumerate() {
+        form = form
+            .part("left", image(l, format!("left{i}.png")))
+            .part("right", image(r, format!("right{i}.png")));
+    }
+    form.text("board", board.to_owned())
+}
+
+/// Nine ChArUco pairs, three with the board partly out of the left frame, calibrate to the
+/// truth (f within 0.3 %, the principal points within 1.5 px, |T| within 0.5 %): every view
+/// is used, the partial ones with the corners they show; the summary gives the board back
+/// with its ChArUco terms, and the corners with OpenCV's ids.
+#[tokio::test]
+async fn calibrates_from_charuco_views_whole_and_partial() {
+    let app = spawn_app().await;
+    let s = ok_json(app.post_form("/calibrate?corners=true", form(BOARD)).await).await;
+    let truth = truth();
+    let views = s["views"].as_array().unwrap();
+    assert_eq!(views.len(), 9);
+    let counts: Vec<(u64, u64)> = views
+        .iter()
+        .map(|v| {
+            assert_eq!(v["status"], "used", "{v}");
+            (
+                v["corners_found_left"].as_u64().unwrap(),
+                v["corners_found_right"].as_u64().unwrap(),
+            )
+        })
+        .collect();
+    let partial = counts.iter().filter(|c| c.0 < 24).count();
+    assert!(partial >= 3, "{counts:?}");
+    let ids = views[2]["ids_left"].as_array().unwrap();
+    assert_eq!(ids.len() as u64, counts[2].0);
+    assert_eq!(
+        views[2]["corners_left"].as_array().unwrap().len(),
+        ids.len()
+    );
+    assert!(ids.iter().all(|id| id.as_u64().unwrap() < 24));
+    for (side, camera) in [("left", &truth.left), ("right", &truth.right)] {
+        let k = &s[side]["camera_matrix"];
+        let t = camera.intrinsics();
+        let fx = k[0][0].as_f64().unwrap();
+        assert!(
+            (fx / t.fx - 1.0).abs() < 3e-3,
+            "{side} fx {fx} against {}",
+            t.fx
+        );
+        let (cx, cy) = (k[0][2].as_f64().unwrap(), k[1][2].as_f64().unwrap());
+        assert!((cx - t.cx).hypot(cy - t.cy) < 1.5, "{side} ({cx}, {cy})");
+    }
+    let t: Vec<f64> = s["translation"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_f64().unwrap())
+        .collect();
+    let length = (t[0] * t[0] + t[1] * t[1] + t[2] * t[2]).sqrt();
+    assert!((length / 80.0 - 1.0).abs() < 5e-3, "|T| {length}");
+    let board = &s["board"];
+    assert_eq!(board["type"], "charuco");
+    assert_eq!(board["squares_x"], 7);
+    assert_eq!(board["columns"], 6);
+    assert_eq!(board["dictionary"], "DICT_4X4_50");
+}
+
+/// Every fault of a ChArUco board is named at once: a board of 1 × 1 squares, a marker as
+/// large as its square, a dictionary OpenCV has but the service does not, and a chessboard's
+/// member beside them; a chessboard given a ChArUco member is told to say its type.
+#[tokio::test]
+async fn every_bad_charuco_member_is_named_at_once() {
+    let app = spawn_app().await;
+    let board = r#"{"type": "charuco", "squares_x": 1, "squares_y": 1, "square_size": 20,
+        "marker_size": 20, "dictionary": "DICT_7X7_50", "columns": 9}"#;
+    let p = problem(app.post_form("/calibrate", form(board)).await, 422).await;
+    assert_names(
+        &p,
+        &[
+            "board.columns",
+            "board.dictionary",
+            "board.marker_size",
+            "board.squares_x",
+            "board.squares_y",
+        ],
+    );
+    assert!(message_for(&p, "board.dictionary").contains("DICT_4X4_50"));
+    assert!(message_for(&p, "board.marker_size").contains("smaller than square_size"));
+    let chess = r#"{"columns": 9, "rows": 6, "square_size": 25, "dictionary": "DICT_4X4_50"}"#;
+    let p = problem(app.post_form("/calibrate", form(chess)).await, 422).await;
+    assert_names(&p, &["board.dictionary"]);
+    assert!(message_for(&p, "board.dictionary").contains("\"type\": \"charuco\""));
+    let few = r#"{"type": "charuco", "squares_x": 12, "squares_y": 10, "square_size": 20,
+        "marker_size": 15, "dictionary": "DICT_4X4_50"}"#;
+    let p = problem(app.post_form("/calibrate", form(few)).await, 422).await;
+    assert_names(&p, &["board.dictionary"]);
+    assert!(message_for(&p, "board.dictionary").contains("holds 50 markers"));
+}
