@@ -21,7 +21,6 @@ worse than OpenCV's on any of them, or uses fewer views.
 import http.client
 import json
 import urllib.parse
-import uuid
 import statistics
 import subprocess
 import sys
@@ -30,6 +29,8 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+
+from eval_calibration import multipart
 
 SIZE = (640, 480)
 SETS = [
@@ -138,24 +139,17 @@ def stereo(name, dictionary, squares, model, d, f, s, url, out):
         right = photograph(board, squares, model, k2, d2, rvec2, tvec2, seed=6000 + 100 * s + i)
         files.append((cv2.imencode(".png", left)[1].tobytes(), cv2.imencode(".png", right)[1].tobytes()))
     # Ours: one request.
-    boundary = uuid.uuid4().hex
-    body = bytearray()
-    def part(name, data, filename, ctype):
-        nonlocal body
-        disposition = f'form-data; name="{name}"' + (f'; filename="{filename}"' if filename else "")
-        body += f"--{boundary}\r\nContent-Disposition: {disposition}\r\nContent-Type: {ctype}\r\n\r\n".encode()
-        body += data + b"\r\n"
+    parts = []
     for i, (l, r) in enumerate(files):
-        part("left", l, f"left{i}.png", "image/png")
-        part("right", r, f"right{i}.png", "image/png")
+        parts.append(("left", l, f"left{i}.png", "image/png"))
+        parts.append(("right", r, f"right{i}.png", "image/png"))
     spec = {"type": "charuco", "squares_x": squares[0], "squares_y": squares[1],
             "square_size": SQUARE, "marker_size": MARKER, "dictionary": dictionary, "legacy": legacy}
-    part("board", json.dumps(spec).encode(), None, "application/json")
-    body += f"--{boundary}--\r\n".encode()
+    parts.append(("board", json.dumps(spec).encode(), None, "application/json"))
+    body, ctype = multipart(parts)
     target = urllib.parse.urlsplit(url)
     conn = http.client.HTTPConnection(target.hostname, target.port, timeout=300)
-    conn.request("POST", f"/calibrate?model={model}", body=bytes(body),
-                 headers={"Content-Type": f"multipart/form-data; boundary={boundary}"})
+    conn.request("POST", f"/calibrate?model={model}", body=body, headers={"Content-Type": ctype})
     response = conn.getresponse()
     answer = response.read()
     conn.close()

@@ -31,7 +31,7 @@ impl Checks {
             let distance = uncertainty.as_ref().map(|u| u.distance);
             let halves = distance.ok_or(0).and_then(|d| {
                 uncertainty::cross_validation(
-                    &settings.board.object_points(),
+                    &settings.object,
                     settings.model,
                     fit,
                     views,

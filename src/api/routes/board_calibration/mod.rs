@@ -207,6 +207,7 @@ pub async fn post_calibrate(
         )]
     };
     let settings = Settings {
+        object: board.object_points(),
         board,
         model,
         alpha,
@@ -226,6 +227,8 @@ pub async fn post_calibrate(
 /// What the work needs to know besides the images.
 struct Settings {
     board: Target,
+    /// The board's corners on its plane, in the order the views give them.
+    object: Vec<nalgebra::Vector3<f64>>,
     model: Model,
     alpha: Alpha,
     output: CalibrateOutput,
@@ -350,7 +353,7 @@ fn compute(
     let detect = started.elapsed();
     let solving = Instant::now();
     let fit = boards::calibrate(
-        &settings.board.object_points(),
+        &settings.object,
         settings.size,
         settings.model,
         &views,

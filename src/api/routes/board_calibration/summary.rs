@@ -114,14 +114,13 @@ pub fn summarize(
                 }
             }
             let [residuals_left, residuals_right] = if settings.corners {
-                fit.residuals(&settings.board.object_points(), i, &views[i])
-                    .map(|r| {
-                        r.map(|r| {
-                            r.iter()
-                                .map(|d| [round_to(d[0], 4), round_to(d[1], 4)])
-                                .collect()
-                        })
+                fit.residuals(&settings.object, i, &views[i]).map(|r| {
+                    r.map(|r| {
+                        r.iter()
+                            .map(|d| [round_to(d[0], 4), round_to(d[1], 4)])
+                            .collect()
                     })
+                })
             } else {
                 [None, None]
             };
