@@ -5,13 +5,11 @@
 
 use std::sync::OnceLock;
 
-use nalgebra::{Point3, Rotation3, Translation3, Vector3};
+use nalgebra::{Rotation3, Vector3};
 use reqwest::multipart::{Form, Part};
-use stereo_distance::calibration::boards::Board;
+use stereo_distance::calibration::boards::charuco::render::{partial_poses, render};
 use stereo_distance::calibration::boards::charuco::{CharucoBoard, CharucoSpec, Dictionary};
-use stereo_distance::calibration::boards::synthetic::{
-    Image, Rays, Style, poses, render_sheet, right_pose,
-};
+use stereo_distance::calibration::boards::synthetic::{Image, Rays, Style, right_pose};
 use stereo_distance::camera::{Camera, Distortion, Intrinsics, Model, Size, StereoPair};
 use stereo_distance::physics::LengthUnit;
 use stereo_distance::vision::encode;
@@ -60,17 +58,6 @@ fn truth() -> StereoPair {
     }
 }
 
-/// The ChArUco board at `pose` (board to camera), on a sheet with a square of margin.
-fn render(board: &CharucoBoard, pose: &nalgebra::Isometry3<f64>, rays: &Rays) -> Image {
-    let style = Style {
-        supersampling: 2,
-        ..Style::default()
-    };
-    render_sheet(pose, rays, &style, |x, y| {
-        (x > -30.0 && y > -30.0 && x < 240.0 && y < 180.0).then(|| board.shade(x, y) == Some(false))
-    })
-}
-
 /// Nine rendered pairs as PNG files, the third, sixth and ninth with the board's middle on
 /// the left image's right edge (rendered once for every test here).
 fn views() -> &'static Vec<(Vec<u8>, Vec<u8>)> {
@@ -82,24 +69,21 @@ fn views() -> &'static Vec<(Vec<u8>, Vec<u8>)> {
             Rays::new(&pair.left, SIZE, 2),
             Rays::new(&pair.right, SIZE, 2),
         ];
-        // Poses of a chessboard of the board's inner corners, moved onto its corner 0.
-        let chess = Board::new(6, 4, 30.0, LengthUnit::Millimetre).unwrap();
-        poses(&pair, SIZE, &chess, 9, 40.0, 4)
+        let style = Style {
+            supersampling: 2,
+            ..Style::default()
+        };
+        let png = |i: Image| {
+            let rgb: Vec<u8> = i.pixels.iter().flat_map(|&v| [v, v, v]).collect();
+            encode::png_rgb(i.width as usize, i.height as usize, &rgb)
+        };
+        partial_poses(&pair, SIZE, &board, 9, 4, 460.0)
+            .unwrap()
             .iter()
-            .enumerate()
-            .map(|(i, pose)| {
-                let mut pose = pose * Translation3::new(-30.0, -30.0, 0.0);
-                if i % 3 == 2 {
-                    let centre = pose * Point3::new(105.0, 75.0, 0.0);
-                    pose.translation.vector.x += (460.0 - 238.0) * centre.z / 470.0 - centre.x;
-                }
-                let png = |i: Image| {
-                    let rgb: Vec<u8> = i.pixels.iter().flat_map(|&v| [v, v, v]).collect();
-                    encode::png_rgb(i.width as usize, i.height as usize, &rgb)
-                };
+            .map(|pose| {
                 (
-                    png(render(&board, &pose, &rays[0])),
-                    png(render(&board, &right_pose(&pair, &pose), &rays[1])),
+                    png(render(&board, pose, &rays[0], &style)),
+                    png(render(&board, &right_pose(&pair, pose), &rays[1], &style)),
                 )
             })
             .collect()

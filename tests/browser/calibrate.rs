@@ -462,3 +462,161 @@ async fn calibrate_mode_fits_a_phone() {
     browser.screenshot("calibrate-phone.png").await;
     browser.close().await;
 }
+
+/// Nine ChArUco pairs of a 7 × 5 board rendered through the sample's rig, the third, sixth
+/// and ninth with the board's middle on the left image's right edge, written as PNG files.
+fn charuco_files() -> Vec<PathBuf> {
+    use stereo_distance::calibration::boards::charuco::render::{partial_poses, render};
+    use stereo_distance::calibration::boards::charuco::{CharucoBoard, CharucoSpec, Dictionary};
+    use stereo_distance::calibration::boards::synthetic::{Rays, Style, right_pose, sample_rig};
+    use stereo_distance::camera::Size;
+
+    let size = Size {
+        width: 640,
+        height: 480,
+    };
+    let board = CharucoBoard::new(CharucoSpec {
+        squares_x: 7,
+        squares_y: 5,
+        square_size: 30.0,
+        marker_size: 22.0,
+        dictionary: Dictionary::Dict4x4_50,
+        legacy: false,
+        unit: stereo_distance::physics::LengthUnit::Millimetre,
+    })
+    .expect("a board");
+    let pair = sample_rig();
+    let style = Style {
+        supersampling: 2,
+        ..Style::default()
+    };
+    let rays = [
+        Rays::new(&pair.left, size, 2),
+        Rays::new(&pair.right, size, 2),
+    ];
+    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("e2e-charuco");
+    std::fs::create_dir_all(&dir).expect("a folder for the boards");
+    let mut files = Vec::new();
+    let poses = partial_poses(&pair, size, &board, 9, 7, 600.0).expect("poses");
+    for (i, pose) in poses.iter().enumerate() {
+        for (side, pose, rays) in [
+            ("left", *pose, &rays[0]),
+            ("right", right_pose(&pair, pose), &rays[1]),
+        ] {
+            let image = render(&board, &pose, rays, &style);
+            let file = dir.join(format!("{side}{:02}.png", i + 1));
+            image::GrayImage::from_raw(image.width, image.height, image.pixels)
+                .expect("an image")
+                .save(&file)
+                .expect("written");
+            files.push(file);
+        }
+    }
+    files
+}
+
+/// Choosing "ChArUco" shows its fields (squares, marker size, dictionary, legacy) in place of
+/// the inner corners, and its picture: markers in the white squares and the corners' ids.
+/// A marker as large as its square is refused next to the marker size field; with the right
+/// board, nine rendered ChArUco pairs, three with the board partly out of the left frame,
+/// calibrate with every view used, B within 0.5 % of the rig's, and each view's bar says how
+/// many corners each camera saw; the address keeps the board.
+#[tokio::test]
+#[ignore = "needs chromium and chromedriver; .ci/run runs it"]
+async fn charuco_pairs_calibrate_from_the_page_partial_views_counted() {
+    // Arrange
+    let browser = Browser::start(1280, 1600).await;
+    browser.open("/?mode=calibrate").await;
+    let files = charuco_files();
+    let (_, b_true, _) = truth();
+
+    // Act: the board type, then its fields, one of them wrong.
+    browser.choose("board_type", "charuco").await;
+    let shown = browser
+        .script(
+            "return ['board_columns', 'squares_x', 'marker_size', 'dictionary', 'legacy']\
+               .map(id => document.getElementById(id).closest('.field').hidden)",
+        )
+        .await;
+    let picture = browser
+        .script(
+            "const p = document.getElementById('inner-corners-picture');\
+             return [p.querySelectorAll('rect.marker').length, p.querySelectorAll('.corner-id').length,\
+               document.getElementById('board-picture-caption').textContent]",
+        )
+        .await;
+    browser.type_into("squares_x", "7").await;
+    browser.type_into("squares_y", "5").await;
+    browser.type_into("square_size", "30").await;
+    browser.type_into("marker_size", "30").await;
+    browser.choose("dictionary", "DICT_4X4_50").await;
+    let paths: Vec<&str> = files.iter().map(|p| p.to_str().expect("UTF-8")).collect();
+    browser
+        .find("board_files")
+        .await
+        .send_keys(&paths.join("\n"))
+        .await
+        .expect("files chosen");
+    browser
+        .find("calibrate-button")
+        .await
+        .click()
+        .await
+        .expect("click");
+    let refused = browser
+        .until_within("the refusal", CALIBRATING, || async {
+            let text = browser.text("marker_size-error").await;
+            (!text.is_empty()).then_some(text)
+        })
+        .await;
+
+    // Assert: the fields and the picture are ChArUco's; the bad member is named where it is.
+    assert_eq!(shown, json!([true, false, false, false, false]));
+    assert_eq!(picture[0], json!(12), "{picture}");
+    assert_eq!(picture[1], json!(15), "{picture}");
+    assert!(picture[2].as_str().expect("caption").contains("squares"));
+    assert!(refused.contains("smaller than"), "{refused}");
+
+    // Act: the right marker size.
+    browser.type_into("marker_size", "22").await;
+    browser
+        .find("calibrate-button")
+        .await
+        .click()
+        .await
+        .expect("click");
+    let (rms, used, _, b) = browser.calibrated().await;
+    browser
+        .script("document.getElementById('calibrate').scrollIntoView()")
+        .await;
+    browser.screenshot("calibrate-charuco.png").await;
+
+    // Assert
+    assert_eq!(used, 9);
+    assert!(rms < 0.5, "RMS {rms}");
+    assert!((b / b_true - 1.0).abs() < 0.005, "B {b} against {b_true}");
+    let labels = browser
+        .script(
+            "return [...document.querySelectorAll('.view-bar')].map(g => g.getAttribute('aria-label'))",
+        )
+        .await;
+    let labels: Vec<String> = serde_json::from_value(labels).expect("labels");
+    assert_eq!(labels.len(), 9);
+    assert!(
+        labels.iter().all(|l| l.contains(" of 24 corners")),
+        "{labels:?}"
+    );
+    assert!(
+        labels.iter().any(|l| !l.contains("24 and 24 of 24")),
+        "no partial view: {labels:?}"
+    );
+    let address = browser.script("return location.search").await;
+    let address = address.as_str().expect("the address");
+    assert!(
+        address.contains("board=charuco") && address.contains("squares_x=7"),
+        "{address}"
+    );
+    browser.assert_clean_but(&["422"]).await;
+    browser.assert_no_alert().await;
+    browser.close().await;
+}

@@ -27,19 +27,73 @@ function showVerdict(id, label, px, note) {
   box.replaceChildren(strong, line);
 }
 
-/** The 6 × 4 squares of the "inner corners" picture, its 5 × 3 inner corners circled. */
-export function drawInnerCorners(picture) {
+/** What each board type's picture says: its title (read aloud) and its caption. */
+const BOARD_PICTURES = {
+  chessboard: {
+    title: 'A board of 6 × 4 squares has 5 × 3 inner corners: the points where four squares meet, marked with circles; the board\'s outer corners do not count.',
+    caption: 'Inner corners are where four squares meet (circles): a board of 10 × 7 squares has 9 × 6.',
+    label: '6 × 4 squares: 5 × 3 inner corners',
+  },
+  charuco: {
+    title: 'A ChArUco board of 6 × 4 squares: an ArUco marker in each white square, and 5 × 3 corners where four squares meet, numbered 0 to 14 row by row as OpenCV numbers them.',
+    caption: 'A ChArUco board is given by its squares (6 × 4 here, OpenCV\'s squaresX × squaresY), not its corners; its markers sit in the white squares and name the corners around them, so a view with part of the board counts.',
+    label: '6 × 4 squares: corners 0–14',
+  },
+};
+
+/** A marker's 4 × 4 cells for the picture: a fixed pattern per marker, as a printed board
+ * has (illustration only; the service reads the real dictionaries). */
+function markerCells(id) {
+  let bits = (id * 2654435761) >>> 0;
+  const cells = [];
+  for (let k = 0; k < 16; k += 1) {
+    cells.push((bits & 1) === 1);
+    bits = (bits >>> 1) | ((bits & 1) << 31);
+    bits ^= bits >>> 7;
+  }
+  return cells;
+}
+
+/** The board picture beside the board's fields: 6 × 4 squares with their 5 × 3 inner corners
+ * circled, a ChArUco board's with a marker in each white square and the corners' ids. */
+export function drawBoardPicture(picture, type) {
+  const about = BOARD_PICTURES[type] ?? BOARD_PICTURES.chessboard;
+  picture.replaceChildren(svg('title', { id: 'inner-corners-title' }, about.title));
+  picture.dataset.board = type;
   const size = 30;
   const [x0, y0] = [20, 20];
+  let marker = 0;
   for (let j = 0; j < 4; j += 1) {
     for (let i = 0; i < 6; i += 1) {
-      picture.append(svg('rect', { x: x0 + i * size, y: y0 + j * size, width: size, height: size, class: (i + j) % 2 === 0 ? 'square-black' : 'square-white' }));
+      const black = (i + j) % 2 === 0;
+      picture.append(svg('rect', { x: x0 + i * size, y: y0 + j * size, width: size, height: size, class: black ? 'square-black' : 'square-white' }));
+      if (type !== 'charuco' || black) continue;
+      // A marker of 6 × 6 cells: a black border round 4 × 4 bits.
+      const cell = 3.5;
+      const [mx, my] = [x0 + i * size + (size - 6 * cell) / 2, y0 + j * size + (size - 6 * cell) / 2];
+      picture.append(svg('rect', { x: mx, y: my, width: 6 * cell, height: 6 * cell, class: 'marker' }));
+      markerCells(marker).forEach((white, k) => {
+        if (white) picture.append(svg('rect', { x: mx + (1 + (k % 4)) * cell, y: my + (1 + Math.floor(k / 4)) * cell, width: cell, height: cell, class: 'marker-bit' }));
+      });
+      marker += 1;
     }
   }
   for (let j = 1; j < 4; j += 1) {
-    for (let i = 1; i < 6; i += 1) picture.append(svg('circle', { cx: x0 + i * size, cy: y0 + j * size, r: 5, class: 'inner-corner' }));
+    for (let i = 1; i < 6; i += 1) {
+      const [cx, cy] = [x0 + i * size, y0 + j * size];
+      picture.append(svg('circle', { cx, cy, r: 5, class: 'inner-corner' }));
+      if (type === 'charuco') picture.append(svg('text', { x: cx + 4, y: cy - 5, class: 'corner-id' }, String((j - 1) * 5 + (i - 1))));
+    }
   }
-  picture.append(svg('text', { x: 110, y: 154, 'text-anchor': 'middle' }, '6 × 4 squares: 5 × 3 inner corners'));
+  picture.append(svg('text', { x: 110, y: 154, 'text-anchor': 'middle' }, about.label));
+  return about.caption;
+}
+
+/** ", 24 and 17 corners" for a ChArUco view (which may show part of its board), else "". */
+function cornerCounts(calibration, view) {
+  if (calibration.summary.board?.type !== 'charuco') return '';
+  const counts = [view.corners_found_left ?? 0, view.corners_found_right ?? 0];
+  return `, ${counts[0]} and ${counts[1]} of ${calibration.summary.board.columns * calibration.summary.board.rows} corners`;
 }
 
 /** The answer's view for pair `i`, or null when it was left out. */
@@ -85,7 +139,7 @@ function drawBars(calibration) {
     if (out) {
       label = `View ${i + 1} (${pair.name}): left out by you; click to put it back`;
     } else if (view.status === 'used') {
-      label = `View ${i + 1} (${pair.name}): left ${fmt(view.rms_left, 3)} px, right ${fmt(view.rms_right, 3)} px; click to leave it out`;
+      label = `View ${i + 1} (${pair.name}): left ${fmt(view.rms_left, 3)} px, right ${fmt(view.rms_right, 3)} px${cornerCounts(calibration, view)}; click to leave it out`;
     } else {
       const why = view.status === 'outlier' ? 'an outlier, far above the others' : view.reasons.join('; ');
       label = `View ${i + 1} (${pair.name}): not used, ${why}; click to leave it out`;
@@ -250,7 +304,7 @@ async function drawThumbs(calibration) {
     caption.textContent = out
       ? `${i + 1}. ${pair.name}: left out`
       : view.status === 'used'
-        ? `${i + 1}. ${pair.name}: ${fmt(view.rms_left, 3)} / ${fmt(view.rms_right, 3)} px, tilted ${fmt(view.tilt_deg, 3)}°`
+        ? `${i + 1}. ${pair.name}: ${fmt(view.rms_left, 3)} / ${fmt(view.rms_right, 3)} px, tilted ${fmt(view.tilt_deg, 3)}°${cornerCounts(calibration, view)}`
         : `${i + 1}. ${pair.name}: ${view.status === 'outlier' ? 'outlier' : 'board not found'}`;
     figure.append(caption);
     figures.push(figure);

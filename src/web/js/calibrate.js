@@ -1,16 +1,24 @@
-// Calibrate mode: checkerboard pairs chosen or dropped (paired by name), the board and the
-// lens model, sent to /calibrate with progress, elapsed time and a cancel; the answer shown
-// by calibrate-view.js; a view left out by a click and the rest calibrated again; the files
+// Calibrate mode: board pairs chosen or dropped (paired by name), the board (a chessboard or
+// a ChArUco board, with its picture) and the lens model, sent to /calibrate with progress,
+// elapsed time and a cancel; the answer shown by calibrate-view.js; a view left out by a click and the rest calibrated again; the files
 // downloaded; and "Use this calibration", which takes the rig and its uncertainty to Images
 // mode. The service does the calibrating: the page sends the files and shows the answer.
 
 import { fetchFile, fetchJson, postWithProgress, save } from './api.js';
-import { drawInnerCorners, showCalibration, wireBars } from './calibrate-view.js';
+import { drawBoardPicture, showCalibration, wireBars } from './calibrate-view.js';
 import { $, clearFieldErrors, fmt, page, setFiles, showFieldErrors } from './util.js';
 
-/** The board fields, the `board` part's member each is, and its default (a board of 10 × 7
- * squares of 25 mm, OpenCV's sample's). */
-const BOARD_FIELDS = { board_columns: ['columns', '9'], board_rows: ['rows', '6'], square_size: ['square_size', '25'] };
+/** The board's text fields and the `board` part's member each is. */
+const BOARD_FIELDS = {
+  board_columns: 'columns', board_rows: 'rows', squares_x: 'squares_x', squares_y: 'squares_y', square_size: 'square_size', marker_size: 'marker_size',
+};
+/** Each board type's text fields and their defaults: OpenCV's sample chessboard (10 × 7
+ * squares of 25 mm), and the ChArUco board of 8 × 6 squares of 30 mm with 22 mm markers. */
+const BOARD_DEFAULTS = {
+  chessboard: { board_columns: '9', board_rows: '6', square_size: '25' },
+  charuco: { squares_x: '8', squares_y: '6', square_size: '30', marker_size: '22' },
+};
+const DICTIONARIES = ['DICT_4X4_50', 'DICT_5X5_100', 'DICT_6X6_250', 'DICT_ARUCO_ORIGINAL'];
 const MODELS = ['plumb_bob', 'rational_polynomial', 'equidistant'];
 const UNITS = ['mm', 'cm', 'm', 'in', 'ft'];
 
@@ -110,12 +118,27 @@ export function choosePairs(files, sample = null) {
 // ---------------------------------------------------------------------------------------
 // The request.
 
+/** The board type chosen. */
+function boardType() {
+  return $('board_type').value === 'charuco' ? 'charuco' : 'chessboard';
+}
+
+/** Shows the chosen board type's fields and its picture. */
+function showBoardType() {
+  const type = boardType();
+  for (const field of document.querySelectorAll('#calibrate [data-board]')) field.hidden = field.dataset.board !== type;
+  $('board-picture-caption').textContent = drawBoardPicture($('inner-corners-picture'), type);
+}
+
 /** The `board` part: numbers as numbers, anything else as typed, for the service to judge. */
 function boardPart() {
-  const board = { unit: $('square_unit').value };
-  for (const [id, [member]] of Object.entries(BOARD_FIELDS)) {
+  const type = boardType();
+  const board = type === 'charuco'
+    ? { type, dictionary: $('dictionary').value, legacy: $('legacy').checked, unit: $('square_unit').value }
+    : { unit: $('square_unit').value };
+  for (const id of Object.keys(BOARD_DEFAULTS[type])) {
     const text = $(id).value.trim();
-    board[member] = text !== '' && Number.isFinite(Number(text)) ? Number(text) : text;
+    board[BOARD_FIELDS[id]] = text !== '' && Number.isFinite(Number(text)) ? Number(text) : text;
   }
   return JSON.stringify(board);
 }
@@ -135,13 +158,14 @@ function calibrationForm() {
 }
 
 function clearCalibrationErrors() {
-  clearFieldErrors([...Object.keys(BOARD_FIELDS), 'board_files'], 'calibrate-errors');
+  clearFieldErrors([...Object.keys(BOARD_FIELDS), 'dictionary', 'board_files'], 'calibrate-errors');
 }
 
 /** The problem's errors next to the board field they name, a view's under the file input
  * with the file's name, and the rest in the list. */
 function showCalibrationErrors(errors, sent) {
-  const fieldOf = { 'board.columns': 'board_columns', 'board.rows': 'board_rows', 'board.square_size': 'square_size' };
+  const fieldOf = Object.fromEntries(Object.entries(BOARD_FIELDS).map(([id, member]) => [`board.${member}`, id]));
+  fieldOf['board.dictionary'] = 'dictionary';
   showFieldErrors(errors, ({ field, message }) => {
     const view = /^(left|right)\[(\d+)\]$/.exec(field);
     const input = fieldOf[field] ?? (view || field === 'left' || field === 'right' ? 'board_files' : null);
@@ -167,7 +191,7 @@ function query(output = null) {
 export async function calibrate() {
   clearCalibrationErrors();
   if (calibration.pairs.length === 0) {
-    $('board_files-error').textContent = 'Choose the checkerboard pairs first (left and right images, paired by name).';
+    $('board_files-error').textContent = 'Choose the board pairs first (left and right images, paired by name).';
     $('board_files-error').hidden = false;
     $('board_files').setAttribute('aria-invalid', 'true');
     return;
@@ -266,7 +290,13 @@ export function rememberCalibrate() {
   if (page.mode !== 'calibrate') return;
   const q = new URLSearchParams({ mode: 'calibrate' });
   if (calibration.sample || (calibration.pairs.length === 0 && new URLSearchParams(location.search).get('sample') === '1')) q.set('sample', '1');
-  for (const [id, [member]] of Object.entries(BOARD_FIELDS)) q.set(member, $(id).value.trim());
+  const type = boardType();
+  if (type === 'charuco') q.set('board', type);
+  for (const id of Object.keys(BOARD_DEFAULTS[type])) q.set(BOARD_FIELDS[id], $(id).value.trim());
+  if (type === 'charuco') {
+    q.set('dictionary', $('dictionary').value);
+    if ($('legacy').checked) q.set('legacy', 'true');
+  }
   q.set('square_unit', $('square_unit').value);
   q.set('model', $('lens_model').value);
   history.replaceState(null, '', `${location.pathname}?${q}`);
@@ -275,7 +305,16 @@ export function rememberCalibrate() {
 /** The board and model an address gives (the defaults for the rest). */
 export function readCalibrateQuery(search) {
   const q = new URLSearchParams(search);
-  for (const [id, [member, fallback]] of Object.entries(BOARD_FIELDS)) $(id).value = q.get(member) ?? fallback;
+  const type = q.get('board') === 'charuco' ? 'charuco' : 'chessboard';
+  $('board_type').value = type;
+  // The other type's defaults first, so the square size shared by both is this type's.
+  for (const t of type === 'charuco' ? ['chessboard', 'charuco'] : ['charuco', 'chessboard']) {
+    for (const [id, fallback] of Object.entries(BOARD_DEFAULTS[t])) $(id).value = (t === type ? q.get(BOARD_FIELDS[id]) : null) ?? fallback;
+  }
+  const dictionary = q.get('dictionary');
+  $('dictionary').value = DICTIONARIES.includes(dictionary) ? dictionary : 'DICT_4X4_50';
+  $('legacy').checked = q.get('legacy') === 'true';
+  showBoardType();
   const unit = q.get('square_unit');
   $('square_unit').value = UNITS.includes(unit) ? unit : 'mm';
   const model = q.get('model');
@@ -292,6 +331,8 @@ export async function openCalibrationSample() {
     for (const side of ['left', 'right']) {
       for (const path of about[side]) files.push(await fetchFile(path, path.split('/').pop()));
     }
+    $('board_type').value = 'chessboard';
+    showBoardType();
     $('board_columns').value = String(about.board.columns);
     $('board_rows').value = String(about.board.rows);
     $('square_size').value = String(about.board.square_size);
@@ -308,7 +349,11 @@ export async function openCalibrationSample() {
 /** Calibrate mode's controls. `useCalibration(summary, yaml, sample)` takes the result to
  * Images mode. */
 export function wireCalibrate(useCalibration) {
-  drawInnerCorners($('inner-corners-picture'));
+  showBoardType();
+  $('board_type').addEventListener('change', () => {
+    showBoardType();
+    rememberCalibrate();
+  });
   wireBars(toggleView);
   for (const id of ['board_files', 'board_folder']) {
     $(id).addEventListener('change', (event) => choosePairs([...event.target.files]));
@@ -325,7 +370,7 @@ export function wireCalibrate(useCalibration) {
     const files = [...event.dataTransfer.files];
     if (files.length > 0) choosePairs(files);
   });
-  for (const id of [...Object.keys(BOARD_FIELDS), 'square_unit', 'lens_model']) $(id).addEventListener('change', rememberCalibrate);
+  for (const id of [...Object.keys(BOARD_FIELDS), 'dictionary', 'legacy', 'square_unit', 'lens_model']) $(id).addEventListener('change', rememberCalibrate);
   $('calibrate-button').addEventListener('click', () => calibrate());
   $('calibrate-cancel').addEventListener('click', () => {
     if (calibration.controller) calibration.controller.abort();

@@ -6,10 +6,12 @@
 //! - [`dictionary`]: the ArUco dictionaries' codes, from OpenCV's tables.
 //! - [`markers`]: finding the markers in an image and reading their ids.
 //! - [`find`]: the inner corners the markers point to, each found and refined in the image.
+//! - [`render`]: boards rendered through a known rig, whole and partly out of the frame.
 
 pub mod dictionary;
 pub mod find;
 pub mod markers;
+pub mod render;
 
 use nalgebra::Vector3;
 

@@ -5,7 +5,7 @@ use nalgebra::{Isometry3, Point3, Rotation3, Vector3};
 
 use super::*;
 use crate::calibration::boards::corners::Luma;
-use crate::calibration::boards::synthetic::{Image, Rays, Style, render_sheet};
+use crate::calibration::boards::synthetic::{Rays, Style};
 use crate::camera::{Camera, Distortion, Intrinsics, Model, Size};
 
 fn spec(squares_x: u32, squares_y: u32, legacy: bool) -> CharucoSpec {
@@ -118,25 +118,6 @@ fn faults_name_each_member() {
     assert!(CharucoBoard::new(roomy).is_ok());
 }
 
-/// Renders a ChArUco `board` at `pose` (board to camera), on a sheet with one square of white
-/// margin around it, as the camera whose `rays` are given.
-fn render_charuco(
-    board: &CharucoBoard,
-    pose: &Isometry3<f64>,
-    rays: &Rays,
-    style: &Style,
-) -> Image {
-    let s = board.square_size();
-    let (sx, sy) = board.squares();
-    let (w, h) = (f64::from(sx) * s, f64::from(sy) * s);
-    render_sheet(pose, rays, style, |bx, by| {
-        if bx < -s || by < -s || bx > w + s || by > h + s {
-            return None;
-        }
-        Some(board.shade(bx, by) == Some(false))
-    })
-}
-
 fn camera(model: Model, coefficients: &[f64]) -> Camera {
     Camera::new(
         Intrinsics {
@@ -162,7 +143,7 @@ fn found_against_truth(
         height: 480,
     };
     let rays = Rays::new(camera, size, 3);
-    let image = render_charuco(board, pose, &rays, &Style::default());
+    let image = render::render(board, pose, &rays, &Style::default());
     let luma = Luma::from_u8(640, 480, &image.pixels);
     let found = find_charuco(&luma, board);
     let truth: Vec<Option<[f64; 2]>> = (0..board.corner_count())
@@ -256,8 +237,8 @@ fn a_board_partly_out_of_the_frame_gives_the_corners_it_shows() {
 /// rotation within 0.05°).
 #[test]
 fn calibrates_a_pair_from_whole_and_partial_views() {
-    use crate::calibration::boards::synthetic::{poses, right_pose};
-    use crate::calibration::boards::{Board, Corners, ViewOutcome, calibrate};
+    use crate::calibration::boards::synthetic::right_pose;
+    use crate::calibration::boards::{Corners, ViewOutcome, calibrate};
     use crate::camera::StereoPair;
     let board = CharucoBoard::new(CharucoSpec {
         squares_x: 9,
@@ -290,36 +271,26 @@ fn calibrates_a_pair_from_whole_and_partial_views() {
         rotation: Rotation3::from_scaled_axis(Vector3::new(0.01, -0.02, 0.005)),
         translation: Vector3::new(-120.0, 1.0, -1.5),
     };
-    // Poses of the board's inner corners (a chessboard of the same corners), moved so that
-    // the ChArUco corner 0 lands where the chessboard's corner 0 was.
-    let chess = Board::new(8, 6, 25.0, LengthUnit::Millimetre).unwrap();
     let rays = [
         Rays::new(&pair.left, size, 3),
         Rays::new(&pair.right, size, 3),
     ];
     let style = Style::default();
     let mut partial = 0;
-    let views: Vec<Corners> = poses(&pair, size, &chess, 12, 40.0, 5)
+    let views: Vec<Corners> = render::partial_poses(&pair, size, &board, 12, 5, 600.0)
+        .unwrap()
         .iter()
-        .enumerate()
-        .map(|(i, pose)| {
-            let mut pose = pose * nalgebra::Translation3::new(-25.0, -25.0, 0.0);
-            if i % 3 == 2 {
-                // The board's middle onto the left image's right edge (x ≈ 600 px): part of
-                // it is out of that frame; the right camera, to the right, sees more of it.
-                let centre = pose * Point3::new(112.5, 87.5, 0.0);
-                pose.translation.vector.x += (600.0 - 322.0) * centre.z / 620.0 - centre.x;
-            }
+        .map(|pose| {
             let seen = |side: usize, pose: &Isometry3<f64>| {
-                let image = render_charuco(&board, pose, &rays[side], &style);
+                let image = render::render(&board, pose, &rays[side], &style);
                 let found = find_charuco(&Luma::from_u8(640, 480, &image.pixels), &board);
                 found
                     .usable(board.corner_columns())
                     .then(|| found.seen(board.corner_count()))
             };
             let view = Corners {
-                left: seen(0, &pose),
-                right: seen(1, &right_pose(&pair, &pose)),
+                left: seen(0, pose),
+                right: seen(1, &right_pose(&pair, pose)),
             };
             let count = |c: &Option<Vec<Option<[f64; 2]>>>| {
                 c.as_ref().map_or(0, |c| c.iter().flatten().count())
