@@ -194,3 +194,27 @@ async fn every_bad_charuco_member_is_named_at_once() {
     assert_names(&p, &["board.dictionary"]);
     assert!(message_for(&p, "board.dictionary").contains("holds 50 markers"));
 }
+
+/// Images that show what the board given cannot be are told once, naming the member: the
+/// 7 × 5 print described as 6 × 4 squares (its corners, not its squares) shows markers the
+/// smaller board does not have, which names `board.squares_x` and `board.squares_y`; described
+/// with `DICT_5X5_100`, the images show none of its markers but `DICT_4X4_50`'s, which names
+/// `board.dictionary`.
+#[tokio::test]
+async fn a_board_the_images_contradict_names_its_member() {
+    let app = spawn_app().await;
+    let corners = r#"{"type": "charuco", "squares_x": 6, "squares_y": 4, "square_size": 30,
+        "marker_size": 22, "dictionary": "DICT_4X4_50"}"#;
+    let p = problem(app.post_form("/calibrate", form(corners)).await, 422).await;
+    assert_eq!(p["errors"].as_array().unwrap().len(), 2, "{p}");
+    assert_names(&p, &["board.squares_x", "board.squares_y"]);
+    let message = message_for(&p, "board.squares_x");
+    assert!(message.contains("12 markers (ids 0 to 11)"), "{message}");
+    assert!(message.contains("up to id 16"), "{message}");
+    let dictionary = r#"{"type": "charuco", "squares_x": 7, "squares_y": 5, "square_size": 30,
+        "marker_size": 22, "dictionary": "DICT_5X5_100"}"#;
+    let p = problem(app.post_form("/calibrate", form(dictionary)).await, 422).await;
+    assert_eq!(p["errors"].as_array().unwrap().len(), 1, "{p}");
+    let message = message_for(&p, "board.dictionary");
+    assert!(message.contains("markers of DICT_4X4_50"), "{message}");
+}

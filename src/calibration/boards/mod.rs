@@ -29,7 +29,7 @@ pub mod uncertainty;
 pub mod zhang;
 
 pub use board::{Board, BoardFault, BoardMember};
-pub use target::Target;
+pub use target::{Target, TargetMiss};
 #[cfg(test)]
 mod tests;
 

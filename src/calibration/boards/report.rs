@@ -4,8 +4,9 @@
 //! shoot again.
 
 use super::Board;
-use super::corners::Miss;
+use super::charuco::Dictionary;
 use super::fit::{Corners, Fit, Seen, ViewFit, ViewOutcome};
+use super::target::TargetMiss;
 use crate::camera::Size;
 use crate::numbers::round_to;
 
@@ -169,7 +170,7 @@ impl Determination {
 /// orientation where it can be told, with how many images show it. A user who counted squares instead of inner corners,
 /// or swapped a board's sizes for another board's, is told once, not once an image.
 pub fn agreed_other_size(
-    misses: &[Option<&Miss>],
+    misses: &[Option<&TargetMiss>],
     board: &Board,
 ) -> Option<((usize, usize), usize)> {
     let sizes: Vec<(usize, usize)> = misses
@@ -192,6 +193,53 @@ pub fn agreed_other_size(
         (size.1, size.0)
     };
     Some((oriented, count))
+}
+
+/// A ChArUco board described otherwise than it was printed, as more than half of the images
+/// (and at least 2) say.
+#[derive(Debug, Clone, PartialEq)]
+pub enum CharucoMistake {
+    /// The images show markers the board does not have: `highest` is the largest id seen.
+    Larger { highest: usize, images: usize },
+    /// The images show no marker of the board's dictionary but markers of `dictionary`.
+    Dictionary {
+        dictionary: Dictionary,
+        images: usize,
+    },
+}
+
+/// The ChArUco board's mistake most images agree on: more than half of them, and at least 2,
+/// show markers the board does not have, or another dictionary's. A user who gave the
+/// corners for the squares, or the wrong dictionary, is told once, naming the member.
+pub fn agreed_charuco_mistake(misses: &[Option<&TargetMiss>]) -> Option<CharucoMistake> {
+    let agreed = |count: usize| count >= 2 && 2 * count > misses.len();
+    let foreign: Vec<usize> = misses
+        .iter()
+        .flatten()
+        .filter_map(|m| match m {
+            TargetMiss::ForeignIds { ids, .. } => ids.last().copied(),
+            _ => None,
+        })
+        .collect();
+    if agreed(foreign.len()) {
+        return Some(CharucoMistake::Larger {
+            highest: foreign.iter().copied().max().unwrap_or(0),
+            images: foreign.len(),
+        });
+    }
+    let others: Vec<Dictionary> = misses
+        .iter()
+        .flatten()
+        .filter_map(|m| match m {
+            TargetMiss::OtherDictionary { dictionary, .. } => Some(*dictionary),
+            _ => None,
+        })
+        .collect();
+    let (&dictionary, images) = others
+        .iter()
+        .map(|d| (d, others.iter().filter(|e| *e == d).count()))
+        .max_by_key(|&(_, count)| count)?;
+    agreed(images).then_some(CharucoMistake::Dictionary { dictionary, images })
 }
 
 /// Where one camera's corners fell over the views used.

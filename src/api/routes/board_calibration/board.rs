@@ -7,6 +7,7 @@ use super::types::{BoardSpec, BoardType};
 use crate::api::error::{ApiError, FieldError, FieldErrors};
 use crate::api::extract;
 use crate::calibration::boards::charuco::{CharucoBoard, CharucoSpec, Dictionary};
+use crate::calibration::boards::report::CharucoMistake;
 use crate::calibration::boards::{Board, Target};
 use crate::physics::LengthUnit;
 
@@ -169,5 +170,43 @@ pub fn size_mistake(
             ));
         }
     }
+    ApiError::Invalid(errors)
+}
+
+/// Most images say the ChArUco board was printed otherwise than described: one 422 naming
+/// the members to correct.
+pub fn charuco_mistake(board: &CharucoBoard, mistake: &CharucoMistake, images: usize) -> ApiError {
+    let (x, y) = board.squares();
+    let markers = board.marker_squares().len();
+    let dictionary = board.dictionary().name();
+    let errors = match *mistake {
+        CharucoMistake::Larger {
+            highest,
+            images: showing,
+        } => {
+            let why = format!(
+                "a board of {x} × {y} squares has {markers} markers (ids 0 to {}) of {dictionary}, \
+                 but {showing} of the {images} images show markers up to id {highest}, which it \
+                 does not have. Give the board's squares along each side (OpenCV's squaresX × \
+                 squaresY), not its inner corners",
+                markers.saturating_sub(1)
+            );
+            vec![
+                FieldError::new("board.squares_x", format!("is {x}: {why}")),
+                FieldError::new("board.squares_y", format!("is {y}: {why}")),
+            ]
+        }
+        CharucoMistake::Dictionary {
+            dictionary: other,
+            images: showing,
+        } => vec![FieldError::new(
+            "board.dictionary",
+            format!(
+                "is {dictionary}, but {showing} of the {images} images show none of its markers \
+                 and markers of {}: give the dictionary the board was printed with",
+                other.name()
+            ),
+        )],
+    };
     ApiError::Invalid(errors)
 }

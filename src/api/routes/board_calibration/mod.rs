@@ -17,7 +17,7 @@ use axum::response::{IntoResponse, Response};
 use rayon::prelude::*;
 use utoipa_axum::{router::OpenApiRouter, routes};
 
-use self::board::{read_board, size_mistake};
+use self::board::{charuco_mistake, read_board, size_mistake};
 use self::checks::Checks;
 use self::types::{CalibrateAnswers, CalibrateForm, CalibrateOutput, CalibrateQuery};
 use crate::api::HeavyState;
@@ -28,8 +28,11 @@ use crate::api::images::limits;
 use crate::api::images::output::{self, Disposition, set_server_timing};
 use crate::api::images::work;
 use crate::api::respond::Json;
+use crate::calibration::boards::TargetMiss;
 use crate::calibration::boards::corners::{Luma, Miss};
-use crate::calibration::boards::report::{Detections, Determination, agreed_other_size};
+use crate::calibration::boards::report::{
+    Detections, Determination, agreed_charuco_mistake, agreed_other_size,
+};
 use crate::calibration::boards::{self, FitFault, MAX_VIEWS, Target};
 use crate::calibration::files::{RigStd, opencv, ros};
 use crate::camera::{Alpha, Model, RectifyOptions, Size};
@@ -281,7 +284,7 @@ fn image_sizes(
 }
 
 /// One image's board: decoded, found and refined; the outer error is the image's decoding.
-type Found = Result<Result<boards::Seen, Miss>, FieldError>;
+type Found = Result<Result<boards::Seen, TargetMiss>, FieldError>;
 
 fn find(name: String, bytes: &Bytes, board: &Target, allowed: DecodeLimits) -> Found {
     let decoded = decode::decode(bytes, allowed, false)
@@ -324,24 +327,31 @@ fn compute(
         ));
     }
     let mut undecodable = Vec::new();
-    let mut misses: Vec<Result<boards::Seen, Miss>> = Vec::with_capacity(found.len());
+    let mut misses: Vec<Result<boards::Seen, TargetMiss>> = Vec::with_capacity(found.len());
     for f in found.into_iter().flatten() {
         match f {
             Ok(r) => misses.push(r),
             Err(e) => {
                 undecodable.push(e);
-                misses.push(Err(Miss::NoGrid));
+                misses.push(Err(TargetMiss::Chessboard(Miss::NoGrid)));
             }
         }
     }
     if !undecodable.is_empty() {
         return Err(ApiError::Invalid(undecodable));
     }
-    let missed: Vec<Option<&Miss>> = misses.iter().map(|r| r.as_ref().err()).collect();
-    if let Target::Chessboard(board) = &settings.board
-        && let Some((size, showing)) = agreed_other_size(&missed, board)
-    {
-        return Err(size_mistake(board, size, showing, missed.len()));
+    let missed: Vec<Option<&TargetMiss>> = misses.iter().map(|r| r.as_ref().err()).collect();
+    match &settings.board {
+        Target::Chessboard(board) => {
+            if let Some((size, showing)) = agreed_other_size(&missed, board) {
+                return Err(size_mistake(board, size, showing, missed.len()));
+            }
+        }
+        Target::Charuco(board) => {
+            if let Some(mistake) = agreed_charuco_mistake(&missed) {
+                return Err(charuco_mistake(board, &mistake, missed.len()));
+            }
+        }
     }
     let results: Vec<Result<boards::Seen, String>> = misses
         .into_iter()

@@ -15,7 +15,11 @@ use crate::calibration::boards::zhang::homography;
 pub struct CharucoCorners {
     pub ids: Vec<usize>,
     pub points: Vec<[f64; 2]>,
+    /// How many of the board's markers were read.
     pub markers: usize,
+    /// The ids of the dictionary's markers read that the board does not have (beyond its
+    /// last marker), in increasing order.
+    pub foreign: Vec<usize>,
 }
 
 /// The fewest corners a view of a ChArUco board counts with, and they must not all lie on
@@ -57,16 +61,24 @@ type Placed<'a> = (&'a Marker, (u32, u32), [[f64; 2]; 4]);
 /// Every inner corner of `board` that `image` shows beside a marker that was read.
 pub fn find_charuco(image: &Luma, board: &CharucoBoard) -> CharucoCorners {
     let squares = board.marker_squares();
-    let markers = find_markers(image, board.dictionary(), squares.len());
+    // The whole dictionary is read, as OpenCV reads it, so that markers the board does not
+    // have are told apart from no markers at all.
+    let dictionary = board.dictionary();
+    let markers = find_markers(image, dictionary, dictionary.codes().len());
     let s = board.square_size();
+    let (mine, others): (Vec<&Marker>, Vec<&Marker>) =
+        markers.iter().partition(|m| m.id < squares.len());
+    let mut foreign: Vec<usize> = others.iter().map(|m| m.id).collect();
+    foreign.sort_unstable();
     // Each marker read, with its square and its corners on the board's plane.
-    let placed: Vec<Placed> = markers
+    let placed: Vec<Placed> = mine
         .iter()
-        .map(|m| (m, squares[m.id], board.marker_corners(squares[m.id])))
+        .map(|m| (*m, squares[m.id], board.marker_corners(squares[m.id])))
         .collect();
     let columns = board.corner_columns();
     let mut found = CharucoCorners {
-        markers: markers.len(),
+        markers: placed.len(),
+        foreign,
         ..CharucoCorners::default()
     };
     for id in 0..board.corner_count() {

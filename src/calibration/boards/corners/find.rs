@@ -35,13 +35,6 @@ pub enum Miss {
     /// The squares' colours fit no orientation of the board (not a chessboard of this size,
     /// or too dark or washed out to tell).
     Colours,
-    /// A ChArUco board's markers gave too few corners for the view to count (fewer than
-    /// `needed`, or all on one row or column of the board).
-    FewCorners {
-        corners: usize,
-        markers: usize,
-        needed: usize,
-    },
 }
 
 impl std::fmt::Display for Miss {
@@ -67,15 +60,6 @@ impl std::fmt::Display for Miss {
             Miss::Colours => write!(
                 f,
                 "the squares' colours do not fit the board in any orientation"
-            ),
-            Miss::FewCorners {
-                corners,
-                markers,
-                needed,
-            } => write!(
-                f,
-                "read {markers} markers and found {corners} corners beside them: a view \
-                 counts from {needed} corners over two rows and two columns of the board"
             ),
         }
     }
