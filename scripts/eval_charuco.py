@@ -16,7 +16,11 @@ on the corners both cameras saw, as its samples do. Errors in f (%), the princip
 |T| (%) and the rotation (deg) against the truth, and the views each used. Exits 1 when ours is
 worse than OpenCV's on any of them, or uses fewer views.
 
-    python3 scripts/eval_charuco.py BOARDS_BINARY OUT_DIR [--url URL]
+--also NAME=BINARY scores another detector beside them (a binary printing what
+`examples/boards charuco` prints; `crates/library-eval`'s `charuco` runs calib-targets), with
+no goal of its own.
+
+    python3 scripts/eval_charuco.py BOARDS_BINARY OUT_DIR [--url URL] [--also NAME=BINARY]
 """
 import http.client
 import json
@@ -128,10 +132,17 @@ def stereo(name, dictionary, squares, model, d, f, s, url, out):
     rng = np.random.default_rng(200 + s)
     files, sizes = [], []
     for i, (rvec, tvec) in enumerate(poses(squares, rng, 12)):
-        if i >= 8:  # the board's middle onto the left image's right edge
+        if i >= 8:  # the board's middle onto the left image's right edge (x = 600 px)
             r, _ = cv2.Rodrigues(rvec)
             centre = r @ np.array([squares[0] * SQUARE / 2, squares[1] * SQUARE / 2, 0]) + tvec.ravel()
-            tvec = tvec + np.array([[(600 - 322) * centre[2] / f - centre[0]], [0], [0]])
+            along = (600 - 322) / f
+            if model == "equidistant":
+                # A fisheye puts the ray at angle θ at r = f·θ (not f·tan θ), and shrinks what
+                # it sees there: the board is brought to 60 % of its distance, or its markers
+                # at the edge are too small for any detector to read.
+                tvec, centre = 0.6 * tvec, 0.6 * centre
+                along = np.tan(along)
+            tvec = tvec + np.array([[along * centre[2] - centre[0]], [0], [0]])
         r, _ = cv2.Rodrigues(rvec)
         rvec2, _ = cv2.Rodrigues(r_rig @ r)
         tvec2 = r_rig @ tvec + RIG_T.reshape(3, 1)
@@ -231,10 +242,12 @@ def stereo(name, dictionary, squares, model, d, f, s, url, out):
 def main():
     binary, out = sys.argv[1], Path(sys.argv[2])
     url = sys.argv[sys.argv.index("--url") + 1] if "--url" in sys.argv else None
+    also = sys.argv[sys.argv.index("--also") + 1].split("=", 1) if "--also" in sys.argv else None
+    binaries = {"ours": binary} | ({also[0]: also[1]} if also else {})
     failures = []
     print("\nChArUco corners: ours against OpenCV's CharucoDetector on OpenCV's printed boards "
           "(generateImage) photographed through each lens; errors in px")
-    print(f"{'set':24} {'who':7} {'found':>9} {'median':>7} {'p95':>7} {'wrong id':>8} {'ms/img':>7}")
+    print(f"{'set':24} {'who':13} {'found':>9} {'median':>7} {'p95':>7} {'wrong id':>8} {'ms/img':>7}")
     for s, (name, dictionary, squares, model, d, f) in enumerate(SETS):
         legacy = name.startswith("legacy")
         board = board_of(dictionary, squares, legacy)
@@ -257,14 +270,15 @@ def main():
             "squares_x": squares[0], "squares_y": squares[1], "square_size": SQUARE,
             "marker_size": MARKER, "dictionary": dictionary, "legacy": legacy}))
         detector = cv2.aruco.CharucoDetector(board)
-        results = {"ours": {}, "opencv": {}}
-        times = {"ours": [], "opencv": []}
+        results = {who: {} for who in [*binaries, "opencv"]}
+        times = {who: [] for who in results}
         for _ in range(3):  # taking turns; the per-image medians over the rounds
-            run = subprocess.run([binary, "charuco", str(folder)], check=True, capture_output=True)
-            got = json.loads(run.stdout)
-            results["ours"] = {f: (np.array(v["ids"], int), np.array(v["points"]).reshape(-1, 2))
-                               for f, v in got.items()}
-            times["ours"].append(sum(v["ms"] for v in got.values()) / len(got))
+            for who, program in binaries.items():
+                command = [program, "charuco", str(folder)] if who == "ours" else [program, str(folder)]
+                got = json.loads(subprocess.run(command, check=True, capture_output=True).stdout)
+                results[who] = {f: (np.array(v["ids"], int), np.array(v["points"]).reshape(-1, 2))
+                                for f, v in got.items()}
+                times[who].append(sum(v["ms"] for v in got.values()) / max(len(got), 1))
             total = 0.0
             for file in truths:
                 image = cv2.imread(str(folder / file), cv2.IMREAD_GRAYSCALE)
@@ -275,7 +289,10 @@ def main():
                                            (cc.reshape(-1, 2) if cc is not None else np.zeros((0, 2))))
             times["opencv"].append(1e3 * total / len(truths))
         summary = {}
-        for who in ("ours", "opencv"):
+        for who in results:
+            if not results[who]:
+                print(f"{name:24} {who:13} (nothing: this detector does not read this board)")
+                continue
             errors, found, shown, wrong = [], 0, 0, 0
             for file, (p, inside) in truths.items():
                 ids, points = results[who][file]
@@ -290,7 +307,7 @@ def main():
             med = statistics.median(errors) if errors else float("nan")
             p95 = float(np.percentile(errors, 95)) if errors else float("nan")
             summary[who] = (found, med, wrong)
-            print(f"{name:24} {who:7} {found:4}/{shown:<4} {med:7.3f} {p95:7.3f} {wrong:8d} "
+            print(f"{name:24} {who:13} {found:4}/{shown:<4} {med:7.3f} {p95:7.3f} {wrong:8d} "
                   f"{statistics.median(times[who]):7.1f}")
         (fo, mo, wo), (fc, mc, _) = summary["ours"], summary["opencv"]
         if fo < fc:
