@@ -111,8 +111,9 @@ impl Integral {
                     - self.sums[y0 * stride + x1]
                     - self.sums[y1 * stride + x0]
                     + self.sums[y0 * stride + x0];
-                let mean = sum / ((y1 - y0) * (x1 - x0)) as f64;
-                dark[y * w + x] = f64::from(image.data[y * w + x] + DARKER_BY) < mean;
+                // Darker than the mean, without dividing: value + DARKER_BY < sum / area.
+                let area = ((y1 - y0) * (x1 - x0)) as f64;
+                dark[y * w + x] = f64::from(image.data[y * w + x] + DARKER_BY) * area < sum;
             }
         }
         dark
@@ -125,15 +126,18 @@ fn quads(dark: &[bool], w: usize, h: usize) -> Vec<[[f64; 2]; 4]> {
     let mut label = vec![u32::MAX; w * h];
     let mut quads = Vec::new();
     let mut stack = Vec::new();
+    let mut rows: Vec<(usize, usize)> = Vec::new();
     let mut next = 0u32;
     let too_big = 0.9 * w.max(h) as f64;
     for start in 0..w * h {
         if !dark[start] || label[start] != u32::MAX {
             continue;
         }
-        // Flood the blob, keeping each row's leftmost and rightmost pixel.
+        // Flood the blob, keeping each row's leftmost and rightmost pixel. The scan meets a
+        // blob first at its top row, so its rows are counted from there.
+        let top = start / w;
         let (mut lo_y, mut hi_y) = (usize::MAX, 0);
-        let mut rows: std::collections::BTreeMap<usize, (usize, usize)> = Default::default();
+        rows.clear();
         label[start] = next;
         stack.push(start);
         let mut count = 0usize;
@@ -142,7 +146,11 @@ fn quads(dark: &[bool], w: usize, h: usize) -> Vec<[[f64; 2]; 4]> {
             let (x, y) = (i % w, i / w);
             lo_y = lo_y.min(y);
             hi_y = hi_y.max(y);
-            let e = rows.entry(y).or_insert((x, x));
+            let r = y - top;
+            if r >= rows.len() {
+                rows.resize(r + 1, (usize::MAX, 0));
+            }
+            let e = &mut rows[r];
             e.0 = e.0.min(x);
             e.1 = e.1.max(x);
             let mut visit = |j: usize| {
@@ -165,11 +173,9 @@ fn quads(dark: &[bool], w: usize, h: usize) -> Vec<[[f64; 2]; 4]> {
             }
         }
         next += 1;
-        let spans: Vec<(usize, usize, usize)> =
-            rows.into_iter().map(|(y, (a, b))| (y, a, b)).collect();
         let height = (hi_y - lo_y + 1) as f64;
-        let width = spans.iter().map(|s| s.2).max().unwrap_or(0) as f64
-            - spans.iter().map(|s| s.1).min().unwrap_or(0) as f64
+        let width = rows.iter().map(|s| s.1).max().unwrap_or(0) as f64
+            - rows.iter().map(|s| s.0).min().unwrap_or(0) as f64
             + 1.0;
         if (count as f64) < MIN_SIDE * 2.0
             || height.max(width) < MIN_SIDE
@@ -177,6 +183,11 @@ fn quads(dark: &[bool], w: usize, h: usize) -> Vec<[[f64; 2]; 4]> {
         {
             continue;
         }
+        let spans: Vec<(usize, usize, usize)> = rows
+            .iter()
+            .enumerate()
+            .map(|(r, &(a, b))| (top + r, a, b))
+            .collect();
         if let Some(q) = quad_of(&spans) {
             quads.push(q);
         }
