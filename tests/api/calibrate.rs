@@ -73,7 +73,7 @@ fn views() -> &'static Vec<(Vec<u8>, Vec<u8>)> {
 }
 
 /// An 8-bit grey image as a PNG (through the RGB encoder).
-fn gray_png(width: usize, height: usize, grey: &[u8]) -> Vec<u8> {
+pub(crate) fn gray_png(width: usize, height: usize, grey: &[u8]) -> Vec<u8> {
     let rgb: Vec<u8> = grey.iter().flat_map(|&v| [v, v, v]).collect();
     encode::png_rgb(width, height, &rgb)
 }

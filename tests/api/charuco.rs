@@ -12,8 +12,8 @@ use stereo_distance::calibration::boards::charuco::{CharucoBoard, CharucoSpec, D
 use stereo_distance::calibration::boards::synthetic::{Image, Rays, Style, right_pose};
 use stereo_distance::camera::{Camera, Distortion, Intrinsics, Model, Size, StereoPair};
 use stereo_distance::physics::LengthUnit;
-use stereo_distance::vision::encode;
 
+use crate::calibrate::gray_png;
 use crate::helpers::{assert_names, message_for, ok_json, problem, spawn_app};
 
 const SIZE: Size = Size {
@@ -73,10 +73,7 @@ fn views() -> &'static Vec<(Vec<u8>, Vec<u8>)> {
             supersampling: 2,
             ..Style::default()
         };
-        let png = |i: Image| {
-            let rgb: Vec<u8> = i.pixels.iter().flat_map(|&v| [v, v, v]).collect();
-            encode::png_rgb(i.width as usize, i.height as usize, &rgb)
-        };
+        let png = |i: Image| gray_png(i.width as usize, i.height as usize, &i.pixels);
         partial_poses(&pair, SIZE, &board, 9, 4, 460.0)
             .unwrap()
             .iter()

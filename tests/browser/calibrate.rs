@@ -70,6 +70,21 @@ impl Browser {
         self.calibrated().await
     }
 
+    /// Chooses `files` in the board file input at once, as a person picks them.
+    async fn choose_board_files(&self, files: &[PathBuf]) {
+        let paths: Vec<&str> = files.iter().map(|p| p.to_str().expect("UTF-8")).collect();
+        self.find("board_files")
+            .await
+            .send_keys(&paths.join("\n"))
+            .await
+            .expect("files chosen");
+    }
+
+    /// Clicks the button `id`.
+    async fn press(&self, id: &str) {
+        self.find(id).await.click().await.expect("click");
+    }
+
     /// Shows the raw or the rectified pair with the toggle.
     async fn show_frames(&self, view: &str) {
         self.find(&format!("frames-{view}"))
@@ -175,39 +190,18 @@ async fn uploaded_board_pairs_calibrate_and_a_view_is_left_out_by_a_click() {
     let (f_true, b_true, _) = truth();
 
     // Act: every file at once, as a person picks them.
-    let paths: Vec<&str> = files.iter().map(|p| p.to_str().expect("UTF-8")).collect();
-    browser
-        .find("board_files")
-        .await
-        .send_keys(&paths.join("\n"))
-        .await
-        .expect("files chosen");
+    browser.choose_board_files(&files).await;
     let pairing = browser.text("pairing").await;
     // A first request, cancelled while the service works: the page says so and stays usable.
-    browser
-        .find("calibrate-button")
-        .await
-        .click()
-        .await
-        .expect("click");
-    browser
-        .find("calibrate-cancel")
-        .await
-        .click()
-        .await
-        .expect("cancel");
+    browser.press("calibrate-button").await;
+    browser.press("calibrate-cancel").await;
     let cancelled = browser
         .until("the cancel", || async {
             let text = browser.text("calibrate-status").await;
             text.starts_with("Cancelled after").then_some(text)
         })
         .await;
-    browser
-        .find("calibrate-button")
-        .await
-        .click()
-        .await
-        .expect("click");
+    browser.press("calibrate-button").await;
     let (rms, used, f, b) = browser.calibrated().await;
 
     // Assert
@@ -550,19 +544,8 @@ async fn charuco_pairs_calibrate_from_the_page_partial_views_counted() {
     browser.type_into("square_size", "30").await;
     browser.type_into("marker_size", "30").await;
     browser.choose("dictionary", "DICT_4X4_50").await;
-    let paths: Vec<&str> = files.iter().map(|p| p.to_str().expect("UTF-8")).collect();
-    browser
-        .find("board_files")
-        .await
-        .send_keys(&paths.join("\n"))
-        .await
-        .expect("files chosen");
-    browser
-        .find("calibrate-button")
-        .await
-        .click()
-        .await
-        .expect("click");
+    browser.choose_board_files(&files).await;
+    browser.press("calibrate-button").await;
     let refused = browser
         .until_within("the refusal", CALIBRATING, || async {
             let text = browser.text("marker_size-error").await;
@@ -579,12 +562,7 @@ async fn charuco_pairs_calibrate_from_the_page_partial_views_counted() {
 
     // Act: the right marker size.
     browser.type_into("marker_size", "22").await;
-    browser
-        .find("calibrate-button")
-        .await
-        .click()
-        .await
-        .expect("click");
+    browser.press("calibrate-button").await;
     let (rms, used, _, b) = browser.calibrated().await;
     browser
         .script("document.getElementById('calibrate').scrollIntoView()")
