@@ -36,6 +36,7 @@ fn stages(c: &mut Criterion) {
         &volume,
         &pair.left.data,
         params.penalties(),
+        sgm::Paths::Eight,
         &never,
         &mut |y, row| {
             if y == h / 2 {
@@ -67,22 +68,31 @@ fn stages(c: &mut Criterion) {
             )
         })
     });
-    group.bench_function(
-        "aggregate (8 paths, 2 passes, whole image, 1 thread)",
-        |b| {
+    for (paths, name) in [
+        (
+            sgm::Paths::Eight,
+            "aggregate (8 paths, 2 passes, whole image, 1 thread)",
+        ),
+        (
+            sgm::Paths::Five,
+            "aggregate (5 paths, 1 pass, whole image, 1 thread)",
+        ),
+    ] {
+        group.bench_function(name, |b| {
             b.iter(|| {
                 sgm::aggregate(
                     black_box(&volume),
                     &pair.left.data,
                     params.penalties(),
+                    paths,
                     &never,
                     &mut |_, row| {
                         black_box(row);
                     },
                 )
             })
-        },
-    );
+        });
+    }
     group.bench_function("winner-takes-all (one row)", |b| {
         b.iter(|| {
             refine::winners(

@@ -6,7 +6,8 @@
 //! cargo run --profile tune --example tune -- LEFT.png RIGHT.png TRUTH.f32 [COUNT] [KEY=V1,V2 …]
 //! ```
 //! `TRUTH.f32` is the ground truth as raw little-endian float32, row-major, +inf where unknown.
-//! Keys: p1, p2, edge, uniq, lr, speckle, median (0/1), sub (off/parabola/equiangular).
+//! Keys: p1, p2, edge, uniq, lr, speckle, median (0/1), sub (off/parabola/equiangular),
+//! paths (5/8/auto). `TUNE_RUNS=N` times each setting N times and reports the median run.
 //! `TUNE_SIMD=portable` runs the portable build of the hot loops, `TUNE_SIMD=avx2` the AVX2
 //! build where the CPU has AVX-512 too.
 
@@ -54,6 +55,9 @@ fn main() {
                         }
                         "speckle" => p.speckle_size = v.parse().ok(),
                         "median" => p.median = Some(v == "1"),
+                        "paths" => {
+                            p.paths = v.parse().ok();
+                        }
                         "sub" => {
                             p.subpixel = Some(match v {
                                 "off" => Subpixel::Off,
@@ -71,18 +75,31 @@ fn main() {
     let w = left.grey.width;
     let seen = vision::PairNoise::of(&left.grey, &right.grey);
     println!(
-        "noise {:.2} / {:.2} grey levels, census stride {}{}",
+        "noise {:.2} / {:.2} grey levels, clarity {:.1}, census stride {}{}",
         seen.left / 257.0,
         seen.right / 257.0,
+        seen.clarity,
         seen.stride,
         if seen.faint { ", faint" } else { "" }
     );
+    let runs: usize = std::env::var("TUNE_RUNS")
+        .ok()
+        .and_then(|r| r.parse().ok())
+        .unwrap_or(1)
+        .max(1);
     for settings in grid {
         let params = Params::new(&settings).expect("the grid's settings are within bounds");
-        let started = Instant::now();
-        let (map, t) =
-            vision::disparity(&left.grey, &right.grey, &params, &AtomicBool::new(false)).unwrap();
-        let total = started.elapsed();
+        let mut runs: Vec<_> = (0..runs)
+            .map(|_| {
+                let started = Instant::now();
+                let (map, t) =
+                    vision::disparity(&left.grey, &right.grey, &params, &AtomicBool::new(false))
+                        .unwrap();
+                (started.elapsed(), map, t)
+            })
+            .collect();
+        runs.sort_by_key(|r| r.0);
+        let (total, map, t) = runs.swap_remove(runs.len() / 2);
         let density =
             map.data.iter().filter(|d| !d.is_nan()).count() as f64 / map.data.len() as f64;
         let mut filled = map.data.clone();
@@ -104,8 +121,9 @@ fn main() {
         }
         let pct = |b: usize| 100.0 * b as f64 / n as f64;
         println!(
-            "p1 {:3} p2 {:3} edge {:3} uniq {:2} lr {:?} speckle {:3} median {} sub {:?}: \
+            "{:?} p1 {:3} p2 {:3} edge {:3} uniq {:2} lr {:?} speckle {:3} median {} sub {:?}: \
              bad0.5 {:5.2} bad1 {:5.2} bad2 {:5.2} dens {:5.1}  {:4.0} ms (cost {:.0} agg {:.0} refine {:.0})",
+            params.paths(),
             params.penalties().p1,
             params.penalties().p2,
             params.penalties().edge,

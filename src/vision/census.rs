@@ -160,7 +160,7 @@ pub const FAINT: f64 = 0.1;
 
 /// What a pair's texture calls for: the census's [`Texture::stride`], and whether the pair is
 /// [`Texture::faint`].
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Texture {
     /// The pixels between the census window's samples: the largest lag `s` (up to
     /// [`MAX_STRIDE`]) such that the pair is smooth at every lag up to `s`: the variance of its
@@ -176,6 +176,10 @@ pub struct Texture {
     /// pair's second differences one pixel apart, less the noise's (`6σ²` an image and
     /// direction), is at most [`FAINT`] of the noise's.
     pub faint: bool,
+    /// The variance of the pair's second differences one pixel apart less the noise's, over
+    /// the noise's: how far its texture stands above its noise at one pixel's scale (infinite
+    /// without noise, 0 when too small to tell). Faint is a clarity of at most [`FAINT`].
+    pub clarity: f64,
 }
 
 /// The pair's [`Texture`], from the noise `sigmas` each image carries; a pair too small to
@@ -184,6 +188,7 @@ pub fn texture(left: &Gray, right: &Gray, sigmas: (f32, f32)) -> Texture {
     let plain = Texture {
         stride: 1,
         faint: false,
+        clarity: 0.0,
     };
     let reach = 2 * LAGS[LAGS.len() - 1];
     if [left, right]
@@ -206,9 +211,15 @@ pub fn texture(left: &Gray, right: &Gray, sigmas: (f32, f32)) -> Texture {
         }
         stride = s;
     }
+    let clarity = if noise > 0.0 {
+        at(1).max(0.0) / noise
+    } else {
+        f64::INFINITY
+    };
     Texture {
         stride,
         faint: noise > 0.0 && at(1) <= FAINT * noise,
+        clarity,
     }
 }
 

@@ -59,7 +59,7 @@ use std::time::{Duration, Instant};
 use rayon::prelude::*;
 
 pub use params::{
-    DEFAULT_MAX_DISPARITY, MAX_DISPARITIES, MAX_P2, ParamFault, Params, Setting, Settings,
+    DEFAULT_MAX_DISPARITY, MAX_DISPARITIES, MAX_P2, ParamFault, Params, Preset, Setting, Settings,
 };
 
 /// A grey image, 16 bits a pixel (8-bit sources are scaled by 257), row-major.
@@ -108,6 +108,7 @@ pub struct Disparity {
 /// How long each stage took, in wall time: the stripes run side by side (and in waves when
 /// there are more than cores), so their wall time is shared between the stages in proportion
 /// to each stage's time summed over the stripes, and the three add up to the matcher's time.
+/// With them, what the run decided as it went: the paths it aggregated.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct Timings {
     /// Census transform and cost volume.
@@ -115,6 +116,9 @@ pub struct Timings {
     pub aggregate: Duration,
     /// Winner-takes-all, left-right check and the filters.
     pub refine: Duration,
+    /// The paths the finest level aggregated ([`sgm::Paths::Auto`] decided); `None` before
+    /// any level was matched.
+    pub paths: Option<sgm::Paths>,
 }
 
 /// Rows of a stripe: the image is matched in horizontal stripes of this many rows, side by
@@ -250,14 +254,17 @@ pub fn disparity_probed(
 /// What the census needs to know of the whole pair ([`census`]), measured once, so that a crop
 /// of it (the bands [`correspond`] matches) is matched as the whole pair is: the standard
 /// deviation of each image's noise (16-bit levels), which the census centres compare against,
-/// the pixels between the census window's samples, and whether its texture is faint (the
-/// pyramid then goes further: [`pyramid::levels`]).
+/// the pixels between the census window's samples, whether its texture is faint (the
+/// pyramid then goes further: [`pyramid::levels`]), and how clear it is (which paths
+/// [`sgm::Paths::Auto`] takes).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PairNoise {
     pub left: f32,
     pub right: f32,
     pub stride: usize,
     pub faint: bool,
+    /// [`census::Texture::clarity`].
+    pub clarity: f32,
 }
 
 impl PairNoise {
@@ -268,13 +275,17 @@ impl PairNoise {
             || census::noise_sigma(left_image),
             || census::noise_sigma(right_image),
         );
-        let census::Texture { stride, faint } =
-            census::texture(left_image, right_image, (left, right));
+        let census::Texture {
+            stride,
+            faint,
+            clarity,
+        } = census::texture(left_image, right_image, (left, right));
         PairNoise {
             left,
             right,
             stride,
             faint,
+            clarity: clarity as f32,
         }
     }
 
@@ -303,6 +314,11 @@ pub fn disparity_probed_in(
     wanted: &[Vec<usize>],
 ) -> Result<(Disparity, Timings, Vec<Vec<Probe>>), Cancelled> {
     let levels = pyramid::levels(left.width, left.height, params.count, seen.faint);
+    // The paths are the whole pair's, at every level.
+    let params = &Params {
+        paths: params.paths.for_pair(seen.clarity, seen.stride),
+        ..*params
+    };
     level((left, right), seen, params, levels, cancel, wanted)
 }
 
@@ -396,6 +412,7 @@ fn level(
     }
     drop((cl, cr, gl, gr, guide, prior));
     timings.add(summed.sharing(stripes_time));
+    timings.paths = Some(params.paths);
     checkpoint()?;
 
     let started = Instant::now();
@@ -429,6 +446,7 @@ impl Timings {
         self.cost += other.cost;
         self.aggregate += other.aggregate;
         self.refine += other.refine;
+        self.paths = self.paths.or(other.paths);
     }
 
     /// `wall`, shared between the stages in proportion to these (summed) times.
@@ -445,6 +463,7 @@ impl Timings {
             cost: share(self.cost),
             aggregate: share(self.aggregate),
             refine: share(self.refine),
+            paths: self.paths,
         }
     }
 }
@@ -510,6 +529,7 @@ fn match_stripe(
         &volume,
         &guide.data[rows],
         params.penalties,
+        params.paths,
         cancel,
         &mut |y, totals| {
             if !(first..first + kept.len()).contains(&y) {

@@ -34,17 +34,56 @@ pub struct Penalties {
     pub edge: u16,
 }
 
+/// Which paths the aggregation sums.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Paths {
+    /// [`Paths::Five`] on a pair whose texture stands well above its noise (its
+    /// [`super::PairNoise::clarity`] above [`CLEAR`]) at one pixel's scale (its census
+    /// samples one pixel apart), [`Paths::Eight`] otherwise.
+    Auto,
+    /// All 8, in two passes (as OpenCV's `MODE_HH`): the most robust to noise.
+    Eight,
+    /// 5 in one pass, as OpenCV's `MODE_SGBM_3WAY` lays them out: the 4 from above and the
+    /// left, and along each row from the right, run over the row once the row is done. No
+    /// volume of sums is stored: each row's totals go to the winner-takes-all as they are made.
+    Five,
+}
+
+/// The clarity (texture variance over noise variance at one pixel's scale) above which
+/// [`Paths::Auto`] takes 5 paths: noise flips the census's comparisons of near-equal
+/// neighbours, and the 3 paths from below are what outvotes those flips where it is strong.
+/// Measured (docs/matcher.md): Motorcycle 61.6, with a gain change 58.0, with noise σ 4 5.2
+/// (bad-1.0 13.33 % with 8 paths, 15.90 % with 5).
+pub const CLEAR: f32 = 10.0;
+
+impl Paths {
+    /// The paths for a pair of this clarity whose census samples are `stride` pixels apart:
+    /// `Auto` decided, the others as they are. A pair smooth at one pixel's scale (`stride`
+    /// above 1, such as an upscaled one) gives each pixel's census little to go on, and takes
+    /// 8 (Motorcycle upscaled 4 ×: bad-1.0 25.53 % with 8, 28.26 % with 5).
+    pub fn for_pair(self, clarity: f32, stride: usize) -> Paths {
+        match self {
+            Paths::Auto if clarity > CLEAR && stride == 1 => Paths::Five,
+            Paths::Auto => Paths::Eight,
+            chosen => chosen,
+        }
+    }
+}
+
 /// A path cost far above any real one (real ones stay below `2 · PAD + P2`), used for the
 /// disparities just outside the padded range so the inner loop needs no bounds.
 pub(crate) const FAR: u16 = 8192;
 
-/// Aggregates `cost` along 8 paths, guided by the grey levels of the volume's rows (`grey`,
-/// `width × height` of them), and calls `on_row(y, totals)` for each row from the bottom up with
-/// the sum of the 8 paths' costs of its pixels (the row's cells, each pixel's window in turn).
+/// Aggregates `cost` along `paths`, guided by the grey levels of the volume's rows (`grey`,
+/// `width × height` of them), and calls `on_row(y, totals)` for each row with the sum of the
+/// paths' costs of its pixels (the row's cells, each pixel's window in turn): from the bottom
+/// up with [`Paths::Eight`] (and `Auto`, which the caller decides first), from the top down
+/// with [`Paths::Five`].
 pub fn aggregate(
     cost: &Volume,
     grey: &[u16],
     penalties: Penalties,
+    paths: Paths,
     cancel: &AtomicBool,
     on_row: &mut dyn FnMut(usize, &[u16]),
 ) -> Result<(), Cancelled> {
@@ -52,19 +91,30 @@ pub fn aggregate(
         p1: penalties.p1,
         p2: p2_table(penalties),
     };
+    let mut row = vec![0u16; widest_row(cost)];
+    if paths == Paths::Five {
+        return pass(cost, grey, &table, Mode::Single, &mut row, on_row, cancel);
+    }
     // Every cell is written by the first pass before the second reads it.
     let mut forward = super::huge_pages::WORDS.take(cost.windows.cells());
     pass(
         cost,
         grey,
         &table,
-        None,
+        Mode::Store,
         &mut forward,
         &mut |_, _| {},
         cancel,
     )?;
-    let mut row = vec![0u16; widest_row(cost)];
-    let second = pass(cost, grey, &table, Some(&forward), &mut row, on_row, cancel);
+    let second = pass(
+        cost,
+        grey,
+        &table,
+        Mode::Add(&forward),
+        &mut row,
+        on_row,
+        cancel,
+    );
     super::huge_pages::WORDS.give(forward);
     second
 }
@@ -134,14 +184,26 @@ fn seen_from<'a>(
     out
 }
 
-/// What a pass reads: the cost volume, the grey levels that guide `P2`, the penalties, and the
-/// first pass's sums (`None` in the first pass).
+/// What a pass does with its sums.
+#[derive(Clone, Copy)]
+enum Mode<'a> {
+    /// The first of two: rows and pixels in order, its sums stored in the whole volume.
+    Store,
+    /// The second of two: rows and pixels in reverse, its sums added to the first's (these)
+    /// one row at a time, each row handed on.
+    Add(&'a [u16]),
+    /// The only one: rows and pixels in order, then each row from the right, handed on.
+    Single,
+}
+
+/// What a pass reads: the cost volume, the grey levels that guide `P2`, the penalties, and
+/// what it does with its sums.
 #[derive(Clone, Copy)]
 struct Pass<'a> {
     cost: &'a Volume,
     grey: &'a [u16],
     table: &'a Table,
-    stored: Option<&'a [u16]>,
+    mode: Mode<'a>,
 }
 
 /// The window every pixel searches, `(first, cells)`, when they all search the same one (the
@@ -155,17 +217,16 @@ fn uniform(windows: &super::cost::Windows) -> Option<(usize, usize)> {
 }
 
 crate::dispatch! {
-    /// One pass: the 4 paths arriving from the previous row and the previous pixel. The first
-    /// pass (`stored` is `None`) visits rows and pixels in order and stores its sums in `sums`,
-    /// the whole volume. The second visits them in reverse, and for each row adds its sums to
-    /// the first pass's (`stored`) in `sums`, one row, then calls `on_row`. Compiled twice: for
-    /// a volume whose pixels all search the same window, with no per-pixel lookups, and for
-    /// per-pixel windows.
+    /// One pass: the 4 paths arriving from the previous row and the previous pixel, as
+    /// [`Mode`] says: stored in `sums` (the whole volume), or added to stored sums a row at a
+    /// time in `sums` (one row), or a row at a time with the path from the right added. Compiled
+    /// twice: for a volume whose pixels all search the same window, with no per-pixel lookups,
+    /// and for per-pixel windows.
     fn pass(
         cost: &Volume,
         grey: &[u16],
         table: &Table,
-        stored: Option<&[u16]>,
+        mode: Mode,
         sums: &mut [u16],
         on_row: &mut dyn FnMut(usize, &[u16]),
         cancel: &AtomicBool,
@@ -174,7 +235,7 @@ crate::dispatch! {
             cost,
             grey,
             table,
-            stored,
+            mode,
         };
         match uniform(&cost.windows) {
             Some(window) => rows::<true>(reads, sums, on_row, cancel, window),
@@ -191,7 +252,7 @@ fn rows<const UNIFORM: bool>(
         cost,
         grey,
         table,
-        stored,
+        mode,
     }: Pass,
     sums: &mut [u16],
     on_row: &mut dyn FnMut(usize, &[u16]),
@@ -201,7 +262,8 @@ fn rows<const UNIFORM: bool>(
     let (w, h) = (cost.width, cost.height);
     let windows = &cost.windows;
     let (p1, p2) = (table.p1, &table.p2);
-    let forward = stored.is_none();
+    let forward = !matches!(mode, Mode::Add(_));
+    let store = matches!(mode, Mode::Store);
     let widest = widest_window(cost);
     // Path costs of the previous and current rows, for the three paths that come from the
     // previous row: from the pixel before (diagonal), above, and after (other diagonal).
@@ -268,7 +330,7 @@ fn rows<const UNIFORM: bool>(
             &grey[yp * w..(yp + 1) * w]
         };
         let row_cells = windows.offsets[y * w] as usize..windows.offsets[(y + 1) * w] as usize;
-        if let Some(stored) = stored {
+        if let Mode::Add(stored) = mode {
             sums[..row_cells.len()].copy_from_slice(&stored[row_cells.clone()]);
         }
         let mut along_min = 0u16;
@@ -316,7 +378,7 @@ fn rows<const UNIFORM: bool>(
             // The pixel's cells: its slot, less the sentinels of the pixels before it.
             let start = row_cells.start + at - 2 * x;
             let cells = start..start + n;
-            let sum = if forward {
+            let sum = if store {
                 &mut sums[cells.clone()]
             } else {
                 let r = cells.start - row_cells.start;
@@ -351,9 +413,42 @@ fn rows<const UNIFORM: bool>(
             std::mem::swap(&mut along, &mut along_next);
             (along_first, along_n) = (first, n);
         }
+        if matches!(mode, Mode::Single) {
+            // Along the row from the right: the fifth path, added to the row's sums.
+            let mut along_min = 0u16;
+            for j in 0..w {
+                let x = w - 1 - j;
+                let (first, at, n) = slot(y, x);
+                let (src, min, jump) = if j > 0 {
+                    let src = if UNIFORM {
+                        &along[..n + 2]
+                    } else {
+                        seen_from(&along[..along_n + 2], along_first, first, n, t0)
+                    };
+                    let jump = p2[usize::from((grey_row[x] >> 8).abs_diff(grey_row[x + 1] >> 8))];
+                    (src, along_min, along_min + jump)
+                } else {
+                    (&start[..n + 2], 0, 0)
+                };
+                if !UNIFORM {
+                    along_next[0] = FAR;
+                    along_next[n + 1] = FAR;
+                }
+                let r = at - 2 * x;
+                along_min = step1(
+                    &cost.data[row_cells.start + r..row_cells.start + r + n],
+                    src,
+                    (min, p1, jump),
+                    &mut along_next[..n + 2],
+                    &mut sums[r..r + n],
+                );
+                std::mem::swap(&mut along, &mut along_next);
+                (along_first, along_n) = (first, n);
+            }
+        }
         std::mem::swap(&mut prev, &mut cur);
         std::mem::swap(&mut prev_min, &mut cur_min);
-        if !forward {
+        if !store {
             on_row(y, &sums[..row_cells.len()]);
         }
     }
@@ -428,6 +523,38 @@ fn step4(
     [least(l0), least(l1), least(l2), least(l3)]
 }
 
+/// One step of a single path at one pixel, as [`step4`]'s: written between the sentinels of
+/// `out`, and added to `sum`. `(min, p1, jump)` are the previous pixel's least path cost, `P1`,
+/// and that least plus `P2`. Returns the path's `min L(p)`.
+#[inline(always)]
+fn step1(
+    cost: &[u8],
+    src: &[u16],
+    (min, p1, jump): (u16, u16, u16),
+    out: &mut [u16],
+    sum: &mut [u16],
+) -> u16 {
+    let n = cost.len();
+    let src = &src[..n + 2];
+    let out = &mut out[1..n + 1];
+    let sum = &mut sum[..n];
+    let mut least = [u16::MAX; LANES];
+    for base in (0..n).step_by(LANES) {
+        let mut c = [0u16; LANES];
+        for (c, &v) in c.iter_mut().zip(&cost[base..base + LANES]) {
+            *c = u16::from(v);
+        }
+        let v = path(&c, &src[base..base + LANES + 2], min, p1, jump);
+        out[base..base + LANES].copy_from_slice(&v);
+        let total = &mut sum[base..base + LANES];
+        for i in 0..LANES {
+            total[i] = total[i].saturating_add(v[i]);
+            least[i] = least[i].min(v[i]);
+        }
+    }
+    least.into_iter().fold(u16::MAX, u16::min)
+}
+
 /// One register of one path's step: `C + min(L(d), L(d ± 1) + P1, jump) − min`, where `prev`
 /// holds the previous costs from d − 1 to d + LANES.
 #[inline(always)]
@@ -477,21 +604,28 @@ mod tests {
         };
         let never = AtomicBool::new(false);
         let window = uniform(&cost.windows).expect("the whole range everywhere");
-        let first = |stored| Pass {
+        let first = |mode| Pass {
             cost: &cost,
             grey: &grey,
             table: &table,
-            stored,
+            mode,
         };
         let mut one = vec![0u16; cost.windows.cells()];
         let mut each = one.clone();
-        rows::<true>(first(None), &mut one, &mut |_, _| {}, &never, window).unwrap();
-        rows::<false>(first(None), &mut each, &mut |_, _| {}, &never, (0, 0)).unwrap();
+        rows::<true>(first(Mode::Store), &mut one, &mut |_, _| {}, &never, window).unwrap();
+        rows::<false>(
+            first(Mode::Store),
+            &mut each,
+            &mut |_, _| {},
+            &never,
+            (0, 0),
+        )
+        .unwrap();
         assert_eq!(one, each);
         let (mut a, mut b) = (Vec::new(), Vec::new());
         let mut row = vec![0u16; widest_row(&cost)];
         rows::<true>(
-            first(Some(&one)),
+            first(Mode::Add(&one)),
             &mut row,
             &mut |_, r| a.extend_from_slice(r),
             &never,
@@ -499,7 +633,7 @@ mod tests {
         )
         .unwrap();
         rows::<false>(
-            first(Some(&one)),
+            first(Mode::Add(&one)),
             &mut row,
             &mut |_, r| b.extend_from_slice(r),
             &never,
@@ -508,6 +642,114 @@ mod tests {
         .unwrap();
         assert_eq!(a, b);
         assert!(a.iter().any(|&v| v > 0));
+    }
+
+    /// The single pass's totals are the first pass's 4 paths plus the path along each row from
+    /// the right, computed here by its definition; both builds agree, and rows come in order.
+    #[test]
+    fn five_paths_add_the_row_from_the_right() {
+        let (w, h, count) = (19, 7, 20);
+        let mut rng = crate::vision::synthetic::Rng::new(11);
+        let windows = crate::vision::cost::Windows::full(w * h, count);
+        let n = windows.offsets[1] as usize;
+        let data: Vec<u8> = (0..windows.cells())
+            .map(|_| (rng.unit() * 60.0) as u8)
+            .collect();
+        let cost = Volume {
+            width: w,
+            height: h,
+            min: 0,
+            count,
+            windows,
+            data,
+        };
+        let grey: Vec<u16> = (0..w * h).map(|_| (rng.unit() * 65535.0) as u16).collect();
+        let penalties = Penalties {
+            p1: 10,
+            p2: 80,
+            edge: 16,
+        };
+        let table = Table {
+            p1: 10,
+            p2: p2_table(penalties),
+        };
+        let never = AtomicBool::new(false);
+        let reads = |mode| Pass {
+            cost: &cost,
+            grey: &grey,
+            table: &table,
+            mode,
+        };
+        let mut four = vec![0u16; cost.windows.cells()];
+        let window = uniform(&cost.windows).unwrap();
+        rows::<true>(
+            reads(Mode::Store),
+            &mut four,
+            &mut |_, _| {},
+            &never,
+            window,
+        )
+        .unwrap();
+        // The path from the right, by its definition, over each row's real cells.
+        let mut expected = four.clone();
+        for y in 0..h {
+            let mut prev: Vec<u16> = Vec::new();
+            for x in (0..w).rev() {
+                let at = (y * w + x) * n;
+                let c = &cost.data[at..at + n];
+                let l: Vec<u16> = if prev.is_empty() {
+                    c.iter().map(|&v| u16::from(v)).collect()
+                } else {
+                    let m = *prev.iter().min().unwrap();
+                    let step = (grey[y * w + x] >> 8).abs_diff(grey[y * w + x + 1] >> 8);
+                    let jump = m + table.p2[usize::from(step)];
+                    (0..n)
+                        .map(|d| {
+                            let mut best = prev[d].min(jump);
+                            if d > 0 {
+                                best = best.min(prev[d - 1] + 10);
+                            }
+                            if d + 1 < n {
+                                best = best.min(prev[d + 1] + 10);
+                            }
+                            u16::from(c[d]) + best - m
+                        })
+                        .collect()
+                };
+                for d in 0..n {
+                    expected[at + d] += l[d];
+                }
+                prev = l;
+            }
+        }
+        for uniform_build in [true, false] {
+            let mut got = vec![0u16; cost.windows.cells()];
+            let mut order = Vec::new();
+            let mut row = vec![0u16; widest_row(&cost)];
+            let mut on_row = |y: usize, r: &[u16]| {
+                got[y * w * n..(y + 1) * w * n].copy_from_slice(r);
+                order.push(y);
+            };
+            if uniform_build {
+                rows::<true>(reads(Mode::Single), &mut row, &mut on_row, &never, window)
+            } else {
+                rows::<false>(reads(Mode::Single), &mut row, &mut on_row, &never, (0, 0))
+            }
+            .unwrap();
+            assert_eq!(got, expected, "uniform build: {uniform_build}");
+            assert_eq!(order, (0..h).collect::<Vec<_>>());
+        }
+    }
+
+    /// `Auto` takes 5 paths on a clear pair sharp at one pixel's scale, 8 on a noisy or a
+    /// smooth one; a choice made stays.
+    #[test]
+    fn auto_paths_follow_the_pair() {
+        assert_eq!(Paths::Auto.for_pair(61.6, 1), Paths::Five);
+        assert_eq!(Paths::Auto.for_pair(5.2, 1), Paths::Eight);
+        assert_eq!(Paths::Auto.for_pair(61.6, 4), Paths::Eight);
+        assert_eq!(Paths::Eight.for_pair(61.6, 1), Paths::Eight);
+        assert_eq!(Paths::Five.for_pair(0.0, 4), Paths::Five);
     }
 
     /// `P2` halves at an intensity step of `edge` grey levels and never falls to `P1`.

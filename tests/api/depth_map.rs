@@ -471,6 +471,78 @@ async fn options_out_of_range_are_named() {
     assert!(message_for(&body, "max_disparity").contains("at most 512"));
 }
 
+/// The share (%) of the visible pixels whose disparity in `map` is off the truth by more
+/// than `by` px, a hole counting as off.
+fn bad_share(pair: &Pair, map: &[f32], by: f32) -> f64 {
+    let (mut seen, mut off) = (0usize, 0usize);
+    for ((&d, &t), &visible) in map.iter().zip(&pair.truth).zip(&pair.visible) {
+        if visible {
+            seen += 1;
+            off += usize::from(d.is_nan() || (d - t).abs() > by);
+        }
+    }
+    100.0 * off as f64 / seen as f64
+}
+
+/// `preset=fast` is a named set of the matcher's settings (5 paths, no median) that a setting
+/// given overrides, reported as used; both presets keep their accuracy floors on the rendered
+/// scene, and a preset or a path count that does not exist is a 422 naming it.
+#[tokio::test]
+async fn presets_are_named_sets_with_accuracy_floors() {
+    let app = spawn_app().await;
+    let pair = pair();
+    let mut bad = Vec::new();
+    for (query, preset, paths, median) in [
+        // The rendered scene's textures are smooth at one pixel's scale: `accurate` takes 8.
+        ("", "accurate", 8, true),
+        ("&preset=fast", "fast", 5, false),
+        ("&preset=fast&paths=8&median=true", "fast", 8, true),
+        ("&preset=accurate&paths=5", "accurate", 5, true),
+    ] {
+        let body =
+            ok_json(depth_map(&app, &format!("?max_disparity=48{query}"), form(&pair, &[])).await)
+                .await;
+        let used = &body["parameters"];
+        assert_eq!(
+            (
+                used["preset"].as_str(),
+                used["paths"].as_u64(),
+                used["median"].as_bool()
+            ),
+            (Some(preset), Some(paths), Some(median)),
+            "{query}: {used}"
+        );
+        let response = depth_map(
+            &app,
+            &format!("?max_disparity=48&output=disparity.npy{query}"),
+            form(&pair, &[]),
+        )
+        .await;
+        assert_eq!(response.status(), 200);
+        let map = npy(&response.bytes().await.unwrap());
+        bad.push((
+            query,
+            bad_share(&pair, &map, 1.0),
+            bad_share(&pair, &map, 2.0),
+        ));
+    }
+    // Measured, bad-1.0 / bad-2.0 of the visible pixels: 1.82 / 1.80 % (accurate, 8 paths),
+    // 2.10 / 2.08 % (fast), 2.13 / 2.12 % (accurate with 5 paths).
+    for (query, bad1, bad2) in &bad {
+        assert!(
+            *bad1 < 3.0 && *bad2 < 3.0,
+            "{query}: bad-1.0 {bad1:.2} %, bad-2.0 {bad2:.2} %"
+        );
+    }
+    let body = problem(
+        depth_map(&app, "?preset=slow&paths=7", form(&pair, &[])).await,
+        422,
+    )
+    .await;
+    assert_names(&body, &["preset", "paths"]);
+    assert_eq!(message_for(&body, "paths"), "must be 5 or 8, got 7");
+}
+
 /// A JSON body is not a form: 415 naming the media type to send.
 #[tokio::test]
 async fn a_json_body_is_415() {

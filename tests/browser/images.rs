@@ -726,3 +726,62 @@ async fn the_images_stack_on_a_phone() {
     browser.screenshot("images-phone.png").await;
     browser.close().await;
 }
+
+/// The matcher's preset: choosing Fast sends `preset=fast` with the depth map's request and
+/// keeps it in the address; a permalink's made-up preset goes to the service, whose refusal
+/// is shown next to the select.
+#[tokio::test]
+#[ignore = "needs chromium and chromedriver; .ci/run runs it"]
+async fn the_fast_preset_is_sent_kept_and_refused_when_made_up() {
+    // Arrange
+    let [left, right] = synthetic_pair();
+    let browser = Browser::start(1280, 1500).await;
+    browser.open(&format!("/?mode=images&{RIG}")).await;
+    browser.upload(&left, &right).await;
+    browser.depth_map_shown().await;
+    assert_eq!(browser.value("preset").await, "accurate");
+
+    // Act
+    browser.choose("preset", "fast").await;
+
+    // Assert: a depth map asked with the preset, and the address keeps it.
+    browser
+        .until("a fast depth map asked for", || async {
+            let asked = browser
+                .script(
+                    "return performance.getEntriesByType('resource').map(e => e.name)\
+                       .filter(n => n.includes('/depth-map?') && n.includes('preset=fast')).length",
+                )
+                .await;
+            (asked.as_u64() >= Some(1)).then_some(())
+        })
+        .await;
+    let valid = browser.depth_map_shown().await;
+    assert!(valid > 0.5, "{valid}");
+    browser
+        .until("the preset in the address", || async {
+            let at = browser.script("return location.search").await;
+            at.as_str()
+                .is_some_and(|q| q.contains("preset=fast"))
+                .then_some(())
+        })
+        .await;
+
+    // Act: a permalink with a preset that does not exist.
+    browser
+        .open(&format!("/?mode=images&{RIG}&preset=slow"))
+        .await;
+    browser.upload(&left, &right).await;
+    browser.depth_map_shown_or_refused().await;
+
+    // Assert: the service's words, next to the select.
+    let error = browser
+        .until("the preset's error", || async {
+            let text = browser.text("preset-error").await;
+            text.contains("must be accurate or fast").then_some(text)
+        })
+        .await;
+    assert!(error.contains("`slow`"), "{error}");
+    browser.assert_clean_but(&["422"]).await;
+    browser.close().await;
+}

@@ -4,7 +4,7 @@
 
 import { fetchFile, post, postJson, readNpz, save, serverTime } from './api.js';
 import { colourRange, drawColourBar, sizeCanvas, turbo } from './draw.js';
-import { applyRig, readForm, rigGiven, rigPart, showErrors, writeForm } from './rig.js';
+import { applyRig, forgetUnknown, readForm, rigGiven, rigPart, showErrors, writeForm } from './rig.js';
 import { EVENTS, NEEDS_RIG, emit, frameShown, on, pair, rawPair } from './store.js';
 import {
   $, DEBOUNCE_MS, clearFieldErrors, fmt, page, percent, setFiles, showFieldErrors,
@@ -88,9 +88,19 @@ export function rangeQuery(state, output = null) {
   return query;
 }
 
+/** A /depth-map query: the range, the matcher's preset (`accurate` is the API's default,
+ * so it is left out) and the output. */
+function depthQuery(state, output) {
+  const query = rangeQuery(state, output);
+  if (state.preset !== 'accurate') query.set('preset', state.preset);
+  return query;
+}
+
 /** Where an image request's problem is shown: next to the file input or range field it
  * names, or in the list under the inputs. */
-export const IMAGE_INPUTS = { left: 'left_image', right: 'right_image', min_disparity: 'min_disparity', max_disparity: 'max_disparity' };
+export const IMAGE_INPUTS = {
+  left: 'left_image', right: 'right_image', min_disparity: 'min_disparity', max_disparity: 'max_disparity', preset: 'preset',
+};
 
 export function clearImageErrors() {
   clearFieldErrors(Object.values(IMAGE_INPUTS), 'images-errors');
@@ -193,7 +203,7 @@ export async function requestDepth() {
   $('depth-status').textContent = 'Matching the pair…';
   const started = performance.now();
   try {
-    const { response, errors } = await post('/depth-map', rangeQuery(state, 'arrays.npz'), pairForm(state), depthController.signal);
+    const { response, errors } = await post('/depth-map', depthQuery(state, 'arrays.npz'), pairForm(state), depthController.signal);
     if (token !== depthToken) return;
     clearImageErrors();
     if (errors) {
@@ -286,7 +296,7 @@ export async function download(output) {
   line.textContent = `Preparing ${output}…`;
   const state = readForm();
   try {
-    const { response, errors } = await post('/depth-map', rangeQuery(state, output), pairForm(state));
+    const { response, errors } = await post('/depth-map', depthQuery(state, output), pairForm(state));
     if (errors) {
       line.textContent = `No ${output}: ${errors.map((e) => `${e.field}: ${e.message}`).join(' ')}`;
       return;
@@ -388,6 +398,11 @@ export function wireImages() {
       emit(EVENTS.schedule);
     });
   }
+  $('preset').addEventListener('change', (event) => {
+    forgetUnknown(event.target);
+    scheduleDepth();
+    emit(EVENTS.schedule);
+  });
   for (const view of ['raw', 'rectified']) {
     $(`frames-${view}`).addEventListener('change', () => showView(view));
   }

@@ -26,6 +26,7 @@ export function permalink(state) {
   }
   params.set('rows', state.rows);
   params.set('scale', state.scale);
+  if (page.mode === 'images' && state.preset !== 'accurate') params.set('preset', state.preset);
   return `${location.pathname}?${params}`;
 }
 

@@ -70,6 +70,7 @@ export const DEFAULTS = Object.freeze({
   baseline_std: '',
   rows: '10',
   scale: 'log',
+  preset: 'accurate',
 });
 const UNITS = ['mm', 'cm', 'm', 'in', 'ft'];
 const ROWS = ['5', '10', '20', '50'];
@@ -96,7 +97,9 @@ export function forgetUnknownScale() {
 }
 
 export function readForm() {
-  const state = { focal_mode: $('focal_mode').value, unit: $('unit').value, rows: $('rows').value };
+  const state = {
+    focal_mode: $('focal_mode').value, unit: $('unit').value, rows: $('rows').value, preset: $('preset').value,
+  };
   for (const name of TEXT_FIELDS) state[name] = $(name).value.trim();
   state.scale = unknownScale ?? ($('log').checked ? 'log' : 'linear');
   return state;
@@ -124,7 +127,7 @@ export function forgetUnknown(select) {
 }
 
 export function writeForm(state) {
-  for (const name of ['focal_mode', 'unit', 'rows']) choose($(name), state[name]);
+  for (const name of ['focal_mode', 'unit', 'rows', 'preset']) choose($(name), state[name]);
   unknownScale = CHOICES.scale.includes(state.scale) ? null : state.scale;
   $('log').checked = state.scale === 'log';
   for (const name of TEXT_FIELDS) $(name).value = state[name];
@@ -137,7 +140,7 @@ export function writeForm(state) {
 /** The state a query string describes; the defaults when it describes none. */
 export function stateFromQuery(search) {
   const query = new URLSearchParams(search);
-  const known = ['focal_mode', ...FOCAL_MEMBERS, ...COMPANIONS, ...TEXT_FIELDS, 'unit', 'rows', 'scale'];
+  const known = ['focal_mode', ...FOCAL_MEMBERS, ...COMPANIONS, ...TEXT_FIELDS, 'unit', 'rows', 'scale', 'preset'];
   if (![...query.keys()].some((key) => known.includes(key))) return { ...DEFAULTS };
   const state = { ...DEFAULTS };
   for (const name of TEXT_FIELDS) state[name] = '';
@@ -157,7 +160,7 @@ export function stateFromQuery(search) {
   state.focal = query.get(FOCAL_MODES[shown].member) ?? '';
   // Each choice is taken as given, even one the page does not offer: it is refused, with
   // its error, rather than replaced by a default nobody chose.
-  for (const name of ['unit', 'rows', 'scale']) if (query.has(name)) state[name] = query.get(name);
+  for (const name of ['unit', 'rows', 'scale', 'preset']) if (query.has(name)) state[name] = query.get(name);
   return state;
 }
 

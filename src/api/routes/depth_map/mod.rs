@@ -181,6 +181,7 @@ fn compute(
             given,
             (rectify_time, rows),
             [decode_time, timings.cost, timings.aggregate, timings.refine],
+            timings.paths,
         )),
         DepthMapOutput::DisparityPfm => Ok(encode::pfm(w, h, &map.data)),
         DepthMapOutput::DisparityPng => {
@@ -303,6 +304,7 @@ fn summary(
     given: Option<GivenRig>,
     (rectified, rows): (Option<Duration>, Option<RowOffsets>),
     [decode, cost, aggregate, refine]: [Duration; 4],
+    paths: Option<vision::sgm::Paths>,
 ) -> DepthMapSummary {
     let valid = map.data.iter().filter(|d| !d.is_nan()).count();
     let ms = |d: Duration| (d.as_secs_f64() * 1e4).round() / 10.0;
@@ -327,6 +329,11 @@ fn summary(
         distance: depth.and_then(spread),
         rig,
         parameters: MatcherParameters {
+            preset: params.preset().into(),
+            paths: match paths {
+                Some(vision::sgm::Paths::Five) => 5,
+                _ => 8,
+            },
             p1: params.penalties().p1.into(),
             p2: params.penalties().p2.into(),
             p2_edge: params.penalties().edge.into(),
