@@ -3,7 +3,7 @@
 //!
 //! Every default is a constant below with the reason it was chosen; `--help` shows them all.
 
-use std::{net::IpAddr, str::FromStr, time::Duration};
+use std::{net::IpAddr, path::PathBuf, str::FromStr, time::Duration};
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
 
@@ -117,6 +117,63 @@ pub enum Command {
         #[arg(long, default_value = "2s", value_parser = duration)]
         timeout: Duration,
     },
+    /// Every pair of a recording to depth maps, as /depth-map makes them: in this process
+    /// (under the server's limits, which the flags above set), or sent to a running service
+    /// with --server. Pairs already written are skipped, so a stopped run resumes; a file
+    /// without a partner or that cannot be read is named and the rest go on. A progress bar
+    /// shows on a terminal.
+    DepthMap(Box<DepthMapArgs>),
+}
+
+/// What `stereo-distance depth-map` reads, how, and where it writes.
+#[derive(Debug, Clone, PartialEq, Eq, Args)]
+#[command(group(clap::ArgGroup::new("input").required(true).args(["left", "frames"])))]
+pub struct DepthMapArgs {
+    /// The left camera's frames (PNG or JPEG), paired with --right's by name: the same name,
+    /// or the same but for the camera (left/right, l/r, cam0/cam1, im0/im1).
+    #[arg(long, value_name = "DIR", requires = "right")]
+    pub left: Option<PathBuf>,
+    /// The right camera's frames.
+    #[arg(long, value_name = "DIR", requires = "left")]
+    pub right: Option<PathBuf>,
+    /// One folder with both cameras' frames, paired by the camera in their names (left/right,
+    /// l/r, cam0/cam1, im0/im1), as the page pairs them.
+    #[arg(long, value_name = "DIR", conflicts_with_all = ["left", "right"])]
+    pub frames: Option<PathBuf>,
+    /// The rig's calibration file (as /depth-map's `calibration` part: OpenCV, ROS, KITTI,
+    /// Middlebury); raw frames of raw cameras are rectified first. Without it, disparities only.
+    #[arg(long, value_name = "FILE")]
+    pub calibration: Option<PathBuf>,
+    /// The calibration file's length unit, where the file does not say (mm, cm, m, in, ft).
+    #[arg(long, value_name = "UNIT", requires = "calibration")]
+    pub calibration_unit: Option<String>,
+    /// Where the maps go, one file a pair named after its left frame (`0001.depth.npy`).
+    #[arg(long, value_name = "DIR")]
+    pub out: PathBuf,
+    /// What to write for each pair, as /depth-map's `output` (default: depth.npy with a
+    /// calibration, disparity.npy without).
+    #[arg(long, value_name = "OUTPUT", value_parser = [
+        "summary", "disparity.pfm", "disparity.png", "disparity.npy", "depth.npy", "depth.png",
+        "arrays.npz", "preview.png", "points.ply",
+    ])]
+    pub output: Option<String>,
+    /// The matcher's preset: accurate (the default) or fast.
+    #[arg(long, value_name = "PRESET", value_parser = ["accurate", "fast"])]
+    pub preset: Option<String>,
+    /// The smallest disparity searched (default 0).
+    #[arg(long, value_name = "PX", allow_negative_numbers = true)]
+    pub min_disparity: Option<i32>,
+    /// The search stops before this disparity (default: the calibration's ndisp, else 128).
+    #[arg(long, value_name = "PX", allow_negative_numbers = true)]
+    pub max_disparity: Option<i32>,
+    /// Send the pairs to the service at this address (http://host:port) instead of matching
+    /// them here: behind a Kubernetes Service, the heavy Deployment's replicas share them.
+    #[arg(long, value_name = "URL")]
+    pub server: Option<String>,
+    /// Pairs in flight at once (default 2: the next is read and decoded while one is matched,
+    /// 20 % more frames a second than one at a time on 2 cores).
+    #[arg(long, value_name = "N", value_parser = count::<1, 64>)]
+    pub jobs: Option<usize>,
 }
 
 /// Log line format.
@@ -681,5 +738,57 @@ mod tests {
             })
         );
         assert_eq!(cli.config.port, 9001);
+    }
+
+    /// `depth-map` takes two folders or one, and refuses an output /depth-map does not make.
+    #[test]
+    fn the_depth_map_command_reads_its_folders() {
+        let cli = parse(&[
+            "depth-map",
+            "--left",
+            "l",
+            "--right",
+            "r",
+            "--out",
+            "o",
+            "--preset",
+            "fast",
+        ])
+        .unwrap();
+        let Some(Command::DepthMap(args)) = cli.command else {
+            panic!("the depth-map command");
+        };
+        assert_eq!(
+            (args.left, args.right, args.preset.as_deref()),
+            (Some("l".into()), Some("r".into()), Some("fast"))
+        );
+        assert!(parse(&["depth-map", "--out", "o"]).is_err());
+        assert!(parse(&["depth-map", "--left", "l", "--out", "o"]).is_err());
+        assert!(
+            parse(&[
+                "depth-map",
+                "--frames",
+                "f",
+                "--out",
+                "o",
+                "--output",
+                "x.gif"
+            ])
+            .is_err()
+        );
+        assert!(
+            parse(&[
+                "depth-map",
+                "--frames",
+                "f",
+                "--left",
+                "l",
+                "--right",
+                "r",
+                "--out",
+                "o"
+            ])
+            .is_err()
+        );
     }
 }

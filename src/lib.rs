@@ -60,13 +60,17 @@
 //!   (`src/web/`).
 //! - [`server`]: the route groups wrapped in their guards, the edge layers, the accept loop
 //!   and graceful shutdown, the health-check probe.
+//! - [`batch`]: the `depth-map` command: a recording's folder of pairs to depth maps, through
+//!   the [`server`]'s router in process or over HTTP to a running service, resumable, with a
+//!   progress bar.
 //! - Outside this crate, in the workspace: `crates/conformance` (dev only), what the service
 //!   promises for any input, checked in process: the oracle of the fuzz target and of
 //!   `tests/hostile_input.rs`.
 //!
-//! `main.rs` only parses the command line and runs the server or the probe.
+//! `main.rs` only parses the command line and runs the server, the probe or the command.
 
 pub mod api;
+pub mod batch;
 pub mod budget;
 pub mod calibration;
 pub mod camera;

@@ -1,5 +1,5 @@
-//! Entry point: parse the command line, then either serve until SIGINT/SIGTERM or run the
-//! `healthcheck` probe.
+//! Entry point: parse the command line, then either serve until SIGINT/SIGTERM, run the
+//! `healthcheck` probe, or the `depth-map` command over a recording.
 
 use std::process::ExitCode;
 
@@ -26,6 +26,7 @@ fn main() -> ExitCode {
                 }
             }
         }
+        Command::DepthMap(args) => stereo_distance::batch::run(config, *args),
         Command::Serve => {
             if let Err(error) = telemetry::init(config.log_format, &config.log_level) {
                 eprintln!("error: cannot set up logging: {error}");

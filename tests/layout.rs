@@ -26,6 +26,7 @@ const LAYERS: &[&str] = &[
     "api",
     "web",
     "server",
+    "batch",
 ];
 
 /// Every `.rs` file under `src/` (but `main.rs`) with its module path (`api::routes::rectify`).

@@ -19,6 +19,7 @@ mod openapi;
 mod operations;
 mod planning;
 mod protection;
+mod recording;
 mod rectify;
 mod rigs;
 mod scale;

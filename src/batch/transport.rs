@@ -1,0 +1,202 @@
+//! How a pair reaches the matcher: through the service's own router in this process, or over
+//! HTTP/1.1 to a running service, one kept-alive connection a job. Both send the same
+//! `/depth-map` form and read the same answer.
+
+use axum::body::{Body, Bytes};
+use axum::http::{Request, header};
+use http_body_util::{BodyExt, Full};
+use tower::ServiceExt;
+
+/// An answer: its status, its `Retry-After` in seconds when it has one, and its body.
+#[derive(Debug, Clone)]
+pub struct Answer {
+    pub status: u16,
+    pub retry_after: Option<u64>,
+    pub body: Bytes,
+}
+
+/// Where the requests go.
+#[derive(Clone)]
+pub enum Transport {
+    /// The service's router, in this process.
+    InProcess(axum::Router),
+    /// A service at `host:port`, reached over HTTP/1.1.
+    Http(Server),
+}
+
+/// A running service's address, and this job's connection to it once made (a clone makes
+/// its own).
+pub struct Server {
+    authority: String,
+    base: String,
+    connection: Option<hyper::client::conn::http1::SendRequest<Full<Bytes>>>,
+}
+
+impl Clone for Server {
+    fn clone(&self) -> Self {
+        Server {
+            authority: self.authority.clone(),
+            base: self.base.clone(),
+            connection: None,
+        }
+    }
+}
+
+impl Server {
+    /// The service at `url` (`http://host:port`, optionally with a path prefix); `https` and
+    /// other schemes are refused with a sentence saying so.
+    pub fn parse(url: &str) -> Result<Server, String> {
+        let rest = url.strip_prefix("http://").ok_or_else(|| {
+            format!("--server {url}: give an http:// address (https is not spoken here; use the cluster's own http Service)")
+        })?;
+        let (authority, path) = rest.split_once('/').unwrap_or((rest, ""));
+        if authority.is_empty() {
+            return Err(format!("--server {url}: no host"));
+        }
+        let authority = if authority.contains(':') && !authority.ends_with(']') {
+            authority.to_owned()
+        } else {
+            format!("{authority}:80")
+        };
+        let base = path.trim_end_matches('/');
+        Ok(Server {
+            authority,
+            base: if base.is_empty() {
+                String::new()
+            } else {
+                format!("/{base}")
+            },
+            connection: None,
+        })
+    }
+
+    async fn connect(
+        &self,
+    ) -> Result<hyper::client::conn::http1::SendRequest<Full<Bytes>>, String> {
+        let stream = tokio::net::TcpStream::connect(&self.authority)
+            .await
+            .map_err(|e| format!("cannot connect to {}: {e}", self.authority))?;
+        let _ = stream.set_nodelay(true);
+        let (sender, connection) =
+            hyper::client::conn::http1::handshake(hyper_util::rt::TokioIo::new(stream))
+                .await
+                .map_err(|e| format!("no HTTP/1.1 at {}: {e}", self.authority))?;
+        tokio::spawn(async move {
+            let _ = connection.await;
+        });
+        Ok(sender)
+    }
+}
+
+impl Transport {
+    /// POSTs `body` (of `content_type`) to `path_and_query`. An error is the transport's
+    /// (no connection, a connection lost twice), not an answer's.
+    pub async fn post(
+        &mut self,
+        path_and_query: &str,
+        content_type: &str,
+        body: Vec<u8>,
+    ) -> Result<Answer, String> {
+        match self {
+            Transport::InProcess(router) => {
+                let request = Request::post(path_and_query)
+                    .header(header::CONTENT_TYPE, content_type)
+                    .body(Body::from(body))
+                    .map_err(|e| format!("the request was not built: {e}"))?;
+                let response = router
+                    .clone()
+                    .oneshot(request)
+                    .await
+                    .map_err(|e| format!("the service failed: {e}"))?;
+                let (parts, body) = response.into_parts();
+                let body = body
+                    .collect()
+                    .await
+                    .map_err(|e| format!("the answer was not read: {e}"))?
+                    .to_bytes();
+                Ok(Answer {
+                    status: parts.status.as_u16(),
+                    retry_after: retry_after(&parts.headers),
+                    body,
+                })
+            }
+            Transport::Http(server) => {
+                let body = Bytes::from(body);
+                // A kept-alive connection the server closed meanwhile is made again, once.
+                for attempt in 0..2 {
+                    let alive = match server.connection.as_mut() {
+                        Some(sender) => sender.ready().await.is_ok(),
+                        None => false,
+                    };
+                    if !alive {
+                        server.connection = Some(server.connect().await?);
+                    }
+                    let Some(sender) = server.connection.as_mut() else {
+                        return Err(format!("no connection to {}", server.authority));
+                    };
+                    let request = Request::post(format!("{}{path_and_query}", server.base))
+                        .header(header::HOST, server.authority.as_str())
+                        .header(header::CONTENT_TYPE, content_type)
+                        .body(Full::new(body.clone()))
+                        .map_err(|e| format!("the request was not built: {e}"))?;
+                    match sender.send_request(request).await {
+                        Ok(response) => {
+                            let (parts, incoming) = response.into_parts();
+                            let body = incoming
+                                .collect()
+                                .await
+                                .map_err(|e| format!("the answer was cut off: {e}"))?
+                                .to_bytes();
+                            return Ok(Answer {
+                                status: parts.status.as_u16(),
+                                retry_after: retry_after(&parts.headers),
+                                body,
+                            });
+                        }
+                        Err(error) if attempt == 0 => {
+                            tracing::debug!(%error, "the connection was lost; connecting again");
+                            server.connection = None;
+                        }
+                        Err(error) => {
+                            return Err(format!("{} did not answer: {error}", server.authority));
+                        }
+                    }
+                }
+                Err(format!("{} did not answer", server.authority))
+            }
+        }
+    }
+}
+
+fn retry_after(headers: &axum::http::HeaderMap) -> Option<u64> {
+    headers
+        .get(header::RETRY_AFTER)?
+        .to_str()
+        .ok()?
+        .trim()
+        .parse()
+        .ok()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// An http address with or without a port and a prefix; https refused in words.
+    #[test]
+    fn server_addresses_are_read() {
+        let s = Server::parse("http://depth.default.svc:8080").unwrap();
+        assert_eq!(
+            (s.authority.as_str(), s.base.as_str()),
+            ("depth.default.svc:8080", "")
+        );
+        let s = Server::parse("http://example/api/").unwrap();
+        assert_eq!(
+            (s.authority.as_str(), s.base.as_str()),
+            ("example:80", "/api")
+        );
+        let refused = |url: &str| Server::parse(url).err().unwrap_or_default();
+        assert!(refused("https://example").contains("http://"));
+        assert!(refused("http:///x").contains("no host"));
+    }
+}

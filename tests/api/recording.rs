@@ -1,0 +1,224 @@
+//! `stereo-distance depth-map` over a folder of frames, run as its users run it: the binary,
+//! its stderr a pipe (no progress bar), in process and against a spawned server.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use stereo_distance::vision::encode;
+
+use crate::depth_map::{H, W, pair};
+use crate::helpers::spawn_app;
+
+/// f·B of the calibration written below: 400 px × 120 mm.
+const FB: f64 = 48_000.0;
+
+/// A recording in `dir`: `left/000N.png` and `right/000N.png` for N = 1..=3 (the rendered
+/// scene), a left frame without a partner (0004) and a right "frame" that is not an image
+/// (0005), and a Middlebury calibration of the rectified pair. Returns the calibration's path.
+fn recording(dir: &Path) -> PathBuf {
+    let _ = std::fs::remove_dir_all(dir);
+    for side in ["left", "right"] {
+        std::fs::create_dir_all(dir.join(side)).unwrap();
+    }
+    let pair = pair();
+    for n in 1..=3 {
+        std::fs::write(
+            dir.join(format!("left/000{n}.png")),
+            encode::png_rgb(W, H, &pair.left_rgb),
+        )
+        .unwrap();
+        std::fs::write(
+            dir.join(format!("right/000{n}.png")),
+            encode::png_rgb(W, H, &pair.right_rgb),
+        )
+        .unwrap();
+    }
+    std::fs::write(
+        dir.join("left/0004.png"),
+        encode::png_rgb(W, H, &pair.left_rgb),
+    )
+    .unwrap();
+    std::fs::write(
+        dir.join("left/0005.png"),
+        encode::png_rgb(W, H, &pair.left_rgb),
+    )
+    .unwrap();
+    std::fs::write(dir.join("right/0005.png"), b"not a picture").unwrap();
+    let calib = dir.join("calib.txt");
+    std::fs::write(
+        &calib,
+        format!(
+            "cam0=[400 0 {cx}; 0 400 {cy}; 0 0 1]\ncam1=[400 0 {cx}; 0 400 {cy}; 0 0 1]\n\
+             doffs=0\nbaseline=120\nwidth={W}\nheight={H}\nndisp=48\n",
+            cx = W / 2,
+            cy = H / 2
+        ),
+    )
+    .unwrap();
+    calib
+}
+
+fn run(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_stereo-distance"))
+        .arg("depth-map")
+        .args(args)
+        .output()
+        .expect("the binary runs")
+}
+
+/// The float32 values of an NPY file of the scene's size.
+fn npy_values(path: &Path) -> Vec<f32> {
+    let bytes = std::fs::read(path).unwrap();
+    assert_eq!(&bytes[..8], b"\x93NUMPY\x01\x00");
+    let len = usize::from(u16::from_le_bytes([bytes[8], bytes[9]]));
+    let header = std::str::from_utf8(&bytes[10..10 + len]).unwrap();
+    assert!(header.contains(&format!("'shape': ({H}, {W})")), "{header}");
+    crate::depth_map::floats(&bytes[10 + len..])
+}
+
+/// The median of the finite values.
+fn median(values: &[f32]) -> f64 {
+    let mut v: Vec<f32> = values.iter().copied().filter(|z| z.is_finite()).collect();
+    v.sort_by(f32::total_cmp);
+    f64::from(v[v.len() / 2])
+}
+
+/// In process: each pair of the folders becomes a depth NPY whose depths are f·B / d of the
+/// scene; the unpaired frame and the broken one are named with their reasons and the rest go
+/// on (exit 1); no progress bar is drawn into a pipe; a second run skips what is written.
+#[test]
+fn a_folder_becomes_depth_maps_and_a_rerun_skips_them() {
+    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("recording-in-process");
+    let calib = recording(&dir);
+    let (left, right, out) = (dir.join("left"), dir.join("right"), dir.join("out"));
+    let args = [
+        "--left",
+        left.to_str().unwrap(),
+        "--right",
+        right.to_str().unwrap(),
+        "--calibration",
+        calib.to_str().unwrap(),
+        "--calibration-unit",
+        "mm",
+        "--out",
+        out.to_str().unwrap(),
+    ];
+    let first = run(&args);
+    let said = String::from_utf8_lossy(&first.stderr).into_owned();
+    assert_eq!(first.status.code(), Some(1), "{said}");
+    assert!(
+        said.contains("0004.png: no right frame of the same name"),
+        "{said}"
+    );
+    assert!(
+        said.contains("failed 0005:") && said.contains("right/0005.png: is not an image"),
+        "{said}"
+    );
+    assert!(said.contains("wrote 3 of 4 pairs"), "{said}");
+    assert!(
+        !said.contains('\r') && !said.contains("frames/s  "),
+        "a bar in a pipe: {said:?}"
+    );
+    let truth = {
+        let p = pair();
+        let seen: Vec<f32> = p
+            .truth
+            .iter()
+            .zip(&p.visible)
+            .filter(|(_, v)| **v)
+            .map(|(d, _)| *d)
+            .collect();
+        median(&seen)
+    };
+    let mut written = Vec::new();
+    for n in 1..=3 {
+        let path = out.join(format!("000{n}.depth.npy"));
+        let z = median(&npy_values(&path));
+        assert!(
+            (z - FB / truth).abs() < 0.03 * FB / truth,
+            "{path:?}: median {z}, truth {}",
+            FB / truth
+        );
+        written.push(std::fs::metadata(&path).unwrap().modified().unwrap());
+    }
+    assert!(!out.join("0005.depth.npy").exists());
+    let leftovers: Vec<_> = std::fs::read_dir(&out)
+        .unwrap()
+        .flatten()
+        .map(|e| e.file_name())
+        .collect();
+    assert_eq!(leftovers.len(), 3, "{leftovers:?}");
+
+    let again = run(&args);
+    let said = String::from_utf8_lossy(&again.stderr).into_owned();
+    assert!(said.contains("3 of 4 pairs already written"), "{said}");
+    assert!(said.contains("wrote 0 of 1 pairs"), "{said}");
+    for (n, when) in (1..=3).zip(&written) {
+        let path = out.join(format!("000{n}.depth.npy"));
+        assert_eq!(&std::fs::metadata(&path).unwrap().modified().unwrap(), when);
+    }
+}
+
+/// `--server`: the same folder sent to a running service, two pairs in flight, as PFM files
+/// read back as Middlebury's readers read them; a service that is not there stops the run
+/// with its address.
+#[tokio::test]
+async fn the_server_option_sends_the_frames_to_a_running_service() {
+    let app = spawn_app().await;
+    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("recording-server");
+    let calib = recording(&dir);
+    std::fs::remove_file(dir.join("right/0005.png")).unwrap();
+    std::fs::remove_file(dir.join("left/0005.png")).unwrap();
+    std::fs::remove_file(dir.join("left/0004.png")).unwrap();
+    let out = dir.join("out");
+    let (left, right) = (dir.join("left"), dir.join("right"));
+    let address = app.address.clone();
+    let output = tokio::task::spawn_blocking(move || {
+        run(&[
+            "--left",
+            left.to_str().unwrap(),
+            "--right",
+            right.to_str().unwrap(),
+            "--calibration",
+            calib.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--output",
+            "disparity.pfm",
+            "--preset",
+            "fast",
+            "--server",
+            &address,
+        ])
+    })
+    .await
+    .unwrap();
+    let said = String::from_utf8_lossy(&output.stderr).into_owned();
+    assert_eq!(output.status.code(), Some(0), "{said}");
+    assert!(said.contains("wrote 3 of 3 pairs"), "{said}");
+    for n in 1..=3 {
+        let bytes = std::fs::read(dir.join(format!("out/000{n}.disparity.pfm"))).unwrap();
+        let header = format!("Pf\n{W} {H}\n-1\n");
+        assert!(bytes.starts_with(header.as_bytes()));
+        let d = crate::depth_map::floats(&bytes[header.len()..]);
+        assert_eq!(d.len(), W * H);
+        assert!(d.iter().filter(|v| v.is_finite()).count() > W * H / 2);
+    }
+    let nowhere = run(&[
+        "--left",
+        dir.join("left").to_str().unwrap(),
+        "--right",
+        dir.join("right").to_str().unwrap(),
+        "--out",
+        dir.join("out2").to_str().unwrap(),
+        "--server",
+        "http://127.0.0.1:1",
+    ]);
+    let said = String::from_utf8_lossy(&nowhere.stderr).into_owned();
+    assert_eq!(nowhere.status.code(), Some(1), "{said}");
+    assert!(
+        said.contains("error: cannot connect to 127.0.0.1:1"),
+        "{said}"
+    );
+    assert!(said.contains("wrote 0 of 3 pairs"), "{said}");
+}
