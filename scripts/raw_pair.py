@@ -30,10 +30,10 @@ RIGS = [
 ]
 
 
-def make_raw(left, right, f, cx, cy, doffs, baseline, rig=0):
-    """The raw frames of the rectified pair (left, right) through RIGS[rig] and their
-    calibration as the text of a stereoCalibrate FileStorage, with imageSize."""
-    h, w = left.shape[:2]
+def rig_maps(w, h, f, cx, cy, doffs, baseline, rig=0):
+    """Where each raw pixel of RIGS[rig]'s two cameras (w x h) looks in the rectified pair
+    (f, cx, cy, cx + doffs, baseline in mm): float32 maps for `cv2.remap`, one (x, y) pair per
+    camera, and the calibration as the text of a stereoCalibrate FileStorage with imageSize."""
     # The rectified cameras: the pair's.
     P1 = np.array([[f, 0, cx, 0], [0, f, cy, 0], [0, 0, 1, 0]])
     P2 = np.array([[f, 0, cx + doffs, -f * baseline], [0, f, cy, 0], [0, 0, 1, 0]])
@@ -49,11 +49,10 @@ def make_raw(left, right, f, cx, cy, doffs, baseline, rig=0):
     T = R2.T @ np.array([-baseline, 0.0, 0.0])
     crit = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 200, 1e-12)
     grid = np.stack(np.meshgrid(np.arange(w), np.arange(h)), -1).reshape(-1, 1, 2).astype(np.float64)
-    raw = []
-    for img, K, D, Rk, P in ((left, K1, D1, R1, P1), (right, K2, D2, R2, P2)):
+    maps = []
+    for K, D, Rk, P in ((K1, D1, R1, P1), (K2, D2, R2, P2)):
         rect = cv2.undistortPointsIter(grid, K, D, Rk, P[:, :3], crit).reshape(h, w, 2)
-        raw.append(cv2.remap(img, rect[..., 0].astype(np.float32), rect[..., 1].astype(np.float32),
-                             cv2.INTER_LANCZOS4, borderMode=cv2.BORDER_CONSTANT))
+        maps.append((rect[..., 0].astype(np.float32), rect[..., 1].astype(np.float32)))
     Q = np.array([[1, 0, 0, -cx], [0, 1, 0, -cy], [0, 0, 0, f], [0, 0, 1 / baseline, doffs / baseline]])
     fs = cv2.FileStorage(".yml", cv2.FILE_STORAGE_WRITE | cv2.FILE_STORAGE_MEMORY)
     for key, value in (("M1", K1), ("D1", D1.reshape(1, 5)), ("M2", K2), ("D2", D2.reshape(1, 5)),
@@ -62,7 +61,21 @@ def make_raw(left, right, f, cx, cy, doffs, baseline, rig=0):
         fs.write(key, value)
     # FileStorage has no [w, h] list writer; the service reads imageSize as one.
     text = fs.releaseAndGetString() + f"imageSize: [ {w}, {h} ]\n"
-    return raw[0], raw[1], text
+    return maps[0], maps[1], text
+
+
+def to_raw(image, rig_map):
+    """A rectified image as the raw camera of `rig_map` (from `rig_maps`) sees it."""
+    return cv2.remap(image, rig_map[0], rig_map[1], cv2.INTER_LANCZOS4,
+                     borderMode=cv2.BORDER_CONSTANT)
+
+
+def make_raw(left, right, f, cx, cy, doffs, baseline, rig=0):
+    """The raw frames of the rectified pair (left, right) through RIGS[rig] and their
+    calibration as the text of a stereoCalibrate FileStorage, with imageSize."""
+    h, w = left.shape[:2]
+    left_map, right_map, text = rig_maps(w, h, f, cx, cy, doffs, baseline, rig)
+    return to_raw(left, left_map), to_raw(right, right_map), text
 
 
 def main():
