@@ -118,7 +118,7 @@ pub enum Command {
         timeout: Duration,
     },
     /// Every pair of a recording to depth maps, as /depth-map makes them: in this process
-    /// (under the server's limits, which the flags above set), or sent to a running service
+    /// (under the server's limits, set by the options given before `depth-map`), or sent to a running service
     /// with --server. Pairs already written are skipped, so a stopped run resumes; a file
     /// without a partner or that cannot be read is named and the rest go on. A progress bar
     /// shows on a terminal.

@@ -21,7 +21,7 @@ use std::process::ExitCode;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
-use pairing::{FramePair, Unpaired};
+use pairing::{FramePair, Unpaired, file_name};
 use progress::Progress;
 use transport::{Answer, Server, Transport};
 
@@ -269,15 +269,15 @@ async fn one_pair(transport: &mut Transport, plan: &Plan, pair: &FramePair) -> R
     };
     let left = read(pair.left.clone()).await?;
     let right = read(pair.right.clone()).await?;
-    let mut parts: Vec<(&str, Option<String>, Vec<u8>)> = vec![
-        ("left", Some(file_name(&pair.left)), left),
-        ("right", Some(file_name(&pair.right)), right),
+    let mut parts: Vec<(&str, Option<String>, &[u8])> = vec![
+        ("left", Some(file_name(&pair.left)), &left),
+        ("right", Some(file_name(&pair.right)), &right),
     ];
     if let Some((name, bytes)) = &plan.calibration {
-        parts.push(("calibration", Some(name.clone()), bytes.clone()));
+        parts.push(("calibration", Some(name.clone()), bytes));
     }
     if let Some(unit) = &plan.calibration_unit {
-        parts.push(("calibration_unit", None, unit.clone().into_bytes()));
+        parts.push(("calibration_unit", None, unit.as_bytes()));
     }
     let (body, content_type) = multipart(&parts);
     let mut tries = 0;
@@ -346,7 +346,7 @@ fn refusal(answer: &Answer, pair: &FramePair) -> Failure {
 }
 
 /// A `multipart/form-data` body of `(name, file name, bytes)` parts, and its content type.
-fn multipart(parts: &[(&str, Option<String>, Vec<u8>)]) -> (Vec<u8>, String) {
+fn multipart(parts: &[(&str, Option<String>, &[u8])]) -> (Vec<u8>, String) {
     let boundary = format!("stereo-distance-{}", uuid::Uuid::new_v4().simple());
     let mut body = Vec::with_capacity(parts.iter().map(|p| p.2.len() + 200).sum());
     for (name, file, bytes) in parts {
@@ -392,9 +392,4 @@ fn images_in(folder: &Path) -> Result<(Vec<PathBuf>, Vec<Unpaired>), String> {
         }
     }
     Ok((images, others))
-}
-
-fn file_name(path: &Path) -> String {
-    path.file_name()
-        .map_or_else(String::new, |n| n.to_string_lossy().into_owned())
 }

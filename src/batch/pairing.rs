@@ -97,7 +97,7 @@ pub fn pair_one_folder(files: &[PathBuf]) -> (Vec<FramePair>, Vec<Unpaired>) {
     let mut sides = Vec::new();
     let mut unpaired = Vec::new();
     for path in files {
-        match file_name(path).and_then(|n| side_of(&n)) {
+        match side_of(&file_name(path)) {
             Some(side) => sides.push((side.key, side.left, path.clone())),
             None => unpaired.push(Unpaired {
                 path: path.clone(),
@@ -115,7 +115,7 @@ pub fn pair_one_folder(files: &[PathBuf]) -> (Vec<FramePair>, Vec<Unpaired>) {
 /// for the camera named in it.
 pub fn pair_two_folders(left: &[PathBuf], right: &[PathBuf]) -> (Vec<FramePair>, Vec<Unpaired>) {
     let key = |path: &PathBuf| {
-        let name = file_name(path).unwrap_or_default();
+        let name = file_name(path);
         side_of(&name).map_or_else(|| stem(path).to_lowercase(), |s| s.key)
     };
     let sides = left
@@ -174,8 +174,10 @@ fn match_up(mut sides: Vec<(String, bool, PathBuf)>) -> (Vec<FramePair>, Vec<Unp
     (pairs, unpaired)
 }
 
-fn file_name(path: &Path) -> Option<String> {
-    path.file_name().map(|n| n.to_string_lossy().into_owned())
+/// The file's name, without its folder (empty for a path without one).
+pub fn file_name(path: &Path) -> String {
+    path.file_name()
+        .map_or_else(String::new, |n| n.to_string_lossy().into_owned())
 }
 
 fn stem(path: &Path) -> String {

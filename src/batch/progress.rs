@@ -49,7 +49,7 @@ impl<W: Write> Progress<W> {
     }
 
     /// Frames per second so far, and the time the rest will take at that rate.
-    pub fn rate(&self) -> (f64, Option<Duration>) {
+    fn rate(&self) -> (f64, Option<Duration>) {
         let seconds = self.started.elapsed().as_secs_f64();
         let fps = if seconds > 0.0 {
             self.done as f64 / seconds

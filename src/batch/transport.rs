@@ -108,17 +108,7 @@ impl Transport {
                     .oneshot(request)
                     .await
                     .map_err(|e| format!("the service failed: {e}"))?;
-                let (parts, body) = response.into_parts();
-                let body = body
-                    .collect()
-                    .await
-                    .map_err(|e| format!("the answer was not read: {e}"))?
-                    .to_bytes();
-                Ok(Answer {
-                    status: parts.status.as_u16(),
-                    retry_after: retry_after(&parts.headers),
-                    body,
-                })
+                Answer::read(response).await
             }
             Transport::Http(server) => {
                 let body = Bytes::from(body);
@@ -140,19 +130,7 @@ impl Transport {
                         .body(Full::new(body.clone()))
                         .map_err(|e| format!("the request was not built: {e}"))?;
                     match sender.send_request(request).await {
-                        Ok(response) => {
-                            let (parts, incoming) = response.into_parts();
-                            let body = incoming
-                                .collect()
-                                .await
-                                .map_err(|e| format!("the answer was cut off: {e}"))?
-                                .to_bytes();
-                            return Ok(Answer {
-                                status: parts.status.as_u16(),
-                                retry_after: retry_after(&parts.headers),
-                                body,
-                            });
-                        }
+                        Ok(response) => return Answer::read(response).await,
                         Err(error) if attempt == 0 => {
                             tracing::debug!(%error, "the connection was lost; connecting again");
                             server.connection = None;
@@ -165,6 +143,27 @@ impl Transport {
                 Err(format!("{} did not answer", server.authority))
             }
         }
+    }
+}
+
+impl Answer {
+    /// A response read to its end, from the router or from the wire.
+    async fn read<B>(response: axum::http::Response<B>) -> Result<Answer, String>
+    where
+        B: http_body::Body,
+        B::Error: std::fmt::Display,
+    {
+        let (parts, body) = response.into_parts();
+        let body = body
+            .collect()
+            .await
+            .map_err(|e| format!("the answer was cut off: {e}"))?
+            .to_bytes();
+        Ok(Answer {
+            status: parts.status.as_u16(),
+            retry_after: retry_after(&parts.headers),
+            body,
+        })
     }
 }
 

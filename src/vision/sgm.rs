@@ -575,12 +575,10 @@ fn path(c: &[u16; LANES], prev: &[u16], prev_min: u16, p1: u16, jump: u16) -> [u
 mod tests {
     use super::*;
 
-    /// The build for one shared window and the build for per-pixel windows give the same sums
-    /// on a volume whose pixels all search the whole range, in both passes.
-    #[test]
-    fn both_builds_of_the_pass_agree() {
-        let (w, h, count) = (23, 9, 20);
-        let mut rng = crate::vision::synthetic::Rng::new(5);
+    /// A `w × h` volume searching `count` disparities everywhere, of random costs below 60,
+    /// random grey levels, and the penalties P1 10, P2 80, edge 16.
+    fn random_case((w, h, count): (usize, usize, usize), seed: u64) -> (Volume, Vec<u16>, Table) {
+        let mut rng = crate::vision::synthetic::Rng::new(seed);
         let windows = crate::vision::cost::Windows::full(w * h, count);
         let data = (0..windows.cells())
             .map(|_| (rng.unit() * 60.0) as u8)
@@ -593,7 +591,7 @@ mod tests {
             windows,
             data,
         };
-        let grey: Vec<u16> = (0..w * h).map(|_| (rng.unit() * 65535.0) as u16).collect();
+        let grey = (0..w * h).map(|_| (rng.unit() * 65535.0) as u16).collect();
         let table = Table {
             p1: 10,
             p2: p2_table(Penalties {
@@ -602,6 +600,14 @@ mod tests {
                 edge: 16,
             }),
         };
+        (cost, grey, table)
+    }
+
+    /// The build for one shared window and the build for per-pixel windows give the same sums
+    /// on a volume whose pixels all search the whole range, in both passes.
+    #[test]
+    fn both_builds_of_the_pass_agree() {
+        let (cost, grey, table) = random_case((23, 9, 20), 5);
         let never = AtomicBool::new(false);
         let window = uniform(&cost.windows).expect("the whole range everywhere");
         let first = |mode| Pass {
@@ -648,31 +654,9 @@ mod tests {
     /// the right, computed here by its definition; both builds agree, and rows come in order.
     #[test]
     fn five_paths_add_the_row_from_the_right() {
-        let (w, h, count) = (19, 7, 20);
-        let mut rng = crate::vision::synthetic::Rng::new(11);
-        let windows = crate::vision::cost::Windows::full(w * h, count);
-        let n = windows.offsets[1] as usize;
-        let data: Vec<u8> = (0..windows.cells())
-            .map(|_| (rng.unit() * 60.0) as u8)
-            .collect();
-        let cost = Volume {
-            width: w,
-            height: h,
-            min: 0,
-            count,
-            windows,
-            data,
-        };
-        let grey: Vec<u16> = (0..w * h).map(|_| (rng.unit() * 65535.0) as u16).collect();
-        let penalties = Penalties {
-            p1: 10,
-            p2: 80,
-            edge: 16,
-        };
-        let table = Table {
-            p1: 10,
-            p2: p2_table(penalties),
-        };
+        let (w, h) = (19, 7);
+        let (cost, grey, table) = random_case((w, h, 20), 11);
+        let n = cost.windows.offsets[1] as usize;
         let never = AtomicBool::new(false);
         let reads = |mode| Pass {
             cost: &cost,

@@ -58,10 +58,18 @@ fn recording(dir: &Path) -> PathBuf {
     calib
 }
 
-fn run(args: &[&str]) -> Output {
+/// `stereo-distance depth-map` on the recording in `dir` (its `left` and `right` folders),
+/// writing into `dir/out`, with `extra` arguments; stderr is a pipe.
+fn run(dir: &Path, out: &str, extra: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_stereo-distance"))
         .arg("depth-map")
-        .args(args)
+        .arg("--left")
+        .arg(dir.join("left"))
+        .arg("--right")
+        .arg(dir.join("right"))
+        .arg("--out")
+        .arg(dir.join(out))
+        .args(extra)
         .output()
         .expect("the binary runs")
 }
@@ -90,20 +98,14 @@ fn median(values: &[f32]) -> f64 {
 fn a_folder_becomes_depth_maps_and_a_rerun_skips_them() {
     let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("recording-in-process");
     let calib = recording(&dir);
-    let (left, right, out) = (dir.join("left"), dir.join("right"), dir.join("out"));
+    let out = dir.join("out");
     let args = [
-        "--left",
-        left.to_str().unwrap(),
-        "--right",
-        right.to_str().unwrap(),
         "--calibration",
         calib.to_str().unwrap(),
         "--calibration-unit",
         "mm",
-        "--out",
-        out.to_str().unwrap(),
     ];
-    let first = run(&args);
+    let first = run(&dir, "out", &args);
     let said = String::from_utf8_lossy(&first.stderr).into_owned();
     assert_eq!(first.status.code(), Some(1), "{said}");
     assert!(
@@ -149,7 +151,7 @@ fn a_folder_becomes_depth_maps_and_a_rerun_skips_them() {
         .collect();
     assert_eq!(leftovers.len(), 3, "{leftovers:?}");
 
-    let again = run(&args);
+    let again = run(&dir, "out", &args);
     let said = String::from_utf8_lossy(&again.stderr).into_owned();
     assert!(said.contains("3 of 4 pairs already written"), "{said}");
     assert!(said.contains("wrote 0 of 1 pairs"), "{said}");
@@ -170,26 +172,23 @@ async fn the_server_option_sends_the_frames_to_a_running_service() {
     std::fs::remove_file(dir.join("right/0005.png")).unwrap();
     std::fs::remove_file(dir.join("left/0005.png")).unwrap();
     std::fs::remove_file(dir.join("left/0004.png")).unwrap();
-    let out = dir.join("out");
-    let (left, right) = (dir.join("left"), dir.join("right"));
     let address = app.address.clone();
+    let sent = dir.clone();
     let output = tokio::task::spawn_blocking(move || {
-        run(&[
-            "--left",
-            left.to_str().unwrap(),
-            "--right",
-            right.to_str().unwrap(),
-            "--calibration",
-            calib.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
-            "--output",
-            "disparity.pfm",
-            "--preset",
-            "fast",
-            "--server",
-            &address,
-        ])
+        run(
+            &sent,
+            "out",
+            &[
+                "--calibration",
+                calib.to_str().unwrap(),
+                "--output",
+                "disparity.pfm",
+                "--preset",
+                "fast",
+                "--server",
+                &address,
+            ],
+        )
     })
     .await
     .unwrap();
@@ -204,16 +203,7 @@ async fn the_server_option_sends_the_frames_to_a_running_service() {
         assert_eq!(d.len(), W * H);
         assert!(d.iter().filter(|v| v.is_finite()).count() > W * H / 2);
     }
-    let nowhere = run(&[
-        "--left",
-        dir.join("left").to_str().unwrap(),
-        "--right",
-        dir.join("right").to_str().unwrap(),
-        "--out",
-        dir.join("out2").to_str().unwrap(),
-        "--server",
-        "http://127.0.0.1:1",
-    ]);
+    let nowhere = run(&dir, "out2", &["--server", "http://127.0.0.1:1"]);
     let said = String::from_utf8_lossy(&nowhere.stderr).into_owned();
     assert_eq!(nowhere.status.code(), Some(1), "{said}");
     assert!(
