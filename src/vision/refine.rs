@@ -5,6 +5,7 @@
 //! Invalid pixels are `f32::NAN` throughout.
 
 use super::Subpixel;
+use super::cost::LANES;
 
 /// The winners of one row of the volume.
 pub struct Winners {
@@ -68,18 +69,28 @@ crate::dispatch! {
             if total.is_empty() {
                 continue;
             }
-            let (best, best_k) = argmin(total);
             let reach = (x + 1).saturating_sub(first).min(total.len());
-            if reach > 0 {
-                let start = width - 1 - x + first;
-                keep_smaller(
+            let start = width - 1 - x + first;
+            let (best, best_k, second) = if reach == total.len() && reach.is_multiple_of(LANES) {
+                // The common case, in one pass over the pixel's registers.
+                scan(
+                    total,
                     &mut right_cost_rev[start..start + reach],
                     &mut right_rev[start..start + reach],
-                    &total[..reach],
                     first as u16,
-                );
-            }
-            let second = min_away_from(total, best_k);
+                )
+            } else {
+                if reach > 0 {
+                    keep_smaller(
+                        &mut right_cost_rev[start..start + reach],
+                        &mut right_rev[start..start + reach],
+                        &total[..reach],
+                        first as u16,
+                    );
+                }
+                let (best, best_k) = argmin(total);
+                (best, best_k, min_away_from(total, best_k))
+            };
             if !unique(best, second, uniqueness) {
                 continue;
             }
@@ -93,12 +104,69 @@ crate::dispatch! {
     }
 }
 
+/// [`argmin`], [`min_away_from`] and [`keep_smaller`] in one pass over `values`, a whole
+/// number of SIMD registers: `(least, its first index, the least more than one index away)`.
+/// Each lane keeps its least value, that value's first index and its second least; the least
+/// more than one index away is then, lane by lane, the lane's least unless that lies within
+/// one index of the winner, and its second least if it does (a lane holds one index in
+/// [`LANES`], so at most one of the winner's three).
+#[inline(always)]
+fn scan(values: &[u16], costs: &mut [u16], winners: &mut [u16], first: u16) -> (u16, usize, u16) {
+    const L: usize = LANES;
+    debug_assert!(values.len().is_multiple_of(L) && costs.len() == values.len());
+    let mut least = [u16::MAX; L];
+    let mut at = [0u16; L];
+    let mut next = [u16::MAX; L];
+    let mut index = [0u16; L];
+    for (i, v) in index.iter_mut().enumerate() {
+        *v = i as u16;
+    }
+    for ((t, c), w) in values
+        .chunks_exact(L)
+        .zip(costs.chunks_exact_mut(L))
+        .zip(winners.chunks_exact_mut(L))
+    {
+        let mut kept = [0u16; L];
+        let mut won = [0u16; L];
+        for i in 0..L {
+            let lower = 0u16.wrapping_sub(u16::from(t[i] < least[i]));
+            next[i] = next[i].min(least[i].max(t[i]));
+            least[i] = least[i].min(t[i]);
+            at[i] = (index[i] & lower) | (at[i] & !lower);
+            // The right image's winners: keep the smaller cost, and its disparity.
+            let smaller = 0u16.wrapping_sub(u16::from(t[i] < c[i]));
+            kept[i] = c[i].min(t[i]);
+            won[i] = ((index[i] + first) & smaller) | (w[i] & !smaller);
+        }
+        c.copy_from_slice(&kept);
+        w.copy_from_slice(&won);
+        for v in &mut index {
+            *v += L as u16;
+        }
+    }
+    let best = least.iter().copied().fold(u16::MAX, u16::min);
+    let mut k = u16::MAX;
+    for i in 0..L {
+        k = k.min(if least[i] == best { at[i] } else { u16::MAX });
+    }
+    let near = k.wrapping_sub(1);
+    let mut second = u16::MAX;
+    for i in 0..L {
+        second = second.min(if at[i].wrapping_sub(near) <= 2 {
+            next[i]
+        } else {
+            least[i]
+        });
+    }
+    (best, usize::from(k), second)
+}
+
 /// The smallest value and its first index, in whole SIMD registers (`(u16::MAX, 0)` when
 /// empty): the least of each lane over the registers, the least of those, then the first
 /// register holding it and the first lane there, from a mask of the lanes equal to it.
 #[inline(always)]
 fn argmin(values: &[u16]) -> (u16, usize) {
-    const L: usize = super::cost::LANES;
+    const L: usize = LANES;
     let whole = values.len() / L * L;
     let mut least = [u16::MAX; L];
     for chunk in values[..whole].chunks_exact(L) {
@@ -132,7 +200,7 @@ fn argmin(values: &[u16]) -> (u16, usize) {
 /// (`u16::MAX` when there is none).
 #[inline(always)]
 fn min_away_from(values: &[u16], k: usize) -> u16 {
-    const L: usize = super::cost::LANES;
+    const L: usize = LANES;
     // `i` is within one of `k` when `i − (k − 1)` (wrapping) is at most 2.
     let near = (k as u16).wrapping_sub(1);
     let mut least = [u16::MAX; L];
@@ -164,7 +232,7 @@ fn min_away_from(values: &[u16], k: usize) -> u16 {
 /// whole SIMD registers.
 #[inline(always)]
 fn keep_smaller(costs: &mut [u16], winners: &mut [u16], totals: &[u16], first: u16) {
-    const L: usize = super::cost::LANES;
+    const L: usize = LANES;
     let mut index = [0u16; L];
     for (i, v) in index.iter_mut().enumerate() {
         *v = first + i as u16;
@@ -369,6 +437,35 @@ mod tests {
                     .min()
                     .unwrap_or(u16::MAX);
                 assert_eq!(min_away_from(&values, k), expected, "len {len} k {k}");
+            }
+        }
+    }
+
+    /// The one-pass scan finds what argmin, the runner-up and the right image's update find
+    /// apart, ties included.
+    #[test]
+    fn one_pass_equals_the_three() {
+        let mut state = 7u64;
+        let mut next = || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 33) as u16
+        };
+        for len in [16usize, 32, 64, 128] {
+            for spread in [4u16, 50, 60000] {
+                for _ in 0..200 {
+                    let values: Vec<u16> = (0..len).map(|_| next() % spread).collect();
+                    let costs: Vec<u16> = (0..len).map(|_| next() % spread).collect();
+                    let winners: Vec<u16> = (0..len).map(|_| next()).collect();
+                    let (mut c1, mut w1) = (costs.clone(), winners.clone());
+                    let (mut c2, mut w2) = (costs.clone(), winners.clone());
+                    let got = scan(&values, &mut c1, &mut w1, 9);
+                    keep_smaller(&mut c2, &mut w2, &values, 9);
+                    let (best, k) = argmin(&values);
+                    assert_eq!(got, (best, k, min_away_from(&values, k)), "{values:?}");
+                    assert_eq!((c1, w1), (c2, w2));
+                }
             }
         }
     }
