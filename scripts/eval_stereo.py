@@ -97,6 +97,14 @@ def score(disp, truth):
     return bad
 
 
+def floors(failures, what):
+    """Ends an evaluation's checks: each of `failures` printed and exit 1, or `what` met."""
+    if failures:
+        print("\n".join(["ACCURACY BELOW THE FLOOR:"] + failures))
+        sys.exit(1)
+    print(f"{what}: met")
+
+
 def sgbm_matcher(mode, block, disparities):
     """OpenCV's StereoSGBM in `mode` with `block`, as the issue sets it."""
     return cv2.StereoSGBM_create(
@@ -648,10 +656,7 @@ def main():
                             interpolation=cv2.INTER_AREA)
         cv2.imwrite(args.figure, figure, [cv2.IMWRITE_PNG_COMPRESSION, 9])
         print(f"figure: {args.figure}")
-    if failures:
-        print("\n".join(["ACCURACY BELOW THE FLOOR:"] + failures))
-        sys.exit(1)
-    print("accuracy floors: met")
+    floors(failures, "accuracy floors")
 
 
 if __name__ == "__main__":

@@ -290,10 +290,7 @@ def main():
                 f"{acc['opencv'][m]:.2f} %"
                 for p in ("accurate", "fast") for m in ("bad1", "nonocc_bad1")
                 if acc[p][m] > acc["opencv"][m]]
-    if failures:
-        print("\n".join(["ACCURACY BELOW THE FLOOR:"] + failures))
-        sys.exit(1)
-    print("stream accuracy floors: met")
+    eval_stereo.floors(failures, "stream accuracy floors")
 
 
 if __name__ == "__main__":

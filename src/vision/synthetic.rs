@@ -78,6 +78,18 @@ pub struct Pair {
     pub visible: Vec<bool>,
 }
 
+impl Pair {
+    /// The true disparities of the left pixels the right camera sees too, in row order.
+    pub fn seen_truth(&self) -> Vec<f32> {
+        self.truth
+            .iter()
+            .zip(&self.visible)
+            .filter(|(_, seen)| **seen)
+            .map(|(d, _)| *d)
+            .collect()
+    }
+}
+
 /// The weights of Catmull-Rom's cubic (OpenCV's `INTER_CUBIC` kernel, a = −0.5) for the four
 /// samples around a point `t` (in [0, 1)) past the second of them: how the tests upscale an
 /// image into one smooth over several pixels.

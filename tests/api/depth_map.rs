@@ -136,13 +136,7 @@ async fn the_summary_agrees_with_the_truth() {
     );
     // The 28 px band on the left that the right camera cannot see, and the occlusions.
     assert!(body["valid_fraction"].as_f64().unwrap() > 0.8, "{body}");
-    let mut truth: Vec<f32> = pair
-        .truth
-        .iter()
-        .zip(&pair.visible)
-        .filter(|(_, seen)| **seen)
-        .map(|(d, _)| *d)
-        .collect();
+    let mut truth = pair.seen_truth();
     truth.sort_by(f32::total_cmp);
     let median = f64::from(truth[truth.len() / 2]);
     let got = body["disparity_px"]["median"].as_f64().unwrap();

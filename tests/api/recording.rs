@@ -121,17 +121,7 @@ fn a_folder_becomes_depth_maps_and_a_rerun_skips_them() {
         !said.contains('\r') && !said.contains("frames/s  "),
         "a bar in a pipe: {said:?}"
     );
-    let truth = {
-        let p = pair();
-        let seen: Vec<f32> = p
-            .truth
-            .iter()
-            .zip(&p.visible)
-            .filter(|(_, v)| **v)
-            .map(|(d, _)| *d)
-            .collect();
-        median(&seen)
-    };
+    let truth = median(&pair().seen_truth());
     let mut written = Vec::new();
     for n in 1..=3 {
         let path = out.join(format!("000{n}.depth.npy"));
