@@ -38,7 +38,8 @@
 //!   - [`vision`]: the matcher, the heavy group's engine: its parameters checked by
 //!     `vision::Params::new` (the one set of defaults, and the search range's arithmetic),
 //!     census costs, SGM, refinement (coarse to fine through `vision::pyramid` for ranges
-//!     over 64), `/match`'s correspondences, decoding and encoding.
+//!     over 64), each disparity's σ (`vision::sigma`), `/match`'s correspondences, decoding
+//!     and encoding.
 //!     Remapping raw frames through rectification maps (`vision::remap`) lives here,
 //!     used by `/rectify` and by the raw pairs of `/depth-map` and `/match`, and the check
 //!     that a pair sent as rectified has its rows in line (`vision::rows`).

@@ -66,6 +66,52 @@ fn layered_planes_are_matched() {
     assert!(s.median_error < 0.12, "{s:?}");
 }
 
+/// σ_d on rendered planes (with noise, so that the matcher errs somewhere): it is never
+/// optimistic (at least 68 % of the valid pixels lie within it; renders are easier than the
+/// real images it was fitted on, docs/matcher.md), and it sorts: the surer half of the pixels
+/// errs less than the other, and mismatches (beyond 1 px) sit in the less sure half.
+#[test]
+fn sigma_is_not_optimistic_and_sorts_the_pixels() {
+    let pair = synthetic::render(&Scene {
+        noise: 0.04,
+        ..synthetic::layered(320, 240)
+    });
+    let (map, _) =
+        vision::disparity(&pair.left, &pair.right, &params(), &AtomicBool::new(false)).unwrap();
+    let mut seen: Vec<(f32, f32)> = map
+        .data
+        .iter()
+        .zip(&map.std)
+        .zip(&pair.truth)
+        .zip(&pair.visible)
+        .filter(|(((d, _), _), v)| **v && !d.is_nan())
+        .map(|(((d, s), t), _)| ((d - t).abs(), *s))
+        .collect();
+    assert!(seen.iter().all(|(_, s)| s.is_finite() && *s > 0.0));
+    let within = seen.iter().filter(|(e, s)| e <= s).count();
+    assert!(
+        within * 100 >= seen.len() * 68,
+        "{within} of {}",
+        seen.len()
+    );
+    seen.sort_by(|a, b| a.1.total_cmp(&b.1));
+    let (surer, rest) = seen.split_at(seen.len() / 2);
+    let mean = |v: &[(f32, f32)]| v.iter().map(|p| p.0).sum::<f32>() / v.len() as f32;
+    assert!(
+        mean(surer) < mean(rest),
+        "{} against {}",
+        mean(surer),
+        mean(rest)
+    );
+    let bad = |v: &[(f32, f32)]| v.iter().filter(|p| p.0 > 1.0).count();
+    assert!(
+        bad(rest) > 2 * bad(surer),
+        "{} against {}",
+        bad(rest),
+        bad(surer)
+    );
+}
+
 /// A right camera with 30 % less gain and an offset changes nothing that matters: the census
 /// compares orderings, not levels.
 #[test]

@@ -17,6 +17,7 @@ from stereo_distance_client import Client
 from stereo_distance_client.api.calibration import post_calibration
 from stereo_distance_client.api.chart import get_chart_data_csv, get_chart_svg
 from stereo_distance_client.api.distance import get_distance, post_distance
+from stereo_distance_client.api.images import post_depth_map, post_match
 from stereo_distance_client.api.planning import get_rig
 from stereo_distance_client.api.table import post_table, post_table_csv
 from stereo_distance_client.models import (
@@ -24,8 +25,13 @@ from stereo_distance_client.models import (
     BatchDistanceResponse,
     BatchPoint,
     CalibrationResponse,
+    DepthMapForm,
+    DepthMapSummary,
     DistanceResponse,
     FormatChoice,
+    MatchForm,
+    MatchPoint,
+    MatchResponse,
     Problem,
     RigResponse,
     StereoRig,
@@ -126,6 +132,28 @@ def main(base):
     check(isinstance(calibration, CalibrationResponse), f"POST /calibration answered {calibration!r}")
     close(calibration.rig.focal_length_px, 3979.911, "calibrated focal length")
     print(f"calibration: {calibration.format_.value}, f = {calibration.rig.focal_length_px} px")
+
+    # A depth map of the page's sample pair with its Middlebury file: the summary's σ of the
+    # disparities and depths (each pixel's standard deviation), then a point's match with its σ.
+    sample = {name: client.get_httpx_client().get(f"/sample/{name}").content
+              for name in ("left.png", "right.png", "calib.txt")}
+    files = lambda: dict(  # noqa: E731
+        left=File(payload=io.BytesIO(sample["left.png"]), file_name="left.png", mime_type="image/png"),
+        right=File(payload=io.BytesIO(sample["right.png"]), file_name="right.png", mime_type="image/png"),
+        calibration=File(payload=io.BytesIO(sample["calib.txt"]), file_name="calib.txt"),
+    )
+    summary = post_depth_map.sync(client=client, body=DepthMapForm(**files()))
+    check(isinstance(summary, DepthMapSummary), f"POST /depth-map answered {summary!r}")
+    sd, sz = summary.disparity_std_px, summary.distance_std
+    check(0 < sd.min_ <= sd.median <= sd.max_ and 0 < sz.median, f"sigma spreads {sd!r} {sz!r}")
+    print(f"depth map: {summary.valid_fraction:.1%} valid, median sigma_d {sd.median} px, "
+          f"median sigma_Z {sz.median} mm")
+    matched = post_match.sync(client=client, body=MatchForm(**files(), points=[MatchPoint(x=100, y=100)]))
+    check(isinstance(matched, MatchResponse), f"POST /match answered {matched!r}")
+    point = matched.matches[0]
+    check(point.disparity_std_px > 0 and point.distance_std > 0, f"the point's sigma: {point!r}")
+    print(f"match: d = {point.disparity_px} ± {point.disparity_std_px} px, "
+          f"Z = {point.distance:.1f} ± {point.distance_std:.1f} mm")
 
     # A refused request: the problem+json, parsed, naming the field.
     response = get_distance.sync_detailed(

@@ -317,8 +317,14 @@ impl Rig {
     /// The depth error's terms at `distance`: the disparity's `Z²·Δd / (f_px·B)`, the focal
     /// length's `Z·σ_f / f` and the baseline's `Z·σ_B / B`.
     pub fn depth_error_terms_at(&self, distance: f64) -> DepthErrorTerms {
+        self.depth_error_terms_with(distance, self.disparity_error_px())
+    }
+
+    /// The depth error's terms at `distance` for a disparity known to `disparity_std_px` (a
+    /// depth map's σ_d at that pixel): `Z²·σ_d / (f_px·B)`, `Z·σ_f / f` and `Z·σ_B / B`.
+    pub fn depth_error_terms_with(&self, distance: f64, disparity_std_px: f64) -> DepthErrorTerms {
         DepthErrorTerms {
-            disparity: distance * distance * self.disparity_error_px() / self.fb(),
+            disparity: distance * distance * disparity_std_px / self.fb(),
             focal_length: distance * self.focal_std_px / self.focal_px(),
             baseline: distance * self.baseline_std / self.baseline,
         }

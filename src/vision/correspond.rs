@@ -82,6 +82,9 @@ pub struct Found {
     /// neighbourhood that agrees within a pixel, times the texture; halved when `status` is not
     /// `Ok`, 0 without a disparity.
     pub confidence: f32,
+    /// The standard deviation of `disparity`, in pixels ([`super::sigma`]): the map's σ_d
+    /// where the disparity is the map's, else the winner's with its neighbourhood.
+    pub disparity_std: Option<f32>,
 }
 
 /// A box in the left image, in pixels: columns `x0..x1`, rows `y0..y1`.
@@ -138,6 +141,7 @@ pub fn correspond(
         .collect();
     needed.sort_by_key(|r| r.start);
     let mut map = vec![f32::NAN; w * h];
+    let mut std = vec![f32::NAN; w * h];
     let mut probes: Vec<Vec<Probe>> = vec![Vec::new(); h];
     let mut timings = Timings::default();
     let mut rows_matched = 0;
@@ -169,6 +173,7 @@ pub fn correspond(
         let (part, t, found) = result?;
         let rows = keep.start - band.start..keep.end - band.start;
         map[keep.start * w..keep.end * w].copy_from_slice(&part.data[rows.start * w..rows.end * w]);
+        std[keep.start * w..keep.end * w].copy_from_slice(&part.std[rows.start * w..rows.end * w]);
         for (y, row) in found
             .into_iter()
             .enumerate()
@@ -187,6 +192,7 @@ pub fn correspond(
         width: w,
         height: h,
         data: map,
+        std,
     };
     // Each row's probes, taken in the order the points were pushed.
     let mut next = vec![0usize; h];
@@ -198,11 +204,12 @@ pub fn correspond(
                     status: MatchOutcome::OutsideImage,
                     disparity: None,
                     confidence: 0.0,
+                    disparity_std: None,
                 };
             };
             let probe = probes[y].get(next[y]).copied();
             next[y] += 1;
-            judge(left, &map, params, x, y, probe)
+            judge(left, &map, (params, seen.stride), x, y, probe)
         })
         .collect();
     Ok(Correspondences {
@@ -238,10 +245,11 @@ pub fn bands(needed: &[Range<usize>], height: usize) -> Vec<(Range<usize>, Range
 }
 
 /// A point's status, disparity and confidence from what the matcher saw there.
+/// `stride` is the pair's census stride ([`super::PairNoise`]), which scales the winner's σ.
 fn judge(
     left: &Gray,
     map: &Disparity,
-    params: &Params,
+    (params, stride): (&Params, usize),
     x: usize,
     y: usize,
     probe: Option<Probe>,
@@ -250,6 +258,7 @@ fn judge(
         status,
         disparity: None,
         confidence: 0.0,
+        disparity_std: None,
     };
     let w = map.width as i64;
     let count = params.count as i64;
@@ -281,11 +290,22 @@ fn judge(
     } else {
         MatchOutcome::Ok
     };
-    let disparity = match status {
-        MatchOutcome::Ambiguous | MatchOutcome::Occluded | MatchOutcome::OutOfRange => raw,
-        _ if filtered.is_nan() => raw,
-        _ => filtered,
+    let (disparity, disparity_std) = match status {
+        MatchOutcome::Ambiguous | MatchOutcome::Occluded | MatchOutcome::OutOfRange => (raw, None),
+        _ if filtered.is_nan() => (raw, None),
+        _ => (filtered, Some(map.std[y * map.width + x])),
     };
+    // A winner the map does not hold: its own σ, with the neighbourhood it would have had.
+    let disparity_std = disparity_std.unwrap_or_else(|| {
+        let cue = super::refine::Cue {
+            best: probe.best,
+            second: probe.second,
+            curvature: probe.curvature,
+        };
+        let variance =
+            super::sigma::winner_variance(cue, probe.subpixel, probe.disagreement, stride);
+        super::sigma::at(&map.data, map.width, (x, y), raw, variance)
+    });
     let margin = f32::from(probe.second.saturating_sub(probe.best)) / f32::from(probe.best.max(1));
     let mut confidence =
         (margin / MARGIN_FULL).min(1.0) * agree * (texture / (4.0 * TEXTURE_MIN)).min(1.0);
@@ -296,6 +316,7 @@ fn judge(
         status,
         disparity: Some(disparity),
         confidence: confidence.clamp(0.0, 1.0),
+        disparity_std: Some(disparity_std),
     }
 }
 
@@ -361,19 +382,35 @@ fn near_edge(map: &Disparity, x: usize, y: usize, d: f32) -> bool {
         .any(|v| (v - d).abs() > EDGE_STEP)
 }
 
-/// The valid disparities of the map inside `rect` (clipped to the map), and how many pixels of
-/// the map the clipped box covers.
-pub fn in_box(map: &Disparity, rect: Rect) -> (Vec<f32>, usize) {
+/// The valid disparities of the map inside `rect` (clipped to the map) with each one's σ_d,
+/// and how many pixels of the map the clipped box covers.
+pub fn in_box(map: &Disparity, rect: Rect) -> (Vec<(f32, f32)>, usize) {
     let (x1, y1) = (rect.x1.min(map.width), rect.y1.min(map.height));
     let mut values = Vec::new();
     let mut pixels = 0;
     for y in rect.y0.min(y1)..y1 {
-        let row = &map.data[y * map.width..(y + 1) * map.width];
-        let cells = &row[rect.x0.min(x1)..x1];
+        let cells = y * map.width + rect.x0.min(x1)..y * map.width + x1;
         pixels += cells.len();
-        values.extend(cells.iter().copied().filter(|d| !d.is_nan()));
+        values.extend(
+            map.data[cells.clone()]
+                .iter()
+                .zip(&map.std[cells])
+                .filter(|(d, _)| !d.is_nan())
+                .map(|(&d, &s)| (d, s)),
+        );
     }
     (values, pixels)
+}
+
+/// The pixels over which a map's errors go together: a census window's (neighbours share most
+/// of their windows, hence most of their errors).
+pub const CORRELATED_PIXELS: usize = super::census::WIDTH * super::census::HEIGHT;
+
+/// σ_d of the median of `n` disparities whose own σ_d have the median `median_std`: a median's
+/// 1.2533 σ / √n for `n / CORRELATED_PIXELS` independent values (at least one).
+pub fn median_std(median_std: f32, n: usize) -> f32 {
+    let independent = (n as f32 / CORRELATED_PIXELS as f32).max(1.0);
+    1.2533 * median_std / independent.sqrt()
 }
 
 #[cfg(test)]
@@ -458,6 +495,7 @@ mod tests {
                 11.0,
                 12.0,
             ],
+            std: vec![0.2; 12],
         };
         let (values, pixels) = in_box(
             &map,
@@ -468,7 +506,21 @@ mod tests {
                 y1: 2,
             },
         );
-        assert_eq!(values, vec![2.0, 4.0, 6.0, 7.0, 8.0]);
+        assert_eq!(
+            values.iter().map(|v| v.0).collect::<Vec<_>>(),
+            vec![2.0, 4.0, 6.0, 7.0, 8.0]
+        );
+        assert!(values.iter().all(|v| v.1 == 0.2));
         assert_eq!(pixels, 6);
+    }
+
+    /// A median over one census window knows no more than a pixel does (times the median's
+    /// 1.2533); over many windows, √ of their count less.
+    #[test]
+    fn a_median_knows_more_over_more_windows() {
+        assert!((median_std(0.4, 10) - 1.2533 * 0.4).abs() < 1e-6);
+        let windows = 16;
+        let many = median_std(0.4, windows * CORRELATED_PIXELS);
+        assert!((many - 1.2533 * 0.4 / 4.0).abs() < 1e-6);
     }
 }

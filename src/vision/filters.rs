@@ -362,7 +362,21 @@ fn median9(mut p: [f32; 9]) -> f32 {
 /// right on its row (the background, in an occlusion), as Middlebury's evaluation does. A row
 /// with no valid pixel stays invalid.
 pub fn fill(disparity: &mut [f32], width: usize) {
-    for row in disparity.chunks_exact_mut(width) {
+    fill_noting(disparity, width, |_, _, _| {});
+}
+
+/// [`fill`], also setting each filled pixel's σ_d in `std` (the same layout) from the values
+/// it chose between ([`super::sigma::filled`]).
+pub fn fill_with_std(disparity: &mut [f32], std: &mut [f32], width: usize) {
+    fill_noting(disparity, width, |i, left, right| {
+        std[i] = super::sigma::filled(left, right);
+    });
+}
+
+/// [`fill`], telling `filled` each filled pixel's index with the nearest valid values to its
+/// left and right on the row (NaN where there is none).
+fn fill_noting(disparity: &mut [f32], width: usize, mut filled: impl FnMut(usize, f32, f32)) {
+    for (y, row) in disparity.chunks_exact_mut(width).enumerate() {
         let mut left_valid = vec![f32::NAN; width];
         let mut last = f32::NAN;
         for (x, &d) in row.iter().enumerate() {
@@ -383,6 +397,9 @@ pub fn fill(disparity: &mut [f32], width: usize) {
                 (true, false) => next,
                 (true, true) => f32::NAN,
             };
+            if !row[x].is_nan() {
+                filled(y * width + x, left_valid[x], next);
+            }
         }
     }
 }

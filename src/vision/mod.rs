@@ -49,6 +49,7 @@ pub mod refine;
 pub mod remap;
 pub mod rows;
 pub mod sgm;
+pub mod sigma;
 pub mod simd;
 pub mod synthetic;
 
@@ -97,12 +98,15 @@ pub enum Subpixel {
     Equiangular,
 }
 
-/// A dense disparity map: one value a pixel, in pixels (`x_left − x_right`), NaN where invalid.
+/// A dense disparity map: one value a pixel, in pixels (`x_left − x_right`), NaN where invalid,
+/// with each value's standard deviation ([`sigma`]).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Disparity {
     pub width: usize,
     pub height: usize,
     pub data: Vec<f32>,
+    /// σ_d of each value, in pixels; NaN where the value is.
+    pub std: Vec<f32>,
 }
 
 /// How long each stage took, in wall time: the stripes run side by side (and in waves when
@@ -158,10 +162,10 @@ pub fn stripes(height: usize, rows: usize) -> Vec<(Range<usize>, Range<usize>)> 
 }
 
 /// The bytes the matcher holds at its peak for a `width × height` pair searching `count`
-/// disparities, over the levels of its pyramid ([`pyramid`]): 32 bytes a pixel of the finest
+/// disparities, over the levels of its pyramid ([`pyramid`]): 40 bytes a pixel of the finest
 /// level for the per-pixel buffers of whichever level is being matched (census signatures,
-/// the stripes' rows, the coarser level's prior and images; the disparity map and the filters'
-/// copies after them), and, for the level whose stripes hold the most, each stripe in flight at
+/// the stripes' rows, the coarser level's prior and images; the disparity map, its winners'
+/// variances and σ, and the filters' copies after them), and, for the level whose stripes hold the most, each stripe in flight at
 /// once (one a core): its cost volume (one byte a cell), the first pass's sums (two bytes a
 /// cell) and its windows (six bytes a pixel, eight counted). Below the coarsest level a pixel's
 /// window holds at most [`pyramid::MAX_WINDOW`] cells, whatever the range.
@@ -191,7 +195,7 @@ pub fn bytes_needed(width: usize, height: usize, count: usize) -> usize {
     }
     width
         .saturating_mul(height)
-        .saturating_mul(32)
+        .saturating_mul(40)
         .saturating_add(stripes_peak)
 }
 
@@ -218,6 +222,11 @@ pub struct Probe {
     /// The winner's aggregated cost, and the least cost more than one index away from it.
     pub best: u16,
     pub second: u16,
+    /// The curvature of the aggregated costs at the winner ([`refine::Cue`]).
+    pub curvature: u16,
+    /// How far the right image's winner at the match lies from the winner, in pixels
+    /// ([`refine::disagreement`]).
+    pub disagreement: f32,
     /// Whether the winner passes the uniqueness test.
     pub unique: bool,
     /// Whether the winner passes the left-right check (true when the check is off).
@@ -388,6 +397,7 @@ fn level(
             let features = Features {
                 census: (&cl, &cr),
                 levels: (&gl, &gr),
+                stride: seen.stride,
             };
             match_stripe(
                 features,
@@ -402,11 +412,13 @@ fn level(
         .collect();
     let stripes_time = started.elapsed();
     let mut data = Vec::with_capacity(w * h);
+    let mut variance = Vec::with_capacity(w * h);
     let mut summed = Timings::default();
     let mut probes = Vec::with_capacity(wanted.len());
     for stripe in matched {
-        let (rows, t, found) = stripe?;
+        let (rows, variances, t, found) = stripe?;
         data.extend_from_slice(&rows);
+        variance.extend_from_slice(&variances);
         probes.extend(found);
         summed.add(t);
     }
@@ -420,8 +432,10 @@ fn level(
     if params.median {
         data = filters::median(&data, w);
     }
+    let mut std = sigma::map(&data, &variance, w);
+    drop(variance);
     if params.fill {
-        filters::fill(&mut data, w);
+        filters::fill_with_std(&mut data, &mut std, w);
     }
     let min = params.min_disparity as f32;
     for d in &mut data {
@@ -434,6 +448,7 @@ fn level(
             width: w,
             height: h,
             data,
+            std,
         },
         timings,
         probes,
@@ -468,8 +483,9 @@ impl Timings {
     }
 }
 
-/// A matched stripe: its kept rows' disparities, its stage times, and its rows' probes.
-type Stripe = (Vec<f32>, Timings, Vec<Vec<Probe>>);
+/// A matched stripe: its kept rows' disparities and their winners' variances
+/// ([`sigma::winner_variance`]), its stage times, and its rows' probes.
+type Stripe = (Vec<f32>, Vec<f32>, Timings, Vec<Vec<Probe>>);
 
 /// The pixels to probe (`wanted[y]`, by image row) and the rows a stripe keeps.
 #[derive(Clone, Copy)]
@@ -479,11 +495,13 @@ struct Probing<'a> {
 }
 
 /// What the cost compares of both images, pixel by pixel: their census signatures and their
-/// 8-bit grey levels.
+/// 8-bit grey levels; and the pixels between the census's samples, the scale the pair is
+/// smooth over (which scales each winner's σ, [`sigma::winner_variance`]).
 #[derive(Clone, Copy)]
 struct Features<'a> {
     census: (&'a [u64], &'a [u64]),
     levels: (&'a [u8], &'a [u8]),
+    stride: usize,
 }
 
 /// One stripe: the cost volume over each pixel's window (from `prior`, or the whole range) and
@@ -494,6 +512,7 @@ fn match_stripe(
     Features {
         census: (cl, cr),
         levels: (gl, gr),
+        stride,
     }: Features,
     guide: &Gray,
     context: &Range<usize>,
@@ -522,6 +541,7 @@ fn match_stripe(
 
     let started = Instant::now();
     let mut out = vec![f32::NAN; kept.len() * w];
+    let mut variance = vec![f32::NAN; kept.len() * w];
     let mut probes = vec![Vec::new(); kept.len()];
     let mut choosing = Duration::ZERO;
     let first = kept.start - context.start;
@@ -550,15 +570,27 @@ fn match_stripe(
                     .map(|&x| refine::probe(totals, windows, census, (x, y), params, &won.right))
                     .collect();
             }
+            let row = (y - first) * w..(y - first + 1) * w;
+            for (x, ((v, &d), &cue)) in variance[row.clone()]
+                .iter_mut()
+                .zip(&won.left)
+                .zip(&won.cues)
+                .enumerate()
+            {
+                if !d.is_nan() {
+                    let disagreement = refine::disagreement(&won.right, x, d);
+                    *v = sigma::winner_variance(cue, d, disagreement, stride);
+                }
+            }
             if let Some(tolerance) = params.lr_tolerance {
                 refine::left_right(&mut won.left, &won.right, tolerance);
             }
-            out[(y - first) * w..(y - first + 1) * w].copy_from_slice(&won.left);
+            out[row].copy_from_slice(&won.left);
             choosing += chose.elapsed();
         },
     )?;
     huge_pages::BYTES.give(volume.data);
     timings.aggregate = started.elapsed().saturating_sub(choosing);
     timings.refine = choosing;
-    Ok((out, timings, probes))
+    Ok((out, variance, timings, probes))
 }

@@ -224,6 +224,7 @@ mod tests {
             &Disparity {
                 width: cw,
                 height: ch,
+                std: vec![0.2; cw * ch],
                 data,
             },
             0,

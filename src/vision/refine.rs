@@ -14,6 +14,18 @@ pub struct Winners {
     pub left: Vec<f32>,
     /// The right image's integer disparity of each pixel (index into the range), or `u16::MAX`.
     pub right: Vec<u16>,
+    /// What each pixel's cost curve says of its winner (unique or not), for its σ.
+    pub cues: Vec<Cue>,
+}
+
+/// What a winner's aggregated cost curve says of it: the least cost, the least more than one
+/// index away, and the curvature at the least (the neighbours' sum less twice the least; one
+/// neighbour doubled at the range's ends).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Cue {
+    pub best: u16,
+    pub second: u16,
+    pub curvature: u16,
 }
 
 /// The windows of one row of the volume: each pixel's first index into the range, and the
@@ -64,7 +76,8 @@ crate::dispatch! {
         // run.
         let mut right_rev = vec![u16::MAX; width];
         let mut right_cost_rev = vec![u16::MAX; width];
-        for (x, out) in left.iter_mut().enumerate() {
+        let mut cues = vec![Cue::default(); width];
+        for ((x, out), cue) in left.iter_mut().enumerate().zip(cues.iter_mut()) {
             let (first, total) = windows.totals(totals, x, count);
             if total.is_empty() {
                 continue;
@@ -91,6 +104,11 @@ crate::dispatch! {
                 let (best, best_k) = argmin(total);
                 (best, best_k, min_away_from(total, best_k))
             };
+            *cue = Cue {
+                best,
+                second,
+                curvature: curvature(total, best_k),
+            };
             if !unique(best, second, uniqueness) {
                 continue;
             }
@@ -100,6 +118,7 @@ crate::dispatch! {
         Winners {
             left,
             right: right_rev,
+            cues,
         }
     }
 }
@@ -352,6 +371,8 @@ pub fn probe(
         subpixel,
         best,
         second,
+        curvature: curvature(total, k),
+        disagreement: disagreement(right, x, subpixel),
         unique: unique(best, second, params.uniqueness),
         consistent,
         window_cost: mean(window[index.min(count - 1)]),
@@ -374,6 +395,19 @@ pub fn left_right(left: &mut [f32], right: &[u16], tolerance: f32) {
     }
 }
 
+/// How far the right image's winner at the match of left pixel `x` (disparity `d`) lies from
+/// `d`, in pixels (infinite where the right image has no winner there).
+pub fn disagreement(right: &[u16], x: usize, d: f32) -> f32 {
+    let xr = (x as f32 - d).round();
+    if xr < 0.0 {
+        return f32::INFINITY;
+    }
+    match right.get(xr as usize) {
+        Some(&r) if r != u16::MAX => (f32::from(r) - d).abs(),
+        _ => f32::INFINITY,
+    }
+}
+
 /// Whether the right image's winner at the match of left pixel `x` (disparity `d`) agrees
 /// with `d` within `tolerance` (disparities as indices into the range).
 #[inline(always)]
@@ -383,6 +417,25 @@ fn agrees(right: &[u16], x: usize, d: f32, tolerance: f32) -> bool {
         && right
             .get(xr as usize)
             .is_some_and(|&r| r != u16::MAX && (f32::from(r) - d).abs() <= tolerance)
+}
+
+/// The curvature of `total` at its least `k`: `total[k − 1] + total[k + 1] − 2 total[k]`, the
+/// one neighbour there is doubled at an end, 0 for a single cell or none.
+#[inline(always)]
+fn curvature(total: &[u16], k: usize) -> u16 {
+    let Some(&at) = total.get(k) else {
+        return 0;
+    };
+    let at = u32::from(at);
+    let before = k.checked_sub(1).map(|i| u32::from(total[i]));
+    let after = total.get(k + 1).map(|&v| u32::from(v));
+    let (b, a) = match (before, after) {
+        (Some(b), Some(a)) => (b, a),
+        (Some(b), None) => (b, b),
+        (None, Some(a)) => (a, a),
+        (None, None) => (at, at),
+    };
+    (b + a).saturating_sub(2 * at).min(u32::from(u16::MAX)) as u16
 }
 
 /// The uniqueness test: the best cost beats `second` (the least more than one index away) by

@@ -9,7 +9,7 @@ use stereo_distance::{
     Config,
     config::HeavyLimits,
     vision::{
-        encode,
+        encode, sigma,
         synthetic::{self, Pair},
     },
 };
@@ -156,8 +156,9 @@ async fn the_summary_agrees_with_the_truth() {
 }
 
 /// Each output is what its tools read: PFM bottom-up with +inf holes, NPY (the same values),
-/// KITTI's round(d·256), depth NPY and millimetre PNG (Z = B·f / d), a preview the size of the
-/// images, and a PLY with one vertex per valid depth.
+/// KITTI's round(d·256), depth NPY and millimetre PNG (Z = B·f / d), σ_d as NPY and PFM (valid
+/// exactly where the disparity is, at least the model's floor), σ_Z = Z²·σ_d / (f·B), the NPZ
+/// of all of them, a preview the size of the images, and a PLY with one vertex per valid depth.
 #[tokio::test]
 async fn every_output_reads_back() {
     let app = spawn_app().await;
@@ -168,6 +169,9 @@ async fn every_output_reads_back() {
         "disparity.npy",
         "disparity.png",
         "depth.npy",
+        "disparity_std.npy",
+        "disparity_std.pfm",
+        "depth_std.npy",
         "arrays.npz",
         "depth.png",
         "preview.png",
@@ -232,20 +236,55 @@ async fn every_output_reads_back() {
         }
     }
 
-    // NPZ: the same disparity and depth arrays, and the depth error Z²·Δd / (f·B) with the
-    // default Δd = 0.5 px (f·B = 50 000).
-    let arrays = npz_entries(&files["arrays.npz"]);
-    let names: Vec<&str> = arrays.iter().map(|(n, _)| n.as_str()).collect();
-    assert_eq!(names, ["disparity.npy", "depth.npy", "depth_error.npy"]);
-    assert_eq!(arrays[0].1, files["disparity.npy"]);
-    assert_eq!(arrays[1].1, files["depth.npy"]);
-    for (e, z) in npy(&arrays[2].1).iter().zip(&depth) {
+    // σ_d: where the disparity is valid and nowhere else, never below the model's floor, and
+    // mostly under a pixel on this clean pair; the PFM holds the same values bottom-up.
+    let std = npy(&files["disparity_std.npy"]);
+    for (s, d) in std.iter().zip(&disparity) {
+        assert_eq!(s.is_nan(), d.is_nan());
+        assert!(s.is_nan() || *s >= sigma::MODEL.floor - 1e-6, "{s}");
+    }
+    let mut sure: Vec<f32> = std.iter().copied().filter(|s| !s.is_nan()).collect();
+    sure.sort_by(f32::total_cmp);
+    assert!(
+        sure[sure.len() / 2] < 0.5,
+        "median σ_d {}",
+        sure[sure.len() / 2]
+    );
+    let std_pfm = floats(&files["disparity_std.pfm"][header.len()..]);
+    for y in 0..H {
+        for x in 0..W {
+            let (p, n) = (std_pfm[(H - 1 - y) * W + x], std[y * W + x]);
+            assert!(p == n || (p.is_infinite() && n.is_nan()), "({x}, {y})");
+        }
+    }
+    // σ_Z = Z²·σ_d / (f·B), f·B = 50 000, the rig having no σ_f or σ_B.
+    let depth_std = npy(&files["depth_std.npy"]);
+    for ((e, z), s) in depth_std.iter().zip(&depth).zip(&std) {
         if z.is_nan() {
             assert!(e.is_nan());
         } else {
-            assert!((e - z * z * 0.5 / 50_000.0).abs() <= 1e-4 * e, "{e} at {z}");
+            assert!((e - z * z * s / 50_000.0).abs() <= 1e-4 * e, "{e} at {z}");
         }
     }
+
+    // NPZ: the same arrays, and `depth_error` the same σ_Z under its earlier name.
+    let arrays = npz_entries(&files["arrays.npz"]);
+    let names: Vec<&str> = arrays.iter().map(|(n, _)| n.as_str()).collect();
+    assert_eq!(
+        names,
+        [
+            "disparity.npy",
+            "disparity_std.npy",
+            "depth.npy",
+            "depth_std.npy",
+            "depth_error.npy"
+        ]
+    );
+    assert_eq!(arrays[0].1, files["disparity.npy"]);
+    assert_eq!(arrays[1].1, files["disparity_std.npy"]);
+    assert_eq!(arrays[2].1, files["depth.npy"]);
+    assert_eq!(arrays[3].1, files["depth_std.npy"]);
+    assert_eq!(arrays[4].1, files["depth_std.npy"]);
 
     let preview = image::load_from_memory(&files["preview.png"])
         .unwrap()
@@ -271,6 +310,53 @@ async fn every_output_reads_back() {
     assert!((xyz[2] - z).abs() < 1e-3 * z);
     assert!((xyz[0] - (x - 80.0) * z / 500.0).abs() < 1e-2);
     assert!((xyz[1] - (y - 60.0) * z / 500.0).abs() < 1e-2);
+}
+
+/// The summary's σ medians are those of the σ files (as numpy.nanmedian takes them), and a
+/// rig's σ_f and σ_B reach every pixel's σ_Z: σ_Z² = (Z²·σ_d / (f·B))² + (Z·σ_f / f)² +
+/// (Z·σ_B / B)².
+#[tokio::test]
+async fn sigma_reaches_the_summary_and_takes_the_rigs_calibration() {
+    let app = spawn_app().await;
+    let pair = pair();
+    let calibrated = json!({"focal_length_px": 500, "baseline": 100, "unit": "mm",
+                            "focal_length_std_px": 2.5, "baseline_std": 0.4});
+    let mut files = Vec::new();
+    for output in ["summary", "disparity_std.npy", "depth.npy", "depth_std.npy"] {
+        let response = depth_map(
+            &app,
+            &format!("?max_disparity=48&output={output}"),
+            form(&pair, &[("rig", calibrated.to_string())]),
+        )
+        .await;
+        assert_eq!(response.status(), 200, "{output}");
+        files.push(response.bytes().await.unwrap().to_vec());
+    }
+    let summary: Value = serde_json::from_slice(&files[0]).unwrap();
+    let (std, depth, depth_std) = (npy(&files[1]), npy(&files[2]), npy(&files[3]));
+    let median = |member: &str| summary[member]["median"].as_f64().unwrap();
+    assert!(
+        (median("disparity_std_px") - nanmedian(&std)).abs() < 1e-4,
+        "{summary}"
+    );
+    assert!(
+        (median("distance_std") - nanmedian(&depth_std)).abs() < 1e-4 * median("distance_std"),
+        "{summary}"
+    );
+    for ((e, z), s) in depth_std.iter().zip(&depth).zip(&std) {
+        if z.is_nan() {
+            assert!(e.is_nan());
+            continue;
+        }
+        let expected = ((z * z * s / 50_000.0).powi(2)
+            + (z * 2.5 / 500.0).powi(2)
+            + (z * 0.4 / 100.0).powi(2))
+        .sqrt();
+        assert!(
+            (e - expected).abs() <= 1e-4 * expected,
+            "{e} against {expected}"
+        );
+    }
 }
 
 /// A Middlebury calib.txt gives the rig and, by its ndisp, the search range.
@@ -463,6 +549,31 @@ async fn options_out_of_range_are_named() {
     )
     .await;
     assert!(message_for(&body, "max_disparity").contains("at most 512"));
+}
+
+/// A fill that is neither true nor false, and a σ output asked of a route that has none
+/// (`/rectify` answers images, `/match` answers points and takes no `output`), are each a 422
+/// naming the parameter.
+#[tokio::test]
+async fn sigma_outputs_and_fill_are_checked_per_route() {
+    let app = spawn_app().await;
+    let body = problem(
+        depth_map(&app, "?fill=maybe", form(&pair(), &[])).await,
+        422,
+    )
+    .await;
+    assert_names(&body, &["fill"]);
+    for route in ["rectify", "match"] {
+        let response = app
+            .client
+            .post(format!("{}/{route}?output=disparity_std.npy", app.address))
+            .multipart(form(&pair(), &[("rig", rig().to_string())]))
+            .send()
+            .await
+            .unwrap();
+        let body = problem(response, 422).await;
+        assert_names(&body, &["output"]);
+    }
 }
 
 /// The share (%) of the visible pixels whose disparity in `map` is off the truth by more

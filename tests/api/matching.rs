@@ -71,7 +71,9 @@ fn grid() -> Vec<(usize, usize)> {
 /// On the layered scene: most visible points are `ok`, every `ok` point is visible and within
 /// half a pixel of the truth, points the right camera cannot see are never `ok` and mostly
 /// `occluded`, and the left edge, whose matches would lie left of the right image, is
-/// `out_of_range`.
+/// `out_of_range`. Every point with a disparity has its σ_d and σ_Z = Z²·σ_d / (f·B); the
+/// `ok` points' errors lie within their σ_d (rendered truth is easier than real images, so
+/// nearly all), and the hidden points' σ_d are larger than the `ok` points'.
 #[tokio::test]
 async fn statuses_follow_the_scene() {
     // Arrange
@@ -83,8 +85,29 @@ async fn statuses_follow_the_scene() {
     // Assert
     let (mut visible, mut visible_ok, mut hidden, mut hidden_occluded) = (0, 0, 0, 0);
     let mut errors = Vec::new();
+    let (mut within, mut ok_sigma, mut hidden_sigma) = (0, Vec::new(), Vec::new());
     for (&(x, y), m) in points.iter().zip(&found) {
         let i = y * W + x;
+        if let Some(d) = m["disparity_px"].as_f64()
+            && let Some(z) = m["distance"].as_f64()
+        {
+            let s = m["disparity_std_px"]
+                .as_f64()
+                .expect("σ_d beside a disparity");
+            let sz = m["distance_std"].as_f64().expect("σ_Z beside a distance");
+            // σ_d is answered to 1/1000 px, σ_Z from the unrounded σ_d.
+            let rounding = z * z * 0.0005 / 50_000.0;
+            assert!(
+                s >= 0.17 && (sz - z * z * s / 50_000.0).abs() <= rounding,
+                "{m}"
+            );
+            if status(m) == "ok" {
+                ok_sigma.push(s);
+                within += usize::from((d - f64::from(pair.truth[i])).abs() <= s);
+            } else if !pair.visible[i] && x >= 8 {
+                hidden_sigma.push(s);
+            }
+        }
         assert_eq!(
             (m["x"].as_f64(), m["y"].as_f64()),
             (Some(x as f64), Some(y as f64))
@@ -129,6 +152,18 @@ async fn statuses_follow_the_scene() {
     assert!(
         hidden >= 20 && hidden_occluded * 2 > hidden,
         "{hidden_occluded} of {hidden}"
+    );
+    assert!(
+        within * 10 >= ok_sigma.len() * 9,
+        "{within} of {} ok points within σ_d",
+        ok_sigma.len()
+    );
+    let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
+    assert!(
+        mean(&hidden_sigma) > 2.0 * mean(&ok_sigma),
+        "hidden σ_d {} against ok {}",
+        mean(&hidden_sigma),
+        mean(&ok_sigma)
     );
 }
 
@@ -250,6 +285,75 @@ async fn points_off_the_image_are_their_own_status() {
     assert!(found[0].get("distance").is_none());
 }
 
+/// Points and regions may also come as repeated parts, one item or array each (as clients
+/// generated from the OpenAPI document send a form's array), or as one lone item: joined in
+/// order, answered as one array would be; a repeated part that is not JSON is named by its
+/// place.
+#[tokio::test]
+async fn repeated_parts_are_one_list_in_order() {
+    let app = spawn_app().await;
+    let pair = pair();
+    let one = answer(
+        &app,
+        &pair,
+        "?max_disparity=48",
+        &[(
+            "points",
+            json!([{"x": 100, "y": 100}, {"x": 40, "y": 60}, {"x": 120, "y": 30}]).to_string(),
+        )],
+    )
+    .await;
+    let repeated = answer(
+        &app,
+        &pair,
+        "?max_disparity=48",
+        &[
+            ("points", json!({"x": 100, "y": 100}).to_string()),
+            (
+                "points",
+                json!([{"x": 40, "y": 60}, {"x": 120, "y": 30}]).to_string(),
+            ),
+            (
+                "regions",
+                json!({"x": 32, "y": 35, "width": 30, "height": 40}).to_string(),
+            ),
+            (
+                "regions",
+                json!({"x": 90, "y": 20, "width": 10, "height": 10}).to_string(),
+            ),
+        ],
+    )
+    .await;
+    assert_eq!(repeated["matches"], one["matches"]);
+    let lone = answer(
+        &app,
+        &pair,
+        "?max_disparity=48",
+        &[("points", json!({"x": 100, "y": 100}).to_string())],
+    )
+    .await;
+    assert_eq!(lone["matches"][0], one["matches"][0]);
+    assert_eq!(repeated["regions"].as_array().unwrap().len(), 2);
+    assert_eq!(repeated["regions"][0]["x"], 32.0);
+    let body = problem(
+        post_match(
+            &app,
+            "?max_disparity=48",
+            form(
+                &pair,
+                &[
+                    ("points", json!({"x": 1, "y": 1}).to_string()),
+                    ("points", "{x: 2".to_owned()),
+                ],
+            ),
+        )
+        .await,
+        422,
+    )
+    .await;
+    assert_names(&body, &["points[part 2]"]);
+}
+
 /// A depth edge: points within the census window of a box's right edge, on either side, are
 /// `inconsistent`; the box's middle is `ok`.
 #[tokio::test]
@@ -354,6 +458,15 @@ async fn regions_answer_a_robust_distance() {
     assert!((x - (46.5 - 80.0) * z / 500.0).abs() < 1e-9, "{on}");
     assert!(on["range"].as_f64().unwrap() > z);
     assert!(on["depth_error"].as_f64().unwrap() > 0.0);
+    // The median of 1 200 pixels (19 census windows) knows its disparity better than a pixel
+    // does, and its σ_Z follows: Z²·σ_d / (f·B).
+    let s = on["disparity_std_px"].as_f64().unwrap();
+    assert!(s > 0.0 && s < 0.1, "{on}");
+    let sz = on["distance_std"].as_f64().unwrap();
+    assert!(
+        (sz - z * z * s / 50_000.0).abs() <= z * z * 0.0005 / 50_000.0,
+        "{on}"
+    );
     let off = &body["regions"][1];
     assert_eq!(off["status"], "outside_image");
     assert!(off.get("distance").is_none());
@@ -404,12 +517,7 @@ async fn the_form_itself_is_checked() {
     let body = problem(post_match(&app, "", form(&pair, &[])).await, 422).await;
     assert_eq!(fields(&body), vec!["points"]);
     let body = problem(
-        post_match(
-            &app,
-            "",
-            form(&pair, &[("points", r#"{"x": 1, "y": 2}"#.into())]),
-        )
-        .await,
+        post_match(&app, "", form(&pair, &[("points", r#""(1, 2)""#.into())])).await,
         422,
     )
     .await;

@@ -150,10 +150,11 @@ impl Browser {
 }
 
 /// Upload the synthetic pair through the file inputs: the depth map comes back and is drawn
-/// with a colour bar in mm; hovering over the box (d = 22 px) reads B·f/22 ± its error from
-/// the arrays; a click there matches at x − 22 in the right image, marked on its row, and the
-/// distance card reads B·f/22; a box dragged on the disc reads its median; "Copy results"
-/// includes the match.
+/// with a colour bar in mm; hovering over the box (d = 22 px) reads B·f/22 ± σ_Z with the
+/// pixel's σ_d from the arrays; "Show each pixel's σ" draws the σ map with its colour bar in mm;
+/// a click there matches at x − 22 in the right image, marked on its row, the distance card
+/// reads B·f/22 and splits the match's error bar into matching and calibration; a box dragged
+/// on the disc reads its median; "Copy results" includes the match.
 #[tokio::test]
 #[ignore = "needs chromium and chromedriver; .ci/run runs it"]
 async fn an_uploaded_pair_is_matched_hovered_clicked_and_boxed() {
@@ -187,16 +188,47 @@ async fn an_uploaded_pair_is_matched_hovered_clicked_and_boxed() {
     // Act: hover over the box, whose disparity is 22 px everywhere.
     let hover = browser.hover_at(120.0, 100.0).await;
 
-    // Assert: B·f/22 within 1 %, and its error Z²·Δd/(f·B) with Δd = 0.5 px.
+    // Assert: B·f/22 within 1 %, "Z ± σ_Z", σ_Z = Z²·σ_d/(f·B) with the pixel's σ_d (read
+    // to 3 digits), which on this clean render lies between the model's floor and a pixel.
     let z = number_after(&hover, ":");
     let truth = FB / 22.0;
     assert!((z - truth).abs() < 0.01 * truth, "{hover}");
     let error = number_after(&hover, "±");
+    let sd = number_after(&hover[hover.find("d =").expect("d")..], "±");
+    assert!((0.17..1.0).contains(&sd), "{hover}");
+    assert!((error - z * z * sd / FB).abs() < 0.01 * error, "{hover}");
     assert!(
-        (error - truth * truth * 0.5 / FB).abs() < 0.02 * error,
+        hover.contains(" mm ± ") && hover.ends_with(" px"),
         "{hover}"
     );
-    assert!(hover.contains(" mm ± "), "{hover}");
+
+    // Act / Assert: the σ toggle draws σ_Z with its own colour bar, and back.
+    browser
+        .find("show-sigma")
+        .await
+        .click()
+        .await
+        .expect("click");
+    assert_eq!(
+        browser.attr("colour-bar", "data-kind").await.as_deref(),
+        Some("sigma")
+    );
+    assert_eq!(
+        browser.attr("colour-bar", "data-unit").await.as_deref(),
+        Some("mm")
+    );
+    let title = browser.text("depth-caption").await;
+    assert_eq!(title, "σ of each depth");
+    browser
+        .find("show-sigma")
+        .await
+        .click()
+        .await
+        .expect("click");
+    assert_eq!(
+        browser.attr("colour-bar", "data-kind").await.as_deref(),
+        Some("depth")
+    );
 
     // Act: click a pixel of the box.
     browser.click_pixel("left-frame", 120.0, 150.0).await;
@@ -238,6 +270,26 @@ async fn an_uploaded_pair_is_matched_hovered_clicked_and_boxed() {
         .expect("a number");
     assert!(confidence > 0.5, "{confidence}");
     assert!(browser.text("range").await.ends_with(" mm"));
+    // The card's error bar from the match: all of it matching, the rig having no σ_f or σ_B.
+    let split = browser
+        .until("the error bar's split", || async {
+            browser.attr("error-split", "data-matching").await
+        })
+        .await;
+    let matching: f64 = split.parse().expect("a number");
+    assert!(matching > 0.0, "{split}");
+    assert_eq!(
+        browser
+            .attr("error-split", "data-calibration")
+            .await
+            .as_deref(),
+        Some("0")
+    );
+    let line = browser.text("error-split").await;
+    assert!(
+        line.contains("matching ±") && line.contains("calibration ±"),
+        "{line}"
+    );
 
     // Act: drag a box on the disc, d = 30 − 4x/400: 27.2 px at its centre x = 280.
     let from = browser.pointer_to("left-frame", 265.0, 135.0).await;
@@ -340,6 +392,7 @@ async fn without_a_rig_the_page_shows_disparities_and_asks_for_one() {
     );
     let hover = browser.hover_at(120.0, 100.0).await;
     assert!((number_after(&hover, "d =") - 22.0).abs() < 0.3, "{hover}");
+    assert!((0.17..1.0).contains(&number_after(&hover, "±")), "{hover}");
     assert!(
         hover.contains("need the rig") && !hover.contains("mm"),
         "{hover}"

@@ -29,6 +29,10 @@ pub trait ImageForm {
     /// Whether the route takes a `rig` part (`/rectify` needs the raw cameras of a
     /// calibration, so its messages never suggest one).
     const TAKES_RIG: bool = true;
+    /// The parts that hold JSON arrays and may also come as repeated parts, one item (or
+    /// array) each, as clients generated from the OpenAPI document send a form's array: joined
+    /// in order into one array ([`join_lists`]).
+    const LISTS: &'static [&'static str] = &[];
 }
 
 /// The pair of an image request, read and judged before anything is decoded.
@@ -106,7 +110,7 @@ impl<F: ImageForm> FromRequest<HeavyState> for ImagePair<F> {
         let known = [&["left", "right"][..], F::PARTS, &rig::RIG_PARTS[..]].concat();
         let spec = FormSpec {
             known: &known,
-            repeatable: &[],
+            repeatable: F::LISTS,
             example: "multipart/form-data: the images as file parts (curl -F left=@left.png \
                       -F right=@right.png)",
         };
@@ -116,7 +120,9 @@ impl<F: ImageForm> FromRequest<HeavyState> for ImagePair<F> {
             admitted,
             read,
         } = Form::read(req, state, spec).await?;
-        let parts: Parts = parts.into_iter().collect();
+        let parts: Parts = join_lists(parts, F::LISTS, &mut problems)
+            .into_iter()
+            .collect();
         let image_limits = state.image_limits;
         let left = image_size(&parts, "left", image_limits, &mut problems);
         let right = image_size(&parts, "right", image_limits, &mut problems);
@@ -237,6 +243,51 @@ async fn read_parts_with(
         }
     }
     Ok(parts)
+}
+
+/// The parts named in `lists` that came more than once, joined into one JSON array: each
+/// part's array spread into it, any other JSON value one item of it, in order. A part that is
+/// not JSON is named in `problems` (and the joined part left out). A part given once is left
+/// as it came, for the route to judge.
+pub fn join_lists(
+    parts: Vec<(String, Bytes)>,
+    lists: &[&str],
+    problems: &mut FieldErrors,
+) -> Vec<(String, Bytes)> {
+    let repeated: Vec<&str> = lists
+        .iter()
+        .copied()
+        .filter(|list| parts.iter().filter(|(n, _)| n == list).count() > 1)
+        .collect();
+    let mut out = Vec::with_capacity(parts.len());
+    let mut items: Vec<Vec<serde_json::Value>> = vec![Vec::new(); repeated.len()];
+    let mut broken = vec![false; repeated.len()];
+    let mut seen = vec![0usize; repeated.len()];
+    for (name, bytes) in parts {
+        let Some(i) = repeated.iter().position(|list| *list == name) else {
+            out.push((name, bytes));
+            continue;
+        };
+        seen[i] += 1;
+        match serde_json::from_slice::<serde_json::Value>(&bytes) {
+            Ok(serde_json::Value::Array(more)) => items[i].extend(more),
+            Ok(item) => items[i].push(item),
+            Err(e) => {
+                problems.add_new(
+                    format!("{name}[part {}]", seen[i]),
+                    format!("is not JSON: {e}"),
+                );
+                broken[i] = true;
+            }
+        }
+    }
+    for ((list, joined), broken) in repeated.iter().zip(items).zip(broken) {
+        if !broken {
+            let text = serde_json::Value::Array(joined).to_string();
+            out.push(((*list).to_owned(), Bytes::from(text)));
+        }
+    }
+    out
 }
 
 /// A multipart body that cannot be read: too large (413) or broken (400).

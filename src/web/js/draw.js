@@ -206,6 +206,7 @@ export function drawColourBar(range, unit) {
   const bar = $('colour-bar');
   const title = $('colour-bar-title');
   bar.replaceChildren(title);
+  bar.dataset.kind = 'depth';
   if (!range || !unit) {
     title.textContent = 'No depths: the rig is not valid.';
     return;
@@ -240,6 +241,41 @@ export function drawColourBar(range, unit) {
     ? `Disparity colour bar: ${label(far)} px (blue) to ${label(near)} px (red); distances need the rig.`
     : `Depth colour bar: ${fmt(far, 4)} ${unit} (blue) to ${fmt(near, 4)} ${unit} (red).`;
   bar.dataset.unit = unit;
+}
+
+/** The σ map's colour bar: Turbo from `lo` (sure, blue) to `hi` (unsure, red), in `unit`. */
+export function drawSigmaBar(range, unit) {
+  const bar = $('colour-bar');
+  const title = $('colour-bar-title');
+  bar.replaceChildren(title);
+  bar.dataset.kind = 'sigma';
+  bar.dataset.unit = unit;
+  if (!range) {
+    title.textContent = 'No σ: no pixel is valid.';
+    return;
+  }
+  const [lo, hi] = range;
+  const [left, right] = [10, 310];
+  const at = (v) => left + ((v - lo) / (hi - lo)) * (right - left);
+  const gradient = svg('linearGradient', { id: 'sigma-gradient', x1: 0, x2: 1, y1: 0, y2: 0 });
+  for (let i = 0; i <= 16; i += 1) {
+    const [r, g, b] = turbo(i / 16);
+    gradient.append(svg('stop', { offset: i / 16, 'stop-color': `rgb(${r},${g},${b})` }));
+  }
+  const defs = svg('defs');
+  defs.append(gradient);
+  bar.append(defs, svg('rect', { x: left, y: 2, width: right - left, height: 12, fill: 'url(#sigma-gradient)' }));
+  let last = -Infinity;
+  for (const v of linearTicks(lo, hi, 6)) {
+    const x = at(v);
+    if (x < left - 0.5 || x > right + 0.5 || x - last < 34) continue;
+    last = x;
+    bar.append(svg('line', { class: 'tick', x1: x, x2: x, y1: 14, y2: 18 }));
+    bar.append(svg('text', { x, y: 28, 'text-anchor': 'middle' }, fmt(v, 3)));
+  }
+  const what = unit === 'px' ? 'σ of each disparity (px)' : `σ of each depth (${unit})`;
+  bar.append(svg('text', { x: (left + right) / 2, y: 42, 'text-anchor': 'middle' }, `${what}, sure = blue, unsure = red`));
+  title.textContent = `${what}: ${fmt(lo, 3)} (blue) to ${fmt(hi, 3)} (red).`;
 }
 
 export function sizeCanvas(canvas, width, height) {

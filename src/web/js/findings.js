@@ -36,12 +36,13 @@ export function showHover({ x, y }, onRaw = false) {
   const z = a.depth ? a.depth[i] : NaN;
   hover.dataset.x = String(x);
   hover.dataset.y = String(y);
+  const sd = a.disparity_std[i];
   if (Number.isFinite(z)) {
-    hover.textContent = `(${x}, ${y}): ${fmt(z, 5)} ${pair.unit} ± ${fmt(a.depth_error[i], 3)} ${pair.unit}, d = ${fmt(d, 4)} px`;
+    hover.textContent = `(${x}, ${y}): ${fmt(z, 5)} ${pair.unit} ± ${fmt(a.depth_std[i], 3)} ${pair.unit}, d = ${fmt(d, 4)} ± ${fmt(sd, 3)} px`;
   } else if (Number.isFinite(d)) {
     hover.textContent = rigGiven()
-      ? `(${x}, ${y}): d = ${fmt(d, 4)} px, no depth (check the rig)`
-      : `(${x}, ${y}): d = ${fmt(d, 4)} px. ${NEEDS_RIG}`;
+      ? `(${x}, ${y}): d = ${fmt(d, 4)} ± ${fmt(sd, 3)} px, no depth (check the rig)`
+      : `(${x}, ${y}): d = ${fmt(d, 4)} ± ${fmt(sd, 3)} px. ${NEEDS_RIG}`;
   } else {
     hover.textContent = `(${x}, ${y}): no reliable match here; click for /match's best guess and why`;
   }
@@ -153,6 +154,9 @@ export function showMatch(m) {
   statusCell.textContent = m.status;
   statusCell.className = m.status === 'ok' ? 'status-ok' : 'status-other';
   $('match-confidence').textContent = fmt(m.confidence, 3);
+  $('match-sigma').textContent = m.disparity_std_px !== undefined
+    ? `${fmt(m.disparity_std_px, 3)} px (distance ± ${fmt(m.distance_std, 3)})`
+    : '–';
   values.hidden = false;
 }
 
@@ -173,7 +177,7 @@ export function showRegion(r) {
   summaryLine.dataset.distance = String(r.distance);
   summaryLine.textContent =
     `${where}: median ${fmt(r.distance, 5)} ${u} (p10–p90 ${fmt(r.distance_p10, 5)}–${fmt(r.distance_p90, 5)} ${u}), ` +
-    `± ${fmt(r.depth_error, 3)} ${u} at its centre, d = ${fmt(r.disparity_px, 5)} px, ${percent(r.valid_fraction)} of its pixels valid.`;
+    `± ${fmt(r.distance_std, 3)} ${u} (σ of the median), d = ${fmt(r.disparity_px, 5)} px, ${percent(r.valid_fraction)} of its pixels valid.`;
 }
 
 /** The lines "Copy results" adds in Images mode. */

@@ -3,7 +3,7 @@
 // click or a box (/match) is in findings.js.
 
 import { fetchFile, post, postJson, readNpz, save, serverTime } from './api.js';
-import { colourRange, drawColourBar, sizeCanvas, turbo } from './draw.js';
+import { colourRange, drawColourBar, drawSigmaBar, sizeCanvas, turbo } from './draw.js';
 import { applyRig, forgetUnknown, readForm, rigGiven, rigPart, showErrors, writeForm } from './rig.js';
 import { EVENTS, NEEDS_RIG, emit, frameShown, on, pair, rawPair } from './store.js';
 import {
@@ -63,9 +63,18 @@ async function requestRectified(state) {
 export function showFrames() {
   const raw = rawPair();
   $('frames').hidden = !(raw && pair.rectified.left !== null);
-  $('depth-caption').textContent = raw
-    ? 'Depth map, over the rectified left image (the service rectified the raw pair)'
-    : 'Depth map';
+  captionDepth();
+}
+
+/** The depth view's caption: what it shows (the depths, or each one's σ), and over which
+ * frame. */
+function captionDepth() {
+  const a = pair.arrays;
+  const shown = !$('show-sigma').checked ? 'Depth map'
+    : a && a.depth_std ? 'σ of each depth' : 'σ of each disparity';
+  $('depth-caption').textContent = rawPair()
+    ? `${shown}, over the rectified left image (the service rectified the raw pair)`
+    : shown;
 }
 
 /** Shows the raw or the rectified pair (`view`), with the markers where each frame has them. */
@@ -190,7 +199,7 @@ export function scheduleDepth() {
   depthDebounce = setTimeout(() => requestDepth(), DEBOUNCE_MS);
 }
 
-/** Asks /depth-map for the pair's arrays (disparity, depth and its error) once; hovering
+/** Asks /depth-map for the pair's arrays (disparity, depth and each one's σ) once; hovering
  * reads them, so no pixel costs a request. */
 export async function requestDepth() {
   clearTimeout(depthDebounce);
@@ -224,7 +233,8 @@ export async function requestDepth() {
       height,
       disparity: arrays.disparity.data,
       depth: arrays.depth ? arrays.depth.data : null,
-      depth_error: arrays.depth_error ? arrays.depth_error.data : null,
+      disparity_std: arrays.disparity_std.data,
+      depth_std: arrays.depth_std ? arrays.depth_std.data : null,
     };
     const elapsed = performance.now() - started;
     const server = serverTime(response);
@@ -264,29 +274,46 @@ export function clearDepth() {
 }
 
 /** The depth map in Turbo on inverse depth, near warm, beside the left image and in the
- * blend layer over it (where invalid pixels are clear). */
+ * blend layer over it (where invalid pixels are clear); or, with "Show each pixel's σ", each
+ * pixel's σ_Z (σ_d without a rig) in Turbo from sure (blue) to unsure (red). */
 export function drawDepth() {
   const a = pair.arrays;
-  const values = a.depth ?? a.disparity.map((d) => (d > 0 ? 1 / d : NaN));
-  const range = colourRange(values);
+  if (!a) return;
+  const sigma = $('show-sigma').checked;
   const depthImage = new ImageData(a.width, a.height);
   const blendImage = new ImageData(a.width, a.height);
-  if (range) {
-    const [near, far] = range;
-    const span = 1 / near - 1 / far;
-    for (let i = 0; i < values.length; i += 1) {
-      const z = values[i];
-      const o = i * 4;
-      depthImage.data[o + 3] = 255;
-      if (!(z > 0)) continue;
-      const [r, g, b] = turbo((1 / z - 1 / far) / span);
-      depthImage.data.set([r, g, b], o);
-      blendImage.data.set([r, g, b, 255], o);
+  const paint = (i, t) => {
+    const o = i * 4;
+    const [r, g, b] = turbo(t);
+    depthImage.data.set([r, g, b], o);
+    blendImage.data.set([r, g, b, 255], o);
+  };
+  for (let i = 3; i < depthImage.data.length; i += 4) depthImage.data[i] = 255;
+  if (sigma) {
+    const values = a.depth_std ?? a.disparity_std;
+    const range = colourRange(values);
+    if (range) {
+      const [lo, hi] = range;
+      for (let i = 0; i < values.length; i += 1) {
+        if (Number.isFinite(values[i])) paint(i, (values[i] - lo) / (hi - lo));
+      }
     }
+    drawSigmaBar(range, a.depth_std ? pair.unit : 'px');
+  } else {
+    const values = a.depth ?? a.disparity.map((d) => (d > 0 ? 1 / d : NaN));
+    const range = colourRange(values);
+    if (range) {
+      const [near, far] = range;
+      const span = 1 / near - 1 / far;
+      for (let i = 0; i < values.length; i += 1) {
+        if (values[i] > 0) paint(i, (1 / values[i] - 1 / far) / span);
+      }
+    }
+    drawColourBar(range, a.depth ? pair.unit : rigGiven() ? null : 'px');
   }
+  captionDepth();
   $('depth-canvas').getContext('2d').putImageData(depthImage, 0, 0);
   $('blend-canvas').getContext('2d').putImageData(blendImage, 0, 0);
-  drawColourBar(range, a.depth ? pair.unit : rigGiven() ? null : 'px');
   emit(EVENTS.drawMarkers);
 }
 
@@ -414,6 +441,7 @@ export function wireImages() {
     $('opacity').disabled = !on;
     $('blend-canvas').style.opacity = on ? String(Number($('opacity').value) / 100) : '0';
   });
+  $('show-sigma').addEventListener('change', () => drawDepth());
   $('opacity').addEventListener('input', () => {
     $('blend-canvas').style.opacity = String(Number($('opacity').value) / 100);
   });

@@ -126,6 +126,25 @@ export function schedule() {
 }
 
 
+/** Images mode, a clicked point's distance: its error bar from the match (σ_Z of the match's
+ * σ_d with the rig's σ_f and σ_B), split into what the matching and the calibration add. */
+function showErrorSplit(answer) {
+  const split = $('error-split');
+  const m = pair.match;
+  split.hidden = !(page.mode === 'images' && m && m.distance_std !== undefined
+    && m.disparity_px !== undefined && Math.abs(m.disparity_px - answer.disparity_px) < 1e-6);
+  if (split.hidden) return;
+  const unit = answer.unit;
+  const terms = answer.depth_error_terms;
+  const calibration = Math.hypot(terms.focal_length, terms.baseline);
+  const matching = Math.sqrt(Math.max(0, m.distance_std ** 2 - calibration ** 2));
+  split.dataset.matching = String(matching);
+  split.dataset.calibration = String(calibration);
+  split.textContent = `From the match: ± ${fmt(m.distance_std, 3)} ${unit} in all, of which ` +
+    `matching ± ${fmt(matching, 3)} ${unit} (σ_d = ${fmt(m.disparity_std_px, 3)} px) and ` +
+    `calibration ± ${fmt(calibration, 3)} ${unit} (σ_f, σ_B).`;
+}
+
 /** Shows a distance answer; without one, `prompt` (when nothing was asked, so nothing is
  * wrong) or the marked-fields warning. */
 export function showDistance(answer, state, prompt = null) {
@@ -160,6 +179,7 @@ export function showDistance(answer, state, prompt = null) {
   $('depth-error').textContent = `± ${fmt(answer.depth_error)} ${unit}`;
   $('distance-detail').textContent =
     `${fmt(answer.distance_m)} m · relative error ${percent(answer.relative_error)} for Δd = ${fmt(answer.disparity_error_px)} px`;
+  showErrorSplit(answer);
   $('disparity_px').textContent = `${fmt(answer.disparity_px)} px`;
   $('effective_disparity_px').textContent = `${fmt(answer.effective_disparity_px)} px`;
   $('focal_length_px').textContent = state.focal_mode === 'px'

@@ -9,8 +9,9 @@ export const pair = {
   bitmaps: { left: null, right: null },
   width: 0,
   height: 0,
-  /** The depth map: { width, height, disparity, depth, depth_error } (Float32Array, NaN
-   * where invalid) and the unit of the depths. */
+  /** The depth map: { width, height, disparity, depth, disparity_std, depth_std }
+   * (Float32Array, NaN where invalid; depth and depth_std null without a rig) and the unit of
+   * the depths. */
   arrays: null,
   unit: 'mm',
   match: null,

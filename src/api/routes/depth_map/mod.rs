@@ -128,10 +128,12 @@ pub async fn post_depth_map(
 /// for a point cloud, the matcher's, and the answer's per-pixel buffers. What a `w × h`
 /// rectified pair searching `count` disparities reserves from the heavy budget.
 pub fn bytes_needed(w: usize, h: usize, count: usize, output: DepthMapOutput) -> usize {
-    // A point cloud's colours, or the NPZ's two more arrays and the archive's copy of all three.
+    // A point cloud's colours, or the NPZ's four more arrays and the archive's copy of all
+    // five.
     let extra = match output {
         DepthMapOutput::PointsPly => 3,
-        DepthMapOutput::ArraysNpz => 20,
+        DepthMapOutput::ArraysNpz => 40,
+        DepthMapOutput::DepthStdNpy => 4,
         _ => 0,
     };
     let after = w
@@ -172,11 +174,15 @@ fn compute(
     let started = Instant::now();
     let rig = given.as_ref().map(|g| g.rig);
     let depth = rig.map(|rig| depths(&map, rig.fb() as f32, rig.doffs() as f32));
+    let depth_std = match (rig, &depth) {
+        (Some(rig), Some(depth)) if output.wants_depth_std() => Some(depth_stds(&map, depth, rig)),
+        _ => None,
+    };
     let (w, h) = (map.width, map.height);
     let body: Result<Vec<u8>, DepthMapSummary> = match output {
         DepthMapOutput::Summary => Err(summary(
             &map,
-            depth.as_deref(),
+            (depth.as_deref(), depth_std.as_deref()),
             params,
             given,
             (rectify_time, rows),
@@ -189,7 +195,12 @@ fn compute(
         }
         DepthMapOutput::DisparityNpy => Ok(encode::npy(w, h, &map.data)),
         DepthMapOutput::DepthNpy => Ok(encode::npy(w, h, depth.as_deref().unwrap_or_default())),
-        DepthMapOutput::ArraysNpz => Ok(arrays(&map, depth.as_deref(), rig)?),
+        DepthMapOutput::DisparityStdNpy => Ok(encode::npy(w, h, &map.std)),
+        DepthMapOutput::DisparityStdPfm => Ok(encode::pfm(w, h, &map.std)),
+        DepthMapOutput::DepthStdNpy => {
+            Ok(encode::npy(w, h, depth_std.as_deref().unwrap_or_default()))
+        }
+        DepthMapOutput::ArraysNpz => Ok(arrays(&map, depth.as_deref(), depth_std.as_deref())?),
         DepthMapOutput::DepthPng => {
             let unit = rig.map_or(LengthUnit::Millimetre, |r| r.unit());
             let mm: Vec<f32> = depth
@@ -210,7 +221,7 @@ fn compute(
     };
     let encode_time = started.elapsed();
     let started = Instant::now();
-    drop((left, map, depth));
+    drop((left, map, depth, depth_std));
     let drop_time = started.elapsed();
     let mut after = Vec::with_capacity(3);
     after.extend(rectify_time.map(|t| ("rectify", t)));
@@ -249,21 +260,40 @@ fn depths(map: &Disparity, fb: f32, doffs: f32) -> Vec<f32> {
         .collect()
 }
 
-/// The NPZ: the disparity and, with a rig, the depth and its error ΔZ = Z²·Δd / (f·B).
+/// σ_Z of each depth: `√((Z²·σ_d / (f·B))² + (Z·σ_f / f)² + (Z·σ_B / B)²)` with the pixel's
+/// σ_d and the rig's σ_f and σ_B; NaN where the depth is.
+fn depth_stds(map: &Disparity, depth: &[f32], rig: crate::physics::Rig) -> Vec<f32> {
+    depth
+        .iter()
+        .zip(&map.std)
+        .map(|(&z, &s)| {
+            if z.is_nan() || s.is_nan() {
+                f32::NAN
+            } else {
+                rig.depth_error_terms_with(f64::from(z), f64::from(s))
+                    .total() as f32
+            }
+        })
+        .collect()
+}
+
+/// The NPZ: the disparity and its σ_d and, with a rig, the depth, its σ_Z, and σ_Z again as
+/// `depth_error` (its earlier name).
 fn arrays(
     map: &Disparity,
     depth: Option<&[f32]>,
-    rig: Option<crate::physics::Rig>,
+    depth_std: Option<&[f32]>,
 ) -> Result<Vec<u8>, ApiError> {
     let (w, h) = (map.width, map.height);
-    let mut entries = vec![("disparity", encode::npy(w, h, &map.data))];
-    if let (Some(depth), Some(rig)) = (depth, rig) {
-        let error: Vec<f32> = depth
-            .iter()
-            .map(|&z| rig.depth_error_at(f64::from(z)) as f32)
-            .collect();
+    let mut entries = vec![
+        ("disparity", encode::npy(w, h, &map.data)),
+        ("disparity_std", encode::npy(w, h, &map.std)),
+    ];
+    if let (Some(depth), Some(depth_std)) = (depth, depth_std) {
+        let std = encode::npy(w, h, depth_std);
         entries.push(("depth", encode::npy(w, h, depth)));
-        entries.push(("depth_error", encode::npy(w, h, &error)));
+        entries.push(("depth_std", std.clone()));
+        entries.push(("depth_error", std));
     }
     encode::npz(&entries).map_err(|e| ApiError::Internal(format!("the NPZ was not written: {e}")))
 }
@@ -297,9 +327,10 @@ fn spread(values: &[f32]) -> Option<Spread> {
     })
 }
 
+/// The summary of `map` with its depths and their σ (`(depth, depth_std)`, with a rig).
 fn summary(
     map: &Disparity,
-    depth: Option<&[f32]>,
+    (depth, depth_std): (Option<&[f32]>, Option<&[f32]>),
     params: &Params,
     given: Option<GivenRig>,
     (rectified, rows): (Option<Duration>, Option<RowOffsets>),
@@ -327,6 +358,8 @@ fn summary(
         valid_fraction: (valid_fraction * 1e4).round() / 1e4,
         disparity_px: spread(&map.data),
         distance: depth.and_then(spread),
+        disparity_std_px: spread(&map.std),
+        distance_std: depth_std.and_then(spread),
         rig,
         parameters: MatcherParameters {
             preset: params.preset().into(),

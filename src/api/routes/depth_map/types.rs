@@ -33,8 +33,21 @@ pub enum DepthMapOutput {
     /// NumPy float32 array (height × width) of depths Z in the rig's unit, invalid = NaN.
     #[serde(rename = "depth.npy")]
     DepthNpy,
-    /// NumPy's NPZ (`numpy.load(p)`): `disparity` and, with a rig, `depth` and `depth_error`
-    /// (ΔZ = Z²·Δd / (f·B) for the rig's `disparity_error_px`), float32, invalid = NaN.
+    /// NumPy float32 array (height × width) of each disparity's standard deviation σ_d in
+    /// pixels, invalid = NaN.
+    #[serde(rename = "disparity_std.npy")]
+    DisparityStdNpy,
+    /// Middlebury's PFM of σ_d in pixels (as `disparity.pfm`), invalid = +inf.
+    #[serde(rename = "disparity_std.pfm")]
+    DisparityStdPfm,
+    /// NumPy float32 array (height × width) of each depth's standard deviation σ_Z in the rig's
+    /// unit: √((Z²·σ_d / (f·B))² + (Z·σ_f / f)² + (Z·σ_B / B)²), invalid = NaN.
+    #[serde(rename = "depth_std.npy")]
+    DepthStdNpy,
+    /// NumPy's NPZ (`numpy.load(p)`), float32, invalid = NaN: `disparity` and `disparity_std`
+    /// (σ_d, pixels) and, with a rig, `depth`, `depth_std` (σ_Z, the rig's unit, with the
+    /// rig's σ_f and σ_B) and `depth_error` (the same σ_Z under its earlier name; it was once
+    /// one Δd propagated for every pixel).
     #[serde(rename = "arrays.npz")]
     ArraysNpz,
     /// 16-bit PNG of depth in millimetres (ROS `16UC1`), 0 = invalid or beyond 65.535 m.
@@ -58,6 +71,9 @@ impl DepthMapOutput {
             DepthMapOutput::DisparityPng => "disparity.png",
             DepthMapOutput::DisparityNpy => "disparity.npy",
             DepthMapOutput::DepthNpy => "depth.npy",
+            DepthMapOutput::DisparityStdNpy => "disparity_std.npy",
+            DepthMapOutput::DisparityStdPfm => "disparity_std.pfm",
+            DepthMapOutput::DepthStdNpy => "depth_std.npy",
             DepthMapOutput::ArraysNpz => "arrays.npz",
             DepthMapOutput::DepthPng => "depth.png",
             DepthMapOutput::PreviewPng => "preview.png",
@@ -69,11 +85,14 @@ impl DepthMapOutput {
     pub fn media_type(self) -> &'static str {
         match self {
             DepthMapOutput::Summary => "application/json",
-            DepthMapOutput::DisparityPfm => PFM,
+            DepthMapOutput::DisparityPfm | DepthMapOutput::DisparityStdPfm => PFM,
             DepthMapOutput::DisparityPng
             | DepthMapOutput::DepthPng
             | DepthMapOutput::PreviewPng => "image/png",
-            DepthMapOutput::DisparityNpy | DepthMapOutput::DepthNpy => NPY,
+            DepthMapOutput::DisparityNpy
+            | DepthMapOutput::DepthNpy
+            | DepthMapOutput::DisparityStdNpy
+            | DepthMapOutput::DepthStdNpy => NPY,
             DepthMapOutput::PointsPly => PLY,
             DepthMapOutput::ArraysNpz => NPZ,
         }
@@ -83,7 +102,18 @@ impl DepthMapOutput {
     pub fn needs_rig(self) -> bool {
         matches!(
             self,
-            DepthMapOutput::DepthNpy | DepthMapOutput::DepthPng | DepthMapOutput::PointsPly
+            DepthMapOutput::DepthNpy
+                | DepthMapOutput::DepthStdNpy
+                | DepthMapOutput::DepthPng
+                | DepthMapOutput::PointsPly
+        )
+    }
+
+    /// Whether the answer carries σ_Z (computed only then).
+    pub fn wants_depth_std(self) -> bool {
+        matches!(
+            self,
+            DepthMapOutput::Summary | DepthMapOutput::DepthStdNpy | DepthMapOutput::ArraysNpz
         )
     }
 
@@ -322,6 +352,8 @@ pub struct MatcherParameters {
     "valid_fraction": 0.859,
     "disparity_px": {"min": 3.21, "median": 28.4, "max": 61.9},
     "distance": {"min": 1196.1, "median": 3215.0, "max": 14987.2},
+    "disparity_std_px": {"min": 0.179, "median": 0.262, "max": 4.1},
+    "distance_std": {"min": 2.1, "median": 28.6, "max": 2210.4},
     "rig": {"focal_length_px": 994.978, "baseline": 193.001, "unit": "mm", "cx": 311.193,
             "cy": 254.877, "doffs": 31.086, "image_width": 741, "image_height": 500},
     "parameters": {"preset": "accurate", "paths": 5, "p1": 16, "p2": 64, "p2_edge": 16, "uniqueness": 15, "lr_tolerance": 1.0,
@@ -350,6 +382,16 @@ pub struct DepthMapSummary {
     #[serde(skip_serializing_if = "Option::is_none")]
     #[schema(nullable = false)]
     pub distance: Option<Spread>,
+    /// The valid pixels' σ_d (each disparity's standard deviation), in pixels; absent when
+    /// none is valid.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub disparity_std_px: Option<Spread>,
+    /// The valid pixels' σ_Z (each depth's standard deviation, with the rig's σ_f and σ_B),
+    /// in the rig's unit; absent without a rig or when none is valid.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub distance_std: Option<Spread>,
     /// The rig used, when one was given.
     #[serde(skip_serializing_if = "Option::is_none")]
     #[schema(nullable = false)]

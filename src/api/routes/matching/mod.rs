@@ -50,6 +50,7 @@ pub const MAX_REGIONS: usize = 1_000;
 
 impl ImageForm for MatchForm {
     const PARTS: &'static [&'static str] = &["points", "regions"];
+    const LISTS: &'static [&'static str] = &["points", "regions"];
 }
 
 #[utoipa::path(
@@ -180,8 +181,9 @@ fn bytes_needed(w: usize, h: usize, count: usize) -> usize {
     limits::decode_then(w, h, after)
 }
 
-/// A part holding a JSON array of objects `T`, each member's fault named `name[i].member`;
-/// `None` when the part is absent or at fault.
+/// A part holding a JSON array of objects `T` (or one object alone, as a generated client
+/// sends a one-item array), each member's fault named `name[i].member`; `None` when the part
+/// is absent or at fault.
 fn list<T: DeserializeOwned + Default>(
     parts: &Parts,
     name: &str,
@@ -191,6 +193,7 @@ fn list<T: DeserializeOwned + Default>(
     let bytes: &Bytes = parts.get(name)?;
     let items = match serde_json::from_slice::<Value>(bytes) {
         Ok(Value::Array(items)) => items,
+        Ok(Value::Object(one)) => vec![Value::Object(one)],
         Ok(other) => {
             problems.add(
                 name,
@@ -487,8 +490,13 @@ fn point_match(rig: &Rig, x: f64, y: f64, found: &Found) -> PointMatch {
         let c = Correspondence::at(x, y, d);
         match physics::measure(rig, c) {
             Ok(m) => {
-                // Mapped as `/distance` maps it.
+                // Mapped as `/distance` maps it, with the point's σ.
                 answer.measured = MatchDistance::from(&m);
+                if let Some(s) = found.disparity_std {
+                    answer.measured.disparity_std_px = Some(round_to(f64::from(s), 3));
+                    answer.measured.distance_std =
+                        Some(rig.depth_error_terms_with(m.distance, f64::from(s)).total());
+                }
                 let m = Measured::from(&m);
                 answer.relative_error = Some(m.relative_error);
                 answer.warnings = Some(m.warnings);
@@ -518,11 +526,11 @@ fn region_match(rig: &Rig, map: &vision::Disparity, b: [f64; 4], r: Option<Rect>
     };
     let (values, pixels) = correspond::in_box(map, r);
     // Only disparities in front of the cameras have a depth.
-    let mut values: Vec<f64> = values
+    let (mut values, mut stds): (Vec<f64>, Vec<f32>) = values
         .into_iter()
-        .map(f64::from)
-        .filter(|d| d + rig.doffs() > 0.0)
-        .collect();
+        .filter(|&(d, _)| f64::from(d) + rig.doffs() > 0.0)
+        .map(|(d, s)| (f64::from(d), s))
+        .unzip();
     values.sort_by(f64::total_cmp);
     answer.valid_fraction = round_to(values.len() as f64 / pixels.max(1) as f64, 4);
     answer.status = RegionStatus::NoValidPixels;
@@ -542,6 +550,14 @@ fn region_match(rig: &Rig, map: &vision::Disparity, b: [f64; 4], r: Option<Rect>
     };
     answer.status = RegionStatus::Ok;
     answer.measured = MatchDistance::from(&m);
+    let mid = stds.len() / 2;
+    let (_, &mut typical, _) = stds.select_nth_unstable_by(mid, f32::total_cmp);
+    let sigma = correspond::median_std(typical, values.len());
+    answer.measured.disparity_std_px = Some(round_to(f64::from(sigma), 3));
+    answer.measured.distance_std = Some(
+        rig.depth_error_terms_with(m.distance, f64::from(sigma))
+            .total(),
+    );
     answer.distance_p10 = rig.distance_at(at(0.1)).ok();
     answer.distance_p90 = rig.distance_at(at(0.9)).ok();
     answer

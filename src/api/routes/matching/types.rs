@@ -72,11 +72,12 @@ image_form! {
     /// the parts itself, to name each one in its errors). Give `rig` or `calibration`.
     pub struct MatchForm {
         /// The points to match, a JSON array of `{"x", "y"}` in the left image: at most
-        /// 10 000. Give `points`, `regions` or both.
+        /// 10 000. Give `points`, `regions` or both. Repeated `points` parts (one point or
+        /// array each, as generated clients send an array) are joined in order.
         #[schema(nullable = false, max_items = 10000)]
         points: Option<Vec<MatchPoint>>,
         /// The boxes to measure, a JSON array of `{"x", "y", "width", "height"}`: at most
-        /// 1 000.
+        /// 1 000. Repeated `regions` parts are joined in order, as `points` are.
         #[schema(nullable = false, max_items = 1000)]
         regions: Option<Vec<MatchRegion>>,
     }
@@ -138,10 +139,23 @@ pub struct MatchDistance {
     #[serde(skip_serializing_if = "Option::is_none")]
     #[schema(nullable = false)]
     pub range: Option<f64>,
-    /// Expected depth error ΔZ = Z²·Δd/(f·B), in `unit`.
+    /// Expected depth error ΔZ = Z²·Δd/(f·B), in `unit`, for the rig's one
+    /// `disparity_error_px` (as `/distance` answers it).
     #[serde(skip_serializing_if = "Option::is_none")]
     #[schema(nullable = false)]
     pub depth_error: Option<f64>,
+    /// The standard deviation σ_d of `disparity_px`, in pixels, from what the matcher saw
+    /// there (its cost curve, the left-right check, the neighbourhood; docs/matcher.md): a
+    /// point's own, or a region's median's (its pixels' median σ_d · 1.2533 / √k, for k
+    /// census windows' worth of valid pixels).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub disparity_std_px: Option<f64>,
+    /// The standard deviation σ_Z of `distance`, in `unit`: √((Z²·σ_d/(f·B))² + (Z·σ_f/f)² +
+    /// (Z·σ_B/B)²) with the rig's σ_f and σ_B.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub distance_std: Option<f64>,
     /// The point in the left camera's frame (a region's: its centre on the image at the
     /// median depth).
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -156,6 +170,8 @@ impl From<&crate::physics::Measurement> for MatchDistance {
             distance: Some(m.distance),
             range: m.range,
             depth_error: Some(m.depth_error),
+            disparity_std_px: None,
+            distance_std: None,
             point: m.point.map(Point::from),
         }
     }
@@ -168,9 +184,11 @@ pub struct PointMatch {
     pub x: f64,
     pub y: f64,
     pub status: MatchStatus,
-    /// How sure the match is, in [0, 1]: the margin of the best match over the next one more
-    /// than a pixel away, times the share of the 5 × 5 neighbourhood within a pixel of it,
-    /// times the texture; halved when `status` is not `ok`, 0 without a disparity.
+    /// A score in [0, 1], without units, for sorting and thresholds: the margin of the best
+    /// match over the next one more than a pixel away, times the share of the 5 × 5
+    /// neighbourhood within a pixel of it, times the texture; halved when `status` is not
+    /// `ok`, 0 without a disparity. How far to trust the disparity in pixels is
+    /// `disparity_std_px`.
     pub confidence: f64,
     /// x of the match in the right image, `x − disparity_px`, in pixels (in the rectified
     /// right image when the pair was rectified); absent without a disparity.
@@ -256,7 +274,8 @@ pub struct RegionMatch {
     "ok": 1,
     "matches": [{"x": 420, "y": 260, "status": "ok", "confidence": 0.81, "x_right": 391.642,
                  "disparity_px": 28.358, "distance": 3221.3, "range": 3282.9,
-                 "depth_error": 10.795, "relative_error": 0.00335,
+                 "depth_error": 10.795, "disparity_std_px": 0.241, "distance_std": 27.5,
+                 "relative_error": 0.00335,
                  "point": {"x": 352.5, "y": 16.8, "z": 3221.3}, "warnings": []}],
     "regions": [],
     "rig": {"focal_length_px": 994.978, "baseline": 193.001, "unit": "mm", "cx": 311.193,

@@ -1,0 +1,210 @@
+//! The standard deviation σ_d of every disparity, in pixels: what the matcher knows of each
+//! winner (its cost curve, the left-right agreement, the sub-pixel fit) and what the finished
+//! map knows of its neighbourhood, turned into a σ by a model fitted on pairs with exact truth
+//! (docs/matcher.md, "σ of every disparity").
+//!
+//! The model adds independent terms in quadrature:
+//!
+//! σ_d² = s₀² + (k·√(best + 1) / curvature)² + (q·best / (second − best))² + (u·|fraction|)²
+//!        + (w·disagreement)² + (r·spread)² + (h·(9 − neighbours))²
+//!
+//! - `s₀`: the floor a correct match keeps on real images (the census, the resampling);
+//! - `√(best + 1) / curvature`: the sub-pixel fit's error, a cost's noise (census costs count
+//!   flipped bits, so their spread grows as the root of the least cost) over the curvature at
+//!   the least;
+//! - `best / (second − best)`: how near the runner-up comes, the chance of a wrong minimum;
+//! - `|fraction|`: the fit's offset from the whole pixel, where its bias is largest;
+//! - `disagreement`: how far the right image's winner lies from the left's;
+//! - `spread`: the range of the valid disparities in the 3 × 3 neighbourhood after the
+//!   filters (an edge or a slope the median straddles);
+//! - `neighbours`: how many of those 9 are valid (a pixel at a hole's rim is less sure).
+//!
+//! The first five come from the winner ([`winner_variance`], summed as each row is chosen);
+//! the last two from the finished map ([`map`], or [`at`] for a winner the map does not
+//! hold). Filled pixels ([`filled`]) take the spread of
+//! the values the fill chose between.
+
+use rayon::prelude::*;
+
+use super::refine::Cue;
+
+/// The model's constants, fitted on Motorcycle and its gain-changed and noisy variants
+/// (docs/matcher.md gives the fit and its checks).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Model {
+    pub floor: f32,
+    pub fit: f32,
+    pub ambiguity: f32,
+    pub fraction: f32,
+    pub disagreement: f32,
+    pub spread: f32,
+    pub neighbours: f32,
+}
+
+/// The fitted model.
+pub const MODEL: Model = Model {
+    floor: 0.179,
+    fit: 0.094,
+    ambiguity: 0.183,
+    fraction: 0.413,
+    disagreement: 0.296,
+    spread: 0.222,
+    neighbours: 0.139,
+};
+
+/// The left-right disagreement counted at most (pixels): beyond it a match is refuted
+/// anyway, and a pixel with no right winner counts as this.
+pub const MAX_DISAGREEMENT: f32 = 8.0;
+
+/// The least σ_d of a filled pixel (pixels): a value taken from a neighbour, not matched.
+pub const FILLED_FLOOR: f32 = 1.0;
+
+/// The variance (px²) the winner itself contributes: its cost curve `cue`, its disparity `d`
+/// (sub-pixel) and the left-right `disagreement` (pixels), on a pair whose census samples lie
+/// `stride` pixels apart: a pair smooth over `stride` pixels knows each disparity √stride
+/// times less well (the model was fitted at stride 1; measured on Motorcycle upscaled 2 × and
+/// 4 ×, docs/matcher.md).
+#[inline]
+pub fn winner_variance(cue: Cue, d: f32, disagreement: f32, stride: usize) -> f32 {
+    let m = MODEL;
+    let best = f32::from(cue.best);
+    let fit = (best + 1.0).sqrt() / f32::from(cue.curvature.max(1));
+    let margin = (f32::from(cue.second) - best).max(1.0);
+    let ambiguity = best / margin;
+    let fraction = (d - d.round()).abs();
+    let disagreement = if disagreement.is_finite() {
+        disagreement.min(MAX_DISAGREEMENT)
+    } else {
+        MAX_DISAGREEMENT
+    };
+    let scale = (stride.max(1) as f32).sqrt();
+    (m.floor * m.floor
+        + (m.fit * fit).powi(2)
+        + (m.ambiguity * ambiguity).powi(2)
+        + (m.fraction * fraction).powi(2)
+        + (m.disagreement * disagreement).powi(2))
+        * (scale * scale)
+}
+
+/// The map's σ_d (pixels): for each valid pixel of `disparity` (`width` a row), its winner's
+/// variance (`variance`, the same layout) with its 3 × 3 neighbourhood's terms; NaN where the
+/// disparity is.
+pub fn map(disparity: &[f32], variance: &[f32], width: usize) -> Vec<f32> {
+    let mut out = vec![f32::NAN; disparity.len()];
+    out.par_chunks_mut(width.max(1))
+        .enumerate()
+        .for_each(|(y, row)| {
+            for (x, sigma) in row.iter_mut().enumerate() {
+                let i = y * width + x;
+                let d = disparity[i];
+                if !d.is_nan() {
+                    *sigma = at(disparity, width, (x, y), d, variance[i]);
+                }
+            }
+        });
+    out
+}
+
+/// σ_d (pixels) of the value `d` at `(x, y)` of a map (`width` a row; the map's own value
+/// there, or one it does not hold, as a winner the filters removed), whose winner contributes
+/// `variance`: that with the 3 × 3 neighbourhood's terms, `d` counted in it.
+pub fn at(disparity: &[f32], width: usize, (x, y): (usize, usize), d: f32, variance: f32) -> f32 {
+    let m = MODEL;
+    let height = disparity.len() / width.max(1);
+    let (mut lo, mut hi, mut valid) = (d, d, 1u32);
+    for yy in y.saturating_sub(1)..(y + 2).min(height) {
+        let line = &disparity[yy * width..(yy + 1) * width];
+        for (xx, &v) in line
+            .iter()
+            .enumerate()
+            .take((x + 2).min(width))
+            .skip(x.saturating_sub(1))
+        {
+            if (xx, yy) != (x, y) && !v.is_nan() {
+                lo = lo.min(v);
+                hi = hi.max(v);
+                valid += 1;
+            }
+        }
+    }
+    let missing = 9u32.saturating_sub(valid) as f32;
+    (variance + (m.spread * (hi - lo)).powi(2) + (m.neighbours * missing).powi(2)).sqrt()
+}
+
+/// σ_d of a pixel the fill gave a value (pixels): the spread between the values it chose from
+/// (`left` and `right`, either NaN when there was none), at least [`FILLED_FLOOR`].
+#[inline]
+pub fn filled(left: f32, right: f32) -> f32 {
+    let spread = (left - right).abs();
+    if spread.is_finite() {
+        spread.max(FILLED_FLOOR)
+    } else {
+        FILLED_FLOOR
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A sharp, unambiguous, whole-pixel winner the right image agrees with keeps the floor;
+    /// each cue that says less moves σ up.
+    #[test]
+    fn each_cue_moves_sigma_the_way_it_should() {
+        let sure = Cue {
+            best: 0,
+            second: 1000,
+            curvature: 1000,
+        };
+        let floor = winner_variance(sure, 12.0, 0.0, 1).sqrt();
+        assert!((floor - MODEL.floor).abs() < 0.01, "{floor}");
+        let worse = [
+            winner_variance(Cue { best: 600, ..sure }, 12.0, 0.0, 1),
+            winner_variance(
+                Cue {
+                    curvature: 2,
+                    best: 50,
+                    ..sure
+                },
+                12.0,
+                0.0,
+                1,
+            ),
+            winner_variance(sure, 12.4, 0.0, 1),
+            winner_variance(sure, 12.0, 1.0, 1),
+            winner_variance(sure, 12.0, f32::INFINITY, 1),
+        ];
+        for v in worse {
+            assert!(v.sqrt() > floor + 0.05, "{} against {floor}", v.sqrt());
+        }
+        // A pair smooth over 4 pixels: twice the σ.
+        let doubled = winner_variance(sure, 12.0, 0.0, 4).sqrt();
+        assert!((doubled - 2.0 * floor).abs() < 1e-5);
+    }
+
+    /// The map adds the neighbourhood: a pixel inside a flat valid patch keeps its winner's σ,
+    /// one at an edge or a hole's rim gets more, and invalid pixels stay NaN.
+    #[test]
+    fn the_map_adds_the_neighbourhood() {
+        let width = 5;
+        let mut d = vec![10.0f32; 25];
+        d[4] = f32::NAN; // top-right corner: a hole
+        d[20] = 14.0; // bottom-left: a step
+        let variance = vec![0.04f32; 25];
+        let s = map(&d, &variance, width);
+        assert!((s[12] - 0.2).abs() < 1e-6, "{}", s[12]);
+        assert!(s[4].is_nan());
+        // (0, 3) sees the hole and the image's edge: 4 of its 9 missing.
+        assert!(s[3] > s[12] + 0.3);
+        // (1, 4) is beside the step of 4 px.
+        assert!((s[16] - (0.04f32 + (MODEL.spread * 4.0).powi(2)).sqrt()).abs() < 1e-5);
+    }
+
+    /// A filled pixel is never surer than a pixel, and says how far apart its sources were.
+    #[test]
+    fn filled_pixels_say_how_little_is_known() {
+        assert_eq!(filled(10.0, 10.2), FILLED_FLOOR);
+        assert_eq!(filled(10.0, 30.0), 20.0);
+        assert_eq!(filled(f32::NAN, 30.0), FILLED_FLOOR);
+    }
+}
