@@ -8,7 +8,10 @@ OpenCV's WLS confidence map? On pairs with exact truth, in one run:
   left (0 %, 5 %, ... 95 % removed); the area under that curve for our σ_d against OpenCV's WLS
   confidence map (SGBM_3WAY with ximgproc's WLS filter as OpenCV's disparity-filtering
   tutorial sets it up) on the same pair (goal <= 0.8 x), and the optimal area (sorted by the
-  true error) beside each.
+  true error) beside each;
+- with fill=true: the filled map's bad-1.0 and bad-2.0 against OpenCV's best SGBM + WLS (modes,
+  blocks 3 and 5, λ and σ_color searched on the truth), and the filled pixels' share within
+  their σ_d, apart.
 
 Pairs: Middlebury 2014 Motorcycle (quarter size, from the scikit-image wheel) with a gain change,
 noise sigma 4 (the variant's seed and three more draws), at half size and upscaled 2 x; and the
@@ -41,6 +44,8 @@ FRACTIONS = np.arange(0.0, 1.0, 0.05)
 EXTRA_NOISE_SEEDS = (1, 2, 3)
 # The pairs whose calibration and area CI holds to the goals: the real pair and its variants.
 FLOORED = ("motorcycle", "gain", "noise", "noise draw 1", "noise draw 2", "noise draw 3")
+# The pairs whose filled maps are compared with OpenCV's best SGBM + WLS.
+FILL_PAIRS = ("motorcycle", "gain", "noise")
 
 
 def pairs(data):
@@ -72,14 +77,15 @@ def pairs(data):
         u8(128 + (sr - 128) / 5 + rng.normal(0, 3, sr.shape)), st, 64
 
 
-def ours(url, left, right, ndisp):
-    """Our disparity and σ_d maps, from one /depth-map request's NPZ."""
+def ours(url, left, right, ndisp, query=""):
+    """Our disparity and σ_d maps (and, with `&fill=true` in `query`, the filled mask), from
+    one /depth-map request's NPZ."""
     body, ctype = stereo.multipart({
         "left": (cv2.imencode(".png", left)[1].tobytes(), "left.png", "image/png"),
         "right": (cv2.imencode(".png", right)[1].tobytes(), "right.png", "image/png")})
     target = urllib.parse.urlsplit(url)
     conn = http.client.HTTPConnection(target.hostname, target.port, timeout=120)
-    path = f"/depth-map?max_disparity={ndisp}&output=arrays.npz"
+    path = f"/depth-map?max_disparity={ndisp}&output=arrays.npz{query}"
     conn.request("POST", path, body=body, headers={"Content-Type": ctype})
     response = conn.getresponse()
     answer = response.read()
@@ -87,6 +93,8 @@ def ours(url, left, right, ndisp):
     if response.status != 200:
         sys.exit(f"{path} answered {response.status}: {answer[:500]!r}")
     arrays = np.load(io.BytesIO(answer))
+    if "filled" in arrays.files:
+        return arrays["disparity"], arrays["disparity_std"], arrays["filled"]
     return arrays["disparity"], arrays["disparity_std"]
 
 
@@ -123,17 +131,23 @@ def areas(disp, trust, truth):
     return area, best
 
 
-def wls(python, work, cases):
-    """OpenCV's WLS-filtered maps and confidence for each case, from its own venv."""
-    args = [python, str(Path(__file__).with_name("wls_confidence.py")), "--out",
-            f"{work}/wls.npz"]
-    for name, left, right, _, ndisp in cases:
+def wls(python, work, cases, search=False):
+    """OpenCV's WLS-filtered maps and confidence for each case, from its own venv; with
+    `search`, also its best filtered map over modes, blocks, λ and σ_color."""
+    out = f"{work}/wls{'-search' if search else ''}.npz"
+    args = [python, str(Path(__file__).with_name("wls_confidence.py")), "--out", out]
+    if search:
+        args.append("--search")
+    for name, left, right, truth, ndisp in cases:
         stem = f"{work}/{name.replace(' ', '_')}"
         cv2.imwrite(f"{stem}_left.png", left)
         cv2.imwrite(f"{stem}_right.png", right)
         args += [name, f"{stem}_left.png", f"{stem}_right.png", str(ndisp)]
+        if search:
+            np.save(f"{stem}_truth.npy", truth)
+            args.append(f"{stem}_truth.npy")
     subprocess.run(args, check=True)
-    return np.load(f"{work}/wls.npz")
+    return np.load(out)
 
 
 def main():
@@ -182,9 +196,45 @@ def main():
         met = all(RATIOS[0] <= v <= RATIOS[1] for v in r["tenths"])
         print(f"  {name:<21} {' '.join(f'{v:.2f}' for v in r['tenths'])}  "
               f"{'met' if met else 'NOT met'}")
+    filled_results = filled_maps(args, work, cases)
     if args.json:
-        Path(args.json).write_text(json.dumps(results, indent=1))
+        Path(args.json).write_text(json.dumps({"sigma": results, "filled": filled_results},
+                                              indent=1))
     stereo.floors(failures, "sigma_d")
+
+
+def filled_maps(args, work, cases):
+    """`fill=true` on the real pairs: the filled map's bad-1.0 and bad-2.0 against OpenCV's
+    best SGBM + WLS (modes, blocks 3 and 5, λ and σ_color searched on the truth), and whether
+    the filled pixels' σ_d holds (the share within 1 σ, apart from the matched pixels')."""
+    chosen = [c for c in cases if c[0] in FILL_PAIRS]
+    best = wls(args.wls_python, work, chosen, search=True)
+    print()
+    print("fill=true (each hole from its row's background) against OpenCV's best SGBM + WLS "
+          "(modes, blocks 3 and 5, lambda and sigma_color searched on the truth):")
+    header = (f"{'pair':<12} {'ours bad-1.0':>12} {'bad-2.0':>8} {'WLS bad-1.0':>11} "
+              f"{'bad-2.0':>8} {'ratio 2.0':>9} {'filled':>7} {'within 1 sigma':>14}  WLS setting")
+    print(header)
+    print("-" * len(header))
+    out = {}
+    for name, left, right, truth, ndisp in chosen:
+        disp, std, filled = ours(args.url, left, right, ndisp, "&fill=true")
+        mine = stereo.score(np.where(np.isfinite(disp), disp, np.inf), truth)
+        theirs = stereo.score(np.where(np.isfinite(best[f"{name}/best"]), best[f"{name}/best"],
+                                       np.inf), truth)
+        known = filled & np.isfinite(truth)
+        within = float(np.mean(np.abs(disp - truth)[known] <= std[known])) if known.any() else 0.0
+        ratio = mine["bad2"] / theirs["bad2"]
+        out[name] = {"ours": mine, "wls": theirs, "ratio_bad2": ratio,
+                     "filled": float(np.mean(filled)), "filled_within_sigma": within,
+                     "wls_setting": str(best[f"{name}/best_setting"])}
+        print(f"{name:<12} {mine['bad1']:11.2f}% {mine['bad2']:7.2f}% {theirs['bad1']:10.2f}% "
+              f"{theirs['bad2']:7.2f}% {ratio:9.2f} {100 * np.mean(filled):6.1f}% "
+              f"{100 * within:13.1f}%  {best[f'{name}/best_setting']}")
+    print(f"goal: bad-2.0 at most 0.6 x OpenCV + WLS's on Motorcycle: "
+          f"{'met' if out['motorcycle']['ratio_bad2'] <= 0.6 else 'NOT met'} "
+          f"({out['motorcycle']['ratio_bad2']:.2f} x)")
+    return out
 
 
 if __name__ == "__main__":

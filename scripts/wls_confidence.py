@@ -1,7 +1,8 @@
 """OpenCV's SGBM with ximgproc's WLS filter, as OpenCV's disparity-filtering tutorial sets it up
 (a left matcher, `createRightMatcher`, `createDisparityWLSFilter`, λ 8000, σ_color 1.5), on each
 pair given: the filtered disparity and `getConfidenceMap()` (0-255). With `--search`, also the
-best filtered map over modes, blocks 3 and 5, λ and σ_color, scored against each pair's truth
+best filtered map over modes, blocks 3 and 5, λ, σ_color, and the matcher with and without
+the usual checks (uniqueness, speckles, disp12MaxDiff), scored against each pair's truth
 (Middlebury's bad-2.0, the filtered maps being dense).
 
 Runs in its own venv (opencv-contrib-python-headless cannot share one with
@@ -21,15 +22,19 @@ LAMBDAS = (2000.0, 8000.0, 32000.0)
 SIGMAS = (0.8, 1.5, 3.0)
 
 
-def filtered(left, right, ndisp, mode="SGBM_3WAY", block=3, lam=8000.0, sigma=1.5):
+def filtered(left, right, ndisp, mode="SGBM_3WAY", block=3, lam=8000.0, sigma=1.5,
+             checks=False):
     """The tutorial's pipeline (its SGBM: P1 = 24 w², P2 = 96 w² on colour, preFilterCap 63,
-    3WAY, the rest OpenCV's defaults): returns (the filtered disparity in pixels, NaN where
-    it has none; the confidence, 0-255)."""
+    3WAY, the rest OpenCV's defaults; with `checks`, also scripts/eval_stereo.py's uniqueness
+    10, speckles of 100 within 2 and disp12MaxDiff 1): returns (the filtered disparity in
+    pixels, NaN where it has none; the confidence, 0-255)."""
     channels = 1 if left.ndim == 2 else 3
+    extra = {"uniquenessRatio": 10, "speckleWindowSize": 100, "speckleRange": 2,
+             "disp12MaxDiff": 1} if checks else {}
     matcher = cv2.StereoSGBM_create(
         minDisparity=0, numDisparities=ndisp, blockSize=block,
         P1=8 * channels * block * block, P2=32 * channels * block * block,
-        preFilterCap=63, mode=MODES[mode])
+        preFilterCap=63, mode=MODES[mode], **extra)
     right_matcher = cv2.ximgproc.createRightMatcher(matcher)
     wls = cv2.ximgproc.createDisparityWLSFilter(matcher)
     wls.setLambda(lam)
@@ -66,11 +71,13 @@ def main():
         if args.search:
             truth = np.load(items[i + 4])
             best = None
-            for mode, block, lam, sigma in itertools.product(MODES, (3, 5), LAMBDAS, SIGMAS):
-                d, _ = filtered(left, right, int(ndisp), mode, block, lam, sigma)
+            for mode, block, lam, sigma, checks in itertools.product(
+                    MODES, (3, 5), LAMBDAS, SIGMAS, (False, True)):
+                d, _ = filtered(left, right, int(ndisp), mode, block, lam, sigma, checks)
                 score = (bad(d, truth, 2.0), bad(d, truth, 1.0))
                 if best is None or score < best[0]:
-                    best = (score, d, f"{mode} b{block} lambda {lam:g} sigma {sigma:g}")
+                    best = (score, d, f"{mode} b{block} lambda {lam:g} sigma {sigma:g}"
+                                      f"{' with checks' if checks else ''}")
             arrays[f"{name}/best"] = best[1]
             arrays[f"{name}/best_setting"] = np.array(best[2])
     np.savez(args.out, **arrays)

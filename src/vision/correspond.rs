@@ -193,6 +193,7 @@ pub fn correspond(
         height: h,
         data: map,
         std,
+        filled: Vec::new(),
     };
     // Each row's probes, taken in the order the points were pushed.
     let mut next = vec![0usize; h];
@@ -496,6 +497,7 @@ mod tests {
                 12.0,
             ],
             std: vec![0.2; 12],
+            filled: Vec::new(),
         };
         let (values, pixels) = in_box(
             &map,

@@ -26,21 +26,34 @@ pub fn pfm(width: usize, height: usize, data: &[f32]) -> Vec<u8> {
 /// NumPy's NPY (version 1.0) of a `height × width` float32 array, C order; `numpy.load` reads
 /// it. Invalid pixels stay NaN.
 pub fn npy(width: usize, height: usize, data: &[f32]) -> Vec<u8> {
+    let mut out = npy_header("<f4", width, height, data.len() * 4);
+    for &v in data {
+        out.extend_from_slice(&v.to_le_bytes());
+    }
+    out
+}
+
+/// NumPy's NPY of a `height × width` boolean array (`|b1`, one byte a value), C order.
+pub fn npy_bool(width: usize, height: usize, data: &[bool]) -> Vec<u8> {
+    let mut out = npy_header("|b1", width, height, data.len());
+    out.extend(data.iter().map(|&b| u8::from(b)));
+    out
+}
+
+/// An NPY header for a `height × width` array of `descr`, with room for `bytes` of data.
+fn npy_header(descr: &str, width: usize, height: usize, bytes: usize) -> Vec<u8> {
     let dict =
-        format!("{{'descr': '<f4', 'fortran_order': False, 'shape': ({height}, {width}), }}");
+        format!("{{'descr': '{descr}', 'fortran_order': False, 'shape': ({height}, {width}), }}");
     // Magic (6) + version (2) + length (2) + dict + padding + '\n', a multiple of 64.
     let unpadded = 10 + dict.len() + 1;
     let padding = unpadded.next_multiple_of(64) - unpadded;
     let header_len = dict.len() + padding + 1;
-    let mut out = Vec::with_capacity(10 + header_len + data.len() * 4);
+    let mut out = Vec::with_capacity(10 + header_len + bytes);
     out.extend_from_slice(b"\x93NUMPY\x01\x00");
     out.extend_from_slice(&(header_len as u16).to_le_bytes());
     out.extend_from_slice(dict.as_bytes());
     out.extend(std::iter::repeat_n(b' ', padding));
     out.push(b'\n');
-    for &v in data {
-        out.extend_from_slice(&v.to_le_bytes());
-    }
     out
 }
 
@@ -194,6 +207,17 @@ mod tests {
             &out[10 + header_len + 4..10 + header_len + 8],
             &1f32.to_le_bytes()
         );
+    }
+
+    /// A boolean NPY: the same aligned header with `|b1`, one byte a value.
+    #[test]
+    fn bool_npy_is_one_byte_a_value() {
+        let out = npy_bool(2, 2, &[true, false, false, true]);
+        let header_len = u16::from_le_bytes([out[8], out[9]]) as usize;
+        assert_eq!((10 + header_len) % 64, 0);
+        let header = std::str::from_utf8(&out[10..10 + header_len]).unwrap();
+        assert!(header.contains("'descr': '|b1'") && header.contains("'shape': (2, 2)"));
+        assert_eq!(&out[10 + header_len..], &[1, 0, 0, 1]);
     }
 
     /// The NPZ is a stored zip: each local header names the entry `….npy`, carries its

@@ -107,6 +107,8 @@ pub struct Disparity {
     pub data: Vec<f32>,
     /// σ_d of each value, in pixels; NaN where the value is.
     pub std: Vec<f32>,
+    /// Which values the fill gave (`fill` asked for): empty when it was not.
+    pub filled: Vec<bool>,
 }
 
 /// How long each stage took, in wall time: the stripes run side by side (and in waves when
@@ -434,8 +436,15 @@ fn level(
     }
     let mut std = sigma::map(&data, &variance, w);
     drop(variance);
+    let mut filled = Vec::new();
     if params.fill {
+        let holes: Vec<bool> = data.iter().map(|d| d.is_nan()).collect();
         filters::fill_with_std(&mut data, &mut std, w);
+        filled = holes
+            .into_iter()
+            .zip(&data)
+            .map(|(hole, d)| hole && !d.is_nan())
+            .collect();
     }
     let min = params.min_disparity as f32;
     for d in &mut data {
@@ -449,6 +458,7 @@ fn level(
             height: h,
             data,
             std,
+            filled,
         },
         timings,
         probes,

@@ -225,6 +225,7 @@ mod tests {
                 width: cw,
                 height: ch,
                 std: vec![0.2; cw * ch],
+                filled: Vec::new(),
                 data,
             },
             0,

@@ -21,8 +21,8 @@
 //!
 //! The first five come from the winner ([`winner_variance`], summed as each row is chosen);
 //! the last two from the finished map ([`map`], or [`at`] for a winner the map does not
-//! hold). Filled pixels ([`filled`]) take the spread of
-//! the values the fill chose between.
+//! hold). Filled pixels ([`filled`]) take half the spread of the values the fill chose
+//! between.
 
 use rayon::prelude::*;
 
@@ -56,8 +56,10 @@ pub const MODEL: Model = Model {
 /// anyway, and a pixel with no right winner counts as this.
 pub const MAX_DISAGREEMENT: f32 = 8.0;
 
-/// The least σ_d of a filled pixel (pixels): a value taken from a neighbour, not matched.
-pub const FILLED_FLOOR: f32 = 1.0;
+/// The least σ_d of a filled pixel (pixels): a value taken from a neighbour, not matched
+/// (fitted with [`filled`]'s half spread so that 66–71 % of the filled pixels of Motorcycle
+/// and its variants lie within it).
+pub const FILLED_FLOOR: f32 = 0.7;
 
 /// The variance (px²) the winner itself contributes: its cost curve `cue`, its disparity `d`
 /// (sub-pixel) and the left-right `disagreement` (pixels), on a pair whose census samples lie
@@ -131,13 +133,14 @@ pub fn at(disparity: &[f32], width: usize, (x, y): (usize, usize), d: f32, varia
     (variance + (m.spread * (hi - lo)).powi(2) + (m.neighbours * missing).powi(2)).sqrt()
 }
 
-/// σ_d of a pixel the fill gave a value (pixels): the spread between the values it chose from
-/// (`left` and `right`, either NaN when there was none), at least [`FILLED_FLOOR`].
+/// σ_d of a pixel the fill gave a value (pixels): half the spread between the values it chose
+/// from (`left` and `right`, either NaN when there was none), the standard deviation of a
+/// value as likely at either; at least [`FILLED_FLOOR`].
 #[inline]
 pub fn filled(left: f32, right: f32) -> f32 {
-    let spread = (left - right).abs();
-    if spread.is_finite() {
-        spread.max(FILLED_FLOOR)
+    let half = 0.5 * (left - right).abs();
+    if half.is_finite() {
+        half.max(FILLED_FLOOR)
     } else {
         FILLED_FLOOR
     }
@@ -204,7 +207,7 @@ mod tests {
     #[test]
     fn filled_pixels_say_how_little_is_known() {
         assert_eq!(filled(10.0, 10.2), FILLED_FLOOR);
-        assert_eq!(filled(10.0, 30.0), 20.0);
+        assert_eq!(filled(10.0, 30.0), 10.0);
         assert_eq!(filled(f32::NAN, 30.0), FILLED_FLOOR);
     }
 }

@@ -551,6 +551,63 @@ async fn options_out_of_range_are_named() {
     assert!(message_for(&body, "max_disparity").contains("at most 512"));
 }
 
+/// `fill=true` marks what it gave: the NPZ's `filled` (NumPy bool) is true exactly where the
+/// unfilled map has a hole and the filled one a value; the values matched are the same in
+/// both; a filled pixel's σ_d is at least the fill's floor (a value taken, not matched). Without the
+/// fill there is no `filled` entry.
+#[tokio::test]
+async fn a_filled_map_marks_what_the_fill_gave() {
+    let app = spawn_app().await;
+    let pair = pair();
+    let mut arrays = Vec::new();
+    for fill in ["false", "true"] {
+        let response = depth_map(
+            &app,
+            &format!("?max_disparity=48&output=arrays.npz&fill={fill}"),
+            form(&pair, &[]),
+        )
+        .await;
+        assert_eq!(response.status(), 200);
+        arrays.push(npz_entries(&response.bytes().await.unwrap()));
+    }
+    let names = |entries: &[(String, Vec<u8>)]| -> Vec<String> {
+        entries.iter().map(|(n, _)| n.clone()).collect()
+    };
+    assert_eq!(names(&arrays[0]), ["disparity.npy", "disparity_std.npy"]);
+    assert_eq!(
+        names(&arrays[1]),
+        ["disparity.npy", "disparity_std.npy", "filled.npy"]
+    );
+    let (holes, filled, std) = (
+        npy(&arrays[0][0].1),
+        npy(&arrays[1][0].1),
+        npy(&arrays[1][1].1),
+    );
+    let mask = &arrays[1][2].1;
+    assert_eq!(&mask[..8], b"\x93NUMPY\x01\x00");
+    let len = u16::from_le_bytes([mask[8], mask[9]]) as usize;
+    let header = std::str::from_utf8(&mask[10..10 + len]).unwrap();
+    assert!(header.contains("'descr': '|b1'") && header.contains(&format!("'shape': ({H}, {W})")));
+    let mask = &mask[10 + len..];
+    assert_eq!(mask.len(), W * H);
+    let mut count = 0;
+    for i in 0..W * H {
+        let gave = holes[i].is_nan() && !filled[i].is_nan();
+        assert_eq!(mask[i], u8::from(gave), "pixel {i}");
+        if gave {
+            count += 1;
+            assert!(
+                std[i] >= sigma::FILLED_FLOOR,
+                "a filled pixel's σ_d {}",
+                std[i]
+            );
+        } else if !holes[i].is_nan() {
+            assert_eq!(holes[i], filled[i]);
+        }
+    }
+    assert!(count > 100, "{count} pixels filled");
+}
+
 /// A fill that is neither true nor false, and a σ output asked of a route that has none
 /// (`/rectify` answers images, `/match` answers points and takes no `output`), are each a 422
 /// naming the parameter.

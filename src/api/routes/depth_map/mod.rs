@@ -129,10 +129,10 @@ pub async fn post_depth_map(
 /// rectified pair searching `count` disparities reserves from the heavy budget.
 pub fn bytes_needed(w: usize, h: usize, count: usize, output: DepthMapOutput) -> usize {
     // A point cloud's colours, or the NPZ's four more arrays and the archive's copy of all
-    // five.
+    // five (and the fill's one-byte mask, twice).
     let extra = match output {
         DepthMapOutput::PointsPly => 3,
-        DepthMapOutput::ArraysNpz => 40,
+        DepthMapOutput::ArraysNpz => 42,
         DepthMapOutput::DepthStdNpy => 4,
         _ => 0,
     };
@@ -278,7 +278,7 @@ fn depth_stds(map: &Disparity, depth: &[f32], rig: crate::physics::Rig) -> Vec<f
 }
 
 /// The NPZ: the disparity and its σ_d and, with a rig, the depth, its σ_Z, and σ_Z again as
-/// `depth_error` (its earlier name).
+/// `depth_error` (its earlier name); with `fill`, which pixels the fill gave (`filled`).
 fn arrays(
     map: &Disparity,
     depth: Option<&[f32]>,
@@ -294,6 +294,9 @@ fn arrays(
         entries.push(("depth", encode::npy(w, h, depth)));
         entries.push(("depth_std", std.clone()));
         entries.push(("depth_error", std));
+    }
+    if !map.filled.is_empty() {
+        entries.push(("filled", encode::npy_bool(w, h, &map.filled)));
     }
     encode::npz(&entries).map_err(|e| ApiError::Internal(format!("the NPZ was not written: {e}")))
 }

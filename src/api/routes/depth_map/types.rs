@@ -47,7 +47,8 @@ pub enum DepthMapOutput {
     /// NumPy's NPZ (`numpy.load(p)`), float32, invalid = NaN: `disparity` and `disparity_std`
     /// (σ_d, pixels) and, with a rig, `depth`, `depth_std` (σ_Z, the rig's unit, with the
     /// rig's σ_f and σ_B) and `depth_error` (the same σ_Z under its earlier name; it was once
-    /// one Δd propagated for every pixel).
+    /// one Δd propagated for every pixel); with `fill=true`, `filled` (bool: the pixels the
+    /// fill gave a value, whose σ_d says how little is known of them).
     #[serde(rename = "arrays.npz")]
     ArraysNpz,
     /// 16-bit PNG of depth in millimetres (ROS `16UC1`), 0 = invalid or beyond 65.535 m.
@@ -234,7 +235,9 @@ request! {
         #[schema(minimum = 5, maximum = 8, example = 5)]
         paths: u32,
         /// Fill invalid pixels from their row's background (the smaller of the nearest valid
-        /// disparities left and right) instead of leaving them invalid. Default false.
+        /// disparities left and right) instead of leaving them invalid; each filled pixel's
+        /// σ_d is half the spread of the values it was chosen from (at least 0.7 px), and
+        /// `arrays.npz` marks them (`filled`). Default false.
         fill: bool,
         /// SGM penalty for a disparity step of one pixel, in census bits. Default 16.
         #[schema(minimum = 1, maximum = 255)]
