@@ -13,11 +13,8 @@ over the set. Printed per pair, with the medians; reported, not floored.
     python3 scripts/eval_indoor.py --url URL [--photographs DIR] [--json FILE]
 """
 import argparse
-import http.client
 import io
 import json
-import sys
-import urllib.parse
 from pathlib import Path
 
 import cv2
@@ -33,33 +30,6 @@ MODES = {"SGBM": cv2.STEREO_SGBM_MODE_SGBM, "HH": cv2.STEREO_SGBM_MODE_HH,
          "SGBM_3WAY": cv2.STEREO_SGBM_MODE_SGBM_3WAY, "HH4": cv2.STEREO_SGBM_MODE_HH4}
 
 
-def multipart_list(parts):
-    """A multipart body of `parts`, a list of (name, (data, filename, type)), names repeating."""
-    boundary = "eval-indoor-boundary"
-    body = bytearray()
-    for name, (data, filename, ctype) in parts:
-        disposition = f'form-data; name="{name}"' + (f'; filename="{filename}"' if filename else "")
-        body += (f"--{boundary}\r\nContent-Disposition: {disposition}\r\n"
-                 f"Content-Type: {ctype}\r\n\r\n").encode() + data + b"\r\n"
-    body += f"--{boundary}--\r\n".encode()
-    return bytes(body), f"multipart/form-data; boundary={boundary}"
-
-
-def post(url, path, parts):
-    """One multipart POST of `parts` (a dict, or a list of pairs where names repeat); the
-    answer's bytes, or exit naming the status."""
-    body, ctype = multipart_list(list(parts.items()) if isinstance(parts, dict) else parts)
-    target = urllib.parse.urlsplit(url)
-    conn = http.client.HTTPConnection(target.hostname, target.port, timeout=300)
-    conn.request("POST", path, body=body, headers={"Content-Type": ctype})
-    response = conn.getresponse()
-    answer = response.read()
-    conn.close()
-    if response.status != 200:
-        sys.exit(f"{path} answered {response.status}: {answer[:500]!r}")
-    return answer
-
-
 def rectified_pairs(url, folder):
     """The calibration from all 13 pairs, then each pair rectified by the service: (name,
     left, right) as 8-bit grey arrays."""
@@ -70,11 +40,11 @@ def rectified_pairs(url, folder):
         parts += [("left", (l, f"left{n}.jpg", "image/jpeg")),
                   ("right", (r, f"right{n}.jpg", "image/jpeg"))]
     parts.append(("board", (json.dumps(BOARD).encode(), None, "application/json")))
-    calibration = post(url, "/calibrate?output=opencv.yml", parts)
+    calibration = stereo.post_once(url, "/calibrate?output=opencv.yml", parts)
     for n, (l, r) in files.items():
         images = []
         for side in ("left", "right"):
-            png = post(url, f"/rectify?output={side}.png", {
+            png = stereo.post_once(url, f"/rectify?output={side}.png", {
                 "left": (l, "left.jpg", "image/jpeg"), "right": (r, "right.jpg", "image/jpeg"),
                 "calibration": (calibration, "opencv.yml", "application/x-yaml")})
             images.append(cv2.imdecode(np.frombuffer(png, np.uint8), cv2.IMREAD_GRAYSCALE))
@@ -82,7 +52,7 @@ def rectified_pairs(url, folder):
 
 
 def ours(url, left, right):
-    answer = post(url, f"/depth-map?max_disparity={DISPARITIES}&output=arrays.npz", {
+    answer = stereo.post_once(url, f"/depth-map?max_disparity={DISPARITIES}&output=arrays.npz", {
         "left": (cv2.imencode(".png", left)[1].tobytes(), "left.png", "image/png"),
         "right": (cv2.imencode(".png", right)[1].tobytes(), "right.png", "image/png")})
     return np.load(io.BytesIO(answer))["disparity"]

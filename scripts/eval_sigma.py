@@ -23,12 +23,10 @@ images, whose error floor renders do not have).
     python3 scripts/eval_sigma.py --data target/eval-stereo --url URL --wls-python PY [--json F]
 """
 import argparse
-import http.client
 import io
 import json
 import subprocess
 import sys
-import urllib.parse
 from pathlib import Path
 
 import cv2
@@ -80,18 +78,9 @@ def pairs(data):
 def ours(url, left, right, ndisp, query=""):
     """Our disparity and σ_d maps (and, with `&fill=true` in `query`, the filled mask), from
     one /depth-map request's NPZ."""
-    body, ctype = stereo.multipart({
+    answer = stereo.post_once(url, f"/depth-map?max_disparity={ndisp}&output=arrays.npz{query}", {
         "left": (cv2.imencode(".png", left)[1].tobytes(), "left.png", "image/png"),
         "right": (cv2.imencode(".png", right)[1].tobytes(), "right.png", "image/png")})
-    target = urllib.parse.urlsplit(url)
-    conn = http.client.HTTPConnection(target.hostname, target.port, timeout=120)
-    path = f"/depth-map?max_disparity={ndisp}&output=arrays.npz{query}"
-    conn.request("POST", path, body=body, headers={"Content-Type": ctype})
-    response = conn.getresponse()
-    answer = response.read()
-    conn.close()
-    if response.status != 200:
-        sys.exit(f"{path} answered {response.status}: {answer[:500]!r}")
     arrays = np.load(io.BytesIO(answer))
     if "filled" in arrays.files:
         return arrays["disparity"], arrays["disparity_std"], arrays["filled"]

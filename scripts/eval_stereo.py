@@ -151,9 +151,11 @@ def opencv(left, right):
 
 
 def multipart(parts):
+    """A multipart/form-data body of `parts`, a dict of name -> (data, filename, type), or a
+    list of (name, that) pairs where a name may repeat; with its content type."""
     boundary = uuid.uuid4().hex
     body = bytearray()
-    for name, (data, filename, ctype) in parts.items():
+    for name, (data, filename, ctype) in parts.items() if isinstance(parts, dict) else parts:
         body += f"--{boundary}\r\n".encode()
         disposition = f'form-data; name="{name}"'
         if filename:
@@ -180,6 +182,21 @@ def connect(url, parts):
         {**parts, "rig": (json.dumps(RIG).encode(), None, "application/json")}
     )
     return conn, body, ctype
+
+
+def post_once(url, path, parts):
+    """One multipart POST of `parts` ([`multipart`]) on its own connection: the answer's
+    bytes, or exit naming the status."""
+    body, ctype = multipart(parts)
+    target = urllib.parse.urlsplit(url)
+    conn = http.client.HTTPConnection(target.hostname, target.port, timeout=300)
+    conn.request("POST", path, body=body, headers={"Content-Type": ctype})
+    response = conn.getresponse()
+    answer = response.read()
+    conn.close()
+    if response.status != 200:
+        sys.exit(f"{path} answered {response.status}: {answer[:500]!r}")
+    return answer
 
 
 def post(url, path, parts):

@@ -202,6 +202,30 @@ export function colourRange(values) {
   return far > near ? [near, far] : [near, near * 1.01 + 1e-9];
 }
 
+/** The colour bar's strip, from x = BAR_LEFT to BAR_RIGHT of its 320 units. */
+const BAR_LEFT = 10;
+const BAR_RIGHT = 310;
+
+/** Turbo across the colour bar (its gradient named `id`) with `ticks`, [x, label] pairs, each
+ * label given 34 units of its own. */
+function turboStrip(bar, id, ticks) {
+  const gradient = svg('linearGradient', { id, x1: 0, x2: 1, y1: 0, y2: 0 });
+  for (let i = 0; i <= 16; i += 1) {
+    const [r, g, b] = turbo(i / 16);
+    gradient.append(svg('stop', { offset: i / 16, 'stop-color': `rgb(${r},${g},${b})` }));
+  }
+  const defs = svg('defs');
+  defs.append(gradient);
+  bar.append(defs, svg('rect', { x: BAR_LEFT, y: 2, width: BAR_RIGHT - BAR_LEFT, height: 12, fill: `url(#${id})` }));
+  let last = -Infinity;
+  for (const [x, label] of ticks.sort((p, q) => p[0] - q[0])) {
+    if (x < BAR_LEFT - 0.5 || x > BAR_RIGHT + 0.5 || x - last < 34) continue;
+    last = x;
+    bar.append(svg('line', { class: 'tick', x1: x, x2: x, y1: 14, y2: 18 }));
+    bar.append(svg('text', { x, y: 28, 'text-anchor': 'middle' }, label));
+  }
+}
+
 export function drawColourBar(range, unit) {
   const bar = $('colour-bar');
   const title = $('colour-bar-title');
@@ -215,26 +239,10 @@ export function drawColourBar(range, unit) {
   const px = unit === 'px';
   const label = (z) => fmt(px ? 1 / z : z, 4);
   const [near, far] = range;
-  const [left, right] = [10, 310];
-  const at = (z) => left + ((1 / z - 1 / far) / (1 / near - 1 / far)) * (right - left);
-  const gradient = svg('linearGradient', { id: 'turbo-gradient', x1: 0, x2: 1, y1: 0, y2: 0 });
-  for (let i = 0; i <= 16; i += 1) {
-    const [r, g, b] = turbo(i / 16);
-    gradient.append(svg('stop', { offset: i / 16, 'stop-color': `rgb(${r},${g},${b})` }));
-  }
-  const defs = svg('defs');
-  defs.append(gradient);
-  bar.append(defs, svg('rect', { x: left, y: 2, width: right - left, height: 12, fill: 'url(#turbo-gradient)' }));
+  const at = (z) => BAR_LEFT + ((1 / z - 1 / far) / (1 / near - 1 / far)) * (BAR_RIGHT - BAR_LEFT);
   // Inverse depth crowds the far ticks together: a label needs 34 units of its own.
-  let last = -Infinity;
-  for (const z of linearTicks(near, far, 7).sort((p, q) => at(p) - at(q))) {
-    const x = at(z);
-    if (x - last < 34) continue;
-    last = x;
-    bar.append(svg('line', { class: 'tick', x1: x, x2: x, y1: 14, y2: 18 }));
-    bar.append(svg('text', { x, y: 28, 'text-anchor': 'middle' }, label(z)));
-  }
-  bar.append(svg('text', { x: (left + right) / 2, y: 42, 'text-anchor': 'middle' }, px
+  turboStrip(bar, 'turbo-gradient', linearTicks(near, far, 7).map((z) => [at(z), label(z)]));
+  bar.append(svg('text', { x: (BAR_LEFT + BAR_RIGHT) / 2, y: 42, 'text-anchor': 'middle' }, px
     ? 'Disparity (px), far = blue, near = red'
     : `Depth (${unit}), far = blue, near = red`));
   title.textContent = px
@@ -255,26 +263,10 @@ export function drawSigmaBar(range, unit) {
     return;
   }
   const [lo, hi] = range;
-  const [left, right] = [10, 310];
-  const at = (v) => left + ((v - lo) / (hi - lo)) * (right - left);
-  const gradient = svg('linearGradient', { id: 'sigma-gradient', x1: 0, x2: 1, y1: 0, y2: 0 });
-  for (let i = 0; i <= 16; i += 1) {
-    const [r, g, b] = turbo(i / 16);
-    gradient.append(svg('stop', { offset: i / 16, 'stop-color': `rgb(${r},${g},${b})` }));
-  }
-  const defs = svg('defs');
-  defs.append(gradient);
-  bar.append(defs, svg('rect', { x: left, y: 2, width: right - left, height: 12, fill: 'url(#sigma-gradient)' }));
-  let last = -Infinity;
-  for (const v of linearTicks(lo, hi, 6)) {
-    const x = at(v);
-    if (x < left - 0.5 || x > right + 0.5 || x - last < 34) continue;
-    last = x;
-    bar.append(svg('line', { class: 'tick', x1: x, x2: x, y1: 14, y2: 18 }));
-    bar.append(svg('text', { x, y: 28, 'text-anchor': 'middle' }, fmt(v, 3)));
-  }
+  const at = (v) => BAR_LEFT + ((v - lo) / (hi - lo)) * (BAR_RIGHT - BAR_LEFT);
+  turboStrip(bar, 'sigma-gradient', linearTicks(lo, hi, 6).map((v) => [at(v), fmt(v, 3)]));
   const what = unit === 'px' ? 'σ of each disparity (px)' : `σ of each depth (${unit})`;
-  bar.append(svg('text', { x: (left + right) / 2, y: 42, 'text-anchor': 'middle' }, `${what}, sure = blue, unsure = red`));
+  bar.append(svg('text', { x: (BAR_LEFT + BAR_RIGHT) / 2, y: 42, 'text-anchor': 'middle' }, `${what}, sure = blue, unsure = red`));
   title.textContent = `${what}: ${fmt(lo, 3)} (blue) to ${fmt(hi, 3)} (red).`;
 }
 
