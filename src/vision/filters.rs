@@ -366,11 +366,14 @@ pub fn fill(disparity: &mut [f32], width: usize) {
 }
 
 /// [`fill`], also setting each filled pixel's σ_d in `std` (the same layout) from the values
-/// it chose between ([`super::sigma::filled`]).
-pub fn fill_with_std(disparity: &mut [f32], std: &mut [f32], width: usize) {
+/// it chose between ([`super::sigma::filled`]); answers which pixels it filled.
+pub fn fill_with_std(disparity: &mut [f32], std: &mut [f32], width: usize) -> Vec<bool> {
+    let mut filled = vec![false; disparity.len()];
     fill_noting(disparity, width, |i, left, right| {
         std[i] = super::sigma::filled(left, right);
+        filled[i] = true;
     });
+    filled
 }
 
 /// [`fill`], telling `filled` each filled pixel's index with the nearest valid values to its

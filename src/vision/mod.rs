@@ -436,20 +436,12 @@ fn level(
     }
     let mut std = sigma::map(&data, &variance, w);
     drop(variance);
-    let mut filled = Vec::new();
-    if params.fill {
-        let holes: Vec<bool> = data.iter().map(|d| d.is_nan()).collect();
-        filters::fill_with_std(&mut data, &mut std, w);
-        filled = holes
-            .into_iter()
-            .zip(&data)
-            .map(|(hole, d)| hole && !d.is_nan())
-            .collect();
-    }
+    let filled = match params.fill {
+        true => filters::fill_with_std(&mut data, &mut std, w),
+        false => Vec::new(),
+    };
     let min = params.min_disparity as f32;
-    for d in &mut data {
-        *d += min;
-    }
+    data.iter_mut().for_each(|d| *d += min);
     timings.refine += started.elapsed();
     probes.truncate(wanted.len());
     Ok((
