@@ -76,15 +76,12 @@ def pairs(data):
 
 
 def ours(url, left, right, ndisp, query=""):
-    """Our disparity and σ_d maps (and, with `&fill=true` in `query`, the filled mask), from
-    one /depth-map request's NPZ."""
+    """One /depth-map request's NPZ: `disparity`, `disparity_std` and, with `&fill=true` in
+    `query`, `filled`."""
     answer = stereo.post_once(url, f"/depth-map?max_disparity={ndisp}&output=arrays.npz{query}", {
         "left": (cv2.imencode(".png", left)[1].tobytes(), "left.png", "image/png"),
         "right": (cv2.imencode(".png", right)[1].tobytes(), "right.png", "image/png")})
-    arrays = np.load(io.BytesIO(answer))
-    if "filled" in arrays.files:
-        return arrays["disparity"], arrays["disparity_std"], arrays["filled"]
-    return arrays["disparity"], arrays["disparity_std"]
+    return np.load(io.BytesIO(answer))
 
 
 def calibration(disp, std, truth):
@@ -159,7 +156,8 @@ def main():
     print("-" * len(header))
     results, failures = {}, []
     for name, left, right, truth, ndisp in cases:
-        disp, std = ours(args.url, left, right, ndisp)
+        arrays = ours(args.url, left, right, ndisp)
+        disp, std = arrays["disparity"], arrays["disparity_std"]
         coverage, ratios, mismatches = calibration(disp, std, truth)
         area, best = areas(disp, -std, truth)
         w_disp, w_conf = theirs[f"{name}/disparity"], theirs[f"{name}/confidence"]
@@ -207,7 +205,8 @@ def filled_maps(args, work, cases):
     print("-" * len(header))
     out = {}
     for name, left, right, truth, ndisp in chosen:
-        disp, std, filled = ours(args.url, left, right, ndisp, "&fill=true")
+        arrays = ours(args.url, left, right, ndisp, "&fill=true")
+        disp, std, filled = arrays["disparity"], arrays["disparity_std"], arrays["filled"]
         mine = stereo.score(np.where(np.isfinite(disp), disp, np.inf), truth)
         theirs = stereo.score(np.where(np.isfinite(best[f"{name}/best"]), best[f"{name}/best"],
                                        np.inf), truth)

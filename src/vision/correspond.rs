@@ -298,16 +298,12 @@ fn judge(
     };
     // A winner the map does not hold: its own σ, with the neighbourhood it would have had.
     let disparity_std = disparity_std.unwrap_or_else(|| {
-        let cue = super::refine::Cue {
-            best: probe.best,
-            second: probe.second,
-            curvature: probe.curvature,
-        };
         let variance =
-            super::sigma::winner_variance(cue, probe.subpixel, probe.disagreement, stride);
+            super::sigma::winner_variance(probe.cue, probe.subpixel, probe.disagreement, stride);
         super::sigma::at(&map.data, map.width, (x, y), raw, variance)
     });
-    let margin = f32::from(probe.second.saturating_sub(probe.best)) / f32::from(probe.best.max(1));
+    let (best, second) = (probe.cue.best, probe.cue.second);
+    let margin = f32::from(second.saturating_sub(best)) / f32::from(best.max(1));
     let mut confidence =
         (margin / MARGIN_FULL).min(1.0) * agree * (texture / (4.0 * TEXTURE_MIN)).min(1.0);
     if status != MatchOutcome::Ok {

@@ -221,11 +221,9 @@ pub struct Probe {
     pub index: usize,
     /// The winner with its sub-pixel offset, as an index into the range.
     pub subpixel: f32,
-    /// The winner's aggregated cost, and the least cost more than one index away from it.
-    pub best: u16,
-    pub second: u16,
-    /// The curvature of the aggregated costs at the winner ([`refine::Cue`]).
-    pub curvature: u16,
+    /// The winner's cost curve: its aggregated cost, the least more than one index away, the
+    /// curvature there.
+    pub cue: refine::Cue,
     /// How far the right image's winner at the match lies from the winner, in pixels
     /// ([`refine::disagreement`]).
     pub disagreement: f32,

@@ -369,9 +369,11 @@ pub fn probe(
     super::Probe {
         index,
         subpixel,
-        best,
-        second,
-        curvature: curvature(total, k),
+        cue: Cue {
+            best,
+            second,
+            curvature: curvature(total, k),
+        },
         disagreement: disagreement(right, x, subpixel),
         unique: unique(best, second, params.uniqueness),
         consistent,

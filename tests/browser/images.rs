@@ -64,6 +64,21 @@ impl Browser {
         .await
     }
 
+    /// Clicks "Show each pixel's σ" and returns what the depth view then shows: the colour
+    /// bar's kind and unit and the view's caption.
+    async fn toggle_sigma(&self) -> [String; 3] {
+        self.find("show-sigma").await.click().await.expect("click");
+        [
+            self.attr("colour-bar", "data-kind")
+                .await
+                .unwrap_or_default(),
+            self.attr("colour-bar", "data-unit")
+                .await
+                .unwrap_or_default(),
+            self.text("depth-caption").await,
+        ]
+    }
+
     /// Points at pixel (`x`, `y`) of the left image and returns the hover read-out there.
     async fn hover_at(&self, x: f64, y: f64) -> String {
         let at = self.pointer_to("left-frame", x, y).await;
@@ -203,32 +218,11 @@ async fn an_uploaded_pair_is_matched_hovered_clicked_and_boxed() {
     );
 
     // Act / Assert: the σ toggle draws σ_Z with its own colour bar, and back.
-    browser
-        .find("show-sigma")
-        .await
-        .click()
-        .await
-        .expect("click");
     assert_eq!(
-        browser.attr("colour-bar", "data-kind").await.as_deref(),
-        Some("sigma")
+        browser.toggle_sigma().await,
+        ["sigma", "mm", "σ of each depth"]
     );
-    assert_eq!(
-        browser.attr("colour-bar", "data-unit").await.as_deref(),
-        Some("mm")
-    );
-    let title = browser.text("depth-caption").await;
-    assert_eq!(title, "σ of each depth");
-    browser
-        .find("show-sigma")
-        .await
-        .click()
-        .await
-        .expect("click");
-    assert_eq!(
-        browser.attr("colour-bar", "data-kind").await.as_deref(),
-        Some("depth")
-    );
+    assert_eq!(browser.toggle_sigma().await, ["depth", "mm", "Depth map"]);
 
     // Act: click a pixel of the box.
     browser.click_pixel("left-frame", 120.0, 150.0).await;
