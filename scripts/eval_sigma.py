@@ -184,9 +184,10 @@ def main():
         print(f"  {name:<21} {' '.join(f'{v:.2f}' for v in r['tenths'])}  "
               f"{'met' if met else 'NOT met'}")
     filled_results = filled_maps(args, work, cases)
+    keep_results = keep_rule(args, cases)
     if args.json:
-        Path(args.json).write_text(json.dumps({"sigma": results, "filled": filled_results},
-                                              indent=1))
+        Path(args.json).write_text(json.dumps({"sigma": results, "filled": filled_results,
+                                               "keep_rule": keep_results}, indent=1))
     stereo.floors(failures, "sigma_d")
 
 
@@ -222,6 +223,38 @@ def filled_maps(args, work, cases):
     print(f"goal: bad-2.0 at most 0.6 x OpenCV + WLS's on Motorcycle: "
           f"{'met' if out['motorcycle']['ratio_bad2'] <= 0.6 else 'NOT met'} "
           f"({out['motorcycle']['ratio_bad2']:.2f} x)")
+    return out
+
+
+# The keep rule's settings measured against the truth beside the defaults (max_disparity_std
+# 4 px with the uniqueness and speckle rules on).
+KEEP_RULES = ["", "&max_disparity_std=2", "&max_disparity_std=1", "&max_disparity_std=0.5",
+              "&uniqueness=0&speckle_size=0",
+              "&uniqueness=0&speckle_size=0&max_disparity_std=1",
+              "&uniqueness=0&speckle_size=0&max_disparity_std=0.5"]
+
+
+def keep_rule(args, cases):
+    """The keep rule on the real pairs with truth: density and bad-1.0 / bad-2.0 (holes taking
+    their row's background, as Middlebury's tables and scripts/eval_stereo.py score) at each
+    of KEEP_RULES."""
+    chosen = [c for c in cases if c[0] in FILL_PAIRS]
+    print()
+    print("The keep rule (max_disparity_std): density, bad-1.0 / bad-2.0 (holes filled from "
+          "their row's background)")
+    header = f"{'settings':<50}" + "".join(f" {name:>22}" for name, *_ in chosen)
+    print(header)
+    print("-" * len(header))
+    out = {}
+    for rule in KEEP_RULES:
+        label = rule.lstrip("&") or "defaults (max_disparity_std=4)"
+        cells, out[label] = [], {}
+        for name, left, right, truth, ndisp in chosen:
+            disp = ours(args.url, left, right, ndisp, rule)["disparity"]
+            score = stereo.score(np.where(np.isfinite(disp), disp, np.inf), truth)
+            out[label][name] = score
+            cells.append(f"{score['density']:5.1f}% {score['bad1']:5.2f}/{score['bad2']:5.2f}")
+        print(f"{label:<50}" + "".join(f" {c:>22}" for c in cells))
     return out
 
 

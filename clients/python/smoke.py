@@ -148,6 +148,12 @@ def main(base):
     check(0 < sd.min_ <= sd.median <= sd.max_ and 0 < sz.median, f"sigma spreads {sd!r} {sz!r}")
     print(f"depth map: {summary.valid_fraction:.1%} valid, median sigma_d {sd.median} px, "
           f"median sigma_Z {sz.median} mm")
+    strict = post_depth_map.sync(client=client, body=DepthMapForm(**files()), max_disparity_std=0.3)
+    check(isinstance(strict, DepthMapSummary) and strict.parameters.max_disparity_std == 0.3
+          and strict.disparity_std_px.max_ <= 0.3 < sd.max_
+          and strict.valid_fraction < summary.valid_fraction,
+          f"max_disparity_std=0.3 kept {strict!r}")
+    print(f"max_disparity_std=0.3: {strict.valid_fraction:.1%} valid")
     matched = post_match.sync(client=client, body=MatchForm(**files(), points=[MatchPoint(x=100, y=100)]))
     check(isinstance(matched, MatchResponse), f"POST /match answered {matched!r}")
     point = matched.matches[0]

@@ -18,7 +18,7 @@
 //!   finished row to
 //! - [`refine`]: winner-takes-all with uniqueness and a sub-pixel fit, the left-right check;
 //!   then, over the whole map,
-//! - [`filters`]: speckle removal, a 3 × 3 median and optional filling.
+//! - [`filters`]: speckle removal, a 3 × 3 median, [`sigma`]'s keep rule and optional filling.
 //!
 //! The image is matched in horizontal stripes ([`stripes`]), side by side on the cores. The hot
 //! loops are dispatched between a portable and an AVX2 build by [`simd`], and the large
@@ -60,7 +60,8 @@ use std::time::{Duration, Instant};
 use rayon::prelude::*;
 
 pub use params::{
-    DEFAULT_MAX_DISPARITY, MAX_DISPARITIES, MAX_P2, ParamFault, Params, Preset, Setting, Settings,
+    DEFAULT_MAX_DISPARITY, DEFAULT_MAX_DISPARITY_STD, MAX_DISPARITIES, MAX_DISPARITY_STD_BOUND,
+    MAX_P2, ParamFault, Params, Preset, Setting, Settings,
 };
 
 /// A grey image, 16 bits a pixel (8-bit sources are scaled by 257), row-major.
@@ -434,6 +435,7 @@ fn level(
     }
     let mut std = sigma::map(&data, &variance, w);
     drop(variance);
+    sigma::keep(&mut data, &mut std, params.max_std as f32);
     let filled = match params.fill {
         true => filters::fill_with_std(&mut data, &mut std, w),
         false => Vec::new(),

@@ -9,6 +9,15 @@ use crate::numbers::Num;
 /// The end of the disparity search (exclusive) when neither the caller nor a calibration file
 /// gives one: disparities `0 ..` this.
 pub const DEFAULT_MAX_DISPARITY: i32 = 128;
+/// The largest σ_d (px) a kept disparity may have when the caller gives no
+/// `max_disparity_std` ([`sigma::keep`]): lenient, so that the left-right check, uniqueness and
+/// speckle rules stay the main ones, dropping only the values known to ±4 px or worse (on
+/// Motorcycle 0.2 % of the pixels, on clean renders none; docs/matcher.md).
+///
+/// [`sigma::keep`]: super::sigma::keep
+pub const DEFAULT_MAX_DISPARITY_STD: f64 = 4.0;
+/// The largest `max_disparity_std` a caller may ask for, in pixels.
+pub const MAX_DISPARITY_STD_BOUND: f64 = 64.0;
 /// The most disparities one search covers.
 pub const MAX_DISPARITIES: usize = 512;
 /// The smallest and largest `min_disparity`.
@@ -69,6 +78,8 @@ pub struct Settings {
     pub subpixel: Option<Subpixel>,
     pub speckle_size: Option<u32>,
     pub speckle_range: Option<f64>,
+    /// Pixels whose σ_d exceeds this (px) are dropped.
+    pub max_disparity_std: Option<f64>,
     pub median: Option<bool>,
     pub fill: Option<bool>,
     /// The paths aggregated: 5 or 8 (`None`: [`sgm::Paths::Auto`]).
@@ -87,6 +98,7 @@ pub enum Setting {
     LrTolerance,
     SpeckleSize,
     SpeckleRange,
+    MaxDisparityStd,
     Paths,
 }
 
@@ -103,6 +115,7 @@ impl Setting {
             Setting::LrTolerance => "lr_tolerance",
             Setting::SpeckleSize => "speckle_size",
             Setting::SpeckleRange => "speckle_range",
+            Setting::MaxDisparityStd => "max_disparity_std",
             Setting::Paths => "paths",
         }
     }
@@ -127,6 +140,7 @@ pub struct Params {
     pub(super) subpixel: Subpixel,
     pub(super) speckle_size: usize,
     pub(super) speckle_range: f32,
+    pub(super) max_std: f64,
     pub(super) median: bool,
     pub(super) fill: bool,
     pub(super) paths: sgm::Paths,
@@ -150,6 +164,7 @@ impl Default for Params {
             subpixel: Subpixel::Equiangular,
             speckle_size: 100,
             speckle_range: 2.0,
+            max_std: DEFAULT_MAX_DISPARITY_STD,
             median: true,
             fill: false,
             paths: sgm::Paths::Auto,
@@ -254,6 +269,13 @@ impl Params {
             true,
             64.0,
         );
+        let max_std = faults.real(
+            Setting::MaxDisparityStd,
+            s.max_disparity_std,
+            d.max_std,
+            true,
+            MAX_DISPARITY_STD_BOUND,
+        );
         let paths = match s.paths {
             None => d.paths,
             Some(5) => sgm::Paths::Five,
@@ -279,6 +301,7 @@ impl Params {
             speckle_size,
             tolerance,
             speckle_range,
+            max_std,
         ) {
             (
                 Some((min_disparity, count)),
@@ -289,6 +312,7 @@ impl Params {
                 Some(speckle_size),
                 Some(tolerance),
                 Some(speckle_range),
+                Some(max_std),
             ) if faults.0.is_empty() => Ok(Params {
                 min_disparity,
                 count,
@@ -302,6 +326,7 @@ impl Params {
                 subpixel: s.subpixel.unwrap_or(d.subpixel),
                 speckle_size: speckle_size as usize,
                 speckle_range: speckle_range as f32,
+                max_std,
                 median: s.median.unwrap_or(d.median),
                 fill: s.fill.unwrap_or(d.fill),
                 paths,
@@ -355,6 +380,10 @@ impl Params {
     pub fn speckle_range(&self) -> f32 {
         self.speckle_range
     }
+    /// The largest σ_d (px) a kept disparity may have.
+    pub fn max_disparity_std(&self) -> f64 {
+        self.max_std
+    }
     /// A 3 × 3 median filter of the result.
     pub fn median(&self) -> bool {
         self.median
@@ -389,6 +418,7 @@ impl Settings {
             subpixel: self.subpixel.or(base.subpixel),
             speckle_size: self.speckle_size.or(base.speckle_size),
             speckle_range: self.speckle_range.or(base.speckle_range),
+            max_disparity_std: self.max_disparity_std.or(base.max_disparity_std),
             median: self.median.or(base.median),
             fill: self.fill.or(base.fill),
             paths: self.paths.or(base.paths),

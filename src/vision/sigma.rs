@@ -22,7 +22,8 @@
 //! The first five come from the winner ([`winner_variance`], summed as each row is chosen);
 //! the last two from the finished map ([`map`], or [`at`] for a winner the map does not
 //! hold). Filled pixels ([`filled`]) take half the spread of the values the fill chose
-//! between.
+//! between. [`keep`] drops the disparities whose σ_d exceeds the caller's
+//! `max_disparity_std`.
 
 use rayon::prelude::*;
 
@@ -133,6 +134,21 @@ pub fn at(disparity: &[f32], width: usize, (x, y): (usize, usize), d: f32, varia
     (variance + (m.spread * (hi - lo)).powi(2) + (m.neighbours * missing).powi(2)).sqrt()
 }
 
+/// The keep rule: every disparity whose σ_d (`std`, the same layout) exceeds `max_std`
+/// pixels is dropped (NaN in both). Runs once on the finished map, before any fill; the σ of
+/// the pixels kept stays what the map gave them. Answers how many were dropped.
+pub fn keep(disparity: &mut [f32], std: &mut [f32], max_std: f32) -> usize {
+    let mut dropped = 0;
+    for (d, s) in disparity.iter_mut().zip(std.iter_mut()) {
+        if *s > max_std {
+            *d = f32::NAN;
+            *s = f32::NAN;
+            dropped += 1;
+        }
+    }
+    dropped
+}
+
 /// σ_d of a pixel the fill gave a value (pixels): half the spread between the values it chose
 /// from (`left` and `right`, either NaN when there was none), the standard deviation of a
 /// value as likely at either; at least [`FILLED_FLOOR`].
@@ -201,6 +217,19 @@ mod tests {
         assert!(s[3] > s[12] + 0.3);
         // (1, 4) is beside the step of 4 px.
         assert!((s[16] - (0.04f32 + (MODEL.spread * 4.0).powi(2)).sqrt()).abs() < 1e-5);
+    }
+
+    /// The keep rule drops exactly the pixels whose σ_d is above the threshold, value and σ
+    /// both, and leaves the rest (and the invalid ones) as they were.
+    #[test]
+    fn keep_drops_what_sigma_says_is_not_worth_keeping() {
+        let mut d = vec![10.0, 11.0, f32::NAN, 12.0];
+        let mut s = vec![0.3, 2.5, f32::NAN, 2.0];
+        assert_eq!(keep(&mut d, &mut s, 2.0), 1);
+        assert_eq!(d[0], 10.0);
+        assert!(d[1].is_nan() && s[1].is_nan());
+        assert!(d[2].is_nan());
+        assert_eq!((d[3], s[3]), (12.0, 2.0));
     }
 
     /// A filled pixel is never surer than a pixel, and says how far apart its sources were.

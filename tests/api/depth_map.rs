@@ -608,6 +608,61 @@ async fn a_filled_map_marks_what_the_fill_gave() {
     assert!(count > 100, "{count} pixels filled");
 }
 
+/// `max_disparity_std` is the keep rule: the map asked with it holds exactly the default
+/// map's pixels whose σ_d is at most the threshold, with the same values and σ; the summary
+/// echoes it (4 px by default); out of (0, 64] or not a number, it is a 422 naming it.
+#[tokio::test]
+async fn max_disparity_std_keeps_what_sigma_allows() {
+    let app = spawn_app().await;
+    let pair = pair();
+    let mut maps = Vec::new();
+    for query in ["", "&max_disparity_std=0.25"] {
+        let response = depth_map(
+            &app,
+            &format!("?max_disparity=48&output=arrays.npz{query}"),
+            form(&pair, &[]),
+        )
+        .await;
+        assert_eq!(response.status(), 200);
+        let entries = npz_entries(&response.bytes().await.unwrap());
+        maps.push((npy(&entries[0].1), npy(&entries[1].1)));
+    }
+    let ((d, s), (strict, strict_s)) = (&maps[0], &maps[1]);
+    let (mut kept, mut dropped) = (0, 0);
+    for i in 0..d.len() {
+        assert!(
+            d[i].is_nan() || s[i] <= 4.0,
+            "pixel {i}: σ {} kept by default",
+            s[i]
+        );
+        if !d[i].is_nan() && s[i] <= 0.25 {
+            kept += 1;
+            assert_eq!((strict[i], strict_s[i]), (d[i], s[i]), "pixel {i}");
+        } else {
+            dropped += usize::from(!d[i].is_nan());
+            assert!(strict[i].is_nan() && strict_s[i].is_nan(), "pixel {i}");
+        }
+    }
+    assert!(
+        kept > 1000 && dropped > 100,
+        "{kept} kept, {dropped} dropped"
+    );
+    for (query, echoed) in [("", 4.0), ("&max_disparity_std=0.25", 0.25)] {
+        let response =
+            depth_map(&app, &format!("?max_disparity=48{query}"), form(&pair, &[])).await;
+        let summary: serde_json::Value = response.json().await.unwrap();
+        assert_eq!(summary["parameters"]["max_disparity_std"], echoed);
+    }
+    for bad in ["0", "65", "-1", "much"] {
+        let body = problem(
+            depth_map(&app, &format!("?max_disparity_std={bad}"), form(&pair, &[])).await,
+            422,
+        )
+        .await;
+        assert_names(&body, &["max_disparity_std"]);
+    }
+}
+
 /// A fill that is neither true nor false, and a σ output asked of a route that has none
 /// (`/rectify` answers images, `/match` answers points and takes no `output`), are each a 422
 /// naming the parameter.

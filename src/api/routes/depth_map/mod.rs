@@ -378,6 +378,7 @@ fn summary(
             subpixel: params.subpixel().into(),
             speckle_size: params.speckle_size() as u32,
             speckle_range: f64::from(params.speckle_range()),
+            max_disparity_std: params.max_disparity_std(),
             median: params.median(),
             fill: params.fill(),
         },

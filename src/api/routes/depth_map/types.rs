@@ -269,6 +269,12 @@ request! {
         /// Default 2.
         #[schema(exclusive_minimum = 0.0, maximum = 64.0)]
         speckle_range: f64,
+        /// The keep rule: a pixel whose disparity's σ_d (the `disparity_std` outputs) exceeds
+        /// this many pixels is dropped (before `fill`). Default 4, which drops only the values
+        /// known to ±4 px or worse; 0.5 keeps only sure pixels. To judge the pixels by σ_d alone,
+        /// also set `uniqueness=0` and `speckle_size=0`.
+        #[schema(exclusive_minimum = 0.0, maximum = 64.0, example = 1.0)]
+        max_disparity_std: f64,
         /// A 3 × 3 median filter of the result. Default true.
         median: bool,
         /// Rectify the pair first: `auto` (the default) when the calibration describes raw
@@ -301,6 +307,7 @@ impl DepthMapQuery {
             subpixel: self.subpixel.map(Into::into),
             speckle_size: self.speckle_size,
             speckle_range: self.speckle_range,
+            max_disparity_std: self.max_disparity_std,
             median: self.median,
             fill: self.fill,
             paths: self.paths,
@@ -344,6 +351,8 @@ pub struct MatcherParameters {
     pub subpixel: SubpixelChoice,
     pub speckle_size: u32,
     pub speckle_range: f64,
+    /// The keep rule's largest σ_d, in pixels.
+    pub max_disparity_std: f64,
     pub median: bool,
     pub fill: bool,
 }
@@ -361,7 +370,7 @@ pub struct MatcherParameters {
             "cy": 254.877, "doffs": 31.086, "image_width": 741, "image_height": 500},
     "parameters": {"preset": "accurate", "paths": 5, "p1": 16, "p2": 64, "p2_edge": 16, "uniqueness": 15, "lr_tolerance": 1.0,
                    "subpixel": "equiangular", "speckle_size": 100, "speckle_range": 2.0,
-                   "median": true, "fill": false},
+                   "max_disparity_std": 4.0, "median": true, "fill": false},
     "timings_ms": {"decode": 14.2, "cost": 9.8, "aggregate": 41.0, "refine": 18.3},
     "warnings": []
 }))]
