@@ -109,7 +109,7 @@ pub struct Cli {
 }
 
 /// What the binary does; serving is the default.
-#[derive(Debug, Clone, PartialEq, Eq, Subcommand)]
+#[derive(Debug, Clone, PartialEq, Subcommand)]
 pub enum Command {
     /// Serve the API (the default when no command is given).
     Serve,
@@ -130,7 +130,7 @@ pub enum Command {
 }
 
 /// What `stereo-distance depth-map` reads, how, and where it writes.
-#[derive(Debug, Clone, PartialEq, Eq, Args)]
+#[derive(Debug, Clone, PartialEq, Args)]
 #[command(group(clap::ArgGroup::new("input").required(true).args(["left", "frames"])))]
 pub struct DepthMapArgs {
     /// The left camera's frames (PNG or JPEG), paired with --right's by name: the same name,
@@ -158,7 +158,8 @@ pub struct DepthMapArgs {
     /// calibration, disparity.npy without).
     #[arg(long, value_name = "OUTPUT", value_parser = [
         "summary", "disparity.pfm", "disparity.png", "disparity.npy", "depth.npy", "depth.png",
-        "arrays.npz", "preview.png", "points.ply",
+        "disparity_std.npy", "disparity_std.pfm", "depth_std.npy", "arrays.npz", "preview.png",
+        "points.ply",
     ])]
     pub output: Option<String>,
     /// The matcher's preset: accurate (the default) or fast.
@@ -170,6 +171,10 @@ pub struct DepthMapArgs {
     /// The search stops before this disparity (default: the calibration's ndisp, else 128).
     #[arg(long, value_name = "PX", allow_negative_numbers = true)]
     pub max_disparity: Option<i32>,
+    /// Leave out each pixel whose disparity's σ_d exceeds this many pixels (as /depth-map's
+    /// `max_disparity_std`; default 4).
+    #[arg(long, value_name = "PX")]
+    pub max_disparity_std: Option<f64>,
     /// Send the pairs to the service at this address (http://host:port) instead of matching
     /// them here: behind a Kubernetes Service, the heavy Deployment's replicas share them.
     #[arg(long, value_name = "URL")]
@@ -757,14 +762,21 @@ mod tests {
             "o",
             "--preset",
             "fast",
+            "--max-disparity-std",
+            "0.5",
         ])
         .unwrap();
         let Some(Command::DepthMap(args)) = cli.command else {
             panic!("the depth-map command");
         };
         assert_eq!(
-            (args.left, args.right, args.preset.as_deref()),
-            (Some("l".into()), Some("r".into()), Some("fast"))
+            (
+                args.left,
+                args.right,
+                args.preset.as_deref(),
+                args.max_disparity_std
+            ),
+            (Some("l".into()), Some("r".into()), Some("fast"), Some(0.5))
         );
         assert!(parse(&["depth-map", "--out", "o"]).is_err());
         assert!(parse(&["depth-map", "--left", "l", "--out", "o"]).is_err());

@@ -119,6 +119,10 @@ pub async fn depth_maps<W: std::io::Write>(
         ("preset", args.preset.clone()),
         ("min_disparity", args.min_disparity.map(|d| d.to_string())),
         ("max_disparity", args.max_disparity.map(|d| d.to_string())),
+        (
+            "max_disparity_std",
+            args.max_disparity_std.map(|s| s.to_string()),
+        ),
     ] {
         if let Some(value) = value {
             query.push_str(&format!("&{name}={value}"));

@@ -832,3 +832,71 @@ async fn the_fast_preset_is_sent_kept_and_refused_when_made_up() {
     browser.assert_clean_but(&["422"]).await;
     browser.close().await;
 }
+
+/// The keep rule: a σ typed under the matcher goes with the depth map's request as
+/// `max_disparity_std`, leaves fewer pixels valid and stays in the address; a permalink's
+/// threshold of 0 goes to the service, whose refusal is shown next to the field.
+#[tokio::test]
+#[ignore = "needs chromium and chromedriver; .ci/run runs it"]
+async fn a_sigma_threshold_is_sent_kept_and_refused_when_zero() {
+    // Arrange
+    let [left, right] = synthetic_pair();
+    let browser = Browser::start(1280, 1500).await;
+    browser.open(&format!("/?mode=images&{RIG}")).await;
+    browser.upload(&left, &right).await;
+    let before = browser.depth_map_shown().await;
+
+    // Act: the threshold pasted in (typed key by key, its prefix "0" would be asked first).
+    browser
+        .script(
+            "const field = document.getElementById('max_disparity_std'); field.value = '0.25'; \
+             field.dispatchEvent(new Event('input', { bubbles: true }))",
+        )
+        .await;
+
+    // Assert: a depth map asked with the threshold, fewer pixels kept, the address keeps it.
+    browser
+        .until("a depth map asked with the threshold", || async {
+            let asked = browser
+                .script(
+                    "return performance.getEntriesByType('resource').map(e => e.name)\
+                       .filter(n => n.includes('/depth-map?') && n.includes('max_disparity_std=0.25')).length",
+                )
+                .await;
+            (asked.as_u64() >= Some(1)).then_some(())
+        })
+        .await;
+    let after = browser
+        .until("fewer pixels kept", || async {
+            let valid = browser.depth_map_shown().await;
+            (valid < before - 0.01).then_some(valid)
+        })
+        .await;
+    assert!(after > 0.05, "{before} -> {after}");
+    browser
+        .until("the threshold in the address", || async {
+            let at = browser.script("return location.search").await;
+            at.as_str()
+                .is_some_and(|q| q.contains("max_disparity_std=0.25"))
+                .then_some(())
+        })
+        .await;
+
+    // Act: a permalink with a threshold of 0.
+    browser
+        .open(&format!("/?mode=images&{RIG}&max_disparity_std=0"))
+        .await;
+    browser.upload(&left, &right).await;
+    browser.depth_map_shown_or_refused().await;
+
+    // Assert: the service's words, next to the field.
+    let error = browser
+        .until("the threshold's error", || async {
+            let text = browser.text("max_disparity_std-error").await;
+            text.contains("must lie in (0, 64]").then_some(text)
+        })
+        .await;
+    assert!(error.contains("got 0"), "{error}");
+    browser.assert_clean_but(&["422"]).await;
+    browser.close().await;
+}

@@ -98,10 +98,11 @@ export function rangeQuery(state, output = null) {
 }
 
 /** A /depth-map query: the range, the matcher's preset (`accurate` is the API's default,
- * so it is left out) and the output. */
+ * so it is left out), the keep rule's σ when one is typed, and the output. */
 function depthQuery(state, output) {
   const query = rangeQuery(state, output);
   if (state.preset !== 'accurate') query.set('preset', state.preset);
+  if (state.max_disparity_std !== '') query.set('max_disparity_std', state.max_disparity_std);
   return query;
 }
 
@@ -109,6 +110,7 @@ function depthQuery(state, output) {
  * names, or in the list under the inputs. */
 export const IMAGE_INPUTS = {
   left: 'left_image', right: 'right_image', min_disparity: 'min_disparity', max_disparity: 'max_disparity', preset: 'preset',
+  max_disparity_std: 'max_disparity_std',
 };
 
 export function clearImageErrors() {
@@ -419,7 +421,7 @@ export function wireImages() {
     const side = zone && zone.id === 'right_image-field' ? 'right' : 'left';
     loadPair({ [side]: files[0] });
   });
-  for (const name of ['min_disparity', 'max_disparity']) {
+  for (const name of ['min_disparity', 'max_disparity', 'max_disparity_std']) {
     $(name).addEventListener('input', () => {
       scheduleDepth();
       emit(EVENTS.schedule);

@@ -20,7 +20,7 @@ export function permalink(state) {
   if (page.mode !== 'numbers') params.set('mode', page.mode);
   if (page.mode === 'images' && pair.sample) params.set('sample', '1');
   params.set('focal_mode', state.focal_mode);
-  const feature = page.mode === 'images' ? ['min_disparity', 'max_disparity'] : ['x_left', 'x_right', 'y'];
+  const feature = page.mode === 'images' ? ['min_disparity', 'max_disparity', 'max_disparity_std'] : ['x_left', 'x_right', 'y'];
   for (const [key, value] of withMembers(rigParams(state), state, feature)) {
     params.set(key, value);
   }

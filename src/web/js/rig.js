@@ -39,7 +39,7 @@ const COMPANIONS = ['sensor_width_mm', 'pixel_size_um'];
 export const TEXT_FIELDS = [
   'focal', 'sensor_width_mm', 'pixel_size_um', 'image_width', 'image_height', 'baseline',
   'x_left', 'x_right', 'y', 'disparity_error_px', 'doffs', 'cx', 'cy', 'min_disparity', 'max_disparity',
-  'focal_length_std_px', 'baseline_std',
+  'focal_length_std_px', 'baseline_std', 'max_disparity_std',
 ];
 /** Members every request carries, as they are in the form. */
 const RIG_FIELDS = [
@@ -68,6 +68,7 @@ export const DEFAULTS = Object.freeze({
   max_disparity: '',
   focal_length_std_px: '',
   baseline_std: '',
+  max_disparity_std: '',
   rows: '10',
   scale: 'log',
   preset: 'accurate',
