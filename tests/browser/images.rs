@@ -49,6 +49,27 @@ pub(crate) fn number_after(text: &str, after: &str) -> f64 {
 }
 
 impl Browser {
+    /// Waits until the page has asked `/depth-map` with `member` (`name=value`) in its query,
+    /// and then until its address (the permalink) keeps it.
+    async fn asked_and_kept(&self, member: &str) {
+        let script = format!(
+            "return performance.getEntriesByType('resource').map(e => e.name)\
+               .filter(n => n.includes('/depth-map?') && n.includes('{member}')).length"
+        );
+        self.until(&format!("a depth map asked with {member}"), || async {
+            let asked = self.script(&script).await;
+            (asked.as_u64() >= Some(1)).then_some(())
+        })
+        .await;
+        self.until(&format!("{member} in the address"), || async {
+            let at = self.script("return location.search").await;
+            at.as_str()
+                .is_some_and(|q| q.contains(member))
+                .then_some(())
+        })
+        .await;
+    }
+
     /// Waits until the depth map has been fetched and drawn, and returns the share of valid
     /// pixels the page reports.
     pub(crate) async fn depth_map_shown(&self) -> f64 {
@@ -792,27 +813,9 @@ async fn the_fast_preset_is_sent_kept_and_refused_when_made_up() {
     browser.choose("preset", "fast").await;
 
     // Assert: a depth map asked with the preset, and the address keeps it.
-    browser
-        .until("a fast depth map asked for", || async {
-            let asked = browser
-                .script(
-                    "return performance.getEntriesByType('resource').map(e => e.name)\
-                       .filter(n => n.includes('/depth-map?') && n.includes('preset=fast')).length",
-                )
-                .await;
-            (asked.as_u64() >= Some(1)).then_some(())
-        })
-        .await;
+    browser.asked_and_kept("preset=fast").await;
     let valid = browser.depth_map_shown().await;
     assert!(valid > 0.5, "{valid}");
-    browser
-        .until("the preset in the address", || async {
-            let at = browser.script("return location.search").await;
-            at.as_str()
-                .is_some_and(|q| q.contains("preset=fast"))
-                .then_some(())
-        })
-        .await;
 
     // Act: a permalink with a preset that does not exist.
     browser
@@ -855,17 +858,7 @@ async fn a_sigma_threshold_is_sent_kept_and_refused_when_zero() {
         .await;
 
     // Assert: a depth map asked with the threshold, fewer pixels kept, the address keeps it.
-    browser
-        .until("a depth map asked with the threshold", || async {
-            let asked = browser
-                .script(
-                    "return performance.getEntriesByType('resource').map(e => e.name)\
-                       .filter(n => n.includes('/depth-map?') && n.includes('max_disparity_std=0.25')).length",
-                )
-                .await;
-            (asked.as_u64() >= Some(1)).then_some(())
-        })
-        .await;
+    browser.asked_and_kept("max_disparity_std=0.25").await;
     let after = browser
         .until("fewer pixels kept", || async {
             let valid = browser.depth_map_shown().await;
@@ -873,14 +866,6 @@ async fn a_sigma_threshold_is_sent_kept_and_refused_when_zero() {
         })
         .await;
     assert!(after > 0.05, "{before} -> {after}");
-    browser
-        .until("the threshold in the address", || async {
-            let at = browser.script("return location.search").await;
-            at.as_str()
-                .is_some_and(|q| q.contains("max_disparity_std=0.25"))
-                .then_some(())
-        })
-        .await;
 
     // Act: a permalink with a threshold of 0.
     browser
