@@ -52,14 +52,6 @@ def rectified_pairs(url, folder):
         yield n, images[0], images[1]
 
 
-# The keep rule's settings measured beside the defaults: max_disparity_std with the other rules,
-# and with uniqueness and speckles off so that sigma alone judges.
-KEEP_RULES = ["max_disparity_std=2", "max_disparity_std=1", "max_disparity_std=0.5",
-              "uniqueness=0&speckle_size=0",
-              "uniqueness=0&speckle_size=0&max_disparity_std=1",
-              "uniqueness=0&speckle_size=0&max_disparity_std=0.5"]
-
-
 def ours(url, left, right, query=""):
     answer = stereo.post_once(url, f"/depth-map?max_disparity={DISPARITIES}&output=arrays.npz{query}", {
         "left": (cv2.imencode(".png", left)[1].tobytes(), "left.png", "image/png"),
@@ -85,7 +77,7 @@ def main():
         mine = ours(args.url, left, right)
         theirs = {f"{mode} b{block}": stereo.sgbm(left, right, flag, block, DISPARITIES, 1)[0]
                   for mode, flag in MODES.items() for block in (3, 5)}
-        kept = {rule: ours(args.url, left, right, "&" + rule) for rule in KEEP_RULES}
+        kept = {rule: ours(args.url, left, right, "&" + rule) for rule in stereo.KEEP_RULES}
         rows.append((name, mine, theirs, kept))
     density = lambda d: float(np.mean(np.isfinite(d)))  # noqa: E731
     modes = list(rows[0][2])
@@ -116,7 +108,7 @@ def main():
     print(header)
     print("-" * len(header))
     keep = {}
-    for rule in ["defaults"] + KEEP_RULES:
+    for rule in ["defaults"] + stereo.KEEP_RULES:
         maps = [(mine if rule == "defaults" else kept[rule], theirs[best])
                 for _, mine, theirs, kept in rows]
         keep[rule] = {"density": float(np.median([density(m) for m, _ in maps])),

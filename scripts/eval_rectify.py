@@ -29,8 +29,6 @@ import statistics
 import sys
 import time
 import urllib.parse
-import uuid
-import zipfile
 
 import cv2
 import numpy as np
@@ -108,21 +106,8 @@ def cv_maps(rig, model, cv):
     return out
 
 
-def multipart(parts):
-    boundary = uuid.uuid4().hex
-    body = bytearray()
-    for name, data, filename, ctype in parts:
-        body += f"--{boundary}\r\n".encode()
-        disposition = f'form-data; name="{name}"'
-        if filename:
-            disposition += f'; filename="{filename}"'
-        body += f"Content-Disposition: {disposition}\r\nContent-Type: {ctype}\r\n\r\n".encode()
-        body += data + b"\r\n"
-    body += f"--{boundary}--\r\n".encode()
-    return bytes(body), f"multipart/form-data; boundary={boundary}"
-
-
 def request(url, method, path, body, ctype):
+    """One request with a body that is not a form (JSON): the answer's bytes, or exit."""
     u = urllib.parse.urlparse(url)
     conn = http.client.HTTPConnection(u.hostname, u.port, timeout=120)
     conn.request(method, path, body=body, headers={"Content-Type": ctype})
@@ -135,13 +120,12 @@ def request(url, method, path, body, ctype):
 
 
 def rectify(url, yml, left, right, query):
-    body, ctype = multipart([
-        ("left", left, "left.png", "image/png"),
-        ("right", right, "right.png", "image/png"),
-        ("calibration", yml.encode(), "calib.yml", "text/yaml"),
-        ("calibration_unit", b"mm", None, "text/plain"),
-    ])
-    return request(url, "POST", "/rectify?" + urllib.parse.urlencode(query), body, ctype)
+    return eval_stereo.post_once(url, "/rectify?" + urllib.parse.urlencode(query), {
+        "left": (left, "left.png", "image/png"),
+        "right": (right, "right.png", "image/png"),
+        "calibration": (yml.encode(), "calib.yml", "text/yaml"),
+        "calibration_unit": (b"mm", None, "text/plain"),
+    })
 
 
 def texture(seed):

@@ -226,18 +226,10 @@ def filled_maps(args, work, cases):
     return out
 
 
-# The keep rule's settings measured against the truth beside the defaults (max_disparity_std
-# 4 px with the uniqueness and speckle rules on).
-KEEP_RULES = ["", "&max_disparity_std=2", "&max_disparity_std=1", "&max_disparity_std=0.5",
-              "&uniqueness=0&speckle_size=0",
-              "&uniqueness=0&speckle_size=0&max_disparity_std=1",
-              "&uniqueness=0&speckle_size=0&max_disparity_std=0.5"]
-
-
 def keep_rule(args, cases):
     """The keep rule on the real pairs with truth: density and bad-1.0 / bad-2.0 (holes taking
     their row's background, as Middlebury's tables and scripts/eval_stereo.py score) at each
-    of KEEP_RULES."""
+    of eval_stereo.KEEP_RULES."""
     chosen = [c for c in cases if c[0] in FILL_PAIRS]
     print()
     print("The keep rule (max_disparity_std): density, bad-1.0 / bad-2.0 (holes filled from "
@@ -246,11 +238,11 @@ def keep_rule(args, cases):
     print(header)
     print("-" * len(header))
     out = {}
-    for rule in KEEP_RULES:
-        label = rule.lstrip("&") or "defaults (max_disparity_std=4)"
+    for rule in [""] + stereo.KEEP_RULES:
+        label = rule or "defaults (max_disparity_std=4)"
         cells, out[label] = [], {}
         for name, left, right, truth, ndisp in chosen:
-            disp = ours(args.url, left, right, ndisp, rule)["disparity"]
+            disp = ours(args.url, left, right, ndisp, "&" + rule if rule else "")["disparity"]
             score = stereo.score(np.where(np.isfinite(disp), disp, np.inf), truth)
             out[label][name] = score
             cells.append(f"{score['density']:5.1f}% {score['bad1']:5.2f}/{score['bad2']:5.2f}")

@@ -150,6 +150,16 @@ def opencv(left, right):
             yield f"OpenCV {name} b{block}", disp, seconds
 
 
+# The keep rule's settings the evaluations measure beside the defaults (max_disparity_std 4 px
+# with the uniqueness and speckle rules on): the threshold with those rules, and with them off so
+# that sigma_d alone judges (scripts/eval_sigma.py on the truth, scripts/eval_indoor.py on real
+# indoor pairs).
+KEEP_RULES = ["max_disparity_std=2", "max_disparity_std=1", "max_disparity_std=0.5",
+              "uniqueness=0&speckle_size=0",
+              "uniqueness=0&speckle_size=0&max_disparity_std=1",
+              "uniqueness=0&speckle_size=0&max_disparity_std=0.5"]
+
+
 def multipart(parts):
     """A multipart/form-data body of `parts`, a dict of name -> (data, filename, type), or a
     list of (name, that) pairs where a name may repeat; with its content type."""

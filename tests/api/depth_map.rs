@@ -70,6 +70,19 @@ pub(crate) fn floats(bytes: &[u8]) -> Vec<f32> {
         .collect()
 }
 
+/// The NPZ `/depth-map` answers for the test pair searched below 48 px with the options in
+/// `query` (each starting `&`), after checking it is a 200: its entries ([`npz_entries`]).
+async fn arrays_of(app: &TestApp, pair: &Pair, query: &str) -> Vec<(String, Vec<u8>)> {
+    let response = depth_map(
+        app,
+        &format!("?max_disparity=48&output=arrays.npz{query}"),
+        form(pair, &[]),
+    )
+    .await;
+    assert_eq!(response.status(), 200, "{query}");
+    npz_entries(&response.bytes().await.unwrap())
+}
+
 /// The entries of a stored (uncompressed) zip, as `numpy.savez` writes NPZ files: each local
 /// header's name and bytes, in order, until the central directory.
 pub(crate) fn npz_entries(zip: &[u8]) -> Vec<(String, Vec<u8>)> {
@@ -561,14 +574,7 @@ async fn a_filled_map_marks_what_the_fill_gave() {
     let pair = pair();
     let mut arrays = Vec::new();
     for fill in ["false", "true"] {
-        let response = depth_map(
-            &app,
-            &format!("?max_disparity=48&output=arrays.npz&fill={fill}"),
-            form(&pair, &[]),
-        )
-        .await;
-        assert_eq!(response.status(), 200);
-        arrays.push(npz_entries(&response.bytes().await.unwrap()));
+        arrays.push(arrays_of(&app, &pair, &format!("&fill={fill}")).await);
     }
     let names = |entries: &[(String, Vec<u8>)]| -> Vec<String> {
         entries.iter().map(|(n, _)| n.clone()).collect()
@@ -617,14 +623,7 @@ async fn max_disparity_std_keeps_what_sigma_allows() {
     let pair = pair();
     let mut maps = Vec::new();
     for query in ["", "&max_disparity_std=0.25"] {
-        let response = depth_map(
-            &app,
-            &format!("?max_disparity=48&output=arrays.npz{query}"),
-            form(&pair, &[]),
-        )
-        .await;
-        assert_eq!(response.status(), 200);
-        let entries = npz_entries(&response.bytes().await.unwrap());
+        let entries = arrays_of(&app, &pair, query).await;
         maps.push((npy(&entries[0].1), npy(&entries[1].1)));
     }
     let ((d, s), (strict, strict_s)) = (&maps[0], &maps[1]);

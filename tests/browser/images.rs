@@ -70,6 +70,26 @@ impl Browser {
         .await;
     }
 
+    /// Opens Images mode from a permalink with `member` (`name=value`) added, sends `pair`,
+    /// and waits until the service's refusal shows under the member's control and says
+    /// `words`: that text.
+    async fn refused_from_permalink(
+        &self,
+        member: &str,
+        pair: &[PathBuf; 2],
+        words: &str,
+    ) -> String {
+        self.open(&format!("/?mode=images&{RIG}&{member}")).await;
+        self.upload(&pair[0], &pair[1]).await;
+        self.depth_map_shown_or_refused().await;
+        let name = member.split('=').next().unwrap_or(member);
+        self.until(&format!("{name}'s error"), || async {
+            let text = self.text(&format!("{name}-error")).await;
+            text.contains(words).then_some(text)
+        })
+        .await
+    }
+
     /// Waits until the depth map has been fetched and drawn, and returns the share of valid
     /// pixels the page reports.
     pub(crate) async fn depth_map_shown(&self) -> f64 {
@@ -817,19 +837,10 @@ async fn the_fast_preset_is_sent_kept_and_refused_when_made_up() {
     let valid = browser.depth_map_shown().await;
     assert!(valid > 0.5, "{valid}");
 
-    // Act: a permalink with a preset that does not exist.
-    browser
-        .open(&format!("/?mode=images&{RIG}&preset=slow"))
-        .await;
-    browser.upload(&left, &right).await;
-    browser.depth_map_shown_or_refused().await;
-
-    // Assert: the service's words, next to the select.
+    // Act and assert: a permalink with a preset that does not exist; the service's words,
+    // next to the select.
     let error = browser
-        .until("the preset's error", || async {
-            let text = browser.text("preset-error").await;
-            text.contains("must be accurate or fast").then_some(text)
-        })
+        .refused_from_permalink("preset=slow", &[left, right], "must be accurate or fast")
         .await;
     assert!(error.contains("`slow`"), "{error}");
     browser.assert_clean_but(&["422"]).await;
@@ -867,19 +878,10 @@ async fn a_sigma_threshold_is_sent_kept_and_refused_when_zero() {
         .await;
     assert!(after > 0.05, "{before} -> {after}");
 
-    // Act: a permalink with a threshold of 0.
-    browser
-        .open(&format!("/?mode=images&{RIG}&max_disparity_std=0"))
-        .await;
-    browser.upload(&left, &right).await;
-    browser.depth_map_shown_or_refused().await;
-
-    // Assert: the service's words, next to the field.
+    // Act and assert: a permalink with a threshold of 0; the service's words, next to the
+    // field.
     let error = browser
-        .until("the threshold's error", || async {
-            let text = browser.text("max_disparity_std-error").await;
-            text.contains("must lie in (0, 64]").then_some(text)
-        })
+        .refused_from_permalink("max_disparity_std=0", &[left, right], "must lie in (0, 64]")
         .await;
     assert!(error.contains("got 0"), "{error}");
     browser.assert_clean_but(&["422"]).await;
