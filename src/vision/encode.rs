@@ -165,28 +165,38 @@ pub fn turbo(t: f32) -> [u8; 3] {
     ]
 }
 
-/// One point of a cloud, in the left camera's frame, with its colour.
+/// One point of a cloud, in the left camera's frame, with its colour and the standard
+/// deviation of its depth (σ_Z, the same unit as `xyz`).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ColouredPoint {
     pub xyz: [f32; 3],
     pub rgb: [u8; 3],
+    pub depth_std: f32,
 }
 
-/// A binary little-endian PLY of coloured points (Open3D, CloudCompare, MeshLab read it).
+/// The bytes of one vertex in [`ply`]: x y z, red green blue, depth_std.
+pub const PLY_VERTEX_BYTES: usize = 19;
+
+/// A binary little-endian PLY of coloured points, each with its σ_Z as the float property
+/// `depth_std` (Open3D, CloudCompare, MeshLab read it; Open3D's tensor API and plyfile give
+/// `depth_std` too, and readers that do not know it skip it).
 pub fn ply(points: &[ColouredPoint]) -> Vec<u8> {
     let header = format!(
         "ply\nformat binary_little_endian 1.0\ncomment stereo-distance depth map, left camera frame\n\
+         comment depth_std: the standard deviation of each point's depth, in its unit\n\
          element vertex {}\nproperty float x\nproperty float y\nproperty float z\n\
-         property uchar red\nproperty uchar green\nproperty uchar blue\nend_header\n",
+         property uchar red\nproperty uchar green\nproperty uchar blue\n\
+         property float depth_std\nend_header\n",
         points.len()
     );
-    let mut out = Vec::with_capacity(header.len() + points.len() * 15);
+    let mut out = Vec::with_capacity(header.len() + points.len() * PLY_VERTEX_BYTES);
     out.extend_from_slice(header.as_bytes());
     for p in points {
         for v in p.xyz {
             out.extend_from_slice(&v.to_le_bytes());
         }
         out.extend_from_slice(&p.rgb);
+        out.extend_from_slice(&p.depth_std.to_le_bytes());
     }
     out
 }

@@ -171,7 +171,8 @@ async fn the_summary_agrees_with_the_truth() {
 /// Each output is what its tools read: PFM bottom-up with +inf holes, NPY (the same values),
 /// KITTI's round(d·256), depth NPY and millimetre PNG (Z = B·f / d), σ_d as NPY and PFM (valid
 /// exactly where the disparity is, at least the model's floor), σ_Z = Z²·σ_d / (f·B), the NPZ
-/// of all of them, a preview the size of the images, and a PLY with one vertex per valid depth.
+/// of all of them, a preview the size of the images, and a PLY with one vertex per valid
+/// depth, carrying its σ_Z.
 #[tokio::test]
 async fn every_output_reads_back() {
     let app = spawn_app().await;
@@ -304,8 +305,9 @@ async fn every_output_reads_back() {
         .into_rgb8();
     assert_eq!(preview.dimensions(), (W as u32, H as u32));
 
-    // PLY: binary little-endian, x y z float and colour, one vertex per valid depth; the
-    // first vertex is the first valid pixel, placed as /distance places points.
+    // PLY: binary little-endian, x y z float, colour and σ_Z float, one vertex per valid
+    // depth; the first vertex is the first valid pixel, placed as /distance places points,
+    // and every vertex carries its pixel's depth_std.npy value.
     let ply = &files["points.ply"];
     let end = b"end_header\n";
     let at = ply.windows(end.len()).position(|w| w == end).unwrap() + end.len();
@@ -315,7 +317,11 @@ async fn every_output_reads_back() {
         head.contains(&format!("element vertex {valid}\n")),
         "{head}"
     );
-    assert_eq!(ply.len() - at, valid * 15);
+    assert!(
+        head.contains("property uchar blue\nproperty float depth_std\nend_header"),
+        "{head}"
+    );
+    assert_eq!(ply.len() - at, valid * 19);
     let first = disparity.iter().position(|d| !d.is_nan()).unwrap();
     let xyz = floats(&ply[at..at + 12]);
     let z = 50_000.0 / disparity[first];
@@ -323,6 +329,12 @@ async fn every_output_reads_back() {
     assert!((xyz[2] - z).abs() < 1e-3 * z);
     assert!((xyz[0] - (x - 80.0) * z / 500.0).abs() < 1e-2);
     assert!((xyz[1] - (y - 60.0) * z / 500.0).abs() < 1e-2);
+    let stds: Vec<f32> = ply[at..]
+        .chunks_exact(19)
+        .map(|v| f32::from_le_bytes(v[15..19].try_into().unwrap()))
+        .collect();
+    let valid_stds: Vec<f32> = depth_std.iter().copied().filter(|s| !s.is_nan()).collect();
+    assert_eq!(stds, valid_stds);
 }
 
 /// The summary's σ medians are those of the σ files (as numpy.nanmedian takes them), and a

@@ -67,10 +67,14 @@ impl ImageForm for DepthMapForm {
                    Outputs (`output`): `summary` (JSON), `disparity.pfm` (Middlebury PFM, \
                    invalid = +inf), `disparity.png` (KITTI 16-bit, round(d·256), 0 = \
                    invalid), `disparity.npy` and `depth.npy` (float32, invalid = NaN, depth in \
-                   the rig's unit), `arrays.npz` (NumPy's NPZ of `disparity` and, with a rig, \
-                   `depth` and `depth_error`), `depth.png` (16-bit millimetres, 0 = invalid), \
-                   `preview.png` (Turbo colours, near = warm) and `points.ply` (binary PLY, \
-                   x y z in the rig's unit in the left camera's frame, coloured). Every answer \
+                   the rig's unit), each pixel's σ as `disparity_std.npy`, \
+                   `disparity_std.pfm` (px) and `depth_std.npy` (the rig's unit), \
+                   `arrays.npz` (NumPy's NPZ of `disparity`, `disparity_std` and, with a rig, \
+                   `depth`, `depth_std` and `depth_error`; with `fill=true`, `filled`), \
+                   `depth.png` (16-bit millimetres, 0 = invalid), `preview.png` (Turbo \
+                   colours, near = warm) and `points.ply` (binary PLY, x y z in the rig's \
+                   unit in the left camera's frame, coloured, each point's σ_Z as the float \
+                   property `depth_std`). Every answer \
                    carries `Server-Timing` with the stages decode, cost, aggregate, refine, \
                    encode and, for raw pairs, rectify.\n\n\
                    Limits: images up to 8192 px a side and the server's `--max-image-pixels` (34 megapixels by default), at most 512 \
@@ -128,10 +132,11 @@ pub async fn post_depth_map(
 /// for a point cloud, the matcher's, and the answer's per-pixel buffers. What a `w × h`
 /// rectified pair searching `count` disparities reserves from the heavy budget.
 pub fn bytes_needed(w: usize, h: usize, count: usize, output: DepthMapOutput) -> usize {
-    // A point cloud's colours, or the NPZ's four more arrays and the archive's copy of all
-    // five (and the fill's one-byte mask, twice).
+    // A point cloud's colours, σ_Z and the 4 more bytes of each point and vertex, or the
+    // NPZ's four more arrays and the archive's copy of all five (and the fill's one-byte
+    // mask, twice).
     let extra = match output {
-        DepthMapOutput::PointsPly => 3,
+        DepthMapOutput::PointsPly => 15,
         DepthMapOutput::ArraysNpz => 42,
         DepthMapOutput::DepthStdNpy => 4,
         _ => 0,
@@ -214,7 +219,10 @@ fn compute(
         DepthMapOutput::PreviewPng => Ok(encode::png_rgb(w, h, &preview(&map))),
         DepthMapOutput::PointsPly => Ok(encode::ply(&points(
             &map,
-            depth.as_deref().unwrap_or_default(),
+            (
+                depth.as_deref().unwrap_or_default(),
+                depth_std.as_deref().unwrap_or_default(),
+            ),
             rig,
             left.rgb.as_deref().unwrap_or_default(),
         ))),
@@ -418,10 +426,10 @@ fn preview(map: &Disparity) -> Vec<u8> {
 }
 
 /// The valid pixels as points in the left camera's frame (the same formula as `/distance`'s
-/// `point`), coloured from the left image.
+/// `point`), coloured from the left image, each with its σ_Z (`(depth, depth_std)`).
 fn points(
     map: &Disparity,
-    depth: &[f32],
+    (depth, depth_std): (&[f32], &[f32]),
     rig: Option<crate::physics::Rig>,
     rgb: &[u8],
 ) -> Vec<encode::ColouredPoint> {
@@ -443,6 +451,7 @@ fn points(
         out.push(encode::ColouredPoint {
             xyz: [p.x as f32, p.y as f32, p.z as f32],
             rgb: colour,
+            depth_std: depth_std.get(i).copied().unwrap_or(f32::NAN),
         });
     }
     out

@@ -58,7 +58,8 @@ pub enum DepthMapOutput {
     #[serde(rename = "preview.png")]
     PreviewPng,
     /// Binary PLY point cloud of the valid pixels, x y z in the rig's unit in the left
-    /// camera's frame, coloured from the left image.
+    /// camera's frame, coloured from the left image, each with its σ_Z (`depth_std`, the
+    /// same unit).
     #[serde(rename = "points.ply")]
     PointsPly,
 }
@@ -114,7 +115,10 @@ impl DepthMapOutput {
     pub fn wants_depth_std(self) -> bool {
         matches!(
             self,
-            DepthMapOutput::Summary | DepthMapOutput::DepthStdNpy | DepthMapOutput::ArraysNpz
+            DepthMapOutput::Summary
+                | DepthMapOutput::DepthStdNpy
+                | DepthMapOutput::ArraysNpz
+                | DepthMapOutput::PointsPly
         )
     }
 
