@@ -30,7 +30,6 @@ import json
 import statistics
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import cv2
@@ -254,14 +253,9 @@ def fill_time(url, left, right, ndisp, rounds=stereo.TURNS):
     for round_ in range(rounds + 1):
         for query, (conn, body, ctype), spent in zip(queries, conns, times):
             path = f"/depth-map?max_disparity={ndisp}&output=disparity.npy{query}"
-            started = time.perf_counter()
-            conn.request("POST", path, body=body, headers={"Content-Type": ctype})
-            response = conn.getresponse()
-            response.read()
-            if response.status != 200:
-                sys.exit(f"{path} answered {response.status}")
+            seconds = stereo.timed(conn, path, body, ctype)[1]
             if round_:
-                spent.append(1e3 * (time.perf_counter() - started))
+                spent.append(1e3 * seconds)
     for conn, _, _ in conns:
         conn.close()
     return statistics.median(times[0]), statistics.median(times[1])

@@ -210,19 +210,27 @@ def post_once(url, path, parts):
     return answer
 
 
+def timed(conn, path, body, ctype):
+    """One POST of `body` to `path` on the kept-alive `conn`, timed whole: the answer's bytes,
+    the seconds it took and the response, or exit naming the status."""
+    started = time.perf_counter()
+    conn.request("POST", path, body=body, headers={"Content-Type": ctype})
+    response = conn.getresponse()
+    answer = response.read()
+    seconds = time.perf_counter() - started
+    if response.status != 200:
+        sys.exit(f"{path} answered {response.status}: {answer[:500]!r}")
+    return answer, seconds, response
+
+
 def post(url, path, parts):
     """The same multipart POST, RUNS + 1 times on one kept-alive connection: the last answer,
     the median time of the last RUNS, and the Server-Timing header."""
     conn, body, ctype = connect(url, parts)
     times, answer, timing = [], None, ""
     for _ in range(RUNS + 1):  # the first warms the connection and the allocator
-        t = time.perf_counter()
-        conn.request("POST", path, body=body, headers={"Content-Type": ctype})
-        response = conn.getresponse()
-        answer = response.read()
-        times.append(time.perf_counter() - t)
-        if response.status != 200:
-            sys.exit(f"{path} answered {response.status}: {answer[:500]!r}")
+        answer, seconds, response = timed(conn, path, body, ctype)
+        times.append(seconds)
         timing = response.getheader("Server-Timing", "")
     conn.close()
     return answer, statistics.median(times[1:]), timing
@@ -245,13 +253,7 @@ def taking_turns(url, left, right, rounds=TURNS, query=""):
         t = time.perf_counter()
         matcher.compute(left, right)
         theirs.append(time.perf_counter() - t)
-        t = time.perf_counter()
-        conn.request("POST", path, body=body, headers={"Content-Type": ctype})
-        response = conn.getresponse()
-        response.read()
-        mine.append(time.perf_counter() - t)
-        if response.status != 200:
-            sys.exit(f"{path} answered {response.status}")
+        mine.append(timed(conn, path, body, ctype)[1])
     conn.close()
     spread = lambda t: (1e3 * min(t[1:]), 1e3 * max(t[1:]))
     return (1e3 * statistics.median(mine[1:]), 1e3 * statistics.median(theirs[1:]),
@@ -466,7 +468,7 @@ def aloe(data, scale=2):
     blocks = full[: h * scale, : w * scale].reshape(h, scale, w, scale)
     truth = blocks.mean(axis=(1, 3)) / scale
     truth[(blocks == 0).any(axis=(1, 3))] = np.inf
-    disparities = int(np.ceil((np.nanmax(truth[np.isfinite(truth)]) + 1) / 16) * 16)
+    disparities = int(np.ceil((truth[np.isfinite(truth)].max() + 1) / 16) * 16)
     return small(left), small(right), truth, disparities
 
 
@@ -484,6 +486,12 @@ def second_scene(data, url):
         disp = load_npy(answer)
         out.append((score(np.where(np.isnan(disp), np.inf, disp), truth), seconds))
     return rows, out[0], out[1], disparities, left.shape
+
+
+def method_row(scene, name, s, seconds):
+    """One line of the methods' table: bad-0.5/1.0/2.0, density and time of `s`, a [`score`]."""
+    return (f"{scene:<11} {name:<22} {s['bad0.5']:8.2f} {s['bad1']:8.2f} {s['bad2']:8.2f} "
+            f"{s['density']:8.1f} {seconds * 1e3:8.1f}")
 
 
 def load_npy(data):
@@ -551,8 +559,7 @@ def main():
         best2 = min(rows, key=lambda row: row[1]["bad2"])
         for name, s, secs in rows + [("ours (/depth-map)", mine, seconds),
                                      ("ours preset=fast", fast, fast_seconds)]:
-            print(f"{scene:<11} {name:<22} {s['bad0.5']:8.2f} {s['bad1']:8.2f} "
-                  f"{s['bad2']:8.2f} {s['density']:8.1f} {secs * 1e3:8.1f}")
+            print(method_row(scene, name, s, secs))
         print(f"{scene:<11} {'  OpenCV best':<22} {'':8} {best1[1]['bad1']:8.2f} "
               f"{best2[1]['bad2']:8.2f}   ours/best: bad-1.0 "
               f"{mine['bad1'] / best1[1]['bad1']:.2f}, bad-2.0 {mine['bad2'] / best2[1]['bad2']:.2f}")
@@ -643,8 +650,7 @@ def main():
     print("-" * len(header))
     for name, s, secs in rows + [("ours (/depth-map)", mine, seconds),
                                  ("ours preset=fast", fast, fast_seconds)]:
-        print(f"{'aloe':<11} {name:<22} {s['bad0.5']:8.2f} {s['bad1']:8.2f} "
-              f"{s['bad2']:8.2f} {s['density']:8.1f} {secs * 1e3:8.1f}")
+        print(method_row("aloe", name, s, secs))
     best = {m: min(s[m] for _, s, _ in rows) for m in ("bad1", "bad2")}
     print(f"{'aloe':<11} {'  OpenCV best':<22} {'':8} {best['bad1']:8.2f} {best['bad2']:8.2f}   "
           f"ours/best: bad-1.0 {mine['bad1'] / best['bad1']:.2f}, bad-2.0 "

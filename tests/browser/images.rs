@@ -49,6 +49,18 @@ pub(crate) fn number_after(text: &str, after: &str) -> f64 {
 }
 
 impl Browser {
+    /// A 1280 × 1500 window on the images page with the rig in its address and the
+    /// synthetic pair uploaded, once its depth map shows: the browser, the pair's files and
+    /// the map's valid fraction.
+    async fn with_synthetic_depth_map() -> (Browser, [PathBuf; 2], f64) {
+        let [left, right] = synthetic_pair();
+        let browser = Browser::start(1280, 1500).await;
+        browser.open(&format!("/?mode=images&{RIG}")).await;
+        browser.upload(&left, &right).await;
+        let valid = browser.depth_map_shown().await;
+        (browser, [left, right], valid)
+    }
+
     /// Waits until the page has asked `/depth-map` with `member` (`name=value`) in its query,
     /// and then until its address (the permalink) keeps it.
     async fn asked_and_kept(&self, member: &str) {
@@ -822,11 +834,7 @@ async fn the_images_stack_on_a_phone() {
 #[ignore = "needs chromium and chromedriver; .ci/run runs it"]
 async fn the_fast_preset_is_sent_kept_and_refused_when_made_up() {
     // Arrange
-    let [left, right] = synthetic_pair();
-    let browser = Browser::start(1280, 1500).await;
-    browser.open(&format!("/?mode=images&{RIG}")).await;
-    browser.upload(&left, &right).await;
-    browser.depth_map_shown().await;
+    let (browser, pair, _) = Browser::with_synthetic_depth_map().await;
     assert_eq!(browser.value("preset").await, "accurate");
 
     // Act
@@ -840,7 +848,7 @@ async fn the_fast_preset_is_sent_kept_and_refused_when_made_up() {
     // Act and assert: a permalink with a preset that does not exist; the service's words,
     // next to the select.
     let error = browser
-        .refused_from_permalink("preset=slow", &[left, right], "must be accurate or fast")
+        .refused_from_permalink("preset=slow", &pair, "must be accurate or fast")
         .await;
     assert!(error.contains("`slow`"), "{error}");
     browser.assert_clean_but(&["422"]).await;
@@ -854,11 +862,7 @@ async fn the_fast_preset_is_sent_kept_and_refused_when_made_up() {
 #[ignore = "needs chromium and chromedriver; .ci/run runs it"]
 async fn a_sigma_threshold_is_sent_kept_and_refused_when_zero() {
     // Arrange
-    let [left, right] = synthetic_pair();
-    let browser = Browser::start(1280, 1500).await;
-    browser.open(&format!("/?mode=images&{RIG}")).await;
-    browser.upload(&left, &right).await;
-    let before = browser.depth_map_shown().await;
+    let (browser, pair, before) = Browser::with_synthetic_depth_map().await;
 
     // Act: the threshold pasted in (typed key by key, its prefix "0" would be asked first).
     browser
@@ -881,7 +885,7 @@ async fn a_sigma_threshold_is_sent_kept_and_refused_when_zero() {
     // Act and assert: a permalink with a threshold of 0; the service's words, next to the
     // field.
     let error = browser
-        .refused_from_permalink("max_disparity_std=0", &[left, right], "must lie in (0, 64]")
+        .refused_from_permalink("max_disparity_std=0", &pair, "must lie in (0, 64]")
         .await;
     assert!(error.contains("got 0"), "{error}");
     browser.assert_clean_but(&["422"]).await;
