@@ -42,11 +42,12 @@ import eval_stereo as stereo
 PATTERN = (9, 6)  # inner corners of the photographed board
 MODES = indoor.MODES
 # The floors (exit 1 below them). The first three are regression floors below today's figures
-# (docs/matcher.md, "Real photographs: truth from the board's plane"); the goals are printed.
+# (docs/matcher.md, "Real photographs: truth from the board's plane": 1.12 x, 0.60 x, 62 %), not
+# the goals, which are printed; the last checks the truth itself.
 FLOORS = {
-    "right_over_opencv": 0.70,      # our median answered-right over OpenCV's best mode's
-    "wrong1_over_opencv": 1.00,     # our median wrong > 1 px over OpenCV's least
-    "within_1sigma": 0.45,          # pooled, lower bound
+    "right_over_opencv": 1.00,      # our median answered-right over OpenCV's best mode's
+    "wrong1_over_opencv": 0.75,     # our median wrong > 1 px over OpenCV's least
+    "within_1sigma": 0.55,          # pooled, lower bound
     "plane_rms": 0.35,              # px: the board's corners off their fitted plane (truth check)
 }
 

@@ -166,6 +166,11 @@ pub fn correspond(
                     image.data[band.start * w..band.end * w].to_vec(),
                 )
             };
+            // No planes in flat holes here: a point's status says what its own match was.
+            let params = &Params {
+                plane: false,
+                ..*params
+            };
             super::disparity_probed_in(&crop(left), &crop(right), seen, params, cancel, &wanted)
         })
         .collect();

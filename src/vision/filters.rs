@@ -1,10 +1,46 @@
 //! The disparity map's filters after the winners are chosen: speckle removal (OpenCV's
 //! `filterSpeckles`, by union-find in bands), the 3 × 3 median that ignores invalid pixels,
-//! and hole filling for the pyramid's coarse levels.
+//! and hole filling for the pyramid's coarse levels; and [`finish`], the order they run in
+//! with σ_d, the planes in flat holes and the keep rule.
 //!
 //! Invalid pixels are `f32::NAN` throughout.
 
 use rayon::prelude::*;
+
+use super::{Gray, Params, plane, sigma};
+
+/// The map's finishing after the winners (`data`, range indices, `width` a row; `variance`,
+/// their winners' variances): speckles, the median, σ_d ([`sigma::map`]), the planes in flat
+/// holes of `left` ([`plane`]), the keep rule ([`sigma::keep`]) and the fill, as `params` ask.
+/// Answers the map, its σ_d, and the fill's mask (empty without `fill`; it also names the
+/// values the planes gave that the keep rule kept).
+pub(super) fn finish(
+    mut data: Vec<f32>,
+    variance: Vec<f32>,
+    width: usize,
+    left: &Gray,
+    params: &Params,
+) -> (Vec<f32>, Vec<f32>, Vec<bool>) {
+    speckles(&mut data, width, params.speckle_size, params.speckle_range);
+    if params.median {
+        data = median(&data, width);
+    }
+    let mut std = sigma::map(&data, &variance, width);
+    drop(variance);
+    let planes = match params.plane {
+        true => plane::fill(&mut data, &mut std, width, left, params.count),
+        false => Vec::new(),
+    };
+    sigma::keep(&mut data, &mut std, params.max_std as f32);
+    let mut filled = match params.fill {
+        true => fill_with_std(&mut data, &mut std, width),
+        false => Vec::new(),
+    };
+    for (f, (&p, d)) in filled.iter_mut().zip(planes.iter().zip(&data)) {
+        *f |= p && !d.is_nan();
+    }
+    (data, std, filled)
+}
 
 /// Invalidates the connected regions of fewer than `max_size` pixels whose neighbours differ by
 /// at most `range` (OpenCV's `filterSpeckles`): small islands are usually mismatches.

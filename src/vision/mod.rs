@@ -18,7 +18,8 @@
 //!   finished row to
 //! - [`refine`]: winner-takes-all with uniqueness and a sub-pixel fit, the left-right check;
 //!   then, over the whole map,
-//! - [`filters`]: speckle removal, a 3 × 3 median, [`sigma`]'s keep rule and optional filling.
+//! - [`filters`]: speckle removal, a 3 × 3 median, [`plane`]'s planes in flat holes,
+//!   [`sigma`]'s keep rule and optional filling.
 //!
 //! The image is matched in horizontal stripes ([`stripes`]), side by side on the cores. The hot
 //! loops are dispatched between a portable and an AVX2 build by [`simd`], and the large
@@ -44,6 +45,7 @@ pub mod encode;
 pub mod filters;
 pub mod huge_pages;
 mod params;
+pub mod plane;
 pub mod pyramid;
 pub mod refine;
 pub mod remap;
@@ -362,6 +364,7 @@ fn level(
             count,
             speckle_size: params.speckle_size / 4,
             fill: false,
+            plane: false,
             ..*params
         };
         let (map, t, _) = level((&l2, &r2), seen.halved(), &coarse, above - 1, cancel, &[])?;
@@ -429,17 +432,7 @@ fn level(
     checkpoint()?;
 
     let started = Instant::now();
-    filters::speckles(&mut data, w, params.speckle_size, params.speckle_range);
-    if params.median {
-        data = filters::median(&data, w);
-    }
-    let mut std = sigma::map(&data, &variance, w);
-    drop(variance);
-    sigma::keep(&mut data, &mut std, params.max_std as f32);
-    let filled = match params.fill {
-        true => filters::fill_with_std(&mut data, &mut std, w),
-        false => Vec::new(),
-    };
+    let (mut data, std, filled) = filters::finish(data, variance, w, left, params);
     let min = params.min_disparity as f32;
     data.iter_mut().for_each(|d| *d += min);
     timings.refine += started.elapsed();

@@ -143,6 +143,8 @@ pub struct Params {
     pub(super) max_std: f64,
     pub(super) median: bool,
     pub(super) fill: bool,
+    /// Whether holes in flat areas take the plane their surroundings imply ([`super::plane`]).
+    pub(super) plane: bool,
     pub(super) paths: sgm::Paths,
     pub(super) preset: Preset,
 }
@@ -167,6 +169,7 @@ impl Default for Params {
             max_std: DEFAULT_MAX_DISPARITY_STD,
             median: true,
             fill: false,
+            plane: true,
             paths: sgm::Paths::Auto,
             preset: Preset::Accurate,
         }
@@ -329,6 +332,7 @@ impl Params {
                 max_std,
                 median: s.median.unwrap_or(d.median),
                 fill: s.fill.unwrap_or(d.fill),
+                plane: d.plane,
                 paths,
                 preset,
             }),
