@@ -18,13 +18,14 @@ import eval_stereo as stereo
 
 old, new = sys.argv[1], sys.argv[2]
 cases = []
-l = cv2.imread('target/eval-stereo/motorcycle_left.png'); r = cv2.imread('target/eval-stereo/motorcycle_right.png')
+l = cv2.imread('target/eval-stereo/motorcycle_left.png')
+r = cv2.imread('target/eval-stereo/motorcycle_right.png')
 cases.append(("motorcycle 741x500, 64", l, r, 64))
 for name, a, b in indoor.rectified_pairs(new, 'tests/data/photographs/opencv-stereo'):
     if name == "01":
         cases.append(("board pair 01 640x480, 144", a, b, 144))
-big_l = cv2.resize(l, None, fx=4, fy=4, interpolation=cv2.INTER_CUBIC); big_r = cv2.resize(r, None, fx=4, fy=4, interpolation=cv2.INTER_CUBIC)
-cases.append(("motorcycle x4 5.9 MP, 400", big_l, big_r, 400))
+up = [cv2.resize(img, None, fx=4, fy=4, interpolation=cv2.INTER_CUBIC) for img in (l, r)]
+cases.append(("motorcycle x4 5.9 MP, 400", *up, 400))
 for label, a, b, nd in cases:
     parts = {"left": (cv2.imencode('.png', a)[1].tobytes(), 'l.png', 'image/png'),
              "right": (cv2.imencode('.png', b)[1].tobytes(), 'r.png', 'image/png')}

@@ -26,8 +26,6 @@ never a time. The goals not yet met are floored at today's level so that nothing
 
     python3 scripts/eval_board.py --url URL [--photographs DIR] [--json FILE]
 """
-import argparse
-import io
 import json
 import math
 import sys
@@ -37,6 +35,7 @@ import cv2
 import numpy as np
 
 import eval_indoor as indoor
+import eval_sigma as sigma
 import eval_stereo as stereo
 
 PATTERN = (9, 6)  # inner corners of the photographed board
@@ -96,15 +95,6 @@ def search_range(truth, mask):
     return int(math.ceil((float(truth[mask].max()) + 8) / 16) * 16)
 
 
-def ours(url, left, right, disparities, query=""):
-    """Our /depth-map's disparity and sigma_d for the pair (NaN where none)."""
-    answer = stereo.post_once(url, f"/depth-map?max_disparity={disparities}&output=arrays.npz{query}", {
-        "left": (cv2.imencode(".png", left)[1].tobytes(), "left.png", "image/png"),
-        "right": (cv2.imencode(".png", right)[1].tobytes(), "right.png", "image/png")})
-    arrays = np.load(io.BytesIO(answer))
-    return arrays["disparity"], arrays["disparity_std"]
-
-
 def score(disp, truth, mask):
     """answered, wrong > 1 and > 2 px of those answered, and right of the board."""
     d, t = disp[mask], truth[mask]
@@ -120,11 +110,7 @@ def score(disp, truth, mask):
 
 
 def main():
-    parser = argparse.ArgumentParser()
-    parser.add_argument("--url", required=True)
-    parser.add_argument("--photographs", default="tests/data/photographs/opencv-stereo")
-    parser.add_argument("--json")
-    args = parser.parse_args()
+    args = indoor.arguments()
     cv2.setNumThreads(2)
     pairs, skipped = [], []
     pooled = {"err": [], "std": []}
@@ -135,8 +121,9 @@ def main():
             continue
         mask, plane, rms, rows = truth
         ndisp = search_range(plane, mask)
-        disp, std = ours(args.url, left, right, ndisp)
-        kept, _ = ours(args.url, left, right, ndisp, "&max_disparity_std=1")
+        arrays = sigma.ours(args.url, left, right, ndisp)
+        disp, std = arrays["disparity"], arrays["disparity_std"]
+        kept = sigma.ours(args.url, left, right, ndisp, "&max_disparity_std=1")["disparity"]
         row = {"pair": name, "disparities": ndisp, "board_pixels": int(mask.sum()),
                "plane_rms": rms, "row_disagreement": rows, "ours": score(disp, plane, mask)}
         d, s, t = disp[mask], std[mask], plane[mask]

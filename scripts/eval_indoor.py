@@ -14,13 +14,13 @@ and without the uniqueness and speckle rules) as medians over the set; reported,
     python3 scripts/eval_indoor.py --url URL [--photographs DIR] [--json FILE]
 """
 import argparse
-import io
 import json
 from pathlib import Path
 
 import cv2
 import numpy as np
 
+import eval_sigma as sigma
 import eval_stereo as stereo
 
 NAMES = ["01", "02", "03", "04", "05", "06", "07", "08", "09", "11", "12", "13", "14"]
@@ -53,10 +53,8 @@ def rectified_pairs(url, folder):
 
 
 def ours(url, left, right, query=""):
-    answer = stereo.post_once(url, f"/depth-map?max_disparity={DISPARITIES}&output=arrays.npz{query}", {
-        "left": (cv2.imencode(".png", left)[1].tobytes(), "left.png", "image/png"),
-        "right": (cv2.imencode(".png", right)[1].tobytes(), "right.png", "image/png")})
-    return np.load(io.BytesIO(answer))["disparity"]
+    """Our /depth-map's disparity for the pair at DISPARITIES ([`eval_sigma.ours`])."""
+    return sigma.ours(url, left, right, DISPARITIES, query)["disparity"]
 
 
 def agreement(mine, other):
@@ -65,12 +63,17 @@ def agreement(mine, other):
     return float(np.mean(np.abs(mine[both] - other[both]) <= AGREE_PX)) if both.any() else 0.0
 
 
-def main():
+def arguments():
+    """The command line of this script and of eval_board.py: --url, --photographs, --json."""
     parser = argparse.ArgumentParser()
     parser.add_argument("--url", required=True)
     parser.add_argument("--photographs", default="tests/data/photographs/opencv-stereo")
     parser.add_argument("--json")
-    args = parser.parse_args()
+    return parser.parse_args()
+
+
+def main():
+    args = arguments()
     cv2.setNumThreads(2)
     rows = []
     for name, left, right in rectified_pairs(args.url, args.photographs):

@@ -21,6 +21,8 @@
 //! Measured on OpenCV's 13 real stereo photographs against each board's plane, and on
 //! Middlebury (docs/matcher.md, "Real photographs: truth from the board's plane").
 
+use std::ops::Range;
+
 use rayon::prelude::*;
 
 use super::Gray;
@@ -48,9 +50,6 @@ pub const FLOOR: f32 = 0.5;
 /// The rows that share one window's plane (its middle row's).
 const BLOCK: usize = 8;
 
-/// The ten moments of the support in a window: count, Σx, Σy, Σd, Σx², Σxy, Σy², Σxd, Σyd, Σd².
-type Moments = [f64; 10];
-
 /// Fills the holes (NaN in `disparity`, a range index; `std` its σ_d) of `disparity` (`width`
 /// a row) that lie in flat areas of `left` (the same size) with the plane their surroundings
 /// imply, when they imply one ([the module's rules](self)), below `count` (the range's
@@ -72,9 +71,12 @@ pub fn fill(
         .into_par_iter()
         .map(|(&f, d, &s)| !f && d.is_finite() && s <= SUPPORT_STD)
         .collect();
-    let half = WINDOW / 2;
-    // Bands of whole blocks side by side on the cores; in each block of BLOCK rows the windows
-    // are those of its middle row (a window 41 rows high moved by at most 4).
+    let holes: Vec<bool> = (flat.par_iter(), disparity.par_iter())
+        .into_par_iter()
+        .map(|(&f, d)| f && d.is_nan())
+        .collect();
+    // Bands of whole blocks side by side on the cores; in each block of BLOCK rows the window
+    // is its middle row's (a window 41 rows high moved by at most 4).
     let rows =
         (64.max(height.div_ceil(rayon::current_num_threads().max(1)))).next_multiple_of(BLOCK);
     let found: Vec<(usize, f32, f32)> = (0..height)
@@ -82,78 +84,14 @@ pub fn fill(
         .collect::<Vec<_>>()
         .into_par_iter()
         .flat_map_iter(|top| {
-            let window = Window {
-                disparity,
-                support: &support,
-                width,
-                height,
-                half,
-            };
-            let end = (top + rows).min(height);
-            let mut out = Vec::new();
             let middle = |base: usize| (base + BLOCK / 2).min(height - 1);
-            let mut centre = middle(top);
-            let mut columns = window.columns_at(centre);
-            let (mut above, mut below) = window.halves_at(centre);
-            for base in (top..end).step_by(BLOCK) {
-                let block = base..(base + BLOCK).min(end);
-                let wanted = |x: usize| {
-                    block.clone().any(|y| {
-                        let i = y * width + x;
-                        disparity[i].is_nan() && flat[i]
-                    })
-                };
-                if !(0..width).any(wanted) {
-                    continue;
-                }
-                while centre < middle(base) {
-                    centre += 1;
-                    window.slide(&mut columns, centre);
-                    window.slide_halves((&mut above, &mut below), centre);
-                }
-                let mut sums: Moments = [0.0; 10];
-                // The support's count on each side of the centre: in the columns x − half ..
-                // x − 1 and x + 1 ..= x + half, and in the window's rows above and below it.
-                let (mut before, mut after, mut up, mut down) = (0.0, 0.0, 0.0, 0.0);
-                for x in 0..half.min(width) {
-                    add(&mut sums, &columns[x], 1.0);
-                    after += columns[x][0];
-                    up += above[x];
-                    down += below[x];
-                }
-                for x in 0..width {
-                    if x + half < width {
-                        add(&mut sums, &columns[x + half], 1.0);
-                        after += columns[x + half][0];
-                        up += above[x + half];
-                        down += below[x + half];
-                    }
-                    if x > half {
-                        add(&mut sums, &columns[x - half - 1], -1.0);
-                        before -= columns[x - half - 1][0];
-                        up -= above[x - half - 1];
-                        down -= below[x - half - 1];
-                    }
-                    if x > 0 {
-                        before += columns[x - 1][0];
-                    }
-                    after -= columns[x][0];
-                    if before.min(after).min(up).min(down) < MIN_SIDE {
-                        continue;
-                    }
-                    for y in block.clone() {
-                        let i = y * width + x;
-                        if !(disparity[i].is_nan() && flat[i]) {
-                            continue;
-                        }
-                        // The block's plane, at this pixel.
-                        if let Some((value, rms)) = plane_at(&sums, x as f64, y as f64)
-                            && value >= 0.0
-                            && value <= (count.max(1) - 1) as f64
-                        {
-                            out.push((i, value as f32, rms as f32));
-                        }
-                    }
+            let mut window = Window::at(disparity, &support, width, middle(top));
+            let mut out = Vec::new();
+            for base in (top..(top + rows).min(height)).step_by(BLOCK) {
+                let block = base..(base + BLOCK).min(height);
+                if holes[block.start * width..block.end * width].contains(&true) {
+                    window.move_to(middle(base));
+                    window.planes(block, &holes, count, &mut out);
                 }
             }
             out
@@ -197,103 +135,151 @@ fn flat_pixels(image: &Gray) -> Vec<bool> {
     flat
 }
 
-/// The support's column sums over a band of rows, slid down one row at a time.
+/// A column's sums over the window's rows: the support's ten moments, then its count in the
+/// rows above the window's centre ([`ABOVE`]) and in those below it ([`BELOW`]).
+type Column = [f64; 12];
+const ABOVE: usize = 10;
+const BELOW: usize = 11;
+
+/// The [`WINDOW`]-row window around a centre row: each column's sums ([`Column`]), slid down
+/// one row at a time.
 struct Window<'a> {
     disparity: &'a [f32],
     support: &'a [bool],
     width: usize,
     height: usize,
-    half: usize,
+    centre: usize,
+    columns: Vec<Column>,
 }
 
-impl Window<'_> {
-    /// Each column's moments over the rows `y − half ..= y + half` (clipped to the image).
-    fn columns_at(&self, y: usize) -> Vec<Moments> {
-        let mut columns = vec![[0.0; 10]; self.width];
-        for row in y.saturating_sub(self.half)..(y + self.half + 1).min(self.height) {
-            self.add_row(&mut columns, row, 1.0);
+impl<'a> Window<'a> {
+    const HALF: usize = WINDOW / 2;
+
+    /// The window around row `centre` (clipped to the image).
+    fn at(disparity: &'a [f32], support: &'a [bool], width: usize, centre: usize) -> Self {
+        let height = disparity.len() / width;
+        let mut window = Window {
+            disparity,
+            support,
+            width,
+            height,
+            centre,
+            columns: vec![[0.0; 12]; width],
+        };
+        for row in centre.saturating_sub(Self::HALF)..(centre + Self::HALF + 1).min(height) {
+            window.moments(row, 1.0);
+            match row.cmp(&centre) {
+                std::cmp::Ordering::Less => window.count(row, ABOVE, 1.0),
+                std::cmp::Ordering::Greater => window.count(row, BELOW, 1.0),
+                std::cmp::Ordering::Equal => {}
+            }
         }
-        columns
+        window
     }
 
-    /// The column sums for row `y` from those for row `y − 1`.
-    fn slide(&self, columns: &mut [Moments], y: usize) {
-        if y + self.half < self.height {
-            self.add_row(columns, y + self.half, 1.0);
-        }
-        if y > self.half {
-            self.add_row(columns, y - self.half - 1, -1.0);
-        }
-    }
-
-    /// Each column's support count in the window's rows above `y` and below it.
-    fn halves_at(&self, y: usize) -> (Vec<f64>, Vec<f64>) {
-        let (mut above, mut below) = (vec![0.0; self.width], vec![0.0; self.width]);
-        for row in y.saturating_sub(self.half)..y {
-            self.count_row(&mut above, row, 1.0);
-        }
-        for row in y + 1..(y + self.half + 1).min(self.height) {
-            self.count_row(&mut below, row, 1.0);
-        }
-        (above, below)
-    }
-
-    /// The counts above and below row `y` from those of row `y − 1`.
-    fn slide_halves(&self, (above, below): (&mut [f64], &mut [f64]), y: usize) {
-        self.count_row(above, y - 1, 1.0);
-        if y > self.half {
-            self.count_row(above, y - self.half - 1, -1.0);
-        }
-        self.count_row(below, y, -1.0);
-        if y + self.half < self.height {
-            self.count_row(below, y + self.half, 1.0);
+    /// Slides the window down to the row `centre` (at or below its own).
+    fn move_to(&mut self, centre: usize) {
+        while self.centre < centre {
+            self.centre += 1;
+            let c = self.centre;
+            if c + Self::HALF < self.height {
+                self.moments(c + Self::HALF, 1.0);
+                self.count(c + Self::HALF, BELOW, 1.0);
+            }
+            if c > Self::HALF {
+                self.moments(c - Self::HALF - 1, -1.0);
+                self.count(c - Self::HALF - 1, ABOVE, -1.0);
+            }
+            self.count(c - 1, ABOVE, 1.0);
+            self.count(c, BELOW, -1.0);
         }
     }
 
-    fn count_row(&self, counts: &mut [f64], row: usize, sign: f64) {
+    /// Row `row`'s support added to (`sign` 1) or taken from (−1) the columns' moments.
+    fn moments(&mut self, row: usize, sign: f64) {
         let start = row * self.width;
-        for (x, c) in counts.iter_mut().enumerate() {
+        for (x, column) in self.columns.iter_mut().enumerate() {
             if self.support[start + x] {
-                *c += sign;
+                let (px, py, d) = (x as f64, row as f64, f64::from(self.disparity[start + x]));
+                let m = [px, py, d, px * px, px * py, py * py, px * d, py * d, d * d];
+                column[0] += sign;
+                for (s, v) in column[1..10].iter_mut().zip(m) {
+                    *s += sign * v;
+                }
             }
         }
     }
 
-    fn add_row(&self, columns: &mut [Moments], row: usize, sign: f64) {
+    /// Row `row`'s support added to or taken from the columns' count in `slot`.
+    fn count(&mut self, row: usize, slot: usize, sign: f64) {
         let start = row * self.width;
-        for (x, column) in columns.iter_mut().enumerate() {
+        for (x, column) in self.columns.iter_mut().enumerate() {
             if self.support[start + x] {
-                let (px, py, d) = (x as f64, row as f64, f64::from(self.disparity[start + x]));
-                let m = [
-                    1.0,
-                    px,
-                    py,
-                    d,
-                    px * px,
-                    px * py,
-                    py * py,
-                    px * d,
-                    py * d,
-                    d * d,
-                ];
-                add(column, &m, sign);
+                column[slot] += sign;
+            }
+        }
+    }
+
+    /// The planes of this window at the holes (`holes`, by pixel) of the rows `block`, each
+    /// centred on its column, pushed to `out` as (pixel, value, rms) when the module's rules
+    /// allow (the value below `count`).
+    fn planes(
+        &self,
+        block: Range<usize>,
+        holes: &[bool],
+        count: usize,
+        out: &mut Vec<(usize, f32, f32)>,
+    ) {
+        let (width, half, columns) = (self.width, Self::HALF, &self.columns);
+        let mut sums: Column = [0.0; 12];
+        // The support's count in the columns x − half .. x − 1 and x + 1 ..= x + half.
+        let (mut before, mut after) = (0.0, 0.0);
+        for column in &columns[..half.min(width)] {
+            add(&mut sums, column, 1.0);
+            after += column[0];
+        }
+        for x in 0..width {
+            if x + half < width {
+                add(&mut sums, &columns[x + half], 1.0);
+                after += columns[x + half][0];
+            }
+            if x > half {
+                add(&mut sums, &columns[x - half - 1], -1.0);
+                before -= columns[x - half - 1][0];
+            }
+            if x > 0 {
+                before += columns[x - 1][0];
+            }
+            after -= columns[x][0];
+            if before.min(after).min(sums[ABOVE]).min(sums[BELOW]) < MIN_SIDE {
+                continue;
+            }
+            for y in block.clone().filter(|y| holes[y * width + x]) {
+                // The window's plane, at this pixel.
+                if let Some((value, rms)) = plane_at(&sums, x as f64, y as f64)
+                    && value >= 0.0
+                    && value <= (count.max(1) - 1) as f64
+                {
+                    out.push((y * width + x, value as f32, rms as f32));
+                }
             }
         }
     }
 }
 
 #[inline]
-fn add(sums: &mut Moments, moments: &Moments, sign: f64) {
+fn add(sums: &mut Column, moments: &Column, sign: f64) {
     for (s, m) in sums.iter_mut().zip(moments) {
         *s += sign * m;
     }
 }
 
-/// The least-squares plane through the support whose moments are `m`, at `(x0, y0)`: its value
+/// The least-squares plane through the support whose moments are `m` (count, Σx, Σy, Σd, Σx²,
+/// Σxy, Σy², Σxd, Σyd, Σd²), at `(x0, y0)`: its value
 /// there and the support's RMS off it, when at least [`MIN_SUPPORT`] pixels fit it within
 /// [`MAX_RMS`].
-fn plane_at(m: &Moments, x0: f64, y0: f64) -> Option<(f64, f64)> {
-    let [n, sx, sy, sd, sxx, sxy, syy, sxd, syd, sdd] = *m;
+fn plane_at(m: &Column, x0: f64, y0: f64) -> Option<(f64, f64)> {
+    let [n, sx, sy, sd, sxx, sxy, syy, sxd, syd, sdd, ..] = *m;
     if n < MIN_SUPPORT {
         return None;
     }
