@@ -95,10 +95,9 @@ async fn statuses_follow_the_scene() {
                 .as_f64()
                 .expect("σ_d beside a disparity");
             let sz = m["distance_std"].as_f64().expect("σ_Z beside a distance");
-            // σ_d is answered to 1/1000 px, σ_Z from the unrounded σ_d.
-            let rounding = z * z * 0.0005 / 50_000.0;
+            // σ_Z from σ_d as answered (to 1/1000 px), without σ_f and σ_B.
             assert!(
-                s >= 0.17 && (sz - z * z * s / 50_000.0).abs() <= rounding,
+                s >= 0.17 && (sz - z * z * s / 50_000.0).abs() <= 1e-9 * sz,
                 "{m}"
             );
             if status(m) == "ok" {
@@ -388,7 +387,8 @@ async fn points_at_a_depth_edge_are_inconsistent() {
 }
 
 /// Each match's distance is `/distance`'s for the same x, disparity and y with the same rig,
-/// to the last digit.
+/// to the last digit; and its one error bar (`depth_error` = `distance_std`, with
+/// `relative_error`) is `/distance`'s with Δd = the match's σ_d, not the rig's fixed Δd.
 #[tokio::test]
 async fn distances_are_those_of_distance() {
     let app = spawn_app().await;
@@ -396,16 +396,20 @@ async fn distances_are_those_of_distance() {
     let found = matches(&app, &pair, "?max_disparity=48", &[(50, 60), (130, 100)]).await;
     for m in &found {
         let d = m["disparity_px"].as_f64().expect("a disparity");
-        let distance = ok_json(
-            app.post(
-                "/distance",
-                &json!({"focal_length_px": 500, "baseline": 100, "unit": "mm",
-                        "image_width": W, "image_height": H,
-                        "x_left": m["x"], "disparity_px": d, "y": m["y"]}),
-            )
-            .await,
-        )
-        .await;
+        let s = m["disparity_std_px"].as_f64().expect("a σ_d");
+        let rig = json!({"focal_length_px": 500, "baseline": 100, "unit": "mm",
+                         "image_width": W, "image_height": H,
+                         "x_left": m["x"], "disparity_px": d, "y": m["y"]});
+        let mut with_sigma = rig.clone();
+        with_sigma["disparity_error_px"] = json!(s);
+        let distance = ok_json(app.post("/distance", &with_sigma).await).await;
+        let fixed = ok_json(app.post("/distance", &rig).await).await;
+        assert_eq!(m["depth_error"], m["distance_std"], "{m}");
+        assert_ne!(m["depth_error"], fixed["depth_error"], "{m}");
+        assert!(
+            (s - 0.5).abs() > 1e-3,
+            "σ_d {s} would not tell the bars apart"
+        );
         for field in [
             "distance",
             "range",
@@ -463,10 +467,8 @@ async fn regions_answer_a_robust_distance() {
     let s = on["disparity_std_px"].as_f64().unwrap();
     assert!(s > 0.0 && s < 0.1, "{on}");
     let sz = on["distance_std"].as_f64().unwrap();
-    assert!(
-        (sz - z * z * s / 50_000.0).abs() <= z * z * 0.0005 / 50_000.0,
-        "{on}"
-    );
+    assert!((sz - z * z * s / 50_000.0).abs() <= 1e-9 * sz, "{on}");
+    assert_eq!(on["depth_error"], on["distance_std"]);
     let off = &body["regions"][1];
     assert_eq!(off["status"], "outside_image");
     assert!(off.get("distance").is_none());

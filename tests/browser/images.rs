@@ -337,6 +337,21 @@ async fn an_uploaded_pair_is_matched_hovered_clicked_and_boxed() {
         line.contains("matching ±") && line.contains("calibration ±"),
         "{line}"
     );
+    // One error bar: the Distance card's ± is the match's σ_Z, not the default Δd = 0.5 px
+    // (about twice the σ_d of this clean render), and the card says what it stands on.
+    assert_eq!(
+        browser.attr("depth-error", "data-basis").await.as_deref(),
+        Some("sigma")
+    );
+    let card = number_after(&browser.text("depth-error").await, "±");
+    let sigma = browser.text("match-sigma").await;
+    let from_match = number_after(&sigma, "±");
+    assert!(
+        (card - from_match).abs() <= 0.005 * from_match,
+        "card ± {card}, match {sigma}"
+    );
+    let detail = browser.text("distance-detail").await;
+    assert!(detail.contains("± is σ"), "{detail}");
 
     // Act: drag a box on the disc, d = 30 − 4x/400: 27.2 px at its centre x = 280.
     let from = browser.pointer_to("left-frame", 265.0, 135.0).await;

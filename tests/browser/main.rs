@@ -67,6 +67,16 @@ async fn example_one_typed_in_reads_105_mm() {
     browser.until_text("distance", "105 mm").await;
     browser.settled().await;
     assert_eq!(browser.text("depth-error").await, "± 1.05 mm");
+    // The calculator has no match: its error bar stands on a fixed Δd, and says so.
+    assert_eq!(
+        browser.attr("depth-error", "data-basis").await.as_deref(),
+        Some("fixed")
+    );
+    let detail = browser.text("distance-detail").await;
+    assert!(
+        detail.ends_with("for a fixed Δd = 0.5 px (the default)"),
+        "{detail}"
+    );
     assert_eq!(browser.text("disparity_px").await, "50 px");
     assert_eq!(browser.text("focal_length_px").await, "35 px");
     assert_eq!(browser.text("normalized_x").await, "0");

@@ -30,6 +30,24 @@ export function permalink(state) {
   return `${location.pathname}?${params}`;
 }
 
+/** The match whose σ_d is the clicked point's error bar: Images mode, a match with a σ_d,
+ * and no Δd typed in the form (a Δd the user types is theirs, and named so). */
+function sigmaMatch(state) {
+  const m = pair.match;
+  return page.mode === 'images' && state.disparity_error_px === '' && matched() && m.disparity_std_px !== undefined
+    ? m
+    : null;
+}
+
+/** /distance's members: the feature, and in Images mode the match's σ_d as its Δd, so that
+ * its `depth_error` is the one error bar σ_Z that /match answers as `distance_std`. */
+function distanceParams(rig, state) {
+  const params = withMembers(rig, state, ['x_left', 'x_right', 'y']);
+  const m = sigmaMatch(state);
+  if (m) params.set('disparity_error_px', String(m.disparity_std_px));
+  return params;
+}
+
 let generation = 0;
 let inFlight = null;
 let debounce = null;
@@ -70,7 +88,7 @@ export async function compute(note = '') {
     const noRig = page.mode === 'images' && !rigGiven(state);
     const measuring = page.mode === 'numbers' || (matched() && !noRig);
     const distance = measuring
-      ? await call('/distance', withMembers(rig, state, ['x_left', 'x_right', 'y']), signal)
+      ? await call('/distance', distanceParams(rig, state), signal)
       : { ok: false, status: 0, body: null, unasked: true };
     // The chart marks, and the table follows, the measured feature only when it is valid.
     const measured = distance.ok ? ['x_left', 'x_right'] : [];
@@ -145,6 +163,21 @@ function showErrorSplit(answer) {
     `calibration ± ${fmt(calibration, 3)} ${unit} (σ_f, σ_B).`;
 }
 
+/** What the error bar stands on: `sigma` (the match's σ_d with the rig's σ_f and σ_B) or
+ * `fixed` (a Δd: the one typed, or the calculator's default). */
+function basisOf(answer, state) {
+  const m = sigmaMatch(state);
+  return m && Math.abs(answer.disparity_error_px - m.disparity_std_px) < 1e-9 ? 'sigma' : 'fixed';
+}
+
+function basisText(answer, state) {
+  if (basisOf(answer, state) === 'sigma') {
+    return `(± is σ: the match's σ_d = ${fmt(answer.disparity_error_px, 3)} px with the rig's σ_f and σ_B)`;
+  }
+  const typed = state.disparity_error_px !== '';
+  return `for a fixed Δd = ${fmt(answer.disparity_error_px)} px (${typed ? 'typed' : 'the default'})`;
+}
+
 /** Shows a distance answer; without one, `prompt` (when nothing was asked, so nothing is
  * wrong) or the marked-fields warning. */
 export function showDistance(answer, state, prompt = null) {
@@ -177,8 +210,9 @@ export function showDistance(answer, state, prompt = null) {
   const unit = answer.unit;
   $('distance').textContent = `${fmt(answer.distance)} ${unit}`;
   $('depth-error').textContent = `± ${fmt(answer.depth_error)} ${unit}`;
+  $('depth-error').dataset.basis = basisOf(answer, state);
   $('distance-detail').textContent =
-    `${fmt(answer.distance_m)} m · relative error ${percent(answer.relative_error)} for Δd = ${fmt(answer.disparity_error_px)} px`;
+    `${fmt(answer.distance_m)} m · relative error ${percent(answer.relative_error)} ${basisText(answer, state)}`;
   showErrorSplit(answer);
   $('disparity_px').textContent = `${fmt(answer.disparity_px)} px`;
   $('effective_disparity_px').textContent = `${fmt(answer.effective_disparity_px)} px`;
@@ -205,7 +239,7 @@ export function showDistance(answer, state, prompt = null) {
 function summary(answer) {
   const u = answer.unit;
   const lines = [
-    `Stereo distance: ${fmt(answer.distance)} ${u} ± ${fmt(answer.depth_error)} ${u} (${fmt(answer.distance_m)} m; relative error ${percent(answer.relative_error)}, Δd = ${fmt(answer.disparity_error_px)} px)`,
+    `Stereo distance: ${fmt(answer.distance)} ${u} ± ${fmt(answer.depth_error)} ${u} (${fmt(answer.distance_m)} m; relative error ${percent(answer.relative_error)} ${basisText(answer, readForm())})`,
     `Disparity d: ${fmt(answer.disparity_px)} px (effective d + doffs: ${fmt(answer.effective_disparity_px)} px)`,
     `Focal length: ${fmt(answer.focal_length_px)} px`,
     `Baseline: ${fmt(answer.baseline)} ${u}`,

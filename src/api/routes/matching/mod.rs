@@ -64,9 +64,12 @@ impl ImageForm for MatchForm {
                    filters) and answers `x_right`, `disparity_px`, a `status` that says \
                    whether to trust it (`ok`, `occluded`, `ambiguous`, `textureless`, \
                    `out_of_range`, `inconsistent`, `outside_image`), a `confidence` in [0, 1], \
-                   and, whenever it has a disparity, the `/distance` answer for it (`distance`, \
-                   `range`, `depth_error`, `relative_error`, `point`). For each box, answers \
-                   the median depth of its valid pixels with the 10th and 90th percentiles.\n\n\
+                   and, whenever it has a disparity, its σ `disparity_std_px` and the \
+                   `/distance` answer for it (`distance`, `range`, `point`) with one error \
+                   bar: σ_Z from that σ_d and the rig's σ_f and σ_B, as `distance_std` and as \
+                   `depth_error` (with `relative_error`). For each box, answers the median \
+                   depth of its valid pixels with the 10th and 90th percentiles and the \
+                   median's σ.\n\n\
                    Raw frames: with a `calibration` of the raw cameras, `rectify=auto` (the \
                    default) rectifies the pair first; points and boxes are given in the raw \
                    left image, and each match also gives `x_rectified`, `y_rectified` (where \
@@ -488,15 +491,13 @@ fn point_match(rig: &Rig, x: f64, y: f64, found: &Found) -> PointMatch {
         answer.x_right = Some(round_to(x - d, 3));
         answer.measured.disparity_px = Some(d);
         let c = Correspondence::at(x, y, d);
-        match physics::measure(rig, c) {
+        let (rig, sigma) = with_sigma(rig, found.disparity_std);
+        match physics::measure(&rig, c) {
             Ok(m) => {
-                // Mapped as `/distance` maps it, with the point's σ.
+                // Mapped as `/distance` maps it, its one error bar the point's σ.
                 answer.measured = MatchDistance::from(&m);
-                if let Some(s) = found.disparity_std {
-                    answer.measured.disparity_std_px = Some(round_to(f64::from(s), 3));
-                    answer.measured.distance_std =
-                        Some(rig.depth_error_terms_with(m.distance, f64::from(s)).total());
-                }
+                answer.measured.disparity_std_px = sigma;
+                answer.measured.distance_std = sigma.map(|_| m.depth_error);
                 let m = Measured::from(&m);
                 answer.relative_error = Some(m.relative_error);
                 answer.warnings = Some(m.warnings);
@@ -505,6 +506,18 @@ fn point_match(rig: &Rig, x: f64, y: f64, found: &Found) -> PointMatch {
         }
     }
     answer
+}
+
+/// The rig a match is measured with: its Δd the matcher's σ_d (to 1/1000 px, as answered in
+/// `disparity_std_px`), so that `depth_error`, `relative_error` and their warning are the one
+/// error bar σ_Z (with the rig's σ_f and σ_B), the same `/distance` answers for that
+/// disparity with `disparity_error_px` = `disparity_std_px`. Without a σ_d, the rig as given.
+fn with_sigma(rig: &Rig, sigma_d: Option<f32>) -> (Rig, Option<f64>) {
+    let sigma = sigma_d.map(|s| round_to(f64::from(s), 3));
+    match sigma.map(|s| rig.with_disparity_error(s)) {
+        Some(Ok(measured)) => (measured, sigma),
+        _ => (*rig, None),
+    }
 }
 
 /// A region's answer: the median, 10th and 90th percentile depths of its valid pixels, and the
@@ -545,19 +558,16 @@ fn region_match(rig: &Rig, map: &vision::Disparity, b: [f64; 4], r: Option<Rect>
         (r.y0 + r.y1 - 1) as f64 / 2.0,
     );
     let c = Correspondence::at(centre.0, centre.1, median);
-    let Ok(m) = physics::measure(rig, c) else {
+    let mid = stds.len() / 2;
+    let (_, &mut typical, _) = stds.select_nth_unstable_by(mid, f32::total_cmp);
+    let (sigma_rig, sigma) = with_sigma(rig, Some(correspond::median_std(typical, values.len())));
+    let Ok(m) = physics::measure(&sigma_rig, c) else {
         return answer;
     };
     answer.status = RegionStatus::Ok;
     answer.measured = MatchDistance::from(&m);
-    let mid = stds.len() / 2;
-    let (_, &mut typical, _) = stds.select_nth_unstable_by(mid, f32::total_cmp);
-    let sigma = correspond::median_std(typical, values.len());
-    answer.measured.disparity_std_px = Some(round_to(f64::from(sigma), 3));
-    answer.measured.distance_std = Some(
-        rig.depth_error_terms_with(m.distance, f64::from(sigma))
-            .total(),
-    );
+    answer.measured.disparity_std_px = sigma;
+    answer.measured.distance_std = sigma.map(|_| m.depth_error);
     answer.distance_p10 = rig.distance_at(at(0.1)).ok();
     answer.distance_p90 = rig.distance_at(at(0.9)).ok();
     answer

@@ -139,8 +139,9 @@ pub struct MatchDistance {
     #[serde(skip_serializing_if = "Option::is_none")]
     #[schema(nullable = false)]
     pub range: Option<f64>,
-    /// Expected depth error ΔZ = Z²·Δd/(f·B), in `unit`, for the rig's one
-    /// `disparity_error_px` (as `/distance` answers it).
+    /// The distance's one error bar, in `unit`: the same σ_Z as `distance_std` (this name is
+    /// `/distance`'s, whose Δd is here the match's own `disparity_std_px`, not the rig's fixed
+    /// `disparity_error_px`).
     #[serde(skip_serializing_if = "Option::is_none")]
     #[schema(nullable = false)]
     pub depth_error: Option<f64>,
@@ -152,7 +153,8 @@ pub struct MatchDistance {
     #[schema(nullable = false)]
     pub disparity_std_px: Option<f64>,
     /// The standard deviation σ_Z of `distance`, in `unit`: √((Z²·σ_d/(f·B))² + (Z·σ_f/f)² +
-    /// (Z·σ_B/B)²) with the rig's σ_f and σ_B.
+    /// (Z·σ_B/B)²) with σ_d = `disparity_std_px` and the rig's σ_f and σ_B. `/distance` answers
+    /// the same as `depth_error` for this disparity with `disparity_error_px` = σ_d.
     #[serde(skip_serializing_if = "Option::is_none")]
     #[schema(nullable = false)]
     pub distance_std: Option<f64>,
@@ -216,7 +218,7 @@ pub struct PointMatch {
     /// code, present whenever the point has a disparity (whatever its status).
     #[serde(flatten)]
     pub measured: MatchDistance,
-    /// depth_error / distance.
+    /// σ_Z / distance (`distance_std` / `distance`).
     #[serde(skip_serializing_if = "Option::is_none")]
     #[schema(nullable = false)]
     pub relative_error: Option<f64>,
@@ -274,8 +276,8 @@ pub struct RegionMatch {
     "ok": 1,
     "matches": [{"x": 420, "y": 260, "status": "ok", "confidence": 0.81, "x_right": 391.642,
                  "disparity_px": 28.358, "distance": 3221.3, "range": 3282.9,
-                 "depth_error": 10.795, "disparity_std_px": 0.241, "distance_std": 27.5,
-                 "relative_error": 0.00335,
+                 "depth_error": 27.5, "disparity_std_px": 0.241, "distance_std": 27.5,
+                 "relative_error": 0.00854,
                  "point": {"x": 352.5, "y": 16.8, "z": 3221.3}, "warnings": []}],
     "regions": [],
     "rig": {"focal_length_px": 994.978, "baseline": 193.001, "unit": "mm", "cx": 311.193,
