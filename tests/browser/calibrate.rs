@@ -27,7 +27,7 @@ fn truth() -> (f64, f64, f64) {
 impl Browser {
     /// Waits until the page's calibration request has come back, and returns the page's
     /// reading of it: the RMS, the views used, and the rectified f and B.
-    async fn calibrated(&self) -> (f64, u64, f64, f64) {
+    pub(crate) async fn calibrated(&self) -> (f64, u64, f64, f64) {
         self.until_within("the calibration", CALIBRATING, || async {
             let done = self
                 .script(
@@ -71,7 +71,7 @@ impl Browser {
     }
 
     /// Chooses `files` in the board file input at once, as a person picks them.
-    async fn choose_board_files(&self, files: &[PathBuf]) {
+    pub(crate) async fn choose_board_files(&self, files: &[PathBuf]) {
         let paths: Vec<&str> = files.iter().map(|p| p.to_str().expect("UTF-8")).collect();
         self.find("board_files")
             .await
@@ -81,7 +81,7 @@ impl Browser {
     }
 
     /// Clicks the button `id`.
-    async fn press(&self, id: &str) {
+    pub(crate) async fn press(&self, id: &str) {
         self.find(id).await.click().await.expect("click");
     }
 

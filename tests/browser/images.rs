@@ -119,7 +119,7 @@ impl Browser {
 
     /// Clicks "Show each pixel's σ" and returns what the depth view then shows: the colour
     /// bar's kind and unit and the view's caption.
-    async fn toggle_sigma(&self) -> [String; 3] {
+    pub(crate) async fn toggle_sigma(&self) -> [String; 3] {
         self.find("show-sigma").await.click().await.expect("click");
         [
             self.attr("colour-bar", "data-kind")
@@ -149,7 +149,7 @@ impl Browser {
         self.settled().await;
     }
 
-    async fn upload(&self, left: &PathBuf, right: &PathBuf) {
+    pub(crate) async fn upload(&self, left: &PathBuf, right: &PathBuf) {
         for (id, path) in [("left_image", left), ("right_image", right)] {
             self.find(id)
                 .await
@@ -270,10 +270,10 @@ async fn an_uploaded_pair_is_matched_hovered_clicked_and_boxed() {
         "{hover}"
     );
 
-    // Act / Assert: the σ toggle draws σ_Z with its own colour bar, and back.
+    // Act / Assert: the σ toggle draws each σ_d on its fixed scale in px, and back.
     assert_eq!(
         browser.toggle_sigma().await,
-        ["sigma", "mm", "σ of each depth"]
+        ["sigma", "px", "σ of each disparity"]
     );
     assert_eq!(browser.toggle_sigma().await, ["depth", "mm", "Depth map"]);
 

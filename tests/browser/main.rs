@@ -10,6 +10,7 @@
 mod calibrate;
 mod harness;
 mod images;
+mod photographs;
 
 use fantoccini::{Locator, key::Key};
 use serde_json::json;

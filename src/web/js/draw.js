@@ -251,7 +251,8 @@ export function drawColourBar(range, unit) {
   bar.dataset.unit = unit;
 }
 
-/** The σ map's colour bar: Turbo from `lo` (sure, blue) to `hi` (unsure, red), in `unit`. */
+/** The σ map's colour bar: Turbo from `lo` (sure, blue) to `hi` and more (unsure, red), in
+ * `unit`; black is no depth. */
 export function drawSigmaBar(range, unit) {
   const bar = $('colour-bar');
   const title = $('colour-bar-title');
@@ -266,8 +267,9 @@ export function drawSigmaBar(range, unit) {
   const at = (v) => BAR_LEFT + ((v - lo) / (hi - lo)) * (BAR_RIGHT - BAR_LEFT);
   turboStrip(bar, 'sigma-gradient', linearTicks(lo, hi, 6).map((v) => [at(v), fmt(v, 3)]));
   const what = unit === 'px' ? 'σ of each disparity (px)' : `σ of each depth (${unit})`;
-  bar.append(svg('text', { x: (BAR_LEFT + BAR_RIGHT) / 2, y: 42, 'text-anchor': 'middle' }, `${what}, sure = blue, unsure = red`));
-  title.textContent = `${what}: ${fmt(lo, 3)} (blue) to ${fmt(hi, 3)} (red).`;
+  bar.append(svg('text', { x: (BAR_LEFT + BAR_RIGHT) / 2, y: 42, 'text-anchor': 'middle' },
+    `${what}; black: no depth`));
+  title.textContent = `${what}: ${fmt(lo, 3)} (blue) to ${fmt(hi, 3)} and more (red); black: no depth.`;
 }
 
 export function sizeCanvas(canvas, width, height) {

@@ -70,8 +70,7 @@ export function showFrames() {
  * frame. */
 function captionDepth() {
   const a = pair.arrays;
-  const shown = !$('show-sigma').checked ? 'Depth map'
-    : a && a.depth_std ? 'σ of each depth' : 'σ of each disparity';
+  const shown = !$('show-sigma').checked ? 'Depth map' : 'σ of each disparity';
   $('depth-caption').textContent = rawPair()
     ? `${shown}, over the rectified left image (the service rectified the raw pair)`
     : shown;
@@ -275,9 +274,15 @@ export function clearDepth() {
   delete $('depth-status').dataset.valid;
 }
 
+/** The σ view's fixed scale: σ_d from 0 (blue) to this many pixels and more (red). */
+const SIGMA_SCALE_PX = 2;
+
 /** The depth map in Turbo on inverse depth, near warm, beside the left image and in the
  * blend layer over it (where invalid pixels are clear); or, with "Show each pixel's σ", each
- * pixel's σ_Z (σ_d without a rig) in Turbo from sure (blue) to unsure (red). */
+ * pixel's σ_d in Turbo on one fixed scale, from sure (blue) to 2 px and more (red), black
+ * where there is no depth. σ_d, not σ_Z: σ_Z grows as Z², so its colours would show the
+ * distance again; σ_d shows where the matcher is unsure, the same on every pair (the hover
+ * gives each pixel's σ_Z). */
 export function drawDepth() {
   const a = pair.arrays;
   if (!a) return;
@@ -292,15 +297,15 @@ export function drawDepth() {
   };
   for (let i = 3; i < depthImage.data.length; i += 4) depthImage.data[i] = 255;
   if (sigma) {
-    const values = a.depth_std ?? a.disparity_std;
-    const range = colourRange(values);
-    if (range) {
-      const [lo, hi] = range;
-      for (let i = 0; i < values.length; i += 1) {
-        if (Number.isFinite(values[i])) paint(i, (values[i] - lo) / (hi - lo));
+    const values = a.disparity_std;
+    let any = false;
+    for (let i = 0; i < values.length; i += 1) {
+      if (Number.isFinite(values[i])) {
+        paint(i, Math.min(1, values[i] / SIGMA_SCALE_PX));
+        any = true;
       }
     }
-    drawSigmaBar(range, a.depth_std ? pair.unit : 'px');
+    drawSigmaBar(any ? [0, SIGMA_SCALE_PX] : null, 'px');
   } else {
     const values = a.depth ?? a.disparity.map((d) => (d > 0 ? 1 / d : NaN));
     const range = colourRange(values);
