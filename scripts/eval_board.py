@@ -40,13 +40,18 @@ import eval_stereo as stereo
 
 PATTERN = (9, 6)  # inner corners of the photographed board
 MODES = indoor.MODES
-# The floors (exit 1 below them). The first three are regression floors below today's figures
-# (docs/matcher.md, "Real photographs: truth from the board's plane": 1.12 x, 0.60 x, 62 %), not
-# the goals, which are printed; the last checks the truth itself.
+# The floors (exit 1 below them). The goals met are floored at the goal itself: answered-right,
+# wrong > 1 px, the 1 sigma band and max_disparity_std=1's wrong > 2 px (measured 1.63 x, 0.57 x,
+# 67.0 %, 4.7 %; docs/matcher.md, "Real photographs: truth from the board's plane"). The 2 and 3
+# sigma goals, not met, are regression floors a little below today's 86.6 and 92.4 %. The last
+# checks the truth itself.
 FLOORS = {
-    "right_over_opencv": 1.00,      # our median answered-right over OpenCV's best mode's
-    "wrong1_over_opencv": 0.75,     # our median wrong > 1 px over OpenCV's least
-    "within_1sigma": 0.55,          # pooled, lower bound
+    "right_over_opencv": 1.20,      # our median answered-right over OpenCV's best mode's
+    "wrong1_over_opencv": 0.60,     # our median wrong > 1 px over OpenCV's least
+    "within_1sigma": (0.60, 0.76),  # pooled, 68 +- 8 %
+    "within_2sigma": 0.85,          # pooled, lower bound (goal 90 %)
+    "within_3sigma": 0.91,          # pooled, lower bound (goal 97 %)
+    "std1_wrong2": 0.05,            # max_disparity_std=1: wrong > 2 px of answered, median
     "plane_rms": 0.35,              # px: the board's corners off their fitted plane (truth check)
 }
 
@@ -213,9 +218,17 @@ def main():
     if wrong_ratio > FLOORS["wrong1_over_opencv"]:
         failures.append(f"wrong > 1 px {wrong_ratio:.2f} x OpenCV's least, floor "
                         f"{FLOORS['wrong1_over_opencv']}")
-    if within[1] < FLOORS["within_1sigma"]:
-        failures.append(f"within 1 sigma {100 * within[1]:.1f} %, floor "
-                        f"{100 * FLOORS['within_1sigma']:.0f} %")
+    lo, hi = FLOORS["within_1sigma"]
+    if not lo <= within[1] <= hi:
+        failures.append(f"within 1 sigma {100 * within[1]:.1f} %, outside "
+                        f"{100 * lo:.0f}-{100 * hi:.0f} %")
+    for k in (2, 3):
+        if within[k] < FLOORS[f"within_{k}sigma"]:
+            failures.append(f"within {k} sigma {100 * within[k]:.1f} %, floor "
+                            f"{100 * FLOORS[f'within_{k}sigma']:.0f} %")
+    if std1_med["wrong2"] > FLOORS["std1_wrong2"]:
+        failures.append(f"max_disparity_std=1: wrong > 2 px {100 * std1_med['wrong2']:.1f} % of "
+                        f"answered, floor {100 * FLOORS['std1_wrong2']:.0f} %")
     if plane_rms > FLOORS["plane_rms"]:
         failures.append(f"a board's corners lie {plane_rms:.2f} px off their plane: the truth "
                         f"(calibration or rectification) is off")

@@ -14,9 +14,10 @@
 //!   same whatever the window);
 //! - a hole takes the plane's value when at least [`MIN_SUPPORT`] pixels support it, with
 //!   [`MIN_SIDE`] of them on each side of it, left, right, above and below (so that the plane
-//!   is interpolated between edges, not carried past them), their RMS off the plane is at most [`MAX_RMS`] px (a window
-//!   across a depth edge fits no plane) and the value lies in the range searched; its σ_d is
-//!   √(rms² + [`FLOOR`]²).
+//!   is interpolated between edges, not carried past them), their RMS off the plane is within
+//!   the scatter their own σ_d predict ([`SCATTER`] times their RMS σ_d) and at most
+//!   [`MAX_RMS`] px (a window across a depth edge fits no plane), and the value lies in the
+//!   range searched; its σ_d is √(rms² + [`FLOOR`]²).
 //!
 //! Measured on OpenCV's 13 real stereo photographs against each board's plane, and on
 //! Middlebury (docs/matcher.md, "Real photographs: truth from the board's plane").
@@ -41,8 +42,16 @@ pub const MIN_SUPPORT: f64 = 30.0;
 /// window): a plane is only interpolated between its edges, never carried past the last one
 /// (into an occluded strip beside a nearer surface, or past the image's border).
 pub const MIN_SIDE: f64 = 10.0;
-/// The largest RMS (px) of the support off its plane for the plane to be used.
-pub const MAX_RMS: f64 = 0.5;
+/// The largest RMS (px) of the support off its plane for the plane to be used, whatever the
+/// support's σ_d: a window whose edges scatter more than a pixel off any plane holds more than
+/// one surface.
+pub const MAX_RMS: f64 = 1.0;
+/// How far the support may scatter off its plane, in units of the scatter its own σ_d predict
+/// (√(mean σ_d²)): a plane fits when the residuals are what the edges' noise makes them. On
+/// clean pairs (σ_d ≈ 0.2–0.3 px at edges) that allows 0.4–0.6 px; on JPEG photographs
+/// (σ_d ≈ 0.5 px) about a pixel, where a fixed 0.5 px refused 95 % of the boards' flat holes
+/// whose support's RMS was 0.55–0.75 px (docs/matcher.md).
+pub const SCATTER: f64 = 2.0;
 /// The least σ_d (px) of a value the plane gave: how far a plane is from the surface between
 /// its edges (fitted so that 68 % of those values on the boards lie within their σ_d).
 pub const FLOOR: f32 = 0.5;
@@ -85,7 +94,7 @@ pub fn fill(
         .into_par_iter()
         .flat_map_iter(|top| {
             let middle = |base: usize| (base + BLOCK / 2).min(height - 1);
-            let mut window = Window::at(disparity, &support, width, middle(top));
+            let mut window = Window::at((disparity, std), &support, width, middle(top));
             let mut out = Vec::new();
             for base in (top..(top + rows).min(height)).step_by(BLOCK) {
                 let block = base..(base + BLOCK).min(height);
@@ -135,16 +144,19 @@ fn flat_pixels(image: &Gray) -> Vec<bool> {
     flat
 }
 
-/// A column's sums over the window's rows: the support's ten moments, then its count in the
-/// rows above the window's centre ([`ABOVE`]) and in those below it ([`BELOW`]).
-type Column = [f64; 12];
-const ABOVE: usize = 10;
-const BELOW: usize = 11;
+/// A column's sums over the window's rows: the support's ten moments, the sum of its σ_d²
+/// ([`VARIANCE`]), then its count in the rows above the window's centre ([`ABOVE`]) and in those
+/// below it ([`BELOW`]).
+type Column = [f64; 13];
+const VARIANCE: usize = 10;
+const ABOVE: usize = 11;
+const BELOW: usize = 12;
 
 /// The [`WINDOW`]-row window around a centre row: each column's sums ([`Column`]), slid down
 /// one row at a time.
 struct Window<'a> {
     disparity: &'a [f32],
+    std: &'a [f32],
     support: &'a [bool],
     width: usize,
     height: usize,
@@ -156,15 +168,21 @@ impl<'a> Window<'a> {
     const HALF: usize = WINDOW / 2;
 
     /// The window around row `centre` (clipped to the image).
-    fn at(disparity: &'a [f32], support: &'a [bool], width: usize, centre: usize) -> Self {
+    fn at(
+        (disparity, std): (&'a [f32], &'a [f32]),
+        support: &'a [bool],
+        width: usize,
+        centre: usize,
+    ) -> Self {
         let height = disparity.len() / width;
         let mut window = Window {
             disparity,
+            std,
             support,
             width,
             height,
             centre,
-            columns: vec![[0.0; 12]; width],
+            columns: vec![[0.0; 13]; width],
         };
         for row in centre.saturating_sub(Self::HALF)..(centre + Self::HALF + 1).min(height) {
             window.moments(row, 1.0);
@@ -206,6 +224,7 @@ impl<'a> Window<'a> {
                 for (s, v) in column[1..10].iter_mut().zip(m) {
                     *s += sign * v;
                 }
+                column[VARIANCE] += sign * f64::from(self.std[start + x]).powi(2);
             }
         }
     }
@@ -231,7 +250,7 @@ impl<'a> Window<'a> {
         out: &mut Vec<(usize, f32, f32)>,
     ) {
         let (width, half, columns) = (self.width, Self::HALF, &self.columns);
-        let mut sums: Column = [0.0; 12];
+        let mut sums: Column = [0.0; 13];
         // The support's count in the columns x − half .. x − 1 and x + 1 ..= x + half.
         let (mut before, mut after) = (0.0, 0.0);
         for column in &columns[..half.min(width)] {
@@ -275,11 +294,11 @@ fn add(sums: &mut Column, moments: &Column, sign: f64) {
 }
 
 /// The least-squares plane through the support whose moments are `m` (count, Σx, Σy, Σd, Σx²,
-/// Σxy, Σy², Σxd, Σyd, Σd²), at `(x0, y0)`: its value
-/// there and the support's RMS off it, when at least [`MIN_SUPPORT`] pixels fit it within
-/// [`MAX_RMS`].
+/// Σxy, Σy², Σxd, Σyd, Σd², Σσ_d²), at `(x0, y0)`: its value there and the support's RMS off
+/// it, when at least [`MIN_SUPPORT`] pixels fit it within [`SCATTER`] times their RMS σ_d and
+/// within [`MAX_RMS`].
 fn plane_at(m: &Column, x0: f64, y0: f64) -> Option<(f64, f64)> {
-    let [n, sx, sy, sd, sxx, sxy, syy, sxd, syd, sdd, ..] = *m;
+    let [n, sx, sy, sd, sxx, sxy, syy, sxd, syd, sdd, sss, ..] = *m;
     if n < MIN_SUPPORT {
         return None;
     }
@@ -302,7 +321,8 @@ fn plane_at(m: &Column, x0: f64, y0: f64) -> Option<(f64, f64)> {
         + pc * pc * n
         + 2.0 * (pa * pb * suv + pa * pc * su + pb * pc * sv);
     let rms = (residual.max(0.0) / n).sqrt();
-    (rms <= MAX_RMS && pc.is_finite()).then_some((pc, rms))
+    let scatter = SCATTER * (sss.max(0.0) / n).sqrt();
+    (rms <= MAX_RMS.min(scatter) && pc.is_finite()).then_some((pc, rms))
 }
 
 #[cfg(test)]
@@ -350,6 +370,45 @@ mod tests {
                 assert!((disparity[i] - truth(x, y)).abs() < 0.05, "({x}, {y})");
             }
         }
+    }
+
+    /// The support may scatter off its plane as much as its own σ_d say, up to a pixel: edges
+    /// off by ±0.8 px fit when their σ_d is 0.5 px (a noisy photograph's), not when it is
+    /// 0.3 px (a clean pair's); edges off by ±1.2 px never do.
+    #[test]
+    fn the_support_scatters_as_its_sigma_says() {
+        let (w, h) = (160, 80);
+        let truth = |x: usize, y: usize| 20.0 + 0.05 * x as f32 - 0.03 * y as f32;
+        let mut image = vec![128u16 * 257; w * h];
+        for y in 0..h {
+            for x in (0..w).filter(|x| x % 30 < 4) {
+                image[y * w + x] = (40 + 60 * (x % 30) as u16) * 257;
+            }
+        }
+        let left = Gray::new(w, h, image);
+        let filled_with = |off: f32, sigma: f32| {
+            let mut disparity = vec![f32::NAN; w * h];
+            let mut std = vec![f32::NAN; w * h];
+            for y in 0..h {
+                for x in (0..w).filter(|x| x % 30 < 4) {
+                    let sign = if (x + y) % 2 == 0 { 1.0 } else { -1.0 };
+                    disparity[y * w + x] = truth(x, y) + sign * off;
+                    std[y * w + x] = sigma;
+                }
+            }
+            let filled = fill(&mut disparity, &mut std, w, &left, 64);
+            let (x, y) = (45, 40);
+            filled[y * w + x].then(|| (disparity[y * w + x], std[y * w + x]))
+        };
+        let (value, sigma) = filled_with(0.8, 0.5).expect("filled");
+        assert!((value - truth(45, 40)).abs() < 0.1, "{value}");
+        // σ_d = √(rms² + floor²) with rms 0.8.
+        assert!(
+            (sigma - (0.64f32 + FLOOR * FLOOR).sqrt()).abs() < 0.02,
+            "{sigma}"
+        );
+        assert_eq!(filled_with(0.8, 0.3), None);
+        assert_eq!(filled_with(1.2, 0.9), None);
     }
 
     /// Support on two surfaces at different depths fits no plane: the holes between them stay
