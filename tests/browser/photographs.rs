@@ -4,7 +4,6 @@
 //! `scripts/eval_board.py` takes them).
 
 use std::path::PathBuf;
-use std::time::Duration;
 
 use serde_json::{Value, json};
 use stereo_distance::calibration::boards::Board;
@@ -198,7 +197,6 @@ async fn a_real_board_pair_shows_its_squares_right_or_unsure() {
     browser.upload(&pair[0], &pair[1]).await;
     let valid = browser.depth_map_shown().await;
     let shown = browser.toggle_sigma().await;
-    tokio::time::sleep(Duration::from_millis(200)).await;
     browser.screenshot("board-photograph-sigma.png").await;
 
     // Assert: the truth, from the page's own calibration and the service's rectification.

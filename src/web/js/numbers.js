@@ -165,13 +165,12 @@ function showErrorSplit(answer) {
 
 /** What the error bar stands on: `sigma` (the match's σ_d with the rig's σ_f and σ_B) or
  * `fixed` (a Δd: the one typed, or the calculator's default). */
-function basisOf(answer, state) {
-  const m = sigmaMatch(state);
-  return m && Math.abs(answer.disparity_error_px - m.disparity_std_px) < 1e-9 ? 'sigma' : 'fixed';
+function basisOf(state) {
+  return sigmaMatch(state) ? 'sigma' : 'fixed';
 }
 
 function basisText(answer, state) {
-  if (basisOf(answer, state) === 'sigma') {
+  if (basisOf(state) === 'sigma') {
     return `(± is σ: the match's σ_d = ${fmt(answer.disparity_error_px, 3)} px with the rig's σ_f and σ_B)`;
   }
   const typed = state.disparity_error_px !== '';
@@ -210,7 +209,7 @@ export function showDistance(answer, state, prompt = null) {
   const unit = answer.unit;
   $('distance').textContent = `${fmt(answer.distance)} ${unit}`;
   $('depth-error').textContent = `± ${fmt(answer.depth_error)} ${unit}`;
-  $('depth-error').dataset.basis = basisOf(answer, state);
+  $('depth-error').dataset.basis = basisOf(state);
   $('distance-detail').textContent =
     `${fmt(answer.distance_m)} m · relative error ${percent(answer.relative_error)} ${basisText(answer, state)}`;
   showErrorSplit(answer);

@@ -495,9 +495,7 @@ fn point_match(rig: &Rig, x: f64, y: f64, found: &Found) -> PointMatch {
         match physics::measure(&rig, c) {
             Ok(m) => {
                 // Mapped as `/distance` maps it, its one error bar the point's σ.
-                answer.measured = MatchDistance::from(&m);
-                answer.measured.disparity_std_px = sigma;
-                answer.measured.distance_std = sigma.map(|_| m.depth_error);
+                answer.measured = with_bar(&m, sigma);
                 let m = Measured::from(&m);
                 answer.relative_error = Some(m.relative_error);
                 answer.warnings = Some(m.warnings);
@@ -517,6 +515,16 @@ fn with_sigma(rig: &Rig, sigma_d: Option<f32>) -> (Rig, Option<f64>) {
     match sigma.map(|s| rig.with_disparity_error(s)) {
         Some(Ok(measured)) => (measured, sigma),
         _ => (*rig, None),
+    }
+}
+
+/// A measurement made with [`with_sigma`]'s rig, mapped as `/distance` maps it, with the σ_d
+/// it stands on and its σ_Z as `distance_std` (its `depth_error`).
+fn with_bar(m: &physics::Measurement, sigma: Option<f64>) -> MatchDistance {
+    MatchDistance {
+        disparity_std_px: sigma,
+        distance_std: sigma.map(|_| m.depth_error),
+        ..MatchDistance::from(m)
     }
 }
 
@@ -565,9 +573,7 @@ fn region_match(rig: &Rig, map: &vision::Disparity, b: [f64; 4], r: Option<Rect>
         return answer;
     };
     answer.status = RegionStatus::Ok;
-    answer.measured = MatchDistance::from(&m);
-    answer.measured.disparity_std_px = sigma;
-    answer.measured.distance_std = sigma.map(|_| m.depth_error);
+    answer.measured = with_bar(&m, sigma);
     answer.distance_p10 = rig.distance_at(at(0.1)).ok();
     answer.distance_p90 = rig.distance_at(at(0.9)).ok();
     answer
