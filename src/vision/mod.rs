@@ -18,8 +18,9 @@
 //!   finished row to
 //! - [`refine`]: winner-takes-all with uniqueness and a sub-pixel fit, the left-right check;
 //!   then, over the whole map,
-//! - [`filters`]: speckle removal, a 3 × 3 median, [`plane`]'s planes in flat holes,
-//!   [`sigma`]'s keep rule and optional filling.
+//! - [`filters`]: speckle removal, a 3 × 3 median, [`plane`]'s planes in flat holes (and σ_d
+//!   widened where a value disagrees with its plane), [`sigma`]'s keep rule and optional
+//!   filling.
 //!
 //! The image is matched in horizontal stripes ([`stripes`]), side by side on the cores. The hot
 //! loops are dispatched between a portable and an AVX2 build by [`simd`], and the large

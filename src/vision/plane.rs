@@ -1,4 +1,5 @@
-//! Holes in flat areas given the plane their textured surroundings imply (issue 68).
+//! Holes in flat areas given the plane their textured surroundings imply, and each matched
+//! value's σ_d widened by how far it lies from that plane (issue 68).
 //!
 //! Inside a flat area (a board's square, a wall) the census sees only noise, so the matcher
 //! either refuses the pixels or carries a value in from the edges by its penalties, which
@@ -17,12 +18,16 @@
 //!   is interpolated between edges, not carried past them), their RMS off the plane is within
 //!   the scatter their own σ_d predict ([`SCATTER`] times their RMS σ_d) and at most
 //!   [`MAX_RMS`] px (a window across a depth edge fits no plane), and the value lies in the
-//!   range searched; its σ_d is √(rms² + [`FLOOR`]²).
+//!   range searched; its σ_d is √(rms² + [`FLOOR`]²);
+//! - a matched pixel where the same rules give a plane has two estimates of its disparity, its
+//!   own match and the plane its neighbourhood's edges imply; when they differ by δ, its σ_d
+//!   grows to √(σ_d² + ([`DISAGREEMENT`]·δ)²), half the difference being the standard
+//!   deviation of a value as likely at either (as a filled pixel's, [`super::sigma::filled`]).
+//!   A value the penalties carried into a flat area, or a region matched one period of a
+//!   pattern away, says so this way.
 //!
 //! Measured on OpenCV's 13 real stereo photographs against each board's plane, and on
 //! Middlebury (docs/matcher.md, "Real photographs: truth from the board's plane").
-
-use std::ops::Range;
 
 use rayon::prelude::*;
 
@@ -55,14 +60,21 @@ pub const SCATTER: f64 = 2.0;
 /// The least σ_d (px) of a value the plane gave: how far a plane is from the surface between
 /// its edges (fitted so that 68 % of those values on the boards lie within their σ_d).
 pub const FLOOR: f32 = 0.5;
+/// A matched pixel whose value differs from its neighbourhood's plane by δ has σ_d at least
+/// this times δ: of two estimates that disagree, each as likely, the value's standard
+/// deviation is half their difference.
+pub const DISAGREEMENT: f32 = 0.5;
 
 /// The rows that share one window's plane (its middle row's).
 const BLOCK: usize = 8;
+/// The columns that share one window's plane (its middle column's).
+const COLUMNS: usize = 4;
 
 /// Fills the holes (NaN in `disparity`, a range index; `std` its σ_d) of `disparity` (`width`
 /// a row) that lie in flat areas of `left` (the same size) with the plane their surroundings
 /// imply, when they imply one ([the module's rules](self)), below `count` (the range's
-/// size). Answers which pixels it gave a value.
+/// size); and widens the σ_d of every matched pixel by its disagreement with the plane there.
+/// Answers which pixels it gave a value.
 pub fn fill(
     disparity: &mut [f32],
     std: &mut [f32],
@@ -84,73 +96,122 @@ pub fn fill(
         .into_par_iter()
         .map(|(&f, d)| f && d.is_nan())
         .collect();
-    // Bands of whole blocks side by side on the cores; in each block of BLOCK rows the window
-    // is its middle row's (a window 41 rows high moved by at most 4).
+    drop(flat);
+    // One plane for each block of BLOCK rows and COLUMNS columns, fitted around its middle
+    // pixel (a window 41 × 41 moved by at most 4 rows and 2 columns): bands of whole blocks
+    // side by side on the cores, each writing its own blocks' planes.
+    let groups = width.div_ceil(COLUMNS);
     let rows =
         (64.max(height.div_ceil(rayon::current_num_threads().max(1)))).next_multiple_of(BLOCK);
-    let found: Vec<(usize, f32, f32)> = (0..height)
-        .step_by(rows)
-        .collect::<Vec<_>>()
+    let mut planes: Vec<Option<Plane>> = Vec::new();
+    planes.resize_with(height.div_ceil(BLOCK) * groups, || None);
+    {
+        let (disparity, std) = (&*disparity, &*std);
+        planes
+            .par_chunks_mut(rows / BLOCK * groups)
+            .enumerate()
+            .for_each(|(band, out)| {
+                let top = band * rows;
+                let mut window = Window::at((disparity, std), &support, width, middle(top, height));
+                for (base, out) in (top..(top + rows).min(height))
+                    .step_by(BLOCK)
+                    .zip(out.chunks_mut(groups))
+                {
+                    window.move_to(middle(base, height));
+                    window.planes(out);
+                }
+            });
+    }
+    drop(support);
+    let top = (count.max(1) - 1) as f32;
+    let mut filled = vec![false; n];
+    (
+        disparity.par_chunks_mut(width),
+        std.par_chunks_mut(width),
+        filled.par_chunks_mut(width),
+    )
         .into_par_iter()
-        .flat_map_iter(|top| {
-            let middle = |base: usize| (base + BLOCK / 2).min(height - 1);
-            let mut window = Window::at((disparity, std), &support, width, middle(top));
-            let mut out = Vec::new();
-            for base in (top..(top + rows).min(height)).step_by(BLOCK) {
-                let block = base..(base + BLOCK).min(height);
-                if holes[block.start * width..block.end * width].contains(&true) {
-                    window.move_to(middle(base));
-                    window.planes(block, &holes, count, &mut out);
+        .enumerate()
+        .for_each(|(y, (d, s, f))| {
+            let (block, centre) = (y / BLOCK, middle(y / BLOCK * BLOCK, height));
+            let holes = &holes[y * width..(y + 1) * width];
+            for (x, ((d, s), (f, &hole))) in
+                d.iter_mut().zip(s).zip(f.iter_mut().zip(holes)).enumerate()
+            {
+                let Some(plane) = &planes[block * groups + x / COLUMNS] else {
+                    continue;
+                };
+                if !hole && d.is_nan() {
+                    continue;
+                }
+                let x0 = (x / COLUMNS * COLUMNS + COLUMNS / 2).min(width - 1);
+                let value = (plane.value
+                    + plane.across * (x as f64 - x0 as f64)
+                    + plane.down * (y as f64 - centre as f64)) as f32;
+                if hole {
+                    if (0.0..=top).contains(&value) {
+                        *d = value;
+                        let rms = plane.rms as f32;
+                        *s = (rms * rms + FLOOR * FLOOR).sqrt();
+                        *f = true;
+                    }
+                } else {
+                    let off = DISAGREEMENT * (*d - value);
+                    *s = (*s * *s + off * off).sqrt();
                 }
             }
-            out
-        })
-        .collect();
-    let mut filled = vec![false; n];
-    for (i, value, rms) in found {
-        disparity[i] = value;
-        std[i] = (rms * rms + FLOOR * FLOOR).sqrt();
-        filled[i] = true;
-    }
+        });
     filled
+}
+
+/// The centre row of the window for the block of rows from `base`: its middle row.
+fn middle(base: usize, height: usize) -> usize {
+    (base + BLOCK / 2).min(height - 1)
 }
 
 /// Which pixels of `image` are flat: no horizontal contrast above [`TEXTURE_LEVELS`] at them
 /// or at any of their 8 neighbours.
 fn flat_pixels(image: &Gray) -> Vec<bool> {
     let w = image.width.max(1);
+    let n = image.data.len();
+    let h = n / w;
     let threshold = (2.0 * TEXTURE_LEVELS * 257.0) as u32;
-    // Contrast at each pixel, then the 3 × 3 neighbourhood: along the rows, then down the columns.
-    let mut near = vec![false; image.data.len()];
+    // Contrast at each pixel (1 above the threshold), then the 3 × 3 neighbourhood: along the
+    // rows (in place), then down the columns. Bytes, so that the loops run on whole vectors.
+    let mut near = vec![0u8; n];
     near.par_chunks_mut(w)
         .zip(image.data.par_chunks(w))
         .for_each(|(out, row)| {
-            let mut textured = vec![false; w];
-            for (x, pixels) in row.windows(3).enumerate() {
-                textured[x + 1] = u32::from(pixels[2].abs_diff(pixels[0])) > threshold;
+            if w < 3 {
+                return;
             }
-            for (x, o) in out.iter_mut().enumerate() {
-                *o = textured[x.saturating_sub(1)] || textured[x] || textured[(x + 1).min(w - 1)];
+            for (o, pixels) in out[1..w - 1].iter_mut().zip(row.windows(3)) {
+                *o = u8::from(u32::from(pixels[2].abs_diff(pixels[0])) > threshold);
+            }
+            let mut before = 0;
+            for x in 0..w {
+                let here = out[x];
+                out[x] = before | here | out.get(x + 1).copied().unwrap_or(0);
+                before = here;
             }
         });
-    let h = near.len() / w;
-    let mut flat = vec![true; near.len()];
+    let mut flat = vec![false; n];
     flat.par_chunks_mut(w).enumerate().for_each(|(y, out)| {
-        let rows = [y.saturating_sub(1), y, (y + 1).min(h - 1)];
-        for (x, f) in out.iter_mut().enumerate() {
-            *f = !rows.iter().any(|&r| near[r * w + x]);
+        let row = |r: usize| &near[r * w..(r + 1) * w];
+        let (above, here, below) = (row(y.saturating_sub(1)), row(y), row((y + 1).min(h - 1)));
+        for (f, ((&a, &b), &c)) in out.iter_mut().zip(above.iter().zip(here).zip(below)) {
+            *f = a | b | c == 0;
         }
     });
     flat
 }
 
 /// A column's sums over the window's rows: the support's ten moments, the sum of its σ_d²
-/// ([`VARIANCE`]), then its count in the rows above the window's centre ([`ABOVE`]) and in those
-/// below it ([`BELOW`]).
-type Column = [f64; 13];
+/// ([`VARIANCE`]), then its count in the rows above the window's centre ([`ABOVE`]); the count
+/// below it is the rest (the whole count less those above and the centre row's).
+type Column = [f64; 12];
 const VARIANCE: usize = 10;
 const ABOVE: usize = 11;
-const BELOW: usize = 12;
 
 /// The [`WINDOW`]-row window around a centre row: each column's sums ([`Column`]), slid down
 /// one row at a time.
@@ -182,15 +243,10 @@ impl<'a> Window<'a> {
             width,
             height,
             centre,
-            columns: vec![[0.0; 13]; width],
+            columns: vec![[0.0; 12]; width],
         };
         for row in centre.saturating_sub(Self::HALF)..(centre + Self::HALF + 1).min(height) {
-            window.moments(row, 1.0);
-            match row.cmp(&centre) {
-                std::cmp::Ordering::Less => window.count(row, ABOVE, 1.0),
-                std::cmp::Ordering::Greater => window.count(row, BELOW, 1.0),
-                std::cmp::Ordering::Equal => {}
-            }
+            window.moments(row, 1.0, row < centre);
         }
         window
     }
@@ -201,86 +257,97 @@ impl<'a> Window<'a> {
             self.centre += 1;
             let c = self.centre;
             if c + Self::HALF < self.height {
-                self.moments(c + Self::HALF, 1.0);
-                self.count(c + Self::HALF, BELOW, 1.0);
+                self.moments(c + Self::HALF, 1.0, false);
             }
             if c > Self::HALF {
-                self.moments(c - Self::HALF - 1, -1.0);
-                self.count(c - Self::HALF - 1, ABOVE, -1.0);
+                self.moments(c - Self::HALF - 1, -1.0, true);
             }
-            self.count(c - 1, ABOVE, 1.0);
-            self.count(c, BELOW, -1.0);
+            self.count_above(c - 1);
         }
     }
 
-    /// Row `row`'s support added to (`sign` 1) or taken from (−1) the columns' moments.
-    fn moments(&mut self, row: usize, sign: f64) {
+    /// Row `row`'s support added to (`sign` 1) or taken from (−1) the columns' moments, and to
+    /// or from their count above the centre when `above`. Without branches: a pixel that is no
+    /// support adds zeros (the support is patchy, so a branch would be mispredicted often).
+    fn moments(&mut self, row: usize, sign: f64, above: bool) {
         let start = row * self.width;
-        for (x, column) in self.columns.iter_mut().enumerate() {
-            if self.support[start + x] {
-                let (px, py, d) = (x as f64, row as f64, f64::from(self.disparity[start + x]));
-                let m = [px, py, d, px * px, px * py, py * py, px * d, py * d, d * d];
-                column[0] += sign;
-                for (s, v) in column[1..10].iter_mut().zip(m) {
-                    *s += sign * v;
-                }
-                column[VARIANCE] += sign * f64::from(self.std[start + x]).powi(2);
+        let end = start + self.width;
+        let py = row as f64;
+        let pixels = self.support[start..end]
+            .iter()
+            .zip(&self.disparity[start..end])
+            .zip(&self.std[start..end]);
+        for (x, (column, ((&support, &d), &s))) in self.columns.iter_mut().zip(pixels).enumerate() {
+            let (w, d, s) = match support {
+                true => (sign, f64::from(d), f64::from(s)),
+                false => (0.0, 0.0, 0.0),
+            };
+            let px = x as f64;
+            let (wx, wy, wd) = (w * px, w * py, w * d);
+            column[0] += w;
+            column[1] += wx;
+            column[2] += wy;
+            column[3] += wd;
+            column[4] += wx * px;
+            column[5] += wx * py;
+            column[6] += wy * py;
+            column[7] += wd * px;
+            column[8] += wd * py;
+            column[9] += wd * d;
+            column[VARIANCE] += w * s * s;
+            if above {
+                column[ABOVE] += w;
             }
         }
     }
 
-    /// Row `row`'s support added to or taken from the columns' count in `slot`.
-    fn count(&mut self, row: usize, slot: usize, sign: f64) {
+    /// Row `row`'s support added to the columns' count above the centre.
+    fn count_above(&mut self, row: usize) {
         let start = row * self.width;
-        for (x, column) in self.columns.iter_mut().enumerate() {
-            if self.support[start + x] {
-                column[slot] += sign;
-            }
+        let support = &self.support[start..start + self.width];
+        for (column, &s) in self.columns.iter_mut().zip(support) {
+            column[ABOVE] += if s { 1.0 } else { 0.0 };
         }
     }
 
-    /// The planes of this window at the holes (`holes`, by pixel) of the rows `block`, each
-    /// centred on its column, pushed to `out` as (pixel, value, rms) when the module's rules
-    /// allow (the value below `count`).
-    fn planes(
-        &self,
-        block: Range<usize>,
-        holes: &[bool],
-        count: usize,
-        out: &mut Vec<(usize, f32, f32)>,
-    ) {
+    /// The planes of this window, one for each group of [`COLUMNS`] columns (`out`, from the
+    /// first), fitted around its middle column (the last group's at the edge) when the
+    /// module's rules allow.
+    fn planes(&self, out: &mut [Option<Plane>]) {
         let (width, half, columns) = (self.width, Self::HALF, &self.columns);
-        let mut sums: Column = [0.0; 13];
-        // The support's count in the columns x − half .. x − 1 and x + 1 ..= x + half.
-        let (mut before, mut after) = (0.0, 0.0);
-        for column in &columns[..half.min(width)] {
+        let mut sums: Column = [0.0; 12];
+        // The support's count in the columns x − half .. x − 1 and x + 1 ..= x + half, and on
+        // the centre row within the window's columns.
+        let (mut before, mut after, mut middle) = (0.0, 0.0, 0.0);
+        let centre = &self.support[self.centre * width..(self.centre + 1) * width];
+        let on = |x: usize| if centre[x] { 1.0 } else { 0.0 };
+        for (x, column) in columns[..half.min(width)].iter().enumerate() {
             add(&mut sums, column, 1.0);
             after += column[0];
+            middle += on(x);
         }
         for x in 0..width {
             if x + half < width {
                 add(&mut sums, &columns[x + half], 1.0);
                 after += columns[x + half][0];
+                middle += on(x + half);
             }
             if x > half {
                 add(&mut sums, &columns[x - half - 1], -1.0);
                 before -= columns[x - half - 1][0];
+                middle -= on(x - half - 1);
             }
             if x > 0 {
                 before += columns[x - 1][0];
             }
             after -= columns[x][0];
-            if before.min(after).min(sums[ABOVE]).min(sums[BELOW]) < MIN_SIDE {
+            let first = x / COLUMNS * COLUMNS;
+            if x != (first + COLUMNS / 2).min(width - 1) {
                 continue;
             }
-            for y in block.clone().filter(|y| holes[y * width + x]) {
-                // The window's plane, at this pixel.
-                if let Some((value, rms)) = plane_at(&sums, x as f64, y as f64)
-                    && value >= 0.0
-                    && value <= (count.max(1) - 1) as f64
-                {
-                    out.push((y * width + x, value as f32, rms as f32));
-                }
+            let below = sums[0] - sums[ABOVE] - middle;
+            if before.min(after).min(sums[ABOVE]).min(below) >= MIN_SIDE {
+                out[x / COLUMNS] = plane_at(&sums, x as f64, self.centre as f64);
             }
         }
     }
@@ -293,11 +360,19 @@ fn add(sums: &mut Column, moments: &Column, sign: f64) {
     }
 }
 
+/// A plane fitted around a pixel: its value there, its slopes along the row and down the column
+/// (px a pixel) and the support's RMS off it (px).
+struct Plane {
+    value: f64,
+    across: f64,
+    down: f64,
+    rms: f64,
+}
+
 /// The least-squares plane through the support whose moments are `m` (count, Σx, Σy, Σd, Σx²,
-/// Σxy, Σy², Σxd, Σyd, Σd², Σσ_d²), at `(x0, y0)`: its value there and the support's RMS off
-/// it, when at least [`MIN_SUPPORT`] pixels fit it within [`SCATTER`] times their RMS σ_d and
-/// within [`MAX_RMS`].
-fn plane_at(m: &Column, x0: f64, y0: f64) -> Option<(f64, f64)> {
+/// Σxy, Σy², Σxd, Σyd, Σd², Σσ_d²), around `(x0, y0)`, when at least [`MIN_SUPPORT`] pixels fit
+/// it within [`SCATTER`] times their RMS σ_d and within [`MAX_RMS`].
+fn plane_at(m: &Column, x0: f64, y0: f64) -> Option<Plane> {
     let [n, sx, sy, sd, sxx, sxy, syy, sxd, syd, sdd, sss, ..] = *m;
     if n < MIN_SUPPORT {
         return None;
@@ -322,12 +397,54 @@ fn plane_at(m: &Column, x0: f64, y0: f64) -> Option<(f64, f64)> {
         + 2.0 * (pa * pb * suv + pa * pc * su + pb * pc * sv);
     let rms = (residual.max(0.0) / n).sqrt();
     let scatter = SCATTER * (sss.max(0.0) / n).sqrt();
-    (rms <= MAX_RMS.min(scatter) && pc.is_finite()).then_some((pc, rms))
+    (rms <= MAX_RMS.min(scatter) && p.iter().all(|v| v.is_finite())).then_some(Plane {
+        value: pc,
+        across: pa,
+        down: pb,
+        rms,
+    })
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The disparity of the tests' slanted plane at `(x, y)`.
+    fn truth(x: usize, y: usize) -> f32 {
+        20.0 + 0.05 * x as f32 - 0.03 * y as f32
+    }
+
+    /// A slanted plane seen as a board, 160 × 80: vertical stripes of texture every 30 px with
+    /// flat bands between, the stripes matched (the plane's value, σ_d 0.3 px) and the bands
+    /// empty.
+    struct Striped {
+        w: usize,
+        h: usize,
+        image: Vec<u16>,
+        disparity: Vec<f32>,
+        std: Vec<f32>,
+    }
+
+    fn striped() -> Striped {
+        let (w, h) = (160, 80);
+        let mut image = vec![128u16 * 257; w * h];
+        let mut disparity = vec![f32::NAN; w * h];
+        let mut std = vec![f32::NAN; w * h];
+        for y in 0..h {
+            for x in (0..w).filter(|x| x % 30 < 4) {
+                image[y * w + x] = (40 + 60 * (x % 30) as u16) * 257;
+                disparity[y * w + x] = truth(x, y);
+                std[y * w + x] = 0.3;
+            }
+        }
+        Striped {
+            w,
+            h,
+            image,
+            disparity,
+            std,
+        }
+    }
 
     /// A slanted plane seen as a board: vertical stripes of texture every 30 px with flat
     /// bands between, the stripes matched and the bands empty. The bands' pixels with edges on
@@ -335,20 +452,13 @@ mod tests {
     /// with σ_d at the floor; textured holes stay empty.
     #[test]
     fn flat_holes_get_the_plane_their_edges_imply() {
-        let (w, h) = (160, 80);
-        let truth = |x: usize, y: usize| 20.0 + 0.05 * x as f32 - 0.03 * y as f32;
-        let mut image = vec![128u16 * 257; w * h];
-        let mut disparity = vec![f32::NAN; w * h];
-        let mut std = vec![f32::NAN; w * h];
-        for y in 0..h {
-            for x in 0..w {
-                if x % 30 < 4 {
-                    image[y * w + x] = (40 + 60 * (x % 30) as u16) * 257;
-                    disparity[y * w + x] = truth(x, y);
-                    std[y * w + x] = 0.3;
-                }
-            }
-        }
+        let Striped {
+            w,
+            h,
+            image,
+            mut disparity,
+            mut std,
+        } = striped();
         // A hole inside the texture: not flat, so it stays a hole.
         disparity[40 * w + 31] = f32::NAN;
         let left = Gray::new(w, h, image);
@@ -372,19 +482,49 @@ mod tests {
         }
     }
 
+    /// A matched pixel that disagrees with the plane its edges imply (a value the penalties
+    /// carried into a flat band, 3 px off) gets σ_d of at least half the disagreement; the
+    /// edges that agree with their plane keep their σ_d, and so does a pixel with no plane.
+    #[test]
+    fn a_value_off_its_plane_is_as_unsure_as_the_disagreement() {
+        let Striped {
+            w,
+            h,
+            image,
+            mut disparity,
+            mut std,
+        } = striped();
+        // A carried value inside a flat band, and one where no plane reaches (no edge to its
+        // right).
+        let (x, y) = (45, 40);
+        disparity[y * w + x] = truth(x, y) + 3.0;
+        std[y * w + x] = 0.4;
+        disparity[40 * w + 155] = truth(155, 40) + 3.0;
+        std[40 * w + 155] = 0.4;
+        let left = Gray::new(w, h, image);
+        let filled = fill(&mut disparity, &mut std, w, &left, 64);
+        assert!(!filled[y * w + x]);
+        assert!((disparity[y * w + x] - truth(x, y) - 3.0).abs() < 1e-6);
+        let expected = (0.4f32 * 0.4 + (DISAGREEMENT * 3.0).powi(2)).sqrt();
+        assert!(
+            (std[y * w + x] - expected).abs() < 0.02,
+            "{}",
+            std[y * w + x]
+        );
+        assert!(
+            (std[40 * w + 61] - 0.3).abs() < 0.01,
+            "{}",
+            std[40 * w + 61]
+        );
+        assert_eq!(std[40 * w + 155], 0.4);
+    }
+
     /// The support may scatter off its plane as much as its own σ_d say, up to a pixel: edges
     /// off by ±0.8 px fit when their σ_d is 0.5 px (a noisy photograph's), not when it is
     /// 0.3 px (a clean pair's); edges off by ±1.2 px never do.
     #[test]
     fn the_support_scatters_as_its_sigma_says() {
-        let (w, h) = (160, 80);
-        let truth = |x: usize, y: usize| 20.0 + 0.05 * x as f32 - 0.03 * y as f32;
-        let mut image = vec![128u16 * 257; w * h];
-        for y in 0..h {
-            for x in (0..w).filter(|x| x % 30 < 4) {
-                image[y * w + x] = (40 + 60 * (x % 30) as u16) * 257;
-            }
-        }
+        let Striped { w, h, image, .. } = striped();
         let left = Gray::new(w, h, image);
         let filled_with = |off: f32, sigma: f32| {
             let mut disparity = vec![f32::NAN; w * h];

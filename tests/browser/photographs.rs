@@ -221,7 +221,7 @@ async fn a_real_board_pair_shows_its_squares_right_or_unsure() {
     println!("pair 01 on the page, valid {valid}: {score}");
     // Right: 64 % of the board in eval_board (OpenCV's best mode on pair 01, HH b3, 46 %).
     assert!(count("right") / board_px >= 0.5, "{score}");
-    // Confidently wrong: 6.1 % of what is answered in eval_board.
+    // Confidently wrong: 4.6 % of what is answered in eval_board.
     assert!(count("confidentWrong") / answered <= 0.1, "{score}");
     // Right, refused or shown unsure: what the σ view lets a user see.
     let seen = (count("seen") + board_px - answered) / board_px;

@@ -368,7 +368,7 @@ pub struct MatcherParameters {
     "valid_fraction": 0.859,
     "disparity_px": {"min": 3.21, "median": 28.4, "max": 61.9},
     "distance": {"min": 1196.1, "median": 3215.0, "max": 14987.2},
-    "disparity_std_px": {"min": 0.179, "median": 0.262, "max": 4.1},
+    "disparity_std_px": {"min": 0.155, "median": 0.262, "max": 4.1},
     "distance_std": {"min": 2.1, "median": 28.6, "max": 2210.4},
     "rig": {"focal_length_px": 994.978, "baseline": 193.001, "unit": "mm", "cx": 311.193,
             "cy": 254.877, "doffs": 31.086, "image_width": 741, "image_height": 500},
