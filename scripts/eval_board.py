@@ -27,7 +27,6 @@ never a time. The goals not yet met are floored at today's level so that nothing
     python3 scripts/eval_board.py --url URL [--photographs DIR] [--json FILE]
 """
 import json
-import math
 import sys
 from pathlib import Path
 
@@ -35,10 +34,10 @@ import cv2
 import numpy as np
 
 import eval_indoor as indoor
+from board_truth import board_truth, search_range
 import eval_sigma as sigma
 import eval_stereo as stereo
 
-PATTERN = (9, 6)  # inner corners of the photographed board
 MODES = indoor.MODES
 # The floors (exit 1 below them). The goals met are floored at the goal itself: answered-right,
 # wrong > 1 px, the 1 and 2 sigma goals and max_disparity_std=1's wrong > 2 px (docs/matcher.md,
@@ -53,50 +52,6 @@ FLOORS = {
     "std1_wrong2": 0.05,            # max_disparity_std=1: wrong > 2 px of answered, median
     "plane_rms": 0.35,              # px: the board's corners off their fitted plane (truth check)
 }
-
-
-def corners(image):
-    """The board's inner corners in `image` (N x 2, OpenCV's order), or None."""
-    found, pts = cv2.findChessboardCorners(
-        image, PATTERN, flags=cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE)
-    if not found:
-        return None
-    criteria = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 100, 1e-3)
-    pts = cv2.cornerSubPix(image, pts, (5, 5), (-1, -1), criteria)
-    return pts.reshape(-1, 2).astype(np.float64)
-
-
-def board_truth(left, right):
-    """The board's truth in a rectified pair: (mask of the board's pixels, the plane's disparity
-    over the image, the fit's RMS over the corners in px, the corners' row disagreement's median
-    in px), or None when the board is not found in both images."""
-    cl, cr = corners(left), corners(right)
-    if cl is None or cr is None:
-        return None
-    # The order may start from the opposite corner in one image: take the one whose rows agree.
-    if np.median(np.abs(cl[:, 1] - cr[::-1, 1])) < np.median(np.abs(cl[:, 1] - cr[:, 1])):
-        cr = cr[::-1]
-    d = cl[:, 0] - cr[:, 0]
-    a = np.column_stack([cl[:, 0], cl[:, 1], np.ones(len(cl))])
-    plane, *_ = np.linalg.lstsq(a, d, rcond=None)
-    rms = float(np.sqrt(np.mean((a @ plane - d) ** 2)))
-    rows = float(np.median(np.abs(cl[:, 1] - cr[:, 1])))
-    cols, nrows = PATTERN
-    grid = np.array([(i, j) for j in range(nrows) for i in range(cols)], np.float64)
-    h, _ = cv2.findHomography(grid, cl, 0)
-    outline = np.array([[-0.5, -0.5], [cols - 0.5, -0.5], [cols - 0.5, nrows - 0.5],
-                        [-0.5, nrows - 0.5]], np.float64).reshape(-1, 1, 2)
-    polygon = cv2.perspectiveTransform(outline, h).reshape(-1, 2)
-    mask = np.zeros(left.shape, np.uint8)
-    cv2.fillPoly(mask, [np.round(polygon * 16).astype(np.int32)], 1, shift=4)
-    ys, xs = np.mgrid[0:left.shape[0], 0:left.shape[1]]
-    truth = (plane[0] * xs + plane[1] * ys + plane[2]).astype(np.float32)
-    return mask.astype(bool), truth, rms, rows
-
-
-def search_range(truth, mask):
-    """The disparities searched: past the board's largest by at least 8 px, a multiple of 16."""
-    return int(math.ceil((float(truth[mask].max()) + 8) / 16) * 16)
 
 
 def score(disp, truth, mask):

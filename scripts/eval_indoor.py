@@ -9,7 +9,7 @@ tests/data/photographs/opencv-stereo/). The service calibrates the rig from them
 rectifies each pair (/rectify), and matches it (/depth-map, defaults); OpenCV 4.14 StereoSGBM
 matches the same rectified pair in every mode with blocks 3 and 5 (as scripts/eval_stereo.py
 sets it). Each pair is searched as its user would search it, past the nearest thing in it: the
-board held in front, whose largest disparity eval_board.py's truth gives (plus 8 px, a multiple
+board held in front, whose largest disparity board_truth.py's plane gives (plus 8 px, a multiple
 of 16; at least 96). A fixed 96 disparities, which falls short of the whole board in every pair
 (99-213 px), is printed too: there OpenCV answers what lies past the range and we mostly refuse it.
 
@@ -30,6 +30,7 @@ import cv2
 import numpy as np
 
 import eval_sigma as sigma
+from board_truth import board_truth, search_range
 import eval_stereo as stereo
 
 NAMES = ["01", "02", "03", "04", "05", "06", "07", "08", "09", "11", "12", "13", "14"]
@@ -100,11 +101,10 @@ def scene_range(left, right):
     """The disparities a user would search for this pair: past the nearest thing in it, the
     board held in front (eval_board's rule: its largest disparity plus 8 px, a multiple of 16),
     with the board's truth; DISPARITIES and None when the board is not found."""
-    import eval_board as board  # noqa: PLC0415 (eval_board imports this module)
-    truth = board.board_truth(left, right)
+    truth = board_truth(left, right)
     if truth is None:
         return DISPARITIES, None
-    return max(board.search_range(truth[1], truth[0]), DISPARITIES), truth
+    return max(search_range(truth[1], truth[0]), DISPARITIES), truth
 
 
 def arguments():

@@ -21,8 +21,9 @@
 //!   range searched; its σ_d is √(rms² + [`FLOOR`]²);
 //! - a matched pixel where the same rules give a plane has two estimates of its disparity, its
 //!   own match and the plane its neighbourhood's edges imply; when they differ by δ, its σ_d
-//!   grows to √(σ_d² + ([`DISAGREEMENT`]·δ)²), half the difference being the standard
-//!   deviation of a value as likely at either (as a filled pixel's, [`super::sigma::filled`]).
+//!   grows to √(σ_d² + (δ/2)²), half the difference being the standard deviation of a value
+//!   as likely at either ([`super::sigma::second_opinion`]; a filled pixel's σ_d follows the
+//!   same rule, [`super::sigma::filled`]).
 //!   A value the penalties carried into a flat area, or a region matched one period of a
 //!   pattern away, says so this way.
 //!
@@ -31,7 +32,7 @@
 
 use rayon::prelude::*;
 
-use super::Gray;
+use super::{Gray, sigma};
 
 /// The window the plane is fitted over (pixels, odd): about a printed board's square at a
 /// metre, and small enough that most windows hold one surface.
@@ -60,10 +61,6 @@ pub const SCATTER: f64 = 2.0;
 /// The least σ_d (px) of a value the plane gave: how far a plane is from the surface between
 /// its edges (fitted so that 68 % of those values on the boards lie within their σ_d).
 pub const FLOOR: f32 = 0.5;
-/// A matched pixel whose value differs from its neighbourhood's plane by δ has σ_d at least
-/// this times δ: of two estimates that disagree, each as likely, the value's standard
-/// deviation is half their difference.
-pub const DISAGREEMENT: f32 = 0.5;
 
 /// The rows that share one window's plane (its middle row's).
 const BLOCK: usize = 8;
@@ -123,7 +120,7 @@ pub fn fill(
             });
     }
     drop(support);
-    let top = (count.max(1) - 1) as f32;
+    let last = (count.max(1) - 1) as f32;
     let mut filled = vec![false; n];
     (
         disparity.par_chunks_mut(width),
@@ -133,31 +130,24 @@ pub fn fill(
         .into_par_iter()
         .enumerate()
         .for_each(|(y, (d, s, f))| {
-            let (block, centre) = (y / BLOCK, middle(y / BLOCK * BLOCK, height));
+            let planes = &planes[y / BLOCK * groups..(y / BLOCK + 1) * groups];
             let holes = &holes[y * width..(y + 1) * width];
             for (x, ((d, s), (f, &hole))) in
                 d.iter_mut().zip(s).zip(f.iter_mut().zip(holes)).enumerate()
             {
-                let Some(plane) = &planes[block * groups + x / COLUMNS] else {
+                let Some(plane) = &planes[x / COLUMNS] else {
                     continue;
                 };
-                if !hole && d.is_nan() {
-                    continue;
-                }
-                let x0 = (x / COLUMNS * COLUMNS + COLUMNS / 2).min(width - 1);
-                let value = (plane.value
-                    + plane.across * (x as f64 - x0 as f64)
-                    + plane.down * (y as f64 - centre as f64)) as f32;
                 if hole {
-                    if (0.0..=top).contains(&value) {
+                    let value = plane.at(x, y);
+                    if (0.0..=last).contains(&value) {
                         *d = value;
                         let rms = plane.rms as f32;
                         *s = (rms * rms + FLOOR * FLOOR).sqrt();
                         *f = true;
                     }
-                } else {
-                    let off = DISAGREEMENT * (*d - value);
-                    *s = (*s * *s + off * off).sqrt();
+                } else if !d.is_nan() {
+                    *s = sigma::second_opinion(*s, *d, plane.at(x, y));
                 }
             }
         });
@@ -318,24 +308,24 @@ impl<'a> Window<'a> {
         let mut sums: Column = [0.0; 12];
         // The support's count in the columns x − half .. x − 1 and x + 1 ..= x + half, and on
         // the centre row within the window's columns.
-        let (mut before, mut after, mut middle) = (0.0, 0.0, 0.0);
+        let (mut before, mut after, mut on_centre) = (0.0, 0.0, 0.0);
         let centre = &self.support[self.centre * width..(self.centre + 1) * width];
         let on = |x: usize| if centre[x] { 1.0 } else { 0.0 };
         for (x, column) in columns[..half.min(width)].iter().enumerate() {
             add(&mut sums, column, 1.0);
             after += column[0];
-            middle += on(x);
+            on_centre += on(x);
         }
         for x in 0..width {
             if x + half < width {
                 add(&mut sums, &columns[x + half], 1.0);
                 after += columns[x + half][0];
-                middle += on(x + half);
+                on_centre += on(x + half);
             }
             if x > half {
                 add(&mut sums, &columns[x - half - 1], -1.0);
                 before -= columns[x - half - 1][0];
-                middle -= on(x - half - 1);
+                on_centre -= on(x - half - 1);
             }
             if x > 0 {
                 before += columns[x - 1][0];
@@ -345,7 +335,7 @@ impl<'a> Window<'a> {
             if x != (first + COLUMNS / 2).min(width - 1) {
                 continue;
             }
-            let below = sums[0] - sums[ABOVE] - middle;
+            let below = sums[0] - sums[ABOVE] - on_centre;
             if before.min(after).min(sums[ABOVE]).min(below) >= MIN_SIDE {
                 out[x / COLUMNS] = plane_at(&sums, x as f64, self.centre as f64);
             }
@@ -360,13 +350,22 @@ fn add(sums: &mut Column, moments: &Column, sign: f64) {
     }
 }
 
-/// A plane fitted around a pixel: its value there, its slopes along the row and down the column
-/// (px a pixel) and the support's RMS off it (px).
+/// A plane fitted around a pixel: the pixel, the plane's value there, its slopes along the row
+/// and down the column (px a pixel) and the support's RMS off it (px).
 struct Plane {
+    centre: (f64, f64),
     value: f64,
     across: f64,
     down: f64,
     rms: f64,
+}
+
+impl Plane {
+    /// The plane's disparity at pixel `(x, y)`.
+    fn at(&self, x: usize, y: usize) -> f32 {
+        let (x0, y0) = self.centre;
+        (self.value + self.across * (x as f64 - x0) + self.down * (y as f64 - y0)) as f32
+    }
 }
 
 /// The least-squares plane through the support whose moments are `m` (count, Σx, Σy, Σd, Σx²,
@@ -398,6 +397,7 @@ fn plane_at(m: &Column, x0: f64, y0: f64) -> Option<Plane> {
     let rms = (residual.max(0.0) / n).sqrt();
     let scatter = SCATTER * (sss.max(0.0) / n).sqrt();
     (rms <= MAX_RMS.min(scatter) && p.iter().all(|v| v.is_finite())).then_some(Plane {
+        centre: (x0, y0),
         value: pc,
         across: pa,
         down: pb,
@@ -505,7 +505,7 @@ mod tests {
         let filled = fill(&mut disparity, &mut std, w, &left, 64);
         assert!(!filled[y * w + x]);
         assert!((disparity[y * w + x] - truth(x, y) - 3.0).abs() < 1e-6);
-        let expected = (0.4f32 * 0.4 + (DISAGREEMENT * 3.0).powi(2)).sqrt();
+        let expected = (0.4f32 * 0.4 + 1.5 * 1.5).sqrt();
         assert!(
             (std[y * w + x] - expected).abs() < 0.02,
             "{}",

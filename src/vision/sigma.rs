@@ -21,8 +21,9 @@
 //!
 //! The first five come from the winner ([`winner_variance`], summed as each row is chosen);
 //! the last two from the finished map ([`map`], or [`at`] for a winner the map does not
-//! hold). Then, in a depth map, [`super::plane`] adds one more term where its planes reach:
-//! half the difference between the value and the plane its neighbourhood's edges imply.
+//! hold). Then, in a depth map, [`super::plane`] adds one more term where its planes reach
+//! ([`second_opinion`]): half the difference between the value and the plane its
+//! neighbourhood's edges imply.
 //! Filled pixels ([`filled`]) take half the spread of the values the fill chose
 //! between. [`keep`] drops the disparities whose σ_d exceeds the caller's
 //! `max_disparity_std`.
@@ -152,6 +153,15 @@ pub fn keep(disparity: &mut [f32], std: &mut [f32], max_std: f32) -> usize {
         }
     }
     dropped
+}
+
+/// σ_d of a matched value `d` whose σ_d is `std` when a second estimate of it (its
+/// neighbourhood's plane, [`super::plane`]) says `other`: of two estimates as likely, the
+/// standard deviation is half their difference, added to what the match knew in quadrature.
+#[inline]
+pub fn second_opinion(std: f32, d: f32, other: f32) -> f32 {
+    let half = 0.5 * (d - other);
+    (std * std + half * half).sqrt()
 }
 
 /// σ_d of a pixel the fill gave a value (pixels): half the spread between the values it chose

@@ -7,6 +7,7 @@ use reqwest::multipart::Form;
 use serde_json::{Value, json};
 use stereo_distance::Config;
 use stereo_distance::config::HeavyLimits;
+use stereo_distance::vision::sigma::MODEL;
 use stereo_distance::vision::synthetic::{self, Pair, Plane, Region, Scene};
 
 use crate::depth_map::{H, W, image_part, jpeg_part, pair, phone_photo, png, rig};
@@ -95,9 +96,11 @@ async fn statuses_follow_the_scene() {
                 .as_f64()
                 .expect("σ_d beside a disparity");
             let sz = m["distance_std"].as_f64().expect("σ_Z beside a distance");
-            // σ_Z from σ_d as answered (to 1/1000 px), without σ_f and σ_B.
+            // σ_d at least the model's floor (answered to 1/1000 px); σ_Z from σ_d as
+            // answered, without σ_f and σ_B.
             assert!(
-                s >= 0.15 && (sz - z * z * s / 50_000.0).abs() <= 1e-9 * sz,
+                s >= f64::from(MODEL.floor) - 5e-4
+                    && (sz - z * z * s / 50_000.0).abs() <= 1e-9 * sz,
                 "{m}"
             );
             if status(m) == "ok" {
