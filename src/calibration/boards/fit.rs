@@ -86,6 +86,21 @@ pub struct Fit {
     /// The covariance of the shared parameters: the left lens, then the right lens and the
     /// extrinsics' (ω, T) for a pair.
     pub covariance: DMatrix<f64>,
+    /// Every parameter's covariance, the boards' poses included, for the projection σ.
+    pub joint: Joint,
+}
+
+/// The whole state's covariance: the shared parameters (as [`Fit::covariance`]), then each
+/// used view's board pose (ω, T) in the order of `poses`.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Joint {
+    /// The boards' poses in the left camera, one per view used.
+    pub poses: Vec<Pose>,
+    /// From the corners' noise: σ²·(JᵀJ)⁻¹, σ² from the residuals.
+    pub noise: DMatrix<f64>,
+    /// As the views scatter it (see [`super::solve::Solution::view_covariance`]); `None`
+    /// when it could not be formed.
+    pub views: Option<DMatrix<f64>>,
 }
 
 /// Why a calibration could not be made.
@@ -389,6 +404,11 @@ fn finish(
         views: view_fits,
         rms: solution.rms,
         covariance: covariance.view((0, 0), (global, global)).into_owned(),
+        joint: Joint {
+            poses: solution.state.poses.clone(),
+            views: solution.view_covariance.clone(),
+            noise: covariance,
+        },
     })
 }
 

@@ -445,6 +445,7 @@ mod tests {
                 .collect(),
             rms,
             covariance: DMatrix::zeros(0, 0),
+            joint: Default::default(),
         }
     }
 

@@ -157,6 +157,10 @@ pub struct Solution {
     pub views: Vec<ViewError>,
     pub rms: f64,
     pub covariance: Option<DMatrix<f64>>,
+    /// The same parameters' covariance as the views themselves scatter it (the jackknife
+    /// over views, see [`jackknife`]): what noise and what the model cannot fit both move,
+    /// when the views are taken as a sample of the views a user could have taken.
+    pub view_covariance: Option<DMatrix<f64>>,
     pub iterations: usize,
 }
 
@@ -173,6 +177,9 @@ struct Linear {
     cost: f64,
     views: Vec<ViewError>,
     residuals: usize,
+    /// Each view's share: its parameters' places in the state, its `J_vᵀ·J_v` over them
+    /// (upper triangle) and its `J_vᵀ·r_v`.
+    shares: Vec<(Vec<usize>, DMatrix<f64>, DVector<f64>)>,
 }
 
 /// One view's share of the normal equations on its own parameters.
@@ -343,6 +350,7 @@ fn linearize(state: &State, object: &[Vector3<f64>], seen: &[ViewCorners]) -> Op
     let mut jtj = DMatrix::zeros(n, n);
     let mut jtr = DVector::zeros(n);
     let mut views = Vec::with_capacity(blocks.len());
+    let mut shares = Vec::with_capacity(blocks.len());
     let mut cost = 0.0;
     let mut residuals = 0;
     for block in blocks {
@@ -359,6 +367,7 @@ fn linearize(state: &State, object: &[Vector3<f64>], seen: &[ViewCorners]) -> Op
         cost += block.error.squared[0] + block.error.squared[1];
         residuals += 2 * (block.error.corners[0] + block.error.corners[1]);
         views.push(block.error);
+        shares.push((block.index, block.jtj, block.jtr));
     }
     cost.is_finite().then_some(Linear {
         jtj,
@@ -366,6 +375,7 @@ fn linearize(state: &State, object: &[Vector3<f64>], seen: &[ViewCorners]) -> Op
         cost,
         views,
         residuals,
+        shares,
     })
 }
 
@@ -423,6 +433,7 @@ pub fn refine(
             .ok()
             .map(|p| p * sigma2),
     };
+    let view_covariance = jackknife(&linear, state.global_len());
     let corners: usize = linear
         .views
         .iter()
@@ -433,6 +444,74 @@ pub fn refine(
         state,
         views: linear.views,
         covariance,
+        view_covariance,
         iterations,
     })
+}
+
+/// The covariance of the whole state as the views scatter it: the jackknife over views,
+/// `(G − 1)/G·Σ_v (δ_v − δ̄)(δ_v − δ̄)ᵀ`, where `δ_v` is the one-step change of the optimum
+/// without view `v`: for the shared parameters `(S − S_v)⁻¹·g_v` with `S` the normal
+/// equations' Schur complement over the poses, `S_v` view `v`'s share of it and `g_v` its
+/// `J_vᵀ·r_v`; for each other view's pose what follows from them; view `v`'s own pose held.
+/// `None` with fewer than three views or when leaving one out leaves the rest undetermined.
+fn jackknife(linear: &Linear, global: usize) -> Option<DMatrix<f64>> {
+    let g = linear.shares.len();
+    if g < 3 {
+        return None;
+    }
+    let h = &linear.jtj;
+    let n = h.nrows();
+    // Each view's pose block inverted, and H_pg (6 × global).
+    let mut pose_inverse = Vec::with_capacity(g);
+    let mut pose_global = Vec::with_capacity(g);
+    let mut schur = h.view((0, 0), (global, global)).into_owned();
+    for u in 0..g {
+        let at = global + 6 * u;
+        let inverse = h.view((at, at), (6, 6)).into_owned().try_inverse()?;
+        let pg = h.view((at, 0), (6, global)).into_owned();
+        schur -= pg.transpose() * &inverse * &pg;
+        pose_inverse.push(inverse);
+        pose_global.push(pg);
+    }
+    let mut changes = Vec::with_capacity(g);
+    for (v, (index, jtj, jtr)) in linear.shares.iter().enumerate() {
+        // View v's own share of the Schur complement: its (JᵀJ)_gg less its pose's part.
+        let mut own = pose_global[v].transpose() * &pose_inverse[v] * &pose_global[v];
+        own.neg_mut();
+        let mut score = DVector::<f64>::zeros(global);
+        for (a, &ga) in index.iter().enumerate().filter(|(_, i)| **i < global) {
+            score[ga] = jtr[a];
+            for (b, &gb) in index
+                .iter()
+                .enumerate()
+                .skip(a)
+                .filter(|(_, i)| **i < global)
+            {
+                own[(ga, gb)] += jtj[(a, b)];
+                if ga != gb {
+                    own[(gb, ga)] += jtj[(a, b)];
+                }
+            }
+        }
+        let shared = (&schur - own).cholesky()?.solve(&score);
+        let mut change = DVector::<f64>::zeros(n);
+        change.rows_mut(0, global).copy_from(&shared);
+        for u in (0..g).filter(|&u| u != v) {
+            let pose = -(&pose_inverse[u] * (&pose_global[u] * &shared));
+            change.rows_mut(global + 6 * u, 6).copy_from(&pose);
+        }
+        changes.push(change);
+    }
+    let mean = changes.iter().sum::<DVector<f64>>() / g as f64;
+    let mut covariance = DMatrix::<f64>::zeros(n, n);
+    for change in &changes {
+        let d = change - &mean;
+        covariance.ger(1.0, &d, &d, 1.0);
+    }
+    let covariance = covariance * ((g - 1) as f64 / g as f64);
+    covariance
+        .iter()
+        .all(|v| v.is_finite())
+        .then_some(covariance)
 }

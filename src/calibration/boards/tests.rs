@@ -291,31 +291,64 @@ fn projection_uncertainty_is_high_where_there_were_no_corners() {
     assert!(q.left.worst_px > 3.0 * p.left.worst_px);
 }
 
-/// Cross-validation: two halves of one camera's views agree within what their σ predict;
-/// halves from two different cameras (f 2 % apart) do not.
+/// On renders, where the lens model is exact, the projection σ is honest against the truth:
+/// pooled over 8 calibrations of 10 views with 0.1 px of noise, the truth's projection differs
+/// from each fit's (compared as cross-validation compares two calibrations) by 0.5–1.4 times
+/// the fit's σ (median cell by cell; the jackknife over few views leans cautious), and the
+/// noise explains most of the σ.
+#[test]
+fn projection_sigma_is_honest_against_the_truth() {
+    use super::uncertainty::{GRID, projection_difference, projection_uncertainty};
+    let pair = truth(Model::PlumbBob, &[-0.2, 0.08, 0.0008, -0.0004, -0.01]);
+    let mut ratios = Vec::new();
+    for seed in 0..8 {
+        let fit = noisy_fit(&pair, 10, 0.1, 600 + seed).expect("calibrated");
+        let p = projection_uncertainty(&fit, None).expect("the grid");
+        assert!(!p.left.model_error_dominates(), "{:?}", p.left);
+        let (mut pixels, mut sigmas) = (Vec::new(), Vec::new());
+        for j in 0..GRID.1 {
+            for i in 0..GRID.0 {
+                if let Some(s) = p.left.grid[j][i] {
+                    let (w, h) = (f64::from(SIZE.width), f64::from(SIZE.height));
+                    pixels.push([
+                        (i as f64 + 0.5) * w / GRID.0 as f64 - 0.5,
+                        (j as f64 + 0.5) * h / GRID.1 as f64 - 0.5,
+                    ]);
+                    sigmas.push(s);
+                }
+            }
+        }
+        let d = projection_difference(&pair.left, &fit.left.camera, SIZE, &pixels, p.distance)
+            .expect("compared");
+        ratios.extend(d.iter().zip(&sigmas).map(|(d, s)| d / s));
+    }
+    ratios.sort_by(f64::total_cmp);
+    let median = ratios[ratios.len() / 2];
+    eprintln!(
+        "renders: truth's difference over sigma, median of {}: {median:.2}",
+        ratios.len()
+    );
+    assert!((0.5..=1.4).contains(&median), "median ratio {median}");
+}
+
+/// Cross-validation: halves from one rig are not found optimistic; halves from two lenses whose
+/// distortion differs (k1 −0.20 against −0.24) differ far beyond what their σ predict, and are
+/// not consistent. (A focal length alone that differs is not told at one distance: a shift
+/// along the axis absorbs it, as in mrcal's `projection_diff`.)
 #[test]
 fn cross_validation_tells_a_consistent_calibration_from_another() {
-    use super::uncertainty::{board_distance, cross_validate};
+    use super::uncertainty::{CONSISTENT, board_distance, cross_validate};
     let pair = truth(Model::PlumbBob, &[-0.2, 0.08, 0.0008, -0.0004, -0.01]);
     let a = noisy_fit(&pair, 8, 0.1, 51).expect("calibrated");
     let b = noisy_fit(&pair, 8, 0.1, 52).expect("calibrated");
     let distance = board_distance(&a).unwrap();
     let same = cross_validate(&a, &b, distance).expect("compared");
     eprintln!("same rig: {same:?}");
-    assert!(same.consistent(), "{same:?}");
-    let mut other = pair;
-    other.left = Camera::new(
-        Intrinsics {
-            fx: 714.0,
-            fy: 716.0,
-            cx: 318.0,
-            cy: 243.0,
-        },
-        pair.left.distortion(),
-    )
-    .unwrap();
+    assert!(same.ratio <= CONSISTENT.1, "{same:?}");
+    let other = truth(Model::PlumbBob, &[-0.24, 0.08, 0.0008, -0.0004, -0.01]);
     let c = noisy_fit(&other, 8, 0.1, 53).expect("calibrated");
     let apart = cross_validate(&a, &c, distance).expect("compared");
     eprintln!("another rig: {apart:?}");
+    assert!(apart.ratio > 2.0 * CONSISTENT.1, "{apart:?}");
     assert!(!apart.consistent(), "{apart:?}");
 }

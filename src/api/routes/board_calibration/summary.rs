@@ -177,14 +177,39 @@ pub fn summarize(
         rectified,
     );
     warnings.extend(checks.cross_warning.clone());
+    if let Some(u) = checks.uncertainty.as_ref() {
+        for (side, g) in [("left", Some(&u.left)), ("right", u.right.as_ref())] {
+            let Some(g) = g.filter(|g| g.model_error_dominates()) else {
+                continue;
+            };
+            warnings.push(format!(
+                "model error dominates the {side} camera's projection uncertainty: {:.3} px \
+                 (median) of which the corners' noise explains {:.3} px and what the lens model \
+                 cannot fit {:.3} px. More views of the same kind will not lower it; try the \
+                 rational_polynomial model (a wide lens), add views with the board near the \
+                 image's edges and corners, and check that the board is flat",
+                g.median_px, g.noise_median_px, g.model_median_px
+            ));
+        }
+    }
     if let Some(c) = checks.cross.as_ref().filter(|c| !c.consistent()) {
-        warnings.push(format!(
-            "the two halves of the views project {:.2} px apart (median; {:.2} px at worst), more \
-             than their uncertainties predict ({:.2} px; {:.2} px): the model does not fit these \
-             views alike. Take more views, try the rational_polynomial model for a wide lens, \
-             or check that the board is flat",
-            c.median_px, c.worst_px, c.predicted_median_px, c.predicted_worst_px
-        ));
+        let (low, high) = uncertainty::CONSISTENT;
+        warnings.push(if c.ratio > high {
+            format!(
+                "the two halves of the views project {:.2} px apart (median; {:.2} px at worst), \
+                 {:.2} times what their uncertainties predict ({:.2} px), above {high}: the \
+                 model does not fit these views alike. Take more views, try the \
+                 rational_polynomial model for a wide lens, or check that the board is flat",
+                c.median_px, c.worst_px, c.ratio, c.predicted_median_px
+            )
+        } else {
+            format!(
+                "the two halves of the views project {:.2} px apart (median), {:.2} times what \
+                 their uncertainties predict ({:.2} px), below {low}: the uncertainty is \
+                 cautious for these views (halves of few views scatter more than the whole)",
+                c.median_px, c.ratio, c.predicted_median_px
+            )
+        });
     }
     let coverage = |c: report::Coverage| Coverage {
         x: c.x,
@@ -251,12 +276,17 @@ pub fn summarize(
                 distance: u.distance,
                 left: projection_grid(&u.left),
                 right: u.right.as_ref().map(projection_grid),
+                model_error_dominates: u.left.model_error_dominates()
+                    || u.right.as_ref().is_some_and(|g| g.model_error_dominates()),
             }),
         cross_validation: checks.cross.as_ref().map(|c| CrossValidationSummary {
             median_px: round_to(c.median_px, 4),
             worst_px: round_to(c.worst_px, 4),
             predicted_median_px: round_to(c.predicted_median_px, 4),
             predicted_worst_px: round_to(c.predicted_worst_px, 4),
+            ratio: round_to(c.ratio, 3),
+            ratio_centre: round_to(c.ratio_centre, 3),
+            ratio_edge: round_to(c.ratio_edge, 3),
             consistent: c.consistent(),
         }),
         warnings,
@@ -269,14 +299,17 @@ pub fn summarize(
 }
 
 fn projection_grid(g: &uncertainty::CameraGrid) -> ProjectionGrid {
-    ProjectionGrid {
-        grid: g
-            .grid
-            .iter()
+    let rounded = |grid: &[Vec<Option<f64>>]| -> Vec<Vec<Option<f64>>> {
+        grid.iter()
             .map(|row| row.iter().map(|v| v.map(|v| round_to(v, 4))).collect())
-            .collect(),
+            .collect()
+    };
+    ProjectionGrid {
+        grid: rounded(&g.grid),
         median_px: round_to(g.median_px, 4),
         worst_px: round_to(g.worst_px, 4),
+        noise_median_px: round_to(g.noise_median_px, 4),
+        model_median_px: round_to(g.model_median_px, 4),
     }
 }
 

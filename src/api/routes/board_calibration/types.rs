@@ -357,11 +357,20 @@ pub struct ProjectionGrid {
     pub grid: Vec<Vec<Option<f64>>>,
     pub median_px: f64,
     pub worst_px: f64,
+    /// The median over the grid of the part the corners' noise explains (σ²·(JᵀJ)⁻¹), px.
+    pub noise_median_px: f64,
+    /// The median over the grid of the part the lens model cannot fit,
+    /// √(max(0, σ² − σ_noise²)) cell by cell, px: a lean model on a real lens.
+    pub model_median_px: f64,
 }
 
-/// How precisely the calibration places a point at `distance` in each image, from the
-/// parameters' covariance with the part a turn of the whole frame explains taken out (mrcal's
-/// projection uncertainty). High where no corners fell: take views there.
+/// How precisely the calibration places a point at `distance` in each image (mrcal's
+/// projection uncertainty): the point held fixed to the boards, a rigid move of the camera's
+/// frame near the centre taken out (as mrcal's `projection_diff` compares calibrations), and
+/// the σ from how the parameters scatter when the views change (the jackknife over views), so
+/// that what the lens model cannot fit counts beside the corners' noise. On OpenCV's real
+/// photographs, calibrations from disjoint halves differ by 0.8–1.3 times what it predicts
+/// (`scripts/eval-calibration`). High where no corners fell: take views there.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
 pub struct ProjectionUncertaintySummary {
     /// The points' distance from the camera, in the board's unit (the boards' median
@@ -373,22 +382,33 @@ pub struct ProjectionUncertaintySummary {
     #[serde(skip_serializing_if = "Option::is_none")]
     #[schema(nullable = false)]
     pub right: Option<ProjectionGrid>,
+    /// Whether, in either camera, what the lens model cannot fit dominates: `model_median_px`
+    /// above 1.5 times `noise_median_px` (on an exact model the two come out about equal). A
+    /// warning then says what to do.
+    pub model_error_dominates: bool,
 }
 
 /// Two calibrations from disjoint halves of the views (alternate views used), compared over
-/// both cameras' grids after the frame turn that best aligns them, beside what their σ
-/// predict (`cross_validate=true`).
+/// both cameras' grids after the rigid motion that best aligns them near the centre (as
+/// mrcal's `projection_diff`), beside what their σ predict for the difference of two
+/// independent estimates, √(σ_a² + σ_b²) (`cross_validate=true`).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
 pub struct CrossValidationSummary {
     /// The median and largest distance between the halves' projections, px.
     pub median_px: f64,
     pub worst_px: f64,
-    /// The median and largest sum of the two halves' σ in a cell, px.
+    /// The median and largest √(σ_a² + σ_b²) of a cell, px.
     pub predicted_median_px: f64,
     pub predicted_worst_px: f64,
-    /// Whether the halves differ by no more than their σ predict (the median within the
-    /// predicted median, the largest within twice the predicted largest). When not: more
-    /// views, a richer model (`rational_polynomial`) or a flatter board.
+    /// Observed over predicted cell by cell, the median over the grid: 1 when the σ is true,
+    /// below when cautious, above when optimistic.
+    pub ratio: f64,
+    /// The same over the grid's centre (within half the way to each edge) and over the rest.
+    pub ratio_centre: f64,
+    pub ratio_edge: f64,
+    /// Whether `ratio` lies within 0.7–1.4. Above: the model does not fit the views alike
+    /// (more views, a richer model such as `rational_polynomial`, a flatter board); below:
+    /// the σ is cautious for these views.
     pub consistent: bool,
 }
 
