@@ -289,8 +289,8 @@ async fn copies_of_one_view_are_refused_as_undetermined() {
 
 /// The summary says how precisely the calibration places a point in each image: a 16 × 12
 /// grid of σ per camera, small where the views' corners fell, with its noise and model parts;
-/// `cross_validate=true` calibrates alternate views apart and reports the halves' difference
-/// over what their σ predict, not above the consistent range on renders.
+/// `cross_validate=true` calibrates halves of the views apart (8 splits) and reports their
+/// difference over what their σ predict, not above the consistent range on renders.
 /// A distance that is not one is named.
 #[tokio::test]
 async fn projection_uncertainty_and_cross_validation() {

@@ -234,12 +234,30 @@ async fn uploaded_board_pairs_calibrate_and_a_view_is_left_out_by_a_click() {
         .script(
             "return [document.querySelectorAll('#coverage-left .sigma-cell').length,\
                document.querySelectorAll('#coverage-right .sigma-cell').length,\
-               document.getElementById('views-verdict').dataset.consistent]",
+               document.getElementById('views-verdict').dataset.consistent,\
+               document.getElementById('views-verdict').dataset.ratio,\
+               document.getElementById('coverage-left').dataset.modelError]",
         )
         .await;
-    assert_eq!(cells, json!([192, 192, "true"]), "{cells}");
+    assert_eq!(cells[0], json!(192), "{cells}");
+    assert_eq!(cells[1], json!(192), "{cells}");
+    // Rendered through an exact model: the halves are not found optimistic, the model's part
+    // does not dominate, and the verdict's words follow the ratio.
+    let ratio: f64 = cells[3].as_str().unwrap().parse().unwrap();
+    assert!(ratio > 0.0 && ratio <= 1.4, "{cells}");
+    assert_eq!(cells[4], json!("false"), "{cells}");
     let views = browser.text("views-verdict").await;
-    assert!(views.contains("Cross-validation: consistent"), "{views}");
+    let consistent = (0.7..=1.4).contains(&ratio);
+    assert_eq!(cells[2], json!(consistent.to_string()), "{cells}");
+    assert!(
+        views.contains(if consistent {
+            "Cross-validation: consistent"
+        } else {
+            "Cross-validation: not consistent"
+        }),
+        "{views}"
+    );
+    assert!(views.contains("times the"), "{views}");
 
     // Act: leave the first view out by clicking its bar.
     browser

@@ -101,6 +101,8 @@ pub struct Joint {
     /// As the views scatter it (see [`super::solve::Solution::view_covariance`]); `None`
     /// when it could not be formed.
     pub views: Option<DMatrix<f64>>,
+    /// The views' sandwich (see [`super::solve::Solution::sandwich_covariance`]).
+    pub sandwich: Option<DMatrix<f64>>,
 }
 
 /// Why a calibration could not be made.
@@ -407,6 +409,7 @@ fn finish(
         joint: Joint {
             poses: solution.state.poses.clone(),
             views: solution.view_covariance.clone(),
+            sandwich: solution.sandwich_covariance.clone(),
             noise: covariance,
         },
     })

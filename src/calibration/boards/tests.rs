@@ -293,9 +293,8 @@ fn projection_uncertainty_is_high_where_there_were_no_corners() {
 
 /// On renders, where the lens model is exact, the projection σ is honest against the truth:
 /// pooled over 8 calibrations of 10 views with 0.1 px of noise, the truth's projection differs
-/// from each fit's (compared as cross-validation compares two calibrations) by 0.5–1.4 times
-/// the fit's σ (median cell by cell; the jackknife over few views leans cautious), and the
-/// noise explains most of the σ.
+/// from each fit's (compared as cross-validation compares two calibrations) by 0.7–1.4 times
+/// the fit's σ (median cell by cell), and the model's part does not dominate.
 #[test]
 fn projection_sigma_is_honest_against_the_truth() {
     use super::uncertainty::{GRID, projection_difference, projection_uncertainty};
@@ -328,10 +327,10 @@ fn projection_sigma_is_honest_against_the_truth() {
         "renders: truth's difference over sigma, median of {}: {median:.2}",
         ratios.len()
     );
-    assert!((0.5..=1.4).contains(&median), "median ratio {median}");
+    assert!((0.7..=1.4).contains(&median), "median ratio {median}");
 }
 
-/// Cross-validation: halves from one rig are not found optimistic; halves from two lenses whose
+/// Cross-validation: halves from one rig are consistent; halves from two lenses whose
 /// distortion differs (k1 −0.20 against −0.24) differ far beyond what their σ predict, and are
 /// not consistent. (A focal length alone that differs is not told at one distance: a shift
 /// along the axis absorbs it, as in mrcal's `projection_diff`.)
@@ -344,7 +343,7 @@ fn cross_validation_tells_a_consistent_calibration_from_another() {
     let distance = board_distance(&a).unwrap();
     let same = cross_validate(&a, &b, distance).expect("compared");
     eprintln!("same rig: {same:?}");
-    assert!(same.ratio <= CONSISTENT.1, "{same:?}");
+    assert!(same.consistent(), "{same:?}");
     let other = truth(Model::PlumbBob, &[-0.24, 0.08, 0.0008, -0.0004, -0.01]);
     let c = noisy_fit(&other, 8, 0.1, 53).expect("calibrated");
     let apart = cross_validate(&a, &c, distance).expect("compared");

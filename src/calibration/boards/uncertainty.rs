@@ -7,9 +7,10 @@
 //! that a principal point which moves while every board's pose moves with it moves nothing.
 //! What a rigid move of the camera's frame explains near the image's centre is then taken out,
 //! as mrcal's `projection_diff` takes it out of a comparison: a frame that moves is not a lens
-//! that errs. The σ comes from how the parameters scatter when the views change (the
-//! jackknife over views, [`super::solve::Solution::view_covariance`]): noise and what the lens
-//! model cannot fit on a real lens both move it, and only the first shows in σ²·(JᵀJ)⁻¹. The
+//! that errs. The σ comes from how the parameters scatter when the views change (the geometric
+//! mean of the jackknife and the sandwich over views, [`super::solve::Solution::view_covariance`]
+//! and [`super::solve::Solution::sandwich_covariance`]): noise and what the lens model cannot
+//! fit on a real lens both move it, and only the first shows in σ²·(JᵀJ)⁻¹. The
 //! two parts are reported apart. Each σ is the worst direction's: the square root of the
 //! 2 × 2 covariance's larger eigenvalue. Where no corners fell the distortion is
 //! extrapolated, and the σ says so.
@@ -369,9 +370,16 @@ fn camera_grid(fit: &Fit, right: bool, distance: f64) -> Option<CameraGrid> {
     let noise = worst_sigmas(&aligned, &fit.joint.noise);
     // The views' own scatter holds the noise and what the model cannot fit; without it (fewer
     // than three views) the noise is all there is to say.
-    let total = match &fit.joint.views {
-        Some(views) => worst_sigmas(&aligned, views),
-        None => noise.clone(),
+    // The jackknife runs high over few views and the sandwich low; their geometric mean is
+    // the bias-reduced (CR2) estimate when the views weigh alike.
+    let total = match (&fit.joint.views, &fit.joint.sandwich) {
+        (Some(jackknife), Some(sandwich)) => worst_sigmas(&aligned, jackknife)
+            .into_iter()
+            .zip(worst_sigmas(&aligned, sandwich))
+            .map(|(j, s)| Some((j? * s?).sqrt()))
+            .collect(),
+        (Some(jackknife), None) => worst_sigmas(&aligned, jackknife),
+        _ => noise.clone(),
     };
     let model_part: Vec<f64> = total
         .iter()
@@ -556,10 +564,14 @@ pub fn cross_validate(a: &Fit, b: &Fit, distance: f64) -> Option<CrossValidation
     })
 }
 
-/// Calibrates two disjoint halves of the views `fit` used (with the target's corners
-/// `object`) (alternate ones, so that each half
-/// spans the session) and compares them over the grid ([`cross_validate`]); `Err` with the
-/// number of views used when the halves cannot both be calibrated (fewer than 6 views).
+/// How many ways [`cross_validation`] splits the views into two halves.
+pub const SPLITS: usize = 8;
+
+/// Splits the views `fit` used (with the target's corners `object`) into two halves [`SPLITS`]
+/// ways (alternate views, the first half against the second, then seeded shuffles), calibrates
+/// each half and compares the two over the grid ([`cross_validate`]); the answer is each figure's
+/// median over the splits, since one split is one draw of two calibrations' errors. `Err` with
+/// the number of views used when fewer than 6 were used or no split's halves both calibrate.
 pub fn cross_validation(
     object: &[Vector3<f64>],
     model: LensModel,
@@ -571,15 +583,34 @@ pub fn cross_validation(
     let used: Vec<usize> = (0..fit.views.len())
         .filter(|&v| fit.views[v].status == ViewOutcome::Used)
         .collect();
-    if used.len() < 6 {
-        return Err(used.len());
+    let count = used.len();
+    if count < 6 {
+        return Err(count);
     }
-    let half = |parity: usize| -> Option<Fit> {
+    let mut rng = crate::noise::Rng::new(69);
+    let splits: Vec<Vec<bool>> = (0..SPLITS)
+        .map(|k| match k {
+            0 => (0..count).map(|i| i % 2 == 0).collect(),
+            1 => (0..count).map(|i| i < count / 2).collect(),
+            _ => {
+                let mut order: Vec<usize> = (0..count).collect();
+                for i in (1..count).rev() {
+                    order.swap(i, (rng.next_u64() % (i as u64 + 1)) as usize);
+                }
+                let mut half = vec![false; count];
+                for &i in &order[..count / 2] {
+                    half[i] = true;
+                }
+                half
+            }
+        })
+        .collect();
+    let half = |side: &[bool], want: bool| -> Option<Fit> {
         let views: Vec<Corners> = views
             .iter()
             .enumerate()
             .map(|(v, c)| match used.iter().position(|&u| u == v) {
-                Some(k) if k % 2 == parity => c.clone(),
+                Some(k) if side[k] == want => c.clone(),
                 _ => Corners {
                     left: None,
                     right: None,
@@ -588,6 +619,21 @@ pub fn cross_validation(
             .collect();
         calibrate(object, fit.size, model, &views, stereo).ok()
     };
-    let (a, b) = (half(0).ok_or(used.len())?, half(1).ok_or(used.len())?);
-    cross_validate(&a, &b, distance).ok_or(used.len())
+    let compared: Vec<CrossValidation> = splits
+        .iter()
+        .filter_map(|side| cross_validate(&half(side, true)?, &half(side, false)?, distance))
+        .collect();
+    if compared.is_empty() {
+        return Err(count);
+    }
+    let figure = |f: fn(&CrossValidation) -> f64| median(compared.iter().map(f).collect());
+    Ok(CrossValidation {
+        median_px: figure(|c| c.median_px),
+        worst_px: figure(|c| c.worst_px),
+        predicted_median_px: figure(|c| c.predicted_median_px),
+        predicted_worst_px: figure(|c| c.predicted_worst_px),
+        ratio: figure(|c| c.ratio),
+        ratio_centre: figure(|c| c.ratio_centre),
+        ratio_edge: figure(|c| c.ratio_edge),
+    })
 }
