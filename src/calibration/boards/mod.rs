@@ -13,13 +13,16 @@
 //!   check and the rectified rig's uncertainty.
 //! - [`report`]: the detections per view, coverage, tilt and the warnings a user checks a
 //!   calibration by.
-//! - [`uncertainty`]: the σ of a projection over each image, and cross-validation of two
-//!   halves of the views.
+//! - [`uncertainty`]: the σ of a projection over each image, from the views' own scatter,
+//!   told apart into the noise's part and the model's.
+//! - [`cross_validation`]: two halves of the views calibrated apart and compared against what
+//!   their σ predict.
 //! - [`synthetic`]: boards rendered through the camera model with exact truth.
 
 pub mod board;
 pub mod charuco;
 pub mod corners;
+pub mod cross_validation;
 pub mod fit;
 pub mod report;
 pub mod solve;

@@ -297,7 +297,8 @@ fn projection_uncertainty_is_high_where_there_were_no_corners() {
 /// the fit's σ (median cell by cell), and the model's part does not dominate.
 #[test]
 fn projection_sigma_is_honest_against_the_truth() {
-    use super::uncertainty::{GRID, projection_difference, projection_uncertainty};
+    use super::cross_validation::projection_difference;
+    use super::uncertainty::{GRID, projection_uncertainty};
     let pair = truth(Model::PlumbBob, &[-0.2, 0.08, 0.0008, -0.0004, -0.01]);
     let mut ratios = Vec::new();
     for seed in 0..8 {
@@ -336,7 +337,8 @@ fn projection_sigma_is_honest_against_the_truth() {
 /// along the axis absorbs it, as in mrcal's `projection_diff`.)
 #[test]
 fn cross_validation_tells_a_consistent_calibration_from_another() {
-    use super::uncertainty::{CONSISTENT, board_distance, cross_validate};
+    use super::cross_validation::{CONSISTENT, cross_validate};
+    use super::uncertainty::board_distance;
     let pair = truth(Model::PlumbBob, &[-0.2, 0.08, 0.0008, -0.0004, -0.01]);
     let a = noisy_fit(&pair, 8, 0.1, 51).expect("calibrated");
     let b = noisy_fit(&pair, 8, 0.1, 52).expect("calibrated");

@@ -1,7 +1,6 @@
 //! How far to trust a calibration where it will be used, as mrcal asks: the σ (px) of where a
-//! point at a given distance projects, over a grid across each image; and cross-validation, two
-//! calibrations from disjoint parts of the views compared over the same grid against what their
-//! σ predict.
+//! point at a given distance projects, over a grid across each image (cross-validation, in
+//! [`super::cross_validation`], checks it against two calibrations of disjoint halves).
 //!
 //! The point is held fixed to the calibration boards (mrcal's mean over the boards' frames), so
 //! that a principal point which moves while every board's pose moves with it moves nothing.
@@ -15,11 +14,11 @@
 //! 2 × 2 covariance's larger eigenvalue. Where no corners fell the distortion is
 //! extrapolated, and the σ says so.
 
-use nalgebra::{DMatrix, DVector, Matrix2, Rotation3, Vector3};
+use nalgebra::{DMatrix, Matrix2, Rotation3, Vector3};
 
-use super::fit::{Corners, Fit, ViewOutcome, calibrate};
+use super::fit::{Fit, ViewOutcome};
 use super::solve::{Lens, Pose};
-use crate::camera::{Camera, Model as LensModel, Size};
+use crate::camera::{Camera, Size};
 
 /// The grid's cells across and down each image.
 pub const GRID: (usize, usize) = (16, 12);
@@ -56,40 +55,12 @@ pub struct ProjectionUncertainty {
     pub right: Option<CameraGrid>,
 }
 
-/// How far two halves' calibrations project apart, against what their σ predict.
-#[derive(Debug, Clone, PartialEq)]
-pub struct CrossValidation {
-    /// The median and largest distance between the halves' projections over both cameras'
-    /// grids, px.
-    pub median_px: f64,
-    pub worst_px: f64,
-    /// The same of the sum of the two halves' σ in each cell.
-    pub predicted_median_px: f64,
-    pub predicted_worst_px: f64,
-    /// Observed over predicted, cell by cell: the median over the grid, and over its centre
-    /// and its edges apart.
-    pub ratio: f64,
-    pub ratio_centre: f64,
-    pub ratio_edge: f64,
-}
-
 /// How many times the noise's part the model's must be to dominate.
 pub const DOMINATES: f64 = 1.5;
 
-/// The range observed over predicted keeps for the σ to be called true.
-pub const CONSISTENT: (f64, f64) = (0.7, 1.4);
-
-/// The focus of [`projection_difference`]'s fit, as a share of the image's shorter side (mrcal's
+/// The focus of [`super::cross_validation::projection_difference`]'s fit, as a share of the image's shorter side (mrcal's
 /// default, a sixth).
 pub const FOCUS: f64 = 1.0 / 6.0;
-
-impl CrossValidation {
-    /// Whether the halves differ as their σ predict: observed over predicted within
-    /// [`CONSISTENT`].
-    pub fn consistent(&self) -> bool {
-        (CONSISTENT.0..=CONSISTENT.1).contains(&self.ratio)
-    }
-}
 
 /// The median distance of the boards from the left camera over the views used.
 pub fn board_distance(fit: &Fit) -> Option<f64> {
@@ -107,7 +78,7 @@ pub fn board_distance(fit: &Fit) -> Option<f64> {
 }
 
 /// The centre of cell (i, j) of the grid over an image of `size`.
-fn cell_centre(size: Size, i: usize, j: usize) -> [f64; 2] {
+pub(super) fn cell_centre(size: Size, i: usize, j: usize) -> [f64; 2] {
     [
         (i as f64 + 0.5) * f64::from(size.width) / GRID.0 as f64 - 0.5,
         (j as f64 + 0.5) * f64::from(size.height) / GRID.1 as f64 - 0.5,
@@ -339,7 +310,7 @@ fn grid_cells(model: &Model, size: Size, distance: f64) -> Vec<Cell> {
 }
 
 /// The median and largest of `values`, 0 when there are none.
-fn median_and_worst(values: &mut [f64]) -> (f64, f64) {
+pub(super) fn median_and_worst(values: &mut [f64]) -> (f64, f64) {
     values.sort_by(f64::total_cmp);
     match values {
         [] => (0.0, 0.0),
@@ -413,227 +384,7 @@ pub fn projection_uncertainty(fit: &Fit, distance: Option<f64>) -> Option<Projec
     })
 }
 
-/// Where camera `b` sees the points camera `a` sees at each of `pixels` at `distance`, after
-/// the rigid motion between their frames that best aligns them near the image's centre
-/// (within [`FOCUS`] of the shorter side), as mrcal's `projection_diff` fits it: each
-/// pixel's distance, px.
-pub fn projection_difference(
-    a: &Camera,
-    b: &Camera,
-    size: Size,
-    pixels: &[[f64; 2]],
-    distance: f64,
-) -> Option<Vec<f64>> {
-    let points: Vec<Vector3<f64>> = pixels
-        .iter()
-        .map(|&q| {
-            let [x, y] = a.normalize(q)?;
-            Some(Vector3::new(x, y, 1.0).normalize() * distance)
-        })
-        .collect::<Option<_>>()?;
-    let centre = [
-        (f64::from(size.width) - 1.0) / 2.0,
-        (f64::from(size.height) - 1.0) / 2.0,
-    ];
-    let radius = FOCUS * f64::from(size.width.min(size.height));
-    let focus: Vec<usize> = (0..pixels.len())
-        .filter(|&k| (pixels[k][0] - centre[0]).hypot(pixels[k][1] - centre[1]) <= radius)
-        .collect();
-    if focus.len() < 3 {
-        return None;
-    }
-    let moved = |motion: &[f64; 6], k: usize| -> Option<[f64; 2]> {
-        let pose = Pose {
-            rotation: Rotation3::from_scaled_axis(Vector3::new(motion[0], motion[1], motion[2])),
-            translation: Vector3::new(motion[3], motion[4], motion[5]),
-        };
-        let q = b.project(&pose.apply(&points[k]))?;
-        Some([q[0] - pixels[k][0], q[1] - pixels[k][1]])
-    };
-    let misses = |motion: &[f64; 6]| -> Option<DVector<f64>> {
-        let mut out = Vec::with_capacity(2 * focus.len());
-        for &k in &focus {
-            out.extend(moved(motion, k)?);
-        }
-        Some(DVector::from_vec(out))
-    };
-    // Gauss–Newton with a little damping: at one distance a shift across the view and a turn
-    // about the other axis look alike, and the damping picks the smaller of the two.
-    let mut motion = [0.0; 6];
-    for _ in 0..8 {
-        let r = misses(&motion)?;
-        let mut j = DMatrix::<f64>::zeros(r.len(), 6);
-        for p in 0..6 {
-            let h = if p < 3 { 1e-6 } else { 1e-6 * distance };
-            let (mut plus, mut minus) = (motion, motion);
-            plus[p] += h;
-            minus[p] -= h;
-            let column = (misses(&plus)? - misses(&minus)?) / (2.0 * h);
-            j.set_column(p, &column);
-        }
-        let mut normal = j.transpose() * &j;
-        for p in 0..6 {
-            normal[(p, p)] *= 1.0 + 1e-6;
-        }
-        let step = normal.cholesky()?.solve(&(j.transpose() * r));
-        for p in 0..6 {
-            motion[p] -= step[p];
-        }
-    }
-    (0..pixels.len())
-        .map(|k| moved(&motion, k).map(|m| m[0].hypot(m[1])))
-        .collect()
-}
-
-/// Whether a pixel lies in the image's centre (within half of the way to each edge, an
-/// ellipse) for [`CrossValidation`]'s split.
-fn central(pixel: [f64; 2], size: Size) -> bool {
-    let (w, h) = (f64::from(size.width), f64::from(size.height));
-    ((pixel[0] - (w - 1.0) / 2.0) / (w / 2.0)).hypot((pixel[1] - (h - 1.0) / 2.0) / (h / 2.0)) < 0.5
-}
-
 /// The median of `values`, 0 when there are none.
-fn median(mut values: Vec<f64>) -> f64 {
+pub(super) fn median(mut values: Vec<f64>) -> f64 {
     median_and_worst(&mut values).0
-}
-
-/// Two calibrations of disjoint halves of the views compared over both cameras' grids
-/// ([`projection_difference`], each camera on its own), beside what their σ predict for the
-/// difference of two independent estimates, √(σ_a² + σ_b²).
-pub fn cross_validate(a: &Fit, b: &Fit, distance: f64) -> Option<CrossValidation> {
-    let (mut differences, mut predicted) = (Vec::new(), Vec::new());
-    let (mut ratios, mut centre, mut edge) = (Vec::new(), Vec::new(), Vec::new());
-    let sides: &[bool] = if a.right.is_some() && b.right.is_some() {
-        &[false, true]
-    } else {
-        &[false]
-    };
-    let (ga, gb) = (
-        projection_uncertainty(a, Some(distance))?,
-        projection_uncertainty(b, Some(distance))?,
-    );
-    for &right in sides {
-        let (ca, cb, sa, sb) = if right {
-            (
-                &a.right.as_ref()?.camera,
-                &b.right.as_ref()?.camera,
-                ga.right.as_ref()?,
-                gb.right.as_ref()?,
-            )
-        } else {
-            (&a.left.camera, &b.left.camera, &ga.left, &gb.left)
-        };
-        let mut pixels = Vec::new();
-        let mut sigmas = Vec::new();
-        for j in 0..GRID.1 {
-            for i in 0..GRID.0 {
-                if let (Some(x), Some(y)) = (sa.grid[j][i], sb.grid[j][i]) {
-                    pixels.push(cell_centre(a.size, i, j));
-                    sigmas.push(x.hypot(y));
-                }
-            }
-        }
-        let d = projection_difference(ca, cb, a.size, &pixels, distance)?;
-        for ((&d, &s), &q) in d.iter().zip(&sigmas).zip(&pixels) {
-            differences.push(d);
-            predicted.push(s);
-            if s > 0.0 {
-                let ratio = d / s;
-                ratios.push(ratio);
-                if central(q, a.size) {
-                    centre.push(ratio);
-                } else {
-                    edge.push(ratio);
-                }
-            }
-        }
-    }
-    if differences.is_empty() {
-        return None;
-    }
-    let (median_px, worst_px) = median_and_worst(&mut differences);
-    let (predicted_median_px, predicted_worst_px) = median_and_worst(&mut predicted);
-    Some(CrossValidation {
-        median_px,
-        worst_px,
-        predicted_median_px,
-        predicted_worst_px,
-        ratio: median(ratios),
-        ratio_centre: median(centre),
-        ratio_edge: median(edge),
-    })
-}
-
-/// How many ways [`cross_validation`] splits the views into two halves.
-pub const SPLITS: usize = 8;
-
-/// Splits the views `fit` used (with the target's corners `object`) into two halves [`SPLITS`]
-/// ways (alternate views, the first half against the second, then seeded shuffles), calibrates
-/// each half and compares the two over the grid ([`cross_validate`]); the answer is each figure's
-/// median over the splits, since one split is one draw of two calibrations' errors. `Err` with
-/// the number of views used when fewer than 6 were used or no split's halves both calibrate.
-pub fn cross_validation(
-    object: &[Vector3<f64>],
-    model: LensModel,
-    fit: &Fit,
-    views: &[Corners],
-    stereo: bool,
-    distance: f64,
-) -> Result<CrossValidation, usize> {
-    let used: Vec<usize> = (0..fit.views.len())
-        .filter(|&v| fit.views[v].status == ViewOutcome::Used)
-        .collect();
-    let count = used.len();
-    if count < 6 {
-        return Err(count);
-    }
-    let mut rng = crate::noise::Rng::new(69);
-    let splits: Vec<Vec<bool>> = (0..SPLITS)
-        .map(|k| match k {
-            0 => (0..count).map(|i| i % 2 == 0).collect(),
-            1 => (0..count).map(|i| i < count / 2).collect(),
-            _ => {
-                let mut order: Vec<usize> = (0..count).collect();
-                for i in (1..count).rev() {
-                    order.swap(i, (rng.next_u64() % (i as u64 + 1)) as usize);
-                }
-                let mut half = vec![false; count];
-                for &i in &order[..count / 2] {
-                    half[i] = true;
-                }
-                half
-            }
-        })
-        .collect();
-    let half = |side: &[bool], want: bool| -> Option<Fit> {
-        let views: Vec<Corners> = views
-            .iter()
-            .enumerate()
-            .map(|(v, c)| match used.iter().position(|&u| u == v) {
-                Some(k) if side[k] == want => c.clone(),
-                _ => Corners {
-                    left: None,
-                    right: None,
-                },
-            })
-            .collect();
-        calibrate(object, fit.size, model, &views, stereo).ok()
-    };
-    let compared: Vec<CrossValidation> = splits
-        .iter()
-        .filter_map(|side| cross_validate(&half(side, true)?, &half(side, false)?, distance))
-        .collect();
-    if compared.is_empty() {
-        return Err(count);
-    }
-    let figure = |f: fn(&CrossValidation) -> f64| median(compared.iter().map(f).collect());
-    Ok(CrossValidation {
-        median_px: figure(|c| c.median_px),
-        worst_px: figure(|c| c.worst_px),
-        predicted_median_px: figure(|c| c.predicted_median_px),
-        predicted_worst_px: figure(|c| c.predicted_worst_px),
-        ratio: figure(|c| c.ratio),
-        ratio_centre: figure(|c| c.ratio_centre),
-        ratio_edge: figure(|c| c.ratio_edge),
-    })
 }

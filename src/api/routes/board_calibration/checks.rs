@@ -1,10 +1,10 @@
 //! What `/calibrate` checks a calibration by besides its RMS: the projection uncertainty over
 //! each image and, when asked, the cross-validation of two halves of the views (the engine is
-//! [`crate::calibration::boards::uncertainty`]).
+//! [`crate::calibration::boards::uncertainty`], [`crate::calibration::boards::cross_validation`]).
 
 use super::Settings;
 use crate::calibration::boards::report::Determination;
-use crate::calibration::boards::{self, uncertainty};
+use crate::calibration::boards::{self, cross_validation, uncertainty};
 
 /// What a user checks the calibration by besides its RMS: whether the views determine it,
 /// the projection σ over each image, and (when asked) the cross-validation of two halves of
@@ -12,7 +12,7 @@ use crate::calibration::boards::{self, uncertainty};
 pub struct Checks {
     pub determination: Determination,
     pub uncertainty: Option<uncertainty::ProjectionUncertainty>,
-    pub cross: Option<uncertainty::CrossValidation>,
+    pub cross: Option<cross_validation::CrossValidation>,
     /// Why the cross-validation asked for was not made.
     pub cross_warning: Option<String>,
 }
@@ -30,7 +30,7 @@ impl Checks {
         if settings.cross_validate {
             let distance = uncertainty.as_ref().map(|u| u.distance);
             let halves = distance.ok_or(0).and_then(|d| {
-                uncertainty::cross_validation(
+                cross_validation::cross_validation(
                     &settings.object,
                     settings.model,
                     fit,

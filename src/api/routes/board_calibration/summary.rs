@@ -14,7 +14,9 @@ use crate::api::wire::params::Unit;
 use crate::api::wire::rig::CalibratedRig;
 use crate::calibration::boards::charuco::CharucoBoard;
 use crate::calibration::boards::report::{self, Rectified};
-use crate::calibration::boards::{self, CameraFit, Corners, Fit, Target, ViewOutcome, uncertainty};
+use crate::calibration::boards::{
+    self, CameraFit, Corners, Fit, Target, ViewOutcome, cross_validation, uncertainty,
+};
 use crate::camera::Model;
 use crate::numbers::round_to;
 
@@ -193,7 +195,7 @@ pub fn summarize(
         }
     }
     if let Some(c) = checks.cross.as_ref().filter(|c| !c.consistent()) {
-        let (low, high) = uncertainty::CONSISTENT;
+        let (low, high) = cross_validation::CONSISTENT;
         warnings.push(if c.ratio > high {
             format!(
                 "the two halves of the views project {:.2} px apart (median; {:.2} px at worst), \
