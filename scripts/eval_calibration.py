@@ -10,28 +10,15 @@ import statistics
 import sys
 import time
 import urllib.parse
-import uuid
 
 import cv2
 import numpy as np
 
+from form import multipart
+
 RUNS = 5
 GOALS = {"f_%": 0.1, "pp_px": 1.0, "T_%": 0.2, "rot_deg": 0.05}
 COLUMNS = ["f_%", "cx_px", "cy_px", "pp_px", "k1", "T_%", "rot_deg"]
-
-
-def multipart(parts):
-    boundary = uuid.uuid4().hex
-    body = bytearray()
-    for name, data, filename, ctype in parts:
-        body += f"--{boundary}\r\n".encode()
-        disposition = f'form-data; name="{name}"'
-        if filename:
-            disposition += f'; filename="{filename}"'
-        body += f"Content-Disposition: {disposition}\r\nContent-Type: {ctype}\r\n\r\n".encode()
-        body += data + b"\r\n"
-    body += f"--{boundary}--\r\n".encode()
-    return bytes(body), f"multipart/form-data; boundary={boundary}"
 
 
 def load(path, truth):

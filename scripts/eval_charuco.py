@@ -34,7 +34,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from eval_calibration import multipart
+from form import multipart
 
 SIZE = (640, 480)
 SETS = [

@@ -29,27 +29,16 @@ import sys
 import tempfile
 import urllib.error
 import urllib.request
-import uuid
 
 import numpy as np
 import mrcal
+
+from form import multipart
 
 NAMES = ["01", "02", "03", "04", "05", "06", "07", "08", "09", "11", "12", "13", "14"]
 # ViSP's copy of these photographs (visp-tools 3.7, data-chessboard.cfg) gives the squares' size.
 BOARD = {"columns": 9, "rows": 6, "square_size": 25.0, "unit": "mm"}
 GRID = (16, 12)
-
-
-def multipart(parts):
-    boundary = uuid.uuid4().hex
-    body = bytearray()
-    for name, data, filename, ctype in parts:
-        body += f"--{boundary}\r\n".encode()
-        disposition = f'form-data; name="{name}"' + (f'; filename="{filename}"' if filename else "")
-        body += f"Content-Disposition: {disposition}\r\nContent-Type: {ctype}\r\n\r\n".encode()
-        body += data + b"\r\n"
-    body += f"--{boundary}--\r\n".encode()
-    return bytes(body), f"multipart/form-data; boundary={boundary}"
 
 
 def calibrate(url, folder, names, distance, query=""):

@@ -314,6 +314,11 @@ async fn projection_uncertainty_and_cross_validation() {
         let noise = p[side]["noise_median_px"].as_f64().unwrap();
         let model = p[side]["model_median_px"].as_f64().unwrap();
         assert!(noise > 0.0 && model >= 0.0, "{side}: {noise} {model}");
+        assert_eq!(
+            p[side]["model_error_dominates"],
+            model > 1.5 * noise,
+            "{side}: {noise} {model}"
+        );
     }
     // Rendered through an exact model: the model's part does not dominate.
     assert_eq!(p["model_error_dominates"], false, "{p}");

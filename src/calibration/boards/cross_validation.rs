@@ -9,7 +9,7 @@ use nalgebra::{DMatrix, DVector, Rotation3, Vector3};
 use super::fit::{Corners, Fit, ViewOutcome, calibrate};
 use super::solve::Pose;
 use super::uncertainty::{
-    FOCUS, GRID, cell_centre, median, median_and_worst, projection_uncertainty,
+    GRID, cell_centre, in_focus, median, median_and_worst, projection_uncertainty,
 };
 use crate::camera::{Camera, Model as LensModel, Size};
 
@@ -43,7 +43,7 @@ impl CrossValidation {
 
 /// Where camera `b` sees the points camera `a` sees at each of `pixels` at `distance`, after
 /// the rigid motion between their frames that best aligns them near the image's centre
-/// (within [`FOCUS`] of the shorter side), as mrcal's `projection_diff` fits it: each
+/// (within [`super::uncertainty::FOCUS`] of the shorter side), as mrcal's `projection_diff` fits it: each
 /// pixel's distance, px.
 pub fn projection_difference(
     a: &Camera,
@@ -59,13 +59,8 @@ pub fn projection_difference(
             Some(Vector3::new(x, y, 1.0).normalize() * distance)
         })
         .collect::<Option<_>>()?;
-    let centre = [
-        (f64::from(size.width) - 1.0) / 2.0,
-        (f64::from(size.height) - 1.0) / 2.0,
-    ];
-    let radius = FOCUS * f64::from(size.width.min(size.height));
     let focus: Vec<usize> = (0..pixels.len())
-        .filter(|&k| (pixels[k][0] - centre[0]).hypot(pixels[k][1] - centre[1]) <= radius)
+        .filter(|&k| in_focus(pixels[k], size))
         .collect();
     if focus.len() < 3 {
         return None;

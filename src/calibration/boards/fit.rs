@@ -4,7 +4,7 @@
 //! over the pairs, with each parameter's standard deviation, the epipolar check and the
 //! rectified rig's uncertainty.
 
-use nalgebra::{DMatrix, Matrix3, Rotation3, Vector3};
+use nalgebra::{DMatrix, DMatrixView, Matrix3, Rotation3, Vector3};
 
 use super::solve::{Lens, Pose, Solution, SolveFault, State, ViewCorners, refine};
 use super::zhang;
@@ -83,14 +83,11 @@ pub struct Fit {
     pub views: Vec<ViewFit>,
     /// The RMS reprojection error (px) over every corner used, both cameras.
     pub rms: f64,
-    /// The covariance of the shared parameters: the left lens, then the right lens and the
-    /// extrinsics' (ω, T) for a pair.
-    pub covariance: DMatrix<f64>,
-    /// Every parameter's covariance, the boards' poses included, for the projection σ.
+    /// Every parameter's covariance, the boards' poses included.
     pub joint: Joint,
 }
 
-/// The whole state's covariance: the shared parameters (as [`Fit::covariance`]), then each
+/// The whole state's covariance: the shared parameters (see [`Fit::covariance`]), then each
 /// used view's board pose (ω, T) in the order of `poses`.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct Joint {
@@ -372,7 +369,6 @@ fn finish(
     } else {
         (None, None)
     };
-    let global = solution.state.global_len();
     let view_fits = (0..views.len())
         .map(|v| {
             if let Some(i) = kept.iter().position(|&k| k == v) {
@@ -405,7 +401,6 @@ fn finish(
         extrinsics,
         views: view_fits,
         rms: solution.rms,
-        covariance: covariance.view((0, 0), (global, global)).into_owned(),
         joint: Joint {
             poses: solution.state.poses.clone(),
             views: solution.view_covariance.clone(),
@@ -416,6 +411,13 @@ fn finish(
 }
 
 impl Fit {
+    /// The covariance of the shared parameters: the left lens, then the right lens and the
+    /// extrinsics' (ω, T) for a pair (the joint covariance less its poses).
+    pub fn covariance(&self) -> DMatrixView<'_, f64> {
+        let shared = self.joint.noise.nrows() - 6 * self.joint.poses.len();
+        self.joint.noise.view((0, 0), (shared, shared))
+    }
+
     /// The calibrated pair, when two cameras were calibrated.
     pub fn pair(&self) -> Option<StereoPair> {
         let (right, e) = (self.right.as_ref()?, self.extrinsics?);
@@ -534,7 +536,8 @@ impl Fit {
             Lens::new(pair.left.intrinsics(), &pair.left.distortion()),
             Lens::new(pair.right.intrinsics(), &pair.right.distortion()),
         ];
-        let n = self.covariance.nrows();
+        let covariance = self.covariance();
+        let n = covariance.nrows();
         let outputs = |step: &[f64]| -> Option<[f64; 2]> {
             let left = lenses[0].moved(step);
             let right = lenses[1].moved(&step[left.len()..]);
@@ -555,7 +558,7 @@ impl Fit {
         };
         let mut gradient = DMatrix::zeros(2, n);
         for i in 0..n {
-            let h = 1e-4 * self.covariance[(i, i)].max(0.0).sqrt().max(1e-9);
+            let h = 1e-4 * covariance[(i, i)].max(0.0).sqrt().max(1e-9);
             let mut step = vec![0.0; n];
             step[i] = h;
             let plus = outputs(&step)?;
@@ -565,7 +568,7 @@ impl Fit {
                 gradient[(k, i)] = (plus[k] - minus[k]) / (2.0 * h);
             }
         }
-        let cov = &gradient * &self.covariance * gradient.transpose();
+        let cov = &gradient * covariance * gradient.transpose();
         Some([cov[(0, 0)].max(0.0).sqrt(), cov[(1, 1)].max(0.0).sqrt()])
     }
 }

@@ -401,7 +401,7 @@ mod tests {
     use super::*;
     use crate::calibration::boards::solve::Pose;
     use crate::camera::{Camera, Distortion, Intrinsics, Model};
-    use nalgebra::{DMatrix, Rotation3, Vector3};
+    use nalgebra::{Rotation3, Vector3};
 
     const SIZE: Size = Size {
         width: 400,
@@ -444,7 +444,6 @@ mod tests {
                 })
                 .collect(),
             rms,
-            covariance: DMatrix::zeros(0, 0),
             joint: Default::default(),
         }
     }

@@ -298,7 +298,7 @@ fn projection_uncertainty_is_high_where_there_were_no_corners() {
 #[test]
 fn projection_sigma_is_honest_against_the_truth() {
     use super::cross_validation::projection_difference;
-    use super::uncertainty::{GRID, projection_uncertainty};
+    use super::uncertainty::{GRID, cell_centre, projection_uncertainty};
     let pair = truth(Model::PlumbBob, &[-0.2, 0.08, 0.0008, -0.0004, -0.01]);
     let mut ratios = Vec::new();
     for seed in 0..8 {
@@ -309,11 +309,7 @@ fn projection_sigma_is_honest_against_the_truth() {
         for j in 0..GRID.1 {
             for i in 0..GRID.0 {
                 if let Some(s) = p.left.grid[j][i] {
-                    let (w, h) = (f64::from(SIZE.width), f64::from(SIZE.height));
-                    pixels.push([
-                        (i as f64 + 0.5) * w / GRID.0 as f64 - 0.5,
-                        (j as f64 + 0.5) * h / GRID.1 as f64 - 0.5,
-                    ]);
+                    pixels.push(cell_centre(SIZE, i, j));
                     sigmas.push(s);
                 }
             }

@@ -228,11 +228,6 @@ impl Model<'_> {
         distance: f64,
     ) -> Option<DMatrix<f64>> {
         let camera = self.lenses[usize::from(self.right)].camera()?;
-        let centre = [
-            (f64::from(size.width) - 1.0) / 2.0,
-            (f64::from(size.height) - 1.0) / 2.0,
-        ];
-        let radius = FOCUS * f64::from(size.width.min(size.height));
         let mut motion = DMatrix::<f64>::zeros(2 * cells.len(), 6);
         let mut focus = Vec::new();
         for (k, cell) in cells.iter().enumerate() {
@@ -256,7 +251,7 @@ impl Model<'_> {
                     motion[(2 * k + c, p)] = (plus[c] - minus[c]) / (2.0 * h);
                 }
             }
-            if (cell.2[0] - centre[0]).hypot(cell.2[1] - centre[1]) <= radius {
+            if in_focus(cell.2, size) {
                 focus.push(k);
             }
         }
@@ -273,6 +268,13 @@ impl Model<'_> {
         let explained = normal.cholesky()?.solve(&(mf.transpose() * jf));
         Some(jacobian - motion * explained)
     }
+}
+
+/// Whether `pixel` lies within [`FOCUS`] of the shorter side from the image's centre, where a
+/// rigid motion of the frame is fitted.
+pub(super) fn in_focus(pixel: [f64; 2], size: Size) -> bool {
+    let (w, h) = (f64::from(size.width), f64::from(size.height));
+    (pixel[0] - (w - 1.0) / 2.0).hypot(pixel[1] - (h - 1.0) / 2.0) <= FOCUS * w.min(h)
 }
 
 /// The worst direction's σ of each cell from the projection Jacobian and a covariance.

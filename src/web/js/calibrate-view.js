@@ -232,7 +232,7 @@ function drawCoverage(calibration) {
     // What the map means (issue 69): the σ of where a point fixed to the boards projects, from
     // how the parameters scatter when the views change, so that what the lens model cannot fit
     // counts beside the corners' noise; told apart, with what to do when the model's part wins.
-    const modelWins = uncertainty && uncertainty.model_median_px > 1.5 * uncertainty.noise_median_px;
+    const modelWins = uncertainty?.model_error_dominates;
     if (uncertainty) picture.dataset.modelError = String(modelWins);
     const sigmaWords = uncertainty
       ? ` Projection σ at ${fmt(summary.projection_uncertainty.distance, 3)} ${summary.board.unit}: median ${fmt(uncertainty.median_px, 2)} px`

@@ -312,6 +312,7 @@ fn projection_grid(g: &uncertainty::CameraGrid) -> ProjectionGrid {
         worst_px: round_to(g.worst_px, 4),
         noise_median_px: round_to(g.noise_median_px, 4),
         model_median_px: round_to(g.model_median_px, 4),
+        model_error_dominates: g.model_error_dominates(),
     }
 }
 

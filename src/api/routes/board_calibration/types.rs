@@ -362,6 +362,9 @@ pub struct ProjectionGrid {
     /// The median over the grid of the part the lens model cannot fit,
     /// √(max(0, σ² − σ_noise²)) cell by cell, px: a lean model on a real lens.
     pub model_median_px: f64,
+    /// Whether the model's part dominates in this camera: `model_median_px` above 1.5 times
+    /// `noise_median_px` (on an exact model the two come out about equal).
+    pub model_error_dominates: bool,
 }
 
 /// How precisely the calibration places a point at `distance` in each image (mrcal's
@@ -384,9 +387,8 @@ pub struct ProjectionUncertaintySummary {
     #[serde(skip_serializing_if = "Option::is_none")]
     #[schema(nullable = false)]
     pub right: Option<ProjectionGrid>,
-    /// Whether, in either camera, what the lens model cannot fit dominates: `model_median_px`
-    /// above 1.5 times `noise_median_px` (on an exact model the two come out about equal). A
-    /// warning then says what to do.
+    /// Whether what the lens model cannot fit dominates in either camera (each camera's
+    /// `model_error_dominates`). A warning then says what to do.
     pub model_error_dominates: bool,
 }
 
