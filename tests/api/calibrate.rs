@@ -429,3 +429,61 @@ async fn sizes_and_missing_boards_name_the_view() {
     assert!(message_for(&p, "left[2]").contains("board not found"));
     assert!(message_for(&p, "left").contains("2 usable views"));
 }
+
+/// On OpenCV's 13 real stereo photographs (tests/data/photographs/opencv-stereo), a lean model
+/// on a real lens: the projection σ's model part outweighs its noise part, each camera says so
+/// and a warning says what to do; the built-in cross-validation (8 splits) finds the halves as
+/// far apart as the σ predicts. Four of the same photographs are too few views to tell the two
+/// parts apart, and nothing is claimed.
+#[tokio::test]
+async fn real_photographs_show_model_error_and_a_true_sigma() {
+    let app = spawn_app().await;
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/data/photographs/opencv-stereo");
+    let names = [
+        "01", "02", "03", "04", "05", "06", "07", "08", "09", "11", "12", "13", "14",
+    ];
+    let photographs = |count: usize| {
+        let mut form = Form::new();
+        for n in &names[..count] {
+            for side in ["left", "right"] {
+                let bytes = std::fs::read(dir.join(format!("{side}{n}.jpg"))).unwrap();
+                let part = Part::bytes(bytes)
+                    .file_name(format!("{side}{n}.jpg"))
+                    .mime_str("image/jpeg")
+                    .unwrap();
+                form = form.part(side, part);
+            }
+        }
+        form.text("board", r#"{"columns": 9, "rows": 6, "square_size": 25}"#)
+    };
+    let all = ok_json(calibrate(&app, "?cross_validate=true", photographs(13)).await).await;
+    let p = &all["projection_uncertainty"];
+    for side in ["left", "right"] {
+        let (noise, model) = (
+            p[side]["noise_median_px"].as_f64().unwrap(),
+            p[side]["model_median_px"].as_f64().unwrap(),
+        );
+        assert!(model > 1.5 * noise, "{side}: noise {noise}, model {model}");
+        assert_eq!(p[side]["model_error_dominates"], true, "{p}");
+    }
+    assert_eq!(p["model_error_dominates"], true);
+    let warnings = all["warnings"].to_string();
+    assert!(
+        warnings.contains("model error dominates the left camera")
+            && warnings.contains("rational_polynomial"),
+        "{warnings}"
+    );
+    let c = &all["cross_validation"];
+    let ratio = c["ratio"].as_f64().unwrap();
+    assert!((0.7..=1.4).contains(&ratio), "{c}");
+    assert_eq!(c["consistent"], true, "{c}");
+    let few = ok_json(calibrate(&app, "", photographs(4)).await).await;
+    let p = &few["projection_uncertainty"];
+    assert_eq!(p["model_error_dominates"], false, "{p}");
+    assert!(
+        !few["warnings"]
+            .to_string()
+            .contains("model error dominates")
+    );
+}

@@ -35,17 +35,23 @@ pub struct CameraGrid {
     /// The median over the grid of the rest, what the lens model cannot fit:
     /// √(max(0, σ² − σ_noise²)) cell by cell.
     pub model_median_px: f64,
+    /// The views whose scatter gave the σ.
+    pub views: usize,
 }
 
 impl CameraGrid {
     /// Whether what the model cannot fit dominates: over the grid, more than [`DOMINATES`]
-    /// times the noise's part. The jackknife over few views leans cautious, so on an exact
-    /// model the two parts come out about equal; a lean model on a real lens leaves twice
-    /// the noise's part and more.
+    /// times the noise's part, from at least [`SCATTER_VIEWS`] views. On an exact model the
+    /// two parts come out about equal; a lean model on a real lens leaves twice the noise's
+    /// part and more. Fewer views scatter too little to tell the two apart.
     pub fn model_error_dominates(&self) -> bool {
-        self.model_median_px > DOMINATES * self.noise_median_px
+        self.views >= SCATTER_VIEWS && self.model_median_px > DOMINATES * self.noise_median_px
     }
 }
+
+/// The fewest views whose scatter can tell the model's part from the noise's (as many as
+/// cross-validation's two halves need).
+pub const SCATTER_VIEWS: usize = 6;
 
 /// Both cameras' projection σ for points at `distance` (the board's unit).
 #[derive(Debug, Clone, PartialEq)]
@@ -368,6 +374,7 @@ fn camera_grid(fit: &Fit, right: bool, distance: f64) -> Option<CameraGrid> {
         worst_px,
         noise_median_px: median(noise.into_iter().flatten().collect()),
         model_median_px: median(model_part),
+        views: fit.joint.poses.len(),
     })
 }
 

@@ -363,7 +363,8 @@ pub struct ProjectionGrid {
     /// √(max(0, σ² − σ_noise²)) cell by cell, px: a lean model on a real lens.
     pub model_median_px: f64,
     /// Whether the model's part dominates in this camera: `model_median_px` above 1.5 times
-    /// `noise_median_px` (on an exact model the two come out about equal).
+    /// `noise_median_px` (on an exact model the two come out about equal), from 6 views used
+    /// or more (fewer scatter too little to tell the two parts apart).
     pub model_error_dominates: bool,
 }
 
