@@ -372,7 +372,11 @@ pub fn cors(origins: &[String]) -> Option<CorsLayer> {
             .allow_origin(allow_origin)
             .allow_methods([Method::GET, Method::POST])
             .allow_headers([header::CONTENT_TYPE, header::ACCEPT, X_REQUEST_ID.clone()])
-            .expose_headers([X_REQUEST_ID.clone(), header::RETRY_AFTER])
+            .expose_headers([
+                X_REQUEST_ID.clone(),
+                header::RETRY_AFTER,
+                axum::http::HeaderName::from_static(crate::api::images::output::WARNINGS_HEADER),
+            ])
             .max_age(Duration::from_secs(3600)),
     )
 }

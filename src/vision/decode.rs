@@ -53,6 +53,8 @@ pub enum DecodeError {
         height: u32,
         limits: DecodeLimits,
     },
+    /// The data ends before the image does (an interrupted copy).
+    Truncated,
     /// The header or the data is damaged (the decoder's words).
     Corrupt(String),
 }
@@ -64,6 +66,9 @@ pub struct Decoded {
     pub grey: Gray,
     /// RGB, 8 bits a channel, row-major; present when decoding was asked to keep colour.
     pub rgb: Option<Vec<u8>>,
+    /// What was forgiven to read it (a JPEG without its end-of-image marker), in a sentence
+    /// about the file.
+    pub note: Option<String>,
 }
 
 /// The format of `bytes` from its signature, or why it is not one read here.
@@ -152,7 +157,19 @@ pub fn decode(bytes: &[u8], limits: DecodeLimits, colour: bool) -> Result<Decode
     };
     let mut decoder = reader.into_decoder().map_err(refused)?;
     let orientation = decoder.orientation().map_err(refused)?;
-    let mut image = DynamicImage::from_decoder(decoder).map_err(refused)?;
+    let (mut image, note) = match format {
+        // Strictly, so that a cut-off or damaged file is named (the lenient decoder fills it
+        // with grey); the header was already judged against the limits.
+        Codec::Jpeg => {
+            drop(decoder);
+            let read = super::jpeg::read(bytes, limits.max_side).map_err(|fault| match fault {
+                super::jpeg::Fault::Truncated => DecodeError::Truncated,
+                super::jpeg::Fault::Corrupt(what) => DecodeError::Corrupt(what),
+            })?;
+            (read.image, read.note)
+        }
+        Codec::Png => (DynamicImage::from_decoder(decoder).map_err(refused)?, None),
+    };
     // As shown: `dimensions` already gave the turned size.
     image.apply_orientation(orientation);
     let grey = grey_levels(&image);
@@ -161,6 +178,7 @@ pub fn decode(bytes: &[u8], limits: DecodeLimits, colour: bool) -> Result<Decode
         format,
         grey: Gray::new(width as usize, height as usize, grey),
         rgb,
+        note,
     })
 }
 
@@ -204,7 +222,12 @@ fn reader(bytes: &[u8], format: Codec) -> ImageReader<Cursor<&[u8]>> {
 }
 
 fn corrupt(e: &ImageError) -> DecodeError {
-    DecodeError::Corrupt(e.to_string())
+    match e {
+        ImageError::IoError(io) if io.kind() == std::io::ErrorKind::UnexpectedEof => {
+            DecodeError::Truncated
+        }
+        other => DecodeError::Corrupt(other.to_string()),
+    }
 }
 
 #[cfg(test)]
@@ -318,8 +341,18 @@ mod tests {
         assert_eq!(sniff(b"GIF89a..."), Err(DecodeError::Unsupported("GIF")));
         assert_eq!(sniff(b"hello"), Err(DecodeError::NotAnImage));
         assert_eq!(sniff(b""), Err(DecodeError::NotAnImage));
-        assert!(matches!(
+        assert_eq!(
             decode(b"\x89PNG\r\n\x1a\nbroken", LIMITS, false),
+            Err(DecodeError::Truncated)
+        );
+        // A PNG whose data ends early is cut off; one with a flipped bit fails its checksum.
+        let whole = png(40, 30);
+        let cut = &whole[..whole.len() - 20];
+        assert_eq!(decode(cut, LIMITS, false), Err(DecodeError::Truncated));
+        let mut flipped = whole.clone();
+        flipped[whole.len() - 20] ^= 1;
+        assert!(matches!(
+            decode(&flipped, LIMITS, false),
             Err(DecodeError::Corrupt(_))
         ));
     }

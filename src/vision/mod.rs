@@ -35,7 +35,7 @@
 //! (`camera::undistort_rectify_map`), as OpenCV's `remap`; after it, for pairs sent as
 //! rectified, [`rows`] checks that matched corners lie on their rows.
 //!
-//! Around it: [`decode`] reads PNG and JPEG under limits, [`encode`] writes PFM, NPY, 16-bit
+//! Around it: [`decode`] reads PNG and JPEG under limits ([`jpeg`] strictly), [`encode`] writes PFM, NPY, 16-bit
 //! PNG, the colour preview and PLY, and [`synthetic`] renders pairs with exact ground truth.
 
 pub mod census;
@@ -45,6 +45,7 @@ pub mod decode;
 pub mod encode;
 pub mod filters;
 pub mod huge_pages;
+pub mod jpeg;
 mod params;
 pub mod plane;
 pub mod pyramid;

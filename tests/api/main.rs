@@ -6,6 +6,7 @@ mod calibrate;
 mod calibration;
 mod chart;
 mod charuco;
+mod damaged;
 mod depth_map;
 mod disparity;
 mod distance;

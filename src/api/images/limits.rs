@@ -23,6 +23,9 @@ pub fn describe(e: &DecodeError, limits: DecodeLimits) -> String {
             format!("is a {format} file; send the image as PNG or JPEG")
         }
         DecodeError::TooLarge { width, height, .. } => too_many_pixels(*width, *height, limits),
+        DecodeError::Truncated => "is cut off: the file ends before its image does (an \
+                                    interrupted copy or upload?); send the whole file"
+            .to_owned(),
         DecodeError::Corrupt(what) => {
             format!("could not be decoded: {}", crate::numbers::clip(what, 120))
         }

@@ -1,6 +1,7 @@
 //! How an image route answers: a file with its `Content-Type` and `Content-Disposition`
-//! ([`file`]), documented as binary ([`FileBody`]), and the `Server-Timing` header of its
-//! stages ([`set_server_timing`]).
+//! ([`file`]), documented as binary ([`FileBody`]), the `Server-Timing` header of its
+//! stages ([`set_server_timing`]) and the `Stereo-Warnings` header of its warnings
+//! ([`set_warnings`]), which a file answer has nowhere else to say.
 
 use std::time::Duration;
 
@@ -50,9 +51,61 @@ pub fn set_server_timing(response: &mut Response, stages: &[(&str, Duration)]) {
     }
 }
 
+/// The header that carries an image answer's warnings.
+pub const WARNINGS_HEADER: &str = "stereo-warnings";
+
+/// `Stereo-Warnings: ["…", …]`: the answer's warnings as a JSON array of strings, in ASCII
+/// (other characters escaped as `\uXXXX`), so that a file answer says what a summary's
+/// `warnings` says; no header when there are none.
+pub fn set_warnings(response: &mut Response, warnings: &[String]) {
+    if warnings.is_empty() {
+        return;
+    }
+    let mut text = String::from("[");
+    for (i, warning) in warnings.iter().enumerate() {
+        if i > 0 {
+            text.push(',');
+        }
+        text.push('"');
+        for c in warning.chars() {
+            match c {
+                '"' => text.push_str("\\\""),
+                '\\' => text.push_str("\\\\"),
+                ' '..='~' => text.push(c),
+                other => {
+                    let mut units = [0u16; 2];
+                    for unit in other.encode_utf16(&mut units) {
+                        text.push_str(&format!("\\u{unit:04x}"));
+                    }
+                }
+            }
+        }
+        text.push('"');
+    }
+    text.push(']');
+    if let Ok(v) = HeaderValue::from_str(&text) {
+        response.headers_mut().insert(WARNINGS_HEADER, v);
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The header is JSON in ASCII that reads back to the warnings, quotes, σ and emoji too.
+    #[test]
+    fn warnings_ride_in_a_json_header() {
+        let said = vec!["σ_d is \"high\" \\ here".to_owned(), "a 🙂 b".to_owned()];
+        let mut r = file(vec![1], "image/png", "x.png", Disposition::Inline);
+        set_warnings(&mut r, &said);
+        let text = r.headers()[WARNINGS_HEADER].to_str().unwrap();
+        assert!(text.is_ascii());
+        let back: Vec<String> = serde_json::from_str(text).unwrap();
+        assert_eq!(back, said);
+        let mut quiet = file(vec![1], "image/png", "x.png", Disposition::Inline);
+        set_warnings(&mut quiet, &[]);
+        assert!(!quiet.headers().contains_key(WARNINGS_HEADER));
+    }
 
     /// A file answer carries its media type and name, inline or as an attachment.
     #[test]

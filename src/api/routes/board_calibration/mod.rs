@@ -283,15 +283,19 @@ fn image_sizes(
     Ok(first)
 }
 
-/// One image's board: decoded, found and refined; the outer error is the image's decoding.
-type Found = Result<Result<boards::Seen, TargetMiss>, FieldError>;
+/// One image's board: decoded, found and refined, with what the decoder forgave (named by
+/// the part); the outer error is the image's decoding.
+type Found = Result<(Result<boards::Seen, TargetMiss>, Option<String>), FieldError>;
 
 fn find(name: String, bytes: &Bytes, board: &Target, allowed: DecodeLimits) -> Found {
-    let decoded = decode::decode(bytes, allowed, false)
-        .map_err(|e| FieldError::new(name, limits::describe(&e, allowed)))?;
+    let decoded = match decode::decode(bytes, allowed, false) {
+        Ok(decoded) => decoded,
+        Err(e) => return Err(FieldError::new(name, limits::describe(&e, allowed))),
+    };
+    let note = decoded.note.map(|note| format!("{name} {note}"));
     let grey = decoded.grey;
     let luma = Luma::from_u16(grey.width, grey.height, &grey.data);
-    Ok(board.find(&luma))
+    Ok((board.find(&luma), note))
 }
 
 /// Finds the boards, calibrates and writes the answer, on a blocking thread.
@@ -327,10 +331,14 @@ fn compute(
         ));
     }
     let mut undecodable = Vec::new();
+    let mut notes = Vec::new();
     let mut misses: Vec<Result<boards::Seen, TargetMiss>> = Vec::with_capacity(found.len());
     for f in found.into_iter().flatten() {
         match f {
-            Ok(r) => misses.push(r),
+            Ok((r, note)) => {
+                misses.push(r);
+                notes.extend(note);
+            }
             Err(e) => {
                 undecodable.push(e);
                 misses.push(Err(TargetMiss::Chessboard(Miss::NoGrid)));
@@ -391,7 +399,7 @@ fn compute(
     let mut response = match settings.output {
         CalibrateOutput::Summary => {
             let checks = Checks::of(&fit, &views, settings, stereo, determination);
-            let summary = summary::summarize(
+            let mut summary = summary::summarize(
                 &fit,
                 &views,
                 &reasons,
@@ -401,6 +409,8 @@ fn compute(
                 &checks,
                 [detect, solve, rectify],
             );
+            summary.warnings.splice(0..0, notes.drain(..));
+            notes.clone_from(&summary.warnings);
             Json(summary).into_response()
         }
         CalibrateOutput::OpencvYml => {
@@ -454,6 +464,7 @@ fn compute(
         &mut response,
         &[("detect", detect), ("solve", solve), ("rectify", rectify)],
     );
+    output::set_warnings(&mut response, &notes);
     Ok(response)
 }
 

@@ -29,7 +29,6 @@ use crate::api::images::{GivenRig, ImageForm, ImagePair, Job, limits, rig};
 use crate::api::respond::Json;
 use crate::calibration::files::Raw;
 use crate::physics::LengthUnit;
-use crate::vision::rows::RowOffsets;
 use crate::vision::{self, Cancelled, Disparity, Params, encode};
 
 /// `POST /depth-map`.
@@ -170,12 +169,26 @@ fn compute(
     let rectify_time = raw.map(|raw| raw::rectify_raw_pair(&mut left, &mut right, raw, colour));
     let (map, timings) = vision::disparity(&left.grey, &right.grey, params, cancel)
         .map_err(|Cancelled| ApiError::Internal("cancelled".to_owned()))?;
-    // A pair sent as rectified: do its matched corners lie on their rows? (Summary only: the
-    // files have nowhere to say it.)
-    let rows = (raw.is_none() && output == DepthMapOutput::Summary)
+    // A pair sent as rectified: do its matched corners lie on their rows? (A file answer says
+    // so in its `Stereo-Warnings` header.)
+    let rows = raw
+        .is_none()
         .then(|| raw::row_check(&left, &right, params))
         .flatten();
+    let mut warnings = given.as_ref().map_or_else(Vec::new, |g| g.warnings.clone());
+    warnings.extend(work::decode_notes(&left, &right));
     drop(right);
+    let valid = map.data.iter().filter(|d| !d.is_nan()).count();
+    let valid_fraction = valid as f64 / map.data.len().max(1) as f64;
+    if rectify_time.is_some() {
+        warnings.push(format!(
+            "the raw pair was rectified first: the maps are the rectified left camera's, {} × \
+             {} px, and the depths use the rectified rig",
+            map.width, map.height
+        ));
+    } else if let Some(warning) = raw::unrectified_warning(Some(valid_fraction), rows) {
+        warnings.push(warning);
+    }
     let started = Instant::now();
     let rig = given.as_ref().map(|g| g.rig);
     let depth = rig.map(|rig| depths(&map, rig.fb() as f32, rig.doffs() as f32));
@@ -189,8 +202,8 @@ fn compute(
             &map,
             (depth.as_deref(), depth_std.as_deref()),
             params,
-            given,
-            (rectify_time, rows),
+            (given, warnings.clone()),
+            (rectify_time, valid_fraction),
             [decode_time, timings.cost, timings.aggregate, timings.refine],
             timings.paths,
         )),
@@ -245,6 +258,7 @@ fn compute(
         }
         Err(summary) => Json(summary).into_response(),
     };
+    output::set_warnings(&mut response, &warnings);
     set_server_timing(
         &mut response,
         &work::matcher_stages([read, queue, decode_time], &timings, &after),
@@ -338,29 +352,19 @@ fn spread(values: &[f32]) -> Option<Spread> {
     })
 }
 
-/// The summary of `map` with its depths and their σ (`(depth, depth_std)`, with a rig).
+/// The summary of `map` with its depths and their σ (`(depth, depth_std)`, with a rig) and
+/// the answer's warnings.
 fn summary(
     map: &Disparity,
     (depth, depth_std): (Option<&[f32]>, Option<&[f32]>),
     params: &Params,
-    given: Option<GivenRig>,
-    (rectified, rows): (Option<Duration>, Option<RowOffsets>),
+    (given, warnings): (Option<GivenRig>, Vec<String>),
+    (rectified, valid_fraction): (Option<Duration>, f64),
     [decode, cost, aggregate, refine]: [Duration; 4],
     paths: Option<vision::sgm::Paths>,
 ) -> DepthMapSummary {
-    let valid = map.data.iter().filter(|d| !d.is_nan()).count();
     let ms = |d: Duration| (d.as_secs_f64() * 1e4).round() / 10.0;
-    let (rig, mut warnings) = given.map_or((None, Vec::new()), |g| (Some(g.echo()), g.warnings));
-    let valid_fraction = valid as f64 / map.data.len().max(1) as f64;
-    if rectified.is_some() {
-        warnings.push(format!(
-            "the raw pair was rectified first: the maps are the rectified left camera's, {} × \
-             {} px, and the depths use the rectified rig",
-            map.width, map.height
-        ));
-    } else if let Some(warning) = raw::unrectified_warning(Some(valid_fraction), rows) {
-        warnings.push(warning);
-    }
+    let rig = given.map(|g| g.echo());
     DepthMapSummary {
         width: map.width,
         height: map.height,

@@ -26,7 +26,7 @@ use crate::api::HeavyState;
 use crate::api::error::{ApiError, FieldErrors};
 use crate::api::extract::{QueryParams, decode_object};
 use crate::api::images::maps::MapCache;
-use crate::api::images::output::set_server_timing;
+use crate::api::images::output::{self, set_server_timing};
 use crate::api::images::raw;
 use crate::api::images::work;
 use crate::api::images::{ImageForm, ImagePair, Job, Parts, limits, rig};
@@ -426,6 +426,7 @@ fn compute(
     // A pair sent as rectified: do its corners lie on their rows?
     let rows = raw.is_none().then(|| raw::row_check(&left, &right, params));
     let mut warnings = given.warnings.clone();
+    warnings.extend(work::decode_notes(&left, &right));
     warnings.extend(rows.and_then(|r| raw::unrectified_warning(None, r)));
     let ms = |d: std::time::Duration| (d.as_secs_f64() * 1e4).round() / 10.0;
     let t = found.timings;
@@ -453,7 +454,9 @@ fn compute(
         },
         warnings,
     };
+    let said = answer.warnings.clone();
     let mut response = Json(answer).into_response();
+    output::set_warnings(&mut response, &said);
     let started = Instant::now();
     drop((left, right, found));
     let drop_time = started.elapsed();

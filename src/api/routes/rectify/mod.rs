@@ -220,11 +220,14 @@ fn compute(
         started.elapsed()
     };
     let mut timing = vec![("read", read), ("queue", queue), ("maps", maps_time)];
+    let mut warnings = given.warnings.clone();
     let body = match output {
         RectifyOutput::Summary => {
             let t = Instant::now();
             let (left, right) = decode_both()?;
             let decode_time = t.elapsed();
+            let mut warnings = given.warnings.clone();
+            warnings.extend(work::decode_notes(&left, &right));
             let t = Instant::now();
             let grey = |d: &Decoded, map| remap::remap_fixed(RawImage::grey(&d.grey), map, how);
             let _ = rayon::join(|| grey(&left, &maps.left), || grey(&right, &maps.right));
@@ -250,16 +253,18 @@ fn compute(
                     maps: ms(maps_time),
                     remap: ms(remap_time),
                 },
-                warnings: given.warnings.clone(),
+                warnings: warnings.clone(),
             };
             let mut response = Json(summary).into_response();
             set_server_timing(&mut response, &timing);
+            output::set_warnings(&mut response, &warnings);
             return Ok(response);
         }
         _ => {
             let t = Instant::now();
             let (left, right) = decode_both()?;
             timing.push(("decode", t.elapsed()));
+            warnings.extend(work::decode_notes(&left, &right));
             let t = Instant::now();
             let bytes = match output {
                 RectifyOutput::LeftPng => png(&left, &maps.left, how),
@@ -275,6 +280,7 @@ fn compute(
     };
     let mut response = file(body, output);
     set_server_timing(&mut response, &timing);
+    output::set_warnings(&mut response, &warnings);
     Ok(response)
 }
 
