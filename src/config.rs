@@ -183,6 +183,16 @@ pub struct DepthMapArgs {
     /// 20 % more frames a second than one at a time on 2 cores).
     #[arg(long, value_name = "N", value_parser = count::<1, 64>)]
     pub jobs: Option<usize>,
+    /// How many times a frame is sent again when the service cannot be reached (refused,
+    /// reset) or answers 502, 503 or 504, waiting 0.5 s, 1 s, 2 s … up to 10 s between tries
+    /// (with jitter), or as its Retry-After says (default 10: about 50 s, through a pod's
+    /// restart or a rolling update); 0 stops at the first.
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(0..=100))]
+    pub retries: Option<u32>,
+    /// Count a pair the service warns about as failed, and write nothing for it (the
+    /// warnings are printed either way).
+    #[arg(long)]
+    pub strict: bool,
 }
 
 /// Log line format.

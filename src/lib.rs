@@ -63,7 +63,8 @@
 //!   and graceful shutdown, the health-check probe.
 //! - [`batch`]: the `depth-map` command: a recording's folder of pairs to depth maps, through
 //!   the [`server`]'s router in process or over HTTP to a running service, resumable, with a
-//!   progress bar.
+//!   progress bar; its settings checked before the first frame, a restarting service waited
+//!   for, broken frames named and skipped, the service's warnings printed once.
 //! - Outside this crate, in the workspace: `crates/conformance` (dev only), what the service
 //!   promises for any input, checked in process: the oracle of the fuzz target and of
 //!   `tests/hostile_input.rs`.

@@ -1,17 +1,29 @@
 //! `stereo-distance depth-map`: every pair of a recording's folder(s) to depth maps, as
 //! `/depth-map` makes them, in this process (through the service's own router, its limits and
 //! its cache of rectification maps) or sent to a running service (`--server`). Pairs already
-//! written are skipped, so a stopped run resumes; each file is written under a temporary name
-//! and renamed when whole. A file without a partner, or one the service cannot read, is named
-//! with its reason and the rest go on; a calibration the service refuses, or a service that
-//! cannot be reached, stops the run.
+//! written are skipped, so a stopped run resumes; each file is written once, under a
+//! temporary name renamed when whole, when its answer arrives.
+//!
+//! What goes wrong is told apart: a fault in the run's settings (the calibration, the range,
+//! the output) stops the run before the first frame is sent; a frame that cannot be read, or
+//! that the service refuses by its parts (a 422 naming `left` or `right`), is named with its
+//! reason and the rest go on; a service that restarts, refuses connections or answers 502,
+//! 503 or 504 is waited for (`--retries`, with backoff and jitter, or its `Retry-After`), and
+//! only one that stays away stops the run. The service's warnings are printed once each, and
+//! grouped at the end; `--strict` makes a warned pair a failed one.
 //!
 //! - [`pairing`]: which files make a pair (by name, as the page pairs them);
+//! - [`preflight`]: the run's settings checked before the first frame;
 //! - [`transport`]: the router in process, or HTTP/1.1 to a service;
+//! - [`retry`]: when and after how long a frame is sent again;
+//! - [`said`]: the warnings, once each and grouped;
 //! - [`progress`]: the bar on a terminal, plain lines elsewhere.
 
 pub mod pairing;
+pub mod preflight;
 pub mod progress;
+pub mod retry;
+pub mod said;
 pub mod transport;
 
 use std::collections::VecDeque;
@@ -23,14 +35,11 @@ use std::time::{Duration, Instant};
 
 use pairing::{FramePair, Unpaired, file_name};
 use progress::Progress;
+use retry::Policy;
+use said::Said;
 use transport::{Answer, Server, Transport};
 
 use crate::config::{Config, DepthMapArgs};
-
-/// How many times a pair refused with 503 (the service busy) is sent again.
-const RETRIES: usize = 10;
-/// The longest wait before sending again, whatever `Retry-After` says.
-const LONGEST_WAIT: Duration = Duration::from_secs(10);
 
 /// How a run ended.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -69,6 +78,19 @@ struct Plan {
     calibration_unit: Option<String>,
     out: PathBuf,
     extension: String,
+    policy: Policy,
+    strict: bool,
+}
+
+/// What a worker tells the run: that it waits to send a frame again, or how a pair ended
+/// (with the service's warnings about it).
+enum Event {
+    Waiting(String),
+    Done {
+        pair: FramePair,
+        warnings: Vec<String>,
+        result: Result<(), Failure>,
+    },
 }
 
 /// The run itself, reporting into `out` (a bar when `bar`). `Err` is what stopped it.
@@ -112,6 +134,12 @@ pub async fn depth_maps<W: std::io::Write>(
         )),
         None => None,
     };
+    preflight::check(
+        &args,
+        &output,
+        calibration.as_ref(),
+        pairs.iter().map(|p| p.left.as_path()),
+    )?;
     std::fs::create_dir_all(&args.out)
         .map_err(|e| format!("cannot make the folder {}: {e}", args.out.display()))?;
     let mut query = format!("/depth-map?output={output}");
@@ -138,6 +166,10 @@ pub async fn depth_maps<W: std::io::Write>(
         } else {
             output
         },
+        policy: Policy {
+            retries: args.retries.unwrap_or(retry::DEFAULT_RETRIES),
+        },
+        strict: args.strict,
     });
 
     let (todo, already): (Vec<FramePair>, Vec<FramePair>) =
@@ -169,7 +201,7 @@ pub async fn depth_maps<W: std::io::Write>(
     let jobs = args.jobs.unwrap_or(2).clamp(1, todo.len().max(1));
     let total = todo.len();
     let queue = Arc::new(Mutex::new(VecDeque::from(todo)));
-    let (sender, mut results) = tokio::sync::mpsc::channel(jobs * 2);
+    let (sender, mut events) = tokio::sync::mpsc::channel(jobs * 4);
     let started = Instant::now();
     let mut workers = Vec::new();
     for _ in 0..jobs {
@@ -183,8 +215,13 @@ pub async fn depth_maps<W: std::io::Write>(
             loop {
                 let next = queue.lock().ok().and_then(|mut q| q.pop_front());
                 let Some(pair) = next else { break };
-                let result = one_pair(&mut transport, &plan, &pair).await;
-                if sender.send((pair, result)).await.is_err() {
+                let (warnings, result) = one_pair(&mut transport, &plan, &pair, &sender).await;
+                let done = Event::Done {
+                    pair,
+                    warnings,
+                    result,
+                };
+                if sender.send(done).await.is_err() {
                     break;
                 }
             }
@@ -196,8 +233,27 @@ pub async fn depth_maps<W: std::io::Write>(
         unpaired: unpaired.len(),
         ..Outcome::default()
     };
+    let mut said = Said::default();
     let mut stopped = None;
-    while let Some((pair, result)) = results.recv().await {
+    while let Some(event) = events.recv().await {
+        let (pair, warnings, result) = match event {
+            Event::Waiting(why) => {
+                if bar {
+                    progress.waiting(why);
+                } else {
+                    progress.say(&format!("waiting: {why}"));
+                }
+                continue;
+            }
+            Event::Done {
+                pair,
+                warnings,
+                result,
+            } => (pair, warnings, result),
+        };
+        for line in said.add(&pair.name, &warnings) {
+            progress.say(&line);
+        }
         match result {
             Ok(()) => {
                 outcome.written += 1;
@@ -218,6 +274,9 @@ pub async fn depth_maps<W: std::io::Write>(
         worker.abort();
     }
     progress.close();
+    for line in said.summary() {
+        progress.say(&line);
+    }
     let seconds = started.elapsed().as_secs_f64();
     let made = outcome.written + outcome.failed;
     let rate = if seconds > 0.0 && made > 0 {
@@ -263,16 +322,27 @@ enum Failure {
     Run(String),
 }
 
-/// One pair: read, sent (again while the service is busy), written under a temporary name
-/// and renamed.
-async fn one_pair(transport: &mut Transport, plan: &Plan, pair: &FramePair) -> Result<(), Failure> {
+/// One pair: read, sent (again, after a wait, while the service cannot be reached or is
+/// unavailable), and written under a temporary name and renamed when its answer arrives.
+/// Gives the service's warnings with the result.
+async fn one_pair(
+    transport: &mut Transport,
+    plan: &Plan,
+    pair: &FramePair,
+    events: &tokio::sync::mpsc::Sender<Event>,
+) -> (Vec<String>, Result<(), Failure>) {
     let read = |path: PathBuf| async move {
         tokio::fs::read(&path)
             .await
             .map_err(|e| Failure::Pair(format!("cannot read {}: {e}", path.display())))
     };
-    let left = read(pair.left.clone()).await?;
-    let right = read(pair.right.clone()).await?;
+    let (left, right) = match (
+        read(pair.left.clone()).await,
+        read(pair.right.clone()).await,
+    ) {
+        (Ok(left), Ok(right)) => (left, right),
+        (Err(e), _) | (_, Err(e)) => return (Vec::new(), Err(e)),
+    };
     let mut parts: Vec<(&str, Option<String>, &[u8])> = vec![
         ("left", Some(file_name(&pair.left)), &left),
         ("right", Some(file_name(&pair.right)), &right),
@@ -284,22 +354,56 @@ async fn one_pair(transport: &mut Transport, plan: &Plan, pair: &FramePair) -> R
         parts.push(("calibration_unit", None, unit.as_bytes()));
     }
     let (body, content_type) = multipart(&parts);
-    let mut tries = 0;
+    let mut retry = 0;
     let answer: Answer = loop {
-        let answer = transport
+        let (why, asked) = match transport
             .post(&plan.path_and_query, &content_type, body.clone())
             .await
-            .map_err(Failure::Run)?;
-        if answer.status == 503 && tries < RETRIES {
-            tries += 1;
-            let wait = Duration::from_secs(answer.retry_after.unwrap_or(1)).min(LONGEST_WAIT);
-            tokio::time::sleep(wait).await;
-            continue;
-        }
-        break answer;
+        {
+            Ok(answer) if retry::retried_status(answer.status) => (
+                format!("the service answered {}", status_words(answer.status)),
+                answer.retry_after,
+            ),
+            Ok(answer) => break answer,
+            Err(unreachable) => (unreachable, None),
+        };
+        retry += 1;
+        let jitter = f64::from(uuid::Uuid::new_v4().as_u128() as u32) / f64::from(u32::MAX);
+        let Some(wait) = plan.policy.wait(retry, asked, jitter) else {
+            let tries = if retry == 1 {
+                "on the only try".to_owned()
+            } else {
+                format!("on each of {retry} tries")
+            };
+            return (
+                Vec::new(),
+                Err(Failure::Run(format!(
+                    "{why}, {tries} (--retries {})",
+                    plan.policy.retries
+                ))),
+            );
+        };
+        let _ = events
+            .send(Event::Waiting(format!(
+                "{why}; sending {} again in {:.1} s (retry {retry} of {})",
+                pair.name,
+                wait.as_secs_f64(),
+                plan.policy.retries
+            )))
+            .await;
+        tokio::time::sleep(wait).await;
     };
+    let warnings = answer.warnings.clone();
     if answer.status != 200 {
-        return Err(refusal(&answer, pair));
+        return (warnings, Err(refusal(&answer, pair)));
+    }
+    if plan.strict && !warnings.is_empty() {
+        return (
+            warnings,
+            Err(Failure::Pair(
+                "the service warned about it (--strict): not written".to_owned(),
+            )),
+        );
     }
     let target = plan.target(pair);
     let partial = plan
@@ -309,43 +413,53 @@ async fn one_pair(transport: &mut Transport, plan: &Plan, pair: &FramePair) -> R
         tokio::fs::write(&partial, &answer.body).await?;
         tokio::fs::rename(&partial, &target).await
     };
-    written
+    let result = written
         .await
-        .map_err(|e| Failure::Run(format!("cannot write {}: {e}", target.display())))
+        .map_err(|e| Failure::Run(format!("cannot write {}: {e}", target.display())));
+    (warnings, result)
 }
 
-/// What a refusal says, each field named by the file it is about; a refusal of the
-/// calibration or of the service's state stops the run.
+/// A status with its reason phrase: `503 Service Unavailable`.
+fn status_words(status: u16) -> String {
+    let reason = axum::http::StatusCode::from_u16(status)
+        .ok()
+        .and_then(|s| s.canonical_reason())
+        .unwrap_or("");
+    format!("{status} {reason}").trim_end().to_owned()
+}
+
+/// What a refusal says, each part named by the file it is about. The run's settings were
+/// checked before the first frame, so a 422 or 413 is the pair's (an image that cannot be
+/// read, a frame of another size); so is a 500 or a timeout of this frame's work. A refused
+/// token (401, 403) or a request the service does not take (400, 404, 405, 415) would refuse
+/// every frame alike: they stop the run.
 fn refusal(answer: &Answer, pair: &FramePair) -> Failure {
     let problem: serde_json::Value = serde_json::from_slice(&answer.body).unwrap_or_default();
     let detail = problem["detail"].as_str().unwrap_or("").to_owned();
     let mut lines = Vec::new();
-    let mut about_the_run = false;
     for error in problem["errors"].as_array().into_iter().flatten() {
         let field = error["field"].as_str().unwrap_or("");
         let message = error["message"].as_str().unwrap_or("");
         let what = match field {
             "left" => pair.left.display().to_string(),
             "right" => pair.right.display().to_string(),
-            other => {
-                about_the_run |= !other.starts_with("left") && !other.starts_with("right");
-                other.to_owned()
-            }
+            other => other.to_owned(),
         };
         lines.push(format!("{what}: {message}"));
     }
     let said = if lines.is_empty() {
-        format!("{} {detail}", answer.status)
+        format!("{} {detail}", status_words(answer.status))
+            .trim_end()
+            .to_owned()
     } else {
         lines.join("; ")
     };
-    if about_the_run && answer.status != 413 {
-        Failure::Run(format!(
-            "the service refused the run's settings ({}): {said}",
-            answer.status
-        ))
-    } else {
-        Failure::Pair(said)
+    match answer.status {
+        400..=407 | 409..=412 | 414..=421 => Failure::Run(format!(
+            "the service refused the run ({}): {said}",
+            status_words(answer.status)
+        )),
+        _ => Failure::Pair(said),
     }
 }
 

@@ -14,6 +14,8 @@ pub struct Progress<W: Write> {
     failed: usize,
     started: Instant,
     drawn: Option<Instant>,
+    /// Why the run is waiting to send a frame again, while it is.
+    waiting: Option<String>,
 }
 
 impl<W: Write> Progress<W> {
@@ -27,6 +29,7 @@ impl<W: Write> Progress<W> {
             failed: 0,
             started: Instant::now(),
             drawn: None,
+            waiting: None,
         }
     }
 
@@ -39,8 +42,15 @@ impl<W: Write> Progress<W> {
         self.draw(true);
     }
 
+    /// The run waits to send a frame again, and why (shown on the bar until a pair finishes).
+    pub fn waiting(&mut self, why: String) {
+        self.waiting = Some(why);
+        self.draw(true);
+    }
+
     /// One pair finished, written or not.
     pub fn finished(&mut self, ok: bool) {
+        self.waiting = None;
         self.done += 1;
         if !ok {
             self.failed += 1;
@@ -93,8 +103,12 @@ impl<W: Write> Progress<W> {
         } else {
             String::new()
         };
+        let waiting = self
+            .waiting
+            .as_ref()
+            .map_or_else(String::new, |why| format!("  waiting: {why}"));
         format!(
-            "[{bar}] {}/{} frames  {fps:.1} frames/s  {left} left{failed}",
+            "[{bar}] {}/{} frames  {fps:.1} frames/s  {left} left{failed}{waiting}",
             self.done, self.total
         )
     }
@@ -142,6 +156,12 @@ mod tests {
             "{text:?}"
         );
         assert!(bar.line().contains("1 failed"));
+        bar.waiting("cannot connect to host:80; again in 2.0 s (retry 1 of 10)".to_owned());
+        assert!(bar.line().ends_with(
+            "1 failed  waiting: cannot connect to host:80; again in 2.0 s (retry 1 of 10)"
+        ));
+        let drawn = String::from_utf8(bar.out.clone()).unwrap();
+        assert!(drawn.ends_with("(retry 1 of 10)"), "{drawn:?}");
     }
 
     #[test]

@@ -7,11 +7,13 @@ use axum::http::{Request, header};
 use http_body_util::{BodyExt, Full};
 use tower::ServiceExt;
 
-/// An answer: its status, its `Retry-After` in seconds when it has one, and its body.
+/// An answer: its status, its `Retry-After` when it has one, its warnings
+/// (`Stereo-Warnings`) and its body.
 #[derive(Debug, Clone)]
 pub struct Answer {
     pub status: u16,
-    pub retry_after: Option<u64>,
+    pub retry_after: Option<std::time::Duration>,
+    pub warnings: Vec<String>,
     pub body: Bytes,
 }
 
@@ -159,22 +161,17 @@ impl Answer {
             .await
             .map_err(|e| format!("the answer was cut off: {e}"))?
             .to_bytes();
+        let text = |name| parts.headers.get(name).and_then(|v| v.to_str().ok());
         Ok(Answer {
             status: parts.status.as_u16(),
-            retry_after: retry_after(&parts.headers),
+            retry_after: text(header::RETRY_AFTER.as_str())
+                .and_then(|v| super::retry::retry_after(v, std::time::SystemTime::now())),
+            warnings: text(crate::api::images::output::WARNINGS_HEADER)
+                .and_then(|v| serde_json::from_str(v).ok())
+                .unwrap_or_default(),
             body,
         })
     }
-}
-
-fn retry_after(headers: &axum::http::HeaderMap) -> Option<u64> {
-    headers
-        .get(header::RETRY_AFTER)?
-        .to_str()
-        .ok()?
-        .trim()
-        .parse()
-        .ok()
 }
 
 #[cfg(test)]

@@ -226,7 +226,18 @@ fn corrupt(e: &ImageError) -> DecodeError {
         ImageError::IoError(io) if io.kind() == std::io::ErrorKind::UnexpectedEof => {
             DecodeError::Truncated
         }
-        other => DecodeError::Corrupt(other.to_string()),
+        other => {
+            let text = other.to_string();
+            if text.contains("CRC error") {
+                DecodeError::Corrupt(
+                    "a PNG chunk fails its checksum (CRC): the file was damaged in a copy or \
+                     transfer"
+                        .to_owned(),
+                )
+            } else {
+                DecodeError::Corrupt(text)
+            }
+        }
     }
 }
 

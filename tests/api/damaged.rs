@@ -12,7 +12,7 @@ use crate::helpers::{TestApp, message_for, ok_json, problem, spawn_app};
 
 /// A calibration of the raw cameras without `imageSize` (the images give it): f = 400 px,
 /// the principal point at the centre, no distortion, B = 120 mm.
-fn sizeless_calibration() -> String {
+pub(crate) fn sizeless_calibration() -> String {
     let matrix = |name: &str, rows: usize, cols: usize, data: &str| {
         format!(
             "{name}: !!opencv-matrix\n   rows: {rows}\n   cols: {cols}\n   dt: d\n   data: [ {data} ]\n"

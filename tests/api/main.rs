@@ -21,6 +21,7 @@ mod operations;
 mod planning;
 mod protection;
 mod recording;
+mod recording_faults;
 mod rectify;
 mod rigs;
 mod scale;

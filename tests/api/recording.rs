@@ -59,9 +59,10 @@ fn recording(dir: &Path) -> PathBuf {
 }
 
 /// `stereo-distance depth-map` on the recording in `dir` (its `left` and `right` folders),
-/// writing into `dir/out`, with `extra` arguments; stderr is a pipe.
-fn run(dir: &Path, out: &str, extra: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_stereo-distance"))
+/// writing into `dir/{out}`, with `extra` arguments.
+pub(crate) fn command(dir: &Path, out: &str, extra: &[&str]) -> Command {
+    let mut command = Command::new(env!("CARGO_BIN_EXE_stereo-distance"));
+    command
         .arg("depth-map")
         .arg("--left")
         .arg(dir.join("left"))
@@ -69,9 +70,13 @@ fn run(dir: &Path, out: &str, extra: &[&str]) -> Output {
         .arg(dir.join("right"))
         .arg("--out")
         .arg(dir.join(out))
-        .args(extra)
-        .output()
-        .expect("the binary runs")
+        .args(extra);
+    command
+}
+
+/// [`command`] run to its end, its stderr a pipe.
+fn run(dir: &Path, out: &str, extra: &[&str]) -> Output {
+    command(dir, out, extra).output().expect("the binary runs")
 }
 
 /// The float32 values of an NPY file of the scene's size.
@@ -153,7 +158,7 @@ fn a_folder_becomes_depth_maps_and_a_rerun_skips_them() {
 
 /// `--server`: the same folder sent to a running service, two pairs in flight, as PFM files
 /// read back as Middlebury's readers read them; a service that is not there stops the run
-/// with its address.
+/// with its address (at once with `--retries 0`).
 #[tokio::test]
 async fn the_server_option_sends_the_frames_to_a_running_service() {
     let app = spawn_app().await;
@@ -193,7 +198,11 @@ async fn the_server_option_sends_the_frames_to_a_running_service() {
         assert_eq!(d.len(), W * H);
         assert!(d.iter().filter(|v| v.is_finite()).count() > W * H / 2);
     }
-    let nowhere = run(&dir, "out2", &["--server", "http://127.0.0.1:1"]);
+    let nowhere = run(
+        &dir,
+        "out2",
+        &["--server", "http://127.0.0.1:1", "--retries", "0"],
+    );
     let said = String::from_utf8_lossy(&nowhere.stderr).into_owned();
     assert_eq!(nowhere.status.code(), Some(1), "{said}");
     assert!(

@@ -542,8 +542,8 @@ async fn without_a_rig_the_page_shows_disparities_and_asks_for_one() {
     browser.close().await;
 }
 
-/// A pair of two sizes shows the API's error next to the right image's input, and a file
-/// that is not an image shows it next to the left one's.
+/// A pair of two sizes shows the API's error next to the right image's input, a file that
+/// is not an image shows it next to the left one's, and so does a PNG cut off mid-file.
 #[tokio::test]
 #[ignore = "needs chromium and chromedriver; .ci/run runs it"]
 async fn a_wrong_pair_is_refused_next_to_the_file_input() {
@@ -596,6 +596,23 @@ async fn a_wrong_pair_is_refused_next_to_the_file_input() {
         })
         .await;
     assert!(message.contains("image"), "{message}");
+
+    // Act: a left image cut off at 60 % of its bytes (an interrupted copy).
+    let whole = std::fs::read(&left).expect("read");
+    let cut = dir.join("cut-left.png");
+    std::fs::write(&cut, &whole[..whole.len() * 6 / 10]).expect("written");
+    let [_, good_right] = synthetic_pair();
+    browser.upload(&cut, &good_right).await;
+    browser.depth_map_shown_or_refused().await;
+
+    // Assert: the service's words, next to the left image's input.
+    let message = browser
+        .until("the cut-off image's error", || async {
+            let text = browser.text("left_image-error").await;
+            text.contains("cut off").then_some(text)
+        })
+        .await;
+    assert!(message.contains("send the whole file"), "{message}");
     browser.assert_clean_but(&["422", "413"]).await;
     browser.close().await;
 }

@@ -56,7 +56,12 @@ impl ImageForm for DepthMapForm {
                    in the rectified left camera's frame and size (`rectified: true`). A pair \
                    sent as rectified that looks raw (under 20 % of the pixels matched, or \
                    matched corners a pixel or more off their rows) gets a warning in the \
-                   summary saying how to rectify it.\n\n\
+                   summary saying how to rectify it. A file answer carries the warnings \
+                   in its `Stereo-Warnings` header (a JSON array of strings, absent when there \
+                   are none).\n\n\
+                   A JPEG or PNG cut off before its image ends, or whose data is corrupt, is a \
+                   422 naming the part; a JPEG whose scans are whole but whose end-of-image \
+                   marker is missing is read, with a warning.\n\n\
                    Send `multipart/form-data` with parts `left` and `right` (PNG or JPEG, one \
                    size) and, for depths, `rig` (JSON with the members of `/distance`, e.g. \
                    what `/calibration` answers) or `calibration` (a calibration file, with \
