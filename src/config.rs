@@ -7,6 +7,10 @@ use std::{net::IpAddr, path::PathBuf, str::FromStr, time::Duration};
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
 
+pub mod tokens;
+
+pub use tokens::ApiTokens;
+
 /// Default request body limit: 64 KiB. The largest legitimate body (a rig plus a range) is under
 /// 1 KiB; 64 KiB leaves room for growth while bounding what a client can make us buffer.
 pub const DEFAULT_BODY_LIMIT: usize = 64 * 1024;
@@ -51,6 +55,10 @@ pub const DEFAULT_BODY_RATE_GRACE: Duration = Duration::from_secs(5);
 /// milliseconds, even over a poor downlink; one that reads nothing for 30 s has stopped, and
 /// holds the answer's memory for nothing.
 pub const DEFAULT_WRITE_TIMEOUT: Duration = Duration::from_secs(30);
+/// Default period of reading the tokens file again: 10 s. A Kubernetes Secret mounted as a
+/// file changes in place within about a minute, so this adds little to a rotation, for one
+/// small read.
+pub const DEFAULT_API_TOKENS_RELOAD: Duration = Duration::from_secs(10);
 /// Default log filter.
 pub const DEFAULT_LOG_LEVEL: &str = "info";
 
@@ -193,6 +201,10 @@ pub struct DepthMapArgs {
     /// warnings are printed either way).
     #[arg(long)]
     pub strict: bool,
+    /// The bearer token sent with every frame to a --server that takes tokens.
+    #[arg(long, env = "API_TOKEN", value_name = "TOKEN", hide_env_values = true,
+          value_parser = one_token)]
+    pub token: Option<String>,
 }
 
 /// Log line format.
@@ -286,6 +298,26 @@ pub struct Config {
     /// After the listener closes, the longest wait for in-flight requests to finish.
     #[arg(long, env = "SHUTDOWN_TIMEOUT", default_value = "10s", value_parser = timeout)]
     pub shutdown_timeout: Duration,
+
+    /// A file of bearer tokens, one or more (separated by new lines, commas or spaces; `#`
+    /// starts a comment): when given, every API route and /metrics take a request only with
+    /// `Authorization: Bearer <one of them>`, while /healthz, /readyz, the page, /docs and
+    /// /openapi.json stay open. The file is read again when it changes (see
+    /// --api-tokens-reload), so a token is rotated by adding the new one, moving the clients,
+    /// then removing the old one.
+    #[arg(long, env = "API_TOKENS_FILE", value_name = "FILE", value_parser = tokens_file)]
+    pub api_tokens_file: Option<PathBuf>,
+
+    /// How often the tokens file is read again (a Kubernetes Secret mounted as a file is
+    /// updated in place within about a minute of its change).
+    #[arg(long, env = "API_TOKENS_RELOAD", default_value = "10s", value_parser = timeout)]
+    pub api_tokens_reload: Duration,
+
+    /// Bearer tokens, as --api-tokens-file's (comma-separated), accepted besides the file's.
+    /// Prefer the variable or the file: a command line is visible to every user of the host.
+    #[arg(long, env = "API_TOKENS", value_name = "TOKENS", hide_env_values = true,
+          value_parser = tokens)]
+    pub api_tokens: Option<ApiTokens>,
 
     #[command(flatten)]
     pub limits: Limits,
@@ -403,10 +435,34 @@ impl Default for Config {
             concurrency_limit: DEFAULT_CONCURRENCY_LIMIT,
             shutdown_delay: DEFAULT_SHUTDOWN_DELAY,
             shutdown_timeout: DEFAULT_SHUTDOWN_TIMEOUT,
+            api_tokens_file: None,
+            api_tokens_reload: DEFAULT_API_TOKENS_RELOAD,
+            api_tokens: None,
             limits: Limits::default(),
             heavy: HeavyLimits::default(),
         }
     }
+}
+
+/// The tokens of `API_TOKENS`.
+fn tokens(text: &str) -> Result<ApiTokens, String> {
+    tokens::parse_tokens(text).map(ApiTokens)
+}
+
+/// One token as a header carries it: visible ASCII, no spaces.
+fn one_token(text: &str) -> Result<String, String> {
+    let text = text.trim();
+    if text.is_empty() || !text.chars().all(|c| c.is_ascii_graphic()) {
+        return Err("a token is one word of visible ASCII characters".to_owned());
+    }
+    Ok(text.to_owned())
+}
+
+/// A tokens file that reads and holds at least one token.
+fn tokens_file(text: &str) -> Result<PathBuf, String> {
+    let path = PathBuf::from(text);
+    tokens::read_tokens_file(&path)?;
+    Ok(path)
 }
 
 /// A whole number in `MIN..=MAX`.

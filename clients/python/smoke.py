@@ -1,7 +1,10 @@
 """Uses the Python client that openapi-python-client generates from the served /openapi.json to
 reach every kind of answer the service gives, and checks the numbers.
 
-    python3 clients/python/smoke.py http://127.0.0.1:8080
+    python3 clients/python/smoke.py http://127.0.0.1:8080 [TOKEN]
+
+With a TOKEN (a service started with API_TOKENS), every call goes through the generated
+AuthenticatedClient, and a client without the token is checked to get the 401 problem.
 
 scripts/clients generates the client (with clients/python/openapi-python-client.yaml) into
 target/clients/python and puts it on the path before running this. Exits non-zero on the first
@@ -13,7 +16,7 @@ import io
 import math
 import sys
 
-from stereo_distance_client import Client
+from stereo_distance_client import AuthenticatedClient, Client
 from stereo_distance_client.api.calibration import post_calibration
 from stereo_distance_client.api.chart import get_chart_data_csv, get_chart_svg
 from stereo_distance_client.api.distance import get_distance, post_distance
@@ -54,8 +57,20 @@ def close(actual, expected, what):
     check(math.isclose(actual, expected, rel_tol=1e-9), f"{what}: {actual} is not {expected}")
 
 
-def main(base):
-    client = Client(base_url=base, raise_on_unexpected_status=True)
+def main(base, token=None):
+    if token:
+        client = AuthenticatedClient(base_url=base, token=token, raise_on_unexpected_status=True)
+        # Without the token: the documented 401, read as the client's Problem.
+        bare = Client(base_url=base, raise_on_unexpected_status=True)
+        refused = get_distance.sync_detailed(
+            client=bare, focal_length_px=F, baseline=B, unit=Unit.M, x_left=620, x_right=610
+        )
+        check(refused.status_code == 401, f"no token answered {refused.status_code}")
+        check(isinstance(refused.parsed, Problem), f"the 401 parsed as {refused.parsed!r}")
+        check(refused.headers.get("www-authenticate", "").startswith("Bearer"), "WWW-Authenticate")
+        print(f"without a token: 401 {refused.parsed.errors[0].field}: {refused.parsed.errors[0].message}")
+    else:
+        client = Client(base_url=base, raise_on_unexpected_status=True)
 
     # One distance, GET with the query built by the client: Z = f·B / d.
     one = get_distance.sync(
@@ -172,4 +187,4 @@ def main(base):
 
 
 if __name__ == "__main__":
-    main(sys.argv[1] if len(sys.argv) > 1 else "http://127.0.0.1:8080")
+    main(sys.argv[1] if len(sys.argv) > 1 else "http://127.0.0.1:8080", *sys.argv[2:3])

@@ -2,7 +2,9 @@
 // `openapi-typescript` run on the served /openapi.json (schema.d.ts, generated, not committed),
 // and this file compiles under `tsc --strict`. scripts/clients runs it against a live server:
 //
-//   node target/clients/typescript/build/client.js http://127.0.0.1:8080
+//   node target/clients/typescript/build/client.js http://127.0.0.1:8080 [TOKEN]
+//
+// With a TOKEN (a service started with API_TOKENS), every request carries it as a bearer token.
 //
 // It asks for one distance, a table (JSON and CSV) and a refused request, checks the numbers and
 // prints what it got.
@@ -19,12 +21,17 @@ type Answer<T> = { ok: true; body: T } | { ok: false; status: number; problem: P
 
 /** The service at `base`, one method per operation this client uses. */
 export class StereoClient {
-  constructor(private readonly base: string) {}
+  constructor(
+    private readonly base: string,
+    private readonly token?: string,
+  ) {}
 
   private async post(path: keyof paths, body: unknown, accept: string): Promise<Response> {
+    const headers: Record<string, string> = { "content-type": "application/json", accept };
+    if (this.token) headers.authorization = `Bearer ${this.token}`;
     return fetch(new URL(path, this.base), {
       method: "POST",
-      headers: { "content-type": "application/json", accept },
+      headers,
       body: JSON.stringify(body),
     });
   }
@@ -63,7 +70,7 @@ function close(actual: number, expected: number, what: string): void {
 
 async function main(): Promise<void> {
   const base = process.argv[2] ?? "http://127.0.0.1:8080";
-  const client = new StereoClient(base);
+  const client = new StereoClient(base, process.argv[3]);
 
   // KITTI's rig, a feature 10 px apart: Z = 721.5377 px × 0.54 m / 10 px.
   const kitti: DistanceRequest = {

@@ -189,6 +189,9 @@ pub enum ApiError {
     /// 413: the request's images or disparity range are beyond the server's limits; the
     /// errors name the parts and parameters to shrink.
     Oversized(Vec<FieldError>),
+    /// 401: the service takes bearer tokens and the request brought none (`refused: false`)
+    /// or one it does not know (`refused: true`).
+    Unauthorized { refused: bool },
 }
 
 impl ApiError {
@@ -216,6 +219,7 @@ impl ApiError {
             | ApiError::Draining => StatusCode::SERVICE_UNAVAILABLE,
             ApiError::Internal(_) => StatusCode::INTERNAL_SERVER_ERROR,
             ApiError::Oversized(_) => StatusCode::PAYLOAD_TOO_LARGE,
+            ApiError::Unauthorized { .. } => StatusCode::UNAUTHORIZED,
         }
     }
 
@@ -270,6 +274,25 @@ impl ApiError {
                     request_id: None,
                 }
             }
+            ApiError::Unauthorized { refused } => plain(
+                if *refused {
+                    "the bearer token was not accepted: ask the service's operator for a \
+                     current one"
+                        .to_owned()
+                } else {
+                    "this service takes requests with a bearer token only: send \
+                     Authorization: Bearer <token>"
+                        .to_owned()
+                },
+                vec![FieldError::new(
+                    "authorization",
+                    if *refused {
+                        "is not a token this service accepts"
+                    } else {
+                        "is required: Bearer <token>"
+                    },
+                )],
+            ),
             ApiError::NotFound(path) => plain(
                 format!("there is no resource at {path}; see /openapi.json for the API"),
                 vec![FieldError::new("path", format!("no route for {path}"))],
@@ -461,6 +484,17 @@ impl IntoResponse for ApiError {
             }
             ApiError::Memory(Refusal::Busy { .. }) => {
                 headers.insert(header::RETRY_AFTER, HeaderValue::from(RETRY_AFTER_SECS));
+            }
+            // RFC 6750: the scheme, and `invalid_token` for a token that was sent.
+            ApiError::Unauthorized { refused } => {
+                headers.insert(
+                    header::WWW_AUTHENTICATE,
+                    HeaderValue::from_static(if refused {
+                        "Bearer realm=\"stereo-distance\", error=\"invalid_token\""
+                    } else {
+                        "Bearer realm=\"stereo-distance\""
+                    }),
+                );
             }
             // The rest of the body is not waited for: the connection cannot be reused.
             ApiError::SlowBody { .. } => {

@@ -95,8 +95,7 @@ impl FromRef<HeavyState> for BodyLimit {
     // Relative: the server that serves this document (Swagger UI, generators and
     // schemathesis resolve it against the document's own URL).
     servers((url = "/", description = "The server that serves this document")),
-    // No operation needs credentials: stated, not left out.
-    security(),
+    // The bearer tokens (optional) are added with the other groups' paths: see `routes`.
     components(schemas(
         error::Problem,
         error::FieldError,
@@ -126,8 +125,10 @@ struct ApiDoc;
 
 /// The service's routers, one per route group, each to be wrapped in its own limits.
 pub struct Routers {
-    /// The JSON answers, `/openapi.json` and `/docs`.
+    /// The JSON answers.
     pub light: Router,
+    /// `/openapi.json` and `/docs`, open to all (the page's group).
+    pub docs: Router,
     /// The image requests.
     pub heavy: Router,
     /// `/healthz`, `/readyz` and `/metrics`: never shed, so probes answer under load.
@@ -148,9 +149,11 @@ fn routes(
     let (probes, probes_doc) = routes::ops::router().with_state(ops).split_for_parts();
     doc.merge(heavy_doc);
     doc.merge(probes_doc);
+    wire::openapi::bearer_tokens(&mut doc);
     (
         Routers {
             light,
+            docs: Router::new(),
             heavy,
             probes,
         },
@@ -168,7 +171,7 @@ pub fn openapi() -> utoipa::openapi::OpenApi {
     .1
 }
 
-/// The routers, with `/openapi.json` and Swagger UI at `/docs` added to the light group's.
+/// The routers, with `/openapi.json` and Swagger UI at `/docs` in their own.
 pub fn routers(state: AppState, heavy: HeavyState, ops: OpsState) -> Routers {
     let (routers, doc) = routes(state, heavy, ops);
     let spec = axum::body::Bytes::from(openapi_text(&doc));
@@ -177,7 +180,7 @@ pub fn routers(state: AppState, heavy: HeavyState, ops: OpsState) -> Routers {
         async move { ([(header::CONTENT_TYPE, "application/json")], spec) }
     };
     Routers {
-        light: routers.light.route("/openapi.json", get(served)).merge(
+        docs: Router::new().route("/openapi.json", get(served)).merge(
             SwaggerUi::new("/docs").config(utoipa_swagger_ui::Config::from("/openapi.json")),
         ),
         ..routers

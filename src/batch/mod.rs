@@ -187,8 +187,11 @@ pub async fn depth_maps<W: std::io::Write>(
         ));
     }
     let transport = match &args.server {
-        Some(url) => Transport::Http(Server::parse(url)?),
+        Some(url) => Transport::Http(Server::parse(url)?.with_token(args.token.clone())),
         None => {
+            // The router in this process is this run's own: no token is asked of it.
+            config.api_tokens = None;
+            config.api_tokens_file = None;
             // One frame may take longer here than a server lets a request take.
             config.heavy.request_timeout =
                 config.heavy.request_timeout.max(Duration::from_secs(600));

@@ -40,14 +40,16 @@ impl Said {
     }
 
     /// The closing lines: for each warning more than one pair said, how many and which (the
-    /// first ten named).
+    /// first ten by name).
     pub fn summary(&self) -> Vec<String> {
         const NAMED: usize = 10;
         self.groups
             .iter()
             .filter(|g| g.pairs.len() > 1)
             .map(|g| {
-                let mut names = g.pairs[..g.pairs.len().min(NAMED)].join(", ");
+                let mut sorted = g.pairs.clone();
+                sorted.sort();
+                let mut names = sorted[..sorted.len().min(NAMED)].join(", ");
                 if g.pairs.len() > NAMED {
                     names.push_str(&format!(" and {} more", g.pairs.len() - NAMED));
                 }

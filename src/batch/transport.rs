@@ -31,6 +31,8 @@ pub enum Transport {
 pub struct Server {
     authority: String,
     base: String,
+    /// `Authorization`'s value, for a service that takes bearer tokens.
+    authorization: Option<String>,
     connection: Option<hyper::client::conn::http1::SendRequest<Full<Bytes>>>,
 }
 
@@ -39,6 +41,7 @@ impl Clone for Server {
         Server {
             authority: self.authority.clone(),
             base: self.base.clone(),
+            authorization: self.authorization.clone(),
             connection: None,
         }
     }
@@ -68,8 +71,17 @@ impl Server {
             } else {
                 format!("/{base}")
             },
+            authorization: None,
             connection: None,
         })
+    }
+
+    /// The same service, sent `token` as a bearer token with every request.
+    pub fn with_token(self, token: Option<String>) -> Server {
+        Server {
+            authorization: token.map(|t| format!("Bearer {}", t.trim())),
+            ..self
+        }
     }
 
     async fn connect(
@@ -126,11 +138,15 @@ impl Transport {
                     let Some(sender) = server.connection.as_mut() else {
                         return Err(format!("no connection to {}", server.authority));
                     };
-                    let request = Request::post(format!("{}{path_and_query}", server.base))
+                    let mut request = Request::post(format!("{}{path_and_query}", server.base))
                         .header(header::HOST, server.authority.as_str())
-                        .header(header::CONTENT_TYPE, content_type)
-                        .body(Full::new(body.clone()))
-                        .map_err(|e| format!("the request was not built: {e}"))?;
+                        .header(header::CONTENT_TYPE, content_type);
+                    if let Some(authorization) = &server.authorization {
+                        request = request.header(header::AUTHORIZATION, authorization.as_str());
+                    }
+                    let request = request.body(Full::new(body.clone())).map_err(|_| {
+                        "the request was not built (is the token one line of text?)".to_owned()
+                    })?;
                     match sender.send_request(request).await {
                         Ok(response) => return Answer::read(response).await,
                         Err(error) if attempt == 0 => {

@@ -3,6 +3,7 @@
 //! - [`watch`]: the request body watcher (how much has arrived and whether all of it: the
 //!   minimum body rate's 408, and a slow client's 408 against a slow server's 503);
 //! - [`answer`]: an image answer on its way out, holding its memory in the budget until sent;
+//! - [`auth`]: the optional bearer tokens, required of the API routes and `/metrics`;
 //! - [`io`]: the connection's socket with a write timeout, for clients that stop reading;
 //! - [`edge`]: the two hand-written layers, `Edge` on every request (request id, in-flight
 //!   gauge, metrics, access log; tower-http's `CatchPanic` inside it for panic → 500) and
@@ -12,6 +13,7 @@
 //! - [`healthcheck`]: the `healthcheck` subcommand's probe, for images without curl.
 
 pub mod answer;
+pub mod auth;
 pub mod edge;
 pub mod healthcheck;
 pub mod io;

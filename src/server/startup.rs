@@ -36,6 +36,7 @@ use crate::{
 use axum::http::{HeaderValue, Method, header};
 use tower_http::cors::{AllowOrigin, CorsLayer};
 
+use super::auth::{self, Auth};
 use super::edge::{self, EdgeLayer, GuardLayer};
 use super::io::WriteTimeout;
 use super::watch::MinRate;
@@ -82,15 +83,44 @@ fn app_with(config: &Config, ops: OpsState, extra_heavy: Router<HeavyState>) -> 
     };
     let Routers {
         light,
+        docs,
         heavy: images,
         probes,
     } = api::routers(AppState { limits }, heavy_state.clone(), ops.clone());
     let images = images.merge(extra_heavy.with_state(heavy_state));
-    let light = light.merge(web::router()).layer(GuardLayer::new(
-        config.concurrency_limit,
-        config.request_timeout,
-        body_rate,
-    ));
+    // With tokens, the API routes and /metrics require one (the probes are let through by
+    // the middleware itself); the page, its files and the docs stay open.
+    let (auth, fault) = Auth::new(
+        config.api_tokens.as_ref().map_or(&[][..], |t| &t.0),
+        config.api_tokens_file.as_deref(),
+    );
+    if let Some(fault) = fault {
+        tracing::error!(%fault, "no API token could be read: every API request will be refused");
+    }
+    let (light, images, probes) = match &auth {
+        Some(auth) => {
+            if config.api_tokens_file.is_some()
+                && let Ok(runtime) = tokio::runtime::Handle::try_current()
+            {
+                runtime.spawn(auth.watch(config.api_tokens_reload));
+            }
+            let require = || axum::middleware::from_fn_with_state(auth.clone(), auth::require);
+            (
+                light.route_layer(require()),
+                images.route_layer(require()),
+                probes.route_layer(require()),
+            )
+        }
+        None => (light, images, probes),
+    };
+    let light = light
+        .merge(docs)
+        .merge(web::router())
+        .layer(GuardLayer::new(
+            config.concurrency_limit,
+            config.request_timeout,
+            body_rate,
+        ));
     // The form extractor's own cap (2 MB by default) raised to the group's body limit; the
     // guard's admission and the form reader enforce that limit. The group's concurrency limit
     // is `heavy_state.slots`, taken by the handlers when their work starts.
@@ -371,10 +401,16 @@ pub fn cors(origins: &[String]) -> Option<CorsLayer> {
         CorsLayer::new()
             .allow_origin(allow_origin)
             .allow_methods([Method::GET, Method::POST])
-            .allow_headers([header::CONTENT_TYPE, header::ACCEPT, X_REQUEST_ID.clone()])
+            .allow_headers([
+                header::CONTENT_TYPE,
+                header::ACCEPT,
+                header::AUTHORIZATION,
+                X_REQUEST_ID.clone(),
+            ])
             .expose_headers([
                 X_REQUEST_ID.clone(),
                 header::RETRY_AFTER,
+                header::WWW_AUTHENTICATE,
                 axum::http::HeaderName::from_static(crate::api::images::output::WARNINGS_HEADER),
             ])
             .max_age(Duration::from_secs(3600)),

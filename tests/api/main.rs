@@ -27,4 +27,5 @@ mod rigs;
 mod scale;
 mod svg;
 mod table;
+mod tokens;
 mod web;

@@ -293,7 +293,7 @@ async fn every_error_status_has_its_own_example() {
     }
     assert_eq!(
         seen.into_iter().collect::<Vec<_>>(),
-        ["400", "405", "408", "413", "415", "422", "503"]
+        ["400", "401", "405", "408", "413", "415", "422", "503"]
     );
     assert!(
         spec["components"]["schemas"]["Problem"]["example"].is_null(),

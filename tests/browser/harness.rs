@@ -110,12 +110,26 @@ impl Browser {
     }
 
     pub async fn start_with(width: u32, height: u32, mobile: Option<Value>) -> Browser {
-        let application = Application::build(Config {
-            port: 0,
-            ..Config::default()
-        })
+        Self::serving(
+            Config {
+                port: 0,
+                ..Config::default()
+            },
+            width,
+            height,
+            mobile,
+        )
         .await
-        .expect("the server binds");
+    }
+
+    /// As [`Browser::start_with`], the server started with `config` (port 0).
+    pub async fn serving(
+        config: Config,
+        width: u32,
+        height: u32,
+        mobile: Option<Value>,
+    ) -> Browser {
+        let application = Application::build(config).await.expect("the server binds");
         let base = format!("http://{}", application.local_addr().expect("bound"));
         let server = tokio::spawn(application.run_until(std::future::pending()));
 

@@ -11,6 +11,7 @@ mod calibrate;
 mod harness;
 mod images;
 mod photographs;
+mod tokens;
 
 use fantoccini::{Locator, key::Key};
 use serde_json::json;

@@ -250,6 +250,70 @@ const UNAVAILABLE: ErrorDoc = ErrorDoc {
         ]
     },
 };
+const UNAUTHORIZED: ErrorDoc = ErrorDoc {
+    status: StatusCode::UNAUTHORIZED,
+    description: "The service was given bearer tokens and the request brought none, or one it \
+                  does not accept; `WWW-Authenticate: Bearer` says so (with \
+                  `error=\"invalid_token\"` for a token refused).",
+    examples: || {
+        vec![
+            ("No token", ApiError::Unauthorized { refused: false }),
+            ("A token refused", ApiError::Unauthorized { refused: true }),
+        ]
+    },
+};
+
+/// The bearer tokens in the document: the `bearerAuth` scheme, and every operation but the
+/// probes declaring it, optional (`[{bearerAuth: []}, {}]`: the service asks for a token only
+/// when it was given some) and documenting its 401 with `WWW-Authenticate`; the probes need
+/// none (`[{}]`).
+pub fn bearer_tokens(doc: &mut utoipa::openapi::OpenApi) {
+    use utoipa::openapi::security::{
+        HttpAuthScheme, HttpBuilder, SecurityRequirement, SecurityScheme,
+    };
+    let components = doc.components.get_or_insert_with(Default::default);
+    components.add_security_scheme(
+        "bearerAuth",
+        SecurityScheme::Http(
+            HttpBuilder::new()
+                .scheme(HttpAuthScheme::Bearer)
+                .description(Some(
+                    "A token the service was given (`--api-tokens-file`, `API_TOKENS`); a \
+                     service given none takes requests without one.",
+                ))
+                .build(),
+        ),
+    );
+    let mut unauthorized = problem_responses(&[UNAUTHORIZED]);
+    let Some(RefOr::T(mut response)) = unauthorized.remove("401") else {
+        return;
+    };
+    response.headers.insert(
+        "WWW-Authenticate".to_owned(),
+        HeaderBuilder::new()
+            .schema(ObjectBuilder::new().schema_type(Type::String))
+            .description(Some("`Bearer realm=\"stereo-distance\"`, with `error=\"invalid_token\"` for a token refused."))
+            .build(),
+    );
+    for (path, item) in doc.paths.paths.iter_mut() {
+        let open = matches!(path.as_str(), "/healthz" | "/readyz");
+        for operation in [&mut item.get, &mut item.post].into_iter().flatten() {
+            if open {
+                operation.security = Some(vec![SecurityRequirement::default()]);
+            } else {
+                operation
+                    .responses
+                    .responses
+                    .insert("401".to_owned(), RefOr::T(response.clone()));
+            }
+        }
+    }
+    doc.security = Some(vec![
+        SecurityRequirement::new("bearerAuth", Vec::<String>::new()),
+        SecurityRequirement::default(),
+    ]);
+}
+
 pub const METHOD: ErrorDoc = ErrorDoc {
     status: StatusCode::METHOD_NOT_ALLOWED,
     description: "The path does not support this method.",

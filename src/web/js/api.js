@@ -1,10 +1,75 @@
 // Talking to the service: GET with query members, POST of JSON or multipart forms, the
 // problem+json answers turned into `{ field, message }` lists, NumPy arrays read from
-// /depth-map's NPZ, and answers saved as files. Every request the page makes goes through here.
+// /depth-map's NPZ, and answers saved as files. Every request the page makes goes through here,
+// and so does the access token: a service given tokens answers 401, the page asks for one
+// once (a dialog), keeps it for the tab (sessionStorage) and sends it as a bearer token with
+// every request after; a token refused is asked for again.
+
+const TOKEN_KEY = 'stereo-distance-token';
+
+function storedToken() {
+  try {
+    return sessionStorage.getItem(TOKEN_KEY) || '';
+  } catch {
+    return '';
+  }
+}
+
+/** `headers` with the tab's token, when it has one. */
+function withToken(headers = {}) {
+  const token = storedToken();
+  return token ? { ...headers, authorization: `Bearer ${token}` } : headers;
+}
+
+let asking = null;
+
+/** Asks for a token in the dialog (one question at a time, shared by the requests waiting);
+ * resolves true when one was given and kept. `refused` says the last one was not accepted. */
+function askForToken(refused) {
+  if (asking) return asking;
+  asking = new Promise((resolve) => {
+    const dialog = document.getElementById('token-dialog');
+    const input = document.getElementById('token-input');
+    if (!dialog || !input || typeof dialog.showModal !== 'function') {
+      resolve(false);
+      return;
+    }
+    document.getElementById('token-why').textContent = refused
+      ? 'The service did not accept that token. Enter a current one.'
+      : 'This service takes requests with an access token only.';
+    input.value = '';
+    dialog.addEventListener('close', () => {
+      const token = input.value.trim();
+      const given = dialog.returnValue === 'use' && token !== '';
+      if (given) {
+        try {
+          sessionStorage.setItem(TOKEN_KEY, token);
+        } catch {
+          // Storage refused (a private window's quota): the token is not kept.
+        }
+      }
+      input.value = '';
+      asking = null;
+      resolve(given);
+    }, { once: true });
+    dialog.showModal();
+    input.focus();
+  });
+  return asking;
+}
+
+/** `fetch` with the tab's token, asking for one on a 401 and trying again with it. */
+async function fetchWithToken(url, init = {}) {
+  for (;;) {
+    const had = storedToken();
+    const response = await fetch(url, { ...init, headers: withToken(init.headers) });
+    if (response.status !== 401 || !(await askForToken(had !== ''))) return response;
+  }
+}
 
 /** A GET of `path` with `params`, its JSON body (or null) and status. */
 export async function call(path, params, signal) {
-  const response = await fetch(`${path}?${params}`, { headers: { accept: 'application/json' }, signal });
+  const response = await fetchWithToken(`${path}?${params}`, { headers: { accept: 'application/json' }, signal });
   const type = response.headers.get('content-type') || '';
   const body = type.includes('json') ? await response.json() : null;
   return { ok: response.ok, status: response.status, body };
@@ -12,7 +77,7 @@ export async function call(path, params, signal) {
 
 /** A POST of JSON, answered in JSON: `{ ok, status, body }`. */
 export async function postJson(path, request, signal) {
-  const response = await fetch(path, {
+  const response = await fetchWithToken(path, {
     method: 'POST',
     headers: { 'content-type': 'application/json', accept: 'application/json' },
     body: JSON.stringify(request),
@@ -25,7 +90,7 @@ export async function postJson(path, request, signal) {
 
 /** Sends a multipart form, with the answer's problem as `{ errors }`. */
 export async function post(path, query, body, signal) {
-  const response = await fetch(`${path}?${query}`, { method: 'POST', body, signal });
+  const response = await fetchWithToken(`${path}?${query}`, { method: 'POST', body, signal });
   if (response.ok) return { response, errors: null };
   const type = response.headers.get('content-type') || '';
   const problem = type.includes('json') ? await response.json() : null;
@@ -96,10 +161,20 @@ export function readNpy(buffer) {
 
 /** A multipart POST that reports the upload's progress (`onUpload(fraction)`), as `post`
  * answers: `{ status, ok, blob, json, errors }`. Aborted through `signal` (AbortError). */
-export function postWithProgress(path, query, body, { onUpload, signal } = {}) {
+export async function postWithProgress(path, query, body, options = {}) {
+  for (;;) {
+    const had = storedToken();
+    const answer = await sendWithProgress(path, query, body, options);
+    if (answer.status !== 401 || !(await askForToken(had !== ''))) return answer;
+  }
+}
+
+function sendWithProgress(path, query, body, { onUpload, signal } = {}) {
   return new Promise((resolve, reject) => {
     const request = new XMLHttpRequest();
     request.open('POST', `${path}?${query}`);
+    const token = storedToken();
+    if (token) request.setRequestHeader('authorization', `Bearer ${token}`);
     request.responseType = 'blob';
     request.upload.addEventListener('progress', (event) => {
       if (event.lengthComputable && onUpload) onUpload(event.loaded / event.total);
