@@ -260,7 +260,8 @@ async fn a_missing_end_marker_is_a_warning() {
 }
 
 /// A file answer carries the summary's own warnings: a pair that looks raw (only a sliver
-/// matched) sent as rectified gets the advice to rectify in the NPY's `Stereo-Warnings`.
+/// matched) sent as rectified gets the advice to rectify in the NPY's `Stereo-Warnings`; the
+/// summary's note that a raw pair was rectified is not a warning there.
 #[tokio::test]
 async fn a_file_answer_carries_the_summarys_warnings() {
     let app: TestApp = spawn_app().await;
@@ -282,4 +283,24 @@ async fn a_file_answer_carries_the_summarys_warnings() {
     let header: Value =
         serde_json::from_str(file.headers()["stereo-warnings"].to_str().unwrap()).unwrap();
     assert_eq!(header, said);
+    // A raw pair rectified with its calibration: the summary says it was, the header does not
+    // (nothing was wrong with what was sent).
+    let (left, right) = good_pair(true);
+    let raw = ok_json(
+        app.post_form(
+            "/depth-map?max_disparity=48&rectify=yes",
+            raw_form(left.clone(), right.clone(), true),
+        )
+        .await,
+    )
+    .await;
+    assert!(raw["warnings"].to_string().contains("rectified first"), "{raw}");
+    let file = app
+        .post_form(
+            "/depth-map?max_disparity=48&rectify=yes&output=depth.npy",
+            raw_form(left, right, true),
+        )
+        .await;
+    assert_eq!(file.status(), 200);
+    assert!(!file.headers().contains_key("stereo-warnings"));
 }

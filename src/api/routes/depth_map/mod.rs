@@ -185,14 +185,20 @@ fn compute(
     drop(right);
     let valid = map.data.iter().filter(|d| !d.is_nan()).count();
     let valid_fraction = valid as f64 / map.data.len().max(1) as f64;
+    if rectify_time.is_none()
+        && let Some(warning) = raw::unrectified_warning(Some(valid_fraction), rows)
+    {
+        warnings.push(warning);
+    }
+    // The summary also says what was done to a raw pair; the `Stereo-Warnings` header keeps to
+    // what is wrong with what was sent (`rectified: true` says the rest).
+    let mut said = warnings.clone();
     if rectify_time.is_some() {
-        warnings.push(format!(
+        said.push(format!(
             "the raw pair was rectified first: the maps are the rectified left camera's, {} × \
              {} px, and the depths use the rectified rig",
             map.width, map.height
         ));
-    } else if let Some(warning) = raw::unrectified_warning(Some(valid_fraction), rows) {
-        warnings.push(warning);
     }
     let started = Instant::now();
     let rig = given.as_ref().map(|g| g.rig);
@@ -207,7 +213,7 @@ fn compute(
             &map,
             (depth.as_deref(), depth_std.as_deref()),
             params,
-            (given, warnings.clone()),
+            (given, said),
             (rectify_time, valid_fraction),
             [decode_time, timings.cost, timings.aggregate, timings.refine],
             timings.paths,
