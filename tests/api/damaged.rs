@@ -294,7 +294,10 @@ async fn a_file_answer_carries_the_summarys_warnings() {
         .await,
     )
     .await;
-    assert!(raw["warnings"].to_string().contains("rectified first"), "{raw}");
+    assert!(
+        raw["warnings"].to_string().contains("rectified first"),
+        "{raw}"
+    );
     let file = app
         .post_form(
             "/depth-map?max_disparity=48&rectify=yes&output=depth.npy",
