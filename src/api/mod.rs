@@ -123,6 +123,10 @@ impl FromRef<HeavyState> for BodyLimit {
 )]
 struct ApiDoc;
 
+/// The probes, open to all whether or not the service takes tokens: the kubelet asks them, and
+/// they say nothing but "up" (`/metrics`, beside them, needs a token when tokens are set).
+pub const OPEN_PROBES: [&str; 2] = ["/healthz", "/readyz"];
+
 /// The service's routers, one per route group, each to be wrapped in its own limits.
 pub struct Routers {
     /// The JSON answers.

@@ -10,12 +10,10 @@ use axum::body::Bytes;
 
 use crate::api::error::FieldErrors;
 use crate::api::images::{limits, parts::Parts, rig};
+use crate::api::routes::depth_map::types::DepthMapOutput;
 use crate::config::DepthMapArgs;
 use crate::vision::decode;
 use crate::vision::{Preset, Settings};
-
-/// The outputs that are depths, hence need a calibration.
-const DEPTH_OUTPUTS: [&str; 4] = ["depth.npy", "depth_std.npy", "depth.png", "points.ply"];
 
 /// Checks the run's settings for frames like `first_left` (the first of the recording's left
 /// frames whose header reads; none when no frame's does). `Err` names every fault.
@@ -26,7 +24,9 @@ pub fn check<'a>(
     left_frames: impl IntoIterator<Item = &'a Path>,
 ) -> Result<(), String> {
     let mut problems = FieldErrors::default();
-    if calibration.is_none() && DEPTH_OUTPUTS.contains(&output) {
+    let depths = serde_json::from_value::<DepthMapOutput>(output.into())
+        .is_ok_and(DepthMapOutput::needs_rig);
+    if calibration.is_none() && depths {
         problems.add(
             "--output",
             format!("{output} is depths: give the rig's --calibration, or write disparities"),
@@ -56,13 +56,9 @@ pub fn check<'a>(
         }
     }
     let settings = Settings {
-        preset: args.preset.as_deref().map(|p| {
-            if p == "fast" {
-                Preset::Fast
-            } else {
-                Preset::Accurate
-            }
-        }),
+        preset: [Preset::Accurate, Preset::Fast]
+            .into_iter()
+            .find(|p| args.preset.as_deref() == Some(p.name())),
         min_disparity: args.min_disparity,
         max_disparity: args.max_disparity,
         max_disparity_std: args.max_disparity_std,

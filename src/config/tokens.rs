@@ -53,11 +53,19 @@ pub fn parse_tokens(text: &str) -> Result<Vec<String>, String> {
     Ok(tokens)
 }
 
-/// The tokens of the file at `path`.
-pub fn read_tokens_file(path: &Path) -> Result<Vec<String>, String> {
-    let text = std::fs::read_to_string(path)
+/// The tokens of the file at `path`, and its bytes (to tell when it changes).
+pub fn read_tokens_file(path: &Path) -> Result<(Vec<String>, Vec<u8>), String> {
+    let bytes = std::fs::read(path)
         .map_err(|e| format!("cannot read the tokens file {}: {e}", path.display()))?;
-    parse_tokens(&text).map_err(|e| format!("the tokens file {}: {e}", path.display()))
+    let tokens = tokens_of_file(&bytes, path)?;
+    Ok((tokens, bytes))
+}
+
+/// The tokens of a tokens file's `bytes` (the file at `path`, for the message).
+pub fn tokens_of_file(bytes: &[u8], path: &Path) -> Result<Vec<String>, String> {
+    let text = std::str::from_utf8(bytes)
+        .map_err(|_| format!("the tokens file {} is not UTF-8 text", path.display()))?;
+    parse_tokens(text).map_err(|e| format!("the tokens file {}: {e}", path.display()))
 }
 
 #[cfg(test)]

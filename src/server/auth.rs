@@ -19,8 +19,9 @@ use axum::middleware::Next;
 use axum::response::{IntoResponse, Response};
 use sha2::{Digest, Sha256};
 
+use crate::api::OPEN_PROBES;
 use crate::api::error::ApiError;
-use crate::config::tokens::read_tokens_file;
+use crate::config::tokens::{read_tokens_file, tokens_of_file};
 
 type Digested = [u8; 32];
 
@@ -57,7 +58,7 @@ impl Auth {
             None => ((Vec::new(), Vec::new()), None),
         };
         let tokens = Tokens {
-            fixed: fixed.iter().map(|t| digest(t.as_bytes())).collect(),
+            fixed: digests(fixed),
             file: file.map(Path::to_path_buf),
             from_file: RwLock::new(from_file),
         };
@@ -98,7 +99,7 @@ impl Auth {
         if self.0.from_file.read().is_ok_and(|r| r.1 == bytes) {
             return Ok(None);
         }
-        let (digests, bytes) = read(path)?;
+        let digests = digests(&tokens_of_file(&bytes, path)?);
         let count = digests.len();
         if let Ok(mut held) = self.0.from_file.write() {
             *held = (digests, bytes);
@@ -128,15 +129,18 @@ impl Auth {
 
 /// The file's digests and bytes.
 fn read(path: &Path) -> Result<(Vec<Digested>, Vec<u8>), String> {
-    let tokens = read_tokens_file(path)?;
-    let bytes = std::fs::read(path).unwrap_or_default();
-    Ok((tokens.iter().map(|t| digest(t.as_bytes())).collect(), bytes))
+    let (tokens, bytes) = read_tokens_file(path)?;
+    Ok((digests(&tokens), bytes))
+}
+
+fn digests(tokens: &[String]) -> Vec<Digested> {
+    tokens.iter().map(|t| digest(t.as_bytes())).collect()
 }
 
 /// The middleware: a request without a token is 401 with `WWW-Authenticate: Bearer`, one
 /// with a token not accepted 401 with `error="invalid_token"`; the probes pass.
 pub async fn require(State(auth): State<Auth>, request: Request, next: Next) -> Response {
-    if matches!(request.uri().path(), "/healthz" | "/readyz") {
+    if OPEN_PROBES.contains(&request.uri().path()) {
         return next.run(request).await;
     }
     let presented = request

@@ -192,11 +192,7 @@ mod tests {
                 [v, v.wrapping_add(40), 255 - v]
             })
             .collect();
-        let mut out = Vec::new();
-        let encoder = image::codecs::jpeg::JpegEncoder::new_with_quality(&mut out, 90);
-        image::ImageEncoder::write_image(encoder, &rgb, 96, 64, image::ExtendedColorType::Rgb8)
-            .unwrap();
-        out
+        crate::vision::synthetic::jpeg(&rgb, w, h, 90)
     }
 
     /// Whole files read without a note, baseline and progressive, and find their end marker.

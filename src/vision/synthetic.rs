@@ -206,11 +206,11 @@ pub fn render(scene: &Scene) -> Pair {
     }
 }
 
-/// `rgb` (`width × height`, as stored) as a phone writes a photo: a JPEG with an EXIF
-/// `orientation` (1: as stored; 6: turn 90° clockwise to show; 8: counter-clockwise; 3: 180°).
-pub fn phone_jpeg(rgb: &[u8], width: usize, height: usize, orientation: u16) -> Vec<u8> {
-    let mut jpeg = Vec::new();
-    let encoder = image::codecs::jpeg::JpegEncoder::new_with_quality(&mut jpeg, 95);
+/// `rgb` (`width × height`) as a baseline JPEG of `quality` (1–100), the `image` crate's
+/// encoder's.
+pub fn jpeg(rgb: &[u8], width: usize, height: usize, quality: u8) -> Vec<u8> {
+    let mut out = Vec::new();
+    let encoder = image::codecs::jpeg::JpegEncoder::new_with_quality(&mut out, quality);
     image::ImageEncoder::write_image(
         encoder,
         rgb,
@@ -219,6 +219,13 @@ pub fn phone_jpeg(rgb: &[u8], width: usize, height: usize, orientation: u16) -> 
         image::ExtendedColorType::Rgb8,
     )
     .expect("an RGB buffer of its size encodes");
+    out
+}
+
+/// `rgb` (`width × height`, as stored) as a phone writes a photo: a JPEG with an EXIF
+/// `orientation` (1: as stored; 6: turn 90° clockwise to show; 8: counter-clockwise; 3: 180°).
+pub fn phone_jpeg(rgb: &[u8], width: usize, height: usize, orientation: u16) -> Vec<u8> {
+    let jpeg = jpeg(rgb, width, height, 95);
     // TIFF header (big-endian), one IFD entry: 0x0112 Orientation, SHORT, one value.
     let mut app1 = b"Exif\0\0MM\0\x2a\0\0\0\x08\0\x01\x01\x12\0\x03\0\0\0\x01".to_vec();
     app1.extend_from_slice(&orientation.to_be_bytes());

@@ -5,7 +5,7 @@
 
 use reqwest::multipart::{Form, Part};
 use serde_json::Value;
-use stereo_distance::vision::encode;
+use stereo_distance::vision::{encode, synthetic};
 
 use crate::depth_map::{H, W, pair};
 use crate::helpers::{TestApp, message_for, ok_json, problem, spawn_app};
@@ -27,20 +27,6 @@ pub(crate) fn sizeless_calibration() -> String {
     text += &matrix("R", 3, 3, "1., 0., 0., 0., 1., 0., 0., 0., 1.");
     text += &matrix("T", 3, 1, "-120., 0., 0.");
     text
-}
-
-fn jpeg(rgb: &[u8], width: usize, height: usize) -> Vec<u8> {
-    let mut out = Vec::new();
-    let encoder = image::codecs::jpeg::JpegEncoder::new_with_quality(&mut out, 92);
-    image::ImageEncoder::write_image(
-        encoder,
-        rgb,
-        width as u32,
-        height as u32,
-        image::ExtendedColorType::Rgb8,
-    )
-    .unwrap();
-    out
 }
 
 /// The ways a file is damaged, each with the words its 422 says.
@@ -91,7 +77,10 @@ fn good_pair(png: bool) -> (Vec<u8>, Vec<u8>) {
             encode::png_rgb(W, H, &pair.right_rgb),
         )
     } else {
-        (jpeg(&pair.left_rgb, W, H), jpeg(&pair.right_rgb, W, H))
+        (
+            synthetic::jpeg(&pair.left_rgb, W, H, 92),
+            synthetic::jpeg(&pair.right_rgb, W, H, 92),
+        )
     }
 }
 

@@ -61,28 +61,18 @@ pub fn set_warnings(response: &mut Response, warnings: &[String]) {
     if warnings.is_empty() {
         return;
     }
-    let mut text = String::from("[");
-    for (i, warning) in warnings.iter().enumerate() {
-        if i > 0 {
-            text.push(',');
-        }
-        text.push('"');
-        for c in warning.chars() {
-            match c {
-                '"' => text.push_str("\\\""),
-                '\\' => text.push_str("\\\\"),
-                ' '..='~' => text.push(c),
-                other => {
-                    let mut units = [0u16; 2];
-                    for unit in other.encode_utf16(&mut units) {
-                        text.push_str(&format!("\\u{unit:04x}"));
-                    }
-                }
+    let json = serde_json::to_string(warnings).unwrap_or_default();
+    // JSON's own escapes for what a header cannot carry (only inside strings, in JSON text).
+    let mut text = String::with_capacity(json.len());
+    for c in json.chars() {
+        if c == ' ' || c.is_ascii_graphic() {
+            text.push(c);
+        } else {
+            for unit in c.encode_utf16(&mut [0; 2]) {
+                text.push_str(&format!("\\u{unit:04x}"));
             }
         }
-        text.push('"');
     }
-    text.push(']');
     if let Ok(v) = HeaderValue::from_str(&text) {
         response.headers_mut().insert(WARNINGS_HEADER, v);
     }

@@ -296,7 +296,7 @@ pub fn bearer_tokens(doc: &mut utoipa::openapi::OpenApi) {
             .build(),
     );
     for (path, item) in doc.paths.paths.iter_mut() {
-        let open = matches!(path.as_str(), "/healthz" | "/readyz");
+        let open = crate::api::OPEN_PROBES.contains(&path.as_str());
         for operation in [&mut item.get, &mut item.post].into_iter().flatten() {
             if open {
                 operation.security = Some(vec![SecurityRequirement::default()]);
