@@ -13,11 +13,13 @@ use axum::{
     http::{Request, header},
 };
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
+use stereo_core::physics::{
+    self, Correspondence, LengthUnit, Rig, RigSpec, SampleRange, Spacing, measure,
+};
 use stereo_distance::{
     Config,
     api::{self, AppState, HeavyState, routes::ops::OpsState},
     app,
-    physics::{self, Correspondence, LengthUnit, Rig, RigSpec, SampleRange, Spacing, measure},
 };
 use tower::ServiceExt;
 

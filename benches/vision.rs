@@ -14,7 +14,7 @@ use std::hint::black_box;
 use std::sync::atomic::AtomicBool;
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use stereo_distance::vision::{
+use stereo_core::vision::{
     self, Params, census, cost, filters, pyramid, refine, sgm, simd, synthetic,
 };
 

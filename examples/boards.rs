@@ -21,15 +21,15 @@ use std::path::PathBuf;
 
 use nalgebra::{Rotation3, Vector3};
 use serde_json::json;
-use stereo_distance::calibration::boards::Board;
-use stereo_distance::calibration::boards::charuco::{
+use stereo_core::calibration::boards::Board;
+use stereo_core::calibration::boards::charuco::{
     CharucoBoard, CharucoSpec, Dictionary, find_charuco,
 };
-use stereo_distance::calibration::boards::corners::{self, Luma};
-use stereo_distance::calibration::boards::synthetic::{Style, poses, stereo_views};
-use stereo_distance::camera::{Camera, Distortion, Intrinsics, Model, Size, StereoPair};
-use stereo_distance::physics::LengthUnit;
-use stereo_distance::vision::synthetic::Rng;
+use stereo_core::calibration::boards::corners::{self, Luma};
+use stereo_core::calibration::boards::synthetic::{Style, poses, stereo_views};
+use stereo_core::camera::{Camera, Distortion, Intrinsics, Model, Size, StereoPair};
+use stereo_core::physics::LengthUnit;
+use stereo_core::vision::synthetic::Rng;
 
 const USAGE: &str = "usage: boards render DIR [SEED] [VIEWS] [MODEL] | boards refine DIR | boards calibrate DIR \
      | boards charuco DIR";
@@ -72,7 +72,7 @@ fn refine(dir: &std::path::Path) {
 
 fn calibrate(dir: &std::path::Path) {
     use rayon::prelude::*;
-    use stereo_distance::calibration::boards::{self, Corners, whole};
+    use stereo_core::calibration::boards::{self, Corners, whole};
     let truth: serde_json::Value =
         serde_json::from_slice(&std::fs::read(dir.join("truth.json")).expect("truth.json"))
             .expect("truth.json");

@@ -14,11 +14,11 @@
 use nalgebra::{Rotation3, Vector3};
 use std::process::ExitCode;
 use std::time::Instant;
-use stereo_distance::calibration::boards::Board;
-use stereo_distance::calibration::boards::corners::{self, Luma};
-use stereo_distance::calibration::boards::synthetic::{Style, poses, stereo_views};
-use stereo_distance::camera::{Camera, Distortion, Intrinsics, Model, Size, StereoPair};
-use stereo_distance::physics::LengthUnit;
+use stereo_core::calibration::boards::Board;
+use stereo_core::calibration::boards::corners::{self, Luma};
+use stereo_core::calibration::boards::synthetic::{Style, poses, stereo_views};
+use stereo_core::camera::{Camera, Distortion, Intrinsics, Model, Size, StereoPair};
+use stereo_core::physics::LengthUnit;
 
 const USAGE: &str = "usage: corner_sizes WIDTH HEIGHT BLUR NOISE BLACK WHITE VIEWS [OUT_DIR]\n  BLUR: sigma px, NOISE: sigma grey levels, BLACK/WHITE: reflectance 0..1 (0.08 0.85)";
 

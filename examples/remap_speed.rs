@@ -7,8 +7,8 @@
 use std::time::Instant;
 
 use nalgebra::{Matrix3, Rotation3, Vector3};
-use stereo_distance::camera::{Camera, Distortion, Intrinsics, Model, Size, undistort_rectify_map};
-use stereo_distance::vision::remap::{Fixed, Interpolation, RawImage, remap_fixed};
+use stereo_core::camera::{Camera, Distortion, Intrinsics, Model, Size, undistort_rectify_map};
+use stereo_core::vision::remap::{Fixed, Interpolation, RawImage, remap_fixed};
 
 fn main() {
     let size = Size {

@@ -1,9 +1,9 @@
-//! Times the row check ([`stereo_distance::vision::rows`]) on a pair and prints what it found.
+//! Times the row check ([`stereo_core::vision::rows`]) on a pair and prints what it found.
 //!
 //!     cargo run --release --example rows_speed -- LEFT RIGHT MAX_DISPARITY
 use std::time::Instant;
 
-use stereo_distance::vision::rows;
+use stereo_core::vision::rows;
 
 mod common;
 

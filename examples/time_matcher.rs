@@ -10,7 +10,7 @@
 use std::sync::atomic::AtomicBool;
 use std::time::Instant;
 
-use stereo_distance::vision::{self, Params, Settings};
+use stereo_core::vision::{self, Params, Settings};
 
 mod common;
 

@@ -14,7 +14,7 @@
 use std::sync::atomic::AtomicBool;
 use std::time::Instant;
 
-use stereo_distance::vision::{self, Params, Settings, Subpixel, filters, simd};
+use stereo_core::vision::{self, Params, Settings, Subpixel, filters, simd};
 
 mod common;
 

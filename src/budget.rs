@@ -55,21 +55,21 @@ pub trait Spare: Send + Sync {
 }
 
 /// What the server keeps between requests outside every reservation, as a [`Spare`]: the
-/// matcher's buffer pools ([`crate::vision::huge_pages`]) and the free memory the allocator
+/// matcher's buffer pools ([`stereo_core::vision::huge_pages`]) and the free memory the allocator
 /// holds in its arenas. When the reservations leave too little room for both, the pools free
 /// what does not fit and the allocator gives its free pages back to the kernel (at most every
-/// [`crate::vision::huge_pages::TRIM_EVERY`]), so that the process stays within the
+/// [`stereo_core::vision::huge_pages::TRIM_EVERY`]), so that the process stays within the
 /// budget rather than the budget plus what the last requests left behind.
 pub struct Leftovers;
 
 impl Spare for Leftovers {
     fn kept(&self) -> usize {
-        use crate::vision::huge_pages;
+        use stereo_core::vision::huge_pages;
         huge_pages::kept().saturating_add(huge_pages::allocator_free())
     }
 
     fn release_to(&self, bytes: usize) {
-        use crate::vision::huge_pages;
+        use stereo_core::vision::huge_pages;
         huge_pages::release_to(bytes);
         huge_pages::trim_allocator();
     }

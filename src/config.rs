@@ -794,9 +794,18 @@ mod tests {
             "{flat}"
         );
         for cap in [
-            format!("at most {} pixels a side", crate::vision::decode::MAX_SIDE),
-            format!("at most {} disparities", crate::vision::MAX_DISPARITIES),
-            format!("at most {} views", crate::calibration::boards::MAX_VIEWS),
+            format!(
+                "at most {} pixels a side",
+                stereo_core::vision::decode::MAX_SIDE
+            ),
+            format!(
+                "at most {} disparities",
+                stereo_core::vision::MAX_DISPARITIES
+            ),
+            format!(
+                "at most {} views",
+                stereo_core::calibration::boards::MAX_VIEWS
+            ),
         ] {
             assert!(flat.contains(&cap), "--help states the cap: {cap}");
         }

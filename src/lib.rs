@@ -14,35 +14,10 @@
 //! arrive at a minimum rate, every answer be read within a write timeout. The probes are a
 //! third router that no limit touches.
 //!
-//! Layout, each layer using only those above it (`tests/layout.rs` holds the code to it):
-//! - Pure code, no HTTP or serde in any signature:
-//!   - [`numbers`]: every number written as text (messages, CSV), short and exact.
-//!   - [`noise`]: seeded random numbers and noise textures, for the renders with exact truth.
-//!   - [`physics`]: the triangulation model: the camera and the rectified rig, each built only
-//!     through its checking constructor (`Rig::new`), focal conversions,
-//!     `Z = B·f_px / |d + doffs|`, depth error, 3D point and range, sweeps for tables and
-//!     charts.
-//!   - [`camera`]: the raw camera and the pair: intrinsics, the distortion models
-//!     (`plumb_bob`, `rational_polynomial`, `equidistant`), projection and undistortion,
-//!     `stereoRectify` (R1 R2 P1 P2 Q, `alpha`, ROIs), whose rectified rig is a
-//!     `physics::Rig`, and `initUndistortRectifyMap`'s maps.
-//!   - [`calibration`], in two parts:
-//!     - [`calibration::files`]: calibration files (Middlebury, KITTI, ROS, OpenCV) read into
-//!       a checked rig (`files::read`) with the raw cameras they describe, and the OpenCV and
-//!       ROS files written, each format's reader and writer in one file;
-//!     - [`calibration::boards`]: a calibration from checkerboard views: the board, the board
-//!       finder and the sub-pixel corner refinement, Zhang's first guess, the
-//!       Levenberg–Marquardt refinements of each camera and of the pair with each parameter's
-//!       deviation, the report (coverage, tilt, warnings), and boards rendered with exact
-//!       corners.
-//!   - [`vision`]: the matcher, the heavy group's engine: its parameters checked by
-//!     `vision::Params::new` (the one set of defaults, and the search range's arithmetic),
-//!     census costs, SGM, refinement (coarse to fine through `vision::pyramid` for ranges
-//!     over 64), each disparity's σ (`vision::sigma`), `/match`'s correspondences, decoding
-//!     and encoding.
-//!     Remapping raw frames through rectification maps (`vision::remap`) lives here,
-//!     used by `/rectify` and by the raw pairs of `/depth-map` and `/match`, and the check
-//!     that a pair sent as rectified has its rows in line (`vision::rows`).
+//! Layout. The engine is the workspace's `stereo-core` crate (`crates/stereo-core`): physics,
+//! cameras, calibration, the matcher, with no HTTP, serde or async in its dependencies; its
+//! `lib.rs` maps it. This crate sits below it, each layer using only those above it
+//! (`tests/layout.rs` holds the code to it):
 //! - [`config`]: flags and environment variables (clap) for both groups, defaults, start-up
 //!   checks.
 //! - [`budget`]: what the heavy requests in flight share: the memory budget (bodies, work and
@@ -74,15 +49,9 @@
 pub mod api;
 pub mod batch;
 pub mod budget;
-pub mod calibration;
-pub mod camera;
 pub mod config;
-pub mod noise;
-pub mod numbers;
 pub mod observe;
-pub mod physics;
 pub mod server;
-pub mod vision;
 pub mod web;
 
 pub use config::Config;

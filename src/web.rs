@@ -6,10 +6,10 @@
 //! `/calibration`, `/calibrate`, `/rectify`, `/depth-map`, `/match`) and holds no physics or
 //! stereo. Its sample pair (`/sample/left.png`, `/sample/right.png`, `/sample/sample.json`,
 //! the rig as a `rig` part, and `/sample/calib.txt`, the same rig and its search range as a
-//! Middlebury file) is rendered by [`crate::vision::synthetic`] on first request, so the
+//! Middlebury file) is rendered by [`stereo_core::vision::synthetic`] on first request, so the
 //! binary holds code, not a picture; so is the calibration sample under `/sample/boards/` (board pairs seen through
 //! two distorted cameras, and the raw pair of a wall at a known distance, from
-//! [`crate::calibration::boards::synthetic`]), each file rendered when first asked for. Each asset is
+//! [`stereo_core::calibration::boards::synthetic`]), each file rendered when first asked for. Each asset is
 //! answered with an `ETag` (a hash of its bytes, so a new build is a new tag) and
 //! `Cache-Control: no-cache`, so browsers revalidate and get a 304 until the binary changes.
 //! The tag is weak because the compression layer may send the same asset gzip- or br-encoded,
@@ -29,7 +29,7 @@ use axum::{
     routing::get,
 };
 
-use crate::vision::{encode, synthetic};
+use stereo_core::vision::{encode, synthetic};
 
 /// One embedded file and how it is served.
 #[derive(Debug, Clone, Copy)]
@@ -275,19 +275,19 @@ pub fn board_files() -> Vec<String> {
 }
 
 /// What every file of the calibration sample is rendered from: [`BOARD_VIEWS`] poses of a
-/// 9 × 6 board of 25 mm squares seen by [`crate::calibration::boards::synthetic::sample_rig`], one more
+/// 9 × 6 board of 25 mm squares seen by [`stereo_core::calibration::boards::synthetic::sample_rig`], one more
 /// the right camera sees only in part, and the cameras' rays.
 struct BoardSample {
-    rig: crate::camera::StereoPair,
-    board: crate::calibration::boards::Board,
+    rig: stereo_core::camera::StereoPair,
+    board: stereo_core::calibration::boards::Board,
     poses: Vec<nalgebra::Isometry3<f64>>,
-    rays: [crate::calibration::boards::synthetic::Rays; 2],
-    style: crate::calibration::boards::synthetic::Style,
+    rays: [stereo_core::calibration::boards::synthetic::Rays; 2],
+    style: stereo_core::calibration::boards::synthetic::Style,
 }
 
 /// The calibration sample's image size, and its board: inner corners along a row and a
 /// column, and the squares' side in mm.
-pub const BOARD_SIZE: crate::camera::Size = crate::camera::Size {
+pub const BOARD_SIZE: stereo_core::camera::Size = stereo_core::camera::Size {
     width: 640,
     height: 480,
 };
@@ -296,14 +296,18 @@ pub const BOARD: (u32, u32, f64) = (9, 6, 25.0);
 const WALL_MAX_DISPARITY: u32 = 96;
 
 /// The rectified rig the calibration sample was rendered with (OpenCV's `stereoRectify`,
-/// `alpha` 0, of [`crate::calibration::boards::synthetic::sample_rig`]): what calibrating it should
+/// `alpha` 0, of [`stereo_core::calibration::boards::synthetic::sample_rig`]): what calibrating it should
 /// give.
-pub fn board_sample_rig() -> crate::physics::Rig {
-    let rig = crate::calibration::boards::synthetic::sample_rig();
-    crate::camera::stereo_rectify(&rig, BOARD_SIZE, crate::camera::RectifyOptions::default())
-        .expect("the sample rig rectifies")
-        .rig(crate::physics::LengthUnit::Millimetre)
-        .expect("a rectified rig with a baseline")
+pub fn board_sample_rig() -> stereo_core::physics::Rig {
+    let rig = stereo_core::calibration::boards::synthetic::sample_rig();
+    stereo_core::camera::stereo_rectify(
+        &rig,
+        BOARD_SIZE,
+        stereo_core::camera::RectifyOptions::default(),
+    )
+    .expect("the sample rig rectifies")
+    .rig(stereo_core::physics::LengthUnit::Millimetre)
+    .expect("a rectified rig with a baseline")
 }
 
 static BOARD_SAMPLE: OnceLock<BoardSample> = OnceLock::new();
@@ -313,17 +317,17 @@ static BOARD_VIEW_FILES: [OnceLock<[Served; 2]>; BOARD_VIEWS + 2] =
 
 fn board_sample() -> &'static BoardSample {
     BOARD_SAMPLE.get_or_init(|| {
-        use crate::calibration::boards::synthetic::{
+        use stereo_core::calibration::boards::synthetic::{
             Rays, Style, corners, poses, right_pose, sample_rig,
         };
         let rig = sample_rig();
         let size = BOARD_SIZE;
         let (columns, rows, square) = BOARD;
-        let board = crate::calibration::boards::Board::new(
+        let board = stereo_core::calibration::boards::Board::new(
             columns,
             rows,
             square,
-            crate::physics::LengthUnit::Millimetre,
+            stereo_core::physics::LengthUnit::Millimetre,
         )
         .expect("a 9 × 6 board");
         let mut found = poses(&rig, size, &board, BOARD_VIEWS, 40.0, 7);
@@ -387,14 +391,14 @@ fn boards_json() -> Served {
 
 /// The calibration sample's image `i` (in [`board_files`] order), rendered on first use.
 fn board_image(i: usize) -> Served {
-    let png = |image: &crate::calibration::boards::synthetic::Image| -> Bytes {
+    let png = |image: &stereo_core::calibration::boards::synthetic::Image| -> Bytes {
         encode::png_grey(image.width as usize, image.height as usize, &image.pixels).into()
     };
     let view = i / 2;
     let pair = BOARD_VIEW_FILES[view].get_or_init(|| {
         let images = if view <= BOARD_VIEWS {
             let sample = board_sample();
-            let v = crate::calibration::boards::synthetic::stereo_view(
+            let v = stereo_core::calibration::boards::synthetic::stereo_view(
                 &sample.rig,
                 &sample.board,
                 &sample.poses[view],
@@ -404,8 +408,8 @@ fn board_image(i: usize) -> Served {
             );
             [v.left, v.right]
         } else {
-            crate::calibration::boards::synthetic::raw_wall(
-                &crate::calibration::boards::synthetic::sample_rig(),
+            stereo_core::calibration::boards::synthetic::raw_wall(
+                &stereo_core::calibration::boards::synthetic::sample_rig(),
                 BOARD_SIZE,
                 WALL_DISTANCE_MM,
                 WALL_SLOPE,

@@ -23,7 +23,7 @@ fn minor_faults() -> i64 {
 #[cfg(all(target_os = "linux", target_env = "gnu"))]
 #[test]
 fn a_freed_buffer_is_reused_without_faulting_its_pages_again() {
-    use stereo_distance::vision::huge_pages;
+    use stereo_core::vision::huge_pages;
     const BYTES: usize = 24 << 20;
     assert!(
         huge_pages::settle_allocator(),

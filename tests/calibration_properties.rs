@@ -2,7 +2,7 @@
 //! own tools write it) and read back is the same rig, and no text at all makes a reader panic.
 
 use proptest::prelude::*;
-use stereo_distance::calibration::files::{self, Calibration, Format, KittiPair, Source};
+use stereo_core::calibration::files::{self, Calibration, Format, KittiPair, Source};
 
 /// A rectified rig as the files describe it, lengths in the format's unit.
 #[derive(Debug, Clone, Copy)]

@@ -185,7 +185,7 @@ fn mutated_example() -> impl Strategy<Value = Vec<u8>> {
 fn images() -> &'static [Vec<u8>] {
     static IMAGES: OnceLock<Vec<Vec<u8>>> = OnceLock::new();
     IMAGES.get_or_init(|| {
-        use stereo_distance::vision::{encode, synthetic};
+        use stereo_core::vision::{encode, synthetic};
         let pair = synthetic::render(&synthetic::layered(24, 16));
         let png = encode::png_rgb(24, 16, &pair.left_rgb);
         let mut jpeg = Vec::new();

@@ -1,36 +1,42 @@
-//! The house rules a newcomer relies on, checked on the source itself: the route modules share
-//! downward and never import each other, no module circle (in the Rust or in the page's
-//! JavaScript modules), the pure layers in the order `lib.rs` states, every module with its
-//! `//!` line, and no file in `src/` over 600 lines before its tests.
+//! The house rules a newcomer relies on, checked on the source of both crates (the service's
+//! `src/` and the engine's `crates/stereo-core/src/`): the route modules share downward and never
+//! import each other, no module circle (in the Rust or in the page's JavaScript modules), each
+//! crate's layers in the order its `lib.rs` states, every module with its `//!` line, no file
+//! over 600 lines before its tests, and the engine's dependency tree free of HTTP, serde and
+//! async.
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::fs;
 use std::path::{Path, PathBuf};
 
 const SRC: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/src");
+const CORE_SRC: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/crates/stereo-core/src");
 
 /// The most lines a file in `src/` may have before its `#[cfg(test)]` part.
 const MAX_LINES: usize = 600;
 
-/// The top-level modules in the order of `lib.rs`'s map: each uses only those before it.
-const LAYERS: &[&str] = &[
+/// The engine's top-level modules in the order of its `lib.rs`'s map: each uses only those
+/// before it.
+const CORE_LAYERS: &[&str] = &[
     "numbers",
     "noise",
     "physics",
     "camera",
     "calibration",
     "vision",
-    "config",
-    "budget",
-    "observe",
-    "api",
-    "web",
-    "server",
-    "batch",
 ];
 
-/// Every `.rs` file under `src/` (but `main.rs`) with its module path (`api::routes::rectify`).
-fn modules() -> BTreeMap<Vec<String>, PathBuf> {
+/// The service's top-level modules in the order of its `lib.rs`'s map, all below the engine.
+const LAYERS: &[&str] = &[
+    "config", "budget", "observe", "api", "web", "server", "batch",
+];
+
+/// Each crate's source folder with its layers.
+const CRATES: &[(&str, &[&str])] = &[(CORE_SRC, CORE_LAYERS), (SRC, LAYERS)];
+
+/// Every `.rs` file under a crate's `src/` (but `main.rs`) with its module path
+/// (`api::routes::rectify`).
+fn modules(src: &str) -> BTreeMap<Vec<String>, PathBuf> {
     fn walk(dir: &Path, out: &mut Vec<PathBuf>) {
         for entry in fs::read_dir(dir).expect("src/ readable") {
             let path = entry.expect("an entry").path();
@@ -42,12 +48,12 @@ fn modules() -> BTreeMap<Vec<String>, PathBuf> {
         }
     }
     let mut files = Vec::new();
-    walk(Path::new(SRC), &mut files);
+    walk(Path::new(src), &mut files);
     files
         .into_iter()
         .filter(|f| !f.ends_with("main.rs"))
         .map(|file| {
-            let rel = file.strip_prefix(SRC).expect("under src/");
+            let rel = file.strip_prefix(src).expect("under src/");
             let mut path: Vec<String> = rel
                 .with_extension("")
                 .iter()
@@ -246,9 +252,9 @@ fn resolve(
     found
 }
 
-/// Module → the modules its code names.
-fn graph() -> BTreeMap<Vec<String>, BTreeSet<Vec<String>>> {
-    let modules = modules();
+/// Module → the modules of its own crate its code names.
+fn graph(src: &str) -> BTreeMap<Vec<String>, BTreeSet<Vec<String>>> {
+    let modules = modules(src);
     let known: BTreeSet<Vec<String>> = modules.keys().cloned().collect();
     modules
         .iter()
@@ -331,7 +337,7 @@ fn show(m: &[String]) -> String {
 /// share lives below them.
 #[test]
 fn no_route_imports_another() {
-    let graph = graph();
+    let graph = graph(SRC);
     let routes: Vec<String> = ["api", "routes"].map(str::to_owned).to_vec();
     let sideways: Vec<String> = siblings(&graph, &routes)
         .iter()
@@ -347,35 +353,103 @@ fn no_route_imports_another() {
 /// for its subtree) use one another one way only.
 #[test]
 fn no_module_circle() {
-    let graph = graph();
     let mut found = Vec::new();
-    for parent in graph.keys() {
-        for circle in circles(&siblings(&graph, parent)) {
-            found.push(format!("under {}: {circle:?}", show(parent)));
+    for (src, _) in CRATES {
+        let graph = graph(src);
+        for parent in graph.keys() {
+            for circle in circles(&siblings(&graph, parent)) {
+                found.push(format!("under {}: {circle:?}", show(parent)));
+            }
         }
     }
     assert!(found.is_empty(), "import circles: {found:#?}");
 }
 
-/// The top-level modules use only those before them in `lib.rs`'s map.
+/// Each crate's top-level modules use only those before them in its `lib.rs`'s map.
 #[test]
 fn layers_use_only_those_above() {
-    let graph = graph();
-    let top = siblings(&graph, &[]);
     let mut wrong = Vec::new();
-    for (a, uses) in &top {
-        let Some(i) = LAYERS.iter().position(|l| l == a) else {
-            wrong.push(format!("{a} is not in the layer list"));
-            continue;
-        };
-        for b in uses {
-            let j = LAYERS.iter().position(|l| l == b);
-            if j.is_none_or(|j| j >= i) {
-                wrong.push(format!("{a} uses {b}, which is not above it"));
+    for (src, layers) in CRATES {
+        let graph = graph(src);
+        let top = siblings(&graph, &[]);
+        assert!(top.len() >= layers.len() - 1, "{src}: {top:?}");
+        for (a, uses) in &top {
+            let Some(i) = layers.iter().position(|l| l == a) else {
+                wrong.push(format!("{a} is not in the layer list"));
+                continue;
+            };
+            for b in uses {
+                let j = layers.iter().position(|l| l == b);
+                if j.is_none_or(|j| j >= i) {
+                    wrong.push(format!("{a} uses {b}, which is not above it"));
+                }
             }
         }
     }
     assert!(wrong.is_empty(), "{wrong:#?}");
+}
+
+/// `cargo tree -p stereo-core` over normal edges, one package name a line, to `depth`.
+fn engine_tree(depth: &str) -> BTreeSet<String> {
+    let out = std::process::Command::new(env!("CARGO"))
+        .args([
+            "tree",
+            "--offline",
+            "--locked",
+            "-p",
+            "stereo-core",
+            "-e",
+            "normal",
+        ])
+        .args(["--prefix", "none", "--format", "{p}", "--depth", depth])
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .output()
+        .expect("cargo tree runs");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8_lossy(&out.stdout)
+        .lines()
+        .filter_map(|line| line.split_whitespace().next())
+        .map(str::to_owned)
+        .collect()
+}
+
+/// The engine depends on no HTTP, async or OpenAPI crate anywhere in its tree, and on no serde
+/// crate itself, so that its purity is the compiler's, not this file's: code cannot name a crate
+/// its manifest does not list. (serde is in the tree below the chessboard detector,
+/// `calib-targets-chessboard`, whose own dataset types derive it and which turns on nalgebra's
+/// serde feature; no engine signature can mention it.)
+#[test]
+fn the_engine_depends_on_no_http_serde_or_async() {
+    let whole = engine_tree("100");
+    assert!(
+        whole.contains("stereo-core") && whole.contains("nalgebra") && whole.len() > 20,
+        "{whole:?}"
+    );
+    let never = [
+        "axum",
+        "tokio",
+        "hyper",
+        "http",
+        "http-body",
+        "tower",
+        "tower-http",
+        "utoipa",
+        "futures-util",
+        "mio",
+        "clap",
+    ];
+    let found: Vec<&str> = never.into_iter().filter(|f| whole.contains(*f)).collect();
+    assert!(found.is_empty(), "the engine's tree holds {found:?}");
+    let direct = engine_tree("1");
+    let own: Vec<&String> = direct
+        .iter()
+        .filter(|d| d.starts_with("serde") || never.contains(&d.as_str()))
+        .collect();
+    assert!(own.is_empty(), "the engine depends on {own:?}");
 }
 
 /// Every module opens with a `//!` line saying what it is for, and none has over 600 lines
@@ -383,7 +457,10 @@ fn layers_use_only_those_above() {
 #[test]
 fn every_module_says_what_it_is_for_and_is_short() {
     let mut wrong = Vec::new();
-    for (module, file) in modules() {
+    for (src, module, file) in CRATES
+        .iter()
+        .flat_map(|(src, _)| modules(src).into_iter().map(move |(m, f)| (*src, m, f)))
+    {
         let text = fs::read_to_string(&file).expect("readable");
         if !text.trim_start().starts_with("//!") {
             wrong.push(format!("{} has no //! line", show(&module)));
@@ -393,7 +470,7 @@ fn every_module_says_what_it_is_for_and_is_short() {
             None => text.lines().count(),
         };
         let rel = file
-            .strip_prefix(SRC)
+            .strip_prefix(src)
             .expect("under src/")
             .to_string_lossy();
         if lines > MAX_LINES {
@@ -410,29 +487,31 @@ fn every_module_says_what_it_is_for_and_is_short() {
 /// file above all) is silently left out of the build.
 #[test]
 fn every_file_is_declared_by_its_parent() {
-    let modules = modules();
     let mut wrong = Vec::new();
-    for (module, file) in &modules {
-        let Some((name, parent)) = module.split_last() else {
-            continue;
-        };
-        let Some(parent_file) = modules.get(parent) else {
-            wrong.push(format!("{} has no parent module", file.display()));
-            continue;
-        };
-        let text = fs::read_to_string(parent_file).expect("readable");
-        let declared = text.lines().any(|line| {
-            let line = line.trim_start();
-            let line = line.strip_prefix("pub ").unwrap_or(line);
-            let line = line.strip_prefix("pub(crate) ").unwrap_or(line);
-            line == format!("mod {name};")
-        });
-        if !declared {
-            wrong.push(format!(
-                "{} is not declared in {}",
-                file.display(),
-                parent_file.display()
-            ));
+    for (src, _) in CRATES {
+        let modules = modules(src);
+        for (module, file) in &modules {
+            let Some((name, parent)) = module.split_last() else {
+                continue;
+            };
+            let Some(parent_file) = modules.get(parent) else {
+                wrong.push(format!("{} has no parent module", file.display()));
+                continue;
+            };
+            let text = fs::read_to_string(parent_file).expect("readable");
+            let declared = text.lines().any(|line| {
+                let line = line.trim_start();
+                let line = line.strip_prefix("pub ").unwrap_or(line);
+                let line = line.strip_prefix("pub(crate) ").unwrap_or(line);
+                line == format!("mod {name};")
+            });
+            if !declared {
+                wrong.push(format!(
+                    "{} is not declared in {}",
+                    file.display(),
+                    parent_file.display()
+                ));
+            }
         }
     }
     assert!(wrong.is_empty(), "{wrong:#?}");

@@ -1,10 +1,10 @@
-//! Property tests of the pure physics (`stereo_distance::physics`): the laws the service's
+//! Property tests of the pure physics (`stereo_core::physics`): the laws the service's
 //! answers rest on, checked over many generated rigs and correspondences rather than a few
 //! hand-picked numbers. Run more cases with `PROPTEST_CASES=100000 cargo test --test
 //! physics_properties`.
 
 use proptest::prelude::*;
-use stereo_distance::physics::{
+use stereo_core::physics::{
     self, Correspondence, FocalLength, LengthUnit, PhysicsError, Rig, RigSpec, SampleRange, Spacing,
 };
 

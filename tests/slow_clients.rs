@@ -16,11 +16,11 @@ use axum::response::{IntoResponse, Response};
 use axum::{Router, routing::post};
 use reqwest::multipart::{Form, Part};
 use serde::Deserialize;
+use stereo_core::vision::{encode, synthetic};
 use stereo_distance::api::HeavyState;
 use stereo_distance::api::error::ApiError;
 use stereo_distance::api::images::work::{self, Admitted};
 use stereo_distance::config::{Config, HeavyLimits};
-use stereo_distance::vision::{encode, synthetic};
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
 use tokio::net::{TcpSocket, TcpStream};
 

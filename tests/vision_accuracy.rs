@@ -5,7 +5,7 @@
 
 use std::sync::atomic::AtomicBool;
 
-use stereo_distance::vision::{
+use stereo_core::vision::{
     self, Params, Settings, Subpixel,
     synthetic::{self, Pair, Plane, Region, Scene},
 };

@@ -1,6 +1,6 @@
 //! What the timing and tuning examples share: reading a pair of image files.
 
-use stereo_distance::vision::decode::{self, Decoded};
+use stereo_core::vision::decode::{self, Decoded};
 
 /// The pair at `left` and `right`, decoded (grey, no colour) with limits wide enough for any
 /// camera's frames; exits with the reason when a file cannot be read or decoded.

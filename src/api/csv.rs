@@ -34,7 +34,7 @@ where
                 out.push(',');
             }
             if let Some(value) = value {
-                crate::numbers::push_json(&mut out, value);
+                stereo_core::numbers::push_json(&mut out, value);
             }
         }
         out.push_str("\r\n");

@@ -1,7 +1,7 @@
 //! The one error type of the HTTP layer, [`ApiError`], rendered as RFC 9457
 //! `application/problem+json`, and [`FieldErrors`], the collector that decoding and validation
 //! fill so that one answer names every offending field. The bottom layer of the API: of
-//! the API's modules it uses none ([`crate::numbers`] writes its numbers).
+//! the API's modules it uses none ([`stereo_core::numbers`] writes its numbers).
 
 use std::time::Duration;
 
@@ -12,13 +12,14 @@ use axum::{
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
-use crate::{budget::Refusal, observe::telemetry, physics::PhysicsError};
+use crate::{budget::Refusal, observe::telemetry};
+use stereo_core::physics::PhysicsError;
 
 /// A byte count for people: `1.5 MiB`.
 fn mib(bytes: usize) -> String {
     format!(
         "{} MiB",
-        crate::numbers::short(bytes as f64 / (1024.0 * 1024.0))
+        stereo_core::numbers::short(bytes as f64 / (1024.0 * 1024.0))
     )
 }
 
@@ -410,8 +411,8 @@ const MAX_MESSAGE: usize = 600;
 /// An error with its field and message clipped to what a problem repeats.
 fn clipped(error: &FieldError) -> FieldError {
     FieldError::new(
-        crate::numbers::clip(&error.field, MAX_FIELD),
-        crate::numbers::clip(&error.message, MAX_MESSAGE),
+        stereo_core::numbers::clip(&error.field, MAX_FIELD),
+        stereo_core::numbers::clip(&error.message, MAX_MESSAGE),
     )
 }
 

@@ -17,7 +17,7 @@ use serde_json::{Map, Value};
 
 use super::error::{ApiError, FieldError, FieldErrors};
 use super::member_messages::{self, Complaint, ECHO};
-use crate::numbers::clip;
+use stereo_core::numbers::clip;
 
 /// A JSON request body, decoded as far as it could be, with the members it refused and the
 /// query parameters it would have ignored ([`unread_query`]). The rejection (400, 413, 415, or 422 for a body that is not an object) is an [`ApiError`].

@@ -5,7 +5,7 @@
 
 use serde_json::Value;
 
-use crate::numbers::{Num, clip};
+use stereo_core::numbers::{Num, clip};
 
 /// The most characters of a caller's text that a message echoes.
 pub const ECHO: usize = 40;

@@ -7,7 +7,7 @@
 //! - [`wire`]: what every request and answer shares: deserialization rules, the request macros,
 //!   the unvalidated members, the measured values, the OpenAPI glue.
 //! - [`validate`]: the caller's members turned into the physics module's types, through their
-//!   checking constructors ([`crate::physics::Rig::new`]), the faults named as fields.
+//!   checking constructors ([`stereo_core::physics::Rig::new`]), the faults named as fields.
 //! - [`images`]: what the image routes share: the multipart form and the [`images::ImagePair`]
 //!   extractor, the rig from a part, raw pairs rectified, file answers and `Server-Timing`, the
 //!   limits, the blocking work.
@@ -55,8 +55,8 @@ pub struct HeavyState {
     pub maps: std::sync::Arc<images::maps::MapCache>,
     /// The group's concurrency limit: a slot taken by each request when its work starts.
     pub slots: crate::budget::Slots,
-    /// The largest image decoded (`--max-image-pixels`, [`crate::vision::decode::MAX_SIDE`] a side).
-    pub image_limits: crate::vision::decode::DecodeLimits,
+    /// The largest image decoded (`--max-image-pixels`, [`stereo_core::vision::decode::MAX_SIDE`] a side).
+    pub image_limits: stereo_core::vision::decode::DecodeLimits,
 }
 
 impl Default for HeavyState {

@@ -3,9 +3,9 @@
 
 use super::error::FieldErrors;
 use super::wire::params::RangeParams;
-use crate::camera::Alpha;
-use crate::numbers::Num;
-use crate::physics::{
+use stereo_core::camera::Alpha;
+use stereo_core::numbers::Num;
+use stereo_core::physics::{
     CameraSpec, Correspondence, Fault, Member, RectifiedCamera, Rig, RigSpec, SampleRange, Spacing,
 };
 

@@ -12,8 +12,8 @@ use crate::api::error::FieldErrors;
 use crate::api::images::{limits, parts::Parts, rig};
 use crate::api::routes::depth_map::types::DepthMapOutput;
 use crate::config::DepthMapArgs;
-use crate::vision::decode;
-use crate::vision::{Preset, Settings};
+use stereo_core::vision::decode;
+use stereo_core::vision::{Preset, Settings};
 
 /// Checks the run's settings for frames like `first_left` (the first of the recording's left
 /// frames whose header reads; none when no frame's does). `Err` names every fault.

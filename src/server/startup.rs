@@ -64,9 +64,9 @@ fn app_with(config: &Config, ops: OpsState, extra_heavy: Router<HeavyState>) -> 
     // reservations: an eighth of the budget each at most (a quarter together), and, with what
     // the allocator keeps free, no more than the reservations leave free.
     let budget = MemoryBudget::with_spare(heavy.memory_budget, &crate::budget::Leftovers);
-    crate::vision::huge_pages::keep_at_most(heavy.memory_budget / 8);
+    stereo_core::vision::huge_pages::keep_at_most(heavy.memory_budget / 8);
     // glibc's thresholds as a warm server has them (a no-op under another allocator).
-    let _ = crate::vision::huge_pages::settle_allocator();
+    let _ = stereo_core::vision::huge_pages::settle_allocator();
     let heavy_state = HeavyState {
         body_limit: BodyLimit(heavy.body_bytes),
         maps: std::sync::Arc::new(MapCache::new(Some(budget.clone()), maps::MAX_ENTRIES)),

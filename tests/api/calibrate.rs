@@ -7,14 +7,14 @@ use std::sync::OnceLock;
 use nalgebra::{Rotation3, Vector3};
 use reqwest::multipart::{Form, Part};
 use serde_json::json;
-use stereo_distance::calibration::boards::Board;
-use stereo_distance::calibration::boards::synthetic::{Style, poses, stereo_views};
-use stereo_distance::camera::{
+use stereo_core::calibration::boards::Board;
+use stereo_core::calibration::boards::synthetic::{Style, poses, stereo_views};
+use stereo_core::camera::{
     Camera, Distortion, Intrinsics, Model, RectifyOptions, Size, StereoPair, stereo_rectify,
 };
+use stereo_core::physics::LengthUnit;
+use stereo_core::vision::encode;
 use stereo_distance::config::Config;
-use stereo_distance::physics::LengthUnit;
-use stereo_distance::vision::encode;
 
 use crate::helpers::{
     TestApp, assert_names, message_for, ok_json, problem, spawn_app, spawn_app_with,
@@ -63,7 +63,7 @@ fn views() -> &'static Vec<(Vec<u8>, Vec<u8>)> {
         stereo_views(&pair, SIZE, &board(), &found, &style)
             .into_iter()
             .map(|v| {
-                let png = |i: &stereo_distance::calibration::boards::synthetic::Image| {
+                let png = |i: &stereo_core::calibration::boards::synthetic::Image| {
                     gray_png(i.width as usize, i.height as usize, &i.pixels)
                 };
                 (png(&v.left), png(&v.right))

@@ -7,11 +7,11 @@ use std::sync::OnceLock;
 
 use nalgebra::{Rotation3, Vector3};
 use reqwest::multipart::{Form, Part};
-use stereo_distance::calibration::boards::charuco::render::{partial_poses, render};
-use stereo_distance::calibration::boards::charuco::{CharucoBoard, CharucoSpec, Dictionary};
-use stereo_distance::calibration::boards::synthetic::{Image, Rays, Style, right_pose};
-use stereo_distance::camera::{Camera, Distortion, Intrinsics, Model, Size, StereoPair};
-use stereo_distance::physics::LengthUnit;
+use stereo_core::calibration::boards::charuco::render::{partial_poses, render};
+use stereo_core::calibration::boards::charuco::{CharucoBoard, CharucoSpec, Dictionary};
+use stereo_core::calibration::boards::synthetic::{Image, Rays, Style, right_pose};
+use stereo_core::camera::{Camera, Distortion, Intrinsics, Model, Size, StereoPair};
+use stereo_core::physics::LengthUnit;
 
 use crate::calibrate::gray_png;
 use crate::helpers::{assert_names, message_for, ok_json, problem, spawn_app};

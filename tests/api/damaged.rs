@@ -5,7 +5,7 @@
 
 use reqwest::multipart::{Form, Part};
 use serde_json::Value;
-use stereo_distance::vision::{encode, synthetic};
+use stereo_core::vision::{encode, synthetic};
 
 use crate::depth_map::{H, W, pair};
 use crate::helpers::{TestApp, message_for, ok_json, problem, spawn_app};

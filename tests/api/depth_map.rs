@@ -5,14 +5,11 @@
 use reqwest::multipart::{Form, Part};
 use reqwest::{Response, header::ACCEPT};
 use serde_json::{Value, json};
-use stereo_distance::{
-    Config,
-    config::HeavyLimits,
-    vision::{
-        encode, sigma,
-        synthetic::{self, Pair},
-    },
+use stereo_core::vision::{
+    encode, sigma,
+    synthetic::{self, Pair},
 };
+use stereo_distance::{Config, config::HeavyLimits};
 
 use crate::helpers::{
     TestApp, assert_close, assert_names, fields, message_for, number_at, ok_json, problem,

@@ -5,10 +5,10 @@
 use reqwest::Response;
 use reqwest::multipart::Form;
 use serde_json::{Value, json};
+use stereo_core::vision::sigma::MODEL;
+use stereo_core::vision::synthetic::{self, Pair, Plane, Region, Scene};
 use stereo_distance::Config;
 use stereo_distance::config::HeavyLimits;
-use stereo_distance::vision::sigma::MODEL;
-use stereo_distance::vision::synthetic::{self, Pair, Plane, Region, Scene};
 
 use crate::depth_map::{H, W, image_part, jpeg_part, pair, phone_photo, png, rig};
 use crate::helpers::{

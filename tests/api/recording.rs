@@ -4,7 +4,7 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
-use stereo_distance::vision::encode;
+use stereo_core::vision::encode;
 
 use crate::depth_map::{H, W, pair};
 use crate::helpers::spawn_app;

@@ -9,7 +9,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Output, Stdio};
 use std::time::{Duration, Instant};
 
-use stereo_distance::vision::encode;
+use stereo_core::vision::encode;
 
 use crate::depth_map::{H, W, pair};
 use crate::recording::command;

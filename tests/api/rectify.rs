@@ -7,7 +7,7 @@
 use nalgebra::{Matrix3, Rotation3, Vector3};
 use reqwest::multipart::Form;
 use serde_json::{Value, json};
-use stereo_distance::camera::{
+use stereo_core::camera::{
     Camera, Distortion, Intrinsics, Model, RectifyOptions, Size, StereoPair, stereo_rectify,
 };
 
@@ -117,7 +117,7 @@ const DISPARITY: f64 = 8.0;
 
 /// The raw frames of `pair` seeing the scene: each raw pixel takes the scene's value where it
 /// lands in the rectified image (the right one shifted by the disparity).
-fn render_raw(pair: &StereoPair, rect: &stereo_distance::camera::Rectification) -> [Vec<u8>; 2] {
+fn render_raw(pair: &StereoPair, rect: &stereo_core::camera::Rectification) -> [Vec<u8>; 2] {
     let k1 = rect.p1.fixed_view::<3, 3>(0, 0).into_owned();
     let k2 = rect.p2.fixed_view::<3, 3>(0, 0).into_owned();
     let mut out = [Vec::new(), Vec::new()];
@@ -143,7 +143,7 @@ fn render_raw(pair: &StereoPair, rect: &stereo_distance::camera::Rectification) 
 }
 
 fn grey_png(data: &[u8]) -> Vec<u8> {
-    stereo_distance::vision::encode::png_grey(W as usize, H as usize, data)
+    stereo_core::vision::encode::png_grey(W as usize, H as usize, data)
 }
 
 fn form(left: Vec<u8>, right: Vec<u8>, extra: &[(&str, String)]) -> Form {
@@ -298,11 +298,11 @@ async fn outputs_cache_pair_and_maps() {
 
 /// `/calibration` says a `stereoCalibrate` file describes raw cameras and computes R1 R2 P1
 /// P2 Q as `cv2.stereoRectify` does: OpenCV 4.14's numbers for this pair (see
-/// `src/camera/tests.rs`) at alpha 0 and 1, to 1e-6 relative.
+/// `crates/stereo-core/src/camera/tests.rs`) at alpha 0 and 1, to 1e-6 relative.
 #[tokio::test]
 async fn a_stereo_calibrate_file_is_rectified_as_opencv_does() {
     let app = spawn_app().await;
-    let pair = stereo_distance::camera::opencv_pair();
+    let pair = stereo_core::camera::opencv_pair();
     let text = stereo_calibrate_yml(&pair).replace(
         &format!("imageSize: [ {W}, {H} ]"),
         "imageSize: [ 640, 480 ]",
@@ -502,7 +502,7 @@ async fn rectify_refuses_what_it_cannot_rectify() {
     let pair = raw_pair(Model::PlumbBob);
     let yml = stereo_calibrate_yml(&pair);
     let img = grey_png(&vec![100u8; (W * H) as usize]);
-    let half = stereo_distance::vision::encode::png_grey(
+    let half = stereo_core::vision::encode::png_grey(
         (W / 2) as usize,
         (H / 2) as usize,
         &vec![100u8; (W * H / 4) as usize],
@@ -615,7 +615,7 @@ async fn rectify_refuses_what_it_cannot_rectify() {
 
 /// The synthetic layered scene as raw frames, with the calibration that describes them.
 struct RawScene {
-    truth: stereo_distance::vision::synthetic::Pair,
+    truth: stereo_core::vision::synthetic::Pair,
     raw_left: Vec<u8>,
     raw_right: Vec<u8>,
     yml: String,
@@ -726,7 +726,7 @@ async fn depth_map_rectifies_raw_frames() {
         ..
     } = raw_scene();
     let (w, h, f) = (160usize, 120usize, 500.0);
-    let png = |rgb: &[u8]| stereo_distance::vision::encode::png_rgb(w, h, rgb);
+    let png = |rgb: &[u8]| stereo_core::vision::encode::png_rgb(w, h, rgb);
     let send = |query: &str, left: Vec<u8>, right: Vec<u8>, extra: Vec<(&'static str, String)>| {
         let form = form(left, right, &extra);
         let query = query.to_owned();
@@ -846,7 +846,7 @@ async fn match_takes_points_on_the_raw_frame() {
         .iter()
         .map(|[x, y]| json!({"x": x, "y": y}))
         .collect();
-    let png = |rgb: &[u8]| stereo_distance::vision::encode::png_rgb(w, h, rgb);
+    let png = |rgb: &[u8]| stereo_core::vision::encode::png_rgb(w, h, rgb);
     let response = app
         .post_form(
             "/match?max_disparity=48",
@@ -911,7 +911,7 @@ async fn match_takes_points_on_the_raw_frame() {
 /// rectifying; the same scenes with their rows in line get no such warning from either.
 #[tokio::test]
 async fn rows_that_do_not_line_up_are_warned() {
-    use stereo_distance::vision::synthetic;
+    use stereo_core::vision::synthetic;
     let app = spawn_app().await;
     for (w, h, shift) in [(320usize, 240usize, 3usize), (480, 360, 17)] {
         let scene = synthetic::render(&synthetic::layered(w, h));
@@ -922,7 +922,7 @@ async fn rows_that_do_not_line_up_are_warned() {
             lowered[y * w * 3..(y + 1) * w * 3]
                 .copy_from_slice(&scene.right_rgb[from * w * 3..(from + 1) * w * 3]);
         }
-        let png = |rgb: &[u8]| stereo_distance::vision::encode::png_rgb(w, h, rgb);
+        let png = |rgb: &[u8]| stereo_core::vision::encode::png_rgb(w, h, rgb);
         let rig = json!({"focal_length_px": 500, "baseline": 100, "unit": "mm"}).to_string();
         let warning = |body: &Value| -> Option<String> {
             body["warnings"]

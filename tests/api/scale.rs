@@ -9,10 +9,10 @@
 //! peak RSS is this test's).
 
 use reqwest::multipart::Form;
+use stereo_core::vision::synthetic::{self, Pair, Scene};
 use stereo_distance::api::routes::depth_map::{bytes_needed, types::DepthMapOutput};
-use stereo_distance::vision::synthetic::{self, Pair, Scene};
 
-use stereo_distance::vision::encode::png_grey;
+use stereo_core::vision::encode::png_grey;
 
 use crate::depth_map::{image_part, jpeg_part, png};
 use crate::helpers::spawn_app;
@@ -69,7 +69,7 @@ fn accuracy(pair: &Pair, map: &[f32]) -> (f64, f64) {
 /// A pair as grey PNGs, as small as a pair of its size gets.
 fn grey_pngs(pair: &Pair) -> Form {
     let (w, h) = (pair.left.width, pair.left.height);
-    let grey = |g: &stereo_distance::vision::Gray| -> Vec<u8> {
+    let grey = |g: &stereo_core::vision::Gray| -> Vec<u8> {
         g.data.iter().map(|&v| (v >> 8) as u8).collect()
     };
     Form::new()

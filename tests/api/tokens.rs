@@ -172,12 +172,12 @@ fn the_command_sends_its_token_and_the_log_holds_none() {
     for n in 1..=2 {
         std::fs::write(
             dir.join(format!("left/000{n}.png")),
-            stereo_distance::vision::encode::png_rgb(w, h, &pair.left_rgb),
+            stereo_core::vision::encode::png_rgb(w, h, &pair.left_rgb),
         )
         .unwrap();
         std::fs::write(
             dir.join(format!("right/000{n}.png")),
-            stereo_distance::vision::encode::png_rgb(w, h, &pair.right_rgb),
+            stereo_core::vision::encode::png_rgb(w, h, &pair.right_rgb),
         )
         .unwrap();
     }

@@ -337,9 +337,8 @@ async fn the_sample_pair_is_rendered_by_the_project() {
     // Arrange
     let app = spawn_app().await;
     let (w, h) = stereo_distance::web::SAMPLE_SIZE;
-    let scene = stereo_distance::vision::synthetic::render(
-        &stereo_distance::vision::synthetic::layered(w, h),
-    );
+    let scene =
+        stereo_core::vision::synthetic::render(&stereo_core::vision::synthetic::layered(w, h));
 
     // Act
     let left = app.get("/sample/left.png").await;

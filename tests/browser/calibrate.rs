@@ -478,10 +478,10 @@ async fn calibrate_mode_fits_a_phone() {
 /// Nine ChArUco pairs of a 7 × 5 board rendered through the sample's rig, the third, sixth
 /// and ninth with the board's middle on the left image's right edge, written as PNG files.
 fn charuco_files() -> Vec<PathBuf> {
-    use stereo_distance::calibration::boards::charuco::render::{partial_poses, render};
-    use stereo_distance::calibration::boards::charuco::{CharucoBoard, CharucoSpec, Dictionary};
-    use stereo_distance::calibration::boards::synthetic::{Rays, Style, right_pose, sample_rig};
-    use stereo_distance::camera::Size;
+    use stereo_core::calibration::boards::charuco::render::{partial_poses, render};
+    use stereo_core::calibration::boards::charuco::{CharucoBoard, CharucoSpec, Dictionary};
+    use stereo_core::calibration::boards::synthetic::{Rays, Style, right_pose, sample_rig};
+    use stereo_core::camera::Size;
 
     let size = Size {
         width: 640,
@@ -494,7 +494,7 @@ fn charuco_files() -> Vec<PathBuf> {
         marker_size: 22.0,
         dictionary: Dictionary::Dict4x4_50,
         legacy: false,
-        unit: stereo_distance::physics::LengthUnit::Millimetre,
+        unit: stereo_core::physics::LengthUnit::Millimetre,
     })
     .expect("a board");
     let pair = sample_rig();

@@ -9,7 +9,7 @@ use std::path::PathBuf;
 use fantoccini::actions::{MOUSE_BUTTON_LEFT, PointerAction};
 use fantoccini::key::Key;
 use serde_json::{Value, json};
-use stereo_distance::vision::{encode, synthetic};
+use stereo_core::vision::{encode, synthetic};
 
 use crate::harness::Browser;
 
@@ -20,7 +20,7 @@ const H: usize = 300;
 const RIG: &str = "focal_mode=px&focal_length_px=400&baseline=120&unit=mm&max_disparity=48";
 const FB: f64 = 48_000.0;
 /// The σ model's floor (px), as the page shows σ_d: to 3 digits.
-const FLOOR: f64 = stereo_distance::vision::sigma::MODEL.floor as f64 - 5e-4;
+const FLOOR: f64 = stereo_core::vision::sigma::MODEL.floor as f64 - 5e-4;
 
 /// Writes the layered synthetic pair (`W` × `H`) as PNG files and returns their paths.
 fn synthetic_pair() -> [PathBuf; 2] {

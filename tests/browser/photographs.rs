@@ -6,9 +6,9 @@
 use std::path::PathBuf;
 
 use serde_json::{Value, json};
-use stereo_distance::calibration::boards::Board;
-use stereo_distance::calibration::boards::corners::{Luma, find_board};
-use stereo_distance::physics::LengthUnit;
+use stereo_core::calibration::boards::Board;
+use stereo_core::calibration::boards::corners::{Luma, find_board};
+use stereo_core::physics::LengthUnit;
 
 use crate::harness::Browser;
 

@@ -22,7 +22,7 @@ use axum::{
 };
 use tower::ServiceExt;
 
-use stereo_distance::vision::{encode, synthetic};
+use stereo_core::vision::{encode, synthetic};
 use stereo_distance::{Config, api::routes::ops::OpsState, app};
 
 /// The operations that read a body (`POST`) and a query (`GET`).

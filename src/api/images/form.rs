@@ -17,7 +17,7 @@ use super::{limits, work};
 use crate::api::HeavyState;
 use crate::api::error::{ApiError, FieldError, FieldErrors};
 use crate::api::extract;
-use crate::vision::decode::{self, DecodeLimits};
+use stereo_core::vision::decode::{self, DecodeLimits};
 
 /// The media type the image routes read.
 pub const MULTIPART: &str = "multipart/form-data";
@@ -230,7 +230,7 @@ async fn read_parts_with(
             problems.add("body", "has a part without a name; name each part");
         } else if !known.contains(&name.as_str()) {
             problems.add_new(
-                crate::numbers::clip(&name, crate::api::member_messages::ECHO),
+                stereo_core::numbers::clip(&name, crate::api::member_messages::ECHO),
                 format!(
                     "is not a part of this request; the parts are {}",
                     known.join(", ")

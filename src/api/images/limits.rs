@@ -3,8 +3,8 @@
 //! parameters), and, when a request cannot fit in the memory budget, what to shrink.
 
 use crate::api::error::{ApiError, FieldError, FieldErrors};
-use crate::vision::decode::{DecodeError, DecodeLimits, MAX_SIDE};
-use crate::vision::{Params, Settings};
+use stereo_core::vision::decode::{DecodeError, DecodeLimits, MAX_SIDE};
+use stereo_core::vision::{Params, Settings};
 
 /// The decoder's limits for every image route: [`MAX_SIDE`] a side and the server's
 /// `--max-image-pixels`.
@@ -27,7 +27,10 @@ pub fn describe(e: &DecodeError, limits: DecodeLimits) -> String {
                                     interrupted copy or upload?); send the whole file"
             .to_owned(),
         DecodeError::Corrupt(what) => {
-            format!("could not be decoded: {}", crate::numbers::clip(what, 120))
+            format!(
+                "could not be decoded: {}",
+                stereo_core::numbers::clip(what, 120)
+            )
         }
     }
 }
@@ -37,7 +40,7 @@ fn too_many_pixels(width: u32, height: u32, limits: DecodeLimits) -> String {
         "is {width} × {height} pixels; this server takes at most {} pixels a side and {} \
          megapixels: send smaller images (scale the rig with them)",
         limits.max_side,
-        crate::numbers::short(limits.max_pixels as f64 / 1e6)
+        stereo_core::numbers::short(limits.max_pixels as f64 / 1e6)
     )
 }
 
@@ -84,8 +87,8 @@ pub fn params(
 ) -> Option<Params> {
     if settings.max_disparity.is_none() {
         settings.max_disparity = ndisp.map(|n| {
-            i32::try_from(n.min(crate::vision::MAX_DISPARITIES as u32))
-                .unwrap_or(crate::vision::DEFAULT_MAX_DISPARITY)
+            i32::try_from(n.min(stereo_core::vision::MAX_DISPARITIES as u32))
+                .unwrap_or(stereo_core::vision::DEFAULT_MAX_DISPARITY)
         });
     }
     match Params::new(&settings) {

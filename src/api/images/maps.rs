@@ -11,9 +11,9 @@ use std::hash::{Hash, Hasher};
 use std::sync::{Arc, Mutex};
 
 use crate::budget::{MemoryBudget, Reservation};
-use crate::calibration::files::Raw;
-use crate::camera::{Map, undistort_rectify_map};
-use crate::vision::remap::Fixed;
+use stereo_core::calibration::files::Raw;
+use stereo_core::camera::{Map, undistort_rectify_map};
+use stereo_core::vision::remap::Fixed;
 
 /// Both cameras' maps in fixed point, ready to read frames through.
 #[derive(Debug)]

@@ -11,11 +11,11 @@ use super::rig::GivenRig;
 use super::work::Need;
 use crate::api::error::FieldErrors;
 use crate::api::wire::images::RectifyMode;
-use crate::calibration::files::Raw;
-use crate::camera::{Alpha, RectifyOptions, stereo_rectify};
-use crate::vision::decode::Decoded;
-use crate::vision::remap::{self, Fixed, Interpolation, RawImage};
-use crate::vision::rows::RowOffsets;
+use stereo_core::calibration::files::Raw;
+use stereo_core::camera::{Alpha, RectifyOptions, stereo_rectify};
+use stereo_core::vision::decode::Decoded;
+use stereo_core::vision::remap::{self, Fixed, Interpolation, RawImage};
+use stereo_core::vision::rows::RowOffsets;
 
 /// What a calibration that cannot rectify lacks.
 pub const NOT_RAW: &str = "describes only rectified images (a Middlebury or KITTI odometry \
@@ -34,7 +34,7 @@ pub const ROW_FEATURES: usize = 8;
 
 /// The summary's warning for a pair sent as rectified that looks raw: too few pixels matched
 /// (`valid_fraction`, when the whole map was matched), or its matched corners off their rows
-/// ([`crate::vision::rows`]). `None` when neither shows.
+/// ([`stereo_core::vision::rows`]). `None` when neither shows.
 pub fn unrectified_warning(
     valid_fraction: Option<f64>,
     rows: Option<RowOffsets>,
@@ -229,15 +229,15 @@ pub fn rectify_raw_pair(
     started.elapsed()
 }
 
-/// The row check of a pair sent as rectified ([`crate::vision::rows`]), over the matcher's
+/// The row check of a pair sent as rectified ([`stereo_core::vision::rows`]), over the matcher's
 /// disparity range.
 pub fn row_check(
     left: &Decoded,
     right: &Decoded,
-    params: &crate::vision::Params,
+    params: &stereo_core::vision::Params,
 ) -> Option<RowOffsets> {
     let range = (params.min_disparity(), params.max_disparity());
-    crate::vision::rows::row_offsets(&left.grey, &right.grey, range)
+    stereo_core::vision::rows::row_offsets(&left.grey, &right.grey, range)
 }
 
 /// Both frames of a pair read through their maps: grey always, the left colours too when
@@ -245,7 +245,7 @@ pub fn row_check(
 fn rectify_pair(left: &mut Decoded, right: &mut Decoded, maps: &Maps, colour: bool) {
     let grey = |d: &Decoded, map: &Fixed| {
         let g = &d.grey;
-        crate::vision::Gray::new(
+        stereo_core::vision::Gray::new(
             map.width,
             map.height,
             remap::remap_fixed(RawImage::grey(g), map, Interpolation::Linear),

@@ -14,8 +14,8 @@ use crate::api::wire::calibration::{Cameras, FormatChoice, add_read_faults};
 use crate::api::wire::de::request;
 use crate::api::wire::params::Unit;
 use crate::api::wire::rig::{CalibratedRig, StereoRig};
-use crate::calibration::files::{self, Raw, ReadOptions, Source};
-use crate::physics::{LengthUnit, Rig};
+use stereo_core::calibration::files::{self, Raw, ReadOptions, Source};
+use stereo_core::physics::{LengthUnit, Rig};
 
 /// The rig of a request, and what its calibration file adds.
 #[derive(Debug, Clone, PartialEq)]
@@ -311,13 +311,13 @@ fn size_mismatch((cw, ch): (f64, f64), (w, h): (u32, u32), takes_rig: bool) -> S
         (Some(a), Some(b), _, _) if a == b => {
             format!(
                 " (the images are 1/{} of the calibrated size: scale them up, or calibrate at this size)",
-                crate::numbers::Num(a)
+                stereo_core::numbers::Num(a)
             )
         }
         (_, _, Some(a), Some(b)) if a == b => {
             format!(
                 " (the images are {}× the calibrated size: scale them down, or calibrate at this size)",
-                crate::numbers::Num(a)
+                stereo_core::numbers::Num(a)
             )
         }
         _ => String::new(),
@@ -330,9 +330,9 @@ fn size_mismatch((cw, ch): (f64, f64), (w, h): (u32, u32), takes_rig: bool) -> S
     format!(
         "is for {} × {} images, but these are {} × {}{scale}: give the calibration of these \
          images{or_a_rig}",
-        crate::numbers::Num(cw),
-        crate::numbers::Num(ch),
-        crate::numbers::Num(w),
-        crate::numbers::Num(h)
+        stereo_core::numbers::Num(cw),
+        stereo_core::numbers::Num(ch),
+        stereo_core::numbers::Num(w),
+        stereo_core::numbers::Num(h)
     )
 }

@@ -18,8 +18,8 @@ use axum::http::{Extensions, request::Parts as RequestParts};
 use crate::api::HeavyState;
 use crate::api::error::{ApiError, FieldError, RETRY_AFTER_SECS};
 use crate::budget::{Refusal, Reservation, Slots};
-use crate::vision::Timings;
-use crate::vision::decode::{self, DecodeLimits, Decoded};
+use stereo_core::vision::Timings;
+use stereo_core::vision::decode::{self, DecodeLimits, Decoded};
 
 /// Sets its flag when dropped: the request's future was dropped (timed out, or its client
 /// went away), so the blocking work should stop at its next check.

@@ -10,9 +10,9 @@ use nalgebra::Matrix3;
 use crate::api::error::FieldErrors;
 use crate::api::wire::de::choice_members;
 use crate::api::wire::params::Unit;
-use crate::calibration::files::{Format, Input, KittiPair, Raw, ReadFault};
-use crate::camera::{Camera, Roi};
-use crate::physics::LengthUnit;
+use stereo_core::calibration::files::{Format, Input, KittiPair, Raw, ReadFault};
+use stereo_core::camera::{Camera, Roi};
+use stereo_core::physics::LengthUnit;
 
 /// Names each fault of reading a calibration in `problems`, by where the route takes what it
 /// came from: the file as `text` and the right camera's file as `right_text` (a JSON member or a

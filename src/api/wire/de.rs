@@ -205,13 +205,13 @@ impl Member for i32 {
         if x.fract() != 0.0 {
             return Err(D::Error::custom(format!(
                 "must be a whole number, got {}",
-                crate::numbers::Num(x)
+                stereo_core::numbers::Num(x)
             )));
         }
         if x.abs() > f64::from(MAX_WHOLE) {
             return Err(D::Error::custom(format!(
                 "must lie in [-{MAX_WHOLE}, {MAX_WHOLE}], got {}",
-                crate::numbers::Num(x)
+                stereo_core::numbers::Num(x)
             )));
         }
         Ok(x as i32)
@@ -328,10 +328,10 @@ macro_rules! camera_request {
         }
 
         impl $name {
-            /// The camera this request states, for [`crate::physics::RectifiedCamera::new`].
-            pub fn camera_spec(&self) -> crate::physics::CameraSpec {
-                crate::physics::CameraSpec {
-                    focal: crate::physics::Focal {
+            /// The camera this request states, for [`stereo_core::physics::RectifiedCamera::new`].
+            pub fn camera_spec(&self) -> stereo_core::physics::CameraSpec {
+                stereo_core::physics::CameraSpec {
+                    focal: stereo_core::physics::Focal {
                         px: self.focal_length_px,
                         mm: self.focal_length_mm,
                         sensor_width_mm: self.sensor_width_mm,
@@ -392,9 +392,9 @@ macro_rules! rig_request {
         }
 
         impl $name {
-            /// The rig this request states, for [`crate::physics::Rig::new`].
-            pub fn rig_spec(&self) -> crate::physics::RigSpec {
-                crate::physics::RigSpec {
+            /// The rig this request states, for [`stereo_core::physics::Rig::new`].
+            pub fn rig_spec(&self) -> stereo_core::physics::RigSpec {
+                stereo_core::physics::RigSpec {
                     camera: self.camera_spec(),
                     baseline: self.baseline,
                     cx: self.cx,

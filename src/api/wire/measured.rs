@@ -4,7 +4,7 @@
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
-use crate::physics;
+use stereo_core::physics;
 
 /// A point in the left camera's frame: x right, y down, z forward, in `unit`.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, ToSchema)]

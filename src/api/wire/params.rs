@@ -5,7 +5,7 @@
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
-use crate::physics::{self, LengthUnit};
+use stereo_core::physics::{self, LengthUnit};
 
 /// Unit of the baseline and of every length in the response.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize, Serialize, ToSchema)]

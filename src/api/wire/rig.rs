@@ -8,7 +8,7 @@ use utoipa::ToSchema;
 
 use crate::api::wire::de::rig_request;
 use crate::api::wire::params::Unit;
-use crate::physics::Rig;
+use stereo_core::physics::Rig;
 
 rig_request! {
     /// A rig as a request states it, with the members of `/distance`: a batch's `rig`, the

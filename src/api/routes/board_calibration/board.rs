@@ -6,10 +6,10 @@ use axum::body::Bytes;
 use super::types::{BoardSpec, BoardType};
 use crate::api::error::{ApiError, FieldError, FieldErrors};
 use crate::api::extract;
-use crate::calibration::boards::charuco::{CharucoBoard, CharucoSpec, Dictionary};
-use crate::calibration::boards::report::CharucoMistake;
-use crate::calibration::boards::{Board, Target};
-use crate::physics::LengthUnit;
+use stereo_core::calibration::boards::charuco::{CharucoBoard, CharucoSpec, Dictionary};
+use stereo_core::calibration::boards::report::CharucoMistake;
+use stereo_core::calibration::boards::{Board, Target};
+use stereo_core::physics::LengthUnit;
 
 /// A `board` part as the messages show it.
 const BOARD_EXAMPLE: &str = r#"{"columns": 9, "rows": 6, "square_size": 25, "unit": "mm"}"#;
@@ -39,7 +39,7 @@ pub fn read_board(bytes: Option<&Bytes>, problems: &mut FieldErrors) -> Option<T
             "board",
             format!(
                 "must be a JSON object such as {BOARD_EXAMPLE} (inner corners), not `{}`",
-                crate::numbers::clip(&String::from_utf8_lossy(bytes), 40)
+                stereo_core::numbers::clip(&String::from_utf8_lossy(bytes), 40)
             ),
         );
         return None;

@@ -1,10 +1,10 @@
 //! What `/calibrate` checks a calibration by besides its RMS: the projection uncertainty over
 //! each image and, when asked, the cross-validation of two halves of the views (the engine is
-//! [`crate::calibration::boards::uncertainty`], [`crate::calibration::boards::cross_validation`]).
+//! [`stereo_core::calibration::boards::uncertainty`], [`stereo_core::calibration::boards::cross_validation`]).
 
 use super::Settings;
-use crate::calibration::boards::report::Determination;
-use crate::calibration::boards::{self, cross_validation, uncertainty};
+use stereo_core::calibration::boards::report::Determination;
+use stereo_core::calibration::boards::{self, cross_validation, uncertainty};
 
 /// What a user checks the calibration by besides its RMS: whether the views determine it,
 /// the projection σ over each image, and (when asked) the cross-validation of two halves of

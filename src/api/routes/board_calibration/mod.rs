@@ -1,6 +1,6 @@
 //! `/calibrate`: checkerboard views in (multipart, repeated `left` and `right` parts and a
 //! `board`), a calibrated camera or stereo rig out, as a JSON summary with each parameter's
-//! standard deviation or as OpenCV's and ROS's files. The engine is [`crate::calibration::boards`]; this
+//! standard deviation or as OpenCV's and ROS's files. The engine is [`stereo_core::calibration::boards`]; this
 //! module reads the form, judges it against the limits, finds the boards over the cores off the
 //! async runtime and writes the answer.
 
@@ -28,15 +28,15 @@ use crate::api::images::limits;
 use crate::api::images::output::{self, Disposition, set_server_timing};
 use crate::api::images::work;
 use crate::api::respond::Json;
-use crate::calibration::boards::TargetMiss;
-use crate::calibration::boards::corners::{Luma, Miss};
-use crate::calibration::boards::report::{
+use stereo_core::calibration::boards::TargetMiss;
+use stereo_core::calibration::boards::corners::{Luma, Miss};
+use stereo_core::calibration::boards::report::{
     Detections, Determination, agreed_charuco_mistake, agreed_other_size,
 };
-use crate::calibration::boards::{self, FitFault, MAX_VIEWS, Target};
-use crate::calibration::files::{RigStd, opencv, ros};
-use crate::camera::{Alpha, Model, RectifyOptions, Size};
-use crate::vision::decode::{self, DecodeLimits};
+use stereo_core::calibration::boards::{self, FitFault, MAX_VIEWS, Target};
+use stereo_core::calibration::files::{RigStd, opencv, ros};
+use stereo_core::camera::{Alpha, Model, RectifyOptions, Size};
+use stereo_core::vision::decode::{self, DecodeLimits};
 
 /// `POST /calibrate`.
 pub fn router() -> OpenApiRouter<HeavyState> {

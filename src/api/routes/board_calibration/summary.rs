@@ -1,4 +1,4 @@
-//! `/calibrate`'s JSON summary: the fit, its report ([`crate::calibration::boards::report`])
+//! `/calibrate`'s JSON summary: the fit, its report ([`stereo_core::calibration::boards::report`])
 //! and the rectification mapped onto the wire types, and nothing computed here.
 
 use std::time::Duration;
@@ -12,13 +12,13 @@ use super::types::{
 };
 use crate::api::wire::params::Unit;
 use crate::api::wire::rig::CalibratedRig;
-use crate::calibration::boards::charuco::CharucoBoard;
-use crate::calibration::boards::report::{self, Rectified};
-use crate::calibration::boards::{
+use stereo_core::calibration::boards::charuco::CharucoBoard;
+use stereo_core::calibration::boards::report::{self, Rectified};
+use stereo_core::calibration::boards::{
     self, CameraFit, Corners, Fit, Target, ViewOutcome, cross_validation, uncertainty,
 };
-use crate::camera::Model;
-use crate::numbers::round_to;
+use stereo_core::camera::Model;
+use stereo_core::numbers::round_to;
 
 fn matrix3(m: &nalgebra::Matrix3<f64>) -> [[f64; 3]; 3] {
     std::array::from_fn(|r| std::array::from_fn(|c| m[(r, c)]))
@@ -96,7 +96,7 @@ pub fn summarize(
     views: &[Corners],
     reasons: &[[Option<String>; 2]],
     settings: &Settings,
-    rectification: Option<&crate::camera::Rectification>,
+    rectification: Option<&stereo_core::camera::Rectification>,
     rig_std: Option<[f64; 2]>,
     checks: &Checks,
     [detect, solve, rectify]: [Duration; 3],

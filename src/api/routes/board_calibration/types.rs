@@ -9,8 +9,8 @@ use crate::api::wire::de::{choice_members, request};
 use crate::api::wire::openapi::{image_answers, named, text};
 use crate::api::wire::params::Unit;
 use crate::api::wire::rig::CalibratedRig;
-use crate::calibration::boards::charuco::Dictionary;
-use crate::camera::Model;
+use stereo_core::calibration::boards::charuco::Dictionary;
+use stereo_core::camera::Model;
 
 /// The distortion model to fit, as ROS names them.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize, Serialize, ToSchema)]

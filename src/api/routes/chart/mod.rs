@@ -18,8 +18,8 @@ use crate::api::error::{ApiError, FieldErrors};
 use crate::api::extract::{JsonBody, QueryParams};
 use crate::api::validate::{self, Bounds, Feature};
 use crate::api::wire::openapi::{BodyErrors, QueryErrors};
-use crate::numbers::short;
-use crate::physics;
+use stereo_core::numbers::short;
+use stereo_core::physics;
 
 /// `GET` and `POST /chart-data` and `/chart-data.csv`, `GET /chart.svg`.
 pub fn router() -> OpenApiRouter<AppState> {

@@ -9,7 +9,7 @@
 use std::fmt::Write;
 
 use super::types::{AxisScale, ChartPoint, ChartResponse};
-use crate::numbers::short;
+use stereo_core::numbers::short;
 
 /// Canvas size; the `viewBox` lets it scale to any width.
 const WIDTH: f64 = 800.0;

@@ -1,7 +1,7 @@
 //! `/depth-map`: a rectified pair (or a raw one with its calibration, rectified first) in
 //! (multipart), a dense disparity and depth map out, as a
 //! JSON summary or as the file a user's tool reads (PFM, KITTI PNG, NPY, depth PNG, preview,
-//! PLY). The matcher is [`crate::vision`]'s; this module reads the form, judges it against the
+//! PLY). The matcher is [`stereo_core::vision`]'s; this module reads the form, judges it against the
 //! limits and the memory budget, runs the matcher off the async runtime and encodes the answer.
 
 pub mod types;
@@ -27,9 +27,9 @@ use crate::api::images::raw;
 use crate::api::images::work;
 use crate::api::images::{GivenRig, ImageForm, ImagePair, Job, limits, rig};
 use crate::api::respond::Json;
-use crate::calibration::files::Raw;
-use crate::physics::LengthUnit;
-use crate::vision::{self, Cancelled, Disparity, Params, encode};
+use stereo_core::calibration::files::Raw;
+use stereo_core::physics::LengthUnit;
+use stereo_core::vision::{self, Cancelled, Disparity, Params, encode};
 
 /// `POST /depth-map`.
 pub fn router() -> OpenApiRouter<HeavyState> {
@@ -295,7 +295,7 @@ fn depths(map: &Disparity, fb: f32, doffs: f32) -> Vec<f32> {
 
 /// σ_Z of each depth: `√((Z²·σ_d / (f·B))² + (Z·σ_f / f)² + (Z·σ_B / B)²)` with the pixel's
 /// σ_d and the rig's σ_f and σ_B; NaN where the depth is.
-fn depth_stds(map: &Disparity, depth: &[f32], rig: crate::physics::Rig) -> Vec<f32> {
+fn depth_stds(map: &Disparity, depth: &[f32], rig: stereo_core::physics::Rig) -> Vec<f32> {
     depth
         .iter()
         .zip(&map.std)
@@ -445,7 +445,7 @@ fn preview(map: &Disparity) -> Vec<u8> {
 fn points(
     map: &Disparity,
     (depth, depth_std): (&[f32], &[f32]),
-    rig: Option<crate::physics::Rig>,
+    rig: Option<stereo_core::physics::Rig>,
     rgb: &[u8],
 ) -> Vec<encode::ColouredPoint> {
     let Some(rig) = rig else {

@@ -11,7 +11,7 @@ use crate::api::wire::images::image_form;
 pub use crate::api::wire::images::{RectifyMode, StageTimes};
 use crate::api::wire::openapi::{image_answers, named};
 use crate::api::wire::rig::CalibratedRig;
-use crate::vision::{Preset, Settings, Subpixel};
+use stereo_core::vision::{Preset, Settings, Subpixel};
 
 /// What `/depth-map` answers.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize, Serialize, ToSchema)]

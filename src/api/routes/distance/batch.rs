@@ -29,8 +29,8 @@ use crate::{
         wire::{de::Object, measured::Measured},
     },
     config::Limits,
-    physics,
 };
+use stereo_core::physics;
 
 /// A `POST /distance` body: one correspondence or a batch, each with what decoding refused.
 #[derive(Debug)]

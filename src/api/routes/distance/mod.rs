@@ -16,8 +16,8 @@ use crate::api::respond::Json;
 use crate::api::validate::{self, Bounds, Feature};
 use crate::api::wire::measured::Measured;
 use crate::api::wire::openapi::{BodyErrors, QueryErrors};
-use crate::numbers::short;
-use crate::physics;
+use stereo_core::numbers::short;
+use stereo_core::physics;
 
 /// `GET` and `POST /distance`.
 pub fn router() -> OpenApiRouter<AppState> {

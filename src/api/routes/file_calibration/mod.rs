@@ -18,9 +18,9 @@ use crate::api::extract::{self, BodyLimit, QueryParams};
 use crate::api::respond::Json;
 use crate::api::wire::calibration::add_read_faults;
 use crate::api::wire::openapi::BodyErrors;
-use crate::calibration::files::{self, ReadOptions, Source};
-use crate::physics::LengthUnit;
-use crate::vision::decode::MAX_SIDE;
+use stereo_core::calibration::files::{self, ReadOptions, Source};
+use stereo_core::physics::LengthUnit;
+use stereo_core::vision::decode::MAX_SIDE;
 
 /// `POST /calibration`.
 pub fn router() -> OpenApiRouter<AppState> {

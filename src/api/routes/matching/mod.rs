@@ -1,8 +1,8 @@
 //! `/match`: a rectified pair (or a raw one with its calibration, rectified first) and points
 //! (or boxes) in the left image in, each point's match in the right image with a status and a
 //! confidence, and each box's robust distance, out. The
-//! engine is [`crate::vision::correspond`]; the distances are `/distance`'s own
-//! ([`crate::physics::measure`] through [`Measured`]), so the two never disagree.
+//! engine is [`stereo_core::vision::correspond`]; the distances are `/distance`'s own
+//! ([`stereo_core::physics::measure`] through [`Measured`]), so the two never disagree.
 
 pub mod types;
 
@@ -19,8 +19,8 @@ use self::types::{
     PointMatch, RegionMatch, RegionStatus,
 };
 use crate::api::wire::images::StageTimes;
-use crate::numbers::round_to;
 use axum::extract::State;
+use stereo_core::numbers::round_to;
 
 use crate::api::HeavyState;
 use crate::api::error::{ApiError, FieldErrors};
@@ -33,10 +33,10 @@ use crate::api::images::{ImageForm, ImagePair, Job, Parts, limits, rig};
 use crate::api::respond::Json;
 use crate::api::wire::measured::Measured;
 use crate::api::wire::openapi::ImageErrors;
-use crate::calibration::files::Raw;
-use crate::physics::{self, Correspondence, Rig};
-use crate::vision::correspond::{self, Found, Rect};
-use crate::vision::{self, Cancelled, Params, Settings};
+use stereo_core::calibration::files::Raw;
+use stereo_core::physics::{self, Correspondence, Rig};
+use stereo_core::vision::correspond::{self, Found, Rect};
+use stereo_core::vision::{self, Cancelled, Params, Settings};
 
 /// `POST /match`.
 pub fn router() -> OpenApiRouter<HeavyState> {
@@ -294,7 +294,10 @@ fn check_regions(
                 Some(v) if positive && v <= 0.0 => {
                     problems.add_new(
                         name,
-                        format!("must be greater than 0, got {}", crate::numbers::Num(v)),
+                        format!(
+                            "must be greater than 0, got {}",
+                            stereo_core::numbers::Num(v)
+                        ),
                     );
                     None
                 }

@@ -11,7 +11,7 @@ pub use crate::api::wire::images::{RectifyMode, StageTimes};
 use crate::api::wire::measured::{Point, Warning};
 use crate::api::wire::params::Unit;
 use crate::api::wire::rig::CalibratedRig;
-use crate::vision::correspond::MatchOutcome;
+use stereo_core::vision::correspond::MatchOutcome;
 
 request! {
     /// The disparity range of `/match`, in the query string.
@@ -165,8 +165,8 @@ pub struct MatchDistance {
     pub point: Option<Point>,
 }
 
-impl From<&crate::physics::Measurement> for MatchDistance {
-    fn from(m: &crate::physics::Measurement) -> Self {
+impl From<&stereo_core::physics::Measurement> for MatchDistance {
+    fn from(m: &stereo_core::physics::Measurement) -> Self {
         Self {
             disparity_px: Some(m.disparity_px),
             distance: Some(m.distance),

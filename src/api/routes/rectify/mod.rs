@@ -1,7 +1,7 @@
 //! `/rectify`: a raw pair and the calibration of its cameras in (multipart), the rectified pair
 //! out, as PNGs, a side-by-side picture with epipolar lines, the maps for OpenCV's `remap`, or
 //! a JSON summary. The maps come from the heavy group's cache
-//! ([`crate::api::images::maps`]); the remapping is [`crate::vision::remap`]'s.
+//! ([`crate::api::images::maps`]); the remapping is [`stereo_core::vision::remap`]'s.
 
 pub mod types;
 
@@ -25,10 +25,10 @@ use crate::api::images::{GivenRig, ImageForm, ImagePair, Job};
 use crate::api::respond::Json;
 use crate::api::wire::calibration::RawCameras;
 use crate::api::wire::rig::CalibratedRig;
-use crate::calibration::files::Raw;
-use crate::vision::decode::Decoded;
-use crate::vision::encode;
-use crate::vision::remap::{self, Fixed, Interpolation, RawImage};
+use stereo_core::calibration::files::Raw;
+use stereo_core::vision::decode::Decoded;
+use stereo_core::vision::encode;
+use stereo_core::vision::remap::{self, Fixed, Interpolation, RawImage};
 
 /// `POST /rectify`.
 pub fn router() -> OpenApiRouter<HeavyState> {

@@ -4,8 +4,8 @@
 
 pub mod types;
 
-use crate::numbers::Num;
 use axum::extract::State;
+use stereo_core::numbers::Num;
 use utoipa_axum::{router::OpenApiRouter, routes};
 
 use self::types::{
@@ -18,8 +18,8 @@ use crate::api::extract::{JsonBody, QueryParams};
 use crate::api::respond::Json;
 use crate::api::wire::openapi::{BodyErrors, QueryErrors};
 use crate::api::{AppState, validate};
-use crate::numbers::{percent, short};
-use crate::physics::{self, Rig, finite};
+use stereo_core::numbers::{percent, short};
+use stereo_core::physics::{self, Rig, finite};
 
 /// `GET` and `POST /rig` and `/baseline`.
 pub fn router() -> OpenApiRouter<AppState> {

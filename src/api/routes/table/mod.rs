@@ -16,7 +16,7 @@ use crate::api::error::{ApiError, FieldErrors};
 use crate::api::extract::{JsonBody, QueryParams};
 use crate::api::validate::{self, Bounds};
 use crate::api::wire::openapi::{BodyErrors, QueryErrors};
-use crate::physics;
+use stereo_core::physics;
 
 /// `GET` and `POST /table` and `/table.csv`.
 pub fn router() -> OpenApiRouter<AppState> {
@@ -62,7 +62,7 @@ data_operation! {
 /// its unit (`distance_mm`) and the projection factor in pixels per unit; `normalized_x` only
 /// when the rows have it.
 fn table_columns(table: &TableResponse) -> Vec<String> {
-    let unit = crate::physics::LengthUnit::from(table.unit).symbol();
+    let unit = stereo_core::physics::LengthUnit::from(table.unit).symbol();
     let mut columns = vec![csv::column("distance", unit), "disparity_px".to_owned()];
     if table.rows.first().is_some_and(|r| r.normalized_x.is_some()) {
         columns.push("normalized_x".to_owned());

@@ -182,7 +182,7 @@ mod tests {
     /// encoder, progressive from OpenCV's (`tests/data/jpeg/`; the crate writes no progressive).
     fn jpeg(progressive: bool) -> Vec<u8> {
         if progressive {
-            return include_bytes!("../../tests/data/jpeg/progressive.jpg").to_vec();
+            return include_bytes!("../../../../tests/data/jpeg/progressive.jpg").to_vec();
         }
         let (w, h) = (96usize, 64usize);
         let rgb: Vec<u8> = (0..w * h)
@@ -246,7 +246,7 @@ mod tests {
     /// decoder's words; the whole file reads cleanly.
     #[test]
     fn overwritten_data_is_corrupt() {
-        let photo = include_bytes!("../../tests/data/photographs/opencv-stereo/left01.jpg");
+        let photo = include_bytes!("../../../../tests/data/photographs/opencv-stereo/left01.jpg");
         assert_eq!(read(photo, 8192).map(|r| r.note).ok(), Some(None));
         let n = photo.len();
         let mut zeros = photo.to_vec();

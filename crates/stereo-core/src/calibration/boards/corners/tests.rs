@@ -348,7 +348,7 @@ fn finds_every_board_in_real_photographs() {
     let board = Board::new(9, 6, 25.0, LengthUnit::Millimetre).unwrap();
     let dir = concat!(
         env!("CARGO_MANIFEST_DIR"),
-        "/tests/data/photographs/opencv-stereo"
+        "/../../tests/data/photographs/opencv-stereo"
     );
     let mut missed = Vec::new();
     for side in ["left", "right"] {
