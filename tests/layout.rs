@@ -24,6 +24,7 @@ const CORE_LAYERS: &[&str] = &[
     "camera",
     "calibration",
     "vision",
+    "pipeline",
 ];
 
 /// The service's top-level modules in the order of its `lib.rs`'s map, all below the engine.

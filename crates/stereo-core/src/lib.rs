@@ -30,10 +30,18 @@
 //!   correspondences of points and regions, decoding and encoding (PNG, JPEG, PFM, NPY, NPZ,
 //!   PLY), remapping raw frames through rectification maps (`vision::remap`), and the check that
 //!   a pair sent as rectified has its rows in line (`vision::rows`).
+//! - [`pipeline`]: the use cases over all of these, as plain functions: a calibration resolved
+//!   once for a size, a rectify mode and `alpha` (`pipeline::calibrated`), raw frames
+//!   rectified through maps built once (`pipeline::rectify`), and a depth map with its depths,
+//!   σ_Z, points and files (`pipeline::depth`).
+//!
+//! Using the engine from a Rust program: add `stereo-core` (this folder) as a path or git
+//! dependency; [`pipeline`] opens with a depth map from two images and a calibration file.
 
 pub mod calibration;
 pub mod camera;
 pub mod noise;
 pub mod numbers;
 pub mod physics;
+pub mod pipeline;
 pub mod vision;

@@ -12,11 +12,12 @@ use axum::extract::{FromRequest, Multipart, Request};
 use axum::http::{StatusCode, header};
 
 use super::parts::Parts;
-use super::rig::{self, GivenRig};
+use super::rig;
 use super::{limits, work};
 use crate::api::HeavyState;
 use crate::api::error::{ApiError, FieldError, FieldErrors};
 use crate::api::extract;
+use stereo_core::pipeline::Calibrated;
 use stereo_core::vision::decode::{self, DecodeLimits};
 
 /// The media type the image routes read.
@@ -41,7 +42,7 @@ pub struct ImagePair<F> {
     /// The pair's size (the left image's), when its header could be read.
     pub size: Option<(u32, u32)>,
     /// The rig from the `rig` or `calibration` part, when one is given and valid.
-    pub rig: Option<GivenRig>,
+    pub rig: Option<Calibrated>,
     /// Everything found wrong so far, each part named.
     pub problems: FieldErrors,
     /// The memory the heavy group's guard reserved for this request, to grow before the work,
@@ -177,7 +178,7 @@ pub struct Job<'a> {
     pub parts: &'a Parts,
     /// What the decoder takes (`--max-image-pixels`).
     pub limits: DecodeLimits,
-    pub rig: Option<GivenRig>,
+    pub rig: Option<Calibrated>,
     /// Set when the request is abandoned: stop at the next check.
     pub cancel: &'a std::sync::atomic::AtomicBool,
     /// How long the body took to read and the work waited for a thread, for `Server-Timing`.

@@ -1,4 +1,4 @@
-//! The rectification maps of the raw rigs seen lately, shared by `/rectify` and the raw pairs
+//! The rectification maps ([`Maps`]) of the raw rigs seen lately, shared by `/rectify` and the raw pairs
 //! of the image routes: maps depend only on the cameras, the rectification and the sizes, so
 //! a stream of frames from one rig pays for them once. The cache is bounded (entries and
 //! bytes), and each entry holds a reservation of its bytes in the heavy group's memory budget,
@@ -12,45 +12,7 @@ use std::sync::{Arc, Mutex};
 
 use crate::budget::{MemoryBudget, Reservation};
 use stereo_core::calibration::files::Raw;
-use stereo_core::camera::{Map, undistort_rectify_map};
-use stereo_core::vision::remap::Fixed;
-
-/// Both cameras' maps in fixed point, ready to read frames through.
-#[derive(Debug)]
-pub struct Maps {
-    pub left: Fixed,
-    pub right: Fixed,
-}
-
-/// Both cameras' float maps, as `initUndistortRectifyMap` makes them.
-pub fn float_maps(raw: &Raw) -> (Map, Map) {
-    let r = &raw.rectification;
-    let k = |p: &nalgebra::Matrix3x4<f64>| p.fixed_view::<3, 3>(0, 0).into_owned();
-    rayon::join(
-        || undistort_rectify_map(&raw.pair.left, &r.r1, &k(&r.p1), r.size),
-        || undistort_rectify_map(&raw.pair.right, &r.r2, &k(&r.p2), r.size),
-    )
-}
-
-impl Maps {
-    /// The maps of a raw rig's rectification.
-    pub fn build(raw: &Raw) -> Maps {
-        let (left, right) = float_maps(raw);
-        let (left, right) = rayon::join(|| Fixed::new(&left), || Fixed::new(&right));
-        Maps { left, right }
-    }
-
-    pub fn bytes(&self) -> usize {
-        self.left.bytes() + self.right.bytes()
-    }
-
-    /// The most bytes building the maps of `raw` holds at once (both float maps and their
-    /// fixed-point forms).
-    pub fn bytes_for(raw: &Raw) -> usize {
-        let s = raw.rectification.size;
-        (s.width as usize) * (s.height as usize) * 28
-    }
-}
+use stereo_core::pipeline::Maps;
 
 /// What the maps of a raw rig depend on, hashed: both cameras, R1 R2 P1 P2 and the sizes.
 pub fn key(raw: &Raw) -> u64 {

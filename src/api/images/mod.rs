@@ -30,4 +30,3 @@ pub mod work;
 
 pub use form::{ImageForm, ImagePair, Job};
 pub use parts::Parts;
-pub use rig::GivenRig;

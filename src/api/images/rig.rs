@@ -13,29 +13,10 @@ use crate::api::validate;
 use crate::api::wire::calibration::{Cameras, FormatChoice, add_read_faults};
 use crate::api::wire::de::request;
 use crate::api::wire::params::Unit;
-use crate::api::wire::rig::{CalibratedRig, StereoRig};
-use stereo_core::calibration::files::{self, Raw, ReadOptions, Source};
-use stereo_core::physics::{LengthUnit, Rig};
-
-/// The rig of a request, and what its calibration file adds.
-#[derive(Debug, Clone, PartialEq)]
-pub struct GivenRig {
-    /// The rig, for the images' size.
-    pub rig: Rig,
-    /// The calibration file's disparity range (Middlebury `ndisp`).
-    pub max_disparity: Option<u32>,
-    pub warnings: Vec<String>,
-    /// The raw cameras the calibration describes, when it does; their T in `file_unit`.
-    pub raw: Option<Box<Raw>>,
-    pub file_unit: LengthUnit,
-}
-
-impl GivenRig {
-    /// The rig in the members `/calibration` answers, to echo.
-    pub fn echo(&self) -> CalibratedRig {
-        CalibratedRig::from(&self.rig)
-    }
-}
+use crate::api::wire::rig::StereoRig;
+use stereo_core::calibration::files::{self, ReadOptions, Source};
+use stereo_core::physics::LengthUnit;
+use stereo_core::pipeline::{Calibrated, SizeFault};
 
 /// The parts that carry a rig.
 pub const RIG_PARTS: [&str; 6] = [
@@ -57,7 +38,7 @@ pub fn rig(
     size: Option<(u32, u32)>,
     takes_rig: bool,
     problems: &mut FieldErrors,
-) -> Option<GivenRig> {
+) -> Option<Calibrated> {
     let has_calibration = parts.get("calibration").is_some();
     match (parts.get("rig"), has_calibration) {
         (Some(json), true) => {
@@ -68,7 +49,7 @@ pub fn rig(
             let unit = unit.map_or(given.rig.unit(), LengthUnit::from);
             let baseline = unit.convert(baseline, given.rig.unit());
             match given.rig.with_calibration_std(focal, baseline) {
-                Ok(rig) => Some(GivenRig { rig, ..given }),
+                Ok(rig) => Some(Calibrated { rig, ..given }),
                 Err(faults) => {
                     validate::faults(faults, RIG, problems);
                     None
@@ -154,7 +135,7 @@ fn rig_part(
     json: &Bytes,
     size: Option<(u32, u32)>,
     problems: &mut FieldErrors,
-) -> Option<GivenRig> {
+) -> Option<Calibrated> {
     let map = match serde_json::from_slice::<Value>(json) {
         Ok(Value::Object(map)) => map,
         Ok(other) => {
@@ -197,14 +178,7 @@ fn rig_part(
     for error in local.prefixed(RIG) {
         problems.add_new(error.field, error.message);
     }
-    let rig = rig.filter(|_| ok)?;
-    Some(GivenRig {
-        file_unit: rig.unit(),
-        rig,
-        max_disparity: None,
-        warnings: Vec::new(),
-        raw: None,
-    })
+    rig.filter(|_| ok).map(Calibrated::of_rig)
 }
 
 request! {
@@ -223,7 +197,7 @@ fn calibration_parts(
     size: Option<(u32, u32)>,
     takes_rig: bool,
     problems: &mut FieldErrors,
-) -> Option<GivenRig> {
+) -> Option<Calibrated> {
     let mut local = FieldErrors::default();
     let mut map = Map::new();
     for part in [
@@ -265,34 +239,13 @@ fn calibration_parts(
             return None;
         }
     };
-    let given = |rig| GivenRig {
-        rig,
-        max_disparity: read.max_disparity_px,
-        warnings: read.warnings.clone(),
-        raw: read.raw.clone(),
-        file_unit: read.file_unit,
-    };
-    let Some((w, h)) = size else {
-        return Some(given(read.rig));
-    };
-    // Raw frames of a raw calibration: the rig is that of the rectified images.
-    if let Some(raw) = &read.raw
-        && (raw.size.width, raw.size.height) == (w, h)
-    {
-        return Some(given(read.rig));
-    }
-    if let (Some(cw), Some(ch)) = (read.rig.image_width(), read.rig.image_height())
-        && (cw, ch) != (f64::from(w), f64::from(h))
-    {
-        let (cw, ch) = read.raw.as_ref().map_or((cw, ch), |r| {
-            (f64::from(r.size.width), f64::from(r.size.height))
-        });
-        problems.add("calibration", size_mismatch((cw, ch), (w, h), takes_rig));
-        return None;
-    }
-    match read.rig.with_image_size(w, h) {
-        Ok(rig) => Some(given(rig)),
-        Err(faults) => {
+    match Calibrated::from_file(read, size) {
+        Ok(calibrated) => Some(calibrated),
+        Err(SizeFault::Mismatch { calibrated, images }) => {
+            problems.add("calibration", size_mismatch(calibrated, images, takes_rig));
+            None
+        }
+        Err(SizeFault::Rig(faults)) => {
             validate::faults(faults, RIG, problems);
             None
         }

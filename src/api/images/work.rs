@@ -140,15 +140,6 @@ pub async fn run_reserved<T: Send + 'static>(
     })
 }
 
-/// What the decoder forgave in the pair's images (a JPEG read without its end-of-image
-/// marker), each sentence naming its part: `left has no end-of-image marker …`.
-pub fn decode_notes(left: &Decoded, right: &Decoded) -> Vec<String> {
-    [("left", left), ("right", right)]
-        .into_iter()
-        .filter_map(|(name, d)| d.note.as_ref().map(|note| format!("{name} {note}")))
-        .collect()
-}
-
 /// Both images of the pair decoded at once (on the matcher's pool) within `allowed`, each in
 /// colour too when `colour` says so (`[left, right]`); a 422 naming each image that cannot be
 /// decoded.

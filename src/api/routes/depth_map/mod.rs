@@ -6,16 +6,13 @@
 
 pub mod types;
 
-use std::time::{Duration, Instant};
+use std::time::Instant;
 
 use axum::http::{HeaderMap, header};
 use axum::response::{IntoResponse, Response};
 use utoipa_axum::{router::OpenApiRouter, routes};
 
-use self::types::{
-    DepthMapAnswers, DepthMapForm, DepthMapOutput, DepthMapQuery, DepthMapSummary,
-    MatcherParameters, Spread, StageTimes,
-};
+use self::types::{DepthMapAnswers, DepthMapForm, DepthMapOutput, DepthMapQuery, DepthMapSummary};
 use axum::extract::State;
 
 use crate::api::HeavyState;
@@ -25,11 +22,12 @@ use crate::api::images::maps::MapCache;
 use crate::api::images::output::{self, Disposition, set_server_timing};
 use crate::api::images::raw;
 use crate::api::images::work;
-use crate::api::images::{GivenRig, ImageForm, ImagePair, Job, limits, rig};
+use crate::api::images::{ImageForm, ImagePair, Job, limits, rig};
 use crate::api::respond::Json;
+use crate::api::wire::rig::CalibratedRig;
 use stereo_core::calibration::files::Raw;
-use stereo_core::physics::LengthUnit;
-use stereo_core::vision::{self, Cancelled, Disparity, Params, encode};
+use stereo_core::pipeline::{self, Product, Request};
+use stereo_core::vision::{self, Cancelled, Params};
 
 /// `POST /depth-map`.
 pub fn router() -> OpenApiRouter<HeavyState> {
@@ -136,15 +134,7 @@ pub async fn post_depth_map(
 /// for a point cloud, the matcher's, and the answer's per-pixel buffers. What a `w × h`
 /// rectified pair searching `count` disparities reserves from the heavy budget.
 pub fn bytes_needed(w: usize, h: usize, count: usize, output: DepthMapOutput) -> usize {
-    // A point cloud's colours, σ_Z and the 4 more bytes of each point and vertex, or the
-    // NPZ's four more arrays and the archive's copy of all five (and the fill's one-byte
-    // mask, twice).
-    let extra = match output {
-        DepthMapOutput::PointsPly => 15,
-        DepthMapOutput::ArraysNpz => 42,
-        DepthMapOutput::DepthStdNpy => 4,
-        _ => 0,
-    };
+    let extra = output.product().map_or(0, Product::extra_bytes_per_pixel);
     let after = w
         .saturating_mul(h)
         .saturating_mul(extra + 24)
@@ -152,8 +142,7 @@ pub fn bytes_needed(w: usize, h: usize, count: usize, output: DepthMapOutput) ->
     limits::decode_then(w, h, after)
 }
 
-/// Decodes, matches and encodes, on a blocking thread. `waited` is how long the body took to
-/// read and the work to get a thread, for `Server-Timing`.
+/// Decodes, runs the engine's depth map and writes the answer, on a blocking thread.
 fn compute(
     job: Job,
     params: &Params,
@@ -163,311 +152,50 @@ fn compute(
     let Job {
         parts,
         limits: allowed,
-        rig: given,
+        rig: calibrated,
         cancel,
         waited: [read, queue],
     } = job;
     let started = Instant::now();
-    let colour = output == DepthMapOutput::PointsPly;
-    let (mut left, mut right) = work::decode_pair(parts, allowed, [colour, false])?;
-    let decode_time = started.elapsed();
-    let rectify_time = raw.map(|raw| raw::rectify_raw_pair(&mut left, &mut right, raw, colour));
-    let (map, timings) = vision::disparity(&left.grey, &right.grey, params, cancel)
+    let colour = output.product().is_some_and(Product::wants_colour);
+    let (left, right) = work::decode_pair(parts, allowed, [colour, false])?;
+    let decode = started.elapsed();
+    let maps = raw.map(|(raw, cache)| cache.get(raw).0);
+    let request = Request {
+        params,
+        calibrated: calibrated.as_ref(),
+        maps: maps.as_deref(),
+        colour,
+        depth_std: output.wants_depth_std(),
+    };
+    let map = pipeline::depth_map(left, right, request, cancel)
         .map_err(|Cancelled| ApiError::Internal("cancelled".to_owned()))?;
-    // A pair sent as rectified: do its matched corners lie on their rows? (A file answer says
-    // so in its `Stereo-Warnings` header.)
-    let rows = raw
-        .is_none()
-        .then(|| raw::row_check(&left, &right, params))
-        .flatten();
-    let mut warnings = given.as_ref().map_or_else(Vec::new, |g| g.warnings.clone());
-    warnings.extend(work::decode_notes(&left, &right));
-    drop(right);
-    let valid = map.data.iter().filter(|d| !d.is_nan()).count();
-    let valid_fraction = valid as f64 / map.data.len().max(1) as f64;
-    if rectify_time.is_none()
-        && let Some(warning) = raw::unrectified_warning(Some(valid_fraction), rows)
-    {
-        warnings.push(warning);
-    }
-    // The summary also says what was done to a raw pair; the `Stereo-Warnings` header keeps to
-    // what is wrong with what was sent (`rectified: true` says the rest).
-    let mut said = warnings.clone();
-    if rectify_time.is_some() {
-        said.push(format!(
-            "the raw pair was rectified first: the maps are the rectified left camera's, {} × \
-             {} px, and the depths use the rectified rig",
-            map.width, map.height
-        ));
-    }
     let started = Instant::now();
-    let rig = given.as_ref().map(|g| g.rig);
-    let depth = rig.map(|rig| depths(&map, rig.fb() as f32, rig.doffs() as f32));
-    let depth_std = match (rig, &depth) {
-        (Some(rig), Some(depth)) if output.wants_depth_std() => Some(depth_stds(&map, depth, rig)),
-        _ => None,
-    };
-    let (w, h) = (map.width, map.height);
-    let body: Result<Vec<u8>, DepthMapSummary> = match output {
-        DepthMapOutput::Summary => Err(summary(
-            &map,
-            (depth.as_deref(), depth_std.as_deref()),
-            params,
-            (given, said),
-            (rectify_time, valid_fraction),
-            [decode_time, timings.cost, timings.aggregate, timings.refine],
-            timings.paths,
-        )),
-        DepthMapOutput::DisparityPfm => Ok(encode::pfm(w, h, &map.data)),
-        DepthMapOutput::DisparityPng => {
-            Ok(encode::png16(w, h, &encode::kitti_disparity(&map.data)))
-        }
-        DepthMapOutput::DisparityNpy => Ok(encode::npy(w, h, &map.data)),
-        DepthMapOutput::DepthNpy => Ok(encode::npy(w, h, depth.as_deref().unwrap_or_default())),
-        DepthMapOutput::DisparityStdNpy => Ok(encode::npy(w, h, &map.std)),
-        DepthMapOutput::DisparityStdPfm => Ok(encode::pfm(w, h, &map.std)),
-        DepthMapOutput::DepthStdNpy => {
-            Ok(encode::npy(w, h, depth_std.as_deref().unwrap_or_default()))
-        }
-        DepthMapOutput::ArraysNpz => Ok(arrays(&map, depth.as_deref(), depth_std.as_deref())?),
-        DepthMapOutput::DepthPng => {
-            let unit = rig.map_or(LengthUnit::Millimetre, |r| r.unit());
-            let mm: Vec<f32> = depth
-                .as_deref()
-                .unwrap_or_default()
-                .iter()
-                .map(|&z| unit.convert(f64::from(z), LengthUnit::Millimetre) as f32)
-                .collect();
-            Ok(encode::png16(w, h, &encode::millimetres(&mm)))
-        }
-        DepthMapOutput::PreviewPng => Ok(encode::png_rgb(w, h, &preview(&map))),
-        DepthMapOutput::PointsPly => Ok(encode::ply(&points(
-            &map,
-            (
-                depth.as_deref().unwrap_or_default(),
-                depth_std.as_deref().unwrap_or_default(),
-            ),
-            rig,
-            left.rgb.as_deref().unwrap_or_default(),
-        ))),
-    };
-    let encode_time = started.elapsed();
-    let started = Instant::now();
-    drop((left, map, depth, depth_std));
-    let drop_time = started.elapsed();
-    let mut after = Vec::with_capacity(3);
-    after.extend(rectify_time.map(|t| ("rectify", t)));
-    after.extend([("encode", encode_time), ("drop", drop_time)]);
-    let mut response = match body {
-        Ok(bytes) => {
-            let how = if output == DepthMapOutput::PreviewPng {
-                Disposition::Inline
-            } else {
-                Disposition::Attachment
+    let mut response = match output.product() {
+        Some(product) => {
+            let bytes = product.encode(&map).map_err(ApiError::Internal)?;
+            let how = match product {
+                Product::PreviewPng => Disposition::Inline,
+                _ => Disposition::Attachment,
             };
             output::file(bytes, output.media_type(), output.name(), how)
         }
-        Err(summary) => Json(summary).into_response(),
+        None => {
+            let rig = calibrated.as_ref().map(|c| CalibratedRig::from(&c.rig));
+            Json(DepthMapSummary::of(&map, params, rig, decode)).into_response()
+        }
     };
+    let encode = started.elapsed() + map.depths;
+    let started = Instant::now();
+    let (warnings, timings, rectify) = (map.warnings.clone(), map.timings, map.rectify);
+    drop(map);
+    let mut after = Vec::with_capacity(3);
+    after.extend(rectify.map(|t| ("rectify", t)));
+    after.extend([("encode", encode), ("drop", started.elapsed())]);
     output::set_warnings(&mut response, &warnings);
     set_server_timing(
         &mut response,
-        &work::matcher_stages([read, queue, decode_time], &timings, &after),
+        &work::matcher_stages([read, queue, decode], &timings, &after),
     );
     Ok(response)
-}
-
-/// Depth Z = f·B / (d + doffs) of each pixel, NaN where the disparity is invalid or the point
-/// would be at or beyond infinity (d + doffs ≤ 0).
-fn depths(map: &Disparity, fb: f32, doffs: f32) -> Vec<f32> {
-    map.data
-        .iter()
-        .map(|&d| {
-            let effective = d + doffs;
-            if effective > 0.0 {
-                fb / effective
-            } else {
-                f32::NAN
-            }
-        })
-        .collect()
-}
-
-/// σ_Z of each depth: `√((Z²·σ_d / (f·B))² + (Z·σ_f / f)² + (Z·σ_B / B)²)` with the pixel's
-/// σ_d and the rig's σ_f and σ_B; NaN where the depth is.
-fn depth_stds(map: &Disparity, depth: &[f32], rig: stereo_core::physics::Rig) -> Vec<f32> {
-    depth
-        .iter()
-        .zip(&map.std)
-        .map(|(&z, &s)| {
-            if z.is_nan() || s.is_nan() {
-                f32::NAN
-            } else {
-                rig.depth_error_terms_with(f64::from(z), f64::from(s))
-                    .total() as f32
-            }
-        })
-        .collect()
-}
-
-/// The NPZ: the disparity and its σ_d and, with a rig, the depth, its σ_Z, and σ_Z again as
-/// `depth_error` (its earlier name); with `fill`, which pixels the fill gave (`filled`).
-fn arrays(
-    map: &Disparity,
-    depth: Option<&[f32]>,
-    depth_std: Option<&[f32]>,
-) -> Result<Vec<u8>, ApiError> {
-    let (w, h) = (map.width, map.height);
-    let mut entries = vec![
-        ("disparity", encode::npy(w, h, &map.data)),
-        ("disparity_std", encode::npy(w, h, &map.std)),
-    ];
-    if let (Some(depth), Some(depth_std)) = (depth, depth_std) {
-        let std = encode::npy(w, h, depth_std);
-        entries.push(("depth", encode::npy(w, h, depth)));
-        entries.push(("depth_std", std.clone()));
-        entries.push(("depth_error", std));
-    }
-    if !map.filled.is_empty() {
-        entries.push(("filled", encode::npy_bool(w, h, &map.filled)));
-    }
-    encode::npz(&entries).map_err(|e| ApiError::Internal(format!("the NPZ was not written: {e}")))
-}
-
-/// The valid values' min, median and max.
-fn spread(values: &[f32]) -> Option<Spread> {
-    let mut valid: Vec<f32> = values.iter().copied().filter(|v| v.is_finite()).collect();
-    if valid.is_empty() {
-        return None;
-    }
-    // NumPy's median (`numpy.nanmedian` of the NPY and NPZ outputs): the middle value, or the
-    // mean of the two middle values of an even count.
-    let (count, mid) = (valid.len(), valid.len() / 2);
-    let (below, &mut upper, _) = valid.select_nth_unstable_by(mid, f32::total_cmp);
-    let median = if count.is_multiple_of(2) {
-        let lower = below.iter().copied().fold(f32::NEG_INFINITY, f32::max);
-        (f64::from(lower) + f64::from(upper)) / 2.0
-    } else {
-        f64::from(upper)
-    };
-    let (min, max) = valid
-        .iter()
-        .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &v| {
-            (lo.min(v), hi.max(v))
-        });
-    let round = |v: f64| (v * 1e4).round() / 1e4;
-    Some(Spread {
-        min: round(min.into()),
-        median: round(median),
-        max: round(max.into()),
-    })
-}
-
-/// The summary of `map` with its depths and their σ (`(depth, depth_std)`, with a rig) and
-/// the answer's warnings.
-fn summary(
-    map: &Disparity,
-    (depth, depth_std): (Option<&[f32]>, Option<&[f32]>),
-    params: &Params,
-    (given, warnings): (Option<GivenRig>, Vec<String>),
-    (rectified, valid_fraction): (Option<Duration>, f64),
-    [decode, cost, aggregate, refine]: [Duration; 4],
-    paths: Option<vision::sgm::Paths>,
-) -> DepthMapSummary {
-    let ms = |d: Duration| (d.as_secs_f64() * 1e4).round() / 10.0;
-    let rig = given.map(|g| g.echo());
-    DepthMapSummary {
-        width: map.width,
-        height: map.height,
-        min_disparity: params.min_disparity(),
-        max_disparity: params.max_disparity(),
-        valid_fraction: (valid_fraction * 1e4).round() / 1e4,
-        disparity_px: spread(&map.data),
-        distance: depth.and_then(spread),
-        disparity_std_px: spread(&map.std),
-        distance_std: depth_std.and_then(spread),
-        rig,
-        parameters: MatcherParameters {
-            preset: params.preset().into(),
-            paths: match paths {
-                Some(vision::sgm::Paths::Five) => 5,
-                _ => 8,
-            },
-            p1: params.penalties().p1.into(),
-            p2: params.penalties().p2.into(),
-            p2_edge: params.penalties().edge.into(),
-            uniqueness: params.uniqueness(),
-            lr_tolerance: params.lr_tolerance().map(f64::from),
-            subpixel: params.subpixel().into(),
-            speckle_size: params.speckle_size() as u32,
-            speckle_range: f64::from(params.speckle_range()),
-            max_disparity_std: params.max_disparity_std(),
-            median: params.median(),
-            fill: params.fill(),
-        },
-        timings_ms: StageTimes {
-            decode: ms(decode),
-            cost: ms(cost),
-            aggregate: ms(aggregate),
-            refine: ms(refine),
-            rectify: rectified.map(ms),
-        },
-        rectified: rectified.is_some(),
-        warnings,
-    }
-}
-
-/// The disparity map coloured: Turbo from the smallest valid disparity (far, blue) to the
-/// largest (near, red), invalid black.
-fn preview(map: &Disparity) -> Vec<u8> {
-    let (lo, hi) = map
-        .data
-        .iter()
-        .filter(|d| !d.is_nan())
-        .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &d| {
-            (lo.min(d), hi.max(d))
-        });
-    let span = (hi - lo).max(1e-3);
-    map.data
-        .iter()
-        .flat_map(|&d| {
-            if d.is_nan() {
-                [0, 0, 0]
-            } else {
-                encode::turbo((d - lo) / span)
-            }
-        })
-        .collect()
-}
-
-/// The valid pixels as points in the left camera's frame (the same formula as `/distance`'s
-/// `point`), coloured from the left image, each with its σ_Z (`(depth, depth_std)`).
-fn points(
-    map: &Disparity,
-    (depth, depth_std): (&[f32], &[f32]),
-    rig: Option<stereo_core::physics::Rig>,
-    rgb: &[u8],
-) -> Vec<encode::ColouredPoint> {
-    let Some(rig) = rig else {
-        return Vec::new();
-    };
-    let mut out = Vec::new();
-    for (i, &z) in depth.iter().enumerate() {
-        if z.is_nan() {
-            continue;
-        }
-        let (x, y) = ((i % map.width) as f64, (i / map.width) as f64);
-        let Some(Ok(p)) = rig.point_at(x, y, f64::from(z)) else {
-            continue;
-        };
-        let colour = rgb
-            .get(i * 3..i * 3 + 3)
-            .map_or([200; 3], |c| [c[0], c[1], c[2]]);
-        out.push(encode::ColouredPoint {
-            xyz: [p.x as f32, p.y as f32, p.z as f32],
-            rgb: colour,
-            depth_std: depth_std.get(i).copied().unwrap_or(f32::NAN),
-        });
-    }
-    out
 }

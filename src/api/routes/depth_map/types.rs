@@ -1,6 +1,8 @@
 //! The wire types of `/depth-map`: the multipart form (documentation), the query's options, and
 //! the JSON summary.
 
+use std::time::Duration;
+
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
@@ -11,7 +13,9 @@ use crate::api::wire::images::image_form;
 pub use crate::api::wire::images::{RectifyMode, StageTimes};
 use crate::api::wire::openapi::{image_answers, named};
 use crate::api::wire::rig::CalibratedRig;
-use stereo_core::vision::{Preset, Settings, Subpixel};
+use stereo_core::pipeline::{self, DepthMap, Product};
+use stereo_core::vision::sgm::Paths;
+use stereo_core::vision::{Params, Preset, Settings, Subpixel};
 
 /// What `/depth-map` answers.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize, Serialize, ToSchema)]
@@ -100,26 +104,32 @@ impl DepthMapOutput {
         }
     }
 
-    /// Whether the answer needs depths, hence a rig.
-    pub fn needs_rig(self) -> bool {
-        matches!(
-            self,
-            DepthMapOutput::DepthNpy
-                | DepthMapOutput::DepthStdNpy
-                | DepthMapOutput::DepthPng
-                | DepthMapOutput::PointsPly
-        )
+    /// The file the engine writes, or `None` for the JSON summary.
+    pub fn product(self) -> Option<Product> {
+        Some(match self {
+            DepthMapOutput::Summary => return None,
+            DepthMapOutput::DisparityPfm => Product::DisparityPfm,
+            DepthMapOutput::DisparityPng => Product::DisparityPng,
+            DepthMapOutput::DisparityNpy => Product::DisparityNpy,
+            DepthMapOutput::DepthNpy => Product::DepthNpy,
+            DepthMapOutput::DisparityStdNpy => Product::DisparityStdNpy,
+            DepthMapOutput::DisparityStdPfm => Product::DisparityStdPfm,
+            DepthMapOutput::DepthStdNpy => Product::DepthStdNpy,
+            DepthMapOutput::ArraysNpz => Product::ArraysNpz,
+            DepthMapOutput::DepthPng => Product::DepthPng,
+            DepthMapOutput::PreviewPng => Product::PreviewPng,
+            DepthMapOutput::PointsPly => Product::PointsPly,
+        })
     }
 
-    /// Whether the answer carries σ_Z (computed only then).
+    /// Whether the answer needs depths, hence a rig.
+    pub fn needs_rig(self) -> bool {
+        self.product().is_some_and(Product::needs_rig)
+    }
+
+    /// Whether the answer carries σ_Z (computed only then): the summary's spread, or a file's.
     pub fn wants_depth_std(self) -> bool {
-        matches!(
-            self,
-            DepthMapOutput::Summary
-                | DepthMapOutput::DepthStdNpy
-                | DepthMapOutput::ArraysNpz
-                | DepthMapOutput::PointsPly
-        )
+        self.product().is_none_or(Product::wants_depth_std)
     }
 
     /// The output an `Accept` header asks for, when one of its media types names exactly one.
@@ -335,6 +345,82 @@ pub struct Spread {
     /// the mean of the two middle ones of an even count.
     pub median: f64,
     pub max: f64,
+}
+
+impl From<pipeline::Spread> for Spread {
+    fn from(s: pipeline::Spread) -> Self {
+        Spread {
+            min: s.min,
+            median: s.median,
+            max: s.max,
+        }
+    }
+}
+
+/// The spread of the finite values, as the summary states it.
+fn spread(values: &[f32]) -> Option<Spread> {
+    pipeline::spread(values).map(Spread::from)
+}
+
+impl DepthMapSummary {
+    /// The summary of a depth map matched with `params` from a pair that took `decode` to
+    /// read, with the rig it used echoed.
+    pub fn of(
+        map: &DepthMap,
+        params: &Params,
+        rig: Option<CalibratedRig>,
+        decode: Duration,
+    ) -> Self {
+        let ms = |d: Duration| (d.as_secs_f64() * 1e4).round() / 10.0;
+        let d = &map.disparity;
+        let t = &map.timings;
+        DepthMapSummary {
+            width: d.width,
+            height: d.height,
+            min_disparity: params.min_disparity(),
+            max_disparity: params.max_disparity(),
+            valid_fraction: (map.valid_fraction * 1e4).round() / 1e4,
+            disparity_px: spread(&d.data),
+            distance: map.depth.as_deref().and_then(spread),
+            disparity_std_px: spread(&d.std),
+            distance_std: map.depth_std.as_deref().and_then(spread),
+            rig,
+            parameters: MatcherParameters::of(params, t.paths),
+            timings_ms: StageTimes {
+                decode: ms(decode),
+                cost: ms(t.cost),
+                aggregate: ms(t.aggregate),
+                refine: ms(t.refine),
+                rectify: map.rectify.map(ms),
+            },
+            rectified: map.rectify.is_some(),
+            warnings: map.said(),
+        }
+    }
+}
+
+impl MatcherParameters {
+    /// The parameters a match used, with the paths its finest level aggregated.
+    pub fn of(params: &Params, paths: Option<Paths>) -> Self {
+        MatcherParameters {
+            preset: params.preset().into(),
+            paths: match paths {
+                Some(Paths::Five) => 5,
+                _ => 8,
+            },
+            p1: params.penalties().p1.into(),
+            p2: params.penalties().p2.into(),
+            p2_edge: params.penalties().edge.into(),
+            uniqueness: params.uniqueness(),
+            lr_tolerance: params.lr_tolerance().map(f64::from),
+            subpixel: params.subpixel().into(),
+            speckle_size: params.speckle_size() as u32,
+            speckle_range: f64::from(params.speckle_range()),
+            max_disparity_std: params.max_disparity_std(),
+            median: params.median(),
+            fill: params.fill(),
+        }
+    }
 }
 
 /// The matcher's parameters as used.

@@ -33,8 +33,10 @@ use crate::api::images::{ImageForm, ImagePair, Job, Parts, limits, rig};
 use crate::api::respond::Json;
 use crate::api::wire::measured::Measured;
 use crate::api::wire::openapi::ImageErrors;
+use crate::api::wire::rig::CalibratedRig;
 use stereo_core::calibration::files::Raw;
 use stereo_core::physics::{self, Correspondence, Rig};
+use stereo_core::pipeline::depth;
 use stereo_core::vision::correspond::{self, Found, Rect};
 use stereo_core::vision::{self, Cancelled, Params, Settings};
 
@@ -427,10 +429,12 @@ fn compute(
         .map(|(&b, r)| region_match(rig, &found.map, b, *r))
         .collect();
     // A pair sent as rectified: do its corners lie on their rows?
-    let rows = raw.is_none().then(|| raw::row_check(&left, &right, params));
+    let rows = raw
+        .is_none()
+        .then(|| depth::row_check(&left, &right, params));
     let mut warnings = given.warnings.clone();
-    warnings.extend(work::decode_notes(&left, &right));
-    warnings.extend(rows.and_then(|r| raw::unrectified_warning(None, r)));
+    warnings.extend(depth::decode_notes(&left, &right));
+    warnings.extend(rows.and_then(|r| depth::unrectified_warning(None, r)));
     let ms = |d: std::time::Duration| (d.as_secs_f64() * 1e4).round() / 10.0;
     let t = found.timings;
     let answer = MatchResponse {
@@ -438,14 +442,14 @@ fn compute(
         height: h,
         min_disparity: params.min_disparity(),
         max_disparity: params.max_disparity(),
-        unit: given.echo().unit,
+        unit: CalibratedRig::from(&given.rig).unit,
         ok: matches
             .iter()
             .filter(|m| m.status == MatchStatus::Ok)
             .count(),
         matches,
         regions,
-        rig: given.echo(),
+        rig: CalibratedRig::from(&given.rig),
         rows_matched: found.rows_matched,
         rectified: raw.is_some(),
         timings_ms: StageTimes {

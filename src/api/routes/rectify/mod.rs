@@ -17,15 +17,17 @@ use self::types::{
 use crate::api::HeavyState;
 use crate::api::error::ApiError;
 use crate::api::extract::QueryParams;
-use crate::api::images::maps::{MapCache, Maps, float_maps};
+use crate::api::images::maps::MapCache;
 use crate::api::images::output::{self, Disposition, set_server_timing};
 use crate::api::images::raw;
 use crate::api::images::work::{self, Need};
-use crate::api::images::{GivenRig, ImageForm, ImagePair, Job};
+use crate::api::images::{ImageForm, ImagePair, Job};
 use crate::api::respond::Json;
 use crate::api::wire::calibration::RawCameras;
 use crate::api::wire::rig::CalibratedRig;
 use stereo_core::calibration::files::Raw;
+use stereo_core::pipeline::rectify::{Maps, float_maps};
+use stereo_core::pipeline::{Calibrated, depth};
 use stereo_core::vision::decode::Decoded;
 use stereo_core::vision::encode;
 use stereo_core::vision::remap::{self, Fixed, Interpolation, RawImage};
@@ -179,7 +181,7 @@ fn side_by_side(
 fn compute(
     job: Job,
     cache: &MapCache,
-    given: &GivenRig,
+    given: &Calibrated,
     raw: &Raw,
     output: RectifyOutput,
     how: Interpolation,
@@ -227,7 +229,7 @@ fn compute(
             let (left, right) = decode_both()?;
             let decode_time = t.elapsed();
             let mut warnings = given.warnings.clone();
-            warnings.extend(work::decode_notes(&left, &right));
+            warnings.extend(depth::decode_notes(&left, &right));
             let t = Instant::now();
             let grey = |d: &Decoded, map| remap::remap_fixed(RawImage::grey(&d.grey), map, how);
             let _ = rayon::join(|| grey(&left, &maps.left), || grey(&right, &maps.right));
@@ -264,7 +266,7 @@ fn compute(
             let t = Instant::now();
             let (left, right) = decode_both()?;
             timing.push(("decode", t.elapsed()));
-            warnings.extend(work::decode_notes(&left, &right));
+            warnings.extend(depth::decode_notes(&left, &right));
             let t = Instant::now();
             let bytes = match output {
                 RectifyOutput::LeftPng => png(&left, &maps.left, how),

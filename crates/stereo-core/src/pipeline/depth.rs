@@ -1,0 +1,410 @@
+//! A depth map from a pair: the pair rectified when it is raw, matched, then each pixel's
+//! depth, σ_Z and 3D point from the rig; the warnings a user needs (a pair sent as rectified
+//! that looks raw, what the decoder forgave); and the files a user's tools read (PFM, KITTI
+//! PNG, NPY, NPZ, 16-bit depth PNG, a preview, PLY).
+
+use std::sync::atomic::AtomicBool;
+use std::time::{Duration, Instant};
+
+use super::calibrated::Calibrated;
+use super::rectify::Maps;
+use crate::physics::{LengthUnit, Rig};
+use crate::vision::decode::Decoded;
+use crate::vision::rows::{self, RowOffsets};
+use crate::vision::{self, Cancelled, Disparity, Params, Timings, encode};
+
+/// Below this share of matched pixels, a pair sent as rectified may well be raw.
+pub const UNRECTIFIED_SHARE: f64 = 0.2;
+/// Matched corners this many rows apart (the median) mean the rows do not line up: a
+/// rectified pair's are a few tenths of a pixel.
+pub const UNRECTIFIED_ROWS: f64 = 1.0;
+/// The corners the row check needs before it speaks.
+pub const ROW_FEATURES: usize = 8;
+
+/// How a depth map is made: the matcher's settings, the rig (none for disparities alone), the
+/// maps of a raw pair (none for a pair sent as rectified), and what the caller will want.
+#[derive(Debug, Clone, Copy)]
+pub struct Request<'a> {
+    pub params: &'a Params,
+    pub calibrated: Option<&'a Calibrated>,
+    /// The raw rig's maps: the pair is rectified through them first.
+    pub maps: Option<&'a Maps>,
+    /// Keep the left image's colours (a point cloud's).
+    pub colour: bool,
+    /// Compute each depth's σ_Z.
+    pub depth_std: bool,
+}
+
+/// A depth map and what it was made from.
+#[derive(Debug)]
+pub struct DepthMap {
+    /// The disparities, with each one's σ_d.
+    pub disparity: Disparity,
+    /// The rig the depths use (the rectified rig, for a raw pair).
+    pub rig: Option<Rig>,
+    /// Z = f·B / (d + doffs) in the rig's unit, NaN where the disparity is invalid.
+    pub depth: Option<Vec<f32>>,
+    /// σ_Z of each depth, when asked for.
+    pub depth_std: Option<Vec<f32>>,
+    /// The left image's colours (rectified with it), when asked for.
+    pub rgb: Option<Vec<u8>>,
+    /// The share of pixels with a disparity.
+    pub valid_fraction: f64,
+    /// What is wrong or was forgiven, in sentences.
+    pub warnings: Vec<String>,
+    /// The matcher's stages.
+    pub timings: Timings,
+    /// How long rectifying took, for a raw pair.
+    pub rectify: Option<Duration>,
+    /// How long the depths and their σ took.
+    pub depths: Duration,
+}
+
+impl DepthMap {
+    /// The warnings and, for a raw pair, the note that it was rectified first (what was done,
+    /// not a fault: a summary says it, a file answer's warnings do not).
+    pub fn said(&self) -> Vec<String> {
+        let mut said = self.warnings.clone();
+        if self.rectify.is_some() {
+            said.push(format!(
+                "the raw pair was rectified first: the maps are the rectified left camera's, {} \
+                 × {} px, and the depths use the rectified rig",
+                self.disparity.width, self.disparity.height
+            ));
+        }
+        said
+    }
+}
+
+/// A depth map of the decoded pair: rectified first through `request.maps`, matched with
+/// `request.params`, and given depths with the rig. `Err` when `cancel` was set.
+pub fn depth_map(
+    mut left: Decoded,
+    mut right: Decoded,
+    request: Request<'_>,
+    cancel: &AtomicBool,
+) -> Result<DepthMap, Cancelled> {
+    let rectify = request
+        .maps
+        .map(|maps| maps.rectify_pair(&mut left, &mut right, request.colour));
+    let (map, timings) = vision::disparity(&left.grey, &right.grey, request.params, cancel)?;
+    // A pair sent as rectified: do its matched corners lie on their rows?
+    let rows = rectify
+        .is_none()
+        .then(|| row_check(&left, &right, request.params))
+        .flatten();
+    let mut warnings = request
+        .calibrated
+        .map_or_else(Vec::new, |c| c.warnings.clone());
+    warnings.extend(decode_notes(&left, &right));
+    drop(right);
+    let valid = map.data.iter().filter(|d| !d.is_nan()).count();
+    let valid_fraction = valid as f64 / map.data.len().max(1) as f64;
+    if rectify.is_none()
+        && let Some(warning) = unrectified_warning(Some(valid_fraction), rows)
+    {
+        warnings.push(warning);
+    }
+    let started = Instant::now();
+    let rig = request.calibrated.map(|c| c.rig);
+    let depth = rig.map(|rig| depths(&map, rig));
+    let depth_std = match (rig, &depth) {
+        (Some(rig), Some(depth)) if request.depth_std => Some(depth_stds(&map, depth, rig)),
+        _ => None,
+    };
+    Ok(DepthMap {
+        disparity: map,
+        rig,
+        depth,
+        depth_std,
+        rgb: left.rgb.take().filter(|_| request.colour),
+        valid_fraction,
+        warnings,
+        timings,
+        rectify,
+        depths: started.elapsed(),
+    })
+}
+
+/// What the decoder forgave in the pair's images (a JPEG read without its end-of-image
+/// marker), each sentence naming its image: `left has no end-of-image marker …`.
+pub fn decode_notes(left: &Decoded, right: &Decoded) -> Vec<String> {
+    [("left", left), ("right", right)]
+        .into_iter()
+        .filter_map(|(name, d)| d.note.as_ref().map(|note| format!("{name} {note}")))
+        .collect()
+}
+
+/// The row check of a pair sent as rectified ([`vision::rows`]), over the matcher's range.
+pub fn row_check(left: &Decoded, right: &Decoded, params: &Params) -> Option<RowOffsets> {
+    let range = (params.min_disparity(), params.max_disparity());
+    rows::row_offsets(&left.grey, &right.grey, range)
+}
+
+/// The warning for a pair sent as rectified that looks raw: too few pixels matched
+/// (`valid_fraction`, when the whole map was matched), or its matched corners off their rows.
+/// `None` when neither shows.
+pub fn unrectified_warning(
+    valid_fraction: Option<f64>,
+    rows: Option<RowOffsets>,
+) -> Option<String> {
+    let mut signs = Vec::new();
+    if let Some(share) = valid_fraction.filter(|&v| v < UNRECTIFIED_SHARE) {
+        signs.push(format!("only {:.1} % of the pixels matched", share * 100.0));
+    }
+    if let Some(rows) =
+        rows.filter(|r| r.features >= ROW_FEATURES && r.median_offset >= UNRECTIFIED_ROWS)
+    {
+        signs.push(format!(
+            "matched corners lie {:.1} px off their rows (the median of {}; a rectified pair's \
+             are under {UNRECTIFIED_ROWS} px)",
+            rows.median_offset, rows.features
+        ));
+    }
+    if signs.is_empty() {
+        return None;
+    }
+    Some(format!(
+        "{}: if these are raw frames (lens distortion, rows that do not line up between the \
+         cameras), they need rectifying: send the calibration of the raw cameras (a \
+         stereoCalibrate file, a ROS CameraInfo pair with D K R P, KITTI's \
+         calib_cam_to_cam.txt, /calibrate's opencv.yml) as the calibration part with \
+         rectify=auto, or rectify them with /rectify",
+        signs.join(", and ")
+    ))
+}
+
+/// Depth Z = f·B / (d + doffs) of each pixel, NaN where the disparity is invalid or the point
+/// would be at or beyond infinity (d + doffs ≤ 0).
+pub fn depths(map: &Disparity, rig: Rig) -> Vec<f32> {
+    let (fb, doffs) = (rig.fb() as f32, rig.doffs() as f32);
+    map.data
+        .iter()
+        .map(|&d| {
+            let effective = d + doffs;
+            if effective > 0.0 {
+                fb / effective
+            } else {
+                f32::NAN
+            }
+        })
+        .collect()
+}
+
+/// σ_Z of each depth: `√((Z²·σ_d / (f·B))² + (Z·σ_f / f)² + (Z·σ_B / B)²)` with the pixel's
+/// σ_d and the rig's σ_f and σ_B; NaN where the depth is.
+pub fn depth_stds(map: &Disparity, depth: &[f32], rig: Rig) -> Vec<f32> {
+    depth
+        .iter()
+        .zip(&map.std)
+        .map(|(&z, &s)| {
+            if z.is_nan() || s.is_nan() {
+                f32::NAN
+            } else {
+                rig.depth_error_terms_with(f64::from(z), f64::from(s))
+                    .total() as f32
+            }
+        })
+        .collect()
+}
+
+/// The valid values' min, median and max, each to 4 decimals.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Spread {
+    pub min: f64,
+    pub median: f64,
+    pub max: f64,
+}
+
+/// The spread of the finite values; `None` when there are none. The median is NumPy's
+/// (`numpy.nanmedian` of the NPY and NPZ outputs): the middle value, or the mean of the two
+/// middle values of an even count.
+pub fn spread(values: &[f32]) -> Option<Spread> {
+    let mut valid: Vec<f32> = values.iter().copied().filter(|v| v.is_finite()).collect();
+    if valid.is_empty() {
+        return None;
+    }
+    let (count, mid) = (valid.len(), valid.len() / 2);
+    let (below, &mut upper, _) = valid.select_nth_unstable_by(mid, f32::total_cmp);
+    let median = if count.is_multiple_of(2) {
+        let lower = below.iter().copied().fold(f32::NEG_INFINITY, f32::max);
+        (f64::from(lower) + f64::from(upper)) / 2.0
+    } else {
+        f64::from(upper)
+    };
+    let (min, max) = valid
+        .iter()
+        .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &v| {
+            (lo.min(v), hi.max(v))
+        });
+    let round = |v: f64| (v * 1e4).round() / 1e4;
+    Some(Spread {
+        min: round(min.into()),
+        median: round(median),
+        max: round(max.into()),
+    })
+}
+
+/// The file a depth map is written as.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Product {
+    /// Middlebury's PFM of the disparities, invalid = +inf.
+    DisparityPfm,
+    /// KITTI's 16-bit PNG: round(d · 256), 0 = invalid.
+    DisparityPng,
+    /// NumPy float32 disparities, invalid = NaN.
+    DisparityNpy,
+    /// NumPy float32 depths in the rig's unit, invalid = NaN.
+    DepthNpy,
+    /// NumPy float32 σ_d in pixels.
+    DisparityStdNpy,
+    /// PFM of σ_d in pixels.
+    DisparityStdPfm,
+    /// NumPy float32 σ_Z in the rig's unit.
+    DepthStdNpy,
+    /// NumPy's NPZ of the disparity, σ_d and, with a rig, depth, σ_Z (twice), and `filled`.
+    ArraysNpz,
+    /// 16-bit PNG of depth in millimetres, 0 = invalid.
+    DepthPng,
+    /// The disparities in Turbo colours, near = warm, invalid = black.
+    PreviewPng,
+    /// Binary PLY of the valid pixels in the left camera's frame, coloured, with σ_Z.
+    PointsPly,
+}
+
+impl Product {
+    /// Whether the file holds depths, hence needs a rig.
+    pub fn needs_rig(self) -> bool {
+        matches!(
+            self,
+            Product::DepthNpy | Product::DepthStdNpy | Product::DepthPng | Product::PointsPly
+        )
+    }
+
+    /// Whether the file holds σ_Z.
+    pub fn wants_depth_std(self) -> bool {
+        matches!(
+            self,
+            Product::DepthStdNpy | Product::ArraysNpz | Product::PointsPly
+        )
+    }
+
+    /// Whether the file wants the left image's colours.
+    pub fn wants_colour(self) -> bool {
+        self == Product::PointsPly
+    }
+
+    /// The bytes a pixel of the map costs to write this file, besides the matcher's: a point
+    /// cloud's colours, σ_Z and the 4 more bytes of each point and vertex, or the NPZ's four
+    /// more arrays and the archive's copy of all five (and the fill's one-byte mask, twice).
+    pub fn extra_bytes_per_pixel(self) -> usize {
+        match self {
+            Product::PointsPly => 15,
+            Product::ArraysNpz => 42,
+            Product::DepthStdNpy => 4,
+            _ => 0,
+        }
+    }
+
+    /// The file's bytes; `Err` only when the NPZ archive cannot be written.
+    pub fn encode(self, map: &DepthMap) -> Result<Vec<u8>, String> {
+        let d = &map.disparity;
+        let (w, h) = (d.width, d.height);
+        let depth = map.depth.as_deref().unwrap_or_default();
+        let depth_std = map.depth_std.as_deref().unwrap_or_default();
+        Ok(match self {
+            Product::DisparityPfm => encode::pfm(w, h, &d.data),
+            Product::DisparityPng => encode::png16(w, h, &encode::kitti_disparity(&d.data)),
+            Product::DisparityNpy => encode::npy(w, h, &d.data),
+            Product::DepthNpy => encode::npy(w, h, depth),
+            Product::DisparityStdNpy => encode::npy(w, h, &d.std),
+            Product::DisparityStdPfm => encode::pfm(w, h, &d.std),
+            Product::DepthStdNpy => encode::npy(w, h, depth_std),
+            Product::ArraysNpz => arrays(map)?,
+            Product::DepthPng => {
+                let unit = map.rig.map_or(LengthUnit::Millimetre, |r| r.unit());
+                let mm: Vec<f32> = depth
+                    .iter()
+                    .map(|&z| unit.convert(f64::from(z), LengthUnit::Millimetre) as f32)
+                    .collect();
+                encode::png16(w, h, &encode::millimetres(&mm))
+            }
+            Product::PreviewPng => encode::png_rgb(w, h, &preview(d)),
+            Product::PointsPly => encode::ply(&points(map)),
+        })
+    }
+}
+
+/// The NPZ: the disparity and its σ_d and, with a rig, the depth, its σ_Z, and σ_Z again as
+/// `depth_error` (its earlier name); with `fill`, which pixels the fill gave (`filled`).
+fn arrays(map: &DepthMap) -> Result<Vec<u8>, String> {
+    let d = &map.disparity;
+    let (w, h) = (d.width, d.height);
+    let mut entries = vec![
+        ("disparity", encode::npy(w, h, &d.data)),
+        ("disparity_std", encode::npy(w, h, &d.std)),
+    ];
+    if let (Some(depth), Some(depth_std)) = (&map.depth, &map.depth_std) {
+        let std = encode::npy(w, h, depth_std);
+        entries.push(("depth", encode::npy(w, h, depth)));
+        entries.push(("depth_std", std.clone()));
+        entries.push(("depth_error", std));
+    }
+    if !d.filled.is_empty() {
+        entries.push(("filled", encode::npy_bool(w, h, &d.filled)));
+    }
+    encode::npz(&entries).map_err(|e| format!("the NPZ was not written: {e}"))
+}
+
+/// The disparity map coloured: Turbo from the smallest valid disparity (far, blue) to the
+/// largest (near, red), invalid black.
+pub fn preview(map: &Disparity) -> Vec<u8> {
+    let (lo, hi) = map
+        .data
+        .iter()
+        .filter(|d| !d.is_nan())
+        .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &d| {
+            (lo.min(d), hi.max(d))
+        });
+    let span = (hi - lo).max(1e-3);
+    map.data
+        .iter()
+        .flat_map(|&d| {
+            if d.is_nan() {
+                [0, 0, 0]
+            } else {
+                encode::turbo((d - lo) / span)
+            }
+        })
+        .collect()
+}
+
+/// The valid pixels as points in the left camera's frame (the same formula as `/distance`'s
+/// `point`), coloured from the left image, each with its σ_Z.
+pub fn points(map: &DepthMap) -> Vec<encode::ColouredPoint> {
+    let (Some(rig), Some(depth)) = (map.rig, &map.depth) else {
+        return Vec::new();
+    };
+    let width = map.disparity.width;
+    let depth_std = map.depth_std.as_deref().unwrap_or_default();
+    let rgb = map.rgb.as_deref().unwrap_or_default();
+    let mut out = Vec::new();
+    for (i, &z) in depth.iter().enumerate() {
+        if z.is_nan() {
+            continue;
+        }
+        let (x, y) = ((i % width) as f64, (i / width) as f64);
+        let Some(Ok(p)) = rig.point_at(x, y, f64::from(z)) else {
+            continue;
+        };
+        let colour = rgb
+            .get(i * 3..i * 3 + 3)
+            .map_or([200; 3], |c| [c[0], c[1], c[2]]);
+        out.push(encode::ColouredPoint {
+            xyz: [p.x as f32, p.y as f32, p.z as f32],
+            rgb: colour,
+            depth_std: depth_std.get(i).copied().unwrap_or(f32::NAN),
+        });
+    }
+    out
+}
