@@ -37,7 +37,7 @@
 //! - [`server`]: the route groups wrapped in their guards, the edge layers, the accept loop
 //!   and graceful shutdown, the health-check probe.
 //! - [`batch`]: the `depth-map` command: a recording's folder of pairs to depth maps, through
-//!   the [`server`]'s router in process or over HTTP to a running service, resumable, with a
+//!   the engine's pipeline in process or over HTTP to a running service, resumable, with a
 //!   progress bar; its settings checked before the first frame, a restarting service waited
 //!   for, broken frames named and skipped, the service's warnings printed once.
 //! - Outside this crate, in the workspace: `crates/conformance` (dev only), what the service

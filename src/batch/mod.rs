@@ -1,6 +1,7 @@
 //! `stereo-distance depth-map`: every pair of a recording's folder(s) to depth maps, as
-//! `/depth-map` makes them, in this process (through the service's own router, its limits and
-//! its cache of rectification maps) or sent to a running service (`--server`). Pairs already
+//! `/depth-map` makes them, in this process (the engine's pipeline called directly, the
+//! calibration resolved once a frame size, under the service's limits) or sent to a running
+//! service (`--server`). Pairs already
 //! written are skipped, so a stopped run resumes; each file is written once, under a
 //! temporary name renamed when whole, when its answer arrives.
 //!
@@ -14,11 +15,13 @@
 //!
 //! - [`pairing`]: which files make a pair (by name, as the page pairs them);
 //! - [`preflight`]: the run's settings checked before the first frame;
-//! - [`transport`]: the router in process, or HTTP/1.1 to a service;
+//! - [`engine`]: the engine in this process, the calibration resolved once a frame size;
+//! - [`transport`]: HTTP/1.1 to a running service;
 //! - [`retry`]: when and after how long a frame is sent again;
 //! - [`said`]: the warnings, once each and grouped;
 //! - [`progress`]: the bar on a terminal, plain lines elsewhere.
 
+pub mod engine;
 pub mod pairing;
 pub mod preflight;
 pub mod progress;
@@ -31,15 +34,26 @@ use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::sync::{Arc, Mutex};
-use std::time::{Duration, Instant};
+use std::time::Instant;
 
+use engine::Engine;
 use pairing::{FramePair, Unpaired, file_name};
 use progress::Progress;
 use retry::Policy;
 use said::Said;
-use transport::{Answer, Server, Transport};
+use transport::{Answer, Server};
 
+use crate::api::routes::depth_map::types::DepthMapOutput;
 use crate::config::{Config, DepthMapArgs};
+
+/// Where a run's pairs are matched.
+#[derive(Clone)]
+enum Transport {
+    /// The engine, in this process.
+    InProcess(Arc<Engine>),
+    /// A running service, over HTTP/1.1.
+    Http(Server),
+}
 
 /// How a run ended.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -95,7 +109,7 @@ enum Event {
 
 /// The run itself, reporting into `out` (a bar when `bar`). `Err` is what stopped it.
 pub async fn depth_maps<W: std::io::Write>(
-    mut config: Config,
+    config: Config,
     args: DepthMapArgs,
     out: W,
     bar: bool,
@@ -164,7 +178,7 @@ pub async fn depth_maps<W: std::io::Write>(
         extension: if output == "summary" {
             "json".to_owned()
         } else {
-            output
+            output.clone()
         },
         policy: Policy {
             retries: args.retries.unwrap_or(retry::DEFAULT_RETRIES),
@@ -189,16 +203,18 @@ pub async fn depth_maps<W: std::io::Write>(
     let transport = match &args.server {
         Some(url) => Transport::Http(Server::parse(url)?.with_token(args.token.clone())),
         None => {
-            // The router in this process is this run's own: no token is asked of it.
-            config.api_tokens = None;
-            config.api_tokens_file = None;
-            // One frame may take longer here than a server lets a request take.
-            config.heavy.request_timeout =
-                config.heavy.request_timeout.max(Duration::from_secs(600));
-            Transport::InProcess(crate::server::startup::app(
+            let output = serde_json::from_value::<DepthMapOutput>(output.as_str().into())
+                .map_err(|e| format!("--output {output}: {e}"))?;
+            let calibration = plan
+                .calibration
+                .as_ref()
+                .map(|(_, bytes)| (bytes.as_slice(), plan.calibration_unit.as_deref()));
+            Transport::InProcess(Arc::new(Engine::new(
                 &config,
-                crate::api::routes::ops::OpsState::default(),
-            ))
+                output,
+                preflight::settings(&args),
+                calibration,
+            )))
         }
     };
     let jobs = args.jobs.unwrap_or(2).clamp(1, todo.len().max(1));
@@ -346,6 +362,24 @@ async fn one_pair(
         (Ok(left), Ok(right)) => (left, right),
         (Err(e), _) | (_, Err(e)) => return (Vec::new(), Err(e)),
     };
+    let server = match transport {
+        Transport::Http(server) => server,
+        Transport::InProcess(engine) => {
+            let (engine, files) = (engine.clone(), (pair.left.clone(), pair.right.clone()));
+            let made = tokio::task::spawn_blocking(move || {
+                engine.depth_map((&files.0, &files.1), [&left, &right])
+            })
+            .await
+            .unwrap_or_else(|e| Err(format!("the engine failed: {e}")));
+            return match made {
+                Ok((bytes, warnings)) => {
+                    let result = write(plan, pair, &warnings, &bytes).await;
+                    (warnings, result)
+                }
+                Err(why) => (Vec::new(), Err(Failure::Pair(why))),
+            };
+        }
+    };
     let mut parts: Vec<(&str, Option<String>, &[u8])> = vec![
         ("left", Some(file_name(&pair.left)), &left),
         ("right", Some(file_name(&pair.right)), &right),
@@ -359,7 +393,7 @@ async fn one_pair(
     let (body, content_type) = multipart(&parts);
     let mut retry = 0;
     let answer: Answer = loop {
-        let (why, asked) = match transport
+        let (why, asked) = match server
             .post(&plan.path_and_query, &content_type, body.clone())
             .await
         {
@@ -400,29 +434,36 @@ async fn one_pair(
     if answer.status != 200 {
         return (warnings, Err(refusal(&answer, pair)));
     }
+    let result = write(plan, pair, &warnings, &answer.body).await;
+    (warnings, result)
+}
+
+/// A pair's file written under a temporary name and renamed when whole; under `--strict`, a
+/// pair the service warned about is failed instead.
+async fn write(
+    plan: &Plan,
+    pair: &FramePair,
+    warnings: &[String],
+    bytes: &[u8],
+) -> Result<(), Failure> {
     if plan.strict && !warnings.is_empty() {
-        return (
-            warnings,
-            Err(Failure::Pair(
-                "the service warned about it (--strict): not written".to_owned(),
-            )),
-        );
+        return Err(Failure::Pair(
+            "the service warned about it (--strict): not written".to_owned(),
+        ));
     }
     let target = plan.target(pair);
     let partial = plan
         .out
         .join(format!(".{}.{}.partial", pair.name, plan.extension));
     let written = async {
-        tokio::fs::write(&partial, &answer.body).await?;
+        tokio::fs::write(&partial, bytes).await?;
         tokio::fs::rename(&partial, &target).await
     };
-    let result = written
+    written
         .await
-        .map_err(|e| Failure::Run(format!("cannot write {}: {e}", target.display())));
-    (warnings, result)
+        .map_err(|e| Failure::Run(format!("cannot write {}: {e}", target.display())))
 }
 
-/// A status with its reason phrase: `503 Service Unavailable`.
 fn status_words(status: u16) -> String {
     let reason = axum::http::StatusCode::from_u16(status)
         .ok()

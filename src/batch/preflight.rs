@@ -55,17 +55,8 @@ pub fn check<'a>(
             problems.add(&field, fault.message.clone());
         }
     }
-    let settings = Settings {
-        preset: [Preset::Accurate, Preset::Fast]
-            .into_iter()
-            .find(|p| args.preset.as_deref() == Some(p.name())),
-        min_disparity: args.min_disparity,
-        max_disparity: args.max_disparity,
-        max_disparity_std: args.max_disparity_std,
-        ..Settings::default()
-    };
     let mut range = FieldErrors::default();
-    limits::params(settings, ndisp, &mut range);
+    limits::params(settings(args), ndisp, &mut range);
     for fault in range.iter() {
         problems.add(
             &format!("--{}", fault.field.replace('_', "-")),
@@ -83,4 +74,17 @@ pub fn check<'a>(
         "the run's settings are refused, before any frame was sent:\n  {}",
         said.join("\n  ")
     ))
+}
+
+/// The matcher's settings the run's options ask for, as `/depth-map`'s query gives them.
+pub fn settings(args: &DepthMapArgs) -> Settings {
+    Settings {
+        preset: [Preset::Accurate, Preset::Fast]
+            .into_iter()
+            .find(|p| args.preset.as_deref() == Some(p.name())),
+        min_disparity: args.min_disparity,
+        max_disparity: args.max_disparity,
+        max_disparity_std: args.max_disparity_std,
+        ..Settings::default()
+    }
 }

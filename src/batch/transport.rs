@@ -1,11 +1,9 @@
-//! How a pair reaches the matcher: through the service's own router in this process, or over
-//! HTTP/1.1 to a running service, one kept-alive connection a job. Both send the same
-//! `/depth-map` form and read the same answer.
+//! How a pair reaches a running service (`--server`): HTTP/1.1, one kept-alive connection a
+//! job, the `/depth-map` form sent and its answer read.
 
-use axum::body::{Body, Bytes};
+use axum::body::Bytes;
 use axum::http::{Request, header};
 use http_body_util::{BodyExt, Full};
-use tower::ServiceExt;
 
 /// An answer: its status, its `Retry-After` when it has one, its warnings
 /// (`Stereo-Warnings`) and its body.
@@ -15,15 +13,6 @@ pub struct Answer {
     pub retry_after: Option<std::time::Duration>,
     pub warnings: Vec<String>,
     pub body: Bytes,
-}
-
-/// Where the requests go.
-#[derive(Clone)]
-pub enum Transport {
-    /// The service's router, in this process.
-    InProcess(axum::Router),
-    /// A service at `host:port`, reached over HTTP/1.1.
-    Http(Server),
 }
 
 /// A running service's address, and this job's connection to it once made (a clone makes
@@ -102,7 +91,7 @@ impl Server {
     }
 }
 
-impl Transport {
+impl Server {
     /// POSTs `body` (of `content_type`) to `path_and_query`. An error is the transport's
     /// (no connection, a connection lost twice), not an answer's.
     pub async fn post(
@@ -111,61 +100,46 @@ impl Transport {
         content_type: &str,
         body: Vec<u8>,
     ) -> Result<Answer, String> {
-        match self {
-            Transport::InProcess(router) => {
-                let request = Request::post(path_and_query)
-                    .header(header::CONTENT_TYPE, content_type)
-                    .body(Body::from(body))
-                    .map_err(|e| format!("the request was not built: {e}"))?;
-                let response = router
-                    .clone()
-                    .oneshot(request)
-                    .await
-                    .map_err(|e| format!("the service failed: {e}"))?;
-                Answer::read(response).await
+        let server = self;
+        let body = Bytes::from(body);
+        // A kept-alive connection the server closed meanwhile is made again, once.
+        for attempt in 0..2 {
+            let alive = match server.connection.as_mut() {
+                Some(sender) => sender.ready().await.is_ok(),
+                None => false,
+            };
+            if !alive {
+                server.connection = Some(server.connect().await?);
             }
-            Transport::Http(server) => {
-                let body = Bytes::from(body);
-                // A kept-alive connection the server closed meanwhile is made again, once.
-                for attempt in 0..2 {
-                    let alive = match server.connection.as_mut() {
-                        Some(sender) => sender.ready().await.is_ok(),
-                        None => false,
-                    };
-                    if !alive {
-                        server.connection = Some(server.connect().await?);
-                    }
-                    let Some(sender) = server.connection.as_mut() else {
-                        return Err(format!("no connection to {}", server.authority));
-                    };
-                    let mut request = Request::post(format!("{}{path_and_query}", server.base))
-                        .header(header::HOST, server.authority.as_str())
-                        .header(header::CONTENT_TYPE, content_type);
-                    if let Some(authorization) = &server.authorization {
-                        request = request.header(header::AUTHORIZATION, authorization.as_str());
-                    }
-                    let request = request.body(Full::new(body.clone())).map_err(|_| {
-                        "the request was not built (is the token one line of text?)".to_owned()
-                    })?;
-                    match sender.send_request(request).await {
-                        Ok(response) => return Answer::read(response).await,
-                        Err(error) if attempt == 0 => {
-                            tracing::debug!(%error, "the connection was lost; connecting again");
-                            server.connection = None;
-                        }
-                        Err(error) => {
-                            return Err(format!("{} did not answer: {error}", server.authority));
-                        }
-                    }
+            let Some(sender) = server.connection.as_mut() else {
+                return Err(format!("no connection to {}", server.authority));
+            };
+            let mut request = Request::post(format!("{}{path_and_query}", server.base))
+                .header(header::HOST, server.authority.as_str())
+                .header(header::CONTENT_TYPE, content_type);
+            if let Some(authorization) = &server.authorization {
+                request = request.header(header::AUTHORIZATION, authorization.as_str());
+            }
+            let request = request.body(Full::new(body.clone())).map_err(|_| {
+                "the request was not built (is the token one line of text?)".to_owned()
+            })?;
+            match sender.send_request(request).await {
+                Ok(response) => return Answer::read(response).await,
+                Err(error) if attempt == 0 => {
+                    tracing::debug!(%error, "the connection was lost; connecting again");
+                    server.connection = None;
                 }
-                Err(format!("{} did not answer", server.authority))
+                Err(error) => {
+                    return Err(format!("{} did not answer: {error}", server.authority));
+                }
             }
         }
+        Err(format!("{} did not answer", server.authority))
     }
 }
 
 impl Answer {
-    /// A response read to its end, from the router or from the wire.
+    /// A response read to its end.
     async fn read<B>(response: axum::http::Response<B>) -> Result<Answer, String>
     where
         B: http_body::Body,

@@ -211,3 +211,95 @@ async fn the_server_option_sends_the_frames_to_a_running_service() {
     );
     assert!(said.contains("wrote 0 of 3 pairs"), "{said}");
 }
+
+/// The command in process (the engine called directly, the calibration resolved once) and
+/// the same command against a running service (`--server`) write the same files, byte for
+/// byte, for a rectified recording under a Middlebury file and for raw frames under an OpenCV
+/// `stereoCalibrate` file (rectified first), in every file format a user picks.
+#[tokio::test]
+async fn in_process_and_server_runs_write_the_same_bytes() {
+    let app = spawn_app().await;
+    let base = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("recording-same-bytes");
+    let rectified = base.join("rectified");
+    let calib = recording(&rectified);
+    for n in [4, 5] {
+        let _ = std::fs::remove_file(rectified.join(format!("left/000{n}.png")));
+        let _ = std::fs::remove_file(rectified.join(format!("right/000{n}.png")));
+    }
+    let raw = base.join("raw");
+    let scene = crate::rectify::raw_scene();
+    for side in ["left", "right"] {
+        std::fs::create_dir_all(raw.join(side)).unwrap();
+    }
+    for n in 1..=2 {
+        for (side, rgb) in [("left", &scene.raw_left), ("right", &scene.raw_right)] {
+            std::fs::write(
+                raw.join(format!("{side}/000{n}.png")),
+                encode::png_rgb(160, 120, rgb),
+            )
+            .unwrap();
+        }
+    }
+    let yml = raw.join("stereo.yml");
+    std::fs::write(&yml, &scene.yml).unwrap();
+    let cases = [
+        (
+            &rectified,
+            calib,
+            &["depth.npy", "arrays.npz", "points.ply"][..],
+        ),
+        (
+            &raw,
+            yml,
+            &[
+                "disparity.pfm",
+                "depth_std.npy",
+                "arrays.npz",
+                "points.ply",
+                "depth.png",
+            ][..],
+        ),
+    ];
+    for (dir, calibration, outputs) in cases {
+        for output in outputs {
+            let mut files = Vec::new();
+            for server in [None, Some(app.address.clone())] {
+                let out = format!("out-{}-{}", output, server.is_some());
+                let mut args = vec![
+                    "--calibration".to_owned(),
+                    calibration.to_string_lossy().into_owned(),
+                    "--calibration-unit".to_owned(),
+                    "mm".to_owned(),
+                    "--output".to_owned(),
+                    (*output).to_owned(),
+                ];
+                args.extend(server.into_iter().flat_map(|s| ["--server".to_owned(), s]));
+                let dir_for = dir.to_path_buf();
+                let out_for = out.clone();
+                let done = tokio::task::spawn_blocking(move || {
+                    let args: Vec<&str> = args.iter().map(String::as_str).collect();
+                    run(&dir_for, &out_for, &args)
+                })
+                .await
+                .unwrap();
+                let said = String::from_utf8_lossy(&done.stderr).into_owned();
+                assert_eq!(done.status.code(), Some(0), "{output}: {said}");
+                let mut written: Vec<(String, Vec<u8>)> = std::fs::read_dir(dir.join(&out))
+                    .unwrap()
+                    .flatten()
+                    .map(|e| {
+                        let name = e.file_name().to_string_lossy().into_owned();
+                        (name, std::fs::read(e.path()).unwrap())
+                    })
+                    .collect();
+                written.sort();
+                assert!(!written.is_empty() && written.iter().all(|(_, b)| b.len() > 100));
+                files.push(written);
+            }
+            assert_eq!(files[0].len(), files[1].len(), "{output}");
+            for ((name, here), (_, there)) in files[0].iter().zip(&files[1]) {
+                assert!(here == there, "{dir:?} {name}: the two runs differ");
+            }
+        }
+    }
+}

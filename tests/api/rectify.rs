@@ -614,20 +614,20 @@ async fn rectify_refuses_what_it_cannot_rectify() {
 }
 
 /// The synthetic layered scene as raw frames, with the calibration that describes them.
-struct RawScene {
-    truth: stereo_core::vision::synthetic::Pair,
-    raw_left: Vec<u8>,
-    raw_right: Vec<u8>,
-    yml: String,
-    pair: StereoPair,
-    r: [Matrix3<f64>; 2],
-    p: Matrix3<f64>,
+pub(crate) struct RawScene {
+    pub(crate) truth: stereo_core::vision::synthetic::Pair,
+    pub(crate) raw_left: Vec<u8>,
+    pub(crate) raw_right: Vec<u8>,
+    pub(crate) yml: String,
+    pub(crate) pair: StereoPair,
+    pub(crate) r: [Matrix3<f64>; 2],
+    pub(crate) p: Matrix3<f64>,
 }
 
 /// The synthetic layered scene (160 × 120, rectified, exact truth) made raw through a
 /// calibration whose rectification the file gives (R1 R2 P1 P2: the scene's own cameras,
 /// f 500, B 100 mm), the raw cameras turned 1.1–1.4° with k1 −0.2.
-fn raw_scene() -> RawScene {
+pub(crate) fn raw_scene() -> RawScene {
     use crate::depth_map::pair as scene_pair;
     let truth = scene_pair();
     let (w, h) = (160usize, 120usize);
