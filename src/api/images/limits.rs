@@ -2,6 +2,8 @@
 //! the matcher's settings (checked by [`Params::new`], its faults named by the query's
 //! parameters), and, when a request cannot fit in the memory budget, what to shrink.
 
+use axum::body::Bytes;
+
 use crate::api::error::{ApiError, FieldError, FieldErrors};
 use stereo_core::vision::decode::{DecodeError, DecodeLimits, MAX_SIDE};
 use stereo_core::vision::{Params, Settings};
@@ -152,4 +154,45 @@ pub fn shrink(
         ));
     }
     errors
+}
+
+/// Every view's size from its header (`/calibrate`'s repeated `left` and `right` parts): past the limits is a 413 naming the part, a size other
+/// than the first view's is named in `problems`. Returns the first image's size.
+pub fn view_sizes(
+    left: &[Bytes],
+    right: &[Bytes],
+    allowed: DecodeLimits,
+    problems: &mut FieldErrors,
+) -> Result<Option<(u32, u32)>, ApiError> {
+    let mut first: Option<(u32, u32)> = None;
+    let mut oversized = Vec::new();
+    for (side, images) in [("left", left), ("right", right)] {
+        for (i, bytes) in images.iter().enumerate() {
+            let name = format!("{side}[{i}]");
+            match stereo_core::vision::decode::dimensions(bytes) {
+                Ok((w, h)) => {
+                    if let Some(message) = over_the_limits((w, h), allowed) {
+                        oversized.push(FieldError::new(name, message));
+                        continue;
+                    }
+                    match first {
+                        None => first = Some((w, h)),
+                        Some((fw, fh)) if (fw, fh) != (w, h) => problems.add_new(
+                            name,
+                            format!(
+                                "is {w} × {h} pixels but left[0] is {fw} × {fh}: every view \
+                                 of a calibration has one size"
+                            ),
+                        ),
+                        Some(_) => {}
+                    }
+                }
+                Err(e) => problems.add_new(name, describe(&e, allowed)),
+            }
+        }
+    }
+    if !oversized.is_empty() {
+        return Err(ApiError::Oversized(oversized));
+    }
+    Ok(first)
 }

@@ -34,6 +34,7 @@
 //! assert_eq!(&npy[1..6], b"NUMPY");
 //! ```
 
+pub mod calibrate;
 pub mod calibrated;
 pub mod depth;
 pub mod rectify;

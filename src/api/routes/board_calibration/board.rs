@@ -1,15 +1,14 @@
 //! The `board` part of `/calibrate`: a chessboard or a ChArUco board read from its JSON, each
-//! fault named `board.<member>`, and the 422 for a chessboard counted wrongly.
+//! fault named `board.<member>`; and the engine's faults as 422s naming the board's members or
+//! the views.
 
 use axum::body::Bytes;
 
 use super::types::{BoardSpec, BoardType};
 use crate::api::error::{ApiError, FieldError, FieldErrors};
 use crate::api::extract;
-use stereo_core::calibration::boards::charuco::{CharucoBoard, CharucoSpec, Dictionary};
-use stereo_core::calibration::boards::report::CharucoMistake;
-use stereo_core::calibration::boards::{Board, Target};
-use stereo_core::physics::LengthUnit;
+use crate::api::images::limits;
+use stereo_core::pipeline::calibrate as engine;
 
 /// A `board` part as the messages show it.
 const BOARD_EXAMPLE: &str = r#"{"columns": 9, "rows": 6, "square_size": 25, "unit": "mm"}"#;
@@ -26,7 +25,7 @@ const CHARUCO: [&str; 5] = [
 
 /// The `board` part read into a target, each fault named `board.<member>`: the members its
 /// type needs, the members of the other type, and every value out of its bounds.
-pub fn read_board(bytes: Option<&Bytes>, problems: &mut FieldErrors) -> Option<Target> {
+pub fn read_board(bytes: Option<&Bytes>, problems: &mut FieldErrors) -> Option<engine::Target> {
     let Some(bytes) = bytes else {
         problems.add(
             "board",
@@ -92,23 +91,25 @@ pub fn read_board(bytes: Option<&Bytes>, problems: &mut FieldErrors) -> Option<T
     }
     // The members that were read are judged even when others were missing or refused, so
     // that every fault is named at once; an absent member is judged as a valid stand-in.
-    let unit: LengthUnit = spec.unit.unwrap_or_default().into();
+    let unit = spec.unit.unwrap_or_default().into();
     let square = spec.square_size.unwrap_or_else(|| {
         spec.marker_size
             .filter(|m| m.is_finite() && *m > 0.0)
             .map_or(1.0, |m| 2.0 * m)
     });
     let judged = if charuco {
-        CharucoBoard::new(CharucoSpec {
+        engine::CharucoBoard::new(engine::CharucoSpec {
             squares_x: spec.squares_x.unwrap_or(5),
             squares_y: spec.squares_y.unwrap_or(5),
             square_size: square,
             marker_size: spec.marker_size.unwrap_or(square / 2.0),
-            dictionary: spec.dictionary.map_or(Dictionary::Dict6x6_250, Into::into),
+            dictionary: spec
+                .dictionary
+                .map_or(engine::Dictionary::Dict6x6_250, Into::into),
             legacy: spec.legacy.unwrap_or(false),
             unit,
         })
-        .map(Target::Charuco)
+        .map(engine::Target::Charuco)
         .map_err(|faults| {
             faults
                 .into_iter()
@@ -116,13 +117,13 @@ pub fn read_board(bytes: Option<&Bytes>, problems: &mut FieldErrors) -> Option<T
                 .collect::<Vec<_>>()
         })
     } else {
-        Board::new(
+        engine::Board::new(
             spec.columns.unwrap_or(9),
             spec.rows.unwrap_or(6),
             square,
             unit,
         )
-        .map(Target::Chessboard)
+        .map(engine::Target::Chessboard)
         .map_err(|faults| {
             faults
                 .into_iter()
@@ -144,10 +145,70 @@ pub fn read_board(bytes: Option<&Bytes>, problems: &mut FieldErrors) -> Option<T
     }
 }
 
+/// The engine's fault as the answer names it: the views that cannot be decoded, the board's
+/// members most images contradict, each view whose board was not found with the fit's fault,
+/// or why the views do not determine the calibration.
+pub fn fault(fault: engine::CalibrateFault, allowed: engine::DecodeLimits) -> ApiError {
+    match fault {
+        engine::CalibrateFault::Abandoned => {
+            ApiError::Internal("the calibration was abandoned".to_owned())
+        }
+        engine::CalibrateFault::Undecodable(views) => ApiError::Invalid(
+            views
+                .into_iter()
+                .map(|(view, e)| FieldError::new(view, limits::describe(&e, allowed)))
+                .collect(),
+        ),
+        engine::CalibrateFault::OtherBoardSize {
+            board,
+            found,
+            showing,
+            images,
+        } => size_mistake(&board, found, showing, images),
+        engine::CalibrateFault::Charuco {
+            board,
+            mistake,
+            images,
+        } => charuco_mistake(&board, &mistake, images),
+        engine::CalibrateFault::Fit {
+            fault,
+            reasons,
+            views,
+        } => {
+            let mut errors = Vec::new();
+            for (i, [l, r]) in reasons.iter().enumerate() {
+                for (side, reason) in [("left", l), ("right", r)] {
+                    if let Some(reason) = reason {
+                        errors.push(FieldError::new(
+                            format!("{side}[{i}]"),
+                            format!("board not found: {reason}"),
+                        ));
+                    }
+                }
+            }
+            errors.push(FieldError::new(
+                "left",
+                format!("{fault} (of {views} views sent)"),
+            ));
+            ApiError::Invalid(errors)
+        }
+        engine::CalibrateFault::Refused { cause, views } => {
+            ApiError::Invalid(vec![FieldError::new(
+                "left",
+                format!("refused, {cause} (of {views} views sent)"),
+            )])
+        }
+        engine::CalibrateFault::NotRectifiable => ApiError::Invalid(vec![FieldError::new(
+            "right",
+            "the calibrated pair cannot be rectified (the cameras do not overlap)",
+        )]),
+    }
+}
+
 /// Most images show a whole chessboard of another size than the board's: one 422 naming
 /// each member that differs, with the size found.
-pub fn size_mistake(
-    board: &Board,
+fn size_mistake(
+    board: &engine::Board,
     (columns, rows): (usize, usize),
     showing: usize,
     images: usize,
@@ -175,12 +236,16 @@ pub fn size_mistake(
 
 /// Most images say the ChArUco board was printed otherwise than described: one 422 naming
 /// the members to correct.
-pub fn charuco_mistake(board: &CharucoBoard, mistake: &CharucoMistake, images: usize) -> ApiError {
+fn charuco_mistake(
+    board: &engine::CharucoBoard,
+    mistake: &engine::CharucoMistake,
+    images: usize,
+) -> ApiError {
     let (x, y) = board.squares();
     let markers = board.marker_squares().len();
     let dictionary = board.dictionary().name();
     let errors = match *mistake {
-        CharucoMistake::Larger {
+        engine::CharucoMistake::Larger {
             highest,
             images: showing,
         } => {
@@ -196,7 +261,7 @@ pub fn charuco_mistake(board: &CharucoBoard, mistake: &CharucoMistake, images: u
                 FieldError::new("board.squares_y", format!("is {y}: {why}")),
             ]
         }
-        CharucoMistake::Dictionary {
+        engine::CharucoMistake::Dictionary {
             dictionary: other,
             images: showing,
         } => vec![FieldError::new(

@@ -1,24 +1,19 @@
 //! `/calibrate`: checkerboard views in (multipart, repeated `left` and `right` parts and a
 //! `board`), a calibrated camera or stereo rig out, as a JSON summary with each parameter's
-//! standard deviation or as OpenCV's and ROS's files. The engine is [`stereo_core::calibration::boards`]; this
-//! module reads the form, judges it against the limits, finds the boards over the cores off the
-//! async runtime and writes the answer.
+//! standard deviation or as OpenCV's and ROS's files. The engine is
+//! [`stereo_core::pipeline::calibrate`]; this module reads the form, judges it against the
+//! limits, runs the engine off the async runtime and writes its answer or names its faults.
 
 mod board;
-mod checks;
 mod summary;
 pub mod types;
-
-use std::time::Instant;
 
 use axum::body::Bytes;
 use axum::extract::{FromRequest, Request};
 use axum::response::{IntoResponse, Response};
-use rayon::prelude::*;
 use utoipa_axum::{router::OpenApiRouter, routes};
 
-use self::board::{charuco_mistake, read_board, size_mistake};
-use self::checks::Checks;
+use self::board::{fault, read_board};
 use self::types::{CalibrateAnswers, CalibrateForm, CalibrateOutput, CalibrateQuery};
 use crate::api::HeavyState;
 use crate::api::error::{ApiError, FieldError, FieldErrors};
@@ -28,15 +23,7 @@ use crate::api::images::limits;
 use crate::api::images::output::{self, Disposition, set_server_timing};
 use crate::api::images::work;
 use crate::api::respond::Json;
-use stereo_core::calibration::boards::TargetMiss;
-use stereo_core::calibration::boards::corners::{Luma, Miss};
-use stereo_core::calibration::boards::report::{
-    Detections, Determination, agreed_charuco_mistake, agreed_other_size,
-};
-use stereo_core::calibration::boards::{self, FitFault, MAX_VIEWS, Target};
-use stereo_core::calibration::files::{RigStd, opencv, ros};
-use stereo_core::camera::{Alpha, Model, RectifyOptions, Size};
-use stereo_core::vision::decode::{self, DecodeLimits};
+use stereo_core::pipeline::calibrate as engine;
 
 /// `POST /calibrate`.
 pub fn router() -> OpenApiRouter<HeavyState> {
@@ -51,7 +38,7 @@ pub struct Upload {
     problems: FieldErrors,
     admitted: work::Admitted,
     /// What the decoder takes (`--max-image-pixels`).
-    limits: DecodeLimits,
+    limits: engine::DecodeLimits,
 }
 
 impl FromRequest<HeavyState> for Upload {
@@ -128,7 +115,50 @@ pub async fn post_calibrate(
     } = upload;
     let mut problems = query_problems;
     problems.extend(form_problems);
-    let alpha = problems.alpha(query.alpha).unwrap_or(Alpha::ZERO);
+    let output = query.output.unwrap_or_default();
+    let settings = settings(
+        &query,
+        board.as_ref(),
+        [&left, &right],
+        allowed,
+        &mut problems,
+    )?;
+    let images = left.len() + right.len();
+    let size = (settings.size.width, settings.size.height);
+    let bytes = engine::bytes_needed(&settings.board, size, images);
+    let too_large = |total: usize| {
+        vec![FieldError::new(
+            "left",
+            format!(
+                "{} × {} views need {} MiB to calibrate, more than the {} MiB this server has \
+                 for image requests: send smaller images",
+                size.0,
+                size.1,
+                bytes / (1024 * 1024),
+                total / (1024 * 1024)
+            ),
+        )]
+    };
+    work::run_reserved(admitted, bytes, too_large, move |cancel, _| {
+        let left: Vec<&[u8]> = left.iter().map(|b| b.as_ref()).collect();
+        let right: Vec<&[u8]> = right.iter().map(|b| b.as_ref()).collect();
+        let made =
+            engine::calibrate(&left, &right, &settings, cancel).map_err(|f| fault(f, allowed))?;
+        answer(&made, output)
+    })
+    .await?
+}
+
+/// The engine's settings from the query and the form, every fault named at once: the query's
+/// members, the board's, the views' counts, sizes and limits (413 past them).
+fn settings(
+    query: &CalibrateQuery,
+    board: Option<&Bytes>,
+    [left, right]: [&[Bytes]; 2],
+    allowed: engine::DecodeLimits,
+    problems: &mut FieldErrors,
+) -> Result<engine::Settings, ApiError> {
+    let alpha = problems.alpha(query.alpha).unwrap_or(engine::Alpha::ZERO);
     if let Some(d) = query.uncertainty_distance
         && !(d.is_finite() && d > 0.0)
     {
@@ -138,7 +168,6 @@ pub async fn post_calibrate(
         );
     }
     let output = query.output.unwrap_or_default();
-    let model: Model = query.model.unwrap_or_default().into();
     let stereo = !right.is_empty();
     if !stereo
         && matches!(
@@ -154,7 +183,7 @@ pub async fn post_calibrate(
             ),
         );
     }
-    let board = read_board(board.as_ref(), &mut problems);
+    let board = read_board(board, problems);
     if left.is_empty() {
         problems.add(
             "left",
@@ -171,335 +200,69 @@ pub async fn post_calibrate(
             ),
         );
     }
-    if left.len().max(right.len()) > MAX_VIEWS {
+    if left.len().max(right.len()) > engine::MAX_VIEWS {
         return Err(ApiError::Oversized(vec![FieldError::new(
             "left",
             format!(
-                "has {} views; this server calibrates at most {MAX_VIEWS} in one request",
-                left.len().max(right.len())
+                "has {} views; this server calibrates at most {} in one request",
+                left.len().max(right.len()),
+                engine::MAX_VIEWS
             ),
         )]));
     }
-    let size = image_sizes(&left, &right, allowed, &mut problems)?;
+    let size = limits::view_sizes(left, right, allowed, problems)?;
     let (Some(board), Some((width, height))) = (board, size) else {
-        return Err(problems.into_error());
+        return Err(std::mem::take(problems).into_error());
     };
     if !problems.is_empty() {
-        return Err(problems.into_error());
+        return Err(std::mem::take(problems).into_error());
     }
-    let images = left.len() + right.len();
-    let threads = rayon::current_num_threads().clamp(1, images);
-    // Per image being worked on: its decoded buffer, the grey levels as f32 and u8, and the
-    // corner detector's response maps; for ChArUco markers, the sums of the grey levels, the
-    // dark mask, the blobs' labels and the flood's stack instead of the response maps.
-    let finding = match board {
-        Target::Chessboard(_) => 16,
-        Target::Charuco(_) => 8 + 1 + 4 + 8,
-    };
-    let per_image = (width as usize * height as usize).saturating_mul(10 + 4 + 1 + finding);
-    let bytes = threads.saturating_mul(per_image);
-    let too_large = |total: usize| {
-        vec![FieldError::new(
-            "left",
-            format!(
-                "{width} × {height} views need {} MiB to calibrate, more than the {} MiB this \
-                 server has for image requests: send smaller images",
-                bytes / (1024 * 1024),
-                total / (1024 * 1024)
-            ),
-        )]
-    };
-    let settings = Settings {
-        object: board.object_points(),
+    Ok(engine::Settings {
         board,
-        model,
+        model: query.model.unwrap_or_default().into(),
         alpha,
-        output,
+        size: engine::Size { width, height },
+        limits: allowed,
+        uncertainty: output == CalibrateOutput::Summary,
         corners: query.corners.unwrap_or(false),
         cross_validate: query.cross_validate.unwrap_or(false),
         uncertainty_distance: query.uncertainty_distance,
-        size: Size { width, height },
-        allowed,
-    };
-    work::run_reserved(admitted, bytes, too_large, move |cancel, _| {
-        compute(&left, &right, &settings, cancel)
     })
-    .await?
 }
 
-/// What the work needs to know besides the images.
-struct Settings {
-    board: Target,
-    /// The board's corners on its plane, in the order the views give them.
-    object: Vec<nalgebra::Vector3<f64>>,
-    model: Model,
-    alpha: Alpha,
-    output: CalibrateOutput,
-    corners: bool,
-    cross_validate: bool,
-    uncertainty_distance: Option<f64>,
-    size: Size,
-    allowed: DecodeLimits,
-}
-
-/// Every image's size from its header: past the limits is a 413 naming the part, a size other
-/// than the first view's is named in `problems`. Returns the first image's size.
-fn image_sizes(
-    left: &[Bytes],
-    right: &[Bytes],
-    allowed: DecodeLimits,
-    problems: &mut FieldErrors,
-) -> Result<Option<(u32, u32)>, ApiError> {
-    let mut first: Option<(u32, u32)> = None;
-    let mut oversized = Vec::new();
-    for (side, images) in [("left", left), ("right", right)] {
-        for (i, bytes) in images.iter().enumerate() {
-            let name = format!("{side}[{i}]");
-            match decode::dimensions(bytes) {
-                Ok((w, h)) => {
-                    if let Some(message) = limits::over_the_limits((w, h), allowed) {
-                        oversized.push(FieldError::new(name, message));
-                        continue;
-                    }
-                    match first {
-                        None => first = Some((w, h)),
-                        Some((fw, fh)) if (fw, fh) != (w, h) => problems.add_new(
-                            name,
-                            format!(
-                                "is {w} × {h} pixels but left[0] is {fw} × {fh}: every view \
-                                 of a calibration has one size"
-                            ),
-                        ),
-                        Some(_) => {}
-                    }
-                }
-                Err(e) => problems.add_new(name, limits::describe(&e, allowed)),
-            }
-        }
-    }
-    if !oversized.is_empty() {
-        return Err(ApiError::Oversized(oversized));
-    }
-    Ok(first)
-}
-
-/// One image's board: decoded, found and refined, with what the decoder forgave (named by
-/// the part); the outer error is the image's decoding.
-type Found = Result<(Result<boards::Seen, TargetMiss>, Option<String>), FieldError>;
-
-fn find(name: String, bytes: &Bytes, board: &Target, allowed: DecodeLimits) -> Found {
-    let decoded = match decode::decode(bytes, allowed, false) {
-        Ok(decoded) => decoded,
-        Err(e) => return Err(FieldError::new(name, limits::describe(&e, allowed))),
+/// The calibration as the output asked for, with its stages in `Server-Timing` and the
+/// decoder's notes (with a summary, all its warnings) in `Stereo-Warnings`.
+fn answer(made: &engine::Calibration, output: CalibrateOutput) -> Result<Response, ApiError> {
+    let yaml = |text: String| {
+        let bytes = text.into_bytes();
+        output::file(
+            bytes,
+            "application/x-yaml",
+            output.name(),
+            Disposition::Attachment,
+        )
     };
-    let note = decoded.note.map(|note| format!("{name} {note}"));
-    let grey = decoded.grey;
-    let luma = Luma::from_u16(grey.width, grey.height, &grey.data);
-    Ok((board.find(&luma), note))
-}
-
-/// Finds the boards, calibrates and writes the answer, on a blocking thread.
-fn compute(
-    left: &[Bytes],
-    right: &[Bytes],
-    settings: &Settings,
-    cancel: &std::sync::atomic::AtomicBool,
-) -> Result<Response, ApiError> {
-    let started = Instant::now();
-    let jobs: Vec<(&str, usize, &Bytes)> = left
-        .iter()
-        .enumerate()
-        .map(|(i, b)| ("left", i, b))
-        .chain(right.iter().enumerate().map(|(i, b)| ("right", i, b)))
-        .collect();
-    let found: Vec<Option<Found>> = jobs
-        .par_iter()
-        .map(|&(side, i, bytes)| {
-            (!cancel.load(std::sync::atomic::Ordering::Relaxed)).then(|| {
-                find(
-                    format!("{side}[{i}]"),
-                    bytes,
-                    &settings.board,
-                    settings.allowed,
-                )
-            })
-        })
-        .collect();
-    if found.iter().any(Option::is_none) {
-        return Err(ApiError::Internal(
-            "the calibration was abandoned".to_owned(),
-        ));
-    }
-    let mut undecodable = Vec::new();
-    let mut notes = Vec::new();
-    let mut misses: Vec<Result<boards::Seen, TargetMiss>> = Vec::with_capacity(found.len());
-    for f in found.into_iter().flatten() {
-        match f {
-            Ok((r, note)) => {
-                misses.push(r);
-                notes.extend(note);
-            }
-            Err(e) => {
-                undecodable.push(e);
-                misses.push(Err(TargetMiss::Chessboard(Miss::NoGrid)));
-            }
-        }
-    }
-    if !undecodable.is_empty() {
-        return Err(ApiError::Invalid(undecodable));
-    }
-    let missed: Vec<Option<&TargetMiss>> = misses.iter().map(|r| r.as_ref().err()).collect();
-    match &settings.board {
-        Target::Chessboard(board) => {
-            if let Some((size, showing)) = agreed_other_size(&missed, board) {
-                return Err(size_mistake(board, size, showing, missed.len()));
-            }
-        }
-        Target::Charuco(board) => {
-            if let Some(mistake) = agreed_charuco_mistake(&missed) {
-                return Err(charuco_mistake(board, &mistake, missed.len()));
-            }
-        }
-    }
-    let results: Vec<Result<boards::Seen, String>> = misses
-        .into_iter()
-        .map(|r| r.map_err(|m| m.to_string()))
-        .collect();
-    let stereo = !right.is_empty();
-    let n = left.len();
-    let Detections { views, reasons } = Detections::assemble(&results, stereo);
-    let detect = started.elapsed();
-    let solving = Instant::now();
-    let fit = boards::calibrate(
-        &settings.object,
-        settings.size,
-        settings.model,
-        &views,
-        stereo,
-    )
-    .map_err(|fault| fit_error(&fault, &reasons, n))?;
-    let determination = Determination::of(&fit);
-    if determination.refused() {
-        let cause = determination.cause().unwrap_or_default();
-        return Err(ApiError::Invalid(vec![FieldError::new(
-            "left",
-            format!("refused, {cause} (of {n} views sent)"),
-        )]));
-    }
-    let solve = solving.elapsed();
-    let rectifying = Instant::now();
-    let options = RectifyOptions {
-        alpha: settings.alpha,
-        ..RectifyOptions::default()
-    };
-    let rectification = fit.rectify(options);
-    let rig_std = fit.rig_std(options);
-    let rectify = rectifying.elapsed();
-    let unit = settings.board.unit();
-    let mut response = match settings.output {
+    let (mut response, warnings) = match output {
         CalibrateOutput::Summary => {
-            let checks = Checks::of(&fit, &views, settings, stereo, determination);
-            let mut summary = summary::summarize(
-                &fit,
-                &views,
-                &reasons,
-                settings,
-                rectification.as_ref(),
-                rig_std,
-                &checks,
-                [detect, solve, rectify],
-            );
-            summary.warnings.splice(0..0, notes.drain(..));
-            notes.clone_from(&summary.warnings);
-            Json(summary).into_response()
+            let summary = summary::summarize(made);
+            let warnings = summary.warnings.clone();
+            (Json(summary).into_response(), warnings)
         }
         CalibrateOutput::OpencvYml => {
-            let rect = rectification.as_ref().ok_or_else(not_rectifiable)?;
-            let (Some(pair), Some(essential), Some(fundamental)) =
-                (fit.pair(), fit.essential(), fit.fundamental())
-            else {
-                return Err(not_rectifiable());
-            };
-            let text = opencv::write(&opencv::StereoFile {
-                size: fit.size,
-                pair: &pair,
-                essential,
-                fundamental,
-                rectification: rect,
-                target: settings.board.recorded(),
-                rig_std: rig_std.map(|[focal_px, baseline]| RigStd { focal_px, baseline }),
-            });
-            yaml(text, "opencv.yml")
+            let allowed = made.settings().limits;
+            let text = made.opencv_yml().map_err(|f| fault(f, allowed))?;
+            (yaml(text), made.notes.clone())
         }
         CalibrateOutput::RosLeftYaml | CalibrateOutput::RosRightYaml => {
-            let right_side = settings.output == CalibrateOutput::RosRightYaml;
-            let text = match (&rectification, fit.pair()) {
-                (Some(r), Some(pair)) => {
-                    let (camera, name, rotation, projection) = if right_side {
-                        (pair.right, "right", r.r2, r.p2)
-                    } else {
-                        (pair.left, "left", r.r1, r.p1)
-                    };
-                    ros::write(&ros::CameraInfo {
-                        name,
-                        size: fit.size,
-                        camera: &camera,
-                        rotation,
-                        projection,
-                        unit,
-                        rig_std: rig_std.map(|[focal_px, baseline]| RigStd { focal_px, baseline }),
-                    })
-                }
-                _ => ros::write(&ros::CameraInfo::alone(
-                    "left",
-                    fit.size,
-                    &fit.left.camera,
-                    unit,
-                )),
-            };
-            yaml(text, settings.output.name())
+            let right = output == CalibrateOutput::RosRightYaml;
+            (yaml(made.ros_yaml(right)), made.notes.clone())
         }
     };
+    let [detect, solve, rectify] = made.times;
     set_server_timing(
         &mut response,
         &[("detect", detect), ("solve", solve), ("rectify", rectify)],
     );
-    output::set_warnings(&mut response, &notes);
+    output::set_warnings(&mut response, &warnings);
     Ok(response)
-}
-
-fn not_rectifiable() -> ApiError {
-    ApiError::Invalid(vec![FieldError::new(
-        "right",
-        "the calibrated pair cannot be rectified (the cameras do not overlap)",
-    )])
-}
-
-fn yaml(text: String, name: &str) -> Response {
-    output::file(
-        text.into_bytes(),
-        "application/x-yaml",
-        name,
-        Disposition::Attachment,
-    )
-}
-
-/// A calibration that could not be made: a 422 naming each view that failed and why.
-fn fit_error(fault: &FitFault, reasons: &[[Option<String>; 2]], n: usize) -> ApiError {
-    let mut errors = Vec::new();
-    for (i, [l, r]) in reasons.iter().enumerate() {
-        for (side, reason) in [("left", l), ("right", r)] {
-            if let Some(reason) = reason {
-                errors.push(FieldError::new(
-                    format!("{side}[{i}]"),
-                    format!("board not found: {reason}"),
-                ));
-            }
-        }
-    }
-    errors.push(FieldError::new(
-        "left",
-        format!("{fault} (of {n} views sent)"),
-    ));
-    ApiError::Invalid(errors)
 }

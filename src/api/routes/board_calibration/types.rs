@@ -9,8 +9,7 @@ use crate::api::wire::de::{choice_members, request};
 use crate::api::wire::openapi::{image_answers, named, text};
 use crate::api::wire::params::Unit;
 use crate::api::wire::rig::CalibratedRig;
-use stereo_core::calibration::boards::charuco::Dictionary;
-use stereo_core::camera::Model;
+use stereo_core::pipeline::calibrate as engine;
 
 /// The distortion model to fit, as ROS names them.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize, Serialize, ToSchema)]
@@ -25,12 +24,12 @@ pub enum ModelChoice {
     Equidistant,
 }
 
-impl From<ModelChoice> for Model {
+impl From<ModelChoice> for engine::Model {
     fn from(m: ModelChoice) -> Self {
         match m {
-            ModelChoice::PlumbBob => Model::PlumbBob,
-            ModelChoice::RationalPolynomial => Model::RationalPolynomial,
-            ModelChoice::Equidistant => Model::Equidistant,
+            ModelChoice::PlumbBob => engine::Model::PlumbBob,
+            ModelChoice::RationalPolynomial => engine::Model::RationalPolynomial,
+            ModelChoice::Equidistant => engine::Model::Equidistant,
         }
     }
 }
@@ -117,24 +116,24 @@ pub enum DictionaryName {
     ArucoOriginal,
 }
 
-impl From<DictionaryName> for Dictionary {
+impl From<DictionaryName> for engine::Dictionary {
     fn from(d: DictionaryName) -> Self {
         match d {
-            DictionaryName::Dict4x4_50 => Dictionary::Dict4x4_50,
-            DictionaryName::Dict5x5_100 => Dictionary::Dict5x5_100,
-            DictionaryName::Dict6x6_250 => Dictionary::Dict6x6_250,
-            DictionaryName::ArucoOriginal => Dictionary::ArucoOriginal,
+            DictionaryName::Dict4x4_50 => engine::Dictionary::Dict4x4_50,
+            DictionaryName::Dict5x5_100 => engine::Dictionary::Dict5x5_100,
+            DictionaryName::Dict6x6_250 => engine::Dictionary::Dict6x6_250,
+            DictionaryName::ArucoOriginal => engine::Dictionary::ArucoOriginal,
         }
     }
 }
 
-impl From<Dictionary> for DictionaryName {
-    fn from(d: Dictionary) -> Self {
+impl From<engine::Dictionary> for DictionaryName {
+    fn from(d: engine::Dictionary) -> Self {
         match d {
-            Dictionary::Dict4x4_50 => DictionaryName::Dict4x4_50,
-            Dictionary::Dict5x5_100 => DictionaryName::Dict5x5_100,
-            Dictionary::Dict6x6_250 => DictionaryName::Dict6x6_250,
-            Dictionary::ArucoOriginal => DictionaryName::ArucoOriginal,
+            engine::Dictionary::Dict4x4_50 => DictionaryName::Dict4x4_50,
+            engine::Dictionary::Dict5x5_100 => DictionaryName::Dict5x5_100,
+            engine::Dictionary::Dict6x6_250 => DictionaryName::Dict6x6_250,
+            engine::Dictionary::ArucoOriginal => DictionaryName::ArucoOriginal,
         }
     }
 }
