@@ -37,6 +37,7 @@
 pub mod calibrate;
 pub mod calibrated;
 pub mod depth;
+pub mod matches;
 pub mod rectify;
 
 pub use calibrated::{Calibrated, PlanFault, RectifyMode, Sent, SizeFault, plan, raw_rig};

@@ -14,13 +14,8 @@ use serde::de::DeserializeOwned;
 use serde_json::Value;
 use utoipa_axum::{router::OpenApiRouter, routes};
 
-use self::types::{
-    MatchDistance, MatchForm, MatchPoint, MatchQuery, MatchRegion, MatchResponse, MatchStatus,
-    PointMatch, RegionMatch, RegionStatus,
-};
-use crate::api::wire::images::StageTimes;
+use self::types::{MatchForm, MatchPoint, MatchQuery, MatchRegion, MatchResponse};
 use axum::extract::State;
-use stereo_core::numbers::round_to;
 
 use crate::api::HeavyState;
 use crate::api::error::{ApiError, FieldErrors};
@@ -31,13 +26,9 @@ use crate::api::images::raw;
 use crate::api::images::work;
 use crate::api::images::{ImageForm, ImagePair, Job, Parts, limits, rig};
 use crate::api::respond::Json;
-use crate::api::wire::measured::Measured;
 use crate::api::wire::openapi::ImageErrors;
-use crate::api::wire::rig::CalibratedRig;
 use stereo_core::calibration::files::Raw;
-use stereo_core::physics::{self, Correspondence, Rig};
-use stereo_core::pipeline::depth;
-use stereo_core::vision::correspond::{self, Found, Rect};
+use stereo_core::pipeline::matches;
 use stereo_core::vision::{self, Cancelled, Params, Settings};
 
 /// `POST /match`.
@@ -155,25 +146,6 @@ pub async fn post_match(
         )
     })
     .await?
-}
-
-/// Where a raw left pixel lands in the rectified left image (`None` where the lens model
-/// cannot take it there).
-fn to_rectified(raw: &Raw, (x, y): (f64, f64)) -> Option<(f64, f64)> {
-    let r = &raw.rectification;
-    let k = r.p1.fixed_view::<3, 3>(0, 0).into_owned();
-    raw.pair
-        .left
-        .undistort_to([x, y], &r.r1, &k)
-        .map(|[x, y]| (x, y))
-}
-
-/// Where a rectified right pixel was seen in the raw right frame.
-fn to_raw_right(raw: &Raw, x: f64, y: f64) -> Option<[f64; 2]> {
-    let r = &raw.rectification;
-    let k = r.p2.fixed_view::<3, 3>(0, 0).into_owned().try_inverse()?;
-    let ray = r.r2.transpose() * (k * nalgebra::Vector3::new(x, y, 1.0));
-    raw.pair.right.project(&ray)
 }
 
 /// The bytes a request holds at its peak: the decoded pair, then the matcher's as for the
@@ -317,21 +289,7 @@ fn check_regions(
     out
 }
 
-/// The pixels a box `[x, y, width, height]` covers on a `w × h` image (at least one pixel
-/// across and down), or `None` when it is wholly off the image.
-fn rect(b: [f64; 4], w: usize, h: usize) -> Option<Rect> {
-    let span = |start: f64, size: f64, n: usize| {
-        let a = start.round();
-        let b = (start + size).round().max(a + 1.0);
-        let (a, b) = (a.clamp(0.0, n as f64), b.clamp(0.0, n as f64));
-        (a < b).then_some((a as usize, b as usize))
-    };
-    let (x0, x1) = span(b[0], b[2], w)?;
-    let (y0, y1) = span(b[1], b[3], h)?;
-    Some(Rect { x0, y0, x1, y1 })
-}
-
-/// Decodes, matches and answers, on a blocking thread.
+/// Decodes, calls the engine's matches and answers, on a blocking thread.
 fn compute(
     job: Job,
     params: &Params,
@@ -343,248 +301,30 @@ fn compute(
     let Some(given) = job.rig else {
         return Err(ApiError::Internal("matched without a rig".to_owned()));
     };
-    let cancel = job.cancel;
     let started = Instant::now();
-    let (mut left, mut right) = work::decode_pair(job.parts, job.limits, [false, false])?;
-    let decode_time = started.elapsed();
-    let rectify_time = raw.map(|raw| raw::rectify_raw_pair(&mut left, &mut right, raw, false));
-    let (w, h) = (left.grey.width, left.grey.height);
-    // Points and boxes are clicked on the raw frame: matched where they land once rectified
-    // (a box as the rectangle around its corners' images).
-    let rectified: Vec<(f64, f64)> = match raw {
-        Some((raw, _)) => points
-            .iter()
-            .map(|&p| to_rectified(raw, p).unwrap_or((f64::NAN, f64::NAN)))
-            .collect(),
-        None => points.to_vec(),
+    let (left, right) = work::decode_pair(job.parts, job.limits, [false, false])?;
+    let decode = started.elapsed();
+    let maps = raw.map(|(raw, cache)| cache.get(raw).0);
+    let request = matches::Request {
+        params,
+        calibrated: &given,
+        maps: maps.as_deref(),
     };
-    let boxes_rectified: Vec<[f64; 4]> = match raw {
-        Some((raw, _)) => regions
-            .iter()
-            .map(|b| {
-                let corners = [
-                    (b[0], b[1]),
-                    (b[0] + b[2], b[1]),
-                    (b[0], b[1] + b[3]),
-                    (b[0] + b[2], b[1] + b[3]),
-                ]
-                .map(|c| to_rectified(raw, c).unwrap_or((f64::NAN, f64::NAN)));
-                let (x0, x1) = corners
-                    .iter()
-                    .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, z), c| {
-                        (a.min(c.0), z.max(c.0))
-                    });
-                let (y0, y1) = corners
-                    .iter()
-                    .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, z), c| {
-                        (a.min(c.1), z.max(c.1))
-                    });
-                [x0, y0, x1 - x0, y1 - y0]
-            })
-            .collect(),
-        None => regions.to_vec(),
-    };
-    let boxes: Vec<Option<Rect>> = boxes_rectified
-        .iter()
-        .map(|&b| {
-            if b.iter().all(|v| v.is_finite()) {
-                rect(b, w, h)
-            } else {
-                None
-            }
-        })
-        .collect();
-    let wanted: Vec<Rect> = boxes.iter().flatten().copied().collect();
-    let found =
-        correspond::correspond(&left.grey, &right.grey, params, &rectified, &wanted, cancel)
-            .map_err(|Cancelled| ApiError::Internal("cancelled".to_owned()))?;
-    let rig = &given.rig;
-    let matches: Vec<PointMatch> = points
-        .iter()
-        .zip(&rectified)
-        .zip(&found.found)
-        .map(|((&(x, y), &(xr, yr)), f)| {
-            let Some((raw, _)) = raw else {
-                return point_match(rig, x, y, f);
-            };
-            let mut answer = point_match(rig, xr, yr, f);
-            answer.x = x;
-            answer.y = y;
-            if xr.is_finite() {
-                answer.x_rectified = Some(round_to(xr, 3));
-                answer.y_rectified = Some(round_to(yr, 3));
-            }
-            if let Some(xm) = answer.x_right
-                && let Some([u, v]) = to_raw_right(raw, xm, yr)
-            {
-                answer.x_right_raw = Some(round_to(u, 3));
-                answer.y_right_raw = Some(round_to(v, 3));
-            }
-            answer
-        })
-        .collect();
-    let regions: Vec<RegionMatch> = regions
-        .iter()
-        .zip(&boxes)
-        .map(|(&b, r)| region_match(rig, &found.map, b, *r))
-        .collect();
-    // A pair sent as rectified: do its corners lie on their rows?
-    let rows = raw
-        .is_none()
-        .then(|| depth::row_check(&left, &right, params));
-    let mut warnings = given.warnings.clone();
-    warnings.extend(depth::decode_notes(&left, &right));
-    warnings.extend(rows.and_then(|r| depth::unrectified_warning(None, r)));
-    let ms = |d: std::time::Duration| (d.as_secs_f64() * 1e4).round() / 10.0;
-    let t = found.timings;
-    let answer = MatchResponse {
-        width: w,
-        height: h,
-        min_disparity: params.min_disparity(),
-        max_disparity: params.max_disparity(),
-        unit: CalibratedRig::from(&given.rig).unit,
-        ok: matches
-            .iter()
-            .filter(|m| m.status == MatchStatus::Ok)
-            .count(),
-        matches,
-        regions,
-        rig: CalibratedRig::from(&given.rig),
-        rows_matched: found.rows_matched,
-        rectified: raw.is_some(),
-        timings_ms: StageTimes {
-            decode: ms(decode_time),
-            cost: ms(t.cost),
-            aggregate: ms(t.aggregate),
-            refine: ms(t.refine),
-            rectify: rectify_time.map(ms),
-        },
-        warnings,
-    };
-    let said = answer.warnings.clone();
-    let mut response = Json(answer).into_response();
-    output::set_warnings(&mut response, &said);
+    let found = matches::matches(left, right, points, regions, request, job.cancel)
+        .map_err(|Cancelled| ApiError::Internal("cancelled".to_owned()))?;
+    let answer = MatchResponse::of(&found, params, &given.rig, decode);
+    let mut response = Json(&answer).into_response();
+    output::set_warnings(&mut response, &answer.warnings);
+    let (timings, rectify) = (found.timings, found.rectify);
     let started = Instant::now();
-    drop((left, right, found));
-    let drop_time = started.elapsed();
-    let [read, queue] = job.waited;
+    drop(found);
     let mut after = Vec::with_capacity(2);
-    after.extend(rectify_time.map(|t| ("rectify", t)));
-    after.push(("drop", drop_time));
+    after.extend(rectify.map(|t| ("rectify", t)));
+    after.push(("drop", started.elapsed()));
+    let [read, queue] = job.waited;
     set_server_timing(
         &mut response,
-        &work::matcher_stages([read, queue, decode_time], &t, &after),
+        &work::matcher_stages([read, queue, decode], &timings, &after),
     );
     Ok(response)
-}
-
-/// A point's answer: its status and confidence, and with a disparity (to 1/1000 px, the value
-/// the distance is computed from) its match and its `/distance` answer.
-fn point_match(rig: &Rig, x: f64, y: f64, found: &Found) -> PointMatch {
-    let mut answer = PointMatch {
-        x,
-        y,
-        status: found.status.into(),
-        confidence: round_to(f64::from(found.confidence), 3),
-        x_right: None,
-        x_rectified: None,
-        y_rectified: None,
-        x_right_raw: None,
-        y_right_raw: None,
-        measured: MatchDistance::default(),
-        relative_error: None,
-        warnings: None,
-        error: None,
-    };
-    if let Some(d) = found.disparity {
-        let d = round_to(f64::from(d), 3);
-        answer.x_right = Some(round_to(x - d, 3));
-        answer.measured.disparity_px = Some(d);
-        let c = Correspondence::at(x, y, d);
-        let (rig, sigma) = with_sigma(rig, found.disparity_std);
-        match physics::measure(&rig, c) {
-            Ok(m) => {
-                // Mapped as `/distance` maps it, its one error bar the point's σ.
-                answer.measured = with_bar(&m, sigma);
-                let m = Measured::from(&m);
-                answer.relative_error = Some(m.relative_error);
-                answer.warnings = Some(m.warnings);
-            }
-            Err(e) => answer.error = Some(e.to_string()),
-        }
-    }
-    answer
-}
-
-/// The rig a match is measured with: its Δd the matcher's σ_d (to 1/1000 px, as answered in
-/// `disparity_std_px`), so that `depth_error`, `relative_error` and their warning are the one
-/// error bar σ_Z (with the rig's σ_f and σ_B), the same `/distance` answers for that
-/// disparity with `disparity_error_px` = `disparity_std_px`. Without a σ_d, the rig as given.
-fn with_sigma(rig: &Rig, sigma_d: Option<f32>) -> (Rig, Option<f64>) {
-    let sigma = sigma_d.map(|s| round_to(f64::from(s), 3));
-    match sigma.map(|s| rig.with_disparity_error(s)) {
-        Some(Ok(measured)) => (measured, sigma),
-        _ => (*rig, None),
-    }
-}
-
-/// A measurement made with [`with_sigma`]'s rig, mapped as `/distance` maps it, with the σ_d
-/// it stands on and its σ_Z as `distance_std` (its `depth_error`).
-fn with_bar(m: &physics::Measurement, sigma: Option<f64>) -> MatchDistance {
-    MatchDistance {
-        disparity_std_px: sigma,
-        distance_std: sigma.map(|_| m.depth_error),
-        ..MatchDistance::from(m)
-    }
-}
-
-/// A region's answer: the median, 10th and 90th percentile depths of its valid pixels, and the
-/// `/distance` answer at its centre for the median.
-fn region_match(rig: &Rig, map: &vision::Disparity, b: [f64; 4], r: Option<Rect>) -> RegionMatch {
-    let mut answer = RegionMatch {
-        x: b[0],
-        y: b[1],
-        width: b[2],
-        height: b[3],
-        status: RegionStatus::OutsideImage,
-        valid_fraction: 0.0,
-        measured: MatchDistance::default(),
-        distance_p10: None,
-        distance_p90: None,
-    };
-    let Some(r) = r else {
-        return answer;
-    };
-    let (values, pixels) = correspond::in_box(map, r);
-    // Only disparities in front of the cameras have a depth.
-    let (mut values, mut stds): (Vec<f64>, Vec<f32>) = values
-        .into_iter()
-        .filter(|&(d, _)| f64::from(d) + rig.doffs() > 0.0)
-        .map(|(d, s)| (f64::from(d), s))
-        .unzip();
-    values.sort_by(f64::total_cmp);
-    answer.valid_fraction = round_to(values.len() as f64 / pixels.max(1) as f64, 4);
-    answer.status = RegionStatus::NoValidPixels;
-    if values.is_empty() {
-        return answer;
-    }
-    // Nearest rank on the disparities, largest first: depth falls as disparity grows.
-    let at = |q: f64| values[((1.0 - q) * (values.len() - 1) as f64).round() as usize];
-    let median = round_to(at(0.5), 3);
-    let centre = (
-        (r.x0 + r.x1 - 1) as f64 / 2.0,
-        (r.y0 + r.y1 - 1) as f64 / 2.0,
-    );
-    let c = Correspondence::at(centre.0, centre.1, median);
-    let mid = stds.len() / 2;
-    let (_, &mut typical, _) = stds.select_nth_unstable_by(mid, f32::total_cmp);
-    let (sigma_rig, sigma) = with_sigma(rig, Some(correspond::median_std(typical, values.len())));
-    let Ok(m) = physics::measure(&sigma_rig, c) else {
-        return answer;
-    };
-    answer.status = RegionStatus::Ok;
-    answer.measured = with_bar(&m, sigma);
-    answer.distance_p10 = rig.distance_at(at(0.1)).ok();
-    answer.distance_p90 = rig.distance_at(at(0.9)).ok();
-    answer
 }

@@ -8,10 +8,11 @@ use crate::api::extract::QueryForm;
 use crate::api::wire::de::request;
 use crate::api::wire::images::image_form;
 pub use crate::api::wire::images::{RectifyMode, StageTimes};
+use crate::api::wire::measured::Measured;
 use crate::api::wire::measured::{Point, Warning};
 use crate::api::wire::params::Unit;
 use crate::api::wire::rig::CalibratedRig;
-use stereo_core::vision::correspond::MatchOutcome;
+use stereo_core::pipeline::matches::{self, MatchOutcome};
 
 request! {
     /// The disparity range of `/match`, in the query string.
@@ -314,4 +315,118 @@ pub struct MatchResponse {
     pub rectified: bool,
     /// Things to know about the answer (such as a calibration option that did not apply).
     pub warnings: Vec<String>,
+}
+
+impl MatchDistance {
+    /// A measurement made with the σ_d it stands on, mapped as `/distance` maps it, with its
+    /// σ_Z as `distance_std` (its `depth_error`).
+    fn with_bar(m: &stereo_core::physics::Measurement, sigma: Option<f64>) -> MatchDistance {
+        MatchDistance {
+            disparity_std_px: sigma,
+            distance_std: sigma.map(|_| m.depth_error),
+            ..MatchDistance::from(m)
+        }
+    }
+}
+
+impl PointMatch {
+    /// The engine's match of a point, in the members `/distance` answers.
+    fn of(p: &matches::PointMatch) -> PointMatch {
+        let round = |v: f64| stereo_core::numbers::round_to(v, 3);
+        let mut answer = PointMatch {
+            x: p.x,
+            y: p.y,
+            status: p.found.status.into(),
+            confidence: stereo_core::numbers::round_to(f64::from(p.found.confidence), 3),
+            x_right: p.x_right,
+            x_rectified: p.rectified.map(|(x, _)| round(x)),
+            y_rectified: p.rectified.map(|(_, y)| round(y)),
+            x_right_raw: p.right_raw.map(|[u, _]| round(u)),
+            y_right_raw: p.right_raw.map(|[_, v]| round(v)),
+            measured: MatchDistance {
+                disparity_px: p.disparity,
+                ..MatchDistance::default()
+            },
+            relative_error: None,
+            warnings: None,
+            error: None,
+        };
+        match &p.measured {
+            Some(Ok(m)) => {
+                answer.measured = MatchDistance::with_bar(m, p.disparity_std);
+                let m = Measured::from(m);
+                answer.relative_error = Some(m.relative_error);
+                answer.warnings = Some(m.warnings);
+            }
+            Some(Err(e)) => answer.error = Some(e.to_string()),
+            None => {}
+        }
+        answer
+    }
+}
+
+impl RegionMatch {
+    /// The engine's answer for a region.
+    fn of(r: &matches::RegionMatch) -> RegionMatch {
+        let [x, y, width, height] = r.region;
+        RegionMatch {
+            x,
+            y,
+            width,
+            height,
+            status: match (&r.pixels, &r.measured) {
+                (None, _) => RegionStatus::OutsideImage,
+                (Some(_), None) => RegionStatus::NoValidPixels,
+                (Some(_), Some(_)) => RegionStatus::Ok,
+            },
+            valid_fraction: r.valid_fraction,
+            measured: r
+                .measured
+                .as_ref()
+                .map(|m| MatchDistance::with_bar(m, r.disparity_std))
+                .unwrap_or_default(),
+            distance_p10: r.distance_p10,
+            distance_p90: r.distance_p90,
+        }
+    }
+}
+
+impl MatchResponse {
+    /// The answer of the engine's matches, made with `params` and `rig`, from a pair that took
+    /// `decode` to read.
+    pub fn of(
+        found: &matches::Matches,
+        params: &stereo_core::vision::Params,
+        rig: &stereo_core::physics::Rig,
+        decode: std::time::Duration,
+    ) -> MatchResponse {
+        let ms = |d: std::time::Duration| (d.as_secs_f64() * 1e4).round() / 10.0;
+        let t = &found.timings;
+        let points: Vec<PointMatch> = found.points.iter().map(PointMatch::of).collect();
+        let rig = CalibratedRig::from(rig);
+        MatchResponse {
+            width: found.width,
+            height: found.height,
+            min_disparity: params.min_disparity(),
+            max_disparity: params.max_disparity(),
+            unit: rig.unit,
+            ok: points
+                .iter()
+                .filter(|m| m.status == MatchStatus::Ok)
+                .count(),
+            matches: points,
+            regions: found.regions.iter().map(RegionMatch::of).collect(),
+            rig,
+            rows_matched: found.rows_matched,
+            timings_ms: StageTimes {
+                decode: ms(decode),
+                cost: ms(t.cost),
+                aggregate: ms(t.aggregate),
+                refine: ms(t.refine),
+                rectify: found.rectify.map(ms),
+            },
+            rectified: found.rectify.is_some(),
+            warnings: found.warnings.clone(),
+        }
+    }
 }
