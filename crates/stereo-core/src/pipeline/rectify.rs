@@ -1,14 +1,16 @@
 //! Raw frames made rectified ones: a raw rig's maps (`initUndistortRectifyMap` for each
 //! camera, in fixed point) built once and both frames of a pair read through them, as
-//! `cv2.remap` reads them.
+//! `cv2.remap` reads them; the rectified frames as PNG (one, or both side by side), and the
+//! float maps as NPZ.
 
 use std::time::{Duration, Instant};
 
 use crate::calibration::files::Raw;
 use crate::camera::{Map, undistort_rectify_map};
-use crate::vision::Gray;
 use crate::vision::decode::Decoded;
-use crate::vision::remap::{self, Fixed, Interpolation, RawImage};
+pub use crate::vision::remap::Interpolation;
+use crate::vision::remap::{self, Fixed, RawImage};
+use crate::vision::{Gray, encode};
 
 /// Both cameras' maps in fixed point, ready to read frames through.
 #[derive(Debug)]
@@ -76,4 +78,109 @@ impl Maps {
         right.grey = r;
         started.elapsed()
     }
+}
+
+impl Maps {
+    /// One rectified frame as PNG (`right` for the right camera's): RGB when the frame has
+    /// colour, else grey, 8 bits when the frame was (every level a multiple of 257), 16
+    /// otherwise.
+    pub fn png(&self, image: &Decoded, right: bool, how: Interpolation) -> Vec<u8> {
+        let map = if right { &self.right } else { &self.left };
+        let (w, h) = (map.width, map.height);
+        let g = &image.grey;
+        if has_colour(image) {
+            let rgb = image.rgb.as_deref().unwrap_or_default();
+            let out = remap::remap_fixed(
+                RawImage {
+                    width: g.width,
+                    height: g.height,
+                    channels: 3,
+                    data: rgb,
+                },
+                map,
+                how,
+            );
+            return encode::png_rgb(w, h, &out);
+        }
+        let out = remap::remap_fixed(RawImage::grey(g), map, how);
+        if g.data.iter().all(|v| v % 257 == 0) {
+            // Exact for 8-bit frames (v = 257·g); rounded for the in-between levels remapping
+            // made.
+            let bytes: Vec<u8> = out
+                .iter()
+                .map(|&v| ((u32::from(v) + 128) / 257) as u8)
+                .collect();
+            encode::png_grey(w, h, &bytes)
+        } else {
+            encode::png16(w, h, &out)
+        }
+    }
+
+    /// Both rectified frames side by side in colour as PNG, with a green line every 32 rows
+    /// (rows that line up are what rectification is for).
+    pub fn side_by_side_png(&self, left: &Decoded, right: &Decoded, how: Interpolation) -> Vec<u8> {
+        let rgb = |d: &Decoded, map| {
+            let g = &d.grey;
+            remap::remap_fixed(
+                RawImage {
+                    width: g.width,
+                    height: g.height,
+                    channels: 3,
+                    data: d.rgb.as_deref().unwrap_or_default(),
+                },
+                map,
+                how,
+            )
+        };
+        let (l, r) = rayon::join(|| rgb(left, &self.left), || rgb(right, &self.right));
+        let (w, h) = (self.left.width, self.left.height);
+        let mut out = vec![0u8; w * 2 * h * 3];
+        for y in 0..h {
+            let row = &mut out[y * w * 6..(y + 1) * w * 6];
+            row[..w * 3].copy_from_slice(&l[y * w * 3..(y + 1) * w * 3]);
+            row[w * 3..].copy_from_slice(&r[y * w * 3..(y + 1) * w * 3]);
+            if y % 32 == 16 {
+                for p in row.chunks_exact_mut(3) {
+                    p.copy_from_slice(&[0, 255, 0]);
+                }
+            }
+        }
+        encode::png_rgb(w * 2, h, &out)
+    }
+
+    /// Both frames' grey levels read through the maps with `how`; the time it took.
+    pub fn remap_grey(&self, left: &Decoded, right: &Decoded, how: Interpolation) -> Duration {
+        let started = Instant::now();
+        let grey = |d: &Decoded, map| remap::remap_fixed(RawImage::grey(&d.grey), map, how);
+        let _ = rayon::join(|| grey(left, &self.left), || grey(right, &self.right));
+        started.elapsed()
+    }
+
+    /// The share of each rectified image that raw frames of `(width, height)` fill, to 4
+    /// decimals, left and right.
+    pub fn valid_shares(&self, (width, height): (usize, usize)) -> [f64; 2] {
+        [&self.left, &self.right].map(|m| (m.valid_share(width, height) * 1e4).round() / 1e4)
+    }
+}
+
+/// Whether a decoded image has colour (any pixel whose channels differ).
+fn has_colour(d: &Decoded) -> bool {
+    d.rgb
+        .as_deref()
+        .is_some_and(|rgb| rgb.chunks_exact(3).any(|p| p[0] != p[1] || p[1] != p[2]))
+}
+
+/// Both cameras' float maps as NumPy's NPZ (`left_map_x`, `left_map_y`, `right_map_x`,
+/// `right_map_y`, float32), what `cv2.remap` takes.
+pub fn maps_npz(raw: &Raw) -> Result<Vec<u8>, String> {
+    let (left, right) = float_maps(raw);
+    let (w, h) = (left.size.width as usize, left.size.height as usize);
+    let entries = [
+        ("left_map_x", encode::npy(w, h, &left.x)),
+        ("left_map_y", encode::npy(w, h, &left.y)),
+        ("right_map_x", encode::npy(w, h, &right.x)),
+        ("right_map_y", encode::npy(w, h, &right.y)),
+    ];
+    drop((left, right));
+    encode::npz(&entries).map_err(|e| format!("the NPZ was not written: {e}"))
 }

@@ -26,11 +26,8 @@ use crate::api::respond::Json;
 use crate::api::wire::calibration::RawCameras;
 use crate::api::wire::rig::CalibratedRig;
 use stereo_core::calibration::files::Raw;
-use stereo_core::pipeline::rectify::{Maps, float_maps};
+use stereo_core::pipeline::rectify::{self, Interpolation};
 use stereo_core::pipeline::{Calibrated, depth};
-use stereo_core::vision::decode::Decoded;
-use stereo_core::vision::encode;
-use stereo_core::vision::remap::{self, Fixed, Interpolation, RawImage};
 
 /// `POST /rectify`.
 pub fn router() -> OpenApiRouter<HeavyState> {
@@ -103,81 +100,6 @@ pub async fn post_rectify(
     .await?
 }
 
-/// Whether a decoded image has colour (any pixel whose channels differ).
-fn has_colour(d: &Decoded) -> bool {
-    d.rgb
-        .as_deref()
-        .is_some_and(|rgb| rgb.chunks_exact(3).any(|p| p[0] != p[1] || p[1] != p[2]))
-}
-
-/// A rectified image as PNG: RGB when the frame has colour, else grey, 8 bits when the frame
-/// was (every level a multiple of 257), 16 otherwise.
-fn png(image: &Decoded, map: &Fixed, how: Interpolation) -> Vec<u8> {
-    let (w, h) = (map.width, map.height);
-    let g = &image.grey;
-    if has_colour(image) {
-        let rgb = image.rgb.as_deref().unwrap_or_default();
-        let out = remap::remap_fixed(
-            RawImage {
-                width: g.width,
-                height: g.height,
-                channels: 3,
-                data: rgb,
-            },
-            map,
-            how,
-        );
-        return encode::png_rgb(w, h, &out);
-    }
-    let out = remap::remap_fixed(RawImage::grey(g), map, how);
-    if g.data.iter().all(|v| v % 257 == 0) {
-        // Exact for 8-bit frames (v = 257·g); rounded for the in-between levels remapping made.
-        let bytes: Vec<u8> = out
-            .iter()
-            .map(|&v| ((u32::from(v) + 128) / 257) as u8)
-            .collect();
-        encode::png_grey(w, h, &bytes)
-    } else {
-        encode::png16(w, h, &out)
-    }
-}
-
-/// Both rectified images side by side in colour, with a green line every 32 rows.
-fn side_by_side(
-    left: &Decoded,
-    right: &Decoded,
-    maps: &Maps,
-    how: Interpolation,
-) -> (usize, usize, Vec<u8>) {
-    let rgb = |d: &Decoded, map| {
-        let g = &d.grey;
-        remap::remap_fixed(
-            RawImage {
-                width: g.width,
-                height: g.height,
-                channels: 3,
-                data: d.rgb.as_deref().unwrap_or_default(),
-            },
-            map,
-            how,
-        )
-    };
-    let (l, r) = rayon::join(|| rgb(left, &maps.left), || rgb(right, &maps.right));
-    let (w, h) = (maps.left.width, maps.left.height);
-    let mut out = vec![0u8; w * 2 * h * 3];
-    for y in 0..h {
-        let row = &mut out[y * w * 6..(y + 1) * w * 6];
-        row[..w * 3].copy_from_slice(&l[y * w * 3..(y + 1) * w * 3]);
-        row[w * 3..].copy_from_slice(&r[y * w * 3..(y + 1) * w * 3]);
-        if y % 32 == 16 {
-            for p in row.chunks_exact_mut(3) {
-                p.copy_from_slice(&[0, 255, 0]);
-            }
-        }
-    }
-    (w * 2, h, out)
-}
-
 fn compute(
     job: Job,
     cache: &MapCache,
@@ -193,17 +115,7 @@ fn compute(
     if output == RectifyOutput::MapsNpz {
         // The float maps themselves, as OpenCV makes them (the cache holds them in fixed
         // point).
-        let (left, right) = float_maps(raw);
-        let (w, h) = (left.size.width as usize, left.size.height as usize);
-        let entries = [
-            ("left_map_x", encode::npy(w, h, &left.x)),
-            ("left_map_y", encode::npy(w, h, &left.y)),
-            ("right_map_x", encode::npy(w, h, &right.x)),
-            ("right_map_y", encode::npy(w, h, &right.y)),
-        ];
-        drop((left, right));
-        let bytes = encode::npz(&entries)
-            .map_err(|e| ApiError::Internal(format!("the NPZ was not written: {e}")))?;
+        let bytes = rectify::maps_npz(raw).map_err(ApiError::Internal)?;
         let mut response = file(bytes, output);
         set_server_timing(
             &mut response,
@@ -230,11 +142,9 @@ fn compute(
             let decode_time = t.elapsed();
             let mut warnings = given.warnings.clone();
             warnings.extend(depth::decode_notes(&left, &right));
-            let t = Instant::now();
-            let grey = |d: &Decoded, map| remap::remap_fixed(RawImage::grey(&d.grey), map, how);
-            let _ = rayon::join(|| grey(&left, &maps.left), || grey(&right, &maps.right));
-            let remap_time = t.elapsed();
-            let (w, h) = (raw.size.width as usize, raw.size.height as usize);
+            let remap_time = maps.remap_grey(&left, &right, how);
+            let [share_left, share_right] =
+                maps.valid_shares((raw.size.width as usize, raw.size.height as usize));
             let summary = RectifySummary {
                 width: maps.left.width as u32,
                 height: maps.left.height as u32,
@@ -246,8 +156,8 @@ fn compute(
                 raw: RawCameras::new(raw, given.file_unit),
                 rig: CalibratedRig::from(&given.rig),
                 valid_fraction: ValidShare {
-                    left: (maps.left.valid_share(w, h) * 1e4).round() / 1e4,
-                    right: (maps.right.valid_share(w, h) * 1e4).round() / 1e4,
+                    left: share_left,
+                    right: share_right,
                 },
                 maps_cached: cached,
                 timings_ms: RectifyTimes {
@@ -269,12 +179,9 @@ fn compute(
             warnings.extend(depth::decode_notes(&left, &right));
             let t = Instant::now();
             let bytes = match output {
-                RectifyOutput::LeftPng => png(&left, &maps.left, how),
-                RectifyOutput::RightPng => png(&right, &maps.right, how),
-                _ => {
-                    let (w, h, rgb) = side_by_side(&left, &right, &maps, how);
-                    encode::png_rgb(w, h, &rgb)
-                }
+                RectifyOutput::LeftPng => maps.png(&left, false, how),
+                RectifyOutput::RightPng => maps.png(&right, true, how),
+                _ => maps.side_by_side_png(&left, &right, how),
             };
             timing.push(("remap", t.elapsed()));
             bytes

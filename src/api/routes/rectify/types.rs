@@ -12,7 +12,7 @@ pub use crate::api::wire::images::RectifyMode;
 use crate::api::wire::images::image_form;
 use crate::api::wire::openapi::{image_answers, named};
 use crate::api::wire::rig::CalibratedRig;
-use stereo_core::vision::remap::Interpolation;
+use stereo_core::pipeline::rectify::Interpolation;
 
 /// What `/rectify` answers.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize, Serialize, ToSchema)]
