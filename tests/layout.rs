@@ -119,6 +119,12 @@ fn code_of(text: &str) -> String {
 /// The paths a file's code names: each `use` tree expanded, and every `crate::…`, `super::…`
 /// and `self::…` path written inline.
 fn paths_in(code: &str) -> Vec<Vec<String>> {
+    paths_in_with(code, true)
+}
+
+/// [`paths_in`], leaving out `pub use` re-exports unless `re_exports`: a module's facade
+/// names its children's items without using them.
+fn paths_in_with(code: &str, re_exports: bool) -> Vec<Vec<String>> {
     let mut paths = Vec::new();
     let words = |s: &str| -> Vec<String> {
         s.split("::")
@@ -131,7 +137,11 @@ fn paths_in(code: &str) -> Vec<Vec<String>> {
     while let Some(at) = find_word(rest, "use") {
         let after = &rest[at + 3..];
         let end = after.find(';').unwrap_or(after.len());
-        expand(&mut paths, Vec::new(), &after[..end]);
+        let exported =
+            rest[..at].trim_end().ends_with("pub") || rest[..at].trim_end().ends_with("pub(crate)");
+        if re_exports || !exported {
+            expand(&mut paths, Vec::new(), &after[..end]);
+        }
         rest = &after[end..];
     }
     // Inline paths.
@@ -255,6 +265,11 @@ fn resolve(
 
 /// Module → the modules of its own crate its code names.
 fn graph(src: &str) -> BTreeMap<Vec<String>, BTreeSet<Vec<String>>> {
+    graph_with(src, true)
+}
+
+/// [`graph`], with `pub use` re-exports counted as uses or not.
+fn graph_with(src: &str, re_exports: bool) -> BTreeMap<Vec<String>, BTreeSet<Vec<String>>> {
     let modules = modules(src);
     let known: BTreeSet<Vec<String>> = modules.keys().cloned().collect();
     modules
@@ -262,7 +277,7 @@ fn graph(src: &str) -> BTreeMap<Vec<String>, BTreeSet<Vec<String>>> {
         .map(|(module, file)| {
             let dir = file.ends_with("mod.rs") || file.ends_with("lib.rs");
             let code = code_of(&fs::read_to_string(file).expect("readable"));
-            let uses = paths_in(&code)
+            let uses = paths_in_with(&code, re_exports)
                 .iter()
                 .filter_map(|p| resolve(p, module, dir, &known))
                 .filter(|m| m != module)
@@ -326,6 +341,30 @@ fn siblings(
     edges
 }
 
+/// The children of `parent` that `parent`'s own file uses and whose subtree uses `parent`'s
+/// own items back.
+fn parent_and_child_circles(
+    graph: &BTreeMap<Vec<String>, BTreeSet<Vec<String>>>,
+    parent: &[String],
+) -> Vec<String> {
+    let child_of = |m: &[String]| -> Option<String> {
+        (m.len() > parent.len() && m.starts_with(parent)).then(|| m[parent.len()].clone())
+    };
+    let used: BTreeSet<String> = graph
+        .get(parent)
+        .into_iter()
+        .flatten()
+        .filter_map(|m| child_of(m))
+        .collect();
+    used.into_iter()
+        .filter(|child| {
+            graph.iter().any(|(from, uses)| {
+                child_of(from).as_ref() == Some(child) && uses.iter().any(|u| u == parent)
+            })
+        })
+        .collect()
+}
+
 fn show(m: &[String]) -> String {
     if m.is_empty() {
         "crate".to_owned()
@@ -350,16 +389,145 @@ fn no_route_imports_another() {
     );
 }
 
+/// The most lines `src/api/routes/` may hold: the routes only translate (wire types to the
+/// engine's, one call, its faults to problem+json); the wire types live in `api::wire`.
+const MAX_ROUTE_LINES: usize = 4_500;
+/// The most lines a handler (an `async fn` in a route module) may have.
+const MAX_HANDLER_LINES: usize = 60;
+/// The most paths of the engine `/calibrate`'s modules may import.
+const MAX_CALIBRATE_CORE_PATHS: usize = 5;
+/// What no route may import: the engine's geometry and the matcher's insides, which its
+/// `pipeline` wraps, and linear algebra.
+const GEOMETRY: &[&str] = &[
+    "stereo_core::camera",
+    "stereo_core::calibration::boards",
+    "stereo_core::vision::remap",
+    "stereo_core::vision::correspond",
+    "stereo_core::vision::census",
+    "stereo_core::vision::cost",
+    "stereo_core::vision::sgm",
+    "stereo_core::vision::refine",
+    "stereo_core::vision::rows",
+    "stereo_core::vision::pyramid",
+    "stereo_core::vision::filters",
+    "stereo_core::vision::sigma",
+    "stereo_core::vision::plane",
+    "stereo_core::vision::encode",
+    "nalgebra",
+];
+
+/// Every route module's file with its code (comments and strings out).
+fn route_files() -> Vec<(PathBuf, String)> {
+    modules(SRC)
+        .into_iter()
+        .filter(|(m, _)| m.starts_with(&["api".to_owned(), "routes".to_owned()]))
+        .map(|(_, file)| {
+            let code = code_of(&fs::read_to_string(&file).expect("readable"));
+            (file, code)
+        })
+        .collect()
+}
+
+/// The `async fn`s of `code` with their line counts.
+fn handlers(code: &str) -> Vec<(String, usize)> {
+    let mut found = Vec::new();
+    let lines: Vec<&str> = code.lines().collect();
+    for (i, line) in lines.iter().enumerate() {
+        let Some(at) = line.find("async fn ") else {
+            continue;
+        };
+        let name: String = line[at + 9..]
+            .chars()
+            .take_while(|c| c.is_alphanumeric() || *c == '_')
+            .collect();
+        let indent = line.len() - line.trim_start().len();
+        let end = lines[i + 1..]
+            .iter()
+            .position(|l| {
+                l.len() - l.trim_start().len() == indent && l.trim_start().starts_with('}')
+            })
+            .map_or(lines.len(), |e| i + 1 + e);
+        found.push((name, end - i + 1));
+    }
+    found
+}
+
+/// The routes only translate: `src/api/routes/` within its line budget, no handler over
+/// 60 lines, no route importing the engine's geometry or the matcher's insides, and
+/// `/calibrate` importing at most 5 of the engine's paths.
+#[test]
+fn the_routes_only_translate() {
+    let files = route_files();
+    assert!(files.len() >= 15, "{files:?}");
+    let mut wrong = Vec::new();
+    let total: usize = files
+        .iter()
+        .map(|(file, _)| fs::read_to_string(file).expect("readable").lines().count())
+        .sum();
+    if total >= MAX_ROUTE_LINES {
+        wrong.push(format!(
+            "src/api/routes/ has {total} lines, {MAX_ROUTE_LINES} at most"
+        ));
+    }
+    let mut handler_count = 0;
+    let mut calibrate_paths = BTreeSet::new();
+    for (file, code) in &files {
+        for (name, lines) in handlers(code) {
+            handler_count += 1;
+            if lines > MAX_HANDLER_LINES {
+                wrong.push(format!("{} has {lines} lines", name));
+            }
+        }
+        for path in paths_in(code) {
+            let joined = path.join("::");
+            if let Some(g) = GEOMETRY.iter().find(|g| joined.starts_with(*g)) {
+                wrong.push(format!("{} imports {joined} ({g})", file.display()));
+            }
+            if joined.starts_with("stereo_core")
+                && file.to_string_lossy().contains("board_calibration")
+            {
+                calibrate_paths.insert(joined);
+            }
+        }
+    }
+    assert!(handler_count >= 8, "handlers found: {handler_count}");
+    if calibrate_paths.is_empty() || calibrate_paths.len() > MAX_CALIBRATE_CORE_PATHS {
+        wrong.push(format!(
+            "/calibrate imports {calibrate_paths:?} from the engine"
+        ));
+    }
+    assert!(wrong.is_empty(), "{wrong:#?}");
+}
+
+/// The route checks see what they look for: a handler's length, and an import's path.
+#[test]
+fn the_route_checks_see_what_they_look_for() {
+    let code = "pub async fn a(\n    x: u8,\n) -> u8 {\n    x\n}\n\nfn b() {}\n";
+    assert_eq!(handlers(code), vec![("a".to_owned(), 5)]);
+    let paths = paths_in("use stereo_core::camera::{Alpha, stereo_rectify};");
+    assert!(
+        paths
+            .iter()
+            .any(|p| p.join("::") == "stereo_core::camera::Alpha")
+    );
+}
+
 /// No circle among the modules of any level: at every module, its children (each standing
-/// for its subtree) use one another one way only.
+/// for its subtree) use one another one way only; and no module and its child use each other
+/// (the parent's own code using the child, not merely re-exporting it, and the child's subtree
+/// using the parent's own items).
 #[test]
 fn no_module_circle() {
     let mut found = Vec::new();
     for (src, _) in CRATES {
         let graph = graph(src);
+        let imports = graph_with(src, false);
         for parent in graph.keys() {
             for circle in circles(&siblings(&graph, parent)) {
                 found.push(format!("under {}: {circle:?}", show(parent)));
+            }
+            for child in parent_and_child_circles(&imports, parent) {
+                found.push(format!("{} and its child {child}", show(parent)));
             }
         }
     }

@@ -13,6 +13,8 @@
 //!   limits, the blocking work.
 //! - [`routes`]: one module per resource (handlers, wire types, `router()`), merged into the
 //!   route groups: light (JSON), heavy (images) and the probes. No route imports another.
+//! - [`state`]: what the light group's handlers see ([`AppState`]; the heavy group's,
+//!   [`HeavyState`], is the image routes' and lives in [`images`]).
 //! - [`respond`], [`csv`]: JSON answers in one buffer, and CSV answers.
 //! - [`member_messages`]: serde's refusal of a request member said in the API's words.
 
@@ -23,58 +25,19 @@ pub mod images;
 pub mod member_messages;
 pub mod respond;
 pub mod routes;
+pub mod state;
 pub mod validate;
 pub mod wire;
 
-use axum::{Router, extract::FromRef, http::header, routing::get};
+pub use images::HeavyState;
+pub use state::AppState;
+
+use axum::{Router, http::header, routing::get};
 use utoipa::OpenApi;
 use utoipa_axum::router::OpenApiRouter;
 use utoipa_swagger_ui::SwaggerUi;
 
-use self::{extract::BodyLimit, routes::ops::OpsState};
-use crate::config::Limits;
-
-/// What the light group's handlers see.
-#[derive(Debug, Clone, Copy, Default)]
-pub struct AppState {
-    pub limits: Limits,
-}
-
-impl FromRef<AppState> for BodyLimit {
-    fn from_ref(state: &AppState) -> Self {
-        BodyLimit(state.limits.body_bytes)
-    }
-}
-
-/// What the heavy group's handlers see. Its memory budget reaches them as the
-/// [`crate::budget::Reservation`] the group's guard made for the request.
-#[derive(Debug, Clone)]
-pub struct HeavyState {
-    pub body_limit: BodyLimit,
-    /// The rectification maps of the raw rigs seen lately.
-    pub maps: std::sync::Arc<images::maps::MapCache>,
-    /// The group's concurrency limit: a slot taken by each request when its work starts.
-    pub slots: crate::budget::Slots,
-    /// The largest image decoded (`--max-image-pixels`, [`stereo_core::vision::decode::MAX_SIDE`] a side).
-    pub image_limits: stereo_core::vision::decode::DecodeLimits,
-}
-
-impl Default for HeavyState {
-    fn default() -> Self {
-        Self {
-            body_limit: BodyLimit(crate::config::DEFAULT_HEAVY_BODY_LIMIT),
-            maps: std::sync::Arc::default(),
-            slots: crate::budget::Slots::new(crate::config::default_heavy_concurrency()),
-            image_limits: images::limits::decode_limits(crate::config::DEFAULT_MAX_IMAGE_PIXELS),
-        }
-    }
-}
-
-impl FromRef<HeavyState> for BodyLimit {
-    fn from_ref(state: &HeavyState) -> Self {
-        state.body_limit
-    }
-}
+use self::routes::ops::OpsState;
 
 #[derive(OpenApi)]
 #[openapi(
@@ -99,16 +62,16 @@ impl FromRef<HeavyState> for BodyLimit {
     components(schemas(
         error::Problem,
         error::FieldError,
-        routes::depth_map::types::DepthMapOutput,
-        routes::board_calibration::types::CalibrateOutput,
-        routes::rectify::types::RectifyOutput,
-        routes::rectify::types::InterpolationChoice,
+        wire::depth_map::DepthMapOutput,
+        wire::board_calibration::CalibrateOutput,
+        wire::rectify::RectifyOutput,
+        wire::rectify::InterpolationChoice,
         wire::images::RectifyMode,
         // The image routes' answers, which their `IntoResponses` name by reference.
-        images::output::FileBody,
-        routes::depth_map::types::DepthMapSummary,
-        routes::rectify::types::RectifySummary,
-        routes::board_calibration::types::CalibrationSummary
+        wire::images::FileBody,
+        wire::depth_map::DepthMapSummary,
+        wire::rectify::RectifySummary,
+        wire::board_calibration::CalibrationSummary
     )),
     tags(
         (name = "calibration", description = "Calibration files read into a rig"),

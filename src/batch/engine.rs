@@ -14,7 +14,8 @@ use axum::body::Bytes;
 
 use crate::api::error::{ApiError, FieldError, FieldErrors};
 use crate::api::images::{limits, parts::Parts, raw, rig};
-use crate::api::routes::depth_map::{self, types::DepthMapOutput, types::DepthMapSummary};
+use crate::api::routes::depth_map;
+use crate::api::wire::depth_map::{DepthMapOutput, DepthMapSummary};
 use crate::api::wire::rig::CalibratedRig;
 use crate::config::Config;
 use stereo_core::pipeline::{self, Calibrated, Maps, Request, Sent};

@@ -43,7 +43,7 @@ use retry::Policy;
 use said::Said;
 use transport::{Answer, Server};
 
-use crate::api::routes::depth_map::types::DepthMapOutput;
+use crate::api::wire::depth_map::DepthMapOutput;
 use crate::config::{Config, DepthMapArgs};
 
 /// Where a run's pairs are matched.

@@ -10,7 +10,7 @@ use axum::body::Bytes;
 
 use crate::api::error::FieldErrors;
 use crate::api::images::{limits, parts::Parts, rig};
-use crate::api::routes::depth_map::types::DepthMapOutput;
+use crate::api::wire::depth_map::DepthMapOutput;
 use crate::config::DepthMapArgs;
 use stereo_core::vision::decode;
 use stereo_core::vision::{Preset, Settings};

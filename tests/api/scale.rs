@@ -10,7 +10,7 @@
 
 use reqwest::multipart::Form;
 use stereo_core::vision::synthetic::{self, Pair, Scene};
-use stereo_distance::api::routes::depth_map::{bytes_needed, types::DepthMapOutput};
+use stereo_distance::api::{routes::depth_map::bytes_needed, wire::depth_map::DepthMapOutput};
 
 use stereo_core::vision::encode::png_grey;
 

@@ -11,10 +11,10 @@ use axum::extract::multipart::MultipartError;
 use axum::extract::{FromRequest, Multipart, Request};
 use axum::http::{StatusCode, header};
 
+use super::HeavyState;
 use super::parts::Parts;
 use super::rig;
 use super::{limits, work};
-use crate::api::HeavyState;
 use crate::api::error::{ApiError, FieldError, FieldErrors};
 use crate::api::extract;
 use stereo_core::pipeline::Calibrated;

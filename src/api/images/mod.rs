@@ -30,3 +30,37 @@ pub mod work;
 
 pub use form::{ImageForm, ImagePair, Job};
 pub use parts::Parts;
+
+use axum::extract::FromRef;
+
+use crate::api::extract::BodyLimit;
+
+/// What the heavy group's handlers see. Its memory budget reaches them as the
+/// [`crate::budget::Reservation`] the group's guard made for the request.
+#[derive(Debug, Clone)]
+pub struct HeavyState {
+    pub body_limit: BodyLimit,
+    /// The rectification maps of the raw rigs seen lately.
+    pub maps: std::sync::Arc<maps::MapCache>,
+    /// The group's concurrency limit: a slot taken by each request when its work starts.
+    pub slots: crate::budget::Slots,
+    /// The largest image decoded (`--max-image-pixels`, [`stereo_core::vision::decode::MAX_SIDE`] a side).
+    pub image_limits: stereo_core::vision::decode::DecodeLimits,
+}
+
+impl Default for HeavyState {
+    fn default() -> Self {
+        Self {
+            body_limit: BodyLimit(crate::config::DEFAULT_HEAVY_BODY_LIMIT),
+            maps: std::sync::Arc::default(),
+            slots: crate::budget::Slots::new(crate::config::default_heavy_concurrency()),
+            image_limits: limits::decode_limits(crate::config::DEFAULT_MAX_IMAGE_PIXELS),
+        }
+    }
+}
+
+impl FromRef<HeavyState> for BodyLimit {
+    fn from_ref(state: &HeavyState) -> Self {
+        state.body_limit
+    }
+}

@@ -5,14 +5,9 @@
 
 use std::time::Duration;
 
+pub use crate::api::wire::images::FileBody;
 use axum::http::{HeaderValue, header};
 use axum::response::{IntoResponse, Response};
-use utoipa::ToSchema;
-
-/// A file answer's bytes, documented as binary.
-#[derive(ToSchema)]
-#[schema(value_type = String, format = Binary)]
-pub struct FileBody(pub Vec<u8>);
 
 /// Whether a browser shows a file answer or saves it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

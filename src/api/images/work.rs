@@ -15,7 +15,7 @@ use super::parts::Parts;
 use axum::extract::FromRequestParts;
 use axum::http::{Extensions, request::Parts as RequestParts};
 
-use crate::api::HeavyState;
+use super::HeavyState;
 use crate::api::error::{ApiError, FieldError, RETRY_AFTER_SECS};
 use crate::budget::{Refusal, Reservation, Slots};
 use stereo_core::vision::Timings;

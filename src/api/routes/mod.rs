@@ -135,7 +135,9 @@ macro_rules! data_operation {
 use utoipa_axum::router::OpenApiRouter;
 pub(crate) use {data_operation, json_operation};
 
-use super::{AppState, HeavyState, error::ApiError};
+use super::error::ApiError;
+use super::images::HeavyState;
+use super::state::AppState;
 
 /// The JSON answers: microseconds of CPU and small bodies each.
 pub fn light() -> OpenApiRouter<AppState> {

@@ -204,3 +204,8 @@ impl RawCameras {
         }
     }
 }
+
+/// A 3 × 3 matrix as its rows, as the JSON answers write it.
+pub fn matrix3(m: &Matrix3<f64>) -> [[f64; 3]; 3] {
+    std::array::from_fn(|r| std::array::from_fn(|c| m[(r, c)]))
+}

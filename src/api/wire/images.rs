@@ -84,3 +84,8 @@ macro_rules! image_form {
     };
 }
 pub(crate) use image_form;
+
+/// A file answer's bytes, documented as binary.
+#[derive(ToSchema)]
+#[schema(value_type = String, format = Binary)]
+pub struct FileBody(pub Vec<u8>);

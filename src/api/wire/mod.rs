@@ -1,14 +1,27 @@
-//! What every route's wire types share: the deserialization rules and the macros that declare
-//! request types with the common members ([`de`]), the members as stated before validation
-//! ([`params`]), the measured values every distance answer carries ([`measured`]), the rig's
-//! wire shapes ([`rig`]), the calibration options ([`calibration`]), what the image routes
-//! share on the wire ([`images`]), and the OpenAPI glue ([`openapi`]). Each endpoint's own request and response types live beside its
-//! route, in [`super::routes`].
+//! The wire: every request and answer as JSON and the OpenAPI document see it, and their
+//! translation from the engine's types. What they share: the deserialization rules and the
+//! macros that declare request types with the common members ([`de`]), the members as stated
+//! before validation ([`params`]), the measured values every distance answer carries
+//! ([`measured`]), the rig's wire shapes ([`rig`]), the calibration options ([`calibration`]),
+//! what the image routes share on the wire ([`images`]), and the OpenAPI glue ([`openapi`]).
+//! Then each endpoint's own types, one module a route (its `types`, as the route names it):
+//! [`distance`], [`table`], [`chart`], [`rig_design`], [`file_calibration`], [`depth_map`],
+//! [`matching`], [`rectify`], [`board_calibration`]. The command (`batch`) writes the same
+//! `/depth-map` answers from them.
 
+pub mod board_calibration;
 pub mod calibration;
+pub mod chart;
 pub mod de;
+pub mod depth_map;
+pub mod distance;
+pub mod file_calibration;
 pub mod images;
+pub mod matching;
 pub mod measured;
 pub mod openapi;
 pub mod params;
+pub mod rectify;
 pub mod rig;
+pub mod rig_design;
+pub mod table;

@@ -40,6 +40,7 @@ pub mod depth;
 pub mod matches;
 pub mod rectify;
 
+pub use crate::vision::sgm::Paths;
 pub use calibrated::{Calibrated, PlanFault, RectifyMode, Sent, SizeFault, plan, raw_rig};
 pub use depth::{DepthMap, Product, Request, Spread, depth_map, spread};
 pub use rectify::Maps;

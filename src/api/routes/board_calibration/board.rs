@@ -4,10 +4,10 @@
 
 use axum::body::Bytes;
 
-use super::types::{BoardSpec, BoardType};
 use crate::api::error::{ApiError, FieldError, FieldErrors};
 use crate::api::extract;
 use crate::api::images::limits;
+use crate::api::wire::board_calibration::{BoardSpec, BoardType};
 use stereo_core::pipeline::calibrate as engine;
 
 /// A `board` part as the messages show it.

@@ -6,7 +6,7 @@
 
 mod board;
 mod summary;
-pub mod types;
+pub use crate::api::wire::board_calibration as types;
 
 use axum::body::Bytes;
 use axum::extract::{FromRequest, Request};
@@ -15,9 +15,9 @@ use utoipa_axum::{router::OpenApiRouter, routes};
 
 use self::board::{fault, read_board};
 use self::types::{CalibrateAnswers, CalibrateForm, CalibrateOutput, CalibrateQuery};
-use crate::api::HeavyState;
 use crate::api::error::{ApiError, FieldError, FieldErrors};
 use crate::api::extract::QueryParams;
+use crate::api::images::HeavyState;
 use crate::api::images::form::{Form, FormSpec};
 use crate::api::images::limits;
 use crate::api::images::output::{self, Disposition, set_server_timing};

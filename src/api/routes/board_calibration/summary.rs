@@ -4,19 +4,16 @@
 
 use std::time::Duration;
 
-use super::types::{
+use crate::api::wire::board_calibration::{
     self, BoardType, BoardUsed, CalibrateTimes, CalibrationSummary, CameraStd, CameraSummary,
     Coverage, CoverageSummary, CrossValidationSummary, ProjectionGrid,
     ProjectionUncertaintySummary, RectificationSummary, RigStd, ViewStatus, ViewSummary,
 };
+use crate::api::wire::calibration::matrix3;
 use crate::api::wire::params::Unit;
 use crate::api::wire::rig::CalibratedRig;
 use stereo_core::numbers::round_to;
 use stereo_core::pipeline::calibrate as engine;
-
-fn matrix3(m: &nalgebra::Matrix3<f64>) -> [[f64; 3]; 3] {
-    std::array::from_fn(|r| std::array::from_fn(|c| m[(r, c)]))
-}
 
 fn camera_summary(fit: &engine::CameraFit) -> CameraSummary {
     CameraSummary {
@@ -158,9 +155,9 @@ pub fn summarize(made: &engine::Calibration) -> CalibrationSummary {
         image_width: settings.size.width,
         image_height: settings.size.height,
         model: match settings.model {
-            engine::Model::PlumbBob => types::ModelChoice::PlumbBob,
-            engine::Model::RationalPolynomial => types::ModelChoice::RationalPolynomial,
-            engine::Model::Equidistant => types::ModelChoice::Equidistant,
+            engine::Model::PlumbBob => board_calibration::ModelChoice::PlumbBob,
+            engine::Model::RationalPolynomial => board_calibration::ModelChoice::RationalPolynomial,
+            engine::Model::Equidistant => board_calibration::ModelChoice::Equidistant,
         },
         board: board_used(&settings.board),
         views: view_summaries,

@@ -3,7 +3,7 @@
 //! as a self-contained SVG (GET).
 
 pub mod svg;
-pub mod types;
+pub use crate::api::wire::chart as types;
 
 use axum::extract::State;
 use axum::http::{HeaderMap, HeaderValue, header};
@@ -12,10 +12,10 @@ use utoipa_axum::{router::OpenApiRouter, routes};
 
 use self::types::{Axis, AxisScale, ChartPoint, ChartRequest, ChartResponse, Series};
 use super::data_operation;
-use crate::api::AppState;
 use crate::api::csv;
 use crate::api::error::{ApiError, FieldErrors};
 use crate::api::extract::{JsonBody, QueryParams};
+use crate::api::state::AppState;
 use crate::api::validate::{self, Bounds, Feature};
 use crate::api::wire::openapi::{BodyErrors, QueryErrors};
 use stereo_core::numbers::short;

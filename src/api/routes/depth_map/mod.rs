@@ -4,7 +4,7 @@
 //! PLY). The matcher is [`stereo_core::vision`]'s; this module reads the form, judges it against the
 //! limits and the memory budget, runs the matcher off the async runtime and encodes the answer.
 
-pub mod types;
+pub use crate::api::wire::depth_map as types;
 
 use std::time::Instant;
 
@@ -15,9 +15,9 @@ use utoipa_axum::{router::OpenApiRouter, routes};
 use self::types::{DepthMapAnswers, DepthMapForm, DepthMapOutput, DepthMapQuery, DepthMapSummary};
 use axum::extract::State;
 
-use crate::api::HeavyState;
 use crate::api::error::ApiError;
 use crate::api::extract::QueryParams;
+use crate::api::images::HeavyState;
 use crate::api::images::maps::MapCache;
 use crate::api::images::output::{self, Disposition, set_server_timing};
 use crate::api::images::raw;

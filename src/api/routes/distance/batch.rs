@@ -16,15 +16,15 @@ use axum::extract::{FromRequest, Request};
 use serde::Deserialize;
 use serde_json::{Map, Value};
 
-use super::types::{
+use crate::api::wire::distance::{
     BatchDistanceResponse, BatchPoint, DistanceRequest, PointDistance, PointFailure, PointOutcome,
     StereoRig,
 };
 use crate::{
     api::{
-        AppState,
         error::{ApiError, FieldErrors},
         extract::{self, BodyLimit, decode_object, expect_object},
+        state::AppState,
         validate::{self, Bounds, Feature},
         wire::{de::Object, measured::Measured},
     },

@@ -2,17 +2,17 @@
 //! one rig (POST). Each request is extract → validate → physics → response.
 
 pub mod batch;
-pub mod types;
+pub use crate::api::wire::distance as types;
 
 use axum::extract::State;
 use utoipa_axum::{router::OpenApiRouter, routes};
 
 use self::batch::DistanceBody;
 use self::types::{DistanceInput, DistanceOutput, DistanceRequest, DistanceResponse};
-use crate::api::AppState;
 use crate::api::error::{ApiError, FieldErrors};
 use crate::api::extract::QueryParams;
 use crate::api::respond::Json;
+use crate::api::state::AppState;
 use crate::api::validate::{self, Bounds, Feature};
 use crate::api::wire::measured::Measured;
 use crate::api::wire::openapi::{BodyErrors, QueryErrors};

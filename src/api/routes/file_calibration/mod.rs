@@ -2,7 +2,7 @@
 //! rig in the members every other endpoint takes. The file comes in a JSON body's `text`, or
 //! as the raw body with `Content-Type: text/plain` (`curl --data-binary @calib.txt`).
 
-pub mod types;
+pub use crate::api::wire::file_calibration as types;
 
 use axum::extract::{FromRequest, FromRequestParts, Request};
 use axum::http::header;
@@ -12,10 +12,10 @@ use self::types::{
     CalibratedRig, CalibrationFile, CalibrationQuery, CalibrationRequest, CalibrationResponse,
     RawCameras,
 };
-use crate::api::AppState;
 use crate::api::error::{ApiError, FieldErrors};
 use crate::api::extract::{self, BodyLimit, QueryParams};
 use crate::api::respond::Json;
+use crate::api::state::AppState;
 use crate::api::wire::calibration::add_read_faults;
 use crate::api::wire::openapi::BodyErrors;
 use stereo_core::calibration::files::{self, ReadOptions, Source};

@@ -4,7 +4,7 @@
 //! engine is [`stereo_core::vision::correspond`]; the distances are `/distance`'s own
 //! ([`stereo_core::physics::measure`] through [`Measured`]), so the two never disagree.
 
-pub mod types;
+pub use crate::api::wire::matching as types;
 
 use std::time::Instant;
 
@@ -17,9 +17,9 @@ use utoipa_axum::{router::OpenApiRouter, routes};
 use self::types::{MatchForm, MatchPoint, MatchQuery, MatchRegion, MatchResponse};
 use axum::extract::State;
 
-use crate::api::HeavyState;
 use crate::api::error::{ApiError, FieldErrors};
 use crate::api::extract::{QueryParams, decode_object};
+use crate::api::images::HeavyState;
 use crate::api::images::maps::MapCache;
 use crate::api::images::output::{self, set_server_timing};
 use crate::api::images::raw;

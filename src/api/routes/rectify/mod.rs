@@ -3,7 +3,7 @@
 //! a JSON summary. The maps come from the heavy group's cache
 //! ([`crate::api::images::maps`]); the remapping is [`stereo_core::vision::remap`]'s.
 
-pub mod types;
+pub use crate::api::wire::rectify as types;
 
 use std::time::Instant;
 
@@ -14,9 +14,9 @@ use self::types::{
     RectifyAnswers, RectifyForm, RectifyOutput, RectifyQuery, RectifySummary, RectifyTimes,
     ValidShare,
 };
-use crate::api::HeavyState;
 use crate::api::error::ApiError;
 use crate::api::extract::QueryParams;
+use crate::api::images::HeavyState;
 use crate::api::images::maps::MapCache;
 use crate::api::images::output::{self, Disposition, set_server_timing};
 use crate::api::images::raw;

@@ -2,7 +2,7 @@
 //! `/baseline` (the shortest baseline that meets a depth-error budget). Each is extract →
 //! validate → physics → response, like every other route.
 
-pub mod types;
+pub use crate::api::wire::rig_design as types;
 
 use axum::extract::State;
 use stereo_core::numbers::Num;
@@ -16,8 +16,9 @@ use super::json_operation;
 use crate::api::error::{ApiError, FieldErrors};
 use crate::api::extract::{JsonBody, QueryParams};
 use crate::api::respond::Json;
+use crate::api::state::AppState;
+use crate::api::validate;
 use crate::api::wire::openapi::{BodyErrors, QueryErrors};
-use crate::api::{AppState, validate};
 use stereo_core::numbers::{percent, short};
 use stereo_core::physics::{self, Rig, finite};
 

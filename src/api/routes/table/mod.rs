@@ -1,7 +1,7 @@
 //! `/table` and `/table.csv`: the sample table of distance against disparity for a rig (GET
 //! and POST), as JSON or CSV.
 
-pub mod types;
+pub use crate::api::wire::table as types;
 
 use axum::extract::State;
 use axum::http::{HeaderMap, header};
@@ -10,10 +10,10 @@ use utoipa_axum::{router::OpenApiRouter, routes};
 
 use self::types::{TableRequest, TableResponse, TableRow};
 use super::data_operation;
-use crate::api::AppState;
 use crate::api::csv;
 use crate::api::error::{ApiError, FieldErrors};
 use crate::api::extract::{JsonBody, QueryParams};
+use crate::api::state::AppState;
 use crate::api::validate::{self, Bounds};
 use crate::api::wire::openapi::{BodyErrors, QueryErrors};
 use stereo_core::physics;

@@ -37,6 +37,7 @@
 //! ```
 
 pub mod report;
+pub mod settings;
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
@@ -44,6 +45,8 @@ use std::time::{Duration, Instant};
 use rayon::prelude::*;
 
 pub use self::report::Report;
+use self::report::rectified_rig;
+pub use self::settings::Settings;
 pub use crate::calibration::boards::charuco::{CharucoBoard, CharucoSpec, Dictionary};
 use crate::calibration::boards::corners::{Luma, Miss};
 pub use crate::calibration::boards::report::{CharucoMistake, Coverage, Determination, tilt_deg};
@@ -59,31 +62,6 @@ pub use crate::camera::{Alpha, Model, Rectification, Size};
 use crate::physics::Rig;
 pub use crate::vision::decode::DecodeLimits;
 use crate::vision::decode::{self, DecodeError};
-
-/// How a calibration is made.
-#[derive(Debug, Clone)]
-pub struct Settings {
-    /// The board the views show.
-    pub board: Target,
-    /// The lens model fitted to each camera.
-    pub model: Model,
-    /// Bouguet's `alpha` for the rectification.
-    pub alpha: Alpha,
-    /// The views' size (every image's).
-    pub size: Size,
-    /// What the decoder takes.
-    pub limits: DecodeLimits,
-    /// Compute the projection uncertainty over each image (a summary's: the files do not
-    /// carry it).
-    pub uncertainty: bool,
-    /// Each view's corners and residuals in the report.
-    pub corners: bool,
-    /// Cross-validate two halves of the views in the report (with the uncertainty only: the
-    /// halves are judged against it).
-    pub cross_validate: bool,
-    /// The distance the projection uncertainty is stated at (default: the boards' median).
-    pub uncertainty_distance: Option<f64>,
-}
 
 /// A calibration and what it was made from.
 #[derive(Debug, Clone)]
@@ -371,18 +349,4 @@ impl Calibration {
             )),
         }
     }
-}
-
-/// The rectified rig of a pair's rectification, with its σ.
-fn rectified_rig(
-    rectification: Option<&Rectification>,
-    rig_std: Option<[f64; 2]>,
-    board: &Target,
-) -> Option<Rig> {
-    let rig = rectification?.rig(board.unit()).ok()?;
-    Some(
-        rig_std
-            .and_then(|[f, b]| rig.with_calibration_std(f, b).ok())
-            .unwrap_or(rig),
-    )
 }

@@ -3,10 +3,12 @@
 //! cross-validation of two halves of the views when asked, each view's corners and
 //! residuals when asked, and the warnings saying what to shoot again or check.
 
-use super::{Settings, rectified_rig};
+use super::settings::Settings;
+use crate::calibration::boards::Target;
 use crate::calibration::boards::report::{self, Coverage, Determination, Rectified};
 use crate::calibration::boards::{Corners, Fit, cross_validation, uncertainty};
 use crate::camera::Rectification;
+use crate::physics::Rig;
 
 /// A view's residuals (px), left and right.
 pub type Residuals = [Option<Vec<[f64; 2]>>; 2];
@@ -139,4 +141,18 @@ fn inconsistent_halves(c: &cross_validation::CrossValidation) -> String {
             c.median_px, c.ratio, c.predicted_median_px
         )
     }
+}
+
+/// The rectified rig of a pair's rectification, with its σ.
+pub fn rectified_rig(
+    rectification: Option<&Rectification>,
+    rig_std: Option<[f64; 2]>,
+    board: &Target,
+) -> Option<Rig> {
+    let rig = rectification?.rig(board.unit()).ok()?;
+    Some(
+        rig_std
+            .and_then(|[f, b]| rig.with_calibration_std(f, b).ok())
+            .unwrap_or(rig),
+    )
 }

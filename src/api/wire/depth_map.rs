@@ -7,14 +7,14 @@ use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
 use crate::api::extract::QueryForm;
-use crate::api::images::output::FileBody;
 use crate::api::wire::de::{choice_members, request};
+use crate::api::wire::images::FileBody;
 use crate::api::wire::images::image_form;
 pub use crate::api::wire::images::{RectifyMode, StageTimes};
 use crate::api::wire::openapi::{image_answers, named};
 use crate::api::wire::rig::CalibratedRig;
 use stereo_core::pipeline::{self, DepthMap, Product};
-use stereo_core::vision::sgm::Paths;
+
 use stereo_core::vision::{Params, Preset, Settings, Subpixel};
 
 /// What `/depth-map` answers.
@@ -401,11 +401,11 @@ impl DepthMapSummary {
 
 impl MatcherParameters {
     /// The parameters a match used, with the paths its finest level aggregated.
-    pub fn of(params: &Params, paths: Option<Paths>) -> Self {
+    pub fn of(params: &Params, paths: Option<pipeline::Paths>) -> Self {
         MatcherParameters {
             preset: params.preset().into(),
             paths: match paths {
-                Some(Paths::Five) => 5,
+                Some(pipeline::Paths::Five) => 5,
                 _ => 8,
             },
             p1: params.penalties().p1.into(),

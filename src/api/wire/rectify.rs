@@ -5,9 +5,9 @@ use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
 use crate::api::extract::QueryForm;
-use crate::api::images::output::FileBody;
 use crate::api::wire::calibration::RawCameras;
 use crate::api::wire::de::{choice_members, request};
+use crate::api::wire::images::FileBody;
 pub use crate::api::wire::images::RectifyMode;
 use crate::api::wire::images::image_form;
 use crate::api::wire::openapi::{image_answers, named};
