@@ -130,7 +130,7 @@ pub enum Command {
         timeout: Duration,
     },
     /// Every pair of a recording to depth maps, as /depth-map makes them: in this process
-    /// (under the server's limits, set by the options given before `depth-map`), or sent to a running service
+    /// (under the server's limits, set by its options before or after `depth-map`), or sent to a running service
     /// with --server. Pairs already written are skipped, so a stopped run resumes; a file
     /// without a partner or that cannot be read is named and the rest go on. A progress bar
     /// shows on a terminal.
@@ -234,69 +234,69 @@ pub enum AccessLog {
 #[derive(Debug, Clone, PartialEq, Eq, Args)]
 pub struct Config {
     /// Address to listen on; 0.0.0.0 for every interface (as in the container image).
-    #[arg(long, env = "HOST", default_value = "127.0.0.1")]
+    #[arg(global = true, long, env = "HOST", default_value = "127.0.0.1")]
     pub host: IpAddr,
 
     /// Port to listen on; 0 picks a free one.
-    #[arg(long, env = "PORT", default_value_t = 8080)]
+    #[arg(global = true, long, env = "PORT", default_value_t = 8080)]
     pub port: u16,
 
     /// Log format: pretty (for a terminal) or json (one object per line).
-    #[arg(long, env = "LOG_FORMAT", value_enum, default_value_t = LogFormat::Pretty)]
+    #[arg(global = true, long, env = "LOG_FORMAT", value_enum, default_value_t = LogFormat::Pretty)]
     pub log_format: LogFormat,
 
     /// Which requests get an access log line (target `access`): all, errors (4xx and 5xx) or
     /// off. Every request is counted in /metrics either way.
-    #[arg(long, env = "ACCESS_LOG", value_enum, default_value_t = AccessLog::Errors)]
+    #[arg(global = true, long, env = "ACCESS_LOG", value_enum, default_value_t = AccessLog::Errors)]
     pub access_log: AccessLog,
 
     /// Log filter in tracing's EnvFilter syntax, e.g. `info` or `stereo_distance=debug,info`.
-    #[arg(long, env = "RUST_LOG", default_value = DEFAULT_LOG_LEVEL, value_parser = log_filter)]
+    #[arg(global = true, long, env = "RUST_LOG", default_value = DEFAULT_LOG_LEVEL, value_parser = log_filter)]
     pub log_level: String,
 
     /// Origins allowed to call the API from a browser (CORS), comma-separated, such as
     /// `https://app.example.com`. Empty (the default) allows none; `*` allows any.
-    #[arg(long, env = "CORS_ALLOWED_ORIGINS", value_delimiter = ',', value_parser = origin)]
+    #[arg(global = true, long, env = "CORS_ALLOWED_ORIGINS", value_delimiter = ',', value_parser = origin)]
     pub cors_allowed_origins: Vec<String>,
 
     /// Longest time one request may take, body upload included; past it the answer is 408 (body
     /// still arriving) or 503 (server too slow).
-    #[arg(long, env = "REQUEST_TIMEOUT", default_value = "5s", value_parser = timeout)]
+    #[arg(global = true, long, env = "REQUEST_TIMEOUT", default_value = "5s", value_parser = timeout)]
     pub request_timeout: Duration,
 
     /// Longest time a client may take to send its request headers (and to stay idle on a
     /// keep-alive connection) before the connection is closed.
-    #[arg(long, env = "HEADER_READ_TIMEOUT", default_value = "10s", value_parser = timeout)]
+    #[arg(global = true, long, env = "HEADER_READ_TIMEOUT", default_value = "10s", value_parser = timeout)]
     pub header_read_timeout: Duration,
 
     /// Slowest accepted request body, in bytes a second (or with a unit: 512, 1KiB, 64KiB): a
     /// body that, once --body-rate-grace has passed, has come slower than this on average since
     /// its request started is cut off with 408 and its connection closed. 0 switches it off.
-    #[arg(long, env = "MIN_BODY_RATE", value_name = "SIZE", default_value = "1KiB",
+    #[arg(global = true, long, env = "MIN_BODY_RATE", value_name = "SIZE", default_value = "1KiB",
           value_parser = size::<0, 1_073_741_824>)]
     pub min_body_rate: usize,
 
     /// How long a request body may take before --min-body-rate applies.
-    #[arg(long, env = "BODY_RATE_GRACE", default_value = "5s", value_parser = delay)]
+    #[arg(global = true, long, env = "BODY_RATE_GRACE", default_value = "5s", value_parser = delay)]
     pub body_rate_grace: Duration,
 
     /// Longest time an answer may wait for a client that reads nothing (its socket full);
     /// then the connection is reset and the answer's memory freed.
-    #[arg(long, env = "WRITE_TIMEOUT", default_value = "30s", value_parser = timeout)]
+    #[arg(global = true, long, env = "WRITE_TIMEOUT", default_value = "30s", value_parser = timeout)]
     pub write_timeout: Duration,
 
     /// Most API requests served at once; more are refused at once with 503 and Retry-After.
-    #[arg(long, env = "CONCURRENCY_LIMIT", default_value_t = DEFAULT_CONCURRENCY_LIMIT,
+    #[arg(global = true, long, env = "CONCURRENCY_LIMIT", default_value_t = DEFAULT_CONCURRENCY_LIMIT,
           value_parser = count::<1, 1_000_000>)]
     pub concurrency_limit: usize,
 
     /// After SIGTERM/SIGINT, how long to keep serving with /readyz answering 503, so that a load
     /// balancer stops sending traffic before the listener closes.
-    #[arg(long, env = "SHUTDOWN_DELAY", default_value = "0s", value_parser = delay)]
+    #[arg(global = true, long, env = "SHUTDOWN_DELAY", default_value = "0s", value_parser = delay)]
     pub shutdown_delay: Duration,
 
     /// After the listener closes, the longest wait for in-flight requests to finish.
-    #[arg(long, env = "SHUTDOWN_TIMEOUT", default_value = "10s", value_parser = timeout)]
+    #[arg(global = true, long, env = "SHUTDOWN_TIMEOUT", default_value = "10s", value_parser = timeout)]
     pub shutdown_timeout: Duration,
 
     /// A file of bearer tokens, one or more (separated by new lines, commas or spaces; `#`
@@ -305,17 +305,17 @@ pub struct Config {
     /// /openapi.json stay open. The file is read again when it changes (see
     /// --api-tokens-reload), so a token is rotated by adding the new one, moving the clients,
     /// then removing the old one.
-    #[arg(long, env = "API_TOKENS_FILE", value_name = "FILE", value_parser = tokens_file)]
+    #[arg(global = true, long, env = "API_TOKENS_FILE", value_name = "FILE", value_parser = tokens_file)]
     pub api_tokens_file: Option<PathBuf>,
 
     /// How often the tokens file is read again (a Kubernetes Secret mounted as a file is
     /// updated in place within about a minute of its change).
-    #[arg(long, env = "API_TOKENS_RELOAD", default_value = "10s", value_parser = timeout)]
+    #[arg(global = true, long, env = "API_TOKENS_RELOAD", default_value = "10s", value_parser = timeout)]
     pub api_tokens_reload: Duration,
 
     /// Bearer tokens, as --api-tokens-file's (comma-separated), accepted besides the file's.
     /// Prefer the variable or the file: a command line is visible to every user of the host.
-    #[arg(long, env = "API_TOKENS", value_name = "TOKENS", hide_env_values = true,
+    #[arg(global = true, long, env = "API_TOKENS", value_name = "TOKENS", hide_env_values = true,
           value_parser = tokens)]
     pub api_tokens: Option<ApiTokens>,
 
@@ -333,19 +333,19 @@ pub struct Config {
 pub struct HeavyLimits {
     /// Largest accepted body of an image request (both images and their parts), in bytes or
     /// with a unit (KiB, MiB, GiB); larger bodies get 413. At most the memory budget.
-    #[arg(id = "heavy_body_limit", long = "heavy-body-limit", env = "HEAVY_BODY_LIMIT", value_name = "SIZE",
+    #[arg(global = true, id = "heavy_body_limit", long = "heavy-body-limit", env = "HEAVY_BODY_LIMIT", value_name = "SIZE",
           default_value = "32MiB", value_parser = size::<1024, 4_294_967_296>)]
     pub body_bytes: usize,
 
     /// Longest time one image request may take, upload included; 408 or 503 past it.
-    #[arg(id = "heavy_request_timeout", long = "heavy-request-timeout", env = "HEAVY_REQUEST_TIMEOUT", value_name = "DURATION",
+    #[arg(global = true, id = "heavy_request_timeout", long = "heavy-request-timeout", env = "HEAVY_REQUEST_TIMEOUT", value_name = "DURATION",
           default_value = "30s", value_parser = timeout)]
     pub request_timeout: Duration,
 
     /// Most image requests working at once (default: twice the number of CPUs, at least 4); a
     /// request takes its slot when its work starts, not while its body is still arriving. One
     /// past the limit is refused at once with 503 and Retry-After.
-    #[arg(id = "heavy_concurrency_limit", long = "heavy-concurrency-limit", env = "HEAVY_CONCURRENCY_LIMIT", value_name = "N",
+    #[arg(global = true, id = "heavy_concurrency_limit", long = "heavy-concurrency-limit", env = "HEAVY_CONCURRENCY_LIMIT", value_name = "N",
           default_value_t = default_heavy_concurrency(), value_parser = count::<1, 4096>)]
     pub concurrency_limit: usize,
 
@@ -354,13 +354,13 @@ pub struct HeavyLimits {
     /// answer stays counted until it is sent; one that does not fit is refused with 503 and
     /// Retry-After. The matcher's buffer pools keep up to
     /// an eighth of it each (96 MiB at most) between requests.
-    #[arg(id = "heavy_memory_budget", long = "heavy-memory-budget", env = "HEAVY_MEMORY_BUDGET", value_name = "SIZE",
+    #[arg(global = true, id = "heavy_memory_budget", long = "heavy-memory-budget", env = "HEAVY_MEMORY_BUDGET", value_name = "SIZE",
           default_value = "1GiB", value_parser = size::<1024, 1_099_511_627_776>)]
     pub memory_budget: usize,
 
     /// Most pixels (width × height) of one image; a larger one gets 413 naming it, judged from
     /// its header before any pixel is decoded. Every side is at most 8192 pixels besides.
-    #[arg(id = "max_image_pixels", long = "max-image-pixels", env = "MAX_IMAGE_PIXELS", value_name = "PIXELS",
+    #[arg(global = true, id = "max_image_pixels", long = "max-image-pixels", env = "MAX_IMAGE_PIXELS", value_name = "PIXELS",
           default_value_t = DEFAULT_MAX_IMAGE_PIXELS, value_parser = count::<1, 67_108_864>)]
     pub max_image_pixels: usize,
 }
@@ -381,28 +381,28 @@ impl Default for HeavyLimits {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Args)]
 pub struct Limits {
     /// Largest accepted request body, in bytes; larger bodies get 413.
-    #[arg(long = "body-limit", env = "BODY_LIMIT", value_name = "BYTES", default_value_t = DEFAULT_BODY_LIMIT,
-          value_parser = count::<256, 67_108_864>)]
+    #[arg(global = true, long = "body-limit", env = "BODY_LIMIT", value_name = "SIZE", default_value = "64KiB",
+          value_parser = size::<256, 67_108_864>)]
     pub body_bytes: usize,
 
     /// Most rows one /table answer may have (`steps`).
-    #[arg(long = "max-table-rows", env = "MAX_TABLE_ROWS", value_name = "ROWS",
+    #[arg(global = true, long = "max-table-rows", env = "MAX_TABLE_ROWS", value_name = "ROWS",
           default_value_t = DEFAULT_MAX_TABLE_ROWS, value_parser = count::<1, 1_000_000>)]
     pub table_rows: usize,
 
     /// Most points one /chart-data series may have (`points`).
-    #[arg(long = "max-chart-points", env = "MAX_CHART_POINTS", value_name = "POINTS",
+    #[arg(global = true, long = "max-chart-points", env = "MAX_CHART_POINTS", value_name = "POINTS",
           default_value_t = DEFAULT_MAX_CHART_POINTS, value_parser = count::<1, 1_000_000>)]
     pub chart_points: usize,
 
     /// Most correspondences one batch POST /distance may hold (`points`).
-    #[arg(long = "max-batch-points", env = "MAX_BATCH_POINTS", value_name = "POINTS",
+    #[arg(global = true, long = "max-batch-points", env = "MAX_BATCH_POINTS", value_name = "POINTS",
           default_value_t = DEFAULT_MAX_BATCH_POINTS, value_parser = count::<1, 1_000_000>)]
     pub batch_points: usize,
 
     /// Largest accepted body for POST /distance, which takes batches, in bytes; 413 beyond.
-    #[arg(long = "batch-body-limit", env = "BATCH_BODY_LIMIT", value_name = "BYTES",
-          default_value_t = DEFAULT_BATCH_BODY_LIMIT, value_parser = count::<256, 268_435_456>)]
+    #[arg(global = true, long = "batch-body-limit", env = "BATCH_BODY_LIMIT", value_name = "SIZE",
+          default_value = "2MiB", value_parser = size::<256, 268_435_456>)]
     pub batch_body_bytes: usize,
 }
 
@@ -485,11 +485,11 @@ fn size<const MIN: usize, const MAX: usize>(text: &str) -> Result<usize, String>
         .find(|c: char| !c.is_ascii_digit())
         .unwrap_or(text.len());
     let (number, unit) = text.split_at(digits);
-    let scale: usize = match unit.trim() {
-        "" | "B" => 1,
-        "KiB" => 1 << 10,
-        "MiB" => 1 << 20,
-        "GiB" => 1 << 30,
+    let scale: usize = match unit.trim().to_ascii_lowercase().as_str() {
+        "" | "b" => 1,
+        "kib" | "k" => 1 << 10,
+        "mib" | "m" => 1 << 20,
+        "gib" | "g" => 1 << 30,
         _ => return Err(expected()),
     };
     let value = usize::from_str(number)
@@ -561,7 +561,11 @@ impl Cli {
         I: IntoIterator<Item = T>,
         T: Into<std::ffi::OsString> + Clone,
     {
-        <Self as Parser>::try_parse_from(args)?.finish()
+        let args: Vec<std::ffi::OsString> = args.into_iter().map(Into::into).collect();
+        match <Self as Parser>::try_parse_from(&args) {
+            Ok(cli) => cli.finish(),
+            Err(error) => Err(from_the_environment(error, &args)),
+        }
     }
 
     /// Tidies what clap parsed and applies the checks that span more than one value.
@@ -570,6 +574,50 @@ impl Cli {
         self.config.check()?;
         Ok(self)
     }
+}
+
+/// A refused value that came from an environment variable, not from the command line, says
+/// which variable: clap names only the flag.
+fn from_the_environment(error: clap::Error, args: &[std::ffi::OsString]) -> clap::Error {
+    use clap::CommandFactory;
+    use clap::error::{ContextKind, ContextValue, ErrorKind};
+    if !matches!(
+        error.kind(),
+        ErrorKind::InvalidValue | ErrorKind::ValueValidation
+    ) {
+        return error;
+    }
+    let Some(ContextValue::String(arg)) = error.get(ContextKind::InvalidArg) else {
+        return error;
+    };
+    let Some(long) = arg
+        .split_whitespace()
+        .next()
+        .and_then(|a| a.strip_prefix("--"))
+    else {
+        return error;
+    };
+    let given = args.iter().any(|a| {
+        a.to_str()
+            .is_some_and(|a| a == format!("--{long}") || a.starts_with(&format!("--{long}=")))
+    });
+    let command = Cli::command();
+    let env = std::iter::once(&command)
+        .chain(command.get_subcommands())
+        .flat_map(|c| c.get_arguments())
+        .find(|a| a.get_long() == Some(long))
+        .and_then(|a| a.get_env())
+        .map(|e| e.to_string_lossy().into_owned());
+    let Some(env) = env.filter(|e| !given && std::env::var_os(e).is_some()) else {
+        return error;
+    };
+    let rendered = error.render().to_string();
+    let rendered = rendered.strip_prefix("error: ").unwrap_or(&rendered);
+    let (first, rest) = rendered.split_once('\n').unwrap_or((rendered, ""));
+    clap::Error::raw(
+        error.kind(),
+        format!("{first} (from the environment variable {env}, as --{long} was not given)\n{rest}"),
+    )
 }
 
 impl Config {
@@ -773,7 +821,7 @@ mod tests {
                 "--max-table-rows <ROWS>",
                 DEFAULT_MAX_TABLE_ROWS.to_string(),
             ),
-            ("--body-limit <BYTES>", DEFAULT_BODY_LIMIT.to_string()),
+            ("--body-limit <SIZE>", "64KiB".to_owned()),
         ] {
             let at = flat
                 .find(flag)
@@ -787,6 +835,7 @@ mod tests {
                 "{flag}'s default is {default}: {text}"
             );
         }
+        assert_eq!(defaults.limits.body_bytes, size::<1, 1_000_000>("64KiB").unwrap());
         let cpus = std::thread::available_parallelism().map_or(1, usize::from);
         assert_eq!(defaults.heavy.concurrency_limit, (2 * cpus).max(4));
         assert!(

@@ -6,6 +6,7 @@ mod calibrate;
 mod calibration;
 mod chart;
 mod charuco;
+mod command_line;
 mod damaged;
 mod depth_map;
 mod disparity;
