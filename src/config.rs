@@ -835,7 +835,10 @@ mod tests {
                 "{flag}'s default is {default}: {text}"
             );
         }
-        assert_eq!(defaults.limits.body_bytes, size::<1, 1_000_000>("64KiB").unwrap());
+        assert_eq!(
+            defaults.limits.body_bytes,
+            size::<1, 1_000_000>("64KiB").unwrap()
+        );
         let cpus = std::thread::available_parallelism().map_or(1, usize::from);
         assert_eq!(defaults.heavy.concurrency_limit, (2 * cpus).max(4));
         assert!(

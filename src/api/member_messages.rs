@@ -96,7 +96,7 @@ pub fn unknown_field(name: &str, known: &[&str]) -> String {
     let name = clip(name, ECHO);
     let nearest = known
         .iter()
-        .map(|k| (edit_distance(&name, k), *k))
+        .map(|k| (stereo_core::numbers::edit_distance(&name, k), *k))
         .min()
         .filter(|(distance, _)| *distance <= name.chars().count() / 2);
     match (nearest, known) {
@@ -180,24 +180,6 @@ fn decimal_comma_hint(got: &str, expected: &str) -> &'static str {
     } else {
         ""
     }
-}
-
-/// Levenshtein distance between two short strings.
-fn edit_distance(a: &str, b: &str) -> usize {
-    let b: Vec<char> = b.chars().collect();
-    let mut row: Vec<usize> = (0..=b.len()).collect();
-    for (i, ca) in a.chars().enumerate() {
-        let mut diagonal = row[0];
-        row[0] = i + 1;
-        for (j, cb) in b.iter().enumerate() {
-            let above = row[j + 1];
-            row[j + 1] = (above + 1)
-                .min(row[j] + 1)
-                .min(diagonal + usize::from(ca != *cb));
-            diagonal = above;
-        }
-    }
-    row[b.len()]
 }
 
 #[cfg(test)]
@@ -285,7 +267,7 @@ mod tests {
     /// A misspelt member gets the nearest known name; a stranger one gets the list.
     #[test]
     fn unknown_members() {
-        assert_eq!(edit_distance("kitten", "sitting"), 3);
+        assert_eq!(stereo_core::numbers::edit_distance("kitten", "sitting"), 3);
         assert_eq!(
             message(
                 "unknown field `baselin`, expected one of `baseline`, `unit`",

@@ -296,3 +296,29 @@ async fn a_file_answer_carries_the_summarys_warnings() {
     assert_eq!(file.status(), 200);
     assert!(!file.headers().contains_key("stereo-warnings"));
 }
+
+/// A 1 × 1 pair (a thumbnail, a placeholder, a bug in the client) is refused on every image
+/// route with a 422 naming both images and the smallest size matched, not matched into a map
+/// with a warning.
+#[tokio::test]
+async fn a_pair_too_small_to_match_is_named_on_every_route() {
+    let app = spawn_app().await;
+    let dot = encode::png_grey(1, 1, &[128]);
+    let rig = r#"{"focal_length_px": 400, "baseline": 120, "unit": "mm"}"#;
+    for route in ["/depth-map", "/match", "/rectify"] {
+        let form = Form::new()
+            .part("left", part(dot.clone(), true))
+            .part("right", part(dot.clone(), true))
+            .text("rig", rig)
+            .text("points", r#"[{"x": 0, "y": 0}]"#);
+        let response = app.post_form(route, form).await;
+        let body = problem(response, 422).await;
+        for side in ["left", "right"] {
+            let said = message_for(&body, side);
+            assert!(
+                said.contains("is 1 × 1 pixels") && said.contains("smaller than 32 pixels a side"),
+                "{route} {side}: {body}"
+            );
+        }
+    }
+}

@@ -3,6 +3,8 @@
 //! digits), into CSV as the JSON writes them ([`push_json`]), and rounded for reading in
 //! formulas, summaries and chart labels ([`short`], [`percent`]; never in JSON values, which
 //! keep full precision unless they state theirs, [`round_to`]). Only this module calls ryu.
+//! Beside them, what else a message echoes of a caller's text: cut short ([`clip`]), and a
+//! name's near misses found ([`edit_distance`]).
 
 use std::fmt;
 
@@ -29,6 +31,25 @@ impl fmt::Display for Num {
 /// same `f64` (ryu), whole numbers with their `.0` (`105.0`). The CSV answers write through it.
 pub fn push_json(out: &mut String, value: f64) {
     out.push_str(ryu::Buffer::new().format(value));
+}
+
+/// Levenshtein's distance between two names, in characters: how a message finds the name a
+/// caller meant (`M_1` for `M1`, `basline` for `baseline`).
+pub fn edit_distance(a: &str, b: &str) -> usize {
+    let b: Vec<char> = b.chars().collect();
+    let mut row: Vec<usize> = (0..=b.len()).collect();
+    for (i, ca) in a.chars().enumerate() {
+        let mut diagonal = row[0];
+        row[0] = i + 1;
+        for (j, cb) in b.iter().enumerate() {
+            let above = row[j + 1];
+            row[j + 1] = (above + 1)
+                .min(row[j] + 1)
+                .min(diagonal + usize::from(ca != *cb));
+            diagonal = above;
+        }
+    }
+    row[b.len()]
 }
 
 /// Text echoed in a message, cut to at most `max` characters (with `…`), so that a caller's

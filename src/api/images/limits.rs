@@ -5,7 +5,7 @@
 use axum::body::Bytes;
 
 use crate::api::error::{ApiError, FieldError, FieldErrors};
-use stereo_core::vision::decode::{DecodeError, DecodeLimits, MAX_SIDE};
+use stereo_core::vision::decode::{DecodeError, DecodeLimits, MAX_SIDE, MIN_SIDE};
 use stereo_core::vision::{Params, Settings};
 
 /// The decoder's limits for every image route: [`MAX_SIDE`] a side and the server's
@@ -51,8 +51,9 @@ pub fn over_the_limits((w, h): (u32, u32), limits: DecodeLimits) -> Option<Strin
     (!limits.admit(w, h)).then(|| too_many_pixels(w, h, limits))
 }
 
-/// Checks the pair's sizes: each within the limits (413 otherwise), and the right the same
-/// size as the left (naming `right`).
+/// Checks the pair's sizes: each within the limits (413 otherwise), each at least
+/// [`MIN_SIDE`] pixels a side (naming the image), and the right the same size as the left
+/// (naming `right`).
 pub fn check_pair(
     left: (u32, u32),
     right: (u32, u32),
@@ -67,6 +68,17 @@ pub fn check_pair(
     }
     if !oversized.is_empty() {
         return Err(ApiError::Oversized(oversized));
+    }
+    for (name, (w, h)) in [("left", left), ("right", right)] {
+        if w < MIN_SIDE || h < MIN_SIDE {
+            problems.add(
+                name,
+                format!(
+                    "is {w} × {h} pixels, smaller than {MIN_SIDE} pixels a side: too small to \
+                     match; send the frames the cameras deliver"
+                ),
+            );
+        }
     }
     if left != right {
         problems.add(

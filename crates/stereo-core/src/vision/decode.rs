@@ -14,6 +14,10 @@ use super::Gray;
 
 /// The widest or tallest image any route decodes, in pixels.
 pub const MAX_SIDE: u32 = 8192;
+/// The narrowest or shortest image worth matching, in pixels: the census window (9 × 7) and
+/// the aggregation's paths need room, and nothing a camera delivers is smaller (the board
+/// finder's own floor is the same).
+pub const MIN_SIDE: u32 = 32;
 
 /// What a decode may take.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -234,6 +238,14 @@ fn corrupt(e: &ImageError) -> DecodeError {
                      transfer"
                         .to_owned(),
                 )
+            } else if text.contains("ChunkType") || text.contains('{') || !text.is_ascii() {
+                // The decoder's own words are its types' debug text (a garbled chunk name
+                // included): said in ours.
+                DecodeError::Corrupt(
+                    "a PNG chunk is damaged (its name, length or place is not a PNG's): the \
+                     file was damaged in a copy or transfer"
+                        .to_owned(),
+                )
             } else {
                 DecodeError::Corrupt(text)
             }
@@ -366,5 +378,15 @@ mod tests {
             decode(&flipped, LIMITS, false),
             Err(DecodeError::Corrupt(_))
         ));
+        // A chunk whose name is garbled (`IDA¨` for `IDAT`) is said in words, not as the
+        // decoder's debug text.
+        let at = whole.windows(4).position(|w| w == b"IDAT").unwrap();
+        let mut renamed = whole.clone();
+        renamed[at + 3] = 0xA8;
+        let Err(DecodeError::Corrupt(said)) = decode(&renamed, LIMITS, false) else {
+            panic!("a garbled chunk is corrupt");
+        };
+        assert!(said.starts_with("a PNG chunk is damaged"), "{said}");
+        assert!(said.is_ascii() && !said.contains('{'), "{said}");
     }
 }

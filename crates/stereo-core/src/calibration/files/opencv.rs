@@ -237,6 +237,27 @@ fn any_matrix(doc: &Node, name: &str) -> Result<Option<(Vec<f64>, usize)>, Parse
     Ok(Some((values, data.line())))
 }
 
+/// A top-level key of `doc` that looks like a misspelt `key` (`M_1`, `m1`, `M-1` for `M1`:
+/// the same once case, `_`, `-` and spaces are set aside), with its line. Nearer misses by a
+/// character are left alone: `D2` is one off `D1` and is no typo.
+fn near_miss(doc: &Node, key: &str) -> Option<(String, usize)> {
+    let Node::Map(members, _) = doc else {
+        return None;
+    };
+    let plain = |s: &str| {
+        s.chars()
+            .filter(|c| !matches!(c, '_' | '-' | ' '))
+            .collect::<String>()
+            .to_ascii_lowercase()
+    };
+    let wanted = plain(key);
+    members
+        .iter()
+        .filter(|(k, _)| k != key)
+        .find(|(k, _)| plain(k) == wanted)
+        .map(|(k, node)| (crate::numbers::clip(k, 40), node.line()))
+}
+
 /// The first of `names` the file has.
 fn first<'a>(doc: &Node, names: &[&'a str]) -> Option<&'a str> {
     names.iter().copied().find(|n| doc.get(n).is_some())
@@ -257,14 +278,26 @@ fn raw_parts(
         return Ok(None);
     }
     let mut errors = Vec::new();
-    let wanted = ["M1 (or K1)", "D1", "M2 (or K2)", "D2"];
-    for (name, what) in names.iter().zip(wanted) {
-        if name.is_none() {
-            errors.push(ParseError::whole(format!(
+    let wanted = [
+        ("M1", "M1 (or K1)"),
+        ("D1", "D1"),
+        ("M2", "M2 (or K2)"),
+        ("D2", "D2"),
+    ];
+    for (name, (key, what)) in names.iter().zip(wanted) {
+        if name.is_some() {
+            continue;
+        }
+        errors.push(match near_miss(doc, key) {
+            Some((typed, line)) => ParseError::at(
+                line,
+                format!("has no {what}, but has `{typed}`: did you mean {key}?"),
+            ),
+            None => ParseError::whole(format!(
                 "the file describes raw cameras but has no {what}: a stereoCalibrate file \
                  needs M1 D1 M2 D2 (send intrinsics.yml and extrinsics.yml together)"
-            )));
-        }
+            )),
+        });
     }
     let [Some(k1), Some(d1), Some(k2), Some(d2)] = names else {
         return Err(errors);
@@ -640,6 +673,50 @@ mod tests {
             (read.baseline - b).abs() < 1e-12 * b,
             "{} vs |T| {b}",
             read.baseline
+        );
+    }
+
+    /// A key misspelt the usual ways (`M_1`, `m2` for `M1`, `M2`) is named with its line and
+    /// the key meant; a member simply missing still says which files to send together.
+    #[test]
+    fn a_misspelt_key_gets_a_did_you_mean() {
+        let (pair, size, rect) = crate::calibration::files::sample_pair();
+        let text = write(&StereoFile {
+            size,
+            pair: &pair,
+            essential: Matrix3::identity(),
+            fundamental: Matrix3::identity(),
+            rectification: &rect,
+            target: Target {
+                columns: 9,
+                rows: 6,
+                square_size: 25.0,
+                unit: LengthUnit::Millimetre,
+            },
+            rig_std: None,
+        });
+        let typo = text
+            .replacen("\nM1:", "\nM_1:", 1)
+            .replacen("\nM2:", "\nm2:", 1);
+        let errors = parse(&typo, None, None, None).unwrap_err();
+        let said: Vec<String> = errors.iter().map(ToString::to_string).collect();
+        assert!(
+            said.iter()
+                .any(|e| e.contains("has `M_1`: did you mean M1?")),
+            "{said:?}"
+        );
+        assert!(
+            said.iter()
+                .any(|e| e.contains("has `m2`: did you mean M2?")),
+            "{said:?}"
+        );
+        assert!(errors.iter().all(|e| e.line.is_some()), "{said:?}");
+        let gone = text.replacen("\nD2:", "\nXX:", 1);
+        let said = parse(&gone, None, None, None).unwrap_err()[0].to_string();
+        assert!(
+            said.contains("has no D2")
+                && said.contains("send intrinsics.yml and extrinsics.yml together"),
+            "{said}"
         );
     }
 
