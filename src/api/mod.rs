@@ -43,8 +43,13 @@ use self::routes::ops::OpsState;
 #[openapi(
     info(
         title = "Stereo distance service",
-        description = "Turns a stereo correspondence into a distance with its expected error, \
-                       and shows how distance and error vary with disparity for a rig.\n\n\
+        description = "Turns a stereo rig and what it sees into a distance you can trust, end \
+                       to end: checkerboard or ChArUco pairs into a calibration with each \
+                       parameter's σ and OpenCV and ROS files (`/calibrate`), raw frames \
+                       rectified (`/rectify`), dense disparity and depth maps with each pixel's \
+                       σ (`/depth-map`), a clicked point's match and a region's depth \
+                       (`/match`), and a correspondence's distance with its error bar \
+                       (`/distance`), with the tables, charts and rig planning around them.\n\n\
                        Depth is Z = B·f_px / |d + doffs| with d = x_left − x_right in pixels; \
                        the focal length is always converted to pixels first. `distance` is \
                        that depth Z, along the optical axis; `range` is the straight line \

@@ -315,3 +315,59 @@ async fn every_error_status_has_its_own_example() {
     assert_eq!(real["errors"], documented["errors"]);
     assert_eq!(real["detail"], documented["detail"]);
 }
+
+/// `/depth-map`'s query parameters state their defaults in the document (Swagger's "Try it
+/// out" shows them), and each is the engine's own: what the matcher takes when the parameter
+/// is left out. `paths` and `alpha` have none (the preset's choice, the file's own).
+#[tokio::test]
+async fn the_depth_map_parameters_state_the_engines_defaults() {
+    use stereo_core::vision::{Params, Settings, Subpixel};
+    let app = spawn_app().await;
+    let spec = ok_json(app.get("/openapi.json").await).await;
+    let parameters = spec["paths"]["/depth-map"]["post"]["parameters"]
+        .as_array()
+        .expect("parameters");
+    let default = |name: &str| {
+        parameters
+            .iter()
+            .find(|p| p["name"] == name)
+            .unwrap_or_else(|| panic!("{name}"))["schema"]["default"]
+            .clone()
+    };
+    let engine = Params::new(&Settings::default()).expect("the defaults are valid");
+    let penalties = engine.penalties();
+    assert_eq!(default("min_disparity"), json!(engine.min_disparity()));
+    assert_eq!(default("max_disparity"), json!(engine.max_disparity()));
+    assert_eq!(default("p1"), json!(penalties.p1));
+    assert_eq!(default("p2"), json!(penalties.p2));
+    assert_eq!(default("p2_edge"), json!(penalties.edge));
+    assert_eq!(default("uniqueness"), json!(engine.uniqueness()));
+    assert_eq!(default("lr_check"), json!(engine.lr_tolerance().is_some()));
+    assert_eq!(
+        default("lr_tolerance"),
+        json!(f64::from(engine.lr_tolerance().unwrap()))
+    );
+    assert_eq!(engine.subpixel(), Subpixel::Equiangular);
+    assert_eq!(default("subpixel"), json!("equiangular"));
+    assert_eq!(default("speckle_size"), json!(engine.speckle_size()));
+    assert_eq!(
+        default("speckle_range"),
+        json!(f64::from(engine.speckle_range()))
+    );
+    assert_eq!(
+        default("max_disparity_std"),
+        json!(engine.max_disparity_std())
+    );
+    assert_eq!(default("median"), json!(engine.median()));
+    assert_eq!(default("fill"), json!(engine.fill()));
+    assert_eq!(default("preset"), json!("accurate"));
+    assert_eq!(default("output"), json!("summary"));
+    assert_eq!(default("rectify"), json!("auto"));
+    assert_eq!(parameters.len(), 19);
+    let without: Vec<&str> = parameters
+        .iter()
+        .filter(|p| p["schema"]["default"].is_null())
+        .filter_map(|p| p["name"].as_str())
+        .collect();
+    assert_eq!(without, ["paths", "alpha"]);
+}

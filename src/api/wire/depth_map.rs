@@ -230,18 +230,20 @@ request! {
     /// The options of `/depth-map`, in the query string.
     pub struct DepthMapQuery {
         /// The smallest disparity searched, in pixels. Default 0.
-        #[schema(minimum = -4096, maximum = 4096, example = 0)]
+        #[schema(minimum = -4096, maximum = 4096, example = 0, default = 0)]
         min_disparity: i32,
         /// The search stops before this disparity: `min_disparity ≤ d < max_disparity`, at
         /// most 512 disparities. Default: the calibration file's `ndisp` when one is given,
         /// else 128.
-        #[schema(minimum = -4095, maximum = 4608, example = 64)]
+        #[schema(minimum = -4095, maximum = 4608, example = 64, default = 128)]
         max_disparity: i32,
         /// What to answer (default `summary`); also chosen by `Accept` for
         /// `application/json`, `image/x-portable-floatmap` and `application/x-ply`.
+        #[schema(default = "summary")]
         output: DepthMapOutput,
         /// The named set of matcher settings that the settings not given take: `accurate`
         /// (the default) or `fast` (for video). A setting given wins over its preset's.
+        #[schema(default = "accurate")]
         preset: PresetChoice,
         /// The paths the aggregation sums: 8 (two passes, the most robust to noise) or 5 (one
         /// pass). Default: the preset's (`accurate` takes 8 on a noisy pair and 5 on a clear
@@ -252,50 +254,55 @@ request! {
         /// disparities left and right) instead of leaving them invalid; each filled pixel's
         /// σ_d is half the spread of the values it was chosen from (at least 0.7 px), and
         /// `arrays.npz` marks them (`filled`). Default false.
+        #[schema(default = false)]
         fill: bool,
         /// SGM penalty for a disparity step of one pixel, in census bits. Default 16.
-        #[schema(minimum = 1, maximum = 255)]
+        #[schema(minimum = 1, maximum = 255, default = 16)]
         p1: u32,
         /// SGM penalty for a larger jump, in census bits, where the intensity is flat.
         /// Default 64.
-        #[schema(minimum = 2, maximum = 1024)]
+        #[schema(minimum = 2, maximum = 1024, default = 64)]
         p2: u32,
         /// The intensity step (grey levels of 255) across which `p2` is halved:
         /// P2' = max(P1 + 1, P2 · T / (T + |ΔI|)); 0 keeps P2 constant. Default 16.
-        #[schema(minimum = 0, maximum = 255)]
+        #[schema(minimum = 0, maximum = 255, default = 16)]
         p2_edge: u32,
         /// How much lower (in percent) the best cost must be than any other more than one
         /// pixel away; otherwise the pixel is invalid. Default 15.
-        #[schema(minimum = 0, maximum = 100)]
+        #[schema(minimum = 0, maximum = 100, default = 15)]
         uniqueness: u32,
         /// The left-right check: whether to run it. Default true.
+        #[schema(default = true)]
         lr_check: bool,
         /// The left-right check's tolerance in pixels. Default 1.
-        #[schema(minimum = 0.0, maximum = 64.0)]
+        #[schema(minimum = 0.0, maximum = 64.0, default = 1.0)]
         lr_tolerance: f64,
         /// The sub-pixel fit. Default `equiangular`.
+        #[schema(default = "equiangular")]
         subpixel: SubpixelChoice,
         /// Regions with fewer pixels than this are removed as speckles; 0 keeps them.
         /// Default 100.
-        #[schema(minimum = 0, maximum = 1000000)]
+        #[schema(minimum = 0, maximum = 1000000, default = 100)]
         speckle_size: u32,
         /// Neighbours whose disparities differ by at most this many pixels are one region.
         /// Default 2.
-        #[schema(exclusive_minimum = 0.0, maximum = 64.0)]
+        #[schema(exclusive_minimum = 0.0, maximum = 64.0, default = 2.0)]
         speckle_range: f64,
         /// The keep rule: a pixel whose disparity's σ_d (the `disparity_std` outputs) exceeds
         /// this many pixels is dropped (before `fill`). Default 4, which drops only the values
         /// known to ±4 px or worse; 0.5 keeps only sure pixels. To judge the pixels by σ_d alone,
         /// also set `uniqueness=0` and `speckle_size=0`.
-        #[schema(exclusive_minimum = 0.0, maximum = 64.0, example = 1.0)]
+        #[schema(exclusive_minimum = 0.0, maximum = 64.0, example = 1.0, default = 4.0)]
         max_disparity_std: f64,
         /// A 3 × 3 median filter of the result. Default true.
+        #[schema(default = true)]
         median: bool,
         /// Rectify the pair first: `auto` (the default) when the calibration describes raw
         /// cameras (a stereoCalibrate file, a ROS CameraInfo pair with D K R P, KITTI's raw
         /// calib_cam_to_cam.txt, /calibrate's opencv.yml) and the frames are their raw size;
         /// `yes`, or `no`. A rectified pair's outputs are in the rectified left camera's
         /// frame and size.
+        #[schema(default = "auto")]
         rectify: RectifyMode,
         /// With rectification: recompute it as `cv2.stereoRectify` does with this `alpha`
         /// (0 only valid pixels, 1 every raw pixel). Default: the file's own, or 0.
