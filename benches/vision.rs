@@ -3,7 +3,7 @@
 //! winner-takes-all of a row, the speckle filter and the median over the whole map, and the
 //! whole `vision::disparity` with the best build the CPU runs (AVX-512 for the census and the
 //! cost's row), the AVX2 build and the portable one; and coarse to fine at 256 disparities: halving, the prior's windows, the whole
-//! matcher through the pyramid. The comparison with OpenCV is `scripts/eval-stereo` (README,
+//! matcher through the pyramid. The comparison with OpenCV is `scripts/evaluate/matcher` (README,
 //! Performance).
 //!
 //! ```text

@@ -1,4 +1,4 @@
-//! Checkerboards for the evaluation against OpenCV (`scripts/eval-corners`) and for trying
+//! Checkerboards for the evaluation against OpenCV (`scripts/evaluate/corners`) and for trying
 //! other detectors:
 //!
 //!     cargo run --release --example boards -- render DIR [SEED] [VIEWS] [MODEL]

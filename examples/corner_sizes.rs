@@ -2,14 +2,14 @@
 //! and contrast with exact corners, runs `calibrate::corners::find_board` on every left image
 //! and prints how many boards were found, the median / p95 error against the truth and the time
 //! per image; with an output folder it also writes both cameras' images and the left truth, for
-//! `scripts/corner_sizes.py` to run OpenCV on the same files and for `POST /calibrate` (the rig:
+//! `scripts/evaluations/corner_sizes.py` to run OpenCV on the same files and for `POST /calibrate` (the rig:
 //! fx = fy = 1.25 × WIDTH at the image centre, k1 −0.2, k2 0.08, |T| 120 mm, R = I).
 //!
 //! ```sh
 //! cargo run --release --example corner_sizes -- WIDTH HEIGHT BLUR NOISE BLACK WHITE VIEWS [OUT_DIR]
 //! # BLUR: σ px; NOISE: σ grey levels; BLACK, WHITE: the squares' reflectance, 0..1
 //! cargo run --release --example corner_sizes -- 4000 3000 8 2 0.08 0.85 6 target/corner-sizes/4000-b8
-//! python3 scripts/corner_sizes.py target/corner-sizes/4000-b8
+//! PYTHONPATH=scripts python3 -m evaluations.corner_sizes target/corner-sizes/4000-b8
 //! ```
 use nalgebra::{Rotation3, Vector3};
 use std::process::ExitCode;

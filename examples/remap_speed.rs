@@ -1,5 +1,5 @@
 //! Times `vision::remap` on a 1280 × 720 grey image through a rectification map (a quick
-//! check beside `scripts/eval-rectify`, which compares with `cv2.remap` in the same run).
+//! check beside `scripts/evaluate/rectification`, which compares with `cv2.remap` in the same run).
 //!
 //!     cargo run --release --example remap_speed              # every interpolation
 //!     ONLY_LINEAR=1 cargo run --release --example remap_speed  # bilinear grey, 200 runs

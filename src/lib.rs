@@ -15,9 +15,11 @@
 //! third router that no limit touches.
 //!
 //! Layout. The engine is the workspace's `stereo-core` crate (`crates/stereo-core`): physics,
-//! cameras, calibration, the matcher, with no HTTP, serde or async in its dependencies; its
-//! `lib.rs` maps it. This crate sits below it, each layer using only those above it
-//! (`tests/layout.rs` holds the code to it):
+//! cameras, calibration, the matcher and `pipeline`, its use cases as plain functions, with no
+//! HTTP, serde or async in its dependencies; its `lib.rs` maps it. This crate translates:
+//! requests into the engine's types, one engine call, its answers and faults into JSON, files
+//! and problem+json. It sits below the engine, each layer using only those above it
+//! (`tests/layout.rs` holds the code to it, and to the routes' budget):
 //! - [`config`]: flags and environment variables (clap) for both groups, defaults, start-up
 //!   checks.
 //! - [`budget`]: what the heavy requests in flight share: the memory budget (bodies, work and
@@ -25,19 +27,27 @@
 //!   to it) and the compute slots taken when work starts.
 //! - [`observe`]: logs, request ids and the access log; Prometheus metrics.
 //! - [`api`]: the HTTP layer, read one way: [`api::error`] ← [`api::extract`] ←
-//!   [`api::wire`] ← [`api::validate`] ← [`api::images`] ← [`api::routes`]. The routes map
-//!   the pure constructors' faults onto field names and nothing more, and never import one
-//!   another: what two routes share lives below them. [`api::images`] holds what every
-//!   image route shares (the form and its `ImagePair` extractor, the rig from a part, raw
-//!   pairs rectified and the row check, file answers and `Server-Timing`, the limits, the
-//!   blocking work); [`api::wire`] the wire types they share (the rig, `RectifyMode`,
-//!   `StageTimes`).
+//!   [`api::wire`] ← [`api::validate`] ← [`api::images`] ← [`api::routes`].
+//!   - [`api::wire`]: every request and answer as the JSON and the OpenAPI document see them,
+//!     one module a route (`wire::depth_map`, …) beside what they share, with their
+//!     translation from the engine's types (`DepthMapSummary::of`, `MatchResponse::of`).
+//!   - [`api::validate`]: the caller's members into the engine's checking constructors.
+//!   - [`api::images`]: what every image route shares: the form and its `ImagePair`
+//!     extractor, the rig or calibration from its parts, the engine's rectify plan asked and
+//!     its refusals named by part, the rectification maps' cache, file answers,
+//!     `Server-Timing` and `Stereo-Warnings`, the limits and the blocking work
+//!     ([`api::HeavyState`] is theirs).
+//!   - [`api::routes`]: the handlers. Each translates: its wire types to the engine's, one
+//!     call ([`stereo_core::pipeline`] for the image routes, [`stereo_core::physics`] for the
+//!     light ones), the engine's faults to problem+json. None computes geometry, depths or
+//!     statistics, and none imports another.
 //! - [`web`]: the calculator page at `/`, a client of the API, its assets embedded
 //!   (`src/web/`).
 //! - [`server`]: the route groups wrapped in their guards, the edge layers, the accept loop
 //!   and graceful shutdown, the health-check probe.
 //! - [`batch`]: the `depth-map` command: a recording's folder of pairs to depth maps, through
-//!   the engine's pipeline in process or over HTTP to a running service, resumable, with a
+//!   the engine's pipeline in process (`batch::engine`: the calibration resolved once a frame
+//!   size) or over HTTP to a running service, resumable, with a
 //!   progress bar; its settings checked before the first frame, a restarting service waited
 //!   for, broken frames named and skipped, the service's warnings printed once.
 //! - Outside this crate, in the workspace: `crates/conformance` (dev only), what the service

@@ -6,7 +6,7 @@ reach every kind of answer the service gives, and checks the numbers.
 With a TOKEN (a service started with API_TOKENS), every call goes through the generated
 AuthenticatedClient, and a client without the token is checked to get the 401 problem.
 
-scripts/clients generates the client (with clients/python/openapi-python-client.yaml) into
+scripts/contract/clients generates the client (with clients/python/openapi-python-client.yaml) into
 target/clients/python and puts it on the path before running this. Exits non-zero on the first
 answer that is not what the service promises.
 """

@@ -1,6 +1,6 @@
 // A tiny typed client of the stereo distance service: its request and answer types come from
 // `openapi-typescript` run on the served /openapi.json (schema.d.ts, generated, not committed),
-// and this file compiles under `tsc --strict`. scripts/clients runs it against a live server:
+// and this file compiles under `tsc --strict`. scripts/contract/clients runs it against a live server:
 //
 //   node target/clients/typescript/build/client.js http://127.0.0.1:8080 [TOKEN]
 //

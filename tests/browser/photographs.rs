@@ -1,7 +1,7 @@
 //! The page on real photographs: OpenCV's stereo board photographs calibrated in Calibrate
 //! mode, one raw pair measured in Images mode, and what its σ view shows scored against the
 //! board's own plane (its corners' disparities in the rectified pair, as
-//! `scripts/eval_board.py` takes them).
+//! `scripts/evaluations/board.py` takes them).
 
 use std::path::PathBuf;
 

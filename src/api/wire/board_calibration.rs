@@ -374,7 +374,7 @@ pub struct ProjectionGrid {
 /// mean of the jackknife and the sandwich), so that what the lens model cannot fit counts
 /// beside the corners' noise. On OpenCV's real photographs, calibrations from disjoint parts
 /// of the views differ by 0.9–1.0 times what it predicts, where mrcal's own map predicts
-/// 2.3–2.7 times too little (`scripts/eval-calibration`). High where no corners fell: take
+/// 2.3–2.7 times too little (`scripts/evaluate/calibration`). High where no corners fell: take
 /// views there.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
 pub struct ProjectionUncertaintySummary {

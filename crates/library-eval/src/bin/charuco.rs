@@ -1,4 +1,4 @@
-//! ChArUco corners by `calib-targets` 0.16 on a folder written by `scripts/eval_charuco.py`,
+//! ChArUco corners by `calib-targets` 0.16 on a folder written by `scripts/evaluations/charuco.py`,
 //! printed in the shape of `examples/boards charuco` so that the script scores both alike:
 //! `charuco DIR` reads `DIR/board.json` and each `DIR/*.png`, and prints
 //! `{"file.png": {"ids": […], "points": [[x, y], …], "ms": …}, …}`. calib-targets has no

@@ -30,7 +30,7 @@ pub const BITS: u32 = (WIDTH * HEIGHT - 1) as u32;
 /// The local variance below which a centre counts as noise, in units of the estimated noise
 /// variance, is `NOISE_SCALE²`: chosen on Motorcycle (clean, with a gain change, with σ = 4
 /// noise), a rendered scene at a fifth and a tenth of its contrast under σ = 3 noise, and
-/// Motorcycle made raw and rectified (`scripts/eval-rectify`). From 1.5 to 3.0 bad-1.0 moved by
+/// Motorcycle made raw and rectified (`scripts/evaluate/rectification`). From 1.5 to 3.0 bad-1.0 moved by
 /// at most 0.15 points on each but the fifth-contrast scene (1.5 to 1.85 %).
 pub const NOISE_SCALE: f32 = 2.0;
 

@@ -63,6 +63,29 @@ pub enum DecodeError {
     Corrupt(String),
 }
 
+impl std::fmt::Display for DecodeError {
+    /// The fault in a few words (the service says more, with its limits and what to send).
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            DecodeError::NotAnImage => f.write_str("not an image: PNG or JPEG is read"),
+            DecodeError::Unsupported(format) => write!(f, "a {format} file: PNG or JPEG is read"),
+            DecodeError::TooLarge {
+                width,
+                height,
+                limits,
+            } => write!(
+                f,
+                "{width} × {height} pixels, past the limits ({} a side, {} pixels)",
+                limits.max_side, limits.max_pixels
+            ),
+            DecodeError::Truncated => f.write_str("cut off: the file ends before its image does"),
+            DecodeError::Corrupt(what) => write!(f, "could not be decoded: {what}"),
+        }
+    }
+}
+
+impl std::error::Error for DecodeError {}
+
 /// A decoded image: its grey levels for matching and, when asked, its colours for a point cloud.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Decoded {

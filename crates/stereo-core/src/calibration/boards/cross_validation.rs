@@ -13,18 +13,22 @@ use super::uncertainty::{
 };
 use crate::camera::{Camera, Model as LensModel, Size};
 
+/// A distance over the grids' cells, px: its median and its largest.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct OverCells {
+    pub median: f64,
+    pub worst: f64,
+}
+
 /// How far two halves' calibrations project apart, against what their σ predict.
 #[derive(Debug, Clone, PartialEq)]
 pub struct CrossValidation {
-    /// The median and largest distance between the halves' projections over both cameras'
-    /// grids, px.
-    pub median_px: f64,
-    pub worst_px: f64,
-    /// The same of the sum of the two halves' σ in each cell.
-    pub predicted_median_px: f64,
-    pub predicted_worst_px: f64,
-    /// Observed over predicted, cell by cell: the median over the grid, and over its centre
-    /// and its edges apart.
+    /// The distance between the halves' projections over both cameras' grids.
+    pub observed: OverCells,
+    /// The sum of the two halves' σ in each cell.
+    pub predicted: OverCells,
+    /// Observed over predicted, cell by cell, the median: over the whole grid, over its
+    /// centre, and over its edges.
     pub ratio: f64,
     pub ratio_centre: f64,
     pub ratio_edge: f64,
@@ -169,13 +173,13 @@ pub fn cross_validate(a: &Fit, b: &Fit, distance: f64) -> Option<CrossValidation
     if differences.is_empty() {
         return None;
     }
-    let (median_px, worst_px) = median_and_worst(&mut differences);
-    let (predicted_median_px, predicted_worst_px) = median_and_worst(&mut predicted);
+    let over_cells = |values: &mut Vec<f64>| {
+        let (median, worst) = median_and_worst(values);
+        OverCells { median, worst }
+    };
     Some(CrossValidation {
-        median_px,
-        worst_px,
-        predicted_median_px,
-        predicted_worst_px,
+        observed: over_cells(&mut differences),
+        predicted: over_cells(&mut predicted),
         ratio: median(ratios),
         ratio_centre: median(centre),
         ratio_edge: median(edge),
@@ -246,10 +250,14 @@ pub fn cross_validation(
     }
     let figure = |f: fn(&CrossValidation) -> f64| median(compared.iter().map(f).collect());
     Ok(CrossValidation {
-        median_px: figure(|c| c.median_px),
-        worst_px: figure(|c| c.worst_px),
-        predicted_median_px: figure(|c| c.predicted_median_px),
-        predicted_worst_px: figure(|c| c.predicted_worst_px),
+        observed: OverCells {
+            median: figure(|c| c.observed.median),
+            worst: figure(|c| c.observed.worst),
+        },
+        predicted: OverCells {
+            median: figure(|c| c.predicted.median),
+            worst: figure(|c| c.predicted.worst),
+        },
         ratio: figure(|c| c.ratio),
         ratio_centre: figure(|c| c.ratio_centre),
         ratio_edge: figure(|c| c.ratio_edge),

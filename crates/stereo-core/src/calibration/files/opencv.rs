@@ -611,12 +611,10 @@ fn rig(doc: &Node) -> Result<Calibration, Vec<ParseError>> {
 mod tests {
     use super::*;
 
-    /// What [`write`] writes, [`parse`] reads back to the same numbers: the unit, both
-    /// cameras, R and T, the raw size and the file's own R1 R2 P1 P2 Q.
-    #[test]
-    fn a_written_file_reads_back_the_same() {
+    /// The file [`write`] writes of the sample pair, a 9 × 6 board of 25 mm, with `rig_std`.
+    fn sample_file(rig_std: Option<RigStd>) -> String {
         let (pair, size, rect) = crate::calibration::files::sample_pair();
-        let text = write(&StereoFile {
+        write(&StereoFile {
             size,
             pair: &pair,
             essential: Matrix3::identity(),
@@ -628,11 +626,19 @@ mod tests {
                 square_size: 25.0,
                 unit: LengthUnit::Millimetre,
             },
-            rig_std: Some(RigStd {
-                focal_px: 0.25,
-                baseline: 0.0125,
-            }),
-        });
+            rig_std,
+        })
+    }
+
+    /// What [`write`] writes, [`parse`] reads back to the same numbers: the unit, both
+    /// cameras, R and T, the raw size and the file's own R1 R2 P1 P2 Q.
+    #[test]
+    fn a_written_file_reads_back_the_same() {
+        let (pair, size, rect) = crate::calibration::files::sample_pair();
+        let text = sample_file(Some(RigStd {
+            focal_px: 0.25,
+            baseline: 0.0125,
+        }));
         let read = parse(&text, None, None, None).expect("our own file reads");
         assert_eq!(read.unit, Some(LengthUnit::Millimetre));
         assert_eq!(
@@ -680,21 +686,7 @@ mod tests {
     /// the key meant; a member simply missing still says which files to send together.
     #[test]
     fn a_misspelt_key_gets_a_did_you_mean() {
-        let (pair, size, rect) = crate::calibration::files::sample_pair();
-        let text = write(&StereoFile {
-            size,
-            pair: &pair,
-            essential: Matrix3::identity(),
-            fundamental: Matrix3::identity(),
-            rectification: &rect,
-            target: Target {
-                columns: 9,
-                rows: 6,
-                square_size: 25.0,
-                unit: LengthUnit::Millimetre,
-            },
-            rig_std: None,
-        });
+        let text = sample_file(None);
         let typo = text
             .replacen("\nM1:", "\nM_1:", 1)
             .replacen("\nM2:", "\nm2:", 1);

@@ -131,14 +131,14 @@ fn inconsistent_halves(c: &cross_validation::CrossValidation) -> String {
              {:.2} times what their uncertainties predict ({:.2} px), above {high}: the \
              model does not fit these views alike. Take more views, try the \
              rational_polynomial model for a wide lens, or check that the board is flat",
-            c.median_px, c.worst_px, c.ratio, c.predicted_median_px
+            c.observed.median, c.observed.worst, c.ratio, c.predicted.median
         )
     } else {
         format!(
             "the two halves of the views project {:.2} px apart (median), {:.2} times what \
              their uncertainties predict ({:.2} px), below {low}: the uncertainty is \
              cautious for these views (halves of few views scatter more than the whole)",
-            c.median_px, c.ratio, c.predicted_median_px
+            c.observed.median, c.ratio, c.predicted.median
         )
     }
 }
