@@ -3,11 +3,15 @@
 //!
 //! Every default is a constant below with the reason it was chosen; `--help` shows them all.
 
-use std::{net::IpAddr, path::PathBuf, str::FromStr, time::Duration};
+use std::{net::IpAddr, path::PathBuf, time::Duration};
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
 
+use values::{count, delay, duration, size, timeout};
+
+pub mod environment;
 pub mod tokens;
+pub mod values;
 
 pub use tokens::ApiTokens;
 
@@ -465,68 +469,6 @@ fn tokens_file(text: &str) -> Result<PathBuf, String> {
     Ok(path)
 }
 
-/// A whole number in `MIN..=MAX`.
-fn count<const MIN: usize, const MAX: usize>(text: &str) -> Result<usize, String> {
-    let value = usize::from_str(text.trim())
-        .map_err(|_| format!("expected a whole number from {MIN} to {MAX}"))?;
-    if (MIN..=MAX).contains(&value) {
-        Ok(value)
-    } else {
-        Err(format!("must be from {MIN} to {MAX}"))
-    }
-}
-
-/// A size in bytes from `MIN` to `MAX`: a whole number, or one with a binary unit such as
-/// `64KiB`, `32MiB` or `1GiB`.
-fn size<const MIN: usize, const MAX: usize>(text: &str) -> Result<usize, String> {
-    let text = text.trim();
-    let expected = || "expected a size such as 1048576, 512KiB, 32MiB or 1GiB".to_owned();
-    let digits = text
-        .find(|c: char| !c.is_ascii_digit())
-        .unwrap_or(text.len());
-    let (number, unit) = text.split_at(digits);
-    let scale: usize = match unit.trim().to_ascii_lowercase().as_str() {
-        "" | "b" => 1,
-        "kib" | "k" => 1 << 10,
-        "mib" | "m" => 1 << 20,
-        "gib" | "g" => 1 << 30,
-        _ => return Err(expected()),
-    };
-    let value = usize::from_str(number)
-        .ok()
-        .and_then(|n| n.checked_mul(scale))
-        .ok_or_else(expected)?;
-    if (MIN..=MAX).contains(&value) {
-        Ok(value)
-    } else {
-        Err(format!("must be from {MIN} to {MAX} bytes"))
-    }
-}
-
-/// A duration with a unit, such as `500ms`, `5s` or `1m`.
-fn duration(text: &str) -> Result<Duration, String> {
-    humantime::parse_duration(text.trim())
-        .map_err(|error| format!("expected a duration such as 500ms, 5s or 1m ({error})"))
-}
-
-/// A timeout: a duration from 1 ms to 1 hour.
-fn timeout(text: &str) -> Result<Duration, String> {
-    let value = duration(text)?;
-    if value < Duration::from_millis(1) || value > Duration::from_secs(3600) {
-        return Err("must be from 1ms to 1h".to_owned());
-    }
-    Ok(value)
-}
-
-/// A delay: a duration from 0 to 5 minutes.
-fn delay(text: &str) -> Result<Duration, String> {
-    let value = duration(text)?;
-    if value > Duration::from_secs(300) {
-        return Err("must be at most 5m".to_owned());
-    }
-    Ok(value)
-}
-
 /// A log filter that tracing can use.
 fn log_filter(text: &str) -> Result<String, String> {
     tracing_subscriber::EnvFilter::try_new(text)
@@ -564,7 +506,11 @@ impl Cli {
         let args: Vec<std::ffi::OsString> = args.into_iter().map(Into::into).collect();
         match <Self as Parser>::try_parse_from(&args) {
             Ok(cli) => cli.finish(),
-            Err(error) => Err(from_the_environment(error, &args)),
+            Err(error) => Err(environment::named(
+                error,
+                &args,
+                &<Self as clap::CommandFactory>::command(),
+            )),
         }
     }
 
@@ -574,50 +520,6 @@ impl Cli {
         self.config.check()?;
         Ok(self)
     }
-}
-
-/// A refused value that came from an environment variable, not from the command line, says
-/// which variable: clap names only the flag.
-fn from_the_environment(error: clap::Error, args: &[std::ffi::OsString]) -> clap::Error {
-    use clap::CommandFactory;
-    use clap::error::{ContextKind, ContextValue, ErrorKind};
-    if !matches!(
-        error.kind(),
-        ErrorKind::InvalidValue | ErrorKind::ValueValidation
-    ) {
-        return error;
-    }
-    let Some(ContextValue::String(arg)) = error.get(ContextKind::InvalidArg) else {
-        return error;
-    };
-    let Some(long) = arg
-        .split_whitespace()
-        .next()
-        .and_then(|a| a.strip_prefix("--"))
-    else {
-        return error;
-    };
-    let given = args.iter().any(|a| {
-        a.to_str()
-            .is_some_and(|a| a == format!("--{long}") || a.starts_with(&format!("--{long}=")))
-    });
-    let command = Cli::command();
-    let env = std::iter::once(&command)
-        .chain(command.get_subcommands())
-        .flat_map(|c| c.get_arguments())
-        .find(|a| a.get_long() == Some(long))
-        .and_then(|a| a.get_env())
-        .map(|e| e.to_string_lossy().into_owned());
-    let Some(env) = env.filter(|e| !given && std::env::var_os(e).is_some()) else {
-        return error;
-    };
-    let rendered = error.render().to_string();
-    let rendered = rendered.strip_prefix("error: ").unwrap_or(&rendered);
-    let (first, rest) = rendered.split_once('\n').unwrap_or((rendered, ""));
-    clap::Error::raw(
-        error.kind(),
-        format!("{first} (from the environment variable {env}, as --{long} was not given)\n{rest}"),
-    )
 }
 
 impl Config {

@@ -186,10 +186,10 @@ fn images() -> &'static [Vec<u8>] {
     static IMAGES: OnceLock<Vec<Vec<u8>>> = OnceLock::new();
     IMAGES.get_or_init(|| {
         use stereo_core::vision::{encode, synthetic};
-        let pair = synthetic::render(&synthetic::layered(24, 16));
-        let png = encode::png_rgb(24, 16, &pair.left_rgb);
+        let pair = synthetic::render(&synthetic::layered(40, 32));
+        let png = encode::png_rgb(40, 32, &pair.left_rgb);
         let mut jpeg = Vec::new();
-        image::RgbImage::from_raw(24, 16, pair.left_rgb.clone())
+        image::RgbImage::from_raw(40, 32, pair.left_rgb.clone())
             .unwrap()
             .write_to(
                 &mut std::io::Cursor::new(&mut jpeg),

@@ -152,7 +152,7 @@ impl Harness {
             .build()
             .expect("a current-thread runtime");
         let router = app(&Config::default(), OpsState::default());
-        let (w, h) = (32, 24);
+        let (w, h) = (48, 32);
         let rendered = synthetic::render(&synthetic::layered(w, h));
         let pair = [
             encode::png_rgb(w, h, &rendered.left_rgb),

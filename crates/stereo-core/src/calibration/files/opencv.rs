@@ -237,27 +237,6 @@ fn any_matrix(doc: &Node, name: &str) -> Result<Option<(Vec<f64>, usize)>, Parse
     Ok(Some((values, data.line())))
 }
 
-/// A top-level key of `doc` that looks like a misspelt `key` (`M_1`, `m1`, `M-1` for `M1`:
-/// the same once case, `_`, `-` and spaces are set aside), with its line. Nearer misses by a
-/// character are left alone: `D2` is one off `D1` and is no typo.
-fn near_miss(doc: &Node, key: &str) -> Option<(String, usize)> {
-    let Node::Map(members, _) = doc else {
-        return None;
-    };
-    let plain = |s: &str| {
-        s.chars()
-            .filter(|c| !matches!(c, '_' | '-' | ' '))
-            .collect::<String>()
-            .to_ascii_lowercase()
-    };
-    let wanted = plain(key);
-    members
-        .iter()
-        .filter(|(k, _)| k != key)
-        .find(|(k, _)| plain(k) == wanted)
-        .map(|(k, node)| (crate::numbers::clip(k, 40), node.line()))
-}
-
 /// The first of `names` the file has.
 fn first<'a>(doc: &Node, names: &[&'a str]) -> Option<&'a str> {
     names.iter().copied().find(|n| doc.get(n).is_some())
@@ -288,7 +267,7 @@ fn raw_parts(
         if name.is_some() {
             continue;
         }
-        errors.push(match near_miss(doc, key) {
+        errors.push(match doc.near_key(key) {
             Some((typed, line)) => ParseError::at(
                 line,
                 format!("has no {what}, but has `{typed}`: did you mean {key}?"),

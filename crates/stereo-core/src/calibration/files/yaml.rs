@@ -26,6 +26,27 @@ impl Node {
     }
 
     /// The member `key` of a map.
+    /// A key of this map that looks like a misspelt `key` (`M_1`, `m1`, `M-1` for `M1`: the
+    /// same once case, `_`, `-` and spaces are set aside), clipped, with its line. Nearer
+    /// misses by a character are left alone: `D2` is one off `D1` and is no typo.
+    pub fn near_key(&self, key: &str) -> Option<(String, usize)> {
+        let Node::Map(members, _) = self else {
+            return None;
+        };
+        let plain = |s: &str| {
+            s.chars()
+                .filter(|c| !matches!(c, '_' | '-' | ' '))
+                .collect::<String>()
+                .to_ascii_lowercase()
+        };
+        let wanted = plain(key);
+        members
+            .iter()
+            .filter(|(k, _)| k != key)
+            .find(|(k, _)| plain(k) == wanted)
+            .map(|(k, node)| (crate::numbers::clip(k, 40), node.line()))
+    }
+
     pub fn get(&self, key: &str) -> Option<&Node> {
         match self {
             Node::Map(members, _) => members.iter().find(|(k, _)| k == key).map(|(_, v)| v),
