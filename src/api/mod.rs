@@ -67,7 +67,6 @@ use self::routes::ops::OpsState;
     components(schemas(
         error::Problem,
         error::FieldError,
-        wire::depth_map::DepthMapOutput,
         wire::board_calibration::CalibrateOutput,
         wire::rectify::RectifyOutput,
         wire::rectify::InterpolationChoice,

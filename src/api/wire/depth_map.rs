@@ -239,11 +239,11 @@ request! {
         max_disparity: i32,
         /// What to answer (default `summary`); also chosen by `Accept` for
         /// `application/json`, `image/x-portable-floatmap` and `application/x-ply`.
-        #[schema(default = "summary")]
+        #[schema(inline, default = "summary")]
         output: DepthMapOutput,
         /// The named set of matcher settings that the settings not given take: `accurate`
         /// (the default) or `fast` (for video). A setting given wins over its preset's.
-        #[schema(default = "accurate")]
+        #[schema(inline, default = "accurate")]
         preset: PresetChoice,
         /// The paths the aggregation sums: 8 (two passes, the most robust to noise) or 5 (one
         /// pass). Default: the preset's (`accurate` takes 8 on a noisy pair and 5 on a clear
@@ -278,7 +278,7 @@ request! {
         #[schema(minimum = 0.0, maximum = 64.0, default = 1.0)]
         lr_tolerance: f64,
         /// The sub-pixel fit. Default `equiangular`.
-        #[schema(default = "equiangular")]
+        #[schema(inline, default = "equiangular")]
         subpixel: SubpixelChoice,
         /// Regions with fewer pixels than this are removed as speckles; 0 keeps them.
         /// Default 100.
@@ -302,7 +302,7 @@ request! {
         /// calib_cam_to_cam.txt, /calibrate's opencv.yml) and the frames are their raw size;
         /// `yes`, or `no`. A rectified pair's outputs are in the rectified left camera's
         /// frame and size.
-        #[schema(default = "auto")]
+        #[schema(inline, default = "auto")]
         rectify: RectifyMode,
         /// With rectification: recompute it as `cv2.stereoRectify` does with this `alpha`
         /// (0 only valid pixels, 1 every raw pixel). Default: the file's own, or 0.

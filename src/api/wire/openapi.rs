@@ -31,6 +31,7 @@ pub fn query_parameters(schema: RefOr<Schema>) -> Vec<Parameter> {
         .properties
         .into_iter()
         .map(|(name, property)| {
+            let property = single_choice(property);
             let (description, list) = match &property {
                 RefOr::T(Schema::Object(o)) => (o.description.clone(), false),
                 RefOr::T(Schema::Array(a)) => (a.description.clone(), true),
@@ -53,6 +54,24 @@ pub fn query_parameters(schema: RefOr<Schema>) -> Vec<Parameter> {
                 .build()
         })
         .collect()
+}
+
+/// A `oneOf` of one inline schema (what an optional enum member with a `default` becomes)
+/// made that schema itself, the default and description moved onto it: a composition of one
+/// says nothing, and linters refuse it.
+fn single_choice(property: RefOr<Schema>) -> RefOr<Schema> {
+    let RefOr::T(Schema::OneOf(one)) = &property else {
+        return property;
+    };
+    match one.items.as_slice() {
+        [RefOr::T(Schema::Object(object))] => {
+            let mut object = object.clone();
+            object.default = one.default.clone().or(object.default);
+            object.description = one.description.clone().or(object.description);
+            RefOr::T(Schema::Object(object))
+        }
+        _ => property,
+    }
 }
 
 /// One documented error response: its status, what it means, and its examples, each the
