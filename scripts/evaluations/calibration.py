@@ -14,6 +14,7 @@ import urllib.parse
 import cv2
 import numpy as np
 
+from . import scoring
 from .service import multipart
 
 RUNS = 5
@@ -198,8 +199,8 @@ def photographs(url, path, runs):
         failed = v.get("failed", []) if v["status"] == "board_not_found" else []
         ours_found.append(("left" not in failed, "right" not in failed))
     count = lambda found, i: sum(f[i] for f in found)
-    print(f"\nreal photographs: OpenCV's samples/data (Debian opencv-doc 4.6.0, Apache-2.0 / "
-          f"BSD-3-Clause), 13 pairs of 640 x 480, 9 x 6 board, lengths in squares")
+    print("\nreal photographs: OpenCV's samples/data (Debian opencv-doc 4.6.0, Apache-2.0 / "
+          "BSD-3-Clause), 13 pairs of 640 x 480, 9 x 6 board, lengths in squares")
     print(f"  boards found, left / right / pairs used: ours {count(ours_found, 0)} / "
           f"{count(ours_found, 1)} / {sum(v['status'] == 'used' for v in summary['views'])}; "
           f"OpenCV {count(cv['found'], 0)} / {count(cv['found'], 1)} / {cv['used']}")
@@ -313,10 +314,7 @@ def main():
     if args.json:
         with open(args.json, "w") as f:
             json.dump(rows, f, indent=1)
-    if failures:
-        print("\nFAILED:\n  " + "\n  ".join(failures))
-        sys.exit(1)
-    print("\nall goals met")
+    scoring.floors(failures, "calibration goals", heading="FAILED:")
 
 
 if __name__ == "__main__":

@@ -34,6 +34,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from . import scoring
 from .service import multipart
 
 SIZE = (640, 480)
@@ -130,7 +131,7 @@ def stereo(name, dictionary, squares, model, d, f, s, url, out):
     d2 = [0.9 * v for v in d]
     r_rig, _ = cv2.Rodrigues(RIG_R.reshape(3, 1))
     rng = np.random.default_rng(200 + s)
-    files, sizes = [], []
+    files = []
     for i, (rvec, tvec) in enumerate(poses(squares, rng, 12)):
         if i >= 8:  # the board's middle onto the left image's right edge (x = 600 px)
             r, _ = cv2.Rodrigues(rvec)
@@ -322,10 +323,7 @@ def main():
               "stereoCalibrate on shared ids); errors against the truth")
         for s, (name, dictionary, squares, model, d, f) in enumerate(SETS):
             failures += stereo(name, dictionary, squares, model, d, f, s, url, out)
-    if failures:
-        print("\nFAILED:\n  " + "\n  ".join(failures))
-        sys.exit(1)
-    print("ChArUco goals met")
+    scoring.floors(failures, "ChArUco goals", heading="FAILED:")
 
 
 if __name__ == "__main__":

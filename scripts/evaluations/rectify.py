@@ -105,19 +105,6 @@ def cv_maps(rig, model, cv):
     return out
 
 
-def request(url, method, path, body, ctype):
-    """One request with a body that is not a form (JSON): the answer's bytes, or exit."""
-    u = urllib.parse.urlparse(url)
-    conn = http.client.HTTPConnection(u.hostname, u.port, timeout=120)
-    conn.request(method, path, body=body, headers={"Content-Type": ctype})
-    resp = conn.getresponse()
-    data = resp.read()
-    conn.close()
-    if resp.status != 200:
-        sys.exit(f"{method} {path}: {resp.status} {data[:400]!r}")
-    return data
-
-
 def rectify(url, yml, left, right, query):
     return service.post_once(url, "/rectify?" + urllib.parse.urlencode(query), {
         "left": (left, "left.png", "image/png"),
@@ -231,7 +218,7 @@ def main():
         yml = opencv_yml(rig, model)
         for alpha in (0.0, 0.5, 1.0):
             cv = cv_rectify(rig, model, alpha)
-            answer = json.loads(request(args.url, "POST", "/calibration",
+            answer = json.loads(service.send(args.url, "POST", "/calibration",
                                         json.dumps({"text": yml, "calibration_unit": "mm",
                                                     "alpha": alpha}).encode(),
                                         "application/json"))

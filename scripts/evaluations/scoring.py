@@ -35,10 +35,11 @@ def score(disp, truth):
     return bad
 
 
-def floors(failures, what):
-    """Ends an evaluation's checks: each of `failures` printed and exit 1, or `what` met."""
+def floors(failures, what, heading="ACCURACY BELOW THE FLOOR:"):
+    """Ends an evaluation's checks: `heading` and each of `failures` printed and exit 1, or
+    `what` met."""
     if failures:
-        print("\n".join(["ACCURACY BELOW THE FLOOR:"] + failures))
+        print("\n".join(["", heading] + ["  " + f for f in failures]))
         sys.exit(1)
     print(f"{what}: met")
 

@@ -57,19 +57,25 @@ def connect(url, parts, rig):
     return conn, body, ctype
 
 
-def post_once(url, path, parts):
-    """One multipart POST of `parts` ([`multipart`]) on its own connection: the answer's
-    bytes, or exit naming the status."""
-    body, ctype = multipart(parts)
+def send(url, method, path, body, ctype, timeout=300):
+    """One request of `body` (of type `ctype`) on its own connection: the answer's bytes, or
+    exit naming the status."""
     target = urllib.parse.urlsplit(url)
-    conn = http.client.HTTPConnection(target.hostname, target.port, timeout=300)
-    conn.request("POST", path, body=body, headers={"Content-Type": ctype})
+    conn = http.client.HTTPConnection(target.hostname, target.port, timeout=timeout)
+    conn.request(method, path, body=body, headers={"Content-Type": ctype})
     response = conn.getresponse()
     answer = response.read()
     conn.close()
     if response.status != 200:
-        sys.exit(f"{path} answered {response.status}: {answer[:500]!r}")
+        sys.exit(f"{method} {path} answered {response.status}: {answer[:500]!r}")
     return answer
+
+
+def post_once(url, path, parts):
+    """One multipart POST of `parts` ([`multipart`]) on its own connection: the answer's
+    bytes, or exit naming the status."""
+    body, ctype = multipart(parts)
+    return send(url, "POST", path, body, ctype)
 
 
 def timed(conn, path, body, ctype):

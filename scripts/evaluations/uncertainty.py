@@ -33,6 +33,7 @@ import urllib.request
 import numpy as np
 import mrcal
 
+from . import scoring
 from .service import multipart
 
 NAMES = ["01", "02", "03", "04", "05", "06", "07", "08", "09", "11", "12", "13", "14"]
@@ -201,10 +202,7 @@ def main():
     low, high = args.floor
     failures = [f"our median ratio at the {where} is {summary['ours'][where]:.2f}, outside {low}-{high}"
                 for where in ("centre", "edge") if not low <= summary["ours"][where] <= high]
-    if failures:
-        print("\nFAILED:\n  " + "\n  ".join(failures))
-        sys.exit(1)
-    print(f"\nours within the floor {low}-{high} on the real photographs")
+    scoring.floors(failures, f"ours within the floor {low}-{high} on the real photographs", heading="FAILED:")
 
 
 if __name__ == "__main__":

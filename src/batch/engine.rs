@@ -66,8 +66,7 @@ impl Engine {
         });
         // The matcher's buffer pools and glibc's thresholds as the service sets them, so that a
         // run in process goes as fast as the service it would otherwise call.
-        stereo_core::vision::huge_pages::keep_at_most(config.heavy.memory_budget / 8);
-        let _ = stereo_core::vision::huge_pages::settle_allocator();
+        stereo_core::vision::huge_pages::tune_for_budget(config.heavy.memory_budget);
         Engine {
             output,
             settings,

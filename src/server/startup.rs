@@ -64,9 +64,8 @@ fn app_with(config: &Config, ops: OpsState, extra_heavy: Router<HeavyState>) -> 
     // reservations: an eighth of the budget each at most (a quarter together), and, with what
     // the allocator keeps free, no more than the reservations leave free.
     let budget = MemoryBudget::with_spare(heavy.memory_budget, &crate::budget::Leftovers);
-    stereo_core::vision::huge_pages::keep_at_most(heavy.memory_budget / 8);
     // glibc's thresholds as a warm server has them (a no-op under another allocator).
-    let _ = stereo_core::vision::huge_pages::settle_allocator();
+    stereo_core::vision::huge_pages::tune_for_budget(heavy.memory_budget);
     let heavy_state = HeavyState {
         body_limit: BodyLimit(heavy.body_bytes),
         maps: std::sync::Arc::new(MapCache::new(Some(budget.clone()), maps::MAX_ENTRIES)),

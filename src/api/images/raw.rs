@@ -1,19 +1,15 @@
 //! Raw pairs for the image routes: the engine's rectify plan ([`stereo_core::pipeline::plan`])
-//! asked with what the form sent and its refusals named by part, the memory rectifying takes,
-//! and both frames read through the rig's cached maps.
-
-use std::time::Duration;
+//! asked with what the form sent and its refusals named by part, and the memory rectifying
+//! takes.
 
 use super::form::{ImageForm, ImagePair};
 use super::limits;
-use super::maps::MapCache;
 use super::work::Need;
 use crate::api::error::FieldErrors;
 use crate::api::wire::images::RectifyMode;
 use stereo_core::calibration::files::Raw;
 use stereo_core::camera::Alpha;
 use stereo_core::pipeline::{self, Calibrated, Maps, PlanFault, Sent};
-use stereo_core::vision::decode::Decoded;
 
 impl From<RectifyMode> for pipeline::RectifyMode {
     fn from(mode: RectifyMode) -> Self {
@@ -119,18 +115,4 @@ pub fn match_need<B: Fn(usize, usize, usize) -> usize>(
 pub fn rectifying_bytes(raw: &Raw) -> usize {
     limits::decoded_bytes(raw.size.width as usize, raw.size.height as usize)
         .saturating_add(Maps::bytes_for(raw))
-}
-
-/// A raw pair rectified in place for `/match`: the rig's maps from `cache` (built on a
-/// miss), both frames read through them. The time it took, for `Server-Timing`.
-pub fn rectify_raw_pair(
-    left: &mut Decoded,
-    right: &mut Decoded,
-    (raw, cache): (&Raw, &MapCache),
-    colour: bool,
-) -> Duration {
-    let started = std::time::Instant::now();
-    let (maps, _) = cache.get(raw);
-    maps.rectify_pair(left, right, colour);
-    started.elapsed()
 }
