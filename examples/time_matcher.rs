@@ -1,39 +1,48 @@
 //! Times the matcher alone on a pair, with its defaults and a disparity count: best and median
-//! wall time of `RUNS` calls, and the median run's stage times (cost, aggregation, refine). For
+//! wall time of `RUNS` calls, the median run's stage times (cost, aggregation, refine) and the
+//! cost cells matched over every level. `PRESET` is `accurate` (the default) or `fast`. For
 //! comparing builds side by side: run two binaries in turns.
 //!
 //! ```text
 //! cargo build --profile tune --example time_matcher
-//! target/tune/examples/time_matcher LEFT.png RIGHT.png COUNT RUNS
+//! target/tune/examples/time_matcher LEFT.png RIGHT.png COUNT RUNS [PRESET]
 //! ```
 
 use std::sync::atomic::AtomicBool;
 use std::time::Instant;
 
-use stereo_core::vision::{self, Params, Settings};
+use stereo_core::vision::{self, Params, Preset, Settings};
 
 mod common;
 
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
-    let [left, right, count, runs] = args.as_slice() else {
-        eprintln!("usage: time_matcher LEFT.png RIGHT.png COUNT RUNS");
-        std::process::exit(2);
+    let (left, right, count, runs, preset) = match args.as_slice() {
+        [l, r, c, n] => (l, r, c, n, Preset::Accurate),
+        [l, r, c, n, p] if p == "fast" => (l, r, c, n, Preset::Fast),
+        [l, r, c, n, p] if p == "accurate" => (l, r, c, n, Preset::Accurate),
+        _ => {
+            eprintln!("usage: time_matcher LEFT.png RIGHT.png COUNT RUNS [accurate|fast]");
+            std::process::exit(2);
+        }
     };
     let (left, right) = common::read_pair(left, right);
     let count: i32 = count.parse().expect("COUNT is a number");
     let runs: usize = runs.parse().expect("RUNS is a number");
     let params = Params::new(&Settings {
         max_disparity: Some(count),
+        preset: Some(preset),
         ..Settings::default()
     })
     .expect("valid settings");
     let never = AtomicBool::new(false);
+    let mut cells = 0;
     let mut runs_ms: Vec<(f64, [f64; 3])> = (0..runs.max(1))
         .map(|_| {
             let started = Instant::now();
             let (_, t) =
                 vision::disparity(&left.grey, &right.grey, &params, &never).expect("not cancelled");
+            cells = t.cells;
             let ms = |d: std::time::Duration| d.as_secs_f64() * 1e3;
             (
                 ms(started.elapsed()),
@@ -44,7 +53,8 @@ fn main() {
     runs_ms.sort_by(|a, b| a.0.total_cmp(&b.0));
     let (median, [cost, aggregate, refine]) = runs_ms[runs_ms.len() / 2];
     println!(
-        "best {:.2} ms, median {median:.2} ms (cost {cost:.1}, aggregation {aggregate:.1}, refine {refine:.1})",
-        runs_ms[0].0
+        "best {:.2} ms, median {median:.2} ms (cost {cost:.1}, aggregation {aggregate:.1}, refine {refine:.1}); {:.2} M cells",
+        runs_ms[0].0,
+        cells as f64 / 1e6
     );
 }

@@ -132,6 +132,8 @@ class Reader:
 
     def __init__(self, sock):
         self.sock, self.buffer = sock, b""
+        # Each answer's Server-Timing stages, in ms, in the order read.
+        self.stages = []
 
     def _fill(self):
         chunk = self.sock.recv(1 << 20)
@@ -153,7 +155,23 @@ class Reader:
         body, self.buffer = self.buffer[:length], self.buffer[length:]
         if status != 200:
             sys.exit(f"/depth-map answered {status}: {body[:400]!r}")
+        self.stages.append(stages(headers.get("server-timing", "")))
         return body
+
+
+def stages(timing):
+    """A Server-Timing header's stages, `{name: ms}`."""
+    out = {}
+    for entry in timing.split(","):
+        name, _, dur = entry.strip().partition(";dur=")
+        if name and dur:
+            out[name] = float(dur)
+    return out
+
+
+# Where a frame's time goes, by the stages of Server-Timing: the match is the matcher's three.
+STAGES = {"decode": ("decode",), "remap": ("rectify",), "match": ("cost", "aggregate", "refine"),
+          "encode": ("encode",)}
 
 
 def connect(url):
@@ -164,7 +182,8 @@ def connect(url):
 
 
 def ours_stream(url, pairs, calibration, query, in_flight=2, keep=False):
-    """The frames over one connection with `in_flight` requests pipelined: (seconds, maps)."""
+    """The frames over one connection with `in_flight` requests pipelined: (seconds, maps,
+    each frame's Server-Timing stages)."""
     sock, target = connect(url)
     reader = Reader(sock)
     bodies = [request(target, query, p, calibration) for p in pairs]
@@ -180,7 +199,7 @@ def ours_stream(url, pairs, calibration, query, in_flight=2, keep=False):
             maps.append(service.load_npy(answer))
     seconds = time.perf_counter() - started
     sock.close()
-    return seconds, maps
+    return seconds, maps, reader.stages
 
 
 def one_at_a_time(url, pairs, calibration, query):
@@ -199,7 +218,7 @@ def one_at_a_time(url, pairs, calibration, query):
 
 
 def opencv_stream(pairs, calibration, keep=False):
-    """OpenCV's pipeline over the frames: (seconds, maps)."""
+    """OpenCV's pipeline over the frames: (seconds, maps, each frame's stages in ms)."""
     cv2.setNumThreads(2)
     fs = cv2.FileStorage(calibration, cv2.FILE_STORAGE_READ | cv2.FILE_STORAGE_MEMORY)
     node = lambda k: fs.getNode(k).mat()
@@ -207,18 +226,27 @@ def opencv_stream(pairs, calibration, keep=False):
                                         node(f"P{i}")[:, :3], (W, H), cv2.CV_16SC2)
             for i in (1, 2)]
     matcher = peers.sgbm_matcher(cv2.STEREO_SGBM_MODE_SGBM_3WAY, 3, DISPARITIES)
-    out = []
+    out, frames = [], []
     started = time.perf_counter()
     for left, right in pairs:
-        images = []
+        images, spent = [], {"decode": 0.0, "remap": 0.0}
         for data, (m1, m2) in zip((left, right), maps):
+            t = time.perf_counter()
             raw = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_GRAYSCALE)
+            t2 = time.perf_counter()
             images.append(cv2.remap(raw, m1, m2, cv2.INTER_LINEAR))
+            spent["decode"] += 1e3 * (t2 - t)
+            spent["remap"] += 1e3 * (time.perf_counter() - t2)
+        t = time.perf_counter()
         disp = matcher.compute(images[0], images[1])
+        spent["match"] = 1e3 * (time.perf_counter() - t)
+        t = time.perf_counter()
         if keep:
             d = disp.astype(np.float32) / 16
             out.append(np.where(disp < 0, np.inf, d))
-    return time.perf_counter() - started, out
+        spent["encode"] = 1e3 * (time.perf_counter() - t)
+        frames.append(spent)
+    return time.perf_counter() - started, out, frames
 
 
 def accuracy(maps, truths):
@@ -254,16 +282,20 @@ def main():
 
     results = {"first_ms": first[0], "rest_ms": first[1:]}
     fps = {"opencv": [], "accurate": [], "fast": []}
-    maps = {}
+    maps, frames = {}, {"opencv": [], "accurate": [], "fast": []}
     for r in range(args.rounds):
         keep = r == 0
-        seconds, m = opencv_stream(pairs, calibration, keep)
+        seconds, m, spent = opencv_stream(pairs, calibration, keep)
         fps["opencv"].append(len(pairs) / seconds)
+        frames["opencv"] += spent
         if keep:
             maps["opencv"] = m
         for preset in ("accurate", "fast"):
-            seconds, m = ours_stream(args.url, pairs, calibration, f"&preset={preset}", keep=keep)
+            seconds, m, spent = ours_stream(args.url, pairs, calibration, f"&preset={preset}",
+                                            keep=keep)
             fps[preset].append(len(pairs) / seconds)
+            frames[preset] += [{name: sum(f.get(k, 0.0) for k in keys)
+                                for name, keys in STAGES.items()} for f in spent]
             if keep:
                 maps[preset] = m
     acc = {name: accuracy(m, truths) for name, m in maps.items()}
@@ -277,6 +309,15 @@ def main():
         print(f"  {name:<44} {med[key]:9.2f} {spread(key):>13} {acc[key]['bad1']:8.2f} "
               f"{acc[key]['bad2']:8.2f} {acc[key]['nonocc_bad1']:8.2f} "
               f"{acc[key]['nonocc_bad2']:8.2f} {acc[key]['density']:8.1f}")
+    # Where a frame's time goes (ours from Server-Timing, with two frames in flight on two
+    # cores each stage's time is its own frame's, not the wall's).
+    spent = {k: {name: statistics.median(f[name] for f in v) for name in STAGES}
+             for k, v in frames.items()}
+    print(f"  where a frame's time goes, median ms a frame: {'':<13} "
+          + " ".join(f"{name:>8}" for name in STAGES))
+    for key in ("opencv", "accurate", "fast"):
+        print(f"  {key:<58} " + " ".join(f"{spent[key][name]:8.1f}" for name in STAGES))
+    results["stages_ms"] = spent
     goal = med["fast"] >= 1.5 * med["opencv"]
     print(f"  goal: preset=fast >= 1.5 x OpenCV's pipeline: {med['fast'] / med['opencv']:.2f} x "
           f"({'met' if goal else 'NOT MET'}); preset=accurate {med['accurate'] / med['opencv']:.2f} x "

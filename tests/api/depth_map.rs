@@ -846,6 +846,26 @@ async fn the_pixel_cap_admits_a_phone_photo_and_is_an_option() {
     );
 }
 
+/// A phone's 4032 × 3024 pair is admitted under the default 1 GiB budget at every range from
+/// 16 to 400 disparities: no 413 for its memory at any of them (the pair, claimed by its
+/// headers, is then refused as damaged, naming both images). The whole request at each range is
+/// `scale.rs`'s, in release.
+#[tokio::test]
+async fn a_phone_pair_is_admitted_at_every_range() {
+    let app = spawn_app().await;
+    for count in [16, 32, 48, 64, 96, 128, 256, 400] {
+        let response = depth_map(
+            &app,
+            &format!("?max_disparity={count}"),
+            pair_claiming(4032, 3024),
+        )
+        .await;
+        let body = problem(response, 422).await;
+        assert_eq!(fields(&body), vec!["left", "right"], "{count}: {body}");
+        assert!(!body.to_string().contains("MiB"), "{count}: {body}");
+    }
+}
+
 /// A small PNG whose header claims 20 000 × 20 000 pixels is a 413 naming the image, found
 /// from the header alone; the service then answers normally.
 #[tokio::test]

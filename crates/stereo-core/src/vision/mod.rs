@@ -55,6 +55,7 @@ pub mod rows;
 pub mod sgm;
 pub mod sigma;
 pub mod simd;
+pub mod stripes;
 pub mod synthetic;
 
 use std::ops::Range;
@@ -62,6 +63,10 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use rayon::prelude::*;
+
+pub use stripes::{
+    MIN_STRIPE_ROWS, NARROW_STRIPE_ROWS, STRIPE_BYTES, STRIPE_MARGIN, STRIPE_ROWS, bytes_needed,
+};
 
 pub use params::{
     DEFAULT_MAX_DISPARITY, DEFAULT_MAX_DISPARITY_STD, MAX_DISPARITIES, MAX_DISPARITY_STD_BOUND,
@@ -130,80 +135,9 @@ pub struct Timings {
     /// The paths the finest level aggregated ([`sgm::Paths::Auto`] decided); `None` before
     /// any level was matched.
     pub paths: Option<sgm::Paths>,
-}
-
-/// Rows of a stripe: the image is matched in horizontal stripes of this many rows, side by
-/// side on the cores. The count depends on the image alone, so a pair gives the same map on any
-/// machine.
-pub const STRIPE_ROWS: usize = 256;
-/// Rows of context above and below a stripe, matched but not kept, so that the vertical and
-/// diagonal paths reach a stripe's edge rows from outside it (their influence fades within a
-/// few dozen rows).
-pub const STRIPE_MARGIN: usize = 24;
-
-/// Rows of a stripe below the pyramid's coarsest level, where each pixel searches a window
-/// ([`pyramid`]): half as many, so that the stripes in flight hold half the memory.
-pub const NARROW_STRIPE_ROWS: usize = STRIPE_ROWS / 2;
-
-/// The stripes of an image `height` rows tall, `rows` rows a stripe: `(rows kept, rows
-/// matched)`, the second containing the first. A last stripe shorter than a quarter of `rows`
-/// joins the one before it.
-pub fn stripes(height: usize, rows: usize) -> Vec<(Range<usize>, Range<usize>)> {
-    let mut kept: Vec<Range<usize>> = (0..height)
-        .step_by(rows)
-        .map(|r0| r0..(r0 + rows).min(height))
-        .collect();
-    if kept.len() > 1 && kept[kept.len() - 1].len() < rows / 4 {
-        let last = kept.pop().unwrap_or_default();
-        if let Some(before) = kept.last_mut() {
-            before.end = last.end;
-        }
-    }
-    kept.into_iter()
-        .map(|r| {
-            let context =
-                r.start.saturating_sub(STRIPE_MARGIN)..(r.end + STRIPE_MARGIN).min(height);
-            (r, context)
-        })
-        .collect()
-}
-
-/// The bytes the matcher holds at its peak for a `width × height` pair searching `count`
-/// disparities, over the levels of its pyramid ([`pyramid`]): 40 bytes a pixel of the finest
-/// level for the per-pixel buffers of whichever level is being matched (census signatures,
-/// the stripes' rows, the coarser level's prior and images; the disparity map, its winners'
-/// variances and σ, and the filters' copies after them), and, for the level whose stripes hold the most, each stripe in flight at
-/// once (one a core): its cost volume (one byte a cell), the first pass's sums (two bytes a
-/// cell) and its windows (six bytes a pixel, eight counted). Below the coarsest level a pixel's
-/// window holds at most [`pyramid::MAX_WINDOW`] cells, whatever the range.
-///
-/// A faint pair's further levels ([`pyramid::levels`]) are not counted: they turn the
-/// coarsest level counted here into one of per-pixel windows, on fewer rows a stripe, and add
-/// smaller ones, so they hold less.
-pub fn bytes_needed(width: usize, height: usize, count: usize) -> usize {
-    let levels = pyramid::levels(width, height, count, false);
-    let (mut w, mut h, mut n) = (width, height, count);
-    let mut stripes_peak = 0usize;
-    for level in 0..=levels {
-        let (window, rows) = if level == levels {
-            (cost::stride(n), STRIPE_ROWS)
-        } else {
-            (pyramid::MAX_WINDOW.min(cost::stride(n)), NARROW_STRIPE_ROWS)
-        };
-        let stripes = stripes(h, rows);
-        let in_flight = stripes.len().min(rayon::current_num_threads()).max(1);
-        let tallest = stripes.iter().map(|(_, c)| c.len()).max().unwrap_or(0);
-        let held = w
-            .saturating_mul(tallest)
-            .saturating_mul(window.saturating_mul(3).saturating_add(8))
-            .saturating_mul(in_flight);
-        stripes_peak = stripes_peak.max(held);
-        (w, h, n) = (w.div_ceil(2), h.div_ceil(2), pyramid::halve_range(0, n).1);
-    }
-    width
-        .saturating_mul(height)
-        .saturating_mul(40)
-        .saturating_add(stripes_peak)
+    /// The cost cells matched over every level and stripe, the context rows included: the
+    /// count each pass of the matcher touches (the work budget in `docs/matcher.md`).
+    pub cells: usize,
 }
 
 /// The disparity map of a rectified pair (the same size), or [`Cancelled`] when `cancel` was set
@@ -389,12 +323,11 @@ fn level(
     timings.cost += started.elapsed();
     checkpoint()?;
 
-    let rows = if prior.is_some() {
-        NARROW_STRIPE_ROWS
-    } else {
-        STRIPE_ROWS
+    let window = match prior {
+        Some(_) => pyramid::MAX_WINDOW.min(cost::stride(params.count)),
+        None => cost::stride(params.count),
     };
-    let stripes = stripes(h, rows);
+    let stripes = stripes::stripes(h, stripes::rows(w, window, prior.is_some()));
     let started = Instant::now();
     let matched: Vec<Result<Stripe, Cancelled>> = stripes
         .par_iter()
@@ -459,6 +392,7 @@ impl Timings {
         self.aggregate += other.aggregate;
         self.refine += other.refine;
         self.paths = self.paths.or(other.paths);
+        self.cells = self.cells.saturating_add(other.cells);
     }
 
     /// `wall`, shared between the stages in proportion to these (summed) times.
@@ -476,6 +410,7 @@ impl Timings {
             aggregate: share(self.aggregate),
             refine: share(self.refine),
             paths: self.paths,
+            cells: self.cells,
         }
     }
 }
@@ -532,6 +467,7 @@ fn match_stripe(
     let grey = (&gl[rows.clone()], &gr[rows.clone()]);
     let volume = cost::volume(census, grey, w, context.len(), range, windows);
     timings.cost = started.elapsed();
+    timings.cells = volume.windows.cells();
     if cancel.load(Ordering::Relaxed) {
         return Err(Cancelled);
     }
