@@ -1,5 +1,6 @@
 //! Criterion benchmarks of the matcher's stages on a synthetic 741 × 500 pair (Motorcycle's
-//! quarter size, no download), 64 disparities: census, cost volume, aggregation, the
+//! quarter size, no download), 64 disparities: census, the cost volume stored, aggregation
+//! (the costs made inside its passes, as the matcher does), the
 //! winner-takes-all of a row, the speckle filter and the median over the whole map, and the
 //! whole `vision::disparity` with the best build the CPU runs (AVX-512 for the census and the
 //! cost's row), the AVX2 build and the portable one; and coarse to fine at 256 disparities: halving, the prior's windows, the whole
@@ -30,7 +31,14 @@ fn stages(c: &mut Criterion) {
     let cl = census::transform(&pair.left);
     let cr = census::transform(&pair.right);
     let (gl, gr) = (cost::levels(&pair.left), cost::levels(&pair.right));
-    let volume = cost::volume((&cl, &cr), (&gl, &gr), w, h, (0, params.count()), full());
+    let rows = cost::Rows {
+        census: (&cl, &cr),
+        grey: (&gl, &gr),
+        width: w,
+        range: (0, params.count()),
+    };
+    // The matcher's way: each row's costs made where the passes read it.
+    let volume = cost::made(rows, h, full());
     let mut totals = Vec::new();
     sgm::aggregate(
         &volume,
@@ -56,26 +64,17 @@ fn stages(c: &mut Criterion) {
             )
         })
     });
-    group.bench_function("cost volume", |b| {
-        b.iter(|| {
-            cost::volume(
-                (black_box(&cl), black_box(&cr)),
-                (&gl, &gr),
-                w,
-                h,
-                (0, params.count()),
-                full(),
-            )
-        })
+    group.bench_function("cost volume (every row made and stored)", |b| {
+        b.iter(|| cost::volume(black_box(rows), h, full()))
     });
     for (paths, name) in [
         (
             sgm::Paths::Eight,
-            "aggregate (8 paths, 2 passes, whole image, 1 thread)",
+            "aggregate (8 paths, 2 passes, costs made in each, whole image, 1 thread)",
         ),
         (
             sgm::Paths::Five,
-            "aggregate (5 paths, 1 pass, whole image, 1 thread)",
+            "aggregate (5 paths, 1 pass, costs made in it, whole image, 1 thread)",
         ),
     ] {
         group.bench_function(name, |b| {

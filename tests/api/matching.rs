@@ -557,7 +557,7 @@ async fn a_request_beyond_the_memory_budget_is_413() {
     let app = spawn_app_with(Config {
         port: 0,
         heavy: HeavyLimits {
-            memory_budget: 4 << 20,
+            memory_budget: 3 << 20,
             body_bytes: 1 << 20,
             ..HeavyLimits::default()
         },

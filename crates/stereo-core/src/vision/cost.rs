@@ -98,7 +98,7 @@ impl Windows {
 /// A cost volume of `width × height` pixels, each with its window of the range; disparity
 /// `min + j` at index `j`.
 #[derive(Debug)]
-pub struct Volume {
+pub struct Volume<'a> {
     pub width: usize,
     pub height: usize,
     /// The smallest disparity of the range, in pixels.
@@ -106,56 +106,113 @@ pub struct Volume {
     /// How many disparities the range holds: `min .. min + count`.
     pub count: usize,
     pub windows: Windows,
-    pub data: Vec<u8>,
+    pub cells: Cells<'a>,
 }
 
-impl Volume {
-    /// The costs of pixel `(x, y)`, one per disparity of its window, and the window's first
-    /// index.
-    pub fn at(&self, x: usize, y: usize) -> (usize, &[u8]) {
-        let (first, cells) = self.windows.of(y * self.width + x);
-        (first, &self.data[cells])
-    }
+/// A volume's cells: stored, one byte a cell, or made a row at a time where a pass reaches
+/// the row, from what they are made of. Made, no cell leaves the cache: a stored volume is
+/// written to memory and read back (on Motorcycle at 64 disparities, 26 MB a call, half the
+/// cost stage's time), where making a row again costs less than reading it.
+#[derive(Debug)]
+pub enum Cells<'a> {
+    Stored(Vec<u8>),
+    Made(Rows<'a>),
 }
 
-/// The cost volume of two images of `width × height` (their census signatures and 8-bit grey
-/// levels, [`levels`]), each pixel over its window.
-pub fn volume(
-    (left, right): (&[u64], &[u64]),
-    grey: (&[u8], &[u8]),
-    width: usize,
-    height: usize,
-    (min, count): (i32, usize),
-    windows: Windows,
-) -> Volume {
-    // Every cell is written below, those past `count` included.
-    let mut data = super::huge_pages::BYTES.take(windows.cells());
-    let mut rows: Vec<&mut [u8]> = Vec::with_capacity(height);
-    let mut rest = &mut data[..];
-    for y in 0..height {
-        let cells = windows.offsets[(y + 1) * width] - windows.offsets[y * width];
-        let (row, after) = rest.split_at_mut(cells as usize);
-        rows.push(row);
-        rest = after;
-    }
-    rows.into_par_iter().enumerate().for_each(|(y, row)| {
+/// What a volume's cells are made of, a row at a time: both images' census signatures and
+/// 8-bit grey levels over the volume's pixels, and the range `(min, count)`.
+#[derive(Debug, Clone, Copy)]
+pub struct Rows<'a> {
+    pub census: (&'a [u64], &'a [u64]),
+    pub grey: (&'a [u8], &'a [u8]),
+    pub width: usize,
+    pub range: (i32, usize),
+}
+
+impl Rows<'_> {
+    /// The cells of row `y` over each pixel's window (`windows`), into `row` (exactly the row's
+    /// cells).
+    pub fn fill(&self, windows: &Windows, y: usize, row: &mut [u8]) {
+        let (width, (min, count)) = (self.width, self.range);
         let pixels = y * width..(y + 1) * width;
         costs_of_row(
-            (&left[pixels.clone()], &right[pixels.clone()]),
-            (&grey.0[pixels.clone()], &grey.1[pixels.clone()]),
+            (
+                &self.census.0[pixels.clone()],
+                &self.census.1[pixels.clone()],
+            ),
+            (&self.grey.0[pixels.clone()], &self.grey.1[pixels.clone()]),
             (min as i64, count),
             &windows.first[pixels.clone()],
             &windows.offsets[pixels.start..=pixels.end],
             row,
         );
-    });
+    }
+}
+
+impl Volume<'_> {
+    /// The cells of row `y`, each pixel's window in turn: the stored ones, or made into
+    /// `buffer` (at least the row's length).
+    pub fn row<'b>(&'b self, y: usize, buffer: &'b mut [u8]) -> &'b [u8] {
+        let w = self.width;
+        let cells =
+            self.windows.offsets[y * w] as usize..self.windows.offsets[(y + 1) * w] as usize;
+        match &self.cells {
+            Cells::Stored(data) => &data[cells],
+            Cells::Made(rows) => {
+                let row = &mut buffer[..cells.len()];
+                rows.fill(&self.windows, y, row);
+                row
+            }
+        }
+    }
+
+    /// The costs of pixel `(x, y)`, one per disparity of its window, and the window's first
+    /// index; `buffer` holds its row when the cells are made.
+    pub fn at<'b>(&'b self, x: usize, y: usize, buffer: &'b mut [u8]) -> (usize, &'b [u8]) {
+        let (first, cells) = self.windows.of(y * self.width + x);
+        let start = self.windows.offsets[y * self.width] as usize;
+        let row = self.row(y, buffer);
+        (first, &row[cells.start - start..cells.end - start])
+    }
+}
+
+/// The cost volume made of `rows` over `height` rows, each pixel over its window, every cell
+/// stored.
+pub fn volume<'a>(rows: Rows<'a>, height: usize, windows: Windows) -> Volume<'a> {
+    // Every cell is written below, those past `count` included.
+    let mut data = super::huge_pages::BYTES.take(windows.cells());
+    let width = rows.width;
+    let mut each: Vec<&mut [u8]> = Vec::with_capacity(height);
+    let mut rest = &mut data[..];
+    for y in 0..height {
+        let cells = windows.offsets[(y + 1) * width] - windows.offsets[y * width];
+        let (row, after) = rest.split_at_mut(cells as usize);
+        each.push(row);
+        rest = after;
+    }
+    each.into_par_iter()
+        .enumerate()
+        .for_each(|(y, row)| rows.fill(&windows, y, row));
     Volume {
         width,
         height,
-        min,
-        count,
+        min: rows.range.0,
+        count: rows.range.1,
         windows,
-        data,
+        cells: Cells::Stored(data),
+    }
+}
+
+/// The cost volume made of `rows` over `height` rows, each pixel over its window, its cells
+/// made a row at a time where a pass reads them ([`Cells::Made`]).
+pub fn made<'a>(rows: Rows<'a>, height: usize, windows: Windows) -> Volume<'a> {
+    Volume {
+        width: rows.width,
+        height,
+        min: rows.range.0,
+        count: rows.range.1,
+        windows,
+        cells: Cells::Made(rows),
     }
 }
 
@@ -219,6 +276,30 @@ crate::dispatch! {
 mod tests {
     use super::*;
 
+    /// The stored volume of one row of `width` pixels.
+    fn row_volume<'a>(
+        census: (&'a [u64], &'a [u64]),
+        grey: (&'a [u8], &'a [u8]),
+        width: usize,
+        range: (i32, usize),
+        windows: Windows,
+    ) -> Volume<'a> {
+        let rows = Rows {
+            census,
+            grey,
+            width,
+            range,
+        };
+        volume(rows, 1, windows)
+    }
+
+    /// Pixel `x`'s window's first index and cells, in row 0.
+    fn cells(v: &Volume, x: usize) -> (usize, Vec<u8>) {
+        let mut buffer = vec![0; v.windows.cells()];
+        let (first, cells) = v.at(x, 0, &mut buffer);
+        (first, cells.to_vec())
+    }
+
     /// Each cell is the Hamming distance to the right pixel `d` to the left, and cells whose
     /// right pixel is outside the image or past the range hold their constants.
     #[test]
@@ -226,35 +307,33 @@ mod tests {
         let left = [0b1111u64, 0b1010, 0b0000];
         let right = [0b0000u64, 0b1111, 0b1000];
         let flat = [100u8; 3];
-        let v = volume(
+        let v = row_volume(
             (&left, &right),
             (&flat, &flat),
             3,
-            1,
             (0, 2),
             Windows::full(3, 2),
         );
         assert_eq!(v.windows.cells(), 48);
-        assert_eq!(&v.at(0, 0).1[..3], &[4, OUTSIDE, PAD]);
-        assert_eq!(&v.at(1, 0).1[..2], &[2, 2]);
-        assert_eq!(&v.at(2, 0).1[..2], &[1, 4]);
+        assert_eq!(&cells(&v, 0).1[..3], &[4, OUTSIDE, PAD]);
+        assert_eq!(&cells(&v, 1).1[..2], &[2, 2]);
+        assert_eq!(&cells(&v, 2).1[..2], &[1, 4]);
     }
 
     /// The grey-level term adds half the absolute difference, capped at AD_CAP.
     #[test]
     fn grey_levels_add_their_capped_difference() {
         let sig = [0u64; 2];
-        let v = volume(
+        let v = row_volume(
             (&sig, &sig),
             (&[0, 10], &[200, 3]),
             2,
-            1,
             (0, 2),
             Windows::full(2, 2),
         );
         // Pixel 1 against right pixels 1 (|10 − 3| / 2 = 3) and 0 (|10 − 200| / 2, capped).
-        assert_eq!(&v.at(1, 0).1[..2], &[3, AD_CAP]);
-        assert_eq!(&v.at(0, 0).1[..2], &[AD_CAP, OUTSIDE]);
+        assert_eq!(&cells(&v, 1).1[..2], &[3, AD_CAP]);
+        assert_eq!(&cells(&v, 0).1[..2], &[AD_CAP, OUTSIDE]);
     }
 
     /// A window that starts inside the range holds the same costs as the full range at the
@@ -269,14 +348,46 @@ mod tests {
             .collect();
         let (gl, gr): (Vec<u8>, Vec<u8>) = (0..40u8).map(|i| (i.wrapping_mul(7), i * 3)).unzip();
         let both = ((&left[..], &right[..]), (&gl[..], &gr[..]));
-        let full = volume(both.0, both.1, 40, 1, (-3, 30), Windows::full(40, 30));
+        let full = row_volume(both.0, both.1, 40, (-3, 30), Windows::full(40, 30));
         let narrow = Windows::from_lengths(vec![20; 40], std::iter::repeat_n(16, 40));
-        let part = volume(both.0, both.1, 40, 1, (-3, 30), narrow);
+        let part = row_volume(both.0, both.1, 40, (-3, 30), narrow);
         for x in 0..40 {
-            let (f, cells) = part.at(x, 0);
+            let (f, here) = cells(&part, x);
             assert_eq!(f, 20);
-            assert_eq!(&cells[..10], &full.at(x, 0).1[20..30], "pixel {x}");
-            assert!(cells[10..].iter().all(|&c| c == PAD));
+            assert_eq!(&here[..10], &cells(&full, x).1[20..30], "pixel {x}");
+            assert!(here[10..].iter().all(|&c| c == PAD));
+        }
+    }
+
+    /// Cells made a row at a time are the stored volume's, row by row, over per-pixel windows.
+    #[test]
+    fn made_rows_are_the_stored_ones() {
+        let (w, h) = (29, 5);
+        let left: Vec<u64> = (0..(w * h) as u64)
+            .map(|i| i.wrapping_mul(0x9E37_79B9_7F4A_7C15))
+            .collect();
+        let right: Vec<u64> = left.iter().map(|v| v.rotate_left(3) ^ 0x55).collect();
+        let grey: Vec<u8> = (0..w * h).map(|i| (i * 37 % 251) as u8).collect();
+        let rows = Rows {
+            census: (&left, &right),
+            grey: (&grey, &grey),
+            width: w,
+            range: (2, 40),
+        };
+        let windows = || {
+            Windows::from_lengths(
+                (0..w * h).map(|i| (i % 3 * 8) as u16).collect(),
+                (0..w * h).map(|i| if i % 2 == 0 { 16 } else { 32 }),
+            )
+        };
+        let stored = volume(rows, h, windows());
+        let made = made(rows, h, windows());
+        let (mut a, mut b) = (
+            vec![0; stored.windows.cells()],
+            vec![0; made.windows.cells()],
+        );
+        for y in 0..h {
+            assert_eq!(stored.row(y, &mut a), made.row(y, &mut b), "row {y}");
         }
     }
 }

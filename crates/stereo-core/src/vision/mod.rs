@@ -13,7 +13,8 @@
 //! - [`census`]: a 9 × 7 census transform of both images (62 bits a pixel), each pixel's
 //!   neighbours compared with its Lee-filtered value, the neighbours 1 to 4 pixels apart as
 //!   the pair is smooth over (the noise and that spacing measured once, [`PairNoise`]);
-//! - [`cost`]: the Hamming cost volume, `[y][x][d]` over each pixel's window, one byte a cell;
+//! - [`cost`]: the Hamming cost of each pixel over its window, one byte a cell, made a row at
+//!   a time where the passes read it ([`cost::Cells::Made`]), never stored as a volume;
 //! - [`sgm`]: semi-global aggregation along 8 paths in two passes, the second handing each
 //!   finished row to
 //! - [`refine`]: winner-takes-all with uniqueness and a sub-pixel fit, the left-right check;
@@ -127,7 +128,8 @@ pub struct Disparity {
 /// With them, what the run decided as it went: the paths it aggregated.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct Timings {
-    /// Census transform and cost volume.
+    /// The census transform (the costs themselves are made inside the aggregation's passes,
+    /// and counted there).
     pub cost: Duration,
     pub aggregate: Duration,
     /// Winner-takes-all, left-right check and the filters.
@@ -465,7 +467,15 @@ fn match_stripe(
     let rows = context.start * w..context.end * w;
     let census = (&cl[rows.clone()], &cr[rows.clone()]);
     let grey = (&gl[rows.clone()], &gr[rows.clone()]);
-    let volume = cost::volume(census, grey, w, context.len(), range, windows);
+    let made = cost::Rows {
+        census,
+        grey,
+        width: w,
+        range,
+    };
+    // The cells are made a row at a time where the passes read them (twice with 8 paths):
+    // making a row again costs less than storing the volume and reading it back.
+    let volume = cost::made(made, context.len(), windows);
     timings.cost = started.elapsed();
     timings.cells = volume.windows.cells();
     if cancel.load(Ordering::Relaxed) {
@@ -522,7 +532,6 @@ fn match_stripe(
             choosing += chose.elapsed();
         },
     )?;
-    huge_pages::BYTES.give(volume.data);
     timings.aggregate = started.elapsed().saturating_sub(choosing);
     timings.refine = choosing;
     Ok((out, variance, timings, probes))

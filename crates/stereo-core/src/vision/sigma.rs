@@ -97,21 +97,78 @@ pub fn winner_variance(cue: Cue, d: f32, disagreement: f32, stride: usize) -> f3
 
 /// The map's σ_d (pixels): for each valid pixel of `disparity` (`width` a row), its winner's
 /// variance (`variance`, the same layout) with its 3 × 3 neighbourhood's terms; NaN where the
-/// disparity is.
+/// disparity is. The value [`at`] gives pixel by pixel, made a row at a time: the least, the
+/// greatest and the count of the valid values of each pixel's three columns in the three rows
+/// around it ([`Neighbourhoods`]), on whole registers.
 pub fn map(disparity: &[f32], variance: &[f32], width: usize) -> Vec<f32> {
+    let width = width.max(1);
+    let height = disparity.len() / width;
+    let m = MODEL;
     let mut out = vec![f32::NAN; disparity.len()];
-    out.par_chunks_mut(width.max(1))
-        .enumerate()
-        .for_each(|(y, row)| {
+    out.par_chunks_mut(width).enumerate().for_each_init(
+        || Neighbourhoods::new(width),
+        |around, (y, row)| {
+            around.of_row(disparity, width, height, y);
+            let line = &disparity[y * width..(y + 1) * width];
+            let variance = &variance[y * width..(y + 1) * width];
             for (x, sigma) in row.iter_mut().enumerate() {
-                let i = y * width + x;
-                let d = disparity[i];
-                if !d.is_nan() {
-                    *sigma = at(disparity, width, (x, y), d, variance[i]);
-                }
+                let missing = 9u32.saturating_sub(u32::from(around.count[x])) as f32;
+                let spread = around.hi[x] - around.lo[x];
+                let s =
+                    (variance[x] + (m.spread * spread).powi(2) + (m.neighbours * missing).powi(2))
+                        .sqrt();
+                *sigma = if line[x].is_nan() { f32::NAN } else { s };
             }
-        });
+        },
+    );
     out
+}
+
+/// The 3 × 3 neighbourhoods of one row of a map: for each pixel, the least and greatest valid
+/// value around it (itself included) and how many are valid, the image's outside counted as
+/// invalid.
+struct Neighbourhoods {
+    lo: Vec<f32>,
+    hi: Vec<f32>,
+    count: Vec<u8>,
+}
+
+impl Neighbourhoods {
+    fn new(width: usize) -> Self {
+        Neighbourhoods {
+            lo: vec![f32::INFINITY; width],
+            hi: vec![f32::NEG_INFINITY; width],
+            count: vec![0; width],
+        }
+    }
+
+    /// The neighbourhoods of row `y` of `map` (`width × height`).
+    fn of_row(&mut self, map: &[f32], width: usize, height: usize, y: usize) {
+        self.lo.fill(f32::INFINITY);
+        self.hi.fill(f32::NEG_INFINITY);
+        self.count.fill(0);
+        for yy in y.saturating_sub(1)..(y + 2).min(height) {
+            let line = &map[yy * width..(yy + 1) * width];
+            // Each pixel's left neighbour, itself, and its right neighbour.
+            let n = width - 1;
+            self.add(1, &line[..n]);
+            self.add(0, line);
+            self.add(0, &line[1..]);
+        }
+    }
+
+    /// Takes `values` into the neighbourhoods from pixel `from` on (a NaN changes neither
+    /// bound, as `min` and `max` keep the other side, and is not counted).
+    fn add(&mut self, from: usize, values: &[f32]) {
+        let to = from + values.len();
+        let (lo, hi) = (&mut self.lo[from..to], &mut self.hi[from..to]);
+        let count = &mut self.count[from..to];
+        for (((lo, hi), count), &v) in lo.iter_mut().zip(hi.iter_mut()).zip(count).zip(values) {
+            *lo = lo.min(v);
+            *hi = hi.max(v);
+            *count += u8::from(!v.is_nan());
+        }
+    }
 }
 
 /// σ_d (pixels) of the value `d` at `(x, y)` of a map (`width` a row; the map's own value
@@ -180,6 +237,31 @@ pub fn filled(left: f32, right: f32) -> f32 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The map made a row at a time gives, to the bit, what [`at`] gives pixel by pixel, on
+    /// maps with holes everywhere, the borders and one-pixel-wide maps included.
+    #[test]
+    fn the_map_is_at_everywhere() {
+        let mut rng = crate::vision::synthetic::Rng::new(21);
+        for (w, h) in [(17, 9), (1, 5), (6, 1), (40, 23)] {
+            let disparity: Vec<f32> = (0..w * h)
+                .map(|_| match rng.unit() {
+                    u if u < 0.3 => f32::NAN,
+                    u => 10.0 + 20.0 * u,
+                })
+                .collect();
+            let variance: Vec<f32> = (0..w * h).map(|_| 0.02 + rng.unit()).collect();
+            let made = map(&disparity, &variance, w);
+            for (i, (&m, &d)) in made.iter().zip(&disparity).enumerate() {
+                if d.is_nan() {
+                    assert!(m.is_nan());
+                } else {
+                    let one = at(&disparity, w, (i % w, i / w), d, variance[i]);
+                    assert_eq!(m.to_bits(), one.to_bits(), "{w} × {h} at {i}");
+                }
+            }
+        }
+    }
 
     /// A sharp, unambiguous, whole-pixel winner the right image agrees with keeps the floor;
     /// each cue that says less moves σ up.

@@ -3,13 +3,12 @@
 //! and [`dispatch!`](crate::dispatch) compiles each twice, once with AVX2 enabled. The CPU is
 //! asked once; tests force the portable path and check the answers are identical.
 //!
-//! An AVX-512 build (32 lanes of `u16`, 32 registers) was tried and measured: the aggregation
-//! took the same 26.5 ms a stripe on Motorcycle, being bound by the work around each pixel
-//! rather than by the lane width, so it is not kept there. The cost volume's row is different:
-//! its work is the Hamming distance, and AVX-512's `vpopcntq` counts eight signatures' bits in
-//! one instruction where AVX2 needs a table lookup per nibble, so [`dispatch!`](crate::dispatch)
-//! compiles a function marked `wide` a third time, for CPUs with AVX-512 and that instruction
-//! (Motorcycle's cost stage 7 → 5 ms).
+//! Functions marked `wide` are compiled a third time, for CPUs with AVX-512BW and VPOPCNTDQ:
+//! the cost's row, whose work is the Hamming distance (`vpopcntq` counts eight signatures'
+//! bits in one instruction where AVX2 needs a table lookup per nibble: Motorcycle's cost stage
+//! 7 → 5 ms), and the aggregation's pass, whose 8-bit path costs fill 64 lanes a register
+//! ([`super::sgm`]). An AVX-512 build of the 16-bit pass with 16-lane chunks had measured no
+//! faster than AVX2: the chunks, not the registers, set the width.
 
 use std::sync::atomic::{AtomicU8, Ordering};
 

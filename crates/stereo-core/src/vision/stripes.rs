@@ -20,19 +20,20 @@ pub const STRIPE_MARGIN: usize = 24;
 /// window ([`pyramid`]): half as many, so that the stripes in flight hold half the memory.
 pub const NARROW_STRIPE_ROWS: usize = STRIPE_ROWS / 2;
 
-/// The most bytes one stripe holds while it is matched (its cost volume, the first pass's sums
-/// and its windows, [`BYTES_A_CELL`] and [`BYTES_A_PIXEL`]), context rows included. A stripe
-/// of [`STRIPE_ROWS`] rows over a 1280-pixel row at 64 disparities holds 78 MB; a phone's
-/// 4032-pixel row at the same range would hold 245 MB a stripe, two in flight, which with the
+/// The most bytes one stripe holds while it is matched (the first pass's sums and its windows,
+/// [`BYTES_A_CELL`] and [`BYTES_A_PIXEL`]), context rows included. A stripe of
+/// [`STRIPE_ROWS`] rows over a 1920-pixel row at 64 disparities holds 79 MB; a phone's
+/// 4032-pixel row at the same range would hold 167 MB a stripe, two in flight, which with the
 /// per-pixel buffers passes the default 1 GiB budget. So a stripe that would hold more is made
-/// shorter ([`rows`]): at 1920 × 64 it keeps 214 rows, at 4032 × 64 it keeps 76, matching 124.
+/// shorter ([`rows`]): at 4032 × 64 it keeps 135 rows, matching 183.
 pub const STRIPE_BYTES: usize = 96 << 20;
 /// The fewest rows a stripe keeps, however wide the image and its window: below it the
 /// context rows would be more than half of what is matched.
 pub const MIN_STRIPE_ROWS: usize = 48;
-/// What a stripe holds for each cell of its volume: the cost (one byte) and the first pass's
-/// sums (two bytes; the 8-path aggregation's, which a pair may need).
-pub const BYTES_A_CELL: usize = 3;
+/// What a stripe holds for each cell of its volume: the first pass's sums (two bytes; the
+/// 8-path aggregation's, which a pair may need). The costs themselves are made a row at a time
+/// where the passes read them ([`super::cost::Cells::Made`]), never stored.
+pub const BYTES_A_CELL: usize = 2;
 /// What a stripe holds for each of its pixels besides its cells: the window's first index and
 /// offset (six bytes, eight counted).
 pub const BYTES_A_PIXEL: usize = 8;
@@ -183,19 +184,20 @@ mod tests {
         assert_eq!(stripes(257, 256).len(), 1);
     }
 
-    /// A stripe is as tall as before up to 720p at 64 disparities, shorter for 1080p's and a phone's
+    /// A stripe is as tall as before up to 1080p at 64 disparities, shorter for a phone's
     /// 4032-pixel rows, and never under the floor.
     #[test]
     fn wide_rows_make_shorter_stripes() {
         assert_eq!(rows(741, 64, false), STRIPE_ROWS);
         assert_eq!(rows(1280, 64, false), STRIPE_ROWS);
-        assert_eq!(rows(1920, 64, false), 214);
+        assert_eq!(rows(1920, 64, false), STRIPE_ROWS);
         assert_eq!(rows(1280, 48, true), NARROW_STRIPE_ROWS);
-        assert_eq!(rows(4032, 64, false), 76);
+        assert_eq!(rows(4032, 64, false), 135);
         assert!(rows(4032, 48, true) <= NARROW_STRIPE_ROWS);
         assert_eq!(rows(8192, 512, false), MIN_STRIPE_ROWS);
         for (w, window) in [(1920, 64), (4032, 32), (4032, 64), (6000, 48)] {
-            let held = (rows(w, window, false) + 2 * STRIPE_MARGIN) * w * (3 * window + 8);
+            let per_row = w * (BYTES_A_CELL * window + BYTES_A_PIXEL);
+            let held = (rows(w, window, false) + 2 * STRIPE_MARGIN) * per_row;
             assert!(held <= STRIPE_BYTES, "{w} {window}: {held}");
         }
     }

@@ -18,6 +18,11 @@
 
 use std::sync::atomic::{AtomicBool, Ordering};
 
+mod steps;
+
+pub(crate) use steps::FAR;
+use steps::{PathCost, step1, step4};
+
 use super::Cancelled;
 use super::cost::Volume;
 
@@ -70,17 +75,13 @@ impl Paths {
     }
 }
 
-/// A path cost far above any real one (real ones stay below `2 · PAD + P2`), used for the
-/// disparities just outside the padded range so the inner loop needs no bounds.
-pub(crate) const FAR: u16 = 8192;
-
 /// Aggregates `cost` along `paths`, guided by the grey levels of the volume's rows (`grey`,
 /// `width × height` of them), and calls `on_row(y, totals)` for each row with the sum of the
 /// paths' costs of its pixels (the row's cells, each pixel's window in turn): from the bottom
 /// up with [`Paths::Eight`] (and `Auto`, which the caller decides first), from the top down
 /// with [`Paths::Five`].
 pub fn aggregate(
-    cost: &Volume,
+    cost: &Volume<'_>,
     grey: &[u16],
     penalties: Penalties,
     paths: Paths,
@@ -120,7 +121,7 @@ pub fn aggregate(
 }
 
 /// The most cells a row of the volume holds.
-fn widest_row(cost: &Volume) -> usize {
+fn widest_row(cost: &Volume<'_>) -> usize {
     let o = &cost.windows.offsets;
     (0..cost.height)
         .map(|y| (o[(y + 1) * cost.width] - o[y * cost.width]) as usize)
@@ -129,13 +130,21 @@ fn widest_row(cost: &Volume) -> usize {
 }
 
 /// The widest window of the volume.
-fn widest_window(cost: &Volume) -> usize {
+fn widest_window(cost: &Volume<'_>) -> usize {
     cost.windows
         .offsets
         .windows(2)
         .map(|p| (p[1] - p[0]) as usize)
         .max()
         .unwrap_or(0)
+}
+
+/// Whether a pass under `table` keeps its path costs in 8 bits exactly: a path cost is at
+/// most the largest cost ([`super::cost::PAD`]) plus the largest `P2`, and the sentinel
+/// above them is 255 (`P2` up to 131; the defaults' is 64).
+fn bytes_hold(table: &Table) -> bool {
+    let p2 = table.p2.iter().copied().max().unwrap_or(0);
+    u16::from(super::cost::PAD) + p2.max(table.p1) < u16::from(u8::MAX)
 }
 
 /// The penalties as a pass uses them: `P1`, and `P2` for each intensity step 0..=255.
@@ -161,18 +170,18 @@ fn p2_table(p: Penalties) -> [u16; 256] {
 /// sentinels). The slot itself when the windows are the same; otherwise `scratch`, filled with
 /// the neighbour's costs at this window's disparities and FAR where the neighbour did not look.
 #[inline(always)]
-fn seen_from<'a>(
-    src: &'a [u16],
+fn seen_from<'a, T: PathCost>(
+    src: &'a [T],
     from: usize,
     first: usize,
     n: usize,
-    scratch: &'a mut [u16],
-) -> &'a [u16] {
+    scratch: &'a mut [T],
+) -> &'a [T] {
     if from == first && src.len() == n + 2 {
         return src;
     }
     let out = &mut scratch[..n + 2];
-    out.fill(FAR);
+    out.fill(T::FAR);
     // out[j] = src[first − from + j] where that is inside src.
     let shift = first as isize - from as isize;
     let j0 = (-shift).max(0) as usize;
@@ -200,7 +209,7 @@ enum Mode<'a> {
 /// what it does with its sums.
 #[derive(Clone, Copy)]
 struct Pass<'a> {
-    cost: &'a Volume,
+    cost: &'a Volume<'a>,
     grey: &'a [u16],
     table: &'a Table,
     mode: Mode<'a>,
@@ -221,9 +230,11 @@ crate::dispatch! {
     /// [`Mode`] says: stored in `sums` (the whole volume), or added to stored sums a row at a
     /// time in `sums` (one row), or a row at a time with the path from the right added. Compiled
     /// twice: for a volume whose pixels all search the same window, with no per-pixel lookups,
-    /// and for per-pixel windows.
-    fn pass(
-        cost: &Volume,
+    /// and for per-pixel windows; and each with 8-bit path costs where the penalties let
+    /// them be exact ([`bytes_hold`]), 16-bit otherwise. `wide`: AVX-512 takes a 64-disparity
+    /// chunk of 8-bit path costs in one register.
+    wide fn pass(
+        cost: &Volume<'_>,
         grey: &[u16],
         table: &Table,
         mode: Mode,
@@ -237,9 +248,11 @@ crate::dispatch! {
             table,
             mode,
         };
-        match uniform(&cost.windows) {
-            Some(window) => rows::<true>(reads, sums, on_row, cancel, window),
-            None => rows::<false>(reads, sums, on_row, cancel, (0, 0)),
+        match (uniform(&cost.windows), bytes_hold(table)) {
+            (Some(window), true) => rows::<u8, true>(reads, sums, on_row, cancel, window),
+            (None, true) => rows::<u8, false>(reads, sums, on_row, cancel, (0, 0)),
+            (Some(window), false) => rows::<u16, true>(reads, sums, on_row, cancel, window),
+            (None, false) => rows::<u16, false>(reads, sums, on_row, cancel, (0, 0)),
         }
     }
 }
@@ -247,7 +260,7 @@ crate::dispatch! {
 /// The body of [`pass`]; with `UNIFORM`, every pixel's window is `window` and the sentinels of
 /// the row buffers are written once.
 #[inline(always)]
-fn rows<const UNIFORM: bool>(
+fn rows<T: PathCost, const UNIFORM: bool>(
     Pass {
         cost,
         grey,
@@ -270,25 +283,28 @@ fn rows<const UNIFORM: bool>(
     // Pixel x of row y has its slot at (its cells' offset in the row) + 2x: its window's
     // costs between two FAR sentinels.
     let row_len = widest_row(cost) + 2 * w;
+    // A row's cells, when they are made as the pass reaches the row.
+    let mut made = vec![0u8; widest_row(cost)];
+    let zero = T::default();
     let mut prev = [
-        vec![0u16; row_len],
-        vec![0u16; row_len],
-        vec![0u16; row_len],
+        vec![zero; row_len],
+        vec![zero; row_len],
+        vec![zero; row_len],
     ];
     let mut cur = prev.clone();
-    let mut prev_min = [vec![0u16; w], vec![0u16; w], vec![0u16; w]];
+    let mut prev_min = [vec![zero; w], vec![zero; w], vec![zero; w]];
     let mut cur_min = prev_min.clone();
     // Where a path starts, it starts from nothing: zero costs (the sentinels do not matter,
     // the zero between them always wins).
-    let start = vec![0u16; widest + 2];
-    let mut along = vec![FAR; widest + 2];
+    let start = vec![zero; widest + 2];
+    let mut along = vec![T::FAR; widest + 2];
     let mut along_next = along.clone();
     let (mut along_first, mut along_n) = (0usize, 0usize);
     let mut scratch = [
-        vec![FAR; widest + 2],
-        vec![FAR; widest + 2],
-        vec![FAR; widest + 2],
-        vec![FAR; widest + 2],
+        vec![T::FAR; widest + 2],
+        vec![T::FAR; widest + 2],
+        vec![T::FAR; widest + 2],
+        vec![T::FAR; widest + 2],
     ];
 
     let step: isize = if forward { 1 } else { -1 };
@@ -307,13 +323,13 @@ fn rows<const UNIFORM: bool>(
         let n = window.1;
         for buffer in cur.iter_mut().chain(prev.iter_mut()) {
             for x in 0..w {
-                buffer[x * (n + 2)] = FAR;
-                buffer[x * (n + 2) + n + 1] = FAR;
+                buffer[x * (n + 2)] = T::FAR;
+                buffer[x * (n + 2) + n + 1] = T::FAR;
             }
         }
         for buffer in [&mut along, &mut along_next] {
-            buffer[0] = FAR;
-            buffer[n + 1] = FAR;
+            buffer[0] = T::FAR;
+            buffer[n + 1] = T::FAR;
         }
     }
     for i in 0..h {
@@ -330,10 +346,11 @@ fn rows<const UNIFORM: bool>(
             &grey[yp * w..(yp + 1) * w]
         };
         let row_cells = windows.offsets[y * w] as usize..windows.offsets[(y + 1) * w] as usize;
+        let row_costs = cost.row(y, &mut made);
         if let Mode::Add(stored) = mode {
             sums[..row_cells.len()].copy_from_slice(&stored[row_cells.clone()]);
         }
-        let mut along_min = 0u16;
+        let mut along_min = zero;
         let [cur0, cur1, cur2] = &mut cur;
         let [t0, t1, t2, t3] = &mut scratch;
         for j in 0..w {
@@ -341,8 +358,8 @@ fn rows<const UNIFORM: bool>(
             let (first, at, n) = slot(y, x);
             let here = grey_row[x] >> 8;
             let jump = |other: u16| p2[usize::from(here.abs_diff(other >> 8))];
-            let mut srcs: [&[u16]; 4] = [&start, &start, &start, &start];
-            let mut mins = [0u16; 4];
+            let mut srcs: [&[T]; 4] = [&start, &start, &start, &start];
+            let mut mins = [zero; 4];
             let mut p2s = [0u16; 4];
             // Along the row, from the previous pixel.
             if j > 0 {
@@ -385,15 +402,15 @@ fn rows<const UNIFORM: bool>(
                 &mut sums[r..r + n]
             };
             if !UNIFORM {
-                along_next[0] = FAR;
-                along_next[n + 1] = FAR;
+                along_next[0] = T::FAR;
+                along_next[n + 1] = T::FAR;
                 for c in [&mut *cur0, &mut *cur1, &mut *cur2] {
-                    c[at] = FAR;
-                    c[at + n + 1] = FAR;
+                    c[at] = T::FAR;
+                    c[at + n + 1] = T::FAR;
                 }
             }
             let least = step4(
-                &cost.data[cells],
+                &row_costs[cells.start - row_cells.start..cells.end - row_cells.start],
                 srcs,
                 mins,
                 (p1, p2s),
@@ -415,7 +432,7 @@ fn rows<const UNIFORM: bool>(
         }
         if matches!(mode, Mode::Single) {
             // Along the row from the right: the fifth path, added to the row's sums.
-            let mut along_min = 0u16;
+            let mut along_min = zero;
             for j in 0..w {
                 let x = w - 1 - j;
                 let (first, at, n) = slot(y, x);
@@ -426,17 +443,17 @@ fn rows<const UNIFORM: bool>(
                         seen_from(&along[..along_n + 2], along_first, first, n, t0)
                     };
                     let jump = p2[usize::from((grey_row[x] >> 8).abs_diff(grey_row[x + 1] >> 8))];
-                    (src, along_min, along_min + jump)
+                    (src, along_min, along_min.widen() + jump)
                 } else {
-                    (&start[..n + 2], 0, 0)
+                    (&start[..n + 2], zero, 0)
                 };
                 if !UNIFORM {
-                    along_next[0] = FAR;
-                    along_next[n + 1] = FAR;
+                    along_next[0] = T::FAR;
+                    along_next[n + 1] = T::FAR;
                 }
                 let r = at - 2 * x;
                 along_min = step1(
-                    &cost.data[row_cells.start + r..row_cells.start + r + n],
+                    &row_costs[r..r + n],
                     src,
                     (min, p1, jump),
                     &mut along_next[..n + 2],
@@ -455,129 +472,25 @@ fn rows<const UNIFORM: bool>(
     Ok(())
 }
 
-/// SIMD width of the path loop, in `u16` lanes.
-const LANES: usize = super::cost::LANES;
-
-/// One step of the 4 paths of a pass at one pixel: for each path,
-/// `L(p, d) = C(p, d) + min(L(p−r, d), L(p−r, d±1) + P1, min L(p−r) + P2) − min L(p−r)`,
-/// written between the sentinels of its `out` slot; the 4 paths' total is written to `sum` in
-/// the first pass, and added to it (the first pass's sums) in the second (`add`). Returns each
-/// path's `min L(p)`.
-#[inline(always)]
-fn step4(
-    cost: &[u8],
-    srcs: [&[u16]; 4],
-    mins: [u16; 4],
-    (p1, p2): (u16, [u16; 4]),
-    outs: [&mut [u16]; 4],
-    sum: &mut [u16],
-    add: bool,
-) -> [u16; 4] {
-    let n = cost.len();
-    let [s0, s1, s2, s3] = srcs;
-    let [o0, o1, o2, o3] = outs;
-    let (s0, s1, s2, s3) = (&s0[..n + 2], &s1[..n + 2], &s2[..n + 2], &s3[..n + 2]);
-    let (o0, o1, o2, o3) = (
-        &mut o0[1..n + 1],
-        &mut o1[1..n + 1],
-        &mut o2[1..n + 1],
-        &mut o3[1..n + 1],
-    );
-    let sum = &mut sum[..n];
-    // What is kept of `sum`: all of it when adding, nothing when writing.
-    let keep = if add { u16::MAX } else { 0 };
-    let jumps = [
-        mins[0] + p2[0],
-        mins[1] + p2[1],
-        mins[2] + p2[2],
-        mins[3] + p2[3],
-    ];
-    let mut l0 = [u16::MAX; LANES];
-    let mut l1 = [u16::MAX; LANES];
-    let mut l2 = [u16::MAX; LANES];
-    let mut l3 = [u16::MAX; LANES];
-    for base in (0..n).step_by(LANES) {
-        let mut c = [0u16; LANES];
-        for (c, &v) in c.iter_mut().zip(&cost[base..base + LANES]) {
-            *c = u16::from(v);
-        }
-        let v0 = path(&c, &s0[base..base + LANES + 2], mins[0], p1, jumps[0]);
-        let v1 = path(&c, &s1[base..base + LANES + 2], mins[1], p1, jumps[1]);
-        let v2 = path(&c, &s2[base..base + LANES + 2], mins[2], p1, jumps[2]);
-        let v3 = path(&c, &s3[base..base + LANES + 2], mins[3], p1, jumps[3]);
-        o0[base..base + LANES].copy_from_slice(&v0);
-        o1[base..base + LANES].copy_from_slice(&v1);
-        o2[base..base + LANES].copy_from_slice(&v2);
-        o3[base..base + LANES].copy_from_slice(&v3);
-        let total = &mut sum[base..base + LANES];
-        for i in 0..LANES {
-            let here = v0[i] + v1[i] + v2[i] + v3[i];
-            total[i] = (total[i] & keep).saturating_add(here);
-            l0[i] = l0[i].min(v0[i]);
-            l1[i] = l1[i].min(v1[i]);
-            l2[i] = l2[i].min(v2[i]);
-            l3[i] = l3[i].min(v3[i]);
-        }
-    }
-    let least = |l: [u16; LANES]| l.into_iter().fold(u16::MAX, u16::min);
-    [least(l0), least(l1), least(l2), least(l3)]
-}
-
-/// One step of a single path at one pixel, as [`step4`]'s: written between the sentinels of
-/// `out`, and added to `sum`. `(min, p1, jump)` are the previous pixel's least path cost, `P1`,
-/// and that least plus `P2`. Returns the path's `min L(p)`.
-#[inline(always)]
-fn step1(
-    cost: &[u8],
-    src: &[u16],
-    (min, p1, jump): (u16, u16, u16),
-    out: &mut [u16],
-    sum: &mut [u16],
-) -> u16 {
-    let n = cost.len();
-    let src = &src[..n + 2];
-    let out = &mut out[1..n + 1];
-    let sum = &mut sum[..n];
-    let mut least = [u16::MAX; LANES];
-    for base in (0..n).step_by(LANES) {
-        let mut c = [0u16; LANES];
-        for (c, &v) in c.iter_mut().zip(&cost[base..base + LANES]) {
-            *c = u16::from(v);
-        }
-        let v = path(&c, &src[base..base + LANES + 2], min, p1, jump);
-        out[base..base + LANES].copy_from_slice(&v);
-        let total = &mut sum[base..base + LANES];
-        for i in 0..LANES {
-            total[i] = total[i].saturating_add(v[i]);
-            least[i] = least[i].min(v[i]);
-        }
-    }
-    least.into_iter().fold(u16::MAX, u16::min)
-}
-
-/// One register of one path's step: `C + min(L(d), L(d ± 1) + P1, jump) − min`, where `prev`
-/// holds the previous costs from d − 1 to d + LANES.
-#[inline(always)]
-fn path(c: &[u16; LANES], prev: &[u16], prev_min: u16, p1: u16, jump: u16) -> [u16; LANES] {
-    let prev = &prev[..LANES + 2];
-    let mut out = [0u16; LANES];
-    for i in 0..LANES {
-        let best = prev[i + 1]
-            .min(prev[i] + p1)
-            .min(prev[i + 2] + p1)
-            .min(jump);
-        out[i] = c[i] + best - prev_min;
-    }
-    out
-}
-
 #[cfg(test)]
 mod tests {
+    use super::steps::LANES;
     use super::*;
+
+    /// A stored volume's cells.
+    fn stored<'a>(cost: &'a Volume<'_>) -> &'a [u8] {
+        match &cost.cells {
+            crate::vision::cost::Cells::Stored(data) => data,
+            crate::vision::cost::Cells::Made(_) => unreachable!("the tests store their cells"),
+        }
+    }
 
     /// A `w × h` volume searching `count` disparities everywhere, of random costs below 60,
     /// random grey levels, and the penalties P1 10, P2 80, edge 16.
-    fn random_case((w, h, count): (usize, usize, usize), seed: u64) -> (Volume, Vec<u16>, Table) {
+    fn random_case(
+        (w, h, count): (usize, usize, usize),
+        seed: u64,
+    ) -> (Volume<'static>, Vec<u16>, Table) {
         let mut rng = crate::vision::synthetic::Rng::new(seed);
         let windows = crate::vision::cost::Windows::full(w * h, count);
         let data = (0..windows.cells())
@@ -589,7 +502,7 @@ mod tests {
             min: 0,
             count,
             windows,
-            data,
+            cells: crate::vision::cost::Cells::Stored(data),
         };
         let grey = (0..w * h).map(|_| (rng.unit() * 65535.0) as u16).collect();
         let table = Table {
@@ -618,8 +531,8 @@ mod tests {
         };
         let mut one = vec![0u16; cost.windows.cells()];
         let mut each = one.clone();
-        rows::<true>(first(Mode::Store), &mut one, &mut |_, _| {}, &never, window).unwrap();
-        rows::<false>(
+        rows::<u16, true>(first(Mode::Store), &mut one, &mut |_, _| {}, &never, window).unwrap();
+        rows::<u16, false>(
             first(Mode::Store),
             &mut each,
             &mut |_, _| {},
@@ -630,7 +543,7 @@ mod tests {
         assert_eq!(one, each);
         let (mut a, mut b) = (Vec::new(), Vec::new());
         let mut row = vec![0u16; widest_row(&cost)];
-        rows::<true>(
+        rows::<u16, true>(
             first(Mode::Add(&one)),
             &mut row,
             &mut |_, r| a.extend_from_slice(r),
@@ -638,7 +551,7 @@ mod tests {
             window,
         )
         .unwrap();
-        rows::<false>(
+        rows::<u16, false>(
             first(Mode::Add(&one)),
             &mut row,
             &mut |_, r| b.extend_from_slice(r),
@@ -648,6 +561,85 @@ mod tests {
         .unwrap();
         assert_eq!(a, b);
         assert!(a.iter().any(|&v| v > 0));
+    }
+
+    /// 8-bit path costs give the 16-bit pass's sums to the unit, in every mode and both
+    /// builds, on costs up to the padding's and the largest `P2` a byte allows; one more and
+    /// the pass keeps 16 bits.
+    #[test]
+    fn eight_bit_path_costs_are_exact() {
+        let (mut cost, grey, _) = random_case((37, 11, 80), 3);
+        let mut rng = crate::vision::synthetic::Rng::new(9);
+        let crate::vision::cost::Cells::Stored(data) = &mut cost.cells else {
+            unreachable!("random_case stores its cells")
+        };
+        for c in data {
+            *c = (rng.unit() * f32::from(crate::vision::cost::PAD + 1)) as u8;
+        }
+        let table = |p2| Table {
+            p1: 12,
+            p2: p2_table(Penalties {
+                p1: 12,
+                p2,
+                edge: 0,
+            }),
+        };
+        assert!(!bytes_hold(&table(131)));
+        let table = table(130);
+        assert!(bytes_hold(&table));
+        let never = AtomicBool::new(false);
+        let window = uniform(&cost.windows).expect("the whole range everywhere");
+        let reads = |mode| Pass {
+            cost: &cost,
+            grey: &grey,
+            table: &table,
+            mode,
+        };
+        let cells = cost.windows.cells();
+        let (mut stored8, mut stored16) = (vec![0u16; cells], vec![0u16; cells]);
+        rows::<u8, true>(
+            reads(Mode::Store),
+            &mut stored8,
+            &mut |_, _| {},
+            &never,
+            window,
+        )
+        .unwrap();
+        rows::<u16, true>(
+            reads(Mode::Store),
+            &mut stored16,
+            &mut |_, _| {},
+            &never,
+            window,
+        )
+        .unwrap();
+        assert_eq!(stored8, stored16);
+        // Some path costs pass 128: a sum of 4 above 512.
+        let most = stored16.iter().copied().max();
+        assert!(most > Some(512), "{most:?}");
+        for mode in [Mode::Add(&stored16), Mode::Single] {
+            let rows_of = |bytes: bool, uniform: bool| {
+                let mut out = Vec::new();
+                let mut row = vec![0u16; widest_row(&cost)];
+                let mut on_row = |_, r: &[u16]| out.extend_from_slice(r);
+                match (bytes, uniform) {
+                    (true, true) => {
+                        rows::<u8, true>(reads(mode), &mut row, &mut on_row, &never, window)
+                    }
+                    (true, false) => {
+                        rows::<u8, false>(reads(mode), &mut row, &mut on_row, &never, (0, 0))
+                    }
+                    (false, _) => {
+                        rows::<u16, true>(reads(mode), &mut row, &mut on_row, &never, window)
+                    }
+                }
+                .unwrap();
+                out
+            };
+            let exact = rows_of(false, true);
+            assert_eq!(rows_of(true, true), exact);
+            assert_eq!(rows_of(true, false), exact);
+        }
     }
 
     /// The single pass's totals are the first pass's 4 paths plus the path along each row from
@@ -666,7 +658,7 @@ mod tests {
         };
         let mut four = vec![0u16; cost.windows.cells()];
         let window = uniform(&cost.windows).unwrap();
-        rows::<true>(
+        rows::<u16, true>(
             reads(Mode::Store),
             &mut four,
             &mut |_, _| {},
@@ -680,7 +672,7 @@ mod tests {
             let mut prev: Vec<u16> = Vec::new();
             for x in (0..w).rev() {
                 let at = (y * w + x) * n;
-                let c = &cost.data[at..at + n];
+                let c = &stored(&cost)[at..at + n];
                 let l: Vec<u16> = if prev.is_empty() {
                     c.iter().map(|&v| u16::from(v)).collect()
                 } else {
@@ -715,9 +707,9 @@ mod tests {
                 order.push(y);
             };
             if uniform_build {
-                rows::<true>(reads(Mode::Single), &mut row, &mut on_row, &never, window)
+                rows::<u16, true>(reads(Mode::Single), &mut row, &mut on_row, &never, window)
             } else {
-                rows::<false>(reads(Mode::Single), &mut row, &mut on_row, &never, (0, 0))
+                rows::<u16, false>(reads(Mode::Single), &mut row, &mut on_row, &never, (0, 0))
             }
             .unwrap();
             assert_eq!(got, expected, "uniform build: {uniform_build}");
