@@ -55,8 +55,8 @@ pub trait Spare: Send + Sync {
 }
 
 /// What the server keeps between requests outside every reservation, as a [`Spare`]: the
-/// matcher's buffer pools ([`stereo_core::vision::huge_pages`]) and the free memory the allocator
-/// holds in its arenas. When the reservations leave too little room for both, the pools free
+/// matcher's buffer pool ([`stereo_core::vision::huge_pages`]) and the free memory the allocator
+/// holds in its arenas. When the reservations leave too little room for both, the pool frees
 /// what does not fit and the allocator gives its free pages back to the kernel (at most every
 /// [`stereo_core::vision::huge_pages::TRIM_EVERY`]), so that the process stays within the
 /// budget rather than the budget plus what the last requests left behind.

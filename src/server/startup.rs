@@ -60,9 +60,9 @@ pub fn app(config: &Config, ops: OpsState) -> Router {
 /// applied in one `Router::layer` call.
 fn app_with(config: &Config, ops: OpsState, extra_heavy: Router<HeavyState>) -> Router {
     let (limits, heavy) = (config.limits, config.heavy);
-    // What the matcher's buffer pools keep between requests is held outside the budget's
-    // reservations: an eighth of the budget each at most (a quarter together), and, with what
-    // the allocator keeps free, no more than the reservations leave free.
+    // What the matcher's buffer pool keeps between requests is held outside the budget's
+    // reservations: an eighth of the budget at most, and, with what the allocator keeps free,
+    // no more than the reservations leave free.
     let budget = MemoryBudget::with_spare(heavy.memory_budget, &crate::budget::Leftovers);
     // glibc's thresholds as a warm server has them (a no-op under another allocator).
     stereo_core::vision::huge_pages::tune_for_budget(heavy.memory_budget);

@@ -179,8 +179,7 @@ impl Volume<'_> {
 /// The cost volume made of `rows` over `height` rows, each pixel over its window, every cell
 /// stored.
 pub fn volume<'a>(rows: Rows<'a>, height: usize, windows: Windows) -> Volume<'a> {
-    // Every cell is written below, those past `count` included.
-    let mut data = super::huge_pages::BYTES.take(windows.cells());
+    let mut data = vec![0; windows.cells()];
     let width = rows.width;
     let mut each: Vec<&mut [u8]> = Vec::with_capacity(height);
     let mut rest = &mut data[..];

@@ -1,4 +1,4 @@
-//! Large buffers (the cost volume, the first pass's sums) asking the kernel for transparent
+//! Large buffers (the 8-path aggregation's first-pass sums) asking the kernel for transparent
 //! huge pages before they are first touched: a fresh 2 MiB page costs one fault where 4 KiB
 //! pages cost 512, and on a virtual machine those faults are most of the time a fresh
 //! volume takes (Motorcycle with 128 disparities: 260 ms of aggregation with 4 KiB pages,
@@ -31,17 +31,15 @@ pub fn zeroed<T: Copy + Default>(len: usize) -> Vec<T> {
 /// pages again.
 pub const KEPT: usize = 96 << 20;
 
-/// Caps what each of the matcher's pools ([`BYTES`], [`WORDS`]) keeps between uses at
-/// `bytes` (at most [`KEPT`]), freeing what is kept beyond it: the server gives them a share
-/// of its memory budget, since what they keep is held outside any request's reservation.
+/// Caps what the matcher's pool ([`WORDS`]) keeps between uses at `bytes` (at most
+/// [`KEPT`]), freeing what is kept beyond it: the server gives it a share of its memory
+/// budget, since what it keeps is held outside any request's reservation.
 pub fn keep_at_most(bytes: usize) {
-    let bytes = bytes.min(KEPT);
-    BYTES.set_limit(bytes);
-    WORDS.set_limit(bytes);
+    WORDS.set_limit(bytes.min(KEPT));
 }
 
 /// Tunes the process's memory as the service runs it with a heavy-memory budget of
-/// `memory_budget` bytes: each pool keeps at most an eighth of it between uses
+/// `memory_budget` bytes: the pool keeps at most an eighth of it between uses
 /// ([`keep_at_most`]), and glibc's thresholds are those of a warm server
 /// ([`settle_allocator`]). The server calls it at start, and so does the command in process,
 /// so that it goes as fast as the service it would otherwise call.
@@ -50,20 +48,18 @@ pub fn tune_for_budget(memory_budget: usize) {
     let _ = settle_allocator();
 }
 
-/// Bytes both pools keep now.
+/// Bytes the pool keeps now.
 pub fn kept() -> usize {
-    BYTES.kept_bytes().saturating_add(WORDS.kept_bytes())
+    WORDS.kept_bytes()
 }
 
-/// Frees kept buffers until both pools together keep at most `bytes` (each its half, the
-/// cost volumes' pool any share the other leaves), their limits unchanged.
+/// Frees kept buffers until the pool keeps at most `bytes`, its limit unchanged. (The costs
+/// are made a row at a time inside the passes, [`super::cost::Cells::Made`]: no volume of
+/// them is kept.)
 pub fn release_to(bytes: usize) {
-    WORDS.release_to(bytes / 2);
-    BYTES.release_to(bytes.saturating_sub(WORDS.kept_bytes()));
+    WORDS.release_to(bytes);
 }
 
-/// The cost volumes' buffers ([`super::cost::volume`]).
-pub static BYTES: Pool<u8> = Pool::new(KEPT);
 /// The first aggregation pass's sums ([`super::sgm::aggregate`]).
 pub static WORDS: Pool<u16> = Pool::new(KEPT);
 
