@@ -1,6 +1,6 @@
 //! Times the matcher alone on a pair, with its defaults and a disparity count: best and median
 //! wall time of `RUNS` calls, the median run's stage times (cost, aggregation, refine) and the
-//! cost cells matched over every level. `PRESET` is `accurate` (the default) or `fast`. For
+//! cost cells matched over every level, the allocator tuned as the server tunes it. `PRESET` is `accurate` (the default) or `fast`. For
 //! comparing builds side by side: run two binaries in turns.
 //!
 //! ```text
@@ -26,6 +26,8 @@ fn main() {
             std::process::exit(2);
         }
     };
+    // The allocator tuned as the server tunes it under its default 1 GiB budget.
+    vision::huge_pages::tune_for_budget(1 << 30);
     let (left, right) = common::read_pair(left, right);
     let count: i32 = count.parse().expect("COUNT is a number");
     let runs: usize = runs.parse().expect("RUNS is a number");

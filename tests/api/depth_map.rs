@@ -846,23 +846,32 @@ async fn the_pixel_cap_admits_a_phone_photo_and_is_an_option() {
     );
 }
 
-/// A phone's 4032 × 3024 pair is admitted under the default 1 GiB budget at every range from
-/// 16 to 400 disparities: no 413 for its memory at any of them (the pair, claimed by its
-/// headers, is then refused as damaged, naming both images). The whole request at each range is
-/// `scale.rs`'s, in release.
+/// A phone's 4032 × 3024 pair and a 24 MP camera's 6000 × 4000 pair are admitted under the
+/// default 1 GiB budget at every range from 16 to 400 disparities: no 413 for their memory at
+/// any of them (the pair, claimed by its headers, is then refused as damaged, naming both
+/// images). The whole request at each range is `scale.rs`'s, in release.
 #[tokio::test]
-async fn a_phone_pair_is_admitted_at_every_range() {
+async fn a_phone_pair_and_a_24_megapixel_pair_are_admitted_at_every_range() {
     let app = spawn_app().await;
-    for count in [16, 32, 48, 64, 96, 128, 256, 400] {
-        let response = depth_map(
-            &app,
-            &format!("?max_disparity={count}"),
-            pair_claiming(4032, 3024),
-        )
-        .await;
-        let body = problem(response, 422).await;
-        assert_eq!(fields(&body), vec!["left", "right"], "{count}: {body}");
-        assert!(!body.to_string().contains("MiB"), "{count}: {body}");
+    for (w, h) in [(4032, 3024), (6000, 4000)] {
+        for count in [16, 32, 48, 64, 96, 128, 256, 400] {
+            let response = depth_map(
+                &app,
+                &format!("?max_disparity={count}"),
+                pair_claiming(w, h),
+            )
+            .await;
+            let body = problem(response, 422).await;
+            assert_eq!(
+                fields(&body),
+                vec!["left", "right"],
+                "{w} × {h} at {count}: {body}"
+            );
+            assert!(
+                !body.to_string().contains("MiB"),
+                "{w} × {h} at {count}: {body}"
+            );
+        }
     }
 }
 

@@ -1,6 +1,7 @@
 //! Camera resolutions under the default settings (1 GiB heavy budget), over a real socket: a
-//! 6-megapixel pair at 400 disparities and a phone's 12-megapixel JPEG pair (4032 × 3024) at
-//! every range from 16 to 400 are admitted and matched, with the memory the process really used (its peak RSS) no more than
+//! 6-megapixel pair at 400 disparities, a phone's 12-megapixel JPEG pair (4032 × 3024) at
+//! every range from 16 to 400 and a 24-megapixel JPEG pair (6000 × 4000) at 64 and 256 are
+//! admitted and matched, with the memory the process really used (its peak RSS) no more than
 //! what the request reserved, and three 1920 × 1080 pairs at 256 disparities run side by side
 //! without a 503.
 //!
@@ -165,6 +166,20 @@ async fn a_phones_twelve_megapixel_jpeg_pair_is_answered_at_every_range() {
         ));
     }
     assert!(reserved.windows(2).all(|r| r[0] <= r[1]), "{reserved:?}");
+}
+
+/// 6000 × 4000 (24 MP), what an APS-C camera writes, as colour JPEGs under the default
+/// settings at 64 and 256 disparities: admitted, matched within its reservation, and the
+/// reservation no larger at the narrower range.
+#[tokio::test]
+#[ignore = "a 24 MP JPEG pair at two ranges: run in release by .ci/run"]
+async fn a_twenty_four_megapixel_jpeg_pair_is_answered_at_64_and_256() {
+    for count in [64, 256] {
+        let k = 0.85 * count as f32 / 34.0;
+        admitted_within_its_reservation((6000, 4000), count, k, phone_jpegs).await;
+    }
+    let reserved = |count| bytes_needed(6000, 4000, count, DepthMapOutput::DisparityNpy);
+    assert!(reserved(64) <= reserved(256));
 }
 
 /// Three 1920 × 1080 pairs at 256 disparities sent at once: all three are answered 200, none

@@ -48,32 +48,54 @@ pub fn transform(image: &Gray) -> Vec<u64> {
 /// image is transformed as the whole image is; with the centres the signatures compared
 /// against: the image through Lee's filter, its structure without its noise.
 pub fn transform_with(image: &Gray, sigma: f32, stride: usize) -> (Vec<u64>, Gray) {
+    let (signatures, centres) = transform_rows(image, sigma, stride, 0..image.height);
+    (signatures, Gray::new(image.width, image.height, centres))
+}
+
+/// [`transform_with`] over the image's rows `rows` alone, exactly as the whole image's
+/// transform gives them (the rows around them read from the image, its border repeated):
+/// their signatures and their centres, row-major. The matcher transforms each stripe's rows
+/// as it matches them, so that no image's signatures are held whole; on the calling thread
+/// alone, since the stripes already run side by side (a thread waiting inside a stripe would
+/// take up another stripe, and hold its memory too).
+pub fn transform_rows(
+    image: &Gray,
+    sigma: f32,
+    stride: usize,
+    rows: std::ops::Range<usize>,
+) -> (Vec<u64>, Vec<u16>) {
     let (w, h) = (image.width, image.height);
+    let rows = rows.start.min(h)..rows.end.min(h);
+    let n = rows.len();
+    if w == 0 || n == 0 {
+        return (Vec::new(), Vec::new());
+    }
     let stride = stride.clamp(1, MAX_STRIDE);
     let (rx, ry) = (WIDTH / 2 * stride, HEIGHT / 2 * stride);
-    // The image with its border repeated, so that the inner loop never clamps.
+    // The rows' neighbourhood with the image's border repeated, so that the inner loop never
+    // clamps.
     let pw = w + 2 * rx;
-    let mut padded = vec![0u16; pw * (h + 2 * ry)];
-    padded.par_chunks_mut(pw).enumerate().for_each(|(py, row)| {
-        let y = py.saturating_sub(ry).min(h - 1);
+    let mut padded = vec![0u16; pw * (n + 2 * ry)];
+    padded.chunks_mut(pw).enumerate().for_each(|(py, row)| {
+        let y = (rows.start + py).saturating_sub(ry).min(h - 1);
         let src = &image.data[y * w..(y + 1) * w];
         for (px, out) in row.iter_mut().enumerate() {
             *out = src[px.saturating_sub(rx).min(w - 1)];
         }
     });
     let noise = NOISE_SCALE * sigma;
-    let mut centres = vec![0u16; w * h];
-    centres.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
+    let mut centres = vec![0u16; w * n];
+    centres.chunks_mut(w).enumerate().for_each(|(y, row)| {
         let line = |dy: usize| {
             &padded[(y + ry + dy - 1) * pw + rx - 1..(y + ry + dy - 1) * pw + rx + w + 1]
         };
         lee_row([line(0), line(1), line(2)], noise * noise, row);
     });
-    let mut out = vec![0u64; w * h];
-    out.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
+    let mut out = vec![0u64; w * n];
+    out.chunks_mut(w).enumerate().for_each(|(y, row)| {
         signatures(&padded, &centres[y * w..(y + 1) * w], (pw, stride), y, row);
     });
-    (out, Gray::new(w, h, centres))
+    (out, centres)
 }
 
 /// The standard deviation of an image's noise (16-bit levels), after Immerkær ("Fast noise
@@ -330,6 +352,28 @@ crate::dispatch! {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A band of rows is transformed exactly as the whole image transforms those rows, at the
+    /// top, inside and at the bottom, at one pixel's stride and at three, so that a stripe
+    /// making its own signatures matches as the whole image would.
+    #[test]
+    fn a_band_of_rows_is_the_whole_images_rows() {
+        let (w, h) = (37, 29);
+        let data = (0..w * h)
+            .map(|i| ((i * 7919 + (i / w) * 104_729) % 60_000) as u16)
+            .collect();
+        let image = Gray::new(w, h, data);
+        for stride in [1, 3] {
+            let (whole, centres) = transform_with(&image, 300.0, stride);
+            for rows in [0..5, 3..20, 11..29, 0..29, 28..29] {
+                let (band, band_centres) = transform_rows(&image, 300.0, stride, rows.clone());
+                let pixels = rows.start * w..rows.end * w;
+                assert_eq!(band, whole[pixels.clone()], "{rows:?} at {stride}");
+                assert_eq!(band_centres, centres.data[pixels], "{rows:?} at {stride}");
+            }
+        }
+        assert_eq!(transform_rows(&image, 300.0, 1, 30..40), (vec![], vec![]));
+    }
 
     /// A flat image has no structure: every signature is zero.
     #[test]

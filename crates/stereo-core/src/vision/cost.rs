@@ -40,7 +40,12 @@ const _: () = assert!(PAD as u32 > census::BITS + AD_CAP as u32);
 
 /// An image's grey levels at 8 bits, which the cost's grey-level term compares.
 pub fn levels(image: &super::Gray) -> Vec<u8> {
-    image.data.iter().map(|&v| (v >> 8) as u8).collect()
+    levels_of(&image.data)
+}
+
+/// Pixels' grey levels at 8 bits ([`levels`] of some of an image's rows).
+pub fn levels_of(pixels: &[u16]) -> Vec<u8> {
+    pixels.iter().map(|&v| (v >> 8) as u8).collect()
 }
 
 /// `count` rounded up to whole SIMD registers.

@@ -314,56 +314,44 @@ fn level(
     } else {
         None
     };
-    let started = Instant::now();
-    // The left image's census centres (its structure, without its noise) guide P2 across
-    // intensity edges, so that noise is not taken for edges.
-    let ((cl, guide), (cr, _)) = rayon::join(
-        || census::transform_with(left, seen.left, seen.stride),
-        || census::transform_with(right, seen.right, seen.stride),
-    );
-    let (gl, gr) = (cost::levels(left), cost::levels(right));
-    timings.cost += started.elapsed();
-    checkpoint()?;
-
     let window = match prior {
         Some(_) => pyramid::MAX_WINDOW.min(cost::stride(params.count)),
         None => cost::stride(params.count),
     };
     let stripes = stripes::stripes(h, stripes::rows(w, window, prior.is_some()));
+    // Each stripe writes its kept rows' disparities and variances in place.
+    let mut data = vec![f32::NAN; w * h];
+    let mut variance = vec![f32::NAN; w * h];
+    let mut outputs = Vec::with_capacity(stripes.len());
+    let (mut data_rest, mut variance_rest) = (&mut data[..], &mut variance[..]);
+    for (kept, _) in &stripes {
+        let (d, dr) = data_rest.split_at_mut(kept.len() * w);
+        let (v, vr) = variance_rest.split_at_mut(kept.len() * w);
+        outputs.push((d, v));
+        (data_rest, variance_rest) = (dr, vr);
+    }
     let started = Instant::now();
     let matched: Vec<Result<Stripe, Cancelled>> = stripes
         .par_iter()
-        .map(|(kept, context)| {
+        .zip(outputs)
+        .map(|((kept, context), out)| {
             let probe = Probing { wanted, rows: kept };
-            let features = Features {
-                census: (&cl, &cr),
-                levels: (&gl, &gr),
-                stride: seen.stride,
+            let pair = Seen {
+                images: (left, right),
+                noise: seen,
             };
-            match_stripe(
-                features,
-                &guide,
-                context,
-                params,
-                prior.as_ref(),
-                probe,
-                cancel,
-            )
+            match_stripe(pair, context, params, prior.as_ref(), probe, out, cancel)
         })
         .collect();
     let stripes_time = started.elapsed();
-    let mut data = Vec::with_capacity(w * h);
-    let mut variance = Vec::with_capacity(w * h);
     let mut summed = Timings::default();
     let mut probes = Vec::with_capacity(wanted.len());
     for stripe in matched {
-        let (rows, variances, t, found) = stripe?;
-        data.extend_from_slice(&rows);
-        variance.extend_from_slice(&variances);
+        let (t, found) = stripe?;
         probes.extend(found);
         summed.add(t);
     }
-    drop((cl, cr, gl, gr, guide, prior));
+    drop(prior);
     timings.add(summed.sharing(stripes_time));
     timings.paths = Some(params.paths);
     checkpoint()?;
@@ -417,9 +405,16 @@ impl Timings {
     }
 }
 
-/// A matched stripe: its kept rows' disparities and their winners' variances
-/// ([`sigma::winner_variance`]), its stage times, and its rows' probes.
-type Stripe = (Vec<f32>, Vec<f32>, Timings, Vec<Vec<Probe>>);
+/// A matched stripe's stage times and its rows' probes (its kept rows' disparities and their
+/// winners' variances, [`sigma::winner_variance`], are written in place).
+type Stripe = (Timings, Vec<Vec<Probe>>);
+
+/// A level's pair and what was measured of the whole pair's noise ([`PairNoise`]).
+#[derive(Clone, Copy)]
+struct Seen<'a> {
+    images: (&'a Gray, &'a Gray),
+    noise: PairNoise,
+}
 
 /// The pixels to probe (`wanted[y]`, by image row) and the rows a stripe keeps.
 #[derive(Clone, Copy)]
@@ -428,45 +423,44 @@ struct Probing<'a> {
     rows: &'a Range<usize>,
 }
 
-/// What the cost compares of both images, pixel by pixel: their census signatures and their
-/// 8-bit grey levels; and the pixels between the census's samples, the scale the pair is
-/// smooth over (which scales each winner's σ, [`sigma::winner_variance`]).
-#[derive(Clone, Copy)]
-struct Features<'a> {
-    census: (&'a [u64], &'a [u64]),
-    levels: (&'a [u8], &'a [u8]),
-    stride: usize,
-}
-
-/// One stripe: the cost volume over each pixel's window (from `prior`, or the whole range) and
-/// the two passes over its `context` rows (guided across edges by `guide`, the left image's
-/// census centres), the winners and the left-right check of its `kept` rows (disparities as
-/// indices into the range).
+/// One stripe: its `context` rows' census signatures (the left image's centres guiding P2
+/// across edges, so that noise is not taken for edges) and 8-bit grey levels, the cost volume
+/// over each pixel's window (from `prior`, or the whole range) and the two passes over those
+/// rows, the winners and the left-right check of its `kept` rows (disparities as indices into
+/// the range). The features are made here, a stripe at a time, so that no image's signatures
+/// are held whole.
 fn match_stripe(
-    Features {
-        census: (cl, cr),
-        levels: (gl, gr),
-        stride,
-    }: Features,
-    guide: &Gray,
+    Seen {
+        images: (left, right),
+        noise: seen,
+    }: Seen,
     context: &Range<usize>,
     params: &Params,
     prior: Option<&pyramid::Prior>,
     probing: Probing,
+    (out, variance): (&mut [f32], &mut [f32]),
     cancel: &AtomicBool,
 ) -> Result<Stripe, Cancelled> {
     let kept = probing.rows;
-    let w = guide.width;
+    let w = left.width;
+    let stride = seen.stride;
     let range = (params.min_disparity, params.count);
     let mut timings = Timings::default();
     let started = Instant::now();
+    // On this thread alone: see census::transform_rows.
+    let (cl, guide) = census::transform_rows(left, seen.left, stride, context.clone());
+    let (cr, _) = census::transform_rows(right, seen.right, stride, context.clone());
+    let pixels = context.start * w..context.end * w;
+    let (gl, gr) = (
+        cost::levels_of(&left.data[pixels.clone()]),
+        cost::levels_of(&right.data[pixels]),
+    );
     let windows = match prior {
         Some(prior) => prior.windows(context.clone(), w, range),
         None => cost::Windows::full(context.len() * w, params.count),
     };
-    let rows = context.start * w..context.end * w;
-    let census = (&cl[rows.clone()], &cr[rows.clone()]);
-    let grey = (&gl[rows.clone()], &gr[rows.clone()]);
+    let census = (&cl[..], &cr[..]);
+    let grey = (&gl[..], &gr[..]);
     let made = cost::Rows {
         census,
         grey,
@@ -483,14 +477,12 @@ fn match_stripe(
     }
 
     let started = Instant::now();
-    let mut out = vec![f32::NAN; kept.len() * w];
-    let mut variance = vec![f32::NAN; kept.len() * w];
     let mut probes = vec![Vec::new(); kept.len()];
     let mut choosing = Duration::ZERO;
     let first = kept.start - context.start;
     sgm::aggregate(
         &volume,
-        &guide.data[rows],
+        &guide,
         params.penalties,
         params.paths,
         cancel,
@@ -514,17 +506,13 @@ fn match_stripe(
                     .collect();
             }
             let row = (y - first) * w..(y - first + 1) * w;
-            for (x, ((v, &d), &cue)) in variance[row.clone()]
-                .iter_mut()
-                .zip(&won.left)
-                .zip(&won.cues)
-                .enumerate()
-            {
-                if !d.is_nan() {
-                    let disagreement = refine::disagreement(&won.right, x, d);
-                    *v = sigma::winner_variance(cue, d, disagreement, stride);
-                }
-            }
+            sigma::winner_variances(
+                &won.left,
+                &won.cues,
+                &won.right,
+                stride,
+                &mut variance[row.clone()],
+            );
             if let Some(tolerance) = params.lr_tolerance {
                 refine::left_right(&mut won.left, &won.right, tolerance);
             }
@@ -534,5 +522,5 @@ fn match_stripe(
     )?;
     timings.aggregate = started.elapsed().saturating_sub(choosing);
     timings.refine = choosing;
-    Ok((out, variance, timings, probes))
+    Ok((timings, probes))
 }

@@ -384,21 +384,24 @@ pub fn probe(
     }
 }
 
-/// Invalidates the pixels whose disparity disagrees with the right image's by more than
-/// `tolerance` pixels (occlusions, mismatches). Disparities are indices into the range.
-pub fn left_right(left: &mut [f32], right: &[u16], tolerance: f32) {
-    for (x, d) in left.iter_mut().enumerate() {
-        if d.is_nan() {
-            continue;
-        }
-        if !agrees(right, x, *d, tolerance) {
-            *d = f32::NAN;
+crate::dispatch! {
+    /// Invalidates the pixels whose disparity disagrees with the right image's by more than
+    /// `tolerance` pixels (occlusions, mismatches). Disparities are indices into the range.
+    pub fn left_right(left: &mut [f32], right: &[u16], tolerance: f32) {
+        for (x, d) in left.iter_mut().enumerate() {
+            if d.is_nan() {
+                continue;
+            }
+            if !agrees(right, x, *d, tolerance) {
+                *d = f32::NAN;
+            }
         }
     }
 }
 
 /// How far the right image's winner at the match of left pixel `x` (disparity `d`) lies from
 /// `d`, in pixels (infinite where the right image has no winner there).
+#[inline(always)]
 pub fn disagreement(right: &[u16], x: usize, d: f32) -> f32 {
     let xr = (x as f32 - d).round();
     if xr < 0.0 {

@@ -73,7 +73,7 @@ pub const FILLED_FLOOR: f32 = 0.7;
 /// `stride` pixels apart: a pair smooth over `stride` pixels knows each disparity √stride
 /// times less well (the model was fitted at stride 1; measured on Motorcycle upscaled 2 × and
 /// 4 ×, docs/matcher.md).
-#[inline]
+#[inline(always)]
 pub fn winner_variance(cue: Cue, d: f32, disagreement: f32, stride: usize) -> f32 {
     let m = MODEL;
     let best = f32::from(cue.best);
@@ -93,6 +93,27 @@ pub fn winner_variance(cue: Cue, d: f32, disagreement: f32, stride: usize) -> f3
         + (m.fraction * fraction).powi(2)
         + (m.disagreement * disagreement).powi(2))
         * (scale * scale)
+}
+
+crate::dispatch! {
+    /// [`winner_variance`] of each pixel of a row of winners with a disparity (`left`, its
+    /// `cues`, and the right image's winners `right` for the disagreement), into `out`; the
+    /// others are left as they are. On whole registers where the compiler can, with no call
+    /// for each rounding.
+    pub fn winner_variances(
+        left: &[f32],
+        cues: &[Cue],
+        right: &[u16],
+        stride: usize,
+        out: &mut [f32],
+    ) {
+        for (x, ((v, &d), &cue)) in out.iter_mut().zip(left).zip(cues).enumerate() {
+            if !d.is_nan() {
+                let disagreement = super::refine::disagreement(right, x, d);
+                *v = winner_variance(cue, d, disagreement, stride);
+            }
+        }
+    }
 }
 
 /// The map's σ_d (pixels): for each valid pixel of `disparity` (`width` a row), its winner's

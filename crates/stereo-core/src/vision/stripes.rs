@@ -22,10 +22,10 @@ pub const NARROW_STRIPE_ROWS: usize = STRIPE_ROWS / 2;
 
 /// The most bytes one stripe holds while it is matched (the first pass's sums and its windows,
 /// [`BYTES_A_CELL`] and [`BYTES_A_PIXEL`]), context rows included. A stripe of
-/// [`STRIPE_ROWS`] rows over a 1920-pixel row at 64 disparities holds 79 MB; a phone's
-/// 4032-pixel row at the same range would hold 167 MB a stripe, two in flight, which with the
+/// [`STRIPE_ROWS`] rows over a 1920-pixel row at 64 disparities holds 94 MB; a phone's
+/// 4032-pixel row at the same range would hold 200 MB a stripe, two in flight, which with the
 /// per-pixel buffers passes the default 1 GiB budget. So a stripe that would hold more is made
-/// shorter ([`rows`]): at 4032 × 64 it keeps 135 rows, matching 183.
+/// shorter ([`rows`]): at 4032 × 64 it keeps 106 rows, matching 154.
 pub const STRIPE_BYTES: usize = 96 << 20;
 /// The fewest rows a stripe keeps, however wide the image and its window: below it the
 /// context rows would be more than half of what is matched.
@@ -35,12 +35,19 @@ pub const MIN_STRIPE_ROWS: usize = 48;
 /// where the passes read them ([`super::cost::Cells::Made`]), never stored.
 pub const BYTES_A_CELL: usize = 2;
 /// What a stripe holds for each of its pixels besides its cells: the window's first index and
-/// offset (six bytes, eight counted).
-pub const BYTES_A_PIXEL: usize = 8;
-/// What the matcher holds for each pixel of the finest level besides its stripes: the census
-/// signatures, the stripes' rows, the coarser level's prior and images; the disparity map,
-/// its winners' variances and σ, and the filters' copies after them.
-const BYTES_A_FINE_PIXEL: usize = 40;
+/// offset (six bytes, eight counted), both images' census signatures (16), the left image's
+/// census centres and both images' 8-bit grey levels (6), and while the signatures are made,
+/// the padded rows and the right image's centres (4). Each stripe makes its own signatures
+/// ([`super::census::transform_rows`]), so no image's are held whole.
+pub const BYTES_A_PIXEL: usize = 34;
+/// What the matcher holds for each pixel of the finest level besides its stripes, at the
+/// larger of its two phases. While the stripes are matched: the disparities and the winners'
+/// variances they write in place (8), and the coarser level's prior and halved images (under
+/// 4). Then the filters: the map, its variances, and the speckle filter's labels and sizes
+/// (16 at most, the speckle filter's), σ and the plane fill's masks after the variances go
+/// (under 14), the fill's mask (1). Counted with room: measured, a 24 MP pair's peak is
+/// 19 bytes a pixel with its stripes (docs/matcher.md).
+const BYTES_A_FINE_PIXEL: usize = 24;
 
 /// Rows a stripe keeps over a level `width` pixels wide whose pixels search `window` cells:
 /// [`STRIPE_ROWS`] (or [`NARROW_STRIPE_ROWS`] when `narrow`, below the coarsest level), fewer
@@ -192,7 +199,7 @@ mod tests {
         assert_eq!(rows(1280, 64, false), STRIPE_ROWS);
         assert_eq!(rows(1920, 64, false), STRIPE_ROWS);
         assert_eq!(rows(1280, 48, true), NARROW_STRIPE_ROWS);
-        assert_eq!(rows(4032, 64, false), 135);
+        assert_eq!(rows(4032, 64, false), 106);
         assert!(rows(4032, 48, true) <= NARROW_STRIPE_ROWS);
         assert_eq!(rows(8192, 512, false), MIN_STRIPE_ROWS);
         for (w, window) in [(1920, 64), (4032, 32), (4032, 64), (6000, 48)] {
