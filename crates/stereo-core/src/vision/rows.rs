@@ -15,7 +15,10 @@
 //! halved until about [`COARSE_HEIGHT`] rows remain, the corners are found and matched there
 //! over the whole (scaled) disparity range and [`SEARCH_ROWS`] rows either way (a twelfth of
 //! the image's height or so), and each match is followed down the pyramid within 2 px at each
-//! level, to a sub-pixel row at full size. A few milliseconds whatever the size and range.
+//! level, to a sub-pixel row at full size. A few milliseconds whatever the size and range, the corners
+//! side by side on the cores.
+
+use rayon::prelude::*;
 
 use super::Gray;
 
@@ -86,8 +89,10 @@ pub fn row_offsets(left: &Gray, right: &Gray, (min_d, max_d): (i32, i32)) -> Opt
         min_d.div_euclid(scale) - SEARCH_ROWS,
         max_d.div_euclid(scale) + i32::from(max_d.rem_euclid(scale) != 0) + SEARCH_ROWS,
     );
+    // The corners side by side on the cores (their order does not matter: the median is
+    // taken).
     let mut offsets: Vec<f64> = corners(coarse_l)
-        .into_iter()
+        .into_par_iter()
         .filter_map(|(x, y)| {
             let mut found = search(
                 coarse_l,
