@@ -284,6 +284,47 @@ mod tests {
         }
     }
 
+    /// A row of winners' variances made by the dispatched build (AVX2 where the CPU has it)
+    /// gives, to the bit, what [`winner_variance`] gives pixel by pixel, with the right image's
+    /// winners missing, disagreeing and outside; pixels without a disparity keep their value.
+    #[test]
+    fn a_rows_variances_are_each_pixels() {
+        let mut rng = crate::vision::synthetic::Rng::new(5);
+        for stride in [1, 3] {
+            let w = 97;
+            let left: Vec<f32> = (0..w)
+                .map(|_| match rng.unit() {
+                    u if u < 0.2 => f32::NAN,
+                    u => 40.0 * u,
+                })
+                .collect();
+            let right: Vec<u16> = (0..w)
+                .map(|_| match rng.unit() {
+                    u if u < 0.2 => u16::MAX,
+                    u => (40.0 * u) as u16,
+                })
+                .collect();
+            let cues: Vec<Cue> = (0..w)
+                .map(|_| Cue {
+                    best: (900.0 * rng.unit()) as u16,
+                    second: 900 + (900.0 * rng.unit()) as u16,
+                    curvature: (300.0 * rng.unit()) as u16,
+                })
+                .collect();
+            let mut out = vec![-1.0; w];
+            winner_variances(&left, &cues, &right, stride, &mut out);
+            for x in 0..w {
+                if left[x].is_nan() {
+                    assert_eq!(out[x], -1.0);
+                } else {
+                    let disagreement = crate::vision::refine::disagreement(&right, x, left[x]);
+                    let one = winner_variance(cues[x], left[x], disagreement, stride);
+                    assert_eq!(out[x].to_bits(), one.to_bits(), "{x} at stride {stride}");
+                }
+            }
+        }
+    }
+
     /// A sharp, unambiguous, whole-pixel winner the right image agrees with keeps the floor;
     /// each cue that says less moves σ up.
     #[test]
