@@ -30,7 +30,10 @@ fn stages(c: &mut Criterion) {
     let full = || cost::Windows::full(w * h, params.count());
     let cl = census::transform(&pair.left);
     let cr = census::transform(&pair.right);
-    let (gl, gr) = (cost::levels(&pair.left), cost::levels(&pair.right));
+    let (gl, gr) = (
+        cost::levels_of(&pair.left.data),
+        cost::levels_of(&pair.right.data),
+    );
     let rows = cost::Rows {
         census: (&cl, &cr),
         grey: (&gl, &gr),

@@ -38,12 +38,8 @@ pub const OUTSIDE: u8 = OUTSIDE_CENSUS + AD_CAP / 2;
 pub const PAD: u8 = 2 * census::BITS as u8;
 const _: () = assert!(PAD as u32 > census::BITS + AD_CAP as u32);
 
-/// An image's grey levels at 8 bits, which the cost's grey-level term compares.
-pub fn levels(image: &super::Gray) -> Vec<u8> {
-    levels_of(&image.data)
-}
-
-/// Pixels' grey levels at 8 bits ([`levels`] of some of an image's rows).
+/// Pixels' grey levels at 8 bits (an image's, or some of its rows'), which the cost's
+/// grey-level term compares.
 pub fn levels_of(pixels: &[u16]) -> Vec<u8> {
     pixels.iter().map(|&v| (v >> 8) as u8).collect()
 }

@@ -330,16 +330,16 @@ fn level(
         outputs.push((d, v));
         (data_rest, variance_rest) = (dr, vr);
     }
+    let pair = Seen {
+        images: (left, right),
+        noise: seen,
+    };
     let started = Instant::now();
     let matched: Vec<Result<Stripe, Cancelled>> = stripes
         .par_iter()
         .zip(outputs)
         .map(|((kept, context), out)| {
             let probe = Probing { wanted, rows: kept };
-            let pair = Seen {
-                images: (left, right),
-                noise: seen,
-            };
             match_stripe(pair, context, params, prior.as_ref(), probe, out, cancel)
         })
         .collect();

@@ -109,36 +109,55 @@ impl Prior {
     }
 
     /// The windows of the finer level's rows `rows` (`width` pixels a row), over its range
-    /// `min .. min + count`.
+    /// `min .. min + count`. A fine pixel's window is its coarse pixel's, so each coarse row's
+    /// windows are worked out once and repeated over the 2 × 2 fine pixels it covers.
     pub fn windows(&self, rows: Range<usize>, width: usize, (min, count): (i32, usize)) -> Windows {
-        let full = cost::stride(count);
-        let cap = MAX_WINDOW.min(full);
-        let last = count as f32 - 1.0;
         let pixels = rows.len() * width;
         let mut first = Vec::with_capacity(pixels);
         let mut lengths = Vec::with_capacity(pixels);
+        let mut coarse = Vec::with_capacity(self.width);
+        let mut coarse_y = usize::MAX;
         for y in rows {
             let cy = (y / 2).min(self.height - 1);
+            if cy != coarse_y {
+                coarse.clear();
+                coarse.extend(
+                    (cy * self.width..(cy + 1) * self.width).map(|c| self.window(c, (min, count))),
+                );
+                coarse_y = cy;
+            }
             for x in 0..width {
-                let c = cy * self.width + (x / 2).min(self.width - 1);
-                // Indices into the finer range.
-                let lo = (2.0 * self.least[c] - MARGIN - min as f32).clamp(0.0, last);
-                let hi = (2.0 * self.greatest[c] + MARGIN - min as f32).clamp(lo, last);
-                let (lo, hi) = (lo.floor() as usize, hi.ceil() as usize);
-                let mut len = (hi - lo + 1).div_ceil(LANES) * LANES;
-                let mut start = lo;
-                if len > cap {
-                    len = cap;
-                    let centre = (2.0 * self.own[c] - min as f32).clamp(0.0, last) as usize;
-                    start = centre.saturating_sub(cap / 2);
-                }
-                // Use the whole window inside the padded range.
-                start = start.min(full - len);
-                first.push(start as u16);
-                lengths.push(len as u16);
+                let (start, len) = coarse[(x / 2).min(self.width - 1)];
+                first.push(start);
+                lengths.push(len);
             }
         }
         Windows::from_lengths(first, lengths.into_iter())
+    }
+
+    /// Coarse pixel `c`'s window over the finer range `min .. min + count`: `(first index,
+    /// cells)`.
+    fn window(&self, c: usize, (min, count): (i32, usize)) -> (u16, u16) {
+        let full = cost::stride(count);
+        let cap = MAX_WINDOW.min(full);
+        let last = count as f32 - 1.0;
+        // Indices into the finer range, both at least 0: truncating is the floor, and the
+        // ceiling is one more where the truncation lost a fraction.
+        let lo = (2.0 * self.least[c] - MARGIN - min as f32).clamp(0.0, last);
+        let hi = (2.0 * self.greatest[c] + MARGIN - min as f32).clamp(lo, last);
+        let floor = |v: f32| v as usize;
+        let ceil = |v: f32| floor(v) + usize::from((floor(v) as f32) < v);
+        let (lo, hi) = (floor(lo), ceil(hi));
+        let mut len = (hi - lo + 1).div_ceil(LANES) * LANES;
+        let mut start = lo;
+        if len > cap {
+            len = cap;
+            let centre = (2.0 * self.own[c] - min as f32).clamp(0.0, last) as usize;
+            start = centre.saturating_sub(cap / 2);
+        }
+        // Use the whole window inside the padded range.
+        start = start.min(full - len);
+        (start as u16, len as u16)
     }
 }
 
@@ -243,5 +262,59 @@ mod tests {
         // register.
         let win = prior.windows(0..1, w, (0, 20));
         assert_eq!((win.of(30).0, win.of(30).1.len()), (16, 16));
+    }
+
+    /// Each fine pixel's window, worked out once a coarse row, is what the window's rule gives
+    /// pixel by pixel (floor and ceiling as `f32`'s), on a random coarse map with holes, at
+    /// several ranges and offsets and over rows that start at an odd one.
+    #[test]
+    fn a_coarse_rows_windows_are_each_fine_pixels() {
+        let (cw, ch) = (37, 9);
+        let mut rng = crate::vision::synthetic::Rng::new(17);
+        let data = (0..cw * ch)
+            .map(|_| {
+                let v = rng.unit();
+                if v < 0.1 { f32::NAN } else { v * 60.0 - 5.0 }
+            })
+            .collect();
+        let map = Disparity {
+            width: cw,
+            height: ch,
+            std: vec![0.2; cw * ch],
+            filled: Vec::new(),
+            data,
+        };
+        for (min, count) in [(0, 128), (-7, 100), (3, 40), (0, 16)] {
+            let prior = Prior::new(&map, min / 2);
+            let (w, rows) = (2 * cw - 1, 3..2 * ch);
+            let got = prior.windows(rows.clone(), w, (min, count));
+            let full = cost::stride(count);
+            let cap = MAX_WINDOW.min(full);
+            let last = count as f32 - 1.0;
+            let mut i = 0;
+            for y in rows {
+                for x in 0..w {
+                    let c = (y / 2).min(ch - 1) * cw + (x / 2).min(cw - 1);
+                    let lo = (2.0 * prior.least[c] - MARGIN - min as f32).clamp(0.0, last);
+                    let hi = (2.0 * prior.greatest[c] + MARGIN - min as f32).clamp(lo, last);
+                    let (lo, hi) = (lo.floor() as usize, hi.ceil() as usize);
+                    let mut len = (hi - lo + 1).div_ceil(LANES) * LANES;
+                    let mut start = lo;
+                    if len > cap {
+                        len = cap;
+                        let centre = (2.0 * prior.own[c] - min as f32).clamp(0.0, last) as usize;
+                        start = centre.saturating_sub(cap / 2);
+                    }
+                    start = start.min(full - len);
+                    let (first, cells) = got.of(i);
+                    assert_eq!(
+                        (first, cells.len()),
+                        (start, len),
+                        "{min} {count} ({x}, {y})"
+                    );
+                    i += 1;
+                }
+            }
+        }
     }
 }

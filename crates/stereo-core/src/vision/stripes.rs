@@ -135,6 +135,9 @@ fn peak(width: usize, height: usize, range: usize) -> usize {
             cost::stride(n)
         };
         let tall = rows(w, window, narrow);
+        // At most one stripe a thread: this holds only because `match_stripe` (and
+        // `census::transform_rows` in it) runs no nested rayon job, in which a waiting thread
+        // could take up another stripe and hold its memory too.
         let in_flight = count(h, tall).min(rayon::current_num_threads()).max(1);
         let held = w
             .saturating_mul(tallest(h, tall))

@@ -717,6 +717,113 @@ mod tests {
         }
     }
 
+    /// With per-pixel windows (as below the pyramid's coarsest level), each path's cost is
+    /// the recurrence's over the pixel's window, a neighbour's cost read at the same disparity
+    /// and taken as FAR where the neighbour did not look: the first pass's sums against that
+    /// definition, computed here over the whole range, on windows of 16 to 48 cells shifted
+    /// anywhere; and 8-bit path costs give the same sums in every mode.
+    #[test]
+    fn per_pixel_windows_read_their_neighbours_at_the_same_disparity() {
+        let (w, h, count) = (23, 9, 80);
+        let (mut cost, grey, table) = random_case((w, h, count), 21);
+        let mut rng = crate::vision::synthetic::Rng::new(4);
+        let mut first = Vec::new();
+        let mut lengths = Vec::new();
+        for _ in 0..w * h {
+            let len = LANES * (1 + (rng.unit() * 3.0) as usize).min(3);
+            first.push((rng.unit() * (count - len + 1) as f32) as u16);
+            lengths.push(len as u16);
+        }
+        let windows = crate::vision::cost::Windows::from_lengths(first, lengths.into_iter());
+        let data: Vec<u8> = (0..windows.cells())
+            .map(|_| (rng.unit() * 60.0) as u8)
+            .collect();
+        cost.windows = windows;
+        cost.cells = crate::vision::cost::Cells::Stored(data.clone());
+        assert!(uniform(&cost.windows).is_none());
+        // The definition: path k's cost at every disparity of the range, FAR outside windows.
+        let far = u32::from(FAR);
+        let mut paths = vec![vec![vec![far; count]; w * h]; 4];
+        let mut expected = vec![0u16; cost.windows.cells()];
+        for y in 0..h {
+            for x in 0..w {
+                let (f, cells) = cost.windows.of(y * w + x);
+                let neighbours = [(-1, 0), (-1, -1), (0, -1), (1, -1)];
+                for (k, (dx, dy)) in neighbours.into_iter().enumerate() {
+                    let (xs, ys) = (x as isize + dx, y as isize + dy);
+                    let inside = xs >= 0 && ys >= 0 && xs < w as isize;
+                    let prev = inside.then(|| paths[k][ys as usize * w + xs as usize].clone());
+                    let p2 = inside.then(|| {
+                        let other = grey[ys as usize * w + xs as usize] >> 8;
+                        u32::from(table.p2[usize::from((grey[y * w + x] >> 8).abs_diff(other))])
+                    });
+                    for (j, cell) in cells.clone().enumerate() {
+                        let d = f + j;
+                        let c = u32::from(data[cell]);
+                        let l = match (&prev, p2) {
+                            (Some(prev), Some(p2)) => {
+                                let m = *prev.iter().min().unwrap();
+                                let at = |d: isize| {
+                                    usize::try_from(d).ok().and_then(|d| prev.get(d)).copied()
+                                };
+                                let p1 = u32::from(table.p1);
+                                let best = [
+                                    at(d as isize),
+                                    at(d as isize - 1).map(|v| v + p1),
+                                    at(d as isize + 1).map(|v| v + p1),
+                                    Some(m + p2),
+                                ]
+                                .into_iter()
+                                .flatten()
+                                .min()
+                                .unwrap();
+                                c + best - m
+                            }
+                            _ => c,
+                        };
+                        paths[k][y * w + x][d] = l;
+                        expected[cell] += l as u16;
+                    }
+                }
+            }
+        }
+        let never = AtomicBool::new(false);
+        let reads = |mode| Pass {
+            cost: &cost,
+            grey: &grey,
+            table: &table,
+            mode,
+        };
+        let stored_by = |eight: bool| {
+            let mut sums = vec![0u16; expected.len()];
+            let (mode, none) = (reads(Mode::Store), &mut |_, _: &[u16]| {});
+            if eight {
+                rows::<u8, false>(mode, &mut sums, none, &never, (0, 0))
+            } else {
+                rows::<u16, false>(mode, &mut sums, none, &never, (0, 0))
+            }
+            .unwrap();
+            sums
+        };
+        assert_eq!(stored_by(false), expected);
+        assert_eq!(stored_by(true), expected);
+        for mode in [Mode::Add(&expected), Mode::Single] {
+            let mut out = [Vec::new(), Vec::new()];
+            for (o, eight) in out.iter_mut().zip([false, true]) {
+                let mut row = vec![0u16; widest_row(&cost)];
+                let mut on_row = |_, r: &[u16]| o.extend_from_slice(r);
+                if eight {
+                    rows::<u8, false>(reads(mode), &mut row, &mut on_row, &never, (0, 0))
+                } else {
+                    rows::<u16, false>(reads(mode), &mut row, &mut on_row, &never, (0, 0))
+                }
+                .unwrap();
+            }
+            assert_eq!(out[0], out[1]);
+            assert!(out[0].iter().any(|&v| v > 0));
+        }
+    }
+
     /// `Auto` takes 5 paths on a clear pair sharp at one pixel's scale, 8 on a noisy or a
     /// smooth one; a choice made stays.
     #[test]
