@@ -506,15 +506,16 @@ fn match_stripe(
                     .collect();
             }
             let row = (y - first) * w..(y - first + 1) * w;
+            let off = refine::disagreements(&won.left, &won.right);
             sigma::winner_variances(
                 &won.left,
                 &won.cues,
-                &won.right,
+                &off,
                 stride,
                 &mut variance[row.clone()],
             );
             if let Some(tolerance) = params.lr_tolerance {
-                refine::left_right(&mut won.left, &won.right, tolerance);
+                refine::left_right(&mut won.left, &off, tolerance);
             }
             out[row].copy_from_slice(&won.left);
             choosing += chose.elapsed();

@@ -162,8 +162,14 @@ impl Prior {
 }
 
 /// The least (or greatest, by `pick`) value over the `(2·RADIUS + 1)²` box around each pixel,
-/// clipped at the borders: one pass along rows, one along columns.
-fn box_extreme(values: &[f32], w: usize, h: usize, pick: fn(f32, f32) -> f32) -> Vec<f32> {
+/// clipped at the borders: one pass along rows, one along columns. `pick` is a function item,
+/// compiled inline, where a function pointer was called for every value.
+fn box_extreme(
+    values: &[f32],
+    w: usize,
+    h: usize,
+    pick: impl Fn(f32, f32) -> f32 + Copy,
+) -> Vec<f32> {
     let mut rows = vec![0f32; w * h];
     for y in 0..h {
         let row = &values[y * w..(y + 1) * w];

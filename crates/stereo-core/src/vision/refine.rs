@@ -385,16 +385,25 @@ pub fn probe(
 }
 
 crate::dispatch! {
+    /// [`disagreement`] of each pixel of a row of winners (`left`, NaN for none) with the right
+    /// image's winners `right`: what the left-right check and the winners' variances both read.
+    pub fn disagreements(left: &[f32], right: &[u16]) -> Vec<f32> {
+        left.iter()
+            .enumerate()
+            .map(|(x, &d)| disagreement(right, x, d))
+            .collect()
+    }
+}
+
+crate::dispatch! {
     /// Invalidates the pixels whose disparity disagrees with the right image's by more than
-    /// `tolerance` pixels (occlusions, mismatches). Disparities are indices into the range.
-    pub fn left_right(left: &mut [f32], right: &[u16], tolerance: f32) {
-        for (x, d) in left.iter_mut().enumerate() {
-            if d.is_nan() {
-                continue;
-            }
-            if !agrees(right, x, *d, tolerance) {
-                *d = f32::NAN;
-            }
+    /// `tolerance` pixels (occlusions, mismatches): `disagreements` are the row's
+    /// ([`disagreements`]). Disparities are indices into the range. Branch-free, on whole
+    /// registers.
+    pub fn left_right(left: &mut [f32], disagreements: &[f32], tolerance: f32) {
+        for (d, &off) in left.iter_mut().zip(disagreements) {
+            // An infinite or NaN disagreement never agrees.
+            *d = if off <= tolerance { *d } else { f32::NAN };
         }
     }
 }
@@ -417,11 +426,7 @@ pub fn disagreement(right: &[u16], x: usize, d: f32) -> f32 {
 /// with `d` within `tolerance` (disparities as indices into the range).
 #[inline(always)]
 fn agrees(right: &[u16], x: usize, d: f32, tolerance: f32) -> bool {
-    let xr = (x as f32 - d).round();
-    xr >= 0.0
-        && right
-            .get(xr as usize)
-            .is_some_and(|&r| r != u16::MAX && (f32::from(r) - d).abs() <= tolerance)
+    disagreement(right, x, d) <= tolerance
 }
 
 /// The curvature of `total` at its least `k`: `total[k − 1] + total[k + 1] − 2 total[k]`, the
@@ -546,7 +551,8 @@ mod tests {
         // right pixel 1, which says 3: dropped. x = 3 (d 5) lands outside: dropped.
         let mut left = vec![0.0, 1.2, 1.0, 5.0];
         let right = vec![1, 3, 1, 0];
-        left_right(&mut left, &right, 1.0);
+        let off = disagreements(&left, &right);
+        left_right(&mut left, &off, 1.0);
         assert_eq!(&left[..2], &[0.0, 1.2]);
         assert!(left[2].is_nan() && left[3].is_nan());
     }

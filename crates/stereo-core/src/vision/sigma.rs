@@ -97,21 +97,22 @@ pub fn winner_variance(cue: Cue, d: f32, disagreement: f32, stride: usize) -> f3
 
 crate::dispatch! {
     /// [`winner_variance`] of each pixel of a row of winners with a disparity (`left`, its
-    /// `cues`, and the right image's winners `right` for the disagreement), into `out`; the
-    /// others are left as they are. On whole registers where the compiler can, with no call
-    /// for each rounding.
+    /// `cues`, and how far the right image's winners lie from it, `disagreements`,
+    /// [`super::refine::disagreements`]), into `out`; the others are left as they are. Every
+    /// pixel's is computed (NaN ones too, and discarded), so that the loop has no branch and
+    /// its divisions and roots run on whole registers.
     pub fn winner_variances(
         left: &[f32],
         cues: &[Cue],
-        right: &[u16],
+        disagreements: &[f32],
         stride: usize,
         out: &mut [f32],
     ) {
-        for (x, ((v, &d), &cue)) in out.iter_mut().zip(left).zip(cues).enumerate() {
-            if !d.is_nan() {
-                let disagreement = super::refine::disagreement(right, x, d);
-                *v = winner_variance(cue, d, disagreement, stride);
-            }
+        for (((v, &d), &cue), &disagreement) in
+            out.iter_mut().zip(left).zip(cues).zip(disagreements)
+        {
+            let variance = winner_variance(cue, d, disagreement, stride);
+            *v = if d.is_nan() { *v } else { variance };
         }
     }
 }
@@ -312,7 +313,8 @@ mod tests {
                 })
                 .collect();
             let mut out = vec![-1.0; w];
-            winner_variances(&left, &cues, &right, stride, &mut out);
+            let off = crate::vision::refine::disagreements(&left, &right);
+            winner_variances(&left, &cues, &off, stride, &mut out);
             for x in 0..w {
                 if left[x].is_nan() {
                     assert_eq!(out[x], -1.0);
