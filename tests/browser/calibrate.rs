@@ -27,15 +27,18 @@ fn truth() -> (f64, f64, f64) {
 impl Browser {
     /// Waits until the page's calibration request has come back, and returns the page's
     /// reading of it: the RMS, the views used, and the rectified f and B.
+    /// A calibration the page gave up on fails the test at once, with the page's words.
     pub(crate) async fn calibrated(&self) -> (f64, u64, f64, f64) {
         self.until_within("the calibration", CALIBRATING, || async {
-            let done = self
+            let state = self
                 .script(
-                    "return document.body.dataset.calibrate === 'done' \
-                       && !document.getElementById('calibration-results').hidden",
+                    "return [document.body.dataset.calibrate === 'done' \
+                       && !document.getElementById('calibration-results').hidden,\
+                       document.getElementById('calibrate-status').textContent]",
                 )
                 .await;
-            (done == json!(true)).then_some(())
+            self.not_refused(&state[1]);
+            (state[0] == json!(true)).then_some(())
         })
         .await;
         let read = self
@@ -61,13 +64,25 @@ impl Browser {
             let state = self
                 .script(
                     "return [document.body.dataset.calibrate,\
-                       document.getElementById('views-verdict').dataset.used]",
+                       document.getElementById('views-verdict').dataset.used,\
+                       document.getElementById('calibrate-status').textContent]",
                 )
                 .await;
+            self.not_refused(&state[2]);
             (state[0] == "done" && state[1].as_str() != Some(&before.to_string())).then_some(())
         })
         .await;
         self.calibrated().await
+    }
+
+    /// Panics with the page's status line when it says the calibration did not happen (the
+    /// service refused it, or the sample did not load), instead of waiting out the bound.
+    fn not_refused(&self, status: &Value) {
+        let status = status.as_str().unwrap_or_default();
+        assert!(
+            !status.starts_with("Not calibrated") && !status.starts_with("The sample could not"),
+            "the page did not calibrate: {status}"
+        );
     }
 
     /// Chooses `files` in the board file input at once, as a person picks them.

@@ -17,11 +17,30 @@ use fantoccini::{
 };
 use hyper_util::client::legacy::connect::HttpConnector;
 use serde_json::{Value, json};
-use stereo_distance::{Application, Config};
+use stereo_distance::{Application, Config, config::HeavyLimits};
 
 /// A bound on waiting for something that must happen, so a bug fails instead of hanging. It is
 /// never what a test asserts.
 pub const PATIENCE: Duration = Duration::from_secs(30);
+
+/// The image requests' time limit in the tests' server. The default 30 s protects a release
+/// server; a debug build's calibration of the sample's 13 pairs with cross-validation takes
+/// 15-35 s of CPU on a 2-core machine (34 s measured), so the page's 503 would be the test's
+/// answer. The page's waits for a calibration are longer still.
+pub const HEAVY_PATIENCE: Duration = Duration::from_secs(150);
+
+/// The configuration of the tests' server: port 0, and [`HEAVY_PATIENCE`] for image requests.
+pub fn test_config() -> Config {
+    let config = Config::default();
+    Config {
+        port: 0,
+        heavy: HeavyLimits {
+            request_timeout: HEAVY_PATIENCE,
+            ..config.heavy
+        },
+        ..config
+    }
+}
 
 pub fn path_from(var: &str, default: &str) -> String {
     std::env::var(var).unwrap_or_else(|_| default.to_owned())
@@ -110,16 +129,7 @@ impl Browser {
     }
 
     pub async fn start_with(width: u32, height: u32, mobile: Option<Value>) -> Browser {
-        Self::serving(
-            Config {
-                port: 0,
-                ..Config::default()
-            },
-            width,
-            height,
-            mobile,
-        )
-        .await
+        Self::serving(test_config(), width, height, mobile).await
     }
 
     /// As [`Browser::start_with`], the server started with `config` (port 0).

@@ -5,7 +5,7 @@
 use stereo_distance::Config;
 use stereo_distance::config::ApiTokens;
 
-use crate::harness::Browser;
+use crate::harness::{Browser, test_config};
 
 const TOKEN: &str = "page-token-0123456789abcdef";
 
@@ -38,9 +38,8 @@ impl Browser {
 async fn the_page_asks_for_a_token_once_and_keeps_it_for_the_tab() {
     // Arrange
     let config = Config {
-        port: 0,
         api_tokens: Some(ApiTokens(vec![TOKEN.to_owned()])),
-        ..Config::default()
+        ..test_config()
     };
     let browser = Browser::serving(config, 1280, 1400, None).await;
 
