@@ -137,16 +137,27 @@ impl Prior {
 
     /// Coarse pixel `c`'s window over the finer range `min .. min + count`: `(first index,
     /// cells)`.
-    fn window(&self, c: usize, (min, count): (i32, usize)) -> (u16, u16) {
+    fn window(&self, c: usize, range: (i32, usize)) -> (u16, u16) {
+        // Indices into the finer range, both at least 0: truncating is the floor, and the
+        // ceiling is one more where the truncation lost a fraction.
+        let floor = |v: f32| v as usize;
+        let ceil = |v: f32| floor(v) + usize::from((floor(v) as f32) < v);
+        self.window_rounding(c, range, floor, ceil)
+    }
+
+    /// [`Prior::window`] with its floor and ceiling given (the tests give `f32`'s own).
+    fn window_rounding(
+        &self,
+        c: usize,
+        (min, count): (i32, usize),
+        floor: impl Fn(f32) -> usize,
+        ceil: impl Fn(f32) -> usize,
+    ) -> (u16, u16) {
         let full = cost::stride(count);
         let cap = MAX_WINDOW.min(full);
         let last = count as f32 - 1.0;
-        // Indices into the finer range, both at least 0: truncating is the floor, and the
-        // ceiling is one more where the truncation lost a fraction.
         let lo = (2.0 * self.least[c] - MARGIN - min as f32).clamp(0.0, last);
         let hi = (2.0 * self.greatest[c] + MARGIN - min as f32).clamp(lo, last);
-        let floor = |v: f32| v as usize;
-        let ceil = |v: f32| floor(v) + usize::from((floor(v) as f32) < v);
         let (lo, hi) = (floor(lo), ceil(hi));
         let mut len = (hi - lo + 1).div_ceil(LANES) * LANES;
         let mut start = lo;
@@ -294,28 +305,20 @@ mod tests {
             let prior = Prior::new(&map, min / 2);
             let (w, rows) = (2 * cw - 1, 3..2 * ch);
             let got = prior.windows(rows.clone(), w, (min, count));
-            let full = cost::stride(count);
-            let cap = MAX_WINDOW.min(full);
-            let last = count as f32 - 1.0;
             let mut i = 0;
             for y in rows {
                 for x in 0..w {
                     let c = (y / 2).min(ch - 1) * cw + (x / 2).min(cw - 1);
-                    let lo = (2.0 * prior.least[c] - MARGIN - min as f32).clamp(0.0, last);
-                    let hi = (2.0 * prior.greatest[c] + MARGIN - min as f32).clamp(lo, last);
-                    let (lo, hi) = (lo.floor() as usize, hi.ceil() as usize);
-                    let mut len = (hi - lo + 1).div_ceil(LANES) * LANES;
-                    let mut start = lo;
-                    if len > cap {
-                        len = cap;
-                        let centre = (2.0 * prior.own[c] - min as f32).clamp(0.0, last) as usize;
-                        start = centre.saturating_sub(cap / 2);
-                    }
-                    start = start.min(full - len);
+                    let (start, len) = prior.window_rounding(
+                        c,
+                        (min, count),
+                        |v| v.floor() as usize,
+                        |v| v.ceil() as usize,
+                    );
                     let (first, cells) = got.of(i);
                     assert_eq!(
                         (first, cells.len()),
-                        (start, len),
+                        (usize::from(start), usize::from(len)),
                         "{min} {count} ({x}, {y})"
                     );
                     i += 1;

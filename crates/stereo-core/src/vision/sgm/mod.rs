@@ -485,6 +485,38 @@ mod tests {
         }
     }
 
+    /// The pass by one of its four builds: 8-bit path costs with `bytes`, and one shared
+    /// `window` or (with `None`) per-pixel windows. Gives the stored volume in [`Mode::Store`],
+    /// otherwise the rows handed on, joined; and the rows' order.
+    fn sums_by(
+        reads: Pass<'_>,
+        bytes: bool,
+        window: Option<(usize, usize)>,
+    ) -> (Vec<u16>, Vec<usize>) {
+        let never = AtomicBool::new(false);
+        let store = matches!(reads.mode, Mode::Store);
+        let len = if store {
+            reads.cost.windows.cells()
+        } else {
+            widest_row(reads.cost)
+        };
+        let mut sums = vec![0u16; len];
+        let (mut out, mut order) = (Vec::new(), Vec::new());
+        let mut on_row = |y, r: &[u16]| {
+            out.extend_from_slice(r);
+            order.push(y);
+        };
+        let (on_row, w) = (&mut on_row, window.unwrap_or((0, 0)));
+        match (bytes, window.is_some()) {
+            (true, true) => rows::<u8, true>(reads, &mut sums, on_row, &never, w),
+            (true, false) => rows::<u8, false>(reads, &mut sums, on_row, &never, w),
+            (false, true) => rows::<u16, true>(reads, &mut sums, on_row, &never, w),
+            (false, false) => rows::<u16, false>(reads, &mut sums, on_row, &never, w),
+        }
+        .unwrap();
+        (if store { sums } else { out }, order)
+    }
+
     /// A `w × h` volume searching `count` disparities everywhere, of random costs below 60,
     /// random grey levels, and the penalties P1 10, P2 80, edge 16.
     fn random_case(
@@ -521,7 +553,6 @@ mod tests {
     #[test]
     fn both_builds_of_the_pass_agree() {
         let (cost, grey, table) = random_case((23, 9, 20), 5);
-        let never = AtomicBool::new(false);
         let window = uniform(&cost.windows).expect("the whole range everywhere");
         let first = |mode| Pass {
             cost: &cost,
@@ -529,36 +560,11 @@ mod tests {
             table: &table,
             mode,
         };
-        let mut one = vec![0u16; cost.windows.cells()];
-        let mut each = one.clone();
-        rows::<u16, true>(first(Mode::Store), &mut one, &mut |_, _| {}, &never, window).unwrap();
-        rows::<u16, false>(
-            first(Mode::Store),
-            &mut each,
-            &mut |_, _| {},
-            &never,
-            (0, 0),
-        )
-        .unwrap();
+        let (one, _) = sums_by(first(Mode::Store), false, Some(window));
+        let (each, _) = sums_by(first(Mode::Store), false, None);
         assert_eq!(one, each);
-        let (mut a, mut b) = (Vec::new(), Vec::new());
-        let mut row = vec![0u16; widest_row(&cost)];
-        rows::<u16, true>(
-            first(Mode::Add(&one)),
-            &mut row,
-            &mut |_, r| a.extend_from_slice(r),
-            &never,
-            window,
-        )
-        .unwrap();
-        rows::<u16, false>(
-            first(Mode::Add(&one)),
-            &mut row,
-            &mut |_, r| b.extend_from_slice(r),
-            &never,
-            (0, 0),
-        )
-        .unwrap();
+        let (a, _) = sums_by(first(Mode::Add(&one)), false, Some(window));
+        let (b, _) = sums_by(first(Mode::Add(&one)), false, None);
         assert_eq!(a, b);
         assert!(a.iter().any(|&v| v > 0));
     }
@@ -587,7 +593,6 @@ mod tests {
         assert!(!bytes_hold(&table(131)));
         let table = table(130);
         assert!(bytes_hold(&table));
-        let never = AtomicBool::new(false);
         let window = uniform(&cost.windows).expect("the whole range everywhere");
         let reads = |mode| Pass {
             cost: &cost,
@@ -595,50 +600,16 @@ mod tests {
             table: &table,
             mode,
         };
-        let cells = cost.windows.cells();
-        let (mut stored8, mut stored16) = (vec![0u16; cells], vec![0u16; cells]);
-        rows::<u8, true>(
-            reads(Mode::Store),
-            &mut stored8,
-            &mut |_, _| {},
-            &never,
-            window,
-        )
-        .unwrap();
-        rows::<u16, true>(
-            reads(Mode::Store),
-            &mut stored16,
-            &mut |_, _| {},
-            &never,
-            window,
-        )
-        .unwrap();
+        let (stored8, _) = sums_by(reads(Mode::Store), true, Some(window));
+        let (stored16, _) = sums_by(reads(Mode::Store), false, Some(window));
         assert_eq!(stored8, stored16);
         // Some path costs pass 128: a sum of 4 above 512.
         let most = stored16.iter().copied().max();
         assert!(most > Some(512), "{most:?}");
         for mode in [Mode::Add(&stored16), Mode::Single] {
-            let rows_of = |bytes: bool, uniform: bool| {
-                let mut out = Vec::new();
-                let mut row = vec![0u16; widest_row(&cost)];
-                let mut on_row = |_, r: &[u16]| out.extend_from_slice(r);
-                match (bytes, uniform) {
-                    (true, true) => {
-                        rows::<u8, true>(reads(mode), &mut row, &mut on_row, &never, window)
-                    }
-                    (true, false) => {
-                        rows::<u8, false>(reads(mode), &mut row, &mut on_row, &never, (0, 0))
-                    }
-                    (false, _) => {
-                        rows::<u16, true>(reads(mode), &mut row, &mut on_row, &never, window)
-                    }
-                }
-                .unwrap();
-                out
-            };
-            let exact = rows_of(false, true);
-            assert_eq!(rows_of(true, true), exact);
-            assert_eq!(rows_of(true, false), exact);
+            let (exact, _) = sums_by(reads(mode), false, Some(window));
+            assert_eq!(sums_by(reads(mode), true, Some(window)).0, exact);
+            assert_eq!(sums_by(reads(mode), true, None).0, exact);
         }
     }
 
@@ -649,23 +620,14 @@ mod tests {
         let (w, h) = (19, 7);
         let (cost, grey, table) = random_case((w, h, 20), 11);
         let n = cost.windows.offsets[1] as usize;
-        let never = AtomicBool::new(false);
         let reads = |mode| Pass {
             cost: &cost,
             grey: &grey,
             table: &table,
             mode,
         };
-        let mut four = vec![0u16; cost.windows.cells()];
         let window = uniform(&cost.windows).unwrap();
-        rows::<u16, true>(
-            reads(Mode::Store),
-            &mut four,
-            &mut |_, _| {},
-            &never,
-            window,
-        )
-        .unwrap();
+        let (four, _) = sums_by(reads(Mode::Store), false, Some(window));
         // The path from the right, by its definition, over each row's real cells.
         let mut expected = four.clone();
         for y in 0..h {
@@ -698,21 +660,9 @@ mod tests {
                 prev = l;
             }
         }
-        for uniform_build in [true, false] {
-            let mut got = vec![0u16; cost.windows.cells()];
-            let mut order = Vec::new();
-            let mut row = vec![0u16; widest_row(&cost)];
-            let mut on_row = |y: usize, r: &[u16]| {
-                got[y * w * n..(y + 1) * w * n].copy_from_slice(r);
-                order.push(y);
-            };
-            if uniform_build {
-                rows::<u16, true>(reads(Mode::Single), &mut row, &mut on_row, &never, window)
-            } else {
-                rows::<u16, false>(reads(Mode::Single), &mut row, &mut on_row, &never, (0, 0))
-            }
-            .unwrap();
-            assert_eq!(got, expected, "uniform build: {uniform_build}");
+        for shared in [Some(window), None] {
+            let (got, order) = sums_by(reads(Mode::Single), false, shared);
+            assert_eq!(got, expected, "one shared window: {}", shared.is_some());
             assert_eq!(order, (0..h).collect::<Vec<_>>());
         }
     }
@@ -787,40 +737,18 @@ mod tests {
                 }
             }
         }
-        let never = AtomicBool::new(false);
         let reads = |mode| Pass {
             cost: &cost,
             grey: &grey,
             table: &table,
             mode,
         };
-        let stored_by = |eight: bool| {
-            let mut sums = vec![0u16; expected.len()];
-            let (mode, none) = (reads(Mode::Store), &mut |_, _: &[u16]| {});
-            if eight {
-                rows::<u8, false>(mode, &mut sums, none, &never, (0, 0))
-            } else {
-                rows::<u16, false>(mode, &mut sums, none, &never, (0, 0))
-            }
-            .unwrap();
-            sums
-        };
-        assert_eq!(stored_by(false), expected);
-        assert_eq!(stored_by(true), expected);
+        assert_eq!(sums_by(reads(Mode::Store), false, None).0, expected);
+        assert_eq!(sums_by(reads(Mode::Store), true, None).0, expected);
         for mode in [Mode::Add(&expected), Mode::Single] {
-            let mut out = [Vec::new(), Vec::new()];
-            for (o, eight) in out.iter_mut().zip([false, true]) {
-                let mut row = vec![0u16; widest_row(&cost)];
-                let mut on_row = |_, r: &[u16]| o.extend_from_slice(r);
-                if eight {
-                    rows::<u8, false>(reads(mode), &mut row, &mut on_row, &never, (0, 0))
-                } else {
-                    rows::<u16, false>(reads(mode), &mut row, &mut on_row, &never, (0, 0))
-                }
-                .unwrap();
-            }
-            assert_eq!(out[0], out[1]);
-            assert!(out[0].iter().any(|&v| v > 0));
+            let (wide, _) = sums_by(reads(mode), false, None);
+            assert_eq!(sums_by(reads(mode), true, None).0, wide);
+            assert!(wide.iter().any(|&v| v > 0));
         }
     }
 
