@@ -24,10 +24,20 @@ fn truth() -> (f64, f64, f64) {
     (rig.focal_px(), rig.baseline(), rig.cx().expect("cx"))
 }
 
+/// Panics with the page's status line when it says the calibration did not happen (the
+/// service refused it, or the sample did not load), instead of waiting out the bound.
+fn not_refused(status: &Value) {
+    let status = status.as_str().unwrap_or_default();
+    assert!(
+        !status.starts_with("Not calibrated") && !status.starts_with("The sample could not"),
+        "the page did not calibrate: {status}"
+    );
+}
+
 impl Browser {
     /// Waits until the page's calibration request has come back, and returns the page's
-    /// reading of it: the RMS, the views used, and the rectified f and B.
-    /// A calibration the page gave up on fails the test at once, with the page's words.
+    /// reading of it: the RMS, the views used, and the rectified f and B. A calibration the
+    /// page gave up on fails the test at once, with the page's words.
     pub(crate) async fn calibrated(&self) -> (f64, u64, f64, f64) {
         self.until_within("the calibration", CALIBRATING, || async {
             let state = self
@@ -37,7 +47,7 @@ impl Browser {
                        document.getElementById('calibrate-status').textContent]",
                 )
                 .await;
-            self.not_refused(&state[1]);
+            not_refused(&state[1]);
             (state[0] == json!(true)).then_some(())
         })
         .await;
@@ -68,21 +78,11 @@ impl Browser {
                        document.getElementById('calibrate-status').textContent]",
                 )
                 .await;
-            self.not_refused(&state[2]);
+            not_refused(&state[2]);
             (state[0] == "done" && state[1].as_str() != Some(&before.to_string())).then_some(())
         })
         .await;
         self.calibrated().await
-    }
-
-    /// Panics with the page's status line when it says the calibration did not happen (the
-    /// service refused it, or the sample did not load), instead of waiting out the bound.
-    fn not_refused(&self, status: &Value) {
-        let status = status.as_str().unwrap_or_default();
-        assert!(
-            !status.starts_with("Not calibrated") && !status.starts_with("The sample could not"),
-            "the page did not calibrate: {status}"
-        );
     }
 
     /// Chooses `files` in the board file input at once, as a person picks them.

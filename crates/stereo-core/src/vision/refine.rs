@@ -317,6 +317,31 @@ pub fn offset(before: f32, at: f32, after: f32, how: Subpixel) -> f32 {
 /// `windows`), judged by `params`' uniqueness and left-right tests against the row's
 /// right-image winners `right`, as [`winners`] and [`left_right`] judge it; the raw costs around
 /// it come from the census signatures of the block (`census`, `width` pixels a row).
+/// What one pixel's own aggregated curve `total` (its window starting at index `first`) says,
+/// worked out alone: the winner's index in the window, its sub-pixel disparity as an index into
+/// the range, its cue, and whether it passes the uniqueness test. [`winners`] gives the same
+/// for a whole row at once.
+fn winner_of(
+    total: &[u16],
+    first: usize,
+    uniqueness: u32,
+    how: Subpixel,
+) -> (usize, f32, Cue, bool) {
+    let (best, k) = argmin(total);
+    let second = min_away_from(total, k);
+    let cue = Cue {
+        best,
+        second,
+        curvature: curvature(total, k),
+    };
+    (
+        k,
+        first as f32 + fit(total, k, how),
+        cue,
+        unique(best, second, uniqueness),
+    )
+}
+
 pub fn probe(
     totals: &[u16],
     windows: RowWindows,
@@ -327,10 +352,8 @@ pub fn probe(
 ) -> super::Probe {
     let count = params.count;
     let (first, total) = windows.totals(totals, x, count);
-    let (best, k) = argmin(total);
-    let second = min_away_from(total, k);
+    let (k, subpixel, cue, is_unique) = winner_of(total, first, params.uniqueness, params.subpixel);
     let index = first + k;
-    let subpixel = first as f32 + fit(total, k, params.subpixel);
     let consistent = params
         .lr_tolerance
         .is_none_or(|tolerance| agrees(right, x, subpixel, tolerance));
@@ -371,13 +394,9 @@ pub fn probe(
     super::Probe {
         index,
         subpixel,
-        cue: Cue {
-            best,
-            second,
-            curvature: curvature(total, k),
-        },
+        cue,
         disagreement: disagreement(right, x, subpixel),
-        unique: unique(best, second, params.uniqueness),
+        unique: is_unique,
         consistent,
         window_cost: mean(window[index.min(count - 1)]),
         window_mean: mean(window.iter().sum::<u32>() / count.max(1) as u32),
@@ -575,16 +594,10 @@ mod tests {
                     let (f, total) = windows.totals(&totals, x, count);
                     let (mut left, mut cue) = (f32::NAN, Cue::default());
                     if !total.is_empty() {
-                        let (best, k) = argmin(total);
-                        let second = min_away_from(total, k);
-                        let curvature = curvature(total, k);
-                        cue = Cue {
-                            best,
-                            second,
-                            curvature,
-                        };
-                        if unique(best, second, 10) {
-                            left = f as f32 + fit(total, k, how);
+                        let (_, d, own, is_unique) = winner_of(total, f, 10, how);
+                        cue = own;
+                        if is_unique {
+                            left = d;
                         }
                     }
                     assert_eq!(got.left[x].to_bits(), left.to_bits(), "{how:?} x {x}");
