@@ -1,7 +1,9 @@
 //! Times the matcher alone on a pair, with its defaults and a disparity count: best and median
 //! wall time of `RUNS` calls, the median run's stage times (cost, aggregation, refine) and the
 //! cost cells matched over every level, the allocator tuned as the server tunes it. `PRESET` is `accurate` (the default) or `fast`. For
-//! comparing builds side by side: run two binaries in turns.
+//! comparing builds side by side: run two binaries in turns. A second line gives a digest of the
+//! last call's map (its values', σ_d's and fill flags' bits), which two builds that should agree
+//! bit for bit must print alike.
 //!
 //! ```text
 //! cargo build --profile tune --example time_matcher
@@ -39,12 +41,14 @@ fn main() {
     .expect("valid settings");
     let never = AtomicBool::new(false);
     let mut cells = 0;
+    let mut digest = 0u64;
     let mut runs_ms: Vec<(f64, [f64; 3])> = (0..runs.max(1))
         .map(|_| {
             let started = Instant::now();
-            let (_, t) =
+            let (map, t) =
                 vision::disparity(&left.grey, &right.grey, &params, &never).expect("not cancelled");
             cells = t.cells;
+            digest = digest_of(&map);
             let ms = |d: std::time::Duration| d.as_secs_f64() * 1e3;
             (
                 ms(started.elapsed()),
@@ -59,4 +63,18 @@ fn main() {
         runs_ms[0].0,
         cells as f64 / 1e6
     );
+    println!("map digest {digest:016x}");
+}
+
+/// FNV-1a over the bits of the map's values, σ_d and fill flags.
+fn digest_of(map: &vision::Disparity) -> u64 {
+    let words = map
+        .data
+        .iter()
+        .chain(&map.std)
+        .map(|v| u64::from(v.to_bits()));
+    let flags = map.filled.iter().map(|&f| u64::from(f));
+    words.chain(flags).fold(0xcbf2_9ce4_8422_2325, |h, v| {
+        (h ^ v).wrapping_mul(0x0000_0100_0000_01b3)
+    })
 }

@@ -250,7 +250,6 @@ pub fn texture(left: &Gray, right: &Gray, sigmas: (f32, f32)) -> Texture {
 /// computed on the levels' top 12 bits, so that each square fits a `u32` and the loop runs on
 /// whole vectors of them.
 fn second_differences(image: &Gray) -> [f64; LAGS.len()] {
-    const DROP: u32 = 4;
     let (w, h) = (image.width, image.height);
     let reach = 2 * LAGS[LAGS.len() - 1];
     let rows: Vec<usize> = (0..h - reach).step_by(4).collect();
@@ -260,17 +259,8 @@ fn second_differences(image: &Gray) -> [f64; LAGS.len()] {
             let row = |dy: usize| &image.data[(y + dy) * w..(y + dy + 1) * w];
             let mut sums = [0f64; LAGS.len()];
             for (sum, &lag) in sums.iter_mut().zip(&LAGS) {
-                let (above, at, below) = (row(0), row(lag), row(2 * lag));
-                let level = |v: u16| i32::from(v >> DROP);
-                let mut acc = 0u64;
-                for x in 0..w - reach {
-                    let centre = 2 * level(at[x + lag]);
-                    let along = level(at[x]) + level(at[x + 2 * lag]) - centre;
-                    let across = level(above[x + lag]) + level(below[x + lag]) - centre;
-                    // Each at most 2 · 8190², within a u32.
-                    acc += u64::from((along * along) as u32 + (across * across) as u32);
-                }
-                *sum = acc as f64 * f64::from(1u32 << (2 * DROP));
+                let acc = lag_squares((row(0), row(lag), row(2 * lag)), lag, w - reach);
+                *sum = acc as f64 * f64::from(1u32 << (2 * LAG_DROP));
             }
             (sums, 2 * (w - reach))
         })
@@ -283,6 +273,30 @@ fn second_differences(image: &Gray) -> [f64; LAGS.len()] {
         );
     let count = count.max(1) as f64;
     sums.map(|s| s / count)
+}
+
+/// The low bits of each level [`lag_squares`] drops.
+const LAG_DROP: u32 = 4;
+
+crate::dispatch! {
+    /// The sum over `x < n` of the squared second differences at `lag` along the row `at`
+    /// (around its pixel `x + lag`) and across the rows `above`, `at` and `below`, on the levels'
+    /// top 12 bits ([`second_differences`]'s terms for one row and lag).
+    fn lag_squares(rows: (&[u16], &[u16], &[u16]), lag: usize, n: usize) -> u64 {
+        let (above, at, below) = rows;
+        let (above, below) = (&above[lag..lag + n], &below[lag..lag + n]);
+        let (before, here, after) = (&at[..n], &at[lag..lag + n], &at[2 * lag..2 * lag + n]);
+        let level = |v: u16| i32::from(v >> LAG_DROP);
+        let mut acc = 0u64;
+        for x in 0..n {
+            let centre = 2 * level(here[x]);
+            let along = level(before[x]) + level(after[x]) - centre;
+            let across = level(above[x]) + level(below[x]) - centre;
+            // Each at most 2 · 8190², within a u32.
+            acc += u64::from((along * along) as u32 + (across * across) as u32);
+        }
+        acc
+    }
 }
 
 crate::dispatch! {

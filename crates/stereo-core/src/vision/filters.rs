@@ -115,22 +115,32 @@ fn label_band(
         }
         p
     };
-    for (p, &v) in d.iter().enumerate() {
-        parent[p] = p as u32 + offset;
-        if v.is_nan() {
-            continue;
-        }
-        let x = p % width;
-        if x > 0 && joined(v, d[p - 1]) {
-            parent[p] = parent[find(parent, p - 1)];
-        }
-        if p >= width && joined(v, d[p - width]) {
-            let (a, b) = (find(parent, p), find(parent, p - width));
-            if a != b {
-                // The later root joins the earlier one.
-                let (lo, hi) = (a.min(b), a.max(b));
-                parent[hi] = lo as u32 + offset;
+    // Row by row, so that a pixel's column needs no division. A root is always its region's
+    // first pixel (the later root joins the earlier one), and the previous pixel's root is
+    // known from its own step, so only the pixel above is looked up.
+    for (row, values) in d.chunks(width).enumerate() {
+        let mut left_root = 0;
+        for (x, &v) in values.iter().enumerate() {
+            let p = row * width + x;
+            parent[p] = p as u32 + offset;
+            if v.is_nan() {
+                continue;
             }
+            let mut here = p;
+            // NaN is joined to nothing, so a left neighbour joined has its root in `left_root`.
+            if x > 0 && joined(v, d[p - 1]) {
+                here = left_root;
+                parent[p] = here as u32 + offset;
+            }
+            if row > 0 && joined(v, d[p - width]) {
+                let above = find(parent, p - width);
+                if above != here {
+                    let (lo, hi) = (here.min(above), here.max(above));
+                    parent[hi] = lo as u32 + offset;
+                    here = lo;
+                }
+            }
+            left_root = here;
         }
     }
     for p in 0..d.len() {

@@ -197,14 +197,15 @@ fn flat_pixels(image: &Gray) -> Vec<bool> {
 }
 
 /// A column's sums over the window's rows: the support's ten moments, the sum of its σ_d²
-/// ([`VARIANCE`]), then its count in the rows above the window's centre ([`ABOVE`]); the count
+/// (the eleventh), then its count in the rows above the window's centre ([`ABOVE`]); the count
 /// below it is the rest (the whole count less those above and the centre row's).
-type Column = [f64; 12];
-const VARIANCE: usize = 10;
+type Column = [f64; SUMS];
+const SUMS: usize = 12;
 const ABOVE: usize = 11;
 
 /// The [`WINDOW`]-row window around a centre row: each column's sums ([`Column`]), slid down
-/// one row at a time.
+/// one row at a time. The sums are kept as [`SUMS`] rows of `width` (`sums[k][x]` is column
+/// `x`'s sum `k`), so that a row of the image enters or leaves them on whole registers.
 struct Window<'a> {
     disparity: &'a [f32],
     std: &'a [f32],
@@ -212,7 +213,7 @@ struct Window<'a> {
     width: usize,
     height: usize,
     centre: usize,
-    columns: Vec<Column>,
+    sums: [Vec<f64>; SUMS],
 }
 
 impl<'a> Window<'a> {
@@ -233,12 +234,17 @@ impl<'a> Window<'a> {
             width,
             height,
             centre,
-            columns: vec![[0.0; 12]; width],
+            sums: std::array::from_fn(|_| vec![0.0; width]),
         };
         for row in centre.saturating_sub(Self::HALF)..(centre + Self::HALF + 1).min(height) {
             window.moments(row, 1.0, row < centre);
         }
         window
+    }
+
+    /// Column `x`'s sums.
+    fn column(&self, x: usize) -> Column {
+        std::array::from_fn(|k| self.sums[k][x])
     }
 
     /// Slides the window down to the row `centre` (at or below its own).
@@ -262,41 +268,20 @@ impl<'a> Window<'a> {
     fn moments(&mut self, row: usize, sign: f64, above: bool) {
         let start = row * self.width;
         let end = start + self.width;
-        let py = row as f64;
-        let pixels = self.support[start..end]
-            .iter()
-            .zip(&self.disparity[start..end])
-            .zip(&self.std[start..end]);
-        for (x, (column, ((&support, &d), &s))) in self.columns.iter_mut().zip(pixels).enumerate() {
-            let (w, d, s) = match support {
-                true => (sign, f64::from(d), f64::from(s)),
-                false => (0.0, 0.0, 0.0),
-            };
-            let px = x as f64;
-            let (wx, wy, wd) = (w * px, w * py, w * d);
-            column[0] += w;
-            column[1] += wx;
-            column[2] += wy;
-            column[3] += wd;
-            column[4] += wx * px;
-            column[5] += wx * py;
-            column[6] += wy * py;
-            column[7] += wd * px;
-            column[8] += wd * py;
-            column[9] += wd * d;
-            column[VARIANCE] += w * s * s;
-            if above {
-                column[ABOVE] += w;
-            }
-        }
+        let pixels = (
+            &self.support[start..end],
+            &self.disparity[start..end],
+            &self.std[start..end],
+        );
+        add_row(&mut self.sums, pixels, row as f64, sign, above);
     }
 
     /// Row `row`'s support added to the columns' count above the centre.
     fn count_above(&mut self, row: usize) {
         let start = row * self.width;
         let support = &self.support[start..start + self.width];
-        for (column, &s) in self.columns.iter_mut().zip(support) {
-            column[ABOVE] += if s { 1.0 } else { 0.0 };
+        for (count, &s) in self.sums[ABOVE].iter_mut().zip(support) {
+            *count += if s { 1.0 } else { 0.0 };
         }
     }
 
@@ -304,33 +289,34 @@ impl<'a> Window<'a> {
     /// first), fitted around its middle column (the last group's at the edge) when the
     /// module's rules allow.
     fn planes(&self, out: &mut [Option<Plane>]) {
-        let (width, half, columns) = (self.width, Self::HALF, &self.columns);
-        let mut sums: Column = [0.0; 12];
+        let (width, half) = (self.width, Self::HALF);
+        let count = &self.sums[0];
+        let mut sums: Column = [0.0; SUMS];
         // The support's count in the columns x − half .. x − 1 and x + 1 ..= x + half, and on
         // the centre row within the window's columns.
         let (mut before, mut after, mut on_centre) = (0.0, 0.0, 0.0);
         let centre = &self.support[self.centre * width..(self.centre + 1) * width];
         let on = |x: usize| if centre[x] { 1.0 } else { 0.0 };
-        for (x, column) in columns[..half.min(width)].iter().enumerate() {
-            add(&mut sums, column, 1.0);
-            after += column[0];
+        for (x, &c) in count[..half.min(width)].iter().enumerate() {
+            add(&mut sums, &self.column(x), 1.0);
+            after += c;
             on_centre += on(x);
         }
         for x in 0..width {
             if x + half < width {
-                add(&mut sums, &columns[x + half], 1.0);
-                after += columns[x + half][0];
+                add(&mut sums, &self.column(x + half), 1.0);
+                after += count[x + half];
                 on_centre += on(x + half);
             }
             if x > half {
-                add(&mut sums, &columns[x - half - 1], -1.0);
-                before -= columns[x - half - 1][0];
+                add(&mut sums, &self.column(x - half - 1), -1.0);
+                before -= count[x - half - 1];
                 on_centre -= on(x - half - 1);
             }
             if x > 0 {
-                before += columns[x - 1][0];
+                before += count[x - 1];
             }
-            after -= columns[x][0];
+            after -= count[x];
             let first = x / COLUMNS * COLUMNS;
             if x != (first + COLUMNS / 2).min(width - 1) {
                 continue;
@@ -338,6 +324,51 @@ impl<'a> Window<'a> {
             let below = sums[0] - sums[ABOVE] - on_centre;
             if before.min(after).min(sums[ABOVE]).min(below) >= MIN_SIDE {
                 out[x / COLUMNS] = plane_at(&sums, x as f64, self.centre as f64);
+            }
+        }
+    }
+}
+
+crate::dispatch! {
+    /// One row's support (`support`, `disparity` and `std` of its pixels, row `py` of the image)
+    /// added to (`sign` 1) or taken from (−1) the column sums `sums` ([`Window`]'s rows of
+    /// sums), and to or from their count above the centre when `above`. Branch-free, on whole
+    /// registers: a pixel that is no support adds zeros, whatever its disparity holds.
+    fn add_row(
+        sums: &mut [Vec<f64>; SUMS],
+        pixels: (&[bool], &[f32], &[f32]),
+        py: f64,
+        sign: f64,
+        above: bool,
+    ) {
+        let (support, disparity, std) = pixels;
+        let width = support.len().min(disparity.len()).min(std.len());
+        let [n, sx, sy, sd, sxx, sxy, syy, sxd, syd, sdd, sss, count_above] = sums;
+        let (n, sx, sy, sd) = (&mut n[..width], &mut sx[..width], &mut sy[..width], &mut sd[..width]);
+        let (sxx, sxy, syy) = (&mut sxx[..width], &mut sxy[..width], &mut syy[..width]);
+        let (sxd, syd, sdd, sss) = (&mut sxd[..width], &mut syd[..width], &mut sdd[..width], &mut sss[..width]);
+        for x in 0..width {
+            let on = support[x];
+            let w = if on { sign } else { 0.0 };
+            let d = if on { f64::from(disparity[x]) } else { 0.0 };
+            let s = if on { f64::from(std[x]) } else { 0.0 };
+            let px = x as f64;
+            let (wx, wy, wd) = (w * px, w * py, w * d);
+            n[x] += w;
+            sx[x] += wx;
+            sy[x] += wy;
+            sd[x] += wd;
+            sxx[x] += wx * px;
+            sxy[x] += wx * py;
+            syy[x] += wy * py;
+            sxd[x] += wd * px;
+            syd[x] += wd * py;
+            sdd[x] += wd * d;
+            sss[x] += w * s * s;
+        }
+        if above {
+            for (count, &on) in count_above[..width].iter_mut().zip(support) {
+                *count += if on { sign } else { 0.0 };
             }
         }
     }
