@@ -280,9 +280,7 @@ impl<'a> Window<'a> {
     fn count_above(&mut self, row: usize) {
         let start = row * self.width;
         let support = &self.support[start..start + self.width];
-        for (count, &s) in self.sums[ABOVE].iter_mut().zip(support) {
-            *count += if s { 1.0 } else { 0.0 };
-        }
+        add_count(&mut self.sums[ABOVE], support, 1.0);
     }
 
     /// The planes of this window, one for each group of [`COLUMNS`] columns (`out`, from the
@@ -367,10 +365,16 @@ crate::dispatch! {
             sss[x] += w * s * s;
         }
         if above {
-            for (count, &on) in count_above[..width].iter_mut().zip(support) {
-                *count += if on { sign } else { 0.0 };
-            }
+            add_count(count_above, support, sign);
         }
+    }
+}
+
+/// `sign` added to `counts` where there is `support`.
+#[inline(always)]
+fn add_count(counts: &mut [f64], support: &[bool], sign: f64) {
+    for (count, &on) in counts.iter_mut().zip(support) {
+        *count += if on { sign } else { 0.0 };
     }
 }
 
