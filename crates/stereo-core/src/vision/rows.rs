@@ -71,7 +71,7 @@ pub fn row_offsets(left: &Gray, right: &Gray, (min_d, max_d): (i32, i32)) -> Opt
         if l.height / 2 < COARSE_HEIGHT || l.width / 2 < 4 * side {
             break;
         }
-        let (l, r) = (halve(l), halve(r));
+        let (l, r) = rayon::join(|| halve(l), || halve(r));
         lefts.push(l);
         rights.push(r);
     }
@@ -150,8 +150,10 @@ fn halve(img: &Gray) -> Gray {
             &img.data[(2 * y + 1) * img.width..][..2 * w],
         );
         data.extend(
-            top.chunks_exact(2)
-                .zip(bottom.chunks_exact(2))
+            top.as_chunks::<2>()
+                .0
+                .iter()
+                .zip(bottom.as_chunks::<2>().0)
                 .map(|(t, b)| {
                     let sum = u32::from(t[0]) + u32::from(t[1]) + u32::from(b[0]) + u32::from(b[1]);
                     ((sum + 2) / 4) as u16
@@ -164,27 +166,53 @@ fn halve(img: &Gray) -> Gray {
 /// The strongest corner of each grid cell (a patch's width from the borders), by the smaller
 /// eigenvalue of the structure tensor over a 7 × 7 window, sampled every few pixels; cells
 /// without texture give none.
+///
+/// The tensor's three sums over each window come from running sums of the gradients'
+/// products (whole numbers, so exact whatever the order): a column sum of 7 rows kept for
+/// every column, then 7 columns of it a candidate, where each window summed its 49 products.
 fn corners(img: &Gray) -> Vec<(usize, usize)> {
     const WINDOW: usize = 3;
+    const SIDE: usize = 2 * WINDOW + 1;
     let (w, h) = (img.width, img.height);
     let (x0, x1, y0, y1) = (RADIUS + 1, w - RADIUS - 1, RADIUS + 1, h - RADIUS - 1);
     // About 12 000 candidates whatever the size (250 a cell).
     let step = (((x1 - x0) * (y1 - y0)) as f64 / 12_000.0).sqrt().max(1.0) as usize;
-    let at = |x: usize, y: usize| i32::from(img.data[y * w + x]);
+    let at = |x: usize, y: usize| i64::from(img.data[y * w + x]);
+    // The gradients' products (central differences) at row `v`, columns `x0 − WINDOW ..
+    // x1 + WINDOW`, added to (`sign` 1) or taken from (−1) the columns' sums.
+    let (c0, c1) = (x0 - WINDOW, x1 + WINDOW);
+    let mut columns = vec![[0i64; 3]; c1 - c0];
+    let add_row = |columns: &mut [[i64; 3]], v: usize, sign: i64| {
+        for (u, sums) in (c0..c1).zip(columns.iter_mut()) {
+            let gx = at(u + 1, v) - at(u - 1, v);
+            let gy = at(u, v + 1) - at(u, v - 1);
+            sums[0] += sign * gx * gx;
+            sums[1] += sign * gx * gy;
+            sums[2] += sign * gy * gy;
+        }
+    };
+    // Central differences in grey levels of 8 bits: the products scaled by 1 / 257².
+    let scale = 1.0 / (257.0f64 * 257.0);
     let mut best = vec![(0.0f32, 0usize, 0usize); CELLS.0 * CELLS.1];
+    // The rows the columns' sums hold: `top .. top + SIDE`.
+    let mut top = y0 - WINDOW;
+    for v in top..top + SIDE {
+        add_row(&mut columns, v, 1);
+    }
     for y in (y0..y1).step_by(step) {
+        while top < y - WINDOW {
+            add_row(&mut columns, top, -1);
+            add_row(&mut columns, top + SIDE, 1);
+            top += 1;
+        }
         for x in (x0..x1).step_by(step) {
-            let (mut xx, mut xy, mut yy) = (0.0f32, 0.0f32, 0.0f32);
-            for v in y - WINDOW..=y + WINDOW {
-                for u in x - WINDOW..=x + WINDOW {
-                    // Central differences, in grey levels of 8 bits.
-                    let gx = (at(u + 1, v) - at(u - 1, v)) as f32 / 257.0;
-                    let gy = (at(u, v + 1) - at(u, v - 1)) as f32 / 257.0;
-                    xx += gx * gx;
-                    xy += gx * gy;
-                    yy += gy * gy;
-                }
+            let mut window = [0i64; 3];
+            for sums in &columns[x - WINDOW - c0..][..SIDE] {
+                window[0] += sums[0];
+                window[1] += sums[1];
+                window[2] += sums[2];
             }
+            let [xx, xy, yy] = window.map(|s| (s as f64 * scale) as f32);
             let half_trace = 0.5 * (xx + yy);
             let min_eigen = half_trace - (0.25 * (xx - yy) * (xx - yy) + xy * xy).sqrt();
             let cell = (y - y0) * CELLS.1 / (y1 - y0) * CELLS.0 + (x - x0) * CELLS.0 / (x1 - x0);
@@ -194,7 +222,7 @@ fn corners(img: &Gray) -> Vec<(usize, usize)> {
         }
     }
     // A gradient of a few grey levels a pixel over the window: texture, not noise.
-    let floor = ((2 * WINDOW + 1) * (2 * WINDOW + 1)) as f32 * 4.0 * 4.0;
+    let floor = (SIDE * SIDE) as f32 * 4.0 * 4.0;
     best.into_iter()
         .filter(|&(s, _, _)| s > floor)
         .map(|(_, x, y)| (x, y))
@@ -271,7 +299,7 @@ fn search(
         );
     }
     // Sums and sums of squares over every patch of the region: along the rows, then columns.
-    let mut row_sums = vec![(0.0f64, 0.0f64); cols * rh];
+    let (mut row_sums, mut row_squares) = (vec![0.0f64; cols * rh], vec![0.0f64; cols * rh]);
     for v in 0..rh {
         let line = &region[v * rw..][..rw];
         let (mut s, mut q) = (0.0f64, 0.0f64);
@@ -280,7 +308,8 @@ fn search(
             q += f64::from(p) * f64::from(p);
         }
         for u in 0..cols {
-            row_sums[v * cols + u] = (s, q);
+            row_sums[v * cols + u] = s;
+            row_squares[v * cols + u] = q;
             if u + side < rw {
                 let (add, drop) = (f64::from(line[u + side]), f64::from(line[u]));
                 s += add - drop;
@@ -289,25 +318,43 @@ fn search(
         }
     }
     // scores[row · cols + i]: row 0 is dy_lo, i = 0 the largest disparity.
+    // The dot products of a row of candidates at once, a line of the patch at a time: each
+    // candidate's products summed in the same order as one at a time (a line's, then the
+    // lines'), with the candidates in the vector lanes.
     let mut scores = vec![-1.0f32; cols * rows];
+    let (mut dots, mut line_dots) = (vec![0.0f32; cols], vec![0.0f32; cols]);
+    let (mut sums, mut squares) = (vec![0.0f64; cols], vec![0.0f64; cols]);
     for row in 0..rows {
-        for u in 0..cols {
-            let (mut s, mut q) = (0.0, 0.0);
-            for v in row..row + side {
-                let (a, b) = row_sums[v * cols + u];
-                s += a;
-                q += b;
+        dots.fill(0.0);
+        for (k, line) in reference.chunks_exact(side).enumerate() {
+            let patches = &region[(row + k) * rw..][..rw];
+            line_dots.fill(-0.0);
+            for (j, &a) in line.iter().enumerate() {
+                for (dot, &b) in line_dots.iter_mut().zip(&patches[j..j + cols]) {
+                    *dot += a * b;
+                }
             }
+            for (dot, &line_dot) in dots.iter_mut().zip(&line_dots) {
+                *dot += line_dot;
+            }
+        }
+        // The patches' sums and sums of squares, the candidates in the lanes again.
+        sums.fill(0.0);
+        squares.fill(0.0);
+        for v in row..row + side {
+            let line = v * cols..(v + 1) * cols;
+            for (s, &a) in sums.iter_mut().zip(&row_sums[line.clone()]) {
+                *s += a;
+            }
+            for (q, &b) in squares.iter_mut().zip(&row_squares[line]) {
+                *q += b;
+            }
+        }
+        for (u, (&s, &q)) in sums.iter().zip(&squares).enumerate() {
             let variance = q - s * s / n;
-            if variance <= 1e-6 {
-                continue;
+            if variance > 1e-6 {
+                scores[row * cols + u] = (f64::from(dots[u]) / variance.sqrt()) as f32;
             }
-            let mut dot = 0.0f32;
-            for (k, line) in reference.chunks_exact(side).enumerate() {
-                let patch = &region[(row + k) * rw + u..][..side];
-                dot += line.iter().zip(patch).map(|(a, b)| a * b).sum::<f32>();
-            }
-            scores[row * cols + u] = (f64::from(dot) / variance.sqrt()) as f32;
         }
     }
     let (best, &top) = scores
@@ -398,6 +445,56 @@ mod tests {
             }
         }
         (Gray::new(w, h, l), Gray::new(w, h, r))
+    }
+
+    /// The corners taken from the running sums are each cell's strongest by the structure
+    /// tensor summed pixel by pixel over its 7 × 7 window, on a pair sampled at every pixel
+    /// and on one large enough to be sampled every few.
+    #[test]
+    fn corners_are_each_cells_strongest_by_the_windows_own_sums() {
+        for (w, h) in [(320, 240), (900, 700)] {
+            let (img, _) = pair(w, h, 0.0, 0.0, 0.0);
+            let (x0, x1, y0, y1) = (RADIUS + 1, w - RADIUS - 1, RADIUS + 1, h - RADIUS - 1);
+            let step = (((x1 - x0) * (y1 - y0)) as f64 / 12_000.0).sqrt().max(1.0) as usize;
+            let at = |x: usize, y: usize| i64::from(img.data[y * w + x]);
+            let mut best = vec![(0.0f32, 0usize, 0usize); CELLS.0 * CELLS.1];
+            for y in (y0..y1).step_by(step) {
+                for x in (x0..x1).step_by(step) {
+                    let mut sums = [0i64; 3];
+                    for v in y - 3..=y + 3 {
+                        for u in x - 3..=x + 3 {
+                            let gx = at(u + 1, v) - at(u - 1, v);
+                            let gy = at(u, v + 1) - at(u, v - 1);
+                            sums[0] += gx * gx;
+                            sums[1] += gx * gy;
+                            sums[2] += gy * gy;
+                        }
+                    }
+                    let [xx, xy, yy] = sums.map(|s| (s as f64 / (257.0 * 257.0)) as f32);
+                    let e = 0.5 * (xx + yy) - (0.25 * (xx - yy) * (xx - yy) + xy * xy).sqrt();
+                    let cell =
+                        (y - y0) * CELLS.1 / (y1 - y0) * CELLS.0 + (x - x0) * CELLS.0 / (x1 - x0);
+                    if e > best[cell].0 {
+                        best[cell] = (e, x, y);
+                    }
+                }
+            }
+            let expected: Vec<(usize, usize)> = best
+                .into_iter()
+                .filter(|&(e, _, _)| e > 49.0 * 16.0)
+                .map(|(_, x, y)| (x, y))
+                .collect();
+            assert!(
+                step > 1 || w < 400,
+                "the large image is sampled every {step} px"
+            );
+            assert!(
+                expected.len() >= 40,
+                "{} corners at {w} × {h}",
+                expected.len()
+            );
+            assert_eq!(corners(&img), expected, "{w} × {h}");
+        }
     }
 
     /// A pair whose rows line up gives offsets of zero.
