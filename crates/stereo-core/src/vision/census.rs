@@ -321,19 +321,19 @@ crate::dispatch! {
             let var = (s2 * (1.0 / 9.0) - offset * offset).max(0.0);
             let keep = if var > noise_var { 1.0 - noise_var / var } else { 0.0 };
             // The mean (raw + offset) plus `keep` of the pixel's difference from it (−offset).
-            *c = (raw + offset * (1.0 - keep)).round().clamp(0.0, 65535.0) as u16;
+            *c = level_of(raw + offset * (1.0 - keep));
         }
         debug_assert_eq!(lines[1].len(), w + 2);
     }
 }
 
 crate::dispatch! {
-    /// The signatures of row `y` against its `centre` values, one window offset at a time
-    /// across the whole row, so that the comparisons run on whole vectors of pixels; `padded`
-    /// is the image with `stride` times the window's half-size repeated around it, `shape` its
-    /// width and the stride.
-    /// The first half of the bits (31) is gathered in one `u32` a pixel and the other half in
-    /// another (twice the lanes of a `u64`), then joined.
+    /// The signatures of row `y` against its `centre` values, a block of [`BLOCK`] pixels at
+    /// a time over every window offset, so that the comparisons run on whole vectors of pixels
+    /// and the bits stay in registers; `padded` is the image with `stride` times the window's
+    /// half-size repeated around it, `shape` its width and the stride.
+    /// The bits are gathered 16 to a `u16` a pixel (four times the lanes of a `u64`), then
+    /// joined.
     wide fn signatures(
         padded: &[u16],
         centre: &[u16],
@@ -341,26 +341,75 @@ crate::dispatch! {
         y: usize,
         row: &mut [u64],
     ) {
-        const HALF: usize = BITS as usize / 2;
         let (pw, stride) = shape;
         let (rx, ry) = (WIDTH / 2, HEIGHT / 2);
         let w = row.len();
-        let offsets = (0..HEIGHT)
+        // Where each window offset's line starts in `padded`, in the bits' order (the first
+        // offset's bit is the highest).
+        let starts: Vec<usize> = (0..HEIGHT)
             .flat_map(|wy| (0..WIDTH).map(move |wx| (wy, wx)))
-            .filter(|&(wy, wx)| (wy, wx) != (ry, rx));
-        let mut halves = [vec![0u32; w], vec![0u32; w]];
-        for (i, (wy, wx)) in offsets.enumerate() {
-            let half = &mut halves[i / HALF];
-            let at = (y + wy * stride) * pw + wx * stride;
-            let line = &padded[at..at + w];
-            for ((bits, &v), &c) in half.iter_mut().zip(line).zip(centre) {
-                *bits = (*bits << 1) | u32::from(v < c);
+            .filter(|&(wy, wx)| (wy, wx) != (ry, rx))
+            .map(|(wy, wx)| (y + wy * stride) * pw + wx * stride)
+            .collect();
+        let groups: Vec<&[usize]> = starts.chunks(16).collect();
+        // A block of pixels at a time, its bits gathered 16 offsets to a `u16` and held in
+        // registers over the offsets (rather than each offset's bits stored across the row and
+        // loaded again), then joined.
+        let mut x0 = 0;
+        while x0 + BLOCK <= w {
+            let centre: &[u16; BLOCK] = centre[x0..x0 + BLOCK].try_into().expect("a block");
+            let out = &mut row[x0..x0 + BLOCK];
+            out.fill(0);
+            let mut done = 0;
+            for group in &groups {
+                done += group.len();
+                let bits = gather(padded, group, x0, centre);
+                let shift = BITS as usize - done;
+                for (sig, &b) in out.iter_mut().zip(&bits) {
+                    *sig |= u64::from(b) << shift;
+                }
             }
+            x0 += BLOCK;
         }
-        for ((sig, &hi), &lo) in row.iter_mut().zip(&halves[0]).zip(&halves[1]) {
-            *sig = (u64::from(hi) << HALF) | u64::from(lo);
+        // The row's last pixels, one at a time.
+        for (x, sig) in row.iter_mut().enumerate().skip(x0) {
+            *sig = starts
+                .iter()
+                .fold(0u64, |b, &at| (b << 1) | u64::from(padded[at + x] < centre[x]));
         }
     }
+}
+
+/// `value` rounded (half away from zero) and clamped to a 16-bit grey level, as
+/// `value.round().clamp(0.0, 65535.0) as u16` gives it: the whole number read from the mantissa
+/// of itself plus 2^23 (exact there), so that [`lee_row`]'s builds convert on whole registers,
+/// where a float's saturating cast goes one lane at a time. NaN gives a level, never a panic.
+#[inline(always)]
+fn level_of(value: f32) -> u16 {
+    let level = value.round().clamp(0.0, 65535.0);
+    ((level + 8_388_608.0).to_bits() & 0xffff) as u16
+}
+
+/// The pixels [`signatures`] gathers at once: an AVX-512 register of `u16`.
+const BLOCK: usize = 32;
+
+/// The bits of the block of pixels from `x0` (their `centre` values) for at most 16 window
+/// offsets whose lines start at `starts` in `padded`, the first offset's in the highest bit.
+/// Inlined into [`signatures`]' builds, so that it runs on their vector widths (a closure
+/// would not be).
+#[inline(always)]
+fn gather(padded: &[u16], starts: &[usize], x0: usize, centre: &[u16; BLOCK]) -> [u16; BLOCK] {
+    debug_assert!(starts.len() <= 16);
+    let mut bits = [0u16; BLOCK];
+    for &at in starts {
+        let line: &[u16; BLOCK] = padded[at + x0..at + x0 + BLOCK]
+            .try_into()
+            .expect("a block");
+        for k in 0..BLOCK {
+            bits[k] = (bits[k] << 1) | u16::from(line[k] < centre[k]);
+        }
+    }
+    bits
 }
 
 #[cfg(test)]
@@ -387,6 +436,30 @@ mod tests {
             }
         }
         assert_eq!(transform_rows(&image, 300.0, 1, 30..40), (vec![], vec![]));
+    }
+
+    /// The grey level read from the mantissa is the rounded, clamped cast's, at every level
+    /// and half-way between, below zero and past 16 bits.
+    #[test]
+    fn a_level_from_the_mantissa_is_the_casts() {
+        let cast = |v: f32| v.round().clamp(0.0, 65535.0) as u16;
+        let values = (0..=65_536u32)
+            .flat_map(|l| [l as f32, l as f32 + 0.5, l as f32 - 0.5, l as f32 + 0.49])
+            .chain([
+                -1e9,
+                -3.7,
+                -0.5,
+                -0.0,
+                65_535.6,
+                70_000.0,
+                1e12,
+                f32::INFINITY,
+            ]);
+        for v in values {
+            assert_eq!(level_of(v), cast(v), "{v}");
+        }
+        assert!(level_of(f32::NEG_INFINITY) == 0);
+        let _ = level_of(f32::NAN);
     }
 
     /// A flat image has no structure: every signature is zero.
