@@ -328,6 +328,7 @@ fn search(
         dots.fill(0.0);
         for (k, line) in reference.chunks_exact(side).enumerate() {
             let patches = &region[(row + k) * rw..][..rw];
+            // −0.0: where a one-at-a-time `sum::<f32>()` starts, so that the sums agree bit for bit.
             line_dots.fill(-0.0);
             for (j, &a) in line.iter().enumerate() {
                 for (dot, &b) in line_dots.iter_mut().zip(&patches[j..j + cols]) {
