@@ -1,5 +1,5 @@
 //! The disparity map's filters after the winners are chosen: speckle removal (OpenCV's
-//! `filterSpeckles`, by union-find in bands), the 3 × 3 median that ignores invalid pixels,
+//! `filterSpeckles`, by union-find over runs in bands), the 3 × 3 median that ignores invalid pixels,
 //! and hole filling for the pyramid's coarse levels; and [`finish`], the order they run in
 //! with σ_d, the planes in flat holes and the keep rule.
 //!
@@ -45,11 +45,14 @@ pub(super) fn finish(
 /// Invalidates the connected regions of fewer than `max_size` pixels whose neighbours differ by
 /// at most `range` (OpenCV's `filterSpeckles`): small islands are usually mismatches.
 ///
-/// The regions are found by union-find in horizontal bands side by side (one a core), each
-/// pixel joined to its left and upper neighbours, every tree's root holding its size; then the
-/// bands' regions that touch across a seam are joined, their sizes added; then every pixel
-/// whose region is small is invalidated, band by band again. Which pixels go does not depend
-/// on the bands.
+/// The regions are found by union-find over runs, not pixels: a run is a row's stretch of valid
+/// pixels each joined to the one before it, so a smooth map has few. In horizontal bands side
+/// by side (one a core), each row is cut into runs, and each run is joined to every run of the
+/// row above that it overlaps where a pixel is joined to the one above it (a walk over the two
+/// rows' runs in order, each pair's columns read only while their regions differ). Then the
+/// bands' regions that touch across a seam are joined the same way, their sizes added; then
+/// every run whose region is small is invalidated, band by band again. Which pixels go depends
+/// neither on the bands nor on the runs: the regions are those of the pixels' joins.
 pub fn speckles(disparity: &mut [f32], width: usize, max_size: usize, range: f32) {
     if max_size == 0 || disparity.is_empty() || width == 0 {
         return;
@@ -57,119 +60,197 @@ pub fn speckles(disparity: &mut [f32], width: usize, max_size: usize, range: f32
     let height = disparity.len() / width;
     let per = height.div_ceil(rayon::current_num_threads().max(1)).max(1);
     let band = per * width;
-    let n = disparity.len();
-    // `parent[p]` leads to the root of p's region (a pixel index); `size[r]` is root r's region
-    // size. Both `u32`: the pixel limits keep an image far below 2^32 pixels.
-    let mut parent = vec![0u32; n];
-    let mut size = vec![0u32; n];
     let joined = |a: f32, b: f32| (a - b).abs() <= range;
-    parent
-        .par_chunks_mut(band)
-        .zip(size.par_chunks_mut(band))
-        .zip(disparity.par_chunks(band))
-        .enumerate()
-        .for_each(|(b, ((parent, size), d))| {
-            let offset = (b * band) as u32;
-            label_band(d, width, offset, parent, size, &joined);
-        });
+    let mut bands: Vec<Band> = disparity
+        .par_chunks(band)
+        .map(|d| Band::label(d, width, &joined))
+        .collect();
+    // One forest over every band's runs: band b's runs follow those of the bands before it.
+    let mut offset = 0u32;
+    let mut parent = Vec::with_capacity(bands.iter().map(|b| b.spans.len()).sum());
+    let mut size = Vec::with_capacity(parent.capacity());
+    for b in &mut bands {
+        parent.extend(b.parent.iter().map(|&p| p + offset));
+        size.append(&mut b.size);
+        b.first_run = offset;
+        offset += b.spans.len() as u32;
+    }
     // The seams: the last row of each band against the first row of the next.
-    for seam in (band..n).step_by(band) {
-        for p in seam - width..seam {
-            let q = p + width;
-            if joined(disparity[p], disparity[q]) {
-                unite(&mut parent, &mut size, p, q);
-            }
-        }
+    let mut forest = Forest {
+        parent: &mut parent,
+        size: &mut size,
+    };
+    for (i, pair) in bands.windows(2).enumerate() {
+        let (above, below) = (&pair[0], &pair[1]);
+        let seam = (i + 1) * band;
+        let rows = [
+            &disparity[seam - width..seam],
+            &disparity[seam..seam + width],
+        ];
+        let upper = above.row_runs(above.rows() - 1);
+        let lower = below.row_runs(0);
+        let spans = [&above.spans[upper.clone()], &below.spans[lower.clone()]];
+        let firsts = [
+            above.first_run + upper.start as u32,
+            below.first_run + lower.start as u32,
+        ];
+        forest.join_rows(rows, spans, firsts, &joined);
+    }
+    for p in 0..parent.len() {
+        parent[p] = root(&parent, p) as u32;
     }
     let (parent, size) = (&parent, &size);
     disparity
         .par_chunks_mut(band)
-        .enumerate()
-        .for_each(|(b, d)| {
-            for (i, v) in d.iter_mut().enumerate() {
-                if !v.is_nan() && (size[root(parent, b * band + i)] as usize) < max_size {
-                    *v = f32::NAN;
+        .zip(&bands)
+        .for_each(|(d, b)| {
+            for (i, &(row, start, end)) in b.spans.iter().enumerate() {
+                let r = parent[b.first_run as usize + i] as usize;
+                if (size[r] as usize) < max_size {
+                    let at = row as usize * width;
+                    d[at + start as usize..at + end as usize].fill(f32::NAN);
                 }
             }
         });
 }
 
-/// Union-find over one band of a map (`d`, `width` pixels a row; its first pixel is pixel
-/// `offset` of the map): each valid pixel joined to its left and upper neighbours when
-/// `joined`, and then every pixel pointed straight at its root, each root's `size` its
-/// region's pixel count in the band. `parent` and `size` are the band's slices (map indices).
-fn label_band(
-    d: &[f32],
-    width: usize,
-    offset: u32,
-    parent: &mut [u32],
-    size: &mut [u32],
-    joined: &impl Fn(f32, f32) -> bool,
-) {
-    let find = |parent: &mut [u32], mut p: usize| {
-        // Path halving, on band-local indices.
-        while parent[p] as usize != p + offset as usize {
-            let up = parent[p] as usize - offset as usize;
-            parent[p] = parent[up];
-            p = parent[p] as usize - offset as usize;
-        }
-        p
-    };
-    // Row by row, so that a pixel's column needs no division. A root is always its region's
-    // first pixel (the later root joins the earlier one), and the previous pixel's root is
-    // known from its own step, so only the pixel above is looked up.
-    for (row, values) in d.chunks(width).enumerate() {
-        let mut left_root = 0;
-        for (x, &v) in values.iter().enumerate() {
-            let p = row * width + x;
-            parent[p] = p as u32 + offset;
-            if v.is_nan() {
-                continue;
-            }
-            let mut here = p;
-            // NaN is joined to nothing, so a left neighbour joined has its root in `left_root`.
-            if x > 0 && joined(v, d[p - 1]) {
-                here = left_root;
-                parent[p] = here as u32 + offset;
-            }
-            if row > 0 && joined(v, d[p - width]) {
-                let above = find(parent, p - width);
-                if above != here {
-                    let (lo, hi) = (here.min(above), here.max(above));
-                    parent[hi] = lo as u32 + offset;
-                    here = lo;
+/// One band's runs, `(row in the band, first column, end column)` in row order, and their
+/// union-find over the band: each run's root (band-local indices, every run pointed straight at
+/// its root) and each root's region size in pixels.
+struct Band {
+    spans: Vec<(u32, u32, u32)>,
+    /// `row_first[y]` is the index of row y's first run; one more entry than rows.
+    row_first: Vec<u32>,
+    parent: Vec<u32>,
+    size: Vec<u32>,
+    /// The index of this band's first run among every band's.
+    first_run: u32,
+}
+
+impl Band {
+    /// The runs and regions of one band (`d`, `width` pixels a row).
+    fn label(d: &[f32], width: usize, joined: &impl Fn(f32, f32) -> bool) -> Band {
+        let mut spans = Vec::new();
+        let mut row_first = Vec::with_capacity(d.len() / width + 1);
+        let (mut parent, mut size) = (Vec::new(), Vec::new());
+        for (y, row) in d.chunks(width).enumerate() {
+            let first = spans.len();
+            row_first.push(first as u32);
+            let mut x = 0;
+            while x < width {
+                if row[x].is_nan() {
+                    x += 1;
+                    continue;
                 }
+                let start = x;
+                x += 1;
+                // NaN is joined to nothing, so a run ends at the first invalid pixel too.
+                while x < width && joined(row[x - 1], row[x]) {
+                    x += 1;
+                }
+                parent.push(spans.len() as u32);
+                size.push((x - start) as u32);
+                spans.push((y as u32, start as u32, x as u32));
             }
-            left_root = here;
+            if y > 0 {
+                let above = row_first[y - 1] as usize..first;
+                let mut forest = Forest {
+                    parent: &mut parent,
+                    size: &mut size,
+                };
+                let rows = [&d[(y - 1) * width..y * width], row];
+                let both = [&spans[above.clone()], &spans[first..]];
+                forest.join_rows(rows, both, [above.start as u32, first as u32], joined);
+            }
+        }
+        row_first.push(spans.len() as u32);
+        let mut forest = Forest {
+            parent: &mut parent,
+            size: &mut size,
+        };
+        for i in 0..spans.len() {
+            let r = forest.find(i);
+            forest.parent[i] = r as u32;
+        }
+        Band {
+            spans,
+            row_first,
+            parent,
+            size,
+            first_run: 0,
         }
     }
-    for p in 0..d.len() {
-        if !d[p].is_nan() {
-            let r = find(parent, p);
-            parent[p] = r as u32 + offset;
-            size[r] += 1;
+
+    /// How many rows the band has.
+    fn rows(&self) -> usize {
+        self.row_first.len() - 1
+    }
+
+    /// The indices of row `y`'s runs.
+    fn row_runs(&self, y: usize) -> std::ops::Range<usize> {
+        self.row_first[y] as usize..self.row_first[y + 1] as usize
+    }
+}
+
+/// A union-find over runs: each run's parent, and each root's region size.
+struct Forest<'a> {
+    parent: &'a mut [u32],
+    size: &'a mut [u32],
+}
+
+impl Forest<'_> {
+    /// The root of run `p`, halving its path.
+    fn find(&mut self, mut p: usize) -> usize {
+        while self.parent[p] as usize != p {
+            let up = self.parent[p] as usize;
+            self.parent[p] = self.parent[up];
+            p = self.parent[p] as usize;
+        }
+        p
+    }
+
+    /// Joins the regions of two consecutive rows' runs (`spans`, the upper row's and the
+    /// lower's, their indices starting at `firsts`) wherever they overlap on a column whose two
+    /// pixels (`rows`) are joined: the runs in column order, each overlapping pair's columns
+    /// read only while the pair's regions differ. The smaller-indexed root keeps both sizes.
+    fn join_rows(
+        &mut self,
+        rows: [&[f32]; 2],
+        spans: [&[(u32, u32, u32)]; 2],
+        firsts: [u32; 2],
+        joined: &impl Fn(f32, f32) -> bool,
+    ) {
+        let [up, down] = spans;
+        let (mut i, mut j) = (0, 0);
+        while i < up.len() && j < down.len() {
+            let (_, a0, a1) = up[i];
+            let (_, b0, b1) = down[j];
+            let (lo, hi) = (a0.max(b0) as usize, a1.min(b1) as usize);
+            if lo < hi {
+                let ra = self.find((firsts[0] + i as u32) as usize);
+                let rb = self.find((firsts[1] + j as u32) as usize);
+                if ra != rb && (lo..hi).any(|x| joined(rows[0][x], rows[1][x])) {
+                    let (keep, gone) = (ra.min(rb), ra.max(rb));
+                    self.parent[gone] = keep as u32;
+                    self.size[keep] += self.size[gone];
+                }
+            }
+            if a1 <= b1 {
+                i += 1;
+            } else {
+                j += 1;
+            }
         }
     }
 }
 
-/// The root of pixel `p`'s region (no path compression: bands read it side by side; after
-/// [`label_band`] every pixel points at its band's root, and seams add at most one step per
-/// band).
+/// The root of run `p` (no path compression: every run points at its band's root, and the
+/// seams add at most one step per band).
 fn root(parent: &[u32], mut p: usize) -> usize {
     while parent[p] as usize != p {
         p = parent[p] as usize;
     }
     p
-}
-
-/// Joins the regions of `p` and `q` across a seam, the smaller-indexed root keeping both sizes.
-fn unite(parent: &mut [u32], size: &mut [u32], p: usize, q: usize) {
-    let (a, b) = (root(parent, p), root(parent, q));
-    if a != b {
-        let (lo, hi) = (a.min(b), a.max(b));
-        parent[hi] = lo as u32;
-        size[lo] += size[hi];
-    }
 }
 
 /// A 3 × 3 median of the valid pixels around each valid pixel (invalid ones stay invalid and
@@ -570,7 +651,9 @@ mod tests {
     }
 
     /// The filter by bands removes exactly the regions a flood fill over the whole map finds
-    /// too small, on maps of many small regions and holes, with one band and with many.
+    /// too small, with one band and with many: on maps of many small regions of equal values
+    /// and holes, and on maps whose rows drift (long runs, each joined to the row above at a
+    /// few scattered columns only, so two runs' overlap must be read past its first column).
     #[test]
     fn speckles_by_bands_match_a_flood_fill() {
         fn flood(d: &[f32], w: usize, max_size: usize, range: f32) -> Vec<f32> {
@@ -615,20 +698,37 @@ mod tests {
             out
         }
         let mut rng = crate::vision::synthetic::Rng::new(11);
-        for (w, h) in [(37, 23), (64, 64), (5, 101)] {
-            // Levels 0..6 a step apart (joined at range 1) with 20 % holes: regions of every
-            // size, snaking across any band's seams.
-            let d: Vec<f32> = (0..w * h)
-                .map(|_| {
-                    let u = rng.unit();
-                    if u < 0.2 {
-                        f32::NAN
-                    } else {
-                        (rng.unit() * 6.0).floor() * 1.5
+        let sizes = [(37, 23), (64, 64), (5, 101)];
+        let maps = sizes
+            .into_iter()
+            .flat_map(|size| [(size, false), (size, true)]);
+        for ((w, h), drifting) in maps {
+            let d: Vec<f32> = if drifting {
+                // Each row a walk of steps below the range from its own start, 5 % holes.
+                let mut d = Vec::with_capacity(w * h);
+                for _ in 0..h {
+                    let mut v = rng.unit() * 40.0;
+                    for _ in 0..w {
+                        v += (rng.unit() - 0.5) * 1.8;
+                        d.push(if rng.unit() < 0.05 { f32::NAN } else { v });
                     }
-                })
-                .collect();
-            for max_size in [2, 5, 30] {
+                }
+                d
+            } else {
+                // Levels 0..6 a step apart (joined at range 1) with 20 % holes: regions of
+                // every size, snaking across any band's seams.
+                (0..w * h)
+                    .map(|_| {
+                        let u = rng.unit();
+                        if u < 0.2 {
+                            f32::NAN
+                        } else {
+                            (rng.unit() * 6.0).floor() * 1.5
+                        }
+                    })
+                    .collect()
+            };
+            for max_size in [2, 5, 30, 200] {
                 let expected = flood(&d, w, max_size, 1.0);
                 for threads in [1, 3, 8] {
                     let pool = rayon::ThreadPoolBuilder::new()
