@@ -196,16 +196,25 @@ fn flat_pixels(image: &Gray) -> Vec<bool> {
     flat
 }
 
-/// A column's sums over the window's rows: the support's ten moments, the sum of its σ_d²
-/// (the eleventh), then its count in the rows above the window's centre ([`ABOVE`]); the count
-/// below it is the rest (the whole count less those above and the centre row's).
+/// A window's sums over its support, or a column's: the support's ten moments (count, Σx, Σy,
+/// Σd, Σx², Σxy, Σy², Σxd, Σyd, Σd²), the sum of its σ_d² (the eleventh), then its count in the
+/// rows above the window's centre ([`ABOVE`]); the count below it is the rest (the whole count
+/// less those above and the centre row's).
 type Column = [f64; SUMS];
 const SUMS: usize = 12;
 const ABOVE: usize = 11;
 
-/// The [`WINDOW`]-row window around a centre row: each column's sums ([`Column`]), slid down
-/// one row at a time. The sums are kept as [`SUMS`] rows of `width` (`sums[k][x]` is column
-/// `x`'s sum `k`), so that a row of the image enters or leaves them on whole registers.
+/// What a column keeps of its sums ([`Window`]'s rows of sums): the count, Σy, Σd, Σy², Σyd,
+/// Σd², Σσ_d² and the count above the centre. The moments with an x are these times the
+/// column's own x, which is the same for all its pixels ([`Window::column`]), so a row of the
+/// image enters or leaves 7 sums a pixel, not 11.
+const KEPT: usize = 8;
+/// Where the count above the centre is among the kept sums.
+const KEPT_ABOVE: usize = 7;
+
+/// The [`WINDOW`]-row window around a centre row: each column's sums, slid down one row at a
+/// time. The sums are kept as [`KEPT`] rows of `width` (`sums[k][x]` is column `x`'s kept sum
+/// `k`), so that a row of the image enters or leaves them on whole registers.
 struct Window<'a> {
     disparity: &'a [f32],
     std: &'a [f32],
@@ -213,7 +222,7 @@ struct Window<'a> {
     width: usize,
     height: usize,
     centre: usize,
-    sums: [Vec<f64>; SUMS],
+    sums: [Vec<f64>; KEPT],
 }
 
 impl<'a> Window<'a> {
@@ -242,9 +251,26 @@ impl<'a> Window<'a> {
         window
     }
 
-    /// Column `x`'s sums.
+    /// Column `x`'s sums, those with an x made from its kept ones (all whole numbers or exact
+    /// products while the kept sums are exact, so the same as summing each pixel's).
     fn column(&self, x: usize) -> Column {
-        std::array::from_fn(|k| self.sums[k][x])
+        let [n, sy, sd, syy, syd, sdd, sss, above] = std::array::from_fn(|k| self.sums[k][x]);
+        let px = x as f64;
+        let sx = px * n;
+        [
+            n,
+            sx,
+            sy,
+            sd,
+            sx * px,
+            px * sy,
+            syy,
+            px * sd,
+            syd,
+            sdd,
+            sss,
+            above,
+        ]
     }
 
     /// Slides the window down to the row `centre` (at or below its own).
@@ -280,7 +306,7 @@ impl<'a> Window<'a> {
     fn count_above(&mut self, row: usize) {
         let start = row * self.width;
         let support = &self.support[start..start + self.width];
-        add_count(&mut self.sums[ABOVE], support, 1.0);
+        add_count(&mut self.sums[KEPT_ABOVE], support, 1.0);
     }
 
     /// The planes of this window, one for each group of [`COLUMNS`] columns (`out`, from the
@@ -330,10 +356,11 @@ impl<'a> Window<'a> {
 crate::dispatch! {
     /// One row's support (`support`, `disparity` and `std` of its pixels, row `py` of the image)
     /// added to (`sign` 1) or taken from (−1) the column sums `sums` ([`Window`]'s rows of
-    /// sums), and to or from their count above the centre when `above`. Branch-free, on whole
-    /// registers: a pixel that is no support adds zeros, whatever its disparity holds.
+    /// kept sums, [`KEPT`]), and to or from their count above the centre when `above`.
+    /// Branch-free, on whole registers: a pixel that is no support adds zeros, whatever its
+    /// disparity holds.
     fn add_row(
-        sums: &mut [Vec<f64>; SUMS],
+        sums: &mut [Vec<f64>; KEPT],
         pixels: (&[bool], &[f32], &[f32]),
         py: f64,
         sign: f64,
@@ -341,25 +368,20 @@ crate::dispatch! {
     ) {
         let (support, disparity, std) = pixels;
         let width = support.len().min(disparity.len()).min(std.len());
-        let [n, sx, sy, sd, sxx, sxy, syy, sxd, syd, sdd, sss, count_above] = sums;
-        let (n, sx, sy, sd) = (&mut n[..width], &mut sx[..width], &mut sy[..width], &mut sd[..width]);
-        let (sxx, sxy, syy) = (&mut sxx[..width], &mut sxy[..width], &mut syy[..width]);
-        let (sxd, syd, sdd, sss) = (&mut sxd[..width], &mut syd[..width], &mut sdd[..width], &mut sss[..width]);
+        let [n, sy, sd, syy, syd, sdd, sss, count_above] = sums;
+        let (n, sy, sd) = (&mut n[..width], &mut sy[..width], &mut sd[..width]);
+        let (syy, syd) = (&mut syy[..width], &mut syd[..width]);
+        let (sdd, sss) = (&mut sdd[..width], &mut sss[..width]);
         for x in 0..width {
             let on = support[x];
             let w = if on { sign } else { 0.0 };
             let d = if on { f64::from(disparity[x]) } else { 0.0 };
             let s = if on { f64::from(std[x]) } else { 0.0 };
-            let px = x as f64;
-            let (wx, wy, wd) = (w * px, w * py, w * d);
+            let (wy, wd) = (w * py, w * d);
             n[x] += w;
-            sx[x] += wx;
             sy[x] += wy;
             sd[x] += wd;
-            sxx[x] += wx * px;
-            sxy[x] += wx * py;
             syy[x] += wy * py;
-            sxd[x] += wd * px;
             syd[x] += wd * py;
             sdd[x] += wd * d;
             sss[x] += w * s * s;
