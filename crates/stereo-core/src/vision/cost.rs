@@ -260,16 +260,45 @@ crate::dispatch! {
                 let at = w - 1 - hi;
                 let n = end - lo;
                 let cells = &mut cells[lo..end];
-                for (cell, &r) in cells.iter_mut().zip(&right_rev[at..at + n]) {
+                let (census, greys) = (&right_rev[at..at + n], &grey_rev[at..at + n]);
+                // Whole chunks of 32 cells with both terms in registers, each cell stored once
+                // (a chunk's popcounts stored a lane group at a time and read back whole would
+                // wait for the stores), then the rest.
+                let mut chunks = cells.chunks_exact_mut(CHUNK);
+                for ((cells, census), greys) in (&mut chunks)
+                    .zip(census.chunks_exact(CHUNK))
+                    .zip(greys.chunks_exact(CHUNK))
+                {
+                    let mut counts = [0u8; CHUNK];
+                    for (count, &r) in counts.iter_mut().zip(census) {
+                        *count = (sig ^ r).count_ones() as u8;
+                    }
+                    for ((cell, &count), &g) in cells.iter_mut().zip(&counts).zip(greys) {
+                        *cell = count + grey_term(level, g);
+                    }
+                }
+                let done = n / CHUNK * CHUNK;
+                let cells = chunks.into_remainder();
+                for (cell, &r) in cells.iter_mut().zip(&census[done..]) {
                     *cell = (sig ^ r).count_ones() as u8;
                 }
-                // The grey-level term in a second loop, on bytes (32 to a vector).
-                for (cell, &g) in cells.iter_mut().zip(&grey_rev[at..at + n]) {
-                    *cell += (level.abs_diff(g) >> 1).min(AD_CAP);
+                for (cell, &g) in cells.iter_mut().zip(&greys[done..]) {
+                    *cell += grey_term(level, g);
                 }
             }
         }
     }
+}
+
+/// The cells [`costs_of_row`] makes together, both terms in registers.
+const CHUNK: usize = 32;
+
+/// The grey-level term of a cell: half the absolute difference of the two 8-bit levels, capped
+/// at [`AD_CAP`], on bytes (the difference as the greater less the smaller: `abs_diff` was
+/// widened to 32-bit lanes, a quarter of a register's bytes).
+#[inline(always)]
+fn grey_term(a: u8, b: u8) -> u8 {
+    ((a.max(b) - a.min(b)) >> 1).min(AD_CAP)
 }
 
 /// `cells` set to `value`, without a call when there is nothing to set: a `fill` is a call to
@@ -344,6 +373,60 @@ mod tests {
         // Pixel 1 against right pixels 1 (|10 − 3| / 2 = 3) and 0 (|10 − 200| / 2, capped).
         assert_eq!(&cells(&v, 1).1[..2], &[3, AD_CAP]);
         assert_eq!(&cells(&v, 0).1[..2], &[AD_CAP, OUTSIDE]);
+    }
+
+    /// Every cell of a row whose runs of right pixels span whole chunks and a rest (the range
+    /// 80, runs up to 80 cells: two chunks of [`CHUNK`] and 16) is its definition: the
+    /// signatures' Hamming distance plus half the grey levels' difference capped at
+    /// [`AD_CAP`], [`OUTSIDE`] where the right pixel is outside the image, [`PAD`] past the
+    /// range; at a negative least disparity too.
+    #[test]
+    fn long_runs_hold_each_cells_definition() {
+        let w = 100;
+        let mut rng = crate::vision::synthetic::Rng::new(17);
+        let mut draw = || (rng.unit() * f32::from(u16::MAX)) as u64;
+        let left: Vec<u64> = (0..w)
+            .map(|_| draw() << 48 | draw() << 16 | draw())
+            .collect();
+        let right: Vec<u64> = (0..w)
+            .map(|_| draw() << 40 | draw() << 8 | draw())
+            .collect();
+        let gl: Vec<u8> = (0..w).map(|_| (draw() >> 8) as u8).collect();
+        let gr: Vec<u8> = (0..w).map(|_| (draw() >> 8) as u8).collect();
+        for min in [0i32, -5] {
+            let count = 80;
+            let v = row_volume(
+                (&left, &right),
+                (&gl, &gr),
+                w,
+                (min, count),
+                Windows::full(w, count),
+            );
+            let mut runs = 0;
+            for x in 0..w {
+                let (first, got) = cells(&v, x);
+                assert_eq!(first, 0);
+                let expected: Vec<u8> = (0..got.len())
+                    .map(|j| {
+                        let r = x as i32 - min - j as i32;
+                        if j >= count {
+                            PAD
+                        } else if !(0..w as i32).contains(&r) {
+                            OUTSIDE
+                        } else {
+                            let r = r as usize;
+                            let hamming = (left[x] ^ right[r]).count_ones() as u8;
+                            let half = (i16::from(gl[x]) - i16::from(gr[r])).unsigned_abs() / 2;
+                            hamming + (half as u8).min(AD_CAP)
+                        }
+                    })
+                    .collect();
+                assert_eq!(got, expected, "pixel {x}, least disparity {min}");
+                runs += usize::from(got.iter().filter(|&&c| c != OUTSIDE && c != PAD).count() > 64);
+            }
+            // Runs long enough for two chunks and a rest.
+            assert!(runs > 10, "{runs}");
+        }
     }
 
     /// A window that starts inside the range holds the same costs as the full range at the
