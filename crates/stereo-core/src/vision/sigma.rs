@@ -119,76 +119,122 @@ crate::dispatch! {
 
 /// The map's σ_d (pixels): for each valid pixel of `disparity` (`width` a row), its winner's
 /// variance (`variance`, the same layout) with its 3 × 3 neighbourhood's terms; NaN where the
-/// disparity is. The value [`at`] gives pixel by pixel, made a row at a time: the least, the
-/// greatest and the count of the valid values of each pixel's three columns in the three rows
-/// around it ([`Neighbourhoods`]), on whole registers.
+/// disparity is. The value [`at`] gives pixel by pixel, made in bands of [`BAND`] rows side by
+/// side: each row's least, greatest and count of the valid values of each pixel's three
+/// columns once ([`Triples`]), then those of the three rows around each pixel, on whole
+/// registers.
 pub fn map(disparity: &[f32], variance: &[f32], width: usize) -> Vec<f32> {
     let width = width.max(1);
     let height = disparity.len() / width;
     let m = MODEL;
     let mut out = vec![f32::NAN; disparity.len()];
-    out.par_chunks_mut(width).enumerate().for_each_init(
-        || Neighbourhoods::new(width),
-        |around, (y, row)| {
-            around.of_row(disparity, width, height, y);
-            let line = &disparity[y * width..(y + 1) * width];
-            let variance = &variance[y * width..(y + 1) * width];
-            for (x, sigma) in row.iter_mut().enumerate() {
-                let missing = 9u32.saturating_sub(u32::from(around.count[x])) as f32;
-                let spread = around.hi[x] - around.lo[x];
-                let s =
-                    (variance[x] + (m.spread * spread).powi(2) + (m.neighbours * missing).powi(2))
-                        .sqrt();
-                *sigma = if line[x].is_nan() { f32::NAN } else { s };
+    out.par_chunks_mut(BAND * width)
+        .enumerate()
+        .for_each(|(band, rows)| {
+            let top = band * BAND;
+            let line = |y: usize| &disparity[y * width..(y + 1) * width];
+            // Row y's triples in slot y % 3, for the rows above, at and below the one made.
+            let mut triples: [Triples; 3] = std::array::from_fn(|_| Triples::new(width));
+            if top > 0 {
+                triples[(top - 1) % 3].of(line(top - 1));
             }
-        },
-    );
+            triples[top % 3].of(line(top));
+            let (mut lo, mut hi) = (vec![0f32; width], vec![0f32; width]);
+            let mut count = vec![0u8; width];
+            for (i, row) in rows.chunks_mut(width).enumerate() {
+                let y = top + i;
+                if y + 1 < height {
+                    triples[(y + 1) % 3].of(line(y + 1));
+                }
+                let here = &triples[y % 3];
+                lo.copy_from_slice(&here.lo);
+                hi.copy_from_slice(&here.hi);
+                count.copy_from_slice(&here.count);
+                let around = [y.checked_sub(1), (y + 1 < height).then_some(y + 1)];
+                for t in around.into_iter().flatten().map(|yy| &triples[yy % 3]) {
+                    for x in 0..width {
+                        lo[x] = least(lo[x], t.lo[x]);
+                        hi[x] = greatest(hi[x], t.hi[x]);
+                        count[x] += t.count[x];
+                    }
+                }
+                let (line, variance) = (line(y), &variance[y * width..(y + 1) * width]);
+                for (x, sigma) in row.iter_mut().enumerate() {
+                    let missing = 9u32.saturating_sub(u32::from(count[x])) as f32;
+                    let spread = hi[x] - lo[x];
+                    let s = (variance[x]
+                        + (m.spread * spread).powi(2)
+                        + (m.neighbours * missing).powi(2))
+                    .sqrt();
+                    *sigma = if line[x].is_nan() { f32::NAN } else { s };
+                }
+            }
+        });
     out
 }
 
-/// The 3 × 3 neighbourhoods of one row of a map: for each pixel, the least and greatest valid
-/// value around it (itself included) and how many are valid, the image's outside counted as
-/// invalid.
-struct Neighbourhoods {
+/// The rows a band of [`map`] makes: each band makes the triples of its rows and of the two
+/// around it, so taller bands make fewer twice.
+const BAND: usize = 16;
+
+/// The lesser of two values neither of which is NaN (one instruction: `f32::min` also looks
+/// for NaN).
+#[inline(always)]
+fn least(a: f32, b: f32) -> f32 {
+    if a < b { a } else { b }
+}
+
+/// The greater of two values neither of which is NaN.
+#[inline(always)]
+fn greatest(a: f32, b: f32) -> f32 {
+    if a > b { a } else { b }
+}
+
+/// One row's triples: for each pixel, the least and greatest valid value of it and its left and
+/// right neighbours (+∞ and −∞ when none is valid) and how many are valid, the image's outside
+/// counted as invalid.
+struct Triples {
     lo: Vec<f32>,
     hi: Vec<f32>,
     count: Vec<u8>,
+    /// The row with NaN as +∞, then as −∞, and its validity, each with one invalid pixel
+    /// beyond either end.
+    padded: (Vec<f32>, Vec<f32>, Vec<u8>),
 }
 
-impl Neighbourhoods {
+impl Triples {
     fn new(width: usize) -> Self {
-        Neighbourhoods {
+        Triples {
             lo: vec![f32::INFINITY; width],
             hi: vec![f32::NEG_INFINITY; width],
             count: vec![0; width],
+            padded: (
+                vec![f32::INFINITY; width + 2],
+                vec![f32::NEG_INFINITY; width + 2],
+                vec![0; width + 2],
+            ),
         }
     }
 
-    /// The neighbourhoods of row `y` of `map` (`width × height`).
-    fn of_row(&mut self, map: &[f32], width: usize, height: usize, y: usize) {
-        self.lo.fill(f32::INFINITY);
-        self.hi.fill(f32::NEG_INFINITY);
-        self.count.fill(0);
-        for yy in y.saturating_sub(1)..(y + 2).min(height) {
-            let line = &map[yy * width..(yy + 1) * width];
-            // Each pixel's left neighbour, itself, and its right neighbour.
-            let n = width - 1;
-            self.add(1, &line[..n]);
-            self.add(0, line);
-            self.add(0, &line[1..]);
+    /// The triples of the row `line`.
+    fn of(&mut self, line: &[f32]) {
+        let width = line.len();
+        let (low, high, valid) = &mut self.padded;
+        for (((&v, l), h), c) in line
+            .iter()
+            .zip(&mut low[1..=width])
+            .zip(&mut high[1..=width])
+            .zip(&mut valid[1..=width])
+        {
+            let nan = v.is_nan();
+            *l = if nan { f32::INFINITY } else { v };
+            *h = if nan { f32::NEG_INFINITY } else { v };
+            *c = u8::from(!nan);
         }
-    }
-
-    /// Takes `values` into the neighbourhoods from pixel `from` on (a NaN changes neither
-    /// bound, as `min` and `max` keep the other side, and is not counted).
-    fn add(&mut self, from: usize, values: &[f32]) {
-        let to = from + values.len();
-        let (lo, hi) = (&mut self.lo[from..to], &mut self.hi[from..to]);
-        let count = &mut self.count[from..to];
-        for (((lo, hi), count), &v) in lo.iter_mut().zip(hi.iter_mut()).zip(count).zip(values) {
-            *lo = lo.min(v);
-            *hi = hi.max(v);
-            *count += u8::from(!v.is_nan());
+        for x in 0..width {
+            self.lo[x] = least(least(low[x], low[x + 1]), low[x + 2]);
+            self.hi[x] = greatest(greatest(high[x], high[x + 1]), high[x + 2]);
+            self.count[x] = valid[x] + valid[x + 1] + valid[x + 2];
         }
     }
 }
@@ -260,12 +306,13 @@ pub fn filled(left: f32, right: f32) -> f32 {
 mod tests {
     use super::*;
 
-    /// The map made a row at a time gives, to the bit, what [`at`] gives pixel by pixel, on
-    /// maps with holes everywhere, the borders and one-pixel-wide maps included.
+    /// The map made in bands gives, to the bit, what [`at`] gives pixel by pixel, on maps with
+    /// holes everywhere, the borders, the bands' seams and one-pixel-wide maps included.
     #[test]
     fn the_map_is_at_everywhere() {
         let mut rng = crate::vision::synthetic::Rng::new(21);
-        for (w, h) in [(17, 9), (1, 5), (6, 1), (40, 23)] {
+        // Maps of one band, of several (the last one short) and of a band and one row.
+        for (w, h) in [(17, 9), (1, 5), (6, 1), (40, 23), (13, 70), (3, BAND + 1)] {
             let disparity: Vec<f32> = (0..w * h)
                 .map(|_| match rng.unit() {
                     u if u < 0.3 => f32::NAN,
