@@ -7,6 +7,7 @@
 
 use rayon::prelude::*;
 
+use super::simd::{greatest as max, least as min};
 use super::{Gray, Params, plane, sigma};
 
 /// The map's finishing after the winners (`data`, range indices, `width` a row; `variance`,
@@ -453,19 +454,6 @@ impl Columns {
             (*low, *mid, *high) = (a, b, c);
         }
     }
-}
-
-/// The smaller of two values none of which is NaN, as one instruction (`f32::min` also
-/// checks for NaN).
-#[inline(always)]
-fn min(a: f32, b: f32) -> f32 {
-    if a < b { a } else { b }
-}
-
-/// The greater of two values none of which is NaN, as one instruction.
-#[inline(always)]
-fn max(a: f32, b: f32) -> f32 {
-    if a > b { a } else { b }
 }
 
 /// The median of three values (none NaN).

@@ -31,6 +31,7 @@
 use rayon::prelude::*;
 
 use super::refine::Cue;
+use super::simd::{greatest, least};
 
 /// The model's constants, fitted on Motorcycle and its gain-changed and noisy variants; the
 /// floor refitted (0.179 → 0.155 px) when the map's planes began to widen σ_d where a value
@@ -176,19 +177,6 @@ pub fn map(disparity: &[f32], variance: &[f32], width: usize) -> Vec<f32> {
 /// The rows a band of [`map`] makes: each band makes the triples of its rows and of the two
 /// around it, so taller bands make fewer twice.
 const BAND: usize = 16;
-
-/// The lesser of two values neither of which is NaN (one instruction: `f32::min` also looks
-/// for NaN).
-#[inline(always)]
-fn least(a: f32, b: f32) -> f32 {
-    if a < b { a } else { b }
-}
-
-/// The greater of two values neither of which is NaN.
-#[inline(always)]
-fn greatest(a: f32, b: f32) -> f32 {
-    if a > b { a } else { b }
-}
 
 /// One row's triples: for each pixel, the least and greatest valid value of it and its left and
 /// right neighbours (+∞ and −∞ when none is valid) and how many are valid, the image's outside

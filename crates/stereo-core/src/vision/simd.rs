@@ -9,6 +9,9 @@
 //! 7 → 5 ms), and the aggregation's pass, whose 8-bit path costs fill 64 lanes a register
 //! ([`super::sgm`]). An AVX-512 build of the 16-bit pass with 16-lane chunks had measured no
 //! faster than AVX2: the chunks, not the registers, set the width.
+//!
+//! Beside it, the least and greatest of two floats known not to be NaN, as the vector loops
+//! take them.
 
 use std::sync::atomic::{AtomicU8, Ordering};
 
@@ -79,6 +82,19 @@ fn detect() -> u8 {
     {
         PORTABLE
     }
+}
+
+/// The smaller of two values neither of which is NaN, as one instruction where the loop is
+/// vectorised (`f32::min` also checks for NaN, a compare and a blend more).
+#[inline(always)]
+pub(crate) fn least(a: f32, b: f32) -> f32 {
+    if a < b { a } else { b }
+}
+
+/// The greater of two values neither of which is NaN, as one instruction.
+#[inline(always)]
+pub(crate) fn greatest(a: f32, b: f32) -> f32 {
+    if a > b { a } else { b }
 }
 
 /// Defines a function whose body is compiled twice, for the portable target and with AVX2,
