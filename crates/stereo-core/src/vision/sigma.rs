@@ -153,10 +153,14 @@ pub fn map(disparity: &[f32], variance: &[f32], width: usize) -> Vec<f32> {
                 count.copy_from_slice(&here.count);
                 let around = [y.checked_sub(1), (y + 1 < height).then_some(y + 1)];
                 for t in around.into_iter().flatten().map(|yy| &triples[yy % 3]) {
-                    for x in 0..width {
-                        lo[x] = least(lo[x], t.lo[x]);
-                        hi[x] = greatest(hi[x], t.hi[x]);
-                        count[x] += t.count[x];
+                    for (l, &v) in lo.iter_mut().zip(&t.lo) {
+                        *l = least(*l, v);
+                    }
+                    for (h, &v) in hi.iter_mut().zip(&t.hi) {
+                        *h = greatest(*h, v);
+                    }
+                    for (c, &v) in count.iter_mut().zip(&t.count) {
+                        *c += v;
                     }
                 }
                 let (line, variance) = (line(y), &variance[y * width..(y + 1) * width]);
@@ -219,10 +223,19 @@ impl Triples {
             *h = if nan { f32::NEG_INFINITY } else { v };
             *c = u8::from(!nan);
         }
-        for x in 0..width {
-            self.lo[x] = least(least(low[x], low[x + 1]), low[x + 2]);
-            self.hi[x] = greatest(greatest(high[x], high[x + 1]), high[x + 2]);
-            self.count[x] = valid[x] + valid[x + 1] + valid[x + 2];
+        // Each pixel's left neighbour, itself and its right neighbour as three slices side by
+        // side, so that the loops run on whole registers without bounds checks.
+        let (a, b, c) = (&low[..width], &low[1..=width], &low[2..width + 2]);
+        for (((out, &a), &b), &c) in self.lo.iter_mut().zip(a).zip(b).zip(c) {
+            *out = least(least(a, b), c);
+        }
+        let (a, b, c) = (&high[..width], &high[1..=width], &high[2..width + 2]);
+        for (((out, &a), &b), &c) in self.hi.iter_mut().zip(a).zip(b).zip(c) {
+            *out = greatest(greatest(a, b), c);
+        }
+        let (a, b, c) = (&valid[..width], &valid[1..=width], &valid[2..width + 2]);
+        for (((out, &a), &b), &c) in self.count.iter_mut().zip(a).zip(b).zip(c) {
+            *out = a + b + c;
         }
     }
 }
