@@ -51,89 +51,91 @@ pub(super) fn finish(
 /// by side (one a core), each row is cut into runs, and each run is joined to every run of the
 /// row above that it overlaps where a pixel is joined to the one above it (a walk over the two
 /// rows' runs in order, each pair's columns read only while their regions differ). Then the
-/// bands' regions that touch across a seam are joined the same way, their sizes added; then
-/// every run whose region is small is invalidated, band by band again. Which pixels go depends
-/// neither on the bands nor on the runs: the regions are those of the pixels' joins.
+/// bands' regions that touch across a seam are joined the same way; then every run whose
+/// region is small is invalidated, band by band again. Which pixels go depends neither on the
+/// bands nor on the runs: the regions are those of the pixels' joins.
+///
+/// Memory: a run takes 12 bytes (its columns, and its parent or, at a root, its region's size),
+/// each band's runs in buffers with room for one run a pixel, of which only what the runs use
+/// is written: 12 bytes a pixel where every pixel is a run of its own, far less on a map of
+/// surfaces. Nothing is copied between the bands: run `g` is band `g / band`'s run `g % band`.
 pub fn speckles(disparity: &mut [f32], width: usize, max_size: usize, range: f32) {
-    if max_size == 0 || disparity.is_empty() || width == 0 {
+    let n = disparity.len();
+    // (A map of 2^31 pixels or more, which the decoder's limits never admit, is left as it is:
+    // runs are numbered in `i32`.)
+    if max_size == 0 || n == 0 || width == 0 || i32::try_from(n).is_err() {
         return;
     }
-    let height = disparity.len() / width;
+    let height = n / width;
     let per = height.div_ceil(rayon::current_num_threads().max(1)).max(1);
     let band = per * width;
     let joined = |a: f32, b: f32| (a - b).abs() <= range;
     let mut bands: Vec<Band> = disparity
         .par_chunks(band)
-        .map(|d| Band::label(d, width, &joined))
+        .enumerate()
+        .map(|(b, d)| Band::label(d, width, (b, band), &joined))
         .collect();
-    // One forest over every band's runs: band b's runs follow those of the bands before it.
-    let mut offset = 0u32;
-    let mut parent = Vec::with_capacity(bands.iter().map(|b| b.spans.len()).sum());
-    let mut size = Vec::with_capacity(parent.capacity());
-    for b in &mut bands {
-        parent.extend(b.parent.iter().map(|&p| p + offset));
-        size.append(&mut b.size);
-        b.first_run = offset;
-        offset += b.spans.len() as u32;
-    }
     // The seams: the last row of each band against the first row of the next.
-    let mut forest = Forest {
-        parent: &mut parent,
-        size: &mut size,
-    };
-    for (i, pair) in bands.windows(2).enumerate() {
-        let (above, below) = (&pair[0], &pair[1]);
-        let seam = (i + 1) * band;
-        let rows = [
+    for b in 1..bands.len() {
+        let seam = b * band;
+        let (upper, lower) = (bands[b - 1].row_runs(per - 1), bands[b].row_runs(0));
+        let spans = [
+            bands[b - 1].spans[upper.clone()].to_vec(),
+            bands[b].spans[lower.clone()].to_vec(),
+        ];
+        let lines = [
             &disparity[seam - width..seam],
             &disparity[seam..seam + width],
         ];
-        let upper = above.row_runs(above.rows() - 1);
-        let lower = below.row_runs(0);
-        let spans = [&above.spans[upper.clone()], &below.spans[lower.clone()]];
-        let firsts = [
-            above.first_run + upper.start as u32,
-            below.first_run + lower.start as u32,
-        ];
-        forest.join_rows(rows, spans, firsts, &joined);
+        let mut forest = Forest {
+            parents: bands.iter_mut().map(|b| &mut b.parent[..]).collect(),
+            first: 0,
+            band,
+        };
+        let firsts = [(b - 1) * band + upper.start, seam + lower.start];
+        forest.join_rows(lines, [&spans[0], &spans[1]], firsts, &joined);
     }
-    for p in 0..parent.len() {
-        parent[p] = root(&parent, p) as u32;
-    }
-    let (parent, size) = (&parent, &size);
+    let parents: Vec<&[i32]> = bands.iter().map(|b| &b.parent[..]).collect();
     disparity
         .par_chunks_mut(band)
         .zip(&bands)
-        .for_each(|(d, b)| {
-            for (i, &(row, start, end)) in b.spans.iter().enumerate() {
-                let r = parent[b.first_run as usize + i] as usize;
-                if (size[r] as usize) < max_size {
-                    let at = row as usize * width;
-                    d[at + start as usize..at + end as usize].fill(f32::NAN);
+        .enumerate()
+        .for_each(|(b, (d, runs))| {
+            for (y, line) in d.chunks_mut(width).enumerate() {
+                for i in runs.row_runs(y) {
+                    if -root_size(&parents, band, b * band + i) as usize >= max_size {
+                        continue;
+                    }
+                    let (start, end) = columns(runs.spans[i]);
+                    line[start..end].fill(f32::NAN);
                 }
             }
         });
 }
 
-/// One band's runs, `(row in the band, first column, end column)` in row order, and their
-/// union-find over the band: each run's root (band-local indices, every run pointed straight at
-/// its root) and each root's region size in pixels.
+/// One band's runs: their first and end columns (`spans`, the end in the high half), the
+/// index of each row's first run (one past the last run at the end), and each run's parent (a
+/// run number, `band · b + i` for band b's run i) or at a root its region's size, negated.
 struct Band {
-    spans: Vec<(u32, u32, u32)>,
-    /// `row_first[y]` is the index of row y's first run; one more entry than rows.
+    spans: Vec<u64>,
     row_first: Vec<u32>,
-    parent: Vec<u32>,
-    size: Vec<u32>,
-    /// The index of this band's first run among every band's.
-    first_run: u32,
+    parent: Vec<i32>,
 }
 
 impl Band {
-    /// The runs and regions of one band (`d`, `width` pixels a row).
-    fn label(d: &[f32], width: usize, joined: &impl Fn(f32, f32) -> bool) -> Band {
-        let mut spans = Vec::new();
+    /// Cuts band `b`'s rows (`d`, `width` pixels a row; its runs numbered from `b · band`)
+    /// into runs and joins each row's runs to those of the row above, then points every run
+    /// straight at its root.
+    fn label(
+        d: &[f32],
+        width: usize,
+        (b, band): (usize, usize),
+        joined: &impl Fn(f32, f32) -> bool,
+    ) -> Band {
+        // Room for one run a pixel, written only as far as the runs go.
+        let mut spans = Vec::with_capacity(d.len());
+        let mut parent = Vec::with_capacity(d.len());
         let mut row_first = Vec::with_capacity(d.len() / width + 1);
-        let (mut parent, mut size) = (Vec::new(), Vec::new());
         for (y, row) in d.chunks(width).enumerate() {
             let first = spans.len();
             row_first.push(first as u32);
@@ -149,42 +151,41 @@ impl Band {
                 while x < width && joined(row[x - 1], row[x]) {
                     x += 1;
                 }
-                parent.push(spans.len() as u32);
-                size.push((x - start) as u32);
-                spans.push((y as u32, start as u32, x as u32));
+                // At most `width` pixels, far below 2^31 (the pixel limits).
+                parent.push(-((x - start) as i32));
+                spans.push((start as u64) | ((x as u64) << 32));
             }
             if y > 0 {
                 let above = row_first[y - 1] as usize..first;
-                let mut forest = Forest {
-                    parent: &mut parent,
-                    size: &mut size,
-                };
-                let rows = [&d[(y - 1) * width..y * width], row];
+                let lines = [&d[(y - 1) * width..y * width], row];
                 let both = [&spans[above.clone()], &spans[first..]];
-                forest.join_rows(rows, both, [above.start as u32, first as u32], joined);
+                let firsts = [b * band + above.start, b * band + first];
+                let mut forest = Forest {
+                    parents: vec![&mut parent[..]],
+                    first: b,
+                    band,
+                };
+                forest.join_rows(lines, both, firsts, joined);
             }
         }
         row_first.push(spans.len() as u32);
         let mut forest = Forest {
-            parent: &mut parent,
-            size: &mut size,
+            parents: vec![&mut parent[..]],
+            first: b,
+            band,
         };
         for i in 0..spans.len() {
-            let r = forest.find(i);
-            forest.parent[i] = r as u32;
+            let g = b * band + i;
+            let r = forest.find(g);
+            if r != g {
+                *forest.at(g) = r as i32;
+            }
         }
         Band {
             spans,
             row_first,
             parent,
-            size,
-            first_run: 0,
         }
-    }
-
-    /// How many rows the band has.
-    fn rows(&self) -> usize {
-        self.row_first.len() - 1
     }
 
     /// The indices of row `y`'s runs.
@@ -193,47 +194,72 @@ impl Band {
     }
 }
 
-/// A union-find over runs: each run's parent, and each root's region size.
+/// A run's first and end columns, from its span.
+#[inline(always)]
+fn columns(span: u64) -> (usize, usize) {
+    ((span as u32) as usize, (span >> 32) as usize)
+}
+
+/// A union-find over runs numbered `band · b + i` (band b's run i), over the parents of bands
+/// `first ..` (`parents`, band by band).
 struct Forest<'a> {
-    parent: &'a mut [u32],
-    size: &'a mut [u32],
+    parents: Vec<&'a mut [i32]>,
+    first: usize,
+    band: usize,
 }
 
 impl Forest<'_> {
-    /// The root of run `p`, halving its path.
-    fn find(&mut self, mut p: usize) -> usize {
-        while self.parent[p] as usize != p {
-            let up = self.parent[p] as usize;
-            self.parent[p] = self.parent[up];
-            p = self.parent[p] as usize;
+    /// Run `g`'s parent, or at a root its region's size negated (one band's without a
+    /// division).
+    #[inline(always)]
+    fn at(&mut self, g: usize) -> &mut i32 {
+        if self.parents.len() == 1 {
+            return &mut self.parents[0][g - self.first * self.band];
         }
-        p
+        &mut self.parents[g / self.band - self.first][g % self.band]
+    }
+
+    /// The root of run `g`, halving its path.
+    fn find(&mut self, mut g: usize) -> usize {
+        loop {
+            let up = *self.at(g);
+            if up < 0 {
+                return g;
+            }
+            let above = *self.at(up as usize);
+            if above < 0 {
+                return up as usize;
+            }
+            *self.at(g) = above;
+            g = above as usize;
+        }
     }
 
     /// Joins the regions of two consecutive rows' runs (`spans`, the upper row's and the
-    /// lower's, their indices starting at `firsts`) wherever they overlap on a column whose two
-    /// pixels (`rows`) are joined: the runs in column order, each overlapping pair's columns
-    /// read only while the pair's regions differ. The smaller-indexed root keeps both sizes.
+    /// lower's, numbered from `firsts`) wherever they overlap on a column whose two pixels
+    /// (`lines`) are joined: the runs in column order, each overlapping pair's columns read
+    /// only while the pair's regions differ. The smaller-numbered root keeps both sizes.
     fn join_rows(
         &mut self,
-        rows: [&[f32]; 2],
-        spans: [&[(u32, u32, u32)]; 2],
-        firsts: [u32; 2],
+        lines: [&[f32]; 2],
+        spans: [&[u64]; 2],
+        firsts: [usize; 2],
         joined: &impl Fn(f32, f32) -> bool,
     ) {
         let [up, down] = spans;
         let (mut i, mut j) = (0, 0);
         while i < up.len() && j < down.len() {
-            let (_, a0, a1) = up[i];
-            let (_, b0, b1) = down[j];
-            let (lo, hi) = (a0.max(b0) as usize, a1.min(b1) as usize);
+            let (a0, a1) = columns(up[i]);
+            let (b0, b1) = columns(down[j]);
+            let (lo, hi) = (a0.max(b0), a1.min(b1));
             if lo < hi {
-                let ra = self.find((firsts[0] + i as u32) as usize);
-                let rb = self.find((firsts[1] + j as u32) as usize);
-                if ra != rb && (lo..hi).any(|x| joined(rows[0][x], rows[1][x])) {
+                let ra = self.find(firsts[0] + i);
+                let rb = self.find(firsts[1] + j);
+                if ra != rb && (lo..hi).any(|x| joined(lines[0][x], lines[1][x])) {
                     let (keep, gone) = (ra.min(rb), ra.max(rb));
-                    self.parent[gone] = keep as u32;
-                    self.size[keep] += self.size[gone];
+                    let size = *self.at(gone);
+                    *self.at(keep) += size;
+                    *self.at(gone) = keep as i32;
                 }
             }
             if a1 <= b1 {
@@ -245,13 +271,17 @@ impl Forest<'_> {
     }
 }
 
-/// The root of run `p` (no path compression: every run points at its band's root, and the
-/// seams add at most one step per band).
-fn root(parent: &[u32], mut p: usize) -> usize {
-    while parent[p] as usize != p {
-        p = parent[p] as usize;
+/// The size, negated, of the region of run `g` (numbered as [`Forest`] numbers them, over
+/// every band's `parents`), found without path compression: bands read it side by side, every
+/// run points at its band's root, and the seams add at most one step per band.
+fn root_size(parents: &[&[i32]], band: usize, mut g: usize) -> i32 {
+    loop {
+        let up = parents[g / band][g % band];
+        if up < 0 {
+            return up;
+        }
+        g = up as usize;
     }
-    p
 }
 
 /// A 3 × 3 median of the valid pixels around each valid pixel (invalid ones stay invalid and

@@ -43,8 +43,9 @@ pub const BYTES_A_PIXEL: usize = 34;
 /// What the matcher holds for each pixel of the finest level besides its stripes, at the
 /// larger of its two phases. While the stripes are matched: the disparities and the winners'
 /// variances they write in place (8), and the coarser level's prior and halved images (under
-/// 4). Then the filters: the map, its variances, and the speckle filter's labels and sizes
-/// (16 at most, the speckle filter's), σ and the plane fill's masks after the variances go
+/// 4). Then the filters: the map, its variances, and the speckle filter's runs (20 at most,
+/// where every pixel is a run of its own, [`super::filters::speckles`]; far less on a map of
+/// surfaces), σ and the plane fill's masks after the variances go
 /// (under 14), the fill's mask (1). Counted with room: measured, a 24 MP pair's peak is
 /// 19 bytes a pixel with its stripes (docs/matcher.md).
 const BYTES_A_FINE_PIXEL: usize = 24;
