@@ -76,24 +76,29 @@ pub fn speckles(disparity: &mut [f32], width: usize, max_size: usize, range: f32
         .map(|(b, d)| Band::label(d, width, (b, band), &joined))
         .collect();
     // The seams: the last row of each band against the first row of the next.
-    for b in 1..bands.len() {
+    // One forest over every band's parents, their runs read beside it.
+    let mut runs = Vec::with_capacity(bands.len());
+    let mut parents = Vec::with_capacity(bands.len());
+    for b in &mut bands {
+        runs.push((&b.spans[..], &b.row_first[..]));
+        parents.push(&mut b.parent[..]);
+    }
+    let mut forest = Forest {
+        parents: &mut parents,
+        first: 0,
+        band,
+    };
+    for b in 1..runs.len() {
         let seam = b * band;
-        let (upper, lower) = (bands[b - 1].row_runs(per - 1), bands[b].row_runs(0));
-        let spans = [
-            bands[b - 1].spans[upper.clone()].to_vec(),
-            bands[b].spans[lower.clone()].to_vec(),
-        ];
+        let ((up, above), (down, below)) = (runs[b - 1], runs[b]);
+        let upper = above[per - 1] as usize..above[per] as usize;
+        let lower = below[0] as usize..below[1] as usize;
         let lines = [
             &disparity[seam - width..seam],
             &disparity[seam..seam + width],
         ];
-        let mut forest = Forest {
-            parents: bands.iter_mut().map(|b| &mut b.parent[..]).collect(),
-            first: 0,
-            band,
-        };
         let firsts = [(b - 1) * band + upper.start, seam + lower.start];
-        forest.join_rows(lines, [&spans[0], &spans[1]], firsts, &joined);
+        forest.join_rows(lines, [&up[upper], &down[lower]], firsts, &joined);
     }
     let parents: Vec<&[i32]> = bands.iter().map(|b| &b.parent[..]).collect();
     disparity
@@ -161,7 +166,7 @@ impl Band {
                 let both = [&spans[above.clone()], &spans[first..]];
                 let firsts = [b * band + above.start, b * band + first];
                 let mut forest = Forest {
-                    parents: vec![&mut parent[..]],
+                    parents: &mut [&mut parent[..]],
                     first: b,
                     band,
                 };
@@ -170,7 +175,7 @@ impl Band {
         }
         row_first.push(spans.len() as u32);
         let mut forest = Forest {
-            parents: vec![&mut parent[..]],
+            parents: &mut [&mut parent[..]],
             first: b,
             band,
         };
@@ -202,13 +207,13 @@ fn columns(span: u64) -> (usize, usize) {
 
 /// A union-find over runs numbered `band · b + i` (band b's run i), over the parents of bands
 /// `first ..` (`parents`, band by band).
-struct Forest<'a> {
-    parents: Vec<&'a mut [i32]>,
+struct Forest<'a, 'b> {
+    parents: &'a mut [&'b mut [i32]],
     first: usize,
     band: usize,
 }
 
-impl Forest<'_> {
+impl Forest<'_, '_> {
     /// Run `g`'s parent, or at a root its region's size negated (one band's without a
     /// division).
     #[inline(always)]
