@@ -201,8 +201,8 @@ pub enum PresetChoice {
     /// The most accurate maps (the default): 8 paths where the pair is noisy, 5 where its
     /// texture stands well above its noise, and a 3 × 3 median.
     Accurate,
-    /// For video: 5 paths in one pass on every pair and no median, for about a third less
-    /// time.
+    /// For video: the 4 paths from above and the left in one pass on every pair and no
+    /// median, for less time.
     Fast,
 }
 
@@ -245,10 +245,10 @@ request! {
         /// (the default) or `fast` (for video). A setting given wins over its preset's.
         #[schema(inline, default = "accurate")]
         preset: PresetChoice,
-        /// The paths the aggregation sums: 8 (two passes, the most robust to noise) or 5 (one
-        /// pass). Default: the preset's (`accurate` takes 8 on a noisy pair and 5 on a clear
-        /// one, `fast` always 5).
-        #[schema(minimum = 5, maximum = 8, example = 5)]
+        /// The paths the aggregation sums: 8 (two passes, the most robust to noise), 5 (one
+        /// pass) or 4 (one pass, none from the right). Default: the preset's (`accurate` takes 8
+        /// on a noisy pair and 5 on a clear one, `fast` always 4).
+        #[schema(minimum = 4, maximum = 8, example = 5)]
         paths: u32,
         /// Fill invalid pixels from their row's background (the smaller of the nearest valid
         /// disparities left and right) instead of leaving them invalid; each filled pixel's
@@ -411,10 +411,7 @@ impl MatcherParameters {
     pub fn of(params: &Params, paths: Option<pipeline::Paths>) -> Self {
         MatcherParameters {
             preset: params.preset().into(),
-            paths: match paths {
-                Some(pipeline::Paths::Five) => 5,
-                _ => 8,
-            },
+            paths: paths.map_or(8, pipeline::Paths::count),
             p1: params.penalties().p1.into(),
             p2: params.penalties().p2.into(),
             p2_edge: params.penalties().edge.into(),
@@ -435,7 +432,7 @@ impl MatcherParameters {
 pub struct MatcherParameters {
     /// The preset the settings not given came from.
     pub preset: PresetChoice,
-    /// The paths aggregated, 5 or 8 (decided by the pair's noise where not given).
+    /// The paths aggregated, 4, 5 or 8 (decided by the pair's noise where not given).
     pub paths: u32,
     pub p1: u32,
     pub p2: u32,

@@ -206,7 +206,7 @@ pub fn disparity_probed(
 /// deviation of each image's noise (16-bit levels), which the census centres compare against,
 /// the pixels between the census window's samples, whether its texture is faint (the
 /// pyramid then goes further: [`pyramid::levels`]), and how clear it is (which paths
-/// [`sgm::Paths::Auto`] takes).
+/// [`sgm::Paths::Auto`] and [`sgm::Paths::Lean`] take).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PairNoise {
     pub left: f32,

@@ -34,8 +34,10 @@ pub enum Preset {
     /// its texture stands well above its noise, [`sgm::Paths::Auto`]).
     #[default]
     Accurate,
-    /// For video: 5 paths in one pass on every pair and no 3 × 3 median, for about a third
-    /// less time than `Accurate` (docs/matcher.md gives the measurements).
+    /// For video: one pass on every pair ([`sgm::Paths::Lean`]: the 4 paths from above and
+    /// the left where the pair is clear, and the path from the right too where it is noisy)
+    /// and no 3 × 3 median, for less time than `Accurate` (docs/matcher.md gives the
+    /// measurements).
     Fast,
 }
 
@@ -53,7 +55,6 @@ impl Preset {
         match self {
             Preset::Accurate => Settings::default(),
             Preset::Fast => Settings {
-                paths: Some(5),
                 median: Some(false),
                 ..Settings::default()
             },
@@ -82,7 +83,8 @@ pub struct Settings {
     pub max_disparity_std: Option<f64>,
     pub median: Option<bool>,
     pub fill: Option<bool>,
-    /// The paths aggregated: 5 or 8 (`None`: [`sgm::Paths::Auto`]).
+    /// The paths aggregated: 4, 5 or 8 (`None`: the preset's, [`sgm::Paths::Auto`] or, for
+    /// [`Preset::Fast`], [`sgm::Paths::Lean`]).
     pub paths: Option<u32>,
 }
 
@@ -280,11 +282,13 @@ impl Params {
             MAX_DISPARITY_STD_BOUND,
         );
         let paths = match s.paths {
+            None if preset == Preset::Fast => sgm::Paths::Lean,
             None => d.paths,
+            Some(4) => sgm::Paths::Four,
             Some(5) => sgm::Paths::Five,
             Some(8) => sgm::Paths::Eight,
             Some(other) => {
-                faults.add(Setting::Paths, format!("must be 5 or 8, got {other}"));
+                faults.add(Setting::Paths, format!("must be 4, 5 or 8, got {other}"));
                 d.paths
             }
         };
@@ -544,7 +548,7 @@ mod tests {
         .unwrap();
         assert_eq!(
             (fast.preset(), fast.paths(), fast.median()),
-            (Preset::Fast, sgm::Paths::Five, false)
+            (Preset::Fast, sgm::Paths::Lean, false)
         );
         assert_eq!(fast.penalties(), Params::default().penalties());
         let median = Params::new(&Settings {
@@ -553,7 +557,7 @@ mod tests {
             ..Settings::default()
         })
         .unwrap();
-        assert_eq!((median.paths(), median.median()), (sgm::Paths::Five, true));
+        assert_eq!((median.paths(), median.median()), (sgm::Paths::Lean, true));
         let accurate = Params::new(&Settings::default()).unwrap();
         assert_eq!(
             (accurate.preset(), accurate.paths(), accurate.median()),
