@@ -36,6 +36,9 @@
 //! (`camera::undistort_rectify_map`), as OpenCV's `remap`; after it, for pairs sent as
 //! rectified, [`rows`] checks that matched corners lie on their rows.
 //!
+//! For a stream's maps, one after another: [`temporal`] averages each pixel with its last values
+//! and carries holes over, as librealsense's temporal filter.
+//!
 //! Around it: [`decode`] reads PNG and JPEG under limits ([`jpeg`] strictly), [`encode`] writes PFM, NPY, 16-bit
 //! PNG, the colour preview and PLY, and [`synthetic`] renders pairs with exact ground truth.
 
@@ -58,6 +61,7 @@ pub mod sigma;
 pub mod simd;
 pub mod stripes;
 pub mod synthetic;
+pub mod temporal;
 
 use std::ops::Range;
 use std::sync::atomic::{AtomicBool, Ordering};
