@@ -201,8 +201,8 @@ pub enum PresetChoice {
     /// The most accurate maps (the default): 8 paths where the pair is noisy, 5 where its
     /// texture stands well above its noise, and a 3 × 3 median.
     Accurate,
-    /// For video: the 4 paths from above and the left in one pass on every pair and no
-    /// median, for less time.
+    /// For video: one pass on every pair (the 4 paths from above and the left on a clear
+    /// pair, and the path from the right too on a noisy one) and no median, for less time.
     Fast,
 }
 

@@ -50,6 +50,15 @@ impl Preset {
         }
     }
 
+    /// The paths the preset aggregates where `paths` is not asked for: a rule that each pair
+    /// decides ([`sgm::Paths::for_pair`]).
+    pub fn paths(self) -> sgm::Paths {
+        match self {
+            Preset::Accurate => sgm::Paths::Auto,
+            Preset::Fast => sgm::Paths::Lean,
+        }
+    }
+
     /// The settings the preset stands for (`None`: the default).
     pub fn settings(self) -> Settings {
         match self {
@@ -282,14 +291,13 @@ impl Params {
             MAX_DISPARITY_STD_BOUND,
         );
         let paths = match s.paths {
-            None if preset == Preset::Fast => sgm::Paths::Lean,
-            None => d.paths,
+            None => preset.paths(),
             Some(4) => sgm::Paths::Four,
             Some(5) => sgm::Paths::Five,
             Some(8) => sgm::Paths::Eight,
             Some(other) => {
                 faults.add(Setting::Paths, format!("must be 4, 5 or 8, got {other}"));
-                d.paths
+                preset.paths()
             }
         };
         let lr_check = s.lr_check.unwrap_or(true);

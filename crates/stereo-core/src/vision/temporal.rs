@@ -226,8 +226,10 @@ impl Temporal {
         for y in 0..map.height {
             let row = y * w..(y + 1) * w;
             // The farther (smaller) of each hole's nearest valid values left and right in this
-            // frame's row, as it came in: the most a carried value may exceed it by is δ.
-            let background = row_background(&map.data[row.clone()]);
+            // frame's row, as it came in (Middlebury's fill): the most a carried value may
+            // exceed it by is δ.
+            let mut background = map.data[row.clone()].to_vec();
+            super::filters::fill(&mut background, w);
             for (x, i) in row.enumerate() {
                 let value = map.data[i];
                 let last = self.last[i];
@@ -253,7 +255,7 @@ impl Temporal {
                     let steady = agrees || !last.is_finite();
                     self.history[i] = (earlier << 1) | u8::from(steady);
                 } else {
-                    let fits = background[x].is_none_or(|b| last <= b + delta);
+                    let fits = background[x].is_nan() || last <= background[x] + delta;
                     if last.is_finite() && fits && persistence.allows(earlier) {
                         map.data[i] = last;
                         map.std[i] = self.variance[i].sqrt();
@@ -266,30 +268,6 @@ impl Temporal {
         }
         counts
     }
-}
-
-/// For each pixel of a row, the smaller of the nearest finite values to its left and right
-/// (`None` where the row has none); at a finite pixel, whatever its neighbours give.
-fn row_background(row: &[f32]) -> Vec<Option<f32>> {
-    let mut left = vec![None; row.len()];
-    let mut seen = None;
-    for (slot, &v) in left.iter_mut().zip(row) {
-        if v.is_finite() {
-            seen = Some(v);
-        }
-        *slot = seen;
-    }
-    let mut seen: Option<f32> = None;
-    for (slot, &v) in left.iter_mut().zip(row).rev() {
-        if v.is_finite() {
-            seen = Some(v);
-        }
-        *slot = match (*slot, seen) {
-            (Some(a), Some(b)) => Some(a.min(b)),
-            (a, b) => a.or(b),
-        };
-    }
-    left
 }
 
 #[cfg(test)]
@@ -530,29 +508,22 @@ mod sequence {
         let mut changes = Vec::new();
         let (mut off, mut valued, mut seen) = (0usize, 0usize, 0usize);
         for (t, (map, pair)) in maps.iter().zip(pairs).enumerate() {
-            let w = map.width;
-            for y in 0..map.height {
-                let row = y * w..(y + 1) * w;
-                let background = row_background(&map.data[row.clone()]);
-                for (x, i) in row.enumerate() {
-                    if !pair.visible[i] {
-                        continue;
-                    }
-                    seen += 1;
-                    let d = map.data[i];
-                    valued += usize::from(d.is_finite());
-                    let filled = if d.is_finite() {
-                        Some(d)
-                    } else {
-                        background[x]
-                    };
-                    off += usize::from(filled.is_none_or(|v| (v - pair.truth[i]).abs() > 1.0));
-                    if t > 0 {
-                        let (p, then) = (maps[t - 1].data[i], &pairs[t - 1]);
-                        let still = then.visible[i] && then.truth[i] == pair.truth[i];
-                        if still && p.is_finite() && d.is_finite() {
-                            changes.push(f64::from((d - p).abs()));
-                        }
+            let mut filled = map.data.clone();
+            crate::vision::filters::fill(&mut filled, map.width);
+            for (i, (&d, &shown)) in map.data.iter().zip(&filled).enumerate() {
+                if !pair.visible[i] {
+                    continue;
+                }
+                seen += 1;
+                valued += usize::from(d.is_finite());
+                // NaN (a row with no value) counts as off.
+                let right = (shown - pair.truth[i]).abs() <= 1.0;
+                off += usize::from(!right);
+                if t > 0 {
+                    let (p, then) = (maps[t - 1].data[i], &pairs[t - 1]);
+                    let still = then.visible[i] && then.truth[i] == pair.truth[i];
+                    if still && p.is_finite() && d.is_finite() {
+                        changes.push(f64::from((d - p).abs()));
                     }
                 }
             }

@@ -255,10 +255,9 @@ crate::dispatch! {
     /// One pass: the 4 paths arriving from the previous row and the previous pixel, as
     /// [`Mode`] says: stored in `sums` (the whole volume), or added to stored sums a row at a
     /// time in `sums` (one row), or a row at a time with or without the path from the right
-    /// added. Compiled
-    /// twice: for a volume whose pixels all search the same window, with no per-pixel lookups,
-    /// and for per-pixel windows; and each with 8-bit path costs where the penalties let
-    /// them be exact ([`bytes_hold`]), 16-bit otherwise. `wide`: AVX-512 takes a 64-disparity
+    /// added. Compiled twice: for a volume whose pixels all search the same window, with no
+    /// per-pixel lookups, and for per-pixel windows; and each with 8-bit path costs where the
+    /// penalties let them be exact ([`bytes_hold`]), 16-bit otherwise. `wide`: AVX-512 takes a 64-disparity
     /// chunk of 8-bit path costs in one register.
     wide fn pass(
         cost: &Volume<'_>,
