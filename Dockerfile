@@ -36,6 +36,8 @@ RUN mkdir src \
  && cargo build --release --locked \
  && rm -rf src
 COPY src ./src
+# The live stream's AsyncAPI document, served at /asyncapi.yaml from the binary.
+COPY openapi/asyncapi.yaml ./openapi/asyncapi.yaml
 RUN touch src/main.rs src/lib.rs \
  && cargo build --release --locked \
  && cp target/x86_64-unknown-linux-gnu/release/stereo-distance /stereo-distance

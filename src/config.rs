@@ -83,6 +83,18 @@ pub const DEFAULT_HEAVY_MEMORY_BUDGET: usize = 1024 * 1024 * 1024;
 /// reserves from first.
 pub const DEFAULT_MAX_IMAGE_PIXELS: usize = 34_000_000;
 
+/// Default cap on the streams open at once (`/depth-stream`): 8. Each holds its frame limit
+/// and its filter's state in the heavy budget for its life, and takes a compute slot for each
+/// frame it matches, so a few streams already share the cores; more wait at the client.
+pub const DEFAULT_MAX_STREAMS: usize = 8;
+/// Default time a stream may send nothing before it is closed: 60 s, past any pause of a
+/// camera being moved, short enough that a client gone without closing frees its memory.
+pub const DEFAULT_STREAM_IDLE_TIMEOUT: Duration = Duration::from_secs(60);
+/// Default largest frame message of a stream: 16 MiB, a side-by-side 4K frame as JPEG or a
+/// 1080p one as PNG with room to spare. Each open stream holds this much of the heavy budget,
+/// the most a message being read may take.
+pub const DEFAULT_STREAM_FRAME_LIMIT: usize = 16 * 1024 * 1024;
+
 /// Default concurrency limit of the heavy routes: twice the number of CPUs, and at least 4. A
 /// request takes its slot when its work starts, once its body has arrived, so an upload does
 /// not hold one. The requests working share the matcher's threads (one a core), so more of them than cores
@@ -367,6 +379,23 @@ pub struct HeavyLimits {
     #[arg(global = true, id = "max_image_pixels", long = "max-image-pixels", env = "MAX_IMAGE_PIXELS", value_name = "PIXELS",
           default_value_t = DEFAULT_MAX_IMAGE_PIXELS, value_parser = count::<1, 67_108_864>)]
     pub max_image_pixels: usize,
+
+    /// Most depth streams (`/depth-stream`, WebSocket) open at once; one more is refused with
+    /// 503 and Retry-After before the upgrade.
+    #[arg(global = true, long = "max-streams", env = "MAX_STREAMS", value_name = "N",
+          default_value_t = DEFAULT_MAX_STREAMS, value_parser = count::<1, 4096>)]
+    pub max_streams: usize,
+
+    /// How long a depth stream may send nothing (no frame, no ping) before it is closed.
+    #[arg(global = true, long = "stream-idle-timeout", env = "STREAM_IDLE_TIMEOUT", value_name = "DURATION",
+          default_value = "60s", value_parser = timeout)]
+    pub stream_idle_timeout: Duration,
+
+    /// Largest frame message of a depth stream, in bytes or with a unit; a larger one closes
+    /// the stream (1009). Each open stream holds this much of the memory budget.
+    #[arg(global = true, long = "stream-frame-limit", env = "STREAM_FRAME_LIMIT", value_name = "SIZE",
+          default_value = "16MiB", value_parser = size::<1024, 1_073_741_824>)]
+    pub stream_frame_bytes: usize,
 }
 
 impl Default for HeavyLimits {
@@ -377,6 +406,9 @@ impl Default for HeavyLimits {
             concurrency_limit: default_heavy_concurrency(),
             memory_budget: DEFAULT_HEAVY_MEMORY_BUDGET,
             max_image_pixels: DEFAULT_MAX_IMAGE_PIXELS,
+            max_streams: DEFAULT_MAX_STREAMS,
+            stream_idle_timeout: DEFAULT_STREAM_IDLE_TIMEOUT,
+            stream_frame_bytes: DEFAULT_STREAM_FRAME_LIMIT,
         }
     }
 }
@@ -536,6 +568,15 @@ impl Config {
                 ),
             ));
         }
+        if self.heavy.stream_frame_bytes > self.heavy.memory_budget {
+            return Err(clap::Error::raw(
+                clap::error::ErrorKind::ValueValidation,
+                format!(
+                    "--stream-frame-limit (STREAM_FRAME_LIMIT, {} bytes) must not exceed                      --heavy-memory-budget (HEAVY_MEMORY_BUDGET, {} bytes): every stream                      reserves its frame limit from the budget\n",
+                    self.heavy.stream_frame_bytes, self.heavy.memory_budget
+                ),
+            ));
+        }
         let origins = &self.cors_allowed_origins;
         if origins.len() > 1 && origins.iter().any(|o| o == "*") {
             return Err(clap::Error::raw(
@@ -662,6 +703,15 @@ mod tests {
                 ][..],
                 "must not exceed",
             ),
+            (
+                &[
+                    "--stream-frame-limit",
+                    "64MiB",
+                    "--heavy-memory-budget",
+                    "48MiB",
+                ][..],
+                "--stream-frame-limit (STREAM_FRAME_LIMIT, 67108864 bytes) must not exceed",
+            ),
         ] {
             let error = parse(args).expect_err(&format!("{args:?} must be refused"));
             let text = error.to_string();
@@ -692,6 +742,9 @@ mod tests {
                 concurrency_limit: 3,
                 request_timeout: Duration::from_secs(2),
                 max_image_pixels: DEFAULT_MAX_IMAGE_PIXELS,
+                max_streams: DEFAULT_MAX_STREAMS,
+                stream_idle_timeout: DEFAULT_STREAM_IDLE_TIMEOUT,
+                stream_frame_bytes: DEFAULT_STREAM_FRAME_LIMIT,
             }
         );
         assert_eq!(size::<1, 4096>("2KiB"), Ok(2048));
@@ -724,6 +777,9 @@ mod tests {
                 DEFAULT_MAX_TABLE_ROWS.to_string(),
             ),
             ("--body-limit <SIZE>", "64KiB".to_owned()),
+            ("--max-streams <N>", DEFAULT_MAX_STREAMS.to_string()),
+            ("--stream-idle-timeout <DURATION>", "60s".to_owned()),
+            ("--stream-frame-limit <SIZE>", "16MiB".to_owned()),
         ] {
             let at = flat
                 .find(flag)

@@ -6,7 +6,8 @@
 //! - **light**: JSON answers that take microseconds of CPU and kilobytes of memory (`/distance`,
 //!   `/table`, `/chart-data`, `/rig`, …, the page at `/`);
 //! - **heavy**: image requests that take megabytes in, milliseconds to seconds of CPU and tens
-//!   of MB of memory each (`/depth-map`, `/match`, `/calibrate`, `/rectify`).
+//!   of MB of memory each (`/depth-map`, `/match`, `/calibrate`, `/rectify`), and the live
+//!   streams of `/depth-stream` (a WebSocket), a frame at a time.
 //!
 //! Each is a route group with its own body limit, timeout and concurrency limit (the heavy
 //! group's taken when a request's work starts, not while its body arrives); the heavy group

@@ -12,6 +12,13 @@ opencv_python() {
       numpy==2.1.3 opencv-python-headless==4.14.0.94
 }
 
+# websockets 15.0.1 (the live stream's client), unless it is there.
+websockets_python() {
+  python3 -c 'import websockets; assert websockets.__version__ == "15.0.1"' 2>/dev/null \
+    || python3 -m pip install --quiet --disable-pip-version-check --root-user-action=ignore \
+      websockets==15.0.1
+}
+
 # SERVICE_BIN, or the release build (built if missing).
 service_binary() {
   if [ -z "${SERVICE_BIN:-}" ]; then

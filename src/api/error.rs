@@ -190,6 +190,10 @@ pub enum ApiError {
     /// 413: the request's images or disparity range are beyond the server's limits; the
     /// errors name the parts and parameters to shrink.
     Oversized(Vec<FieldError>),
+    /// 426: a WebSocket route asked without the upgrade (why, in axum's words).
+    UpgradeRequired(String),
+    /// 503: as many depth streams are open as the server allows (`limit`); retry later.
+    TooManyStreams { limit: usize },
     /// 401: the service takes bearer tokens and the request brought none (`refused: false`)
     /// or one it does not know (`refused: true`).
     Unauthorized { refused: bool },
@@ -221,6 +225,8 @@ impl ApiError {
             ApiError::Internal(_) => StatusCode::INTERNAL_SERVER_ERROR,
             ApiError::Oversized(_) => StatusCode::PAYLOAD_TOO_LARGE,
             ApiError::Unauthorized { .. } => StatusCode::UNAUTHORIZED,
+            ApiError::UpgradeRequired(_) => StatusCode::UPGRADE_REQUIRED,
+            ApiError::TooManyStreams { .. } => StatusCode::SERVICE_UNAVAILABLE,
         }
     }
 
@@ -375,6 +381,23 @@ impl ApiError {
                     format!("needs {}, at most {} fits", mib(*requested), mib(*total)),
                 )],
             ),
+            ApiError::UpgradeRequired(why) => plain(
+                format!(
+                    "this is a WebSocket: open it with a WebSocket client (GET with Upgrade: \
+                     websocket); {why}"
+                ),
+                vec![FieldError::new("upgrade", "is required: websocket")],
+            ),
+            ApiError::TooManyStreams { limit } => plain(
+                format!(
+                    "the server has {limit} depth streams open, as many as it allows; retry \
+                     after {RETRY_AFTER_SECS} s"
+                ),
+                vec![FieldError::new(
+                    "stream",
+                    "refused to protect the streams already open",
+                )],
+            ),
             ApiError::Draining => plain(
                 "the server is shutting down and takes no new traffic".to_owned(),
                 vec![FieldError::new("server", "draining")],
@@ -483,8 +506,12 @@ impl IntoResponse for ApiError {
             ApiError::Overloaded { retry_after_secs } => {
                 headers.insert(header::RETRY_AFTER, HeaderValue::from(retry_after_secs));
             }
-            ApiError::Memory(Refusal::Busy { .. }) => {
+            ApiError::Memory(Refusal::Busy { .. }) | ApiError::TooManyStreams { .. } => {
                 headers.insert(header::RETRY_AFTER, HeaderValue::from(RETRY_AFTER_SECS));
+            }
+            ApiError::UpgradeRequired(_) => {
+                headers.insert(header::UPGRADE, HeaderValue::from_static("websocket"));
+                headers.insert(header::CONNECTION, HeaderValue::from_static("Upgrade"));
             }
             // RFC 6750: the scheme, and `invalid_token` for a token that was sent.
             ApiError::Unauthorized { refused } => {

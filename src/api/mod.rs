@@ -56,7 +56,10 @@ use self::routes::ops::OpsState;
                        √(X² + Y² + Z²) from the left camera to the point. `/calibration` reads \
                        a calibration file into the rig the other endpoints take. Every error is \
                        `application/problem+json` (RFC 9457) with an `errors` array naming \
-                       every offending field.",
+                       every offending field.\n\n\
+                       Live depth from a stereo camera, frame by frame over one WebSocket \
+                       (`GET /depth-stream`, with a temporal filter), is described in AsyncAPI \
+                       at [/asyncapi.yaml](/asyncapi.yaml).",
         license(name = "MIT", identifier = "MIT"),
         contact(name = "Stereo distance service maintainers")
     ),
@@ -151,11 +154,23 @@ pub fn routers(state: AppState, heavy: HeavyState, ops: OpsState) -> Routers {
         async move { ([(header::CONTENT_TYPE, "application/json")], spec) }
     };
     Routers {
-        docs: Router::new().route("/openapi.json", get(served)).merge(
-            SwaggerUi::new("/docs").config(utoipa_swagger_ui::Config::from("/openapi.json")),
-        ),
+        docs: Router::new()
+            .route("/openapi.json", get(served))
+            .route("/asyncapi.yaml", get(asyncapi))
+            .merge(
+                SwaggerUi::new("/docs").config(utoipa_swagger_ui::Config::from("/openapi.json")),
+            ),
         ..routers
     }
+}
+
+/// The AsyncAPI document of the live stream (`GET /depth-stream`, a WebSocket), as committed
+/// in `openapi/asyncapi.yaml`.
+pub const ASYNCAPI: &str = include_str!("../../openapi/asyncapi.yaml");
+
+/// `GET /asyncapi.yaml`.
+async fn asyncapi() -> impl axum::response::IntoResponse {
+    ([(header::CONTENT_TYPE, "application/yaml")], ASYNCAPI)
 }
 
 /// The OpenAPI document as served at `/openapi.json` and committed as `openapi/openapi.json`,

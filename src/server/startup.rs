@@ -71,6 +71,13 @@ fn app_with(config: &Config, ops: OpsState, extra_heavy: Router<HeavyState>) -> 
         maps: std::sync::Arc::new(MapCache::new(Some(budget.clone()), maps::MAX_ENTRIES)),
         slots: Slots::new(heavy.concurrency_limit),
         image_limits: api::images::limits::decode_limits(heavy.max_image_pixels),
+        streams: api::images::stream::Streams {
+            budget: budget.clone(),
+            open: Slots::new(heavy.max_streams),
+            idle_timeout: heavy.stream_idle_timeout,
+            write_timeout: config.write_timeout,
+            max_frame_bytes: heavy.stream_frame_bytes,
+        },
     };
     let ops = OpsState {
         heavy: Some((budget.clone(), heavy_state.slots.clone())),
@@ -320,10 +327,15 @@ impl Server {
                 request
             })
             .service(self.router.clone());
-        let connection = self.http.serve_connection(
-            TokioIo::new(WriteTimeout::new(stream, self.write_timeout)),
-            TowerToHyperService::new(router),
-        );
+        // With upgrades: a depth stream's WebSocket takes the connection over (its socket
+        // keeps the write timeout).
+        let connection = self
+            .http
+            .serve_connection(
+                TokioIo::new(WriteTimeout::new(stream, self.write_timeout)),
+                TowerToHyperService::new(router),
+            )
+            .with_upgrades();
         let mut stopping = self.stopping.subscribe();
         tokio::spawn(async move {
             let mut connection = pin!(connection);

@@ -101,7 +101,7 @@ pub(crate) fn npz_entries(zip: &[u8]) -> Vec<(String, Vec<u8>)> {
 
 /// The float32 data of an NPY file, after checking its header says `(H, W)` little-endian
 /// float32 in C order.
-fn npy(bytes: &[u8]) -> Vec<f32> {
+pub(crate) fn npy(bytes: &[u8]) -> Vec<f32> {
     assert_eq!(&bytes[..8], b"\x93NUMPY\x01\x00");
     let len = u16::from_le_bytes([bytes[8], bytes[9]]) as usize;
     let header = std::str::from_utf8(&bytes[10..10 + len]).unwrap();
@@ -795,7 +795,7 @@ async fn a_json_body_is_415() {
 }
 
 /// A one-pixel PNG whose header claims `width × height` pixels.
-fn png_claiming(width: u32, height: u32) -> Vec<u8> {
+pub(crate) fn png_claiming(width: u32, height: u32) -> Vec<u8> {
     let mut bytes = png(&[0, 0, 0], 1, 1);
     bytes[16..20].copy_from_slice(&width.to_be_bytes());
     bytes[20..24].copy_from_slice(&height.to_be_bytes());

@@ -9,6 +9,7 @@ mod charuco;
 mod command_line;
 mod damaged;
 mod depth_map;
+mod depth_stream;
 mod disparity;
 mod distance;
 mod errors;

@@ -5,8 +5,10 @@
 use axum::body::Bytes;
 
 use crate::api::error::{ApiError, FieldError, FieldErrors};
+use crate::api::wire::depth_map::DepthMapOutput;
+use stereo_core::pipeline::Product;
 use stereo_core::vision::decode::{DecodeError, DecodeLimits, MAX_SIDE, MIN_SIDE};
-use stereo_core::vision::{Params, Settings};
+use stereo_core::vision::{self, Params, Settings};
 
 /// The decoder's limits for every image route: [`MAX_SIDE`] a side and the server's
 /// `--max-image-pixels`.
@@ -130,6 +132,40 @@ pub fn decode_then(width: usize, height: usize, after: usize) -> usize {
     let grey = width.saturating_mul(height).saturating_mul(4);
     decoded_bytes(width, height).max(grey.saturating_add(after))
 }
+
+/// The bytes a depth map's work holds at its peak besides its body: the decoded pair
+/// ([`decode_then`]), then the left image's colours for a point cloud, and the larger of the
+/// matcher's peak and the answer's: the map, its depths and σ (17 bytes a pixel), and each
+/// file written from them (up to 7 bytes a pixel, and the file's own extra). The matcher's buffers are freed before the
+/// answer is made. What a `w × h` rectified pair searching `count` disparities reserves from
+/// the heavy budget to answer `outputs`.
+pub fn depth_map_bytes(w: usize, h: usize, count: usize, outputs: &[DepthMapOutput]) -> usize {
+    let products = || outputs.iter().filter_map(|o| o.product());
+    let extra: usize = products().map(Product::extra_bytes_per_pixel).sum();
+    let colour = if products().any(Product::wants_colour) {
+        3
+    } else {
+        0
+    };
+    let pixels = w.saturating_mul(h);
+    let files = outputs
+        .iter()
+        .filter(|o| o.product().is_some())
+        .count()
+        .max(1);
+    let a_pixel = MAP_BYTES_A_PIXEL + FILE_BYTES_A_PIXEL * files + extra;
+    let answer = pixels.saturating_mul(a_pixel);
+    let after = pixels
+        .saturating_mul(colour)
+        .saturating_add(vision::bytes_needed(w, h, count).max(answer));
+    decode_then(w, h, after)
+}
+
+/// What a depth map's answer holds a pixel before its files: the map and its σ and mask (9
+/// bytes), the depths and their σ (8).
+const MAP_BYTES_A_PIXEL: usize = 17;
+/// What each file written from the map holds a pixel besides its own extra (up to 7 bytes).
+const FILE_BYTES_A_PIXEL: usize = 7;
 
 /// What to shrink so that a `w × h` request searching `count` disparities, needing
 /// `need(count)` bytes, fits in a budget of `total` bytes: the images (to how many megapixels

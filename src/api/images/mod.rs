@@ -12,6 +12,8 @@
 //! - [`output`]: a file answer with its media type and name, and `Server-Timing`;
 //! - [`limits`]: what the server accepts: image sizes, the matcher's settings mapped onto the
 //!   query's names, and what to shrink when a request cannot fit;
+//! - [`stream`]: what the depth streams share and are held to (the budget, the cap on open
+//!   streams, the idle and write timeouts, the frame limit);
 //! - [`work`]: a compute slot taken and the memory reserved when the work starts (not while
 //!   the body arrives), the work run on a blocking thread that stops when its request is
 //!   abandoned, the pair decoded, the matcher's stages for `Server-Timing`.
@@ -26,6 +28,7 @@ pub mod output;
 pub mod parts;
 pub mod raw;
 pub mod rig;
+pub mod stream;
 pub mod work;
 
 pub use form::{ImageForm, ImagePair, Job};
@@ -46,6 +49,8 @@ pub struct HeavyState {
     pub slots: crate::budget::Slots,
     /// The largest image decoded (`--max-image-pixels`, [`stereo_core::vision::decode::MAX_SIDE`] a side).
     pub image_limits: stereo_core::vision::decode::DecodeLimits,
+    /// What the depth streams share and are held to.
+    pub streams: stream::Streams,
 }
 
 impl Default for HeavyState {
@@ -55,6 +60,7 @@ impl Default for HeavyState {
             maps: std::sync::Arc::default(),
             slots: crate::budget::Slots::new(crate::config::default_heavy_concurrency()),
             image_limits: limits::decode_limits(crate::config::DEFAULT_MAX_IMAGE_PIXELS),
+            streams: stream::Streams::default(),
         }
     }
 }

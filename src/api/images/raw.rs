@@ -4,6 +4,7 @@
 
 use super::form::{ImageForm, ImagePair};
 use super::limits;
+use super::parts::Parts;
 use super::work::Need;
 use crate::api::error::FieldErrors;
 use crate::api::wire::images::RectifyMode;
@@ -24,9 +25,14 @@ impl From<RectifyMode> for pipeline::RectifyMode {
 /// What the form sent to describe its rig: a `rig` part wins, as it describes rectified
 /// images whatever came with it.
 fn sent<F: ImageForm>(pair: &ImagePair<F>) -> Sent {
-    if pair.parts.get("rig").is_some() {
+    sent_in(&pair.parts)
+}
+
+/// What `parts` sent to describe the rig ([`sent`]).
+pub fn sent_in(parts: &Parts) -> Sent {
+    if parts.get("rig").is_some() {
         Sent::Rig
-    } else if pair.parts.get("calibration").is_some() {
+    } else if parts.get("calibration").is_some() {
         Sent::Calibration
     } else {
         Sent::Nothing
@@ -55,12 +61,25 @@ pub fn plan<F: ImageForm>(
     alpha: Option<f64>,
     problems: &mut FieldErrors,
 ) -> Option<Box<Raw>> {
+    let sent = sent(pair);
+    plan_rig(&mut pair.rig, sent, pair.size, (mode, alpha), problems)
+}
+
+/// [`plan`] for a rig and frames of `size` that did not come in a form (a stream's): `rig`
+/// becomes the rectified rig when the frames are rectified.
+pub fn plan_rig(
+    rig: &mut Option<Calibrated>,
+    sent: Sent,
+    size: Option<(u32, u32)>,
+    (mode, alpha): (Option<RectifyMode>, Option<f64>),
+    problems: &mut FieldErrors,
+) -> Option<Box<Raw>> {
     let alpha = problems.alpha(alpha);
     let mode = mode.unwrap_or_default().into();
-    match pipeline::plan(pair.rig.as_ref(), sent(pair), pair.size, mode, alpha) {
+    match pipeline::plan(rig.as_ref(), sent, size, mode, alpha) {
         Ok(Some(calibrated)) => {
             let raw = calibrated.raw.clone();
-            pair.rig = Some(calibrated);
+            *rig = Some(calibrated);
             raw
         }
         Ok(None) => None,

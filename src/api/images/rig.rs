@@ -18,15 +18,7 @@ use stereo_core::calibration::files::{self, ReadOptions, Source};
 use stereo_core::physics::LengthUnit;
 use stereo_core::pipeline::{Calibrated, SizeFault};
 
-/// The parts that carry a rig.
-pub const RIG_PARTS: [&str; 6] = [
-    "rig",
-    "calibration",
-    "calibration_format",
-    "right_calibration",
-    "calibration_unit",
-    "calibration_cameras",
-];
+pub use crate::api::wire::images::RIG_PARTS;
 
 /// The prefix of a rig member's name in the image routes' answers.
 const RIG: &str = "rig.";

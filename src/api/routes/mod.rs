@@ -6,6 +6,7 @@
 pub mod board_calibration;
 pub mod chart;
 pub mod depth_map;
+pub mod depth_stream;
 pub mod distance;
 pub mod file_calibration;
 pub mod matching;
@@ -154,6 +155,7 @@ pub fn heavy() -> OpenApiRouter<HeavyState> {
     OpenApiRouter::new()
         .merge(board_calibration::router())
         .merge(depth_map::router())
+        .merge(depth_stream::router())
         .merge(matching::router())
         .merge(rectify::router())
 }

@@ -7,6 +7,16 @@ use utoipa::ToSchema;
 
 use crate::api::wire::de::choice_members;
 
+/// The parts (or, in a stream's settings, the members) that carry a rig.
+pub const RIG_PARTS: [&str; 6] = [
+    "rig",
+    "calibration",
+    "calibration_format",
+    "right_calibration",
+    "calibration_unit",
+    "calibration_cameras",
+];
+
 /// Whether an image route rectifies the pair before matching.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize, Serialize, ToSchema)]
 #[serde(rename_all = "lowercase")]

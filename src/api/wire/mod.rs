@@ -6,7 +6,7 @@
 //! what the image routes share on the wire ([`images`]), and the OpenAPI glue ([`openapi`]).
 //! Then each endpoint's own types, one module a route (its `types`, as the route names it):
 //! [`distance`], [`table`], [`chart`], [`rig_design`], [`file_calibration`], [`depth_map`],
-//! [`matching`], [`rectify`], [`board_calibration`]. The command (`batch`) writes the same
+//! [`depth_stream`], [`matching`], [`rectify`], [`board_calibration`]. The command (`batch`) writes the same
 //! `/depth-map` answers from them.
 
 pub mod board_calibration;
@@ -14,6 +14,7 @@ pub mod calibration;
 pub mod chart;
 pub mod de;
 pub mod depth_map;
+pub mod depth_stream;
 pub mod distance;
 pub mod file_calibration;
 pub mod images;

@@ -11,6 +11,7 @@ use super::rectify::Maps;
 use crate::physics::{LengthUnit, Rig};
 use crate::vision::decode::Decoded;
 use crate::vision::rows::{self, RowOffsets};
+use crate::vision::temporal::{Counts, Temporal};
 use crate::vision::{self, Cancelled, Disparity, Params, Timings, encode};
 
 /// Below this share of matched pixels, a pair sent as rectified may well be raw.
@@ -58,6 +59,8 @@ pub struct DepthMap {
     pub rectify: Option<Duration>,
     /// How long the depths and their σ took.
     pub depths: Duration,
+    /// What a stream's temporal filter did to the disparities, and how long it took.
+    pub temporal: Option<(Counts, Duration)>,
 }
 
 impl DepthMap {
@@ -79,11 +82,37 @@ impl DepthMap {
 /// A depth map of the decoded pair: rectified first through `request.maps`, matched with
 /// `request.params`, and given depths with the rig. `Err` when `cancel` was set.
 pub fn depth_map(
+    left: Decoded,
+    right: Decoded,
+    request: Request<'_>,
+    cancel: &AtomicBool,
+) -> Result<DepthMap, Cancelled> {
+    matched(left, right, request, cancel).map(|m| m.depth_map(request))
+}
+
+/// A pair matched, before its depths: the first half of [`depth_map`], for a stream that
+/// steadies the disparities ([`Matched::steady`]) between the halves, in its frames' order,
+/// while other frames are matched or given depths at once.
+#[derive(Debug)]
+pub struct Matched {
+    /// The disparities, with each one's σ_d.
+    pub disparity: Disparity,
+    rgb: Option<Vec<u8>>,
+    warnings: Vec<String>,
+    timings: Timings,
+    rectify: Option<Duration>,
+    temporal: Option<(Counts, Duration)>,
+}
+
+/// The first half of [`depth_map`]: the pair rectified through `request.maps` when there are
+/// some, matched, and what a user should hear about it (a pair sent as rectified that looks
+/// raw, what the decoder forgave). `Err` when `cancel` was set.
+pub fn matched(
     mut left: Decoded,
     mut right: Decoded,
     request: Request<'_>,
     cancel: &AtomicBool,
-) -> Result<DepthMap, Cancelled> {
+) -> Result<Matched, Cancelled> {
     let rectify = request
         .maps
         .map(|maps| maps.rectify_pair(&mut left, &mut right, request.colour));
@@ -98,32 +127,61 @@ pub fn depth_map(
         .map_or_else(Vec::new, |c| c.warnings.clone());
     warnings.extend(decode_notes(&left, &right));
     drop(right);
-    let valid = map.data.iter().filter(|d| !d.is_nan()).count();
-    let valid_fraction = valid as f64 / map.data.len().max(1) as f64;
     if rectify.is_none()
-        && let Some(warning) = unrectified_warning(Some(valid_fraction), rows)
+        && let Some(warning) = unrectified_warning(Some(valid_share(&map)), rows)
     {
         warnings.push(warning);
     }
-    let started = Instant::now();
-    let rig = request.calibrated.map(|c| c.rig);
-    let depth = rig.map(|rig| depths(&map, rig));
-    let depth_std = match (rig, &depth) {
-        (Some(rig), Some(depth)) if request.depth_std => Some(depth_stds(&map, depth, rig)),
-        _ => None,
-    };
-    Ok(DepthMap {
+    Ok(Matched {
         disparity: map,
-        rig,
-        depth,
-        depth_std,
         rgb: left.rgb.take().filter(|_| request.colour),
-        valid_fraction,
         warnings,
         timings,
         rectify,
-        depths: started.elapsed(),
+        temporal: None,
     })
+}
+
+/// The share of a map's pixels with a disparity.
+fn valid_share(map: &Disparity) -> f64 {
+    let valid = map.data.iter().filter(|d| !d.is_nan()).count();
+    valid as f64 / map.data.len().max(1) as f64
+}
+
+impl Matched {
+    /// Steadies the disparities with a stream's temporal filter (this frame being the
+    /// filter's next), recording what it did and how long it took.
+    pub fn steady(&mut self, filter: &mut Temporal) {
+        let started = Instant::now();
+        let counts = filter.apply(&mut self.disparity);
+        self.temporal = Some((counts, started.elapsed()));
+    }
+
+    /// The second half of [`depth_map`]: each pixel's depth and, when `request` asks, its
+    /// σ_Z, with the rig.
+    pub fn depth_map(self, request: Request<'_>) -> DepthMap {
+        let started = Instant::now();
+        let map = self.disparity;
+        let rig = request.calibrated.map(|c| c.rig);
+        let depth = rig.map(|rig| depths(&map, rig));
+        let depth_std = match (rig, &depth) {
+            (Some(rig), Some(depth)) if request.depth_std => Some(depth_stds(&map, depth, rig)),
+            _ => None,
+        };
+        DepthMap {
+            valid_fraction: valid_share(&map),
+            disparity: map,
+            rig,
+            depth,
+            depth_std,
+            rgb: self.rgb,
+            warnings: self.warnings,
+            timings: self.timings,
+            rectify: self.rectify,
+            depths: started.elapsed(),
+            temporal: self.temporal,
+        }
+    }
 }
 
 /// What the decoder forgave in the pair's images (a JPEG read without its end-of-image

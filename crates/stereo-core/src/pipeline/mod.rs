@@ -42,5 +42,5 @@ pub mod rectify;
 
 pub use crate::vision::sgm::Paths;
 pub use calibrated::{Calibrated, PlanFault, RectifyMode, Sent, SizeFault, plan, raw_rig};
-pub use depth::{DepthMap, Product, Request, Spread, depth_map, spread};
+pub use depth::{DepthMap, Matched, Product, Request, Spread, depth_map, matched, spread};
 pub use rectify::Maps;

@@ -276,6 +276,40 @@ fn corrupt(e: &ImageError) -> DecodeError {
     }
 }
 
+/// A side-by-side frame (the left image in its left half, the right in its right half, as most
+/// USB stereo cameras deliver one) cut into its two images, colour kept where it was decoded.
+/// `Err` with the frame's width when it is odd or the halves would be narrower than
+/// [`MIN_SIDE`].
+pub fn split_side_by_side(frame: Decoded) -> Result<(Decoded, Decoded), usize> {
+    let (w, h) = (frame.grey.width, frame.grey.height);
+    if w % 2 != 0 || w / 2 < MIN_SIDE as usize {
+        return Err(w);
+    }
+    let half = w / 2;
+    let cut = |offset: usize| -> Vec<u16> {
+        frame
+            .grey
+            .data
+            .chunks_exact(w)
+            .flat_map(|row| &row[offset..offset + half])
+            .copied()
+            .collect()
+    };
+    let cut_rgb = |rgb: &Vec<u8>, offset: usize| -> Vec<u8> {
+        rgb.chunks_exact(3 * w)
+            .flat_map(|row| &row[3 * offset..3 * (offset + half)])
+            .copied()
+            .collect()
+    };
+    let side = |offset: usize| Decoded {
+        format: frame.format,
+        grey: Gray::new(half, h, cut(offset)),
+        rgb: frame.rgb.as_ref().map(|rgb| cut_rgb(rgb, offset)),
+        note: frame.note.clone(),
+    };
+    Ok((side(0), side(half)))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -411,5 +445,34 @@ mod tests {
         };
         assert!(said.starts_with("a PNG chunk is damaged"), "{said}");
         assert!(said.is_ascii() && !said.contains('{'), "{said}");
+    }
+
+    /// A side-by-side frame's halves are its two images, pixel for pixel and in colour; an odd
+    /// width is refused with the width.
+    #[test]
+    fn a_side_by_side_frame_splits_into_its_halves() {
+        let (w, h) = (80usize, 40usize);
+        let grey: Vec<u16> = (0..w * h)
+            .map(|i| (i % w) as u16 * 100 + (i / w) as u16)
+            .collect();
+        let rgb: Vec<u8> = (0..w * h * 3).map(|i| (i / 3 % w) as u8).collect();
+        let frame = Decoded {
+            format: Codec::Png,
+            grey: Gray::new(w, h, grey),
+            rgb: Some(rgb),
+            note: None,
+        };
+        let (left, right) = split_side_by_side(frame.clone()).unwrap();
+        assert_eq!((left.grey.width, left.grey.height), (40, 40));
+        assert_eq!(left.grey.data[3 * 40 + 5], 5 * 100 + 3);
+        assert_eq!(right.grey.data[3 * 40 + 5], 45 * 100 + 3);
+        assert_eq!(right.rgb.as_ref().unwrap()[3 * (2 * 40 + 7)], 47);
+        assert_eq!(left.rgb.as_ref().unwrap().len(), 40 * 40 * 3);
+        let odd = Decoded {
+            grey: Gray::new(79, 1, vec![0; 79]),
+            rgb: None,
+            ..frame
+        };
+        assert_eq!(split_side_by_side(odd).unwrap_err(), 79);
     }
 }

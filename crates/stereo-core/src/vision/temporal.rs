@@ -9,6 +9,8 @@
 //! usually what the object hides or has just uncovered, the background, so carrying the object's
 //! old value into it would put the object where it no longer is.
 
+use rayon::prelude::*;
+
 use super::Disparity;
 
 /// When a hole takes its pixel's last value: librealsense's persistence rules, over the
@@ -216,54 +218,96 @@ impl Temporal {
         if map.filled.len() != n {
             map.filled = vec![false; n];
         }
+        let w = map.width.max(1);
+        let settings = self.settings;
+        map.data
+            .par_chunks_mut(w)
+            .zip(map.std.par_chunks_mut(w))
+            .zip(map.filled.par_chunks_mut(w))
+            .zip(self.last.par_chunks_mut(w))
+            .zip(self.variance.par_chunks_mut(w))
+            .zip(self.history.par_chunks_mut(w))
+            .with_min_len(ROWS_A_TASK)
+            .map(|(((((data, std), filled), last), variance), history)| {
+                let row = Row {
+                    data,
+                    std,
+                    filled,
+                    last,
+                    variance,
+                    history,
+                };
+                row.apply(settings)
+            })
+            .reduce(Counts::default, |a, b| Counts {
+                averaged: a.averaged + b.averaged,
+                taken: a.taken + b.taken,
+                carried: a.carried + b.carried,
+            })
+    }
+}
+
+/// The rows a task of the filter takes at least: a row is a few microseconds.
+const ROWS_A_TASK: usize = 16;
+
+/// One row of a frame and of the filter's state.
+struct Row<'a> {
+    data: &'a mut [f32],
+    std: &'a mut [f32],
+    filled: &'a mut [bool],
+    last: &'a mut [f32],
+    variance: &'a mut [f32],
+    history: &'a mut [u8],
+}
+
+impl Row<'_> {
+    /// Filters the row ([`Temporal::apply`]).
+    fn apply(self, settings: Settings) -> Counts {
         let Settings {
             alpha,
             delta,
             persistence,
-        } = self.settings;
+        } = settings;
         let mut counts = Counts::default();
-        let w = map.width;
-        for y in 0..map.height {
-            let row = y * w..(y + 1) * w;
-            // The farther (smaller) of each hole's nearest valid values left and right in this
-            // frame's row, as it came in (Middlebury's fill): the most a carried value may
-            // exceed it by is δ.
-            let mut background = map.data[row.clone()].to_vec();
-            super::filters::fill(&mut background, w);
-            for (x, i) in row.enumerate() {
-                let value = map.data[i];
-                let last = self.last[i];
-                let earlier = self.history[i];
-                if value.is_finite() {
-                    let sigma = map.std[i];
-                    let agrees = last.is_finite() && (value - last).abs() < delta;
-                    if agrees {
-                        let v = alpha * value + (1.0 - alpha) * last;
-                        let var = alpha * alpha * sigma * sigma
-                            + (1.0 - alpha) * (1.0 - alpha) * self.variance[i];
-                        map.data[i] = v;
-                        map.std[i] = var.sqrt();
-                        self.last[i] = v;
-                        self.variance[i] = var;
-                        counts.averaged += 1;
-                    } else {
-                        self.last[i] = value;
-                        self.variance[i] = sigma * sigma;
-                        counts.taken += 1;
-                    }
-                    // A jump is motion: the pixel is not yet steady there (librealsense's).
-                    let steady = agrees || !last.is_finite();
-                    self.history[i] = (earlier << 1) | u8::from(steady);
+        // The farther (smaller) of each hole's nearest valid values left and right in this
+        // frame's row, as it came in (Middlebury's fill): the most a carried value may exceed
+        // it by is δ.
+        let mut background = self.data.to_vec();
+        let width = background.len().max(1);
+        super::filters::fill(&mut background, width);
+        for (i, &bg) in background.iter().enumerate() {
+            let value = self.data[i];
+            let last = self.last[i];
+            let earlier = self.history[i];
+            if value.is_finite() {
+                let sigma = self.std[i];
+                let agrees = last.is_finite() && (value - last).abs() < delta;
+                if agrees {
+                    let v = alpha * value + (1.0 - alpha) * last;
+                    let var = alpha * alpha * sigma * sigma
+                        + (1.0 - alpha) * (1.0 - alpha) * self.variance[i];
+                    self.data[i] = v;
+                    self.std[i] = var.sqrt();
+                    self.last[i] = v;
+                    self.variance[i] = var;
+                    counts.averaged += 1;
                 } else {
-                    let fits = background[x].is_nan() || last <= background[x] + delta;
-                    if last.is_finite() && fits && persistence.allows(earlier) {
-                        map.data[i] = last;
-                        map.std[i] = self.variance[i].sqrt();
-                        map.filled[i] = true;
-                        counts.carried += 1;
-                    }
-                    self.history[i] = earlier << 1;
+                    self.last[i] = value;
+                    self.variance[i] = sigma * sigma;
+                    counts.taken += 1;
                 }
+                // A jump is motion: the pixel is not yet steady there (librealsense's).
+                let steady = agrees || !last.is_finite();
+                self.history[i] = (earlier << 1) | u8::from(steady);
+            } else {
+                let fits = bg.is_nan() || last <= bg + delta;
+                if last.is_finite() && fits && persistence.allows(earlier) {
+                    self.data[i] = last;
+                    self.std[i] = self.variance[i].sqrt();
+                    self.filled[i] = true;
+                    counts.carried += 1;
+                }
+                self.history[i] = earlier << 1;
             }
         }
         counts

@@ -27,7 +27,7 @@ use crate::api::respond::Json;
 use crate::api::wire::rig::CalibratedRig;
 use stereo_core::calibration::files::Raw;
 use stereo_core::pipeline::{self, Product, Request};
-use stereo_core::vision::{self, Cancelled, Params};
+use stereo_core::vision::{Cancelled, Params};
 
 /// `POST /depth-map`.
 pub fn router() -> OpenApiRouter<HeavyState> {
@@ -130,30 +130,11 @@ pub async fn post_depth_map(
     .await?
 }
 
-/// The bytes a request holds at its peak besides its body: the decoded pair ([`limits::decode_then`]),
-/// then the left image's colours for a point cloud, and the larger of the matcher's peak and
-/// the answer's: the map, its depths and σ, and the file written from them (24 bytes a pixel,
-/// and the file's own extra). The matcher's buffers are freed before the answer is made. What
-/// a `w × h` rectified pair searching `count` disparities reserves from the heavy budget.
+/// The bytes a `w × h` rectified pair searching `count` disparities reserves from the heavy
+/// budget to answer `output` ([`limits::depth_map_bytes`]).
 pub fn bytes_needed(w: usize, h: usize, count: usize, output: DepthMapOutput) -> usize {
-    let product = output.product();
-    let extra = product.map_or(0, Product::extra_bytes_per_pixel);
-    let colour = if product.is_some_and(Product::wants_colour) {
-        3
-    } else {
-        0
-    };
-    let pixels = w.saturating_mul(h);
-    let answer = pixels.saturating_mul(extra + ANSWER_BYTES_A_PIXEL);
-    let after = pixels
-        .saturating_mul(colour)
-        .saturating_add(vision::bytes_needed(w, h, count).max(answer));
-    limits::decode_then(w, h, after)
+    limits::depth_map_bytes(w, h, count, &[output])
 }
-
-/// What the answer holds a pixel besides its file's own extra: the map and its σ and mask (9
-/// bytes), the depths and their σ (8), and the file written from them (up to 7).
-const ANSWER_BYTES_A_PIXEL: usize = 24;
 
 /// Decodes, runs the engine's depth map and writes the answer, on a blocking thread.
 fn compute(

@@ -1,0 +1,547 @@
+//! What the depth streams (`/depth-stream`) share and are held to, and a stream's work between
+//! the socket and the engine: its settings resolved once ([`Resolved`]), then each frame
+//! ([`Engine::frame`]) read in its layout, the rig resolved and the rectification maps built
+//! once for each frame size, the memory reserved before anything is decoded, the engine's
+//! [`pipeline::matched`], the stream's temporal filter in the frames' order, then
+//! [`Matched::depth_map`], and the answer with the files asked for. Two frames may be matched
+//! side by side; only the filter takes them one at a time. The socket, the queue and the drops
+//! are the route's.
+
+use std::collections::BTreeSet;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Condvar, Mutex, MutexGuard, PoisonError};
+use std::time::{Duration, Instant};
+
+use axum::body::Bytes;
+
+use super::limits;
+use super::maps::MapCache;
+use super::parts::Parts;
+use super::{raw, rig, work};
+use crate::api::error::{ApiError, FieldError, FieldErrors};
+use crate::api::wire::depth_map::{DepthMapOutput, DepthMapSummary, MatcherParameters};
+use crate::api::wire::depth_stream::{
+    FileAnswer, FrameTimes, Layout, SettingsAnswer, StreamLimitsAnswer, StreamSettings,
+    TemporalCounts,
+};
+use crate::api::wire::images::RectifyMode;
+use crate::api::wire::rig::CalibratedRig;
+use crate::budget::{MemoryBudget, Refusal, Reservation, Slots};
+use stereo_core::calibration::files::Raw;
+use stereo_core::pipeline::{self, Calibrated, Maps, Matched, Request};
+use stereo_core::vision::decode::{self, DecodeLimits, Decoded};
+use stereo_core::vision::temporal::{self, Temporal};
+use stereo_core::vision::{Cancelled, Params, Preset};
+
+/// The streams' limits and what they share.
+#[derive(Debug, Clone)]
+pub struct Streams {
+    /// The heavy group's memory budget, which the streams reserve from like requests.
+    pub budget: MemoryBudget,
+    /// The streams open at once (`--max-streams`): a slot each for its life.
+    pub open: Slots,
+    /// A stream that sends nothing for this long is closed (`--stream-idle-timeout`).
+    pub idle_timeout: Duration,
+    /// A stream whose client leaves an answer unread for this long is closed
+    /// (`--write-timeout`).
+    pub write_timeout: Duration,
+    /// The largest frame message (`--stream-frame-limit`).
+    pub max_frame_bytes: usize,
+}
+
+impl Default for Streams {
+    fn default() -> Self {
+        Self {
+            budget: MemoryBudget::new(crate::config::DEFAULT_HEAVY_MEMORY_BUDGET),
+            open: Slots::new(crate::config::DEFAULT_MAX_STREAMS),
+            idle_timeout: crate::config::DEFAULT_STREAM_IDLE_TIMEOUT,
+            write_timeout: crate::config::DEFAULT_WRITE_TIMEOUT,
+            max_frame_bytes: crate::config::DEFAULT_STREAM_FRAME_LIMIT,
+        }
+    }
+}
+
+/// A stream's settings, checked once at its start.
+#[derive(Debug)]
+pub struct Resolved {
+    pub layout: Layout,
+    pub params: Params,
+    /// The files each answer carries, in order.
+    pub outputs: Vec<DepthMapOutput>,
+    /// The rig's members, as `/depth-map`'s form parts.
+    pub parts: Parts,
+    pub rectify: (Option<RectifyMode>, Option<f64>),
+    pub temporal: Option<temporal::Settings>,
+}
+
+impl Resolved {
+    /// The settings message's members judged together: the rig (read without a size; it is
+    /// read again at the frames'), the matcher's settings (the `fast` preset unless another is
+    /// given), and the files (each depth file needs a rig). The settings as resolved, or every
+    /// member at fault.
+    pub fn of(
+        settings: StreamSettings,
+        streams: &Streams,
+    ) -> Result<(Resolved, SettingsAnswer), FieldErrors> {
+        let mut problems = FieldErrors::default();
+        let parts: Parts = settings.rig_parts.into_iter().collect();
+        let rectify = (settings.options.rectify, settings.options.alpha);
+        let mut calibrated = rig::rig(&parts, None, true, &mut problems);
+        raw::plan_rig(
+            &mut calibrated,
+            raw::sent_in(&parts),
+            None,
+            rectify,
+            &mut problems,
+        );
+        let has_rig = parts.get("rig").is_some() || parts.get("calibration").is_some();
+        let outputs = settings.outputs.unwrap_or_else(|| {
+            if has_rig {
+                vec![DepthMapOutput::DepthNpy, DepthMapOutput::DepthStdNpy]
+            } else {
+                vec![
+                    DepthMapOutput::DisparityNpy,
+                    DepthMapOutput::DisparityStdNpy,
+                ]
+            }
+        });
+        for (i, output) in outputs.iter().enumerate() {
+            if output.needs_rig() && !has_rig {
+                problems.add_new(
+                    format!("outputs[{i}]"),
+                    format!(
+                        "{} needs the rig: give rig (the members of /distance) or a \
+                         calibration",
+                        output.name()
+                    ),
+                );
+            }
+        }
+        let mut asked = settings.options.settings();
+        asked.preset = asked.preset.or(Some(Preset::Fast));
+        let ndisp = calibrated.as_ref().and_then(|c| c.max_disparity);
+        let mut refused = FieldErrors::default();
+        let params = limits::params(asked, ndisp, &mut refused);
+        for error in refused.prefixed("options.") {
+            problems.add_new(error.field, error.message);
+        }
+        let Some(params) = params.filter(|_| problems.is_empty()) else {
+            return Err(problems);
+        };
+        let answer = SettingsAnswer {
+            kind: "settings",
+            layout: settings.layout.name(),
+            min_disparity: params.min_disparity(),
+            max_disparity: params.max_disparity(),
+            parameters: MatcherParameters::of(&params, None),
+            outputs: outputs.iter().map(|o| o.name()).collect(),
+            rig: calibrated.as_ref().map(|c| CalibratedRig::from(&c.rig)),
+            temporal: settings.temporal.map(Into::into),
+            limits: StreamLimitsAnswer {
+                max_frame_bytes: streams.max_frame_bytes,
+                idle_timeout_s: streams.idle_timeout.as_secs_f64(),
+                write_timeout_s: streams.write_timeout.as_secs_f64(),
+            },
+            warnings: calibrated.map_or_else(Vec::new, |c| c.warnings),
+        };
+        let resolved = Resolved {
+            layout: settings.layout,
+            params,
+            outputs,
+            parts,
+            rectify,
+            temporal: settings.temporal,
+        };
+        Ok((resolved, answer))
+    }
+}
+
+/// A frame as it arrived, its bytes held in the budget.
+pub struct Frame {
+    /// The binary messages received so far, this one included.
+    pub id: u64,
+    pub bytes: Bytes,
+    pub arrived: Instant,
+    pub held: Reservation,
+}
+
+/// One frame's answer: its times, summary and filter counts, and the files in order, their
+/// bytes held in the budget until they are sent.
+pub struct Done {
+    pub times: FrameTimes,
+    pub summary: DepthMapSummary,
+    pub temporal: Option<TemporalCounts>,
+    pub files: Vec<(FileAnswer, Vec<u8>)>,
+    pub held: Reservation,
+}
+
+/// What holds for the frames of one size: the rig at that size, the raw rig and its maps when
+/// the frames are rectified, and the budget the maps and the filter's state hold.
+struct AtSize {
+    size: (u32, u32),
+    rig: Option<Calibrated>,
+    raw: Option<Box<Raw>>,
+    maps: Option<Arc<Maps>>,
+    _held: Reservation,
+}
+
+/// The temporal filter and whose turn it is: the frames are matched side by side, but each
+/// passes the filter in the order its work started (`next`), those already through (or
+/// failed) in `done`.
+struct Order {
+    next: u64,
+    done: BTreeSet<u64>,
+    temporal: Option<Temporal>,
+}
+
+/// What a stream keeps from one frame to the next, shared by the frames in work.
+pub struct Engine {
+    resolved: Arc<Resolved>,
+    budget: MemoryBudget,
+    maps: Arc<MapCache>,
+    limits: DecodeLimits,
+    at: Mutex<Option<Arc<AtSize>>>,
+    order: Mutex<Order>,
+    turn: Condvar,
+}
+
+/// How long a frame waiting for its turn at the filter sleeps before it looks at its flag.
+const TURN_POLL: Duration = Duration::from_millis(50);
+
+/// A frame's place in the filter's order: taken once it has passed the filter, or given up
+/// when it is dropped first (the frame failed), so that the frames after it go on.
+struct Turn<'a> {
+    engine: &'a Engine,
+    seq: u64,
+    done: bool,
+}
+
+impl Turn<'_> {
+    /// Waits for this frame's turn (or its stream's end), steadies its disparities, and lets
+    /// the next frame through.
+    fn steady(&mut self, matched: &mut Matched, cancel: &AtomicBool) {
+        let mut order = lock(&self.engine.order);
+        while order.next != self.seq && !cancel.load(Ordering::Relaxed) {
+            order = match self.engine.turn.wait_timeout(order, TURN_POLL) {
+                Ok((order, _)) => order,
+                Err(poisoned) => poisoned.into_inner().0,
+            };
+        }
+        if let Some(filter) = order.temporal.as_mut() {
+            matched.steady(filter);
+        }
+        self.pass(&mut order);
+    }
+
+    fn pass(&mut self, order: &mut Order) {
+        self.done = true;
+        order.done.insert(self.seq);
+        while order.done.remove(&order.next) {
+            order.next += 1;
+        }
+        self.engine.turn.notify_all();
+    }
+}
+
+impl Drop for Turn<'_> {
+    fn drop(&mut self) {
+        if !self.done {
+            let engine = self.engine;
+            self.pass(&mut lock(&engine.order));
+        }
+    }
+}
+
+/// A lock that a panic elsewhere did not spoil (what it guards is whole between statements).
+fn lock<T>(mutex: &Mutex<T>) -> MutexGuard<'_, T> {
+    mutex.lock().unwrap_or_else(PoisonError::into_inner)
+}
+
+impl Engine {
+    pub fn new(
+        resolved: Arc<Resolved>,
+        budget: MemoryBudget,
+        maps: Arc<MapCache>,
+        limits: DecodeLimits,
+    ) -> Self {
+        let temporal = resolved.temporal.map(Temporal::new);
+        Engine {
+            resolved,
+            budget,
+            maps,
+            limits,
+            at: Mutex::new(None),
+            order: Mutex::new(Order {
+                next: 0,
+                done: BTreeSet::new(),
+                temporal,
+            }),
+            turn: Condvar::new(),
+        }
+    }
+
+    /// Matches one frame, the `seq`-th whose work started (counting from 0); the stream goes
+    /// on whatever it answers. Frames are matched side by side, and pass the temporal filter
+    /// in `seq` order.
+    pub fn frame(&self, frame: &Frame, seq: u64, cancel: &AtomicBool) -> Result<Done, ApiError> {
+        let mut turn = Turn {
+            engine: self,
+            seq,
+            done: false,
+        };
+        let queue = frame.arrived.elapsed();
+        let size = self.size_of(&frame.bytes)?;
+        let started = Instant::now();
+        let at = self.at_size(size)?;
+        let setup = started.elapsed();
+        let held = self.reserve(&at, size)?;
+        let started = Instant::now();
+        let colour = self.wants_colour();
+        let (left, right) = self.decode(&frame.bytes, colour)?;
+        let decode = started.elapsed();
+        let resolved = &*self.resolved;
+        let request = Request {
+            params: &resolved.params,
+            calibrated: at.rig.as_ref(),
+            maps: at.maps.as_deref(),
+            colour,
+            depth_std: resolved.outputs.iter().any(|o| o.wants_depth_std()),
+        };
+        let mut matched = pipeline::matched(left, right, request, cancel)
+            .map_err(|Cancelled| ApiError::Internal("cancelled".to_owned()))?;
+        turn.steady(&mut matched, cancel);
+        let map = matched.depth_map(request);
+        let started = Instant::now();
+        let rig = at.rig.as_ref().map(|c| CalibratedRig::from(&c.rig));
+        let summary = DepthMapSummary::of(&map, &resolved.params, rig, decode);
+        let files = files(&map, &resolved.outputs)?;
+        let ms = |d: Duration| (d.as_secs_f64() * 1e4).round() / 10.0;
+        let t = &map.timings;
+        let filter = map.temporal.map_or(Duration::ZERO, |(_, d)| d);
+        let times = FrameTimes {
+            queue: ms(queue),
+            decode: ms(decode),
+            setup: ms(setup),
+            rectify: map.rectify.map(ms),
+            matching: ms(t.cost + t.aggregate + t.refine),
+            temporal: ms(filter),
+            encode: ms(started.elapsed() + map.depths),
+            total: ms(frame.arrived.elapsed()),
+        };
+        let temporal = map.temporal.map(|(counts, _)| counts.into());
+        drop(map);
+        let bytes: usize = files.iter().map(|(_, f)| f.len()).sum();
+        held.settle_alone(bytes.saturating_add(ANSWER_BYTES));
+        Ok(Done {
+            times,
+            summary,
+            temporal,
+            files,
+            held,
+        })
+    }
+
+    /// What holds for frames of `size`: kept from the frame before, or resolved now.
+    fn at_size(&self, size: (u32, u32)) -> Result<Arc<AtSize>, ApiError> {
+        let mut at = lock(&self.at);
+        if let Some(known) = at.as_ref().filter(|a| a.size == size) {
+            return Ok(Arc::clone(known));
+        }
+        *at = None;
+        let resolved = Arc::new(self.resolve(size)?);
+        *at = Some(Arc::clone(&resolved));
+        Ok(resolved)
+    }
+
+    /// The size of the pair a frame holds, from its headers (no pixel decoded).
+    fn size_of(&self, bytes: &Bytes) -> Result<(u32, u32), ApiError> {
+        let header = |name: &str, bytes: &[u8]| {
+            decode::dimensions(bytes)
+                .map_err(|e| ApiError::invalid(name, limits::describe(&e, self.limits)))
+        };
+        match self.resolved.layout {
+            Layout::SideBySide => {
+                let (w, h) = header("frame", bytes)?;
+                if w % 2 != 0 || w / 2 < decode::MIN_SIDE {
+                    return Err(odd_width(w as usize));
+                }
+                Ok((w / 2, h))
+            }
+            Layout::Pair => {
+                let (left, right) = pair_parts(bytes)?;
+                let l = header("frame.left", &left)?;
+                let r = header("frame.right", &right)?;
+                let mut problems = FieldErrors::default();
+                limits::check_pair(l, r, self.limits, &mut problems).map_err(in_frame)?;
+                problems.finish(Some(l)).map_err(in_frame)
+            }
+        }
+    }
+
+    /// The rig at `size` (a calibration is read for the frames' size) and, when the frames
+    /// are raw, the maps, their memory and the filter's reserved for the stream's life.
+    fn resolve(&self, size: (u32, u32)) -> Result<AtSize, ApiError> {
+        let resolved = &*self.resolved;
+        let mut problems = FieldErrors::default();
+        let mut calibrated = rig::rig(&resolved.parts, Some(size), true, &mut problems);
+        let sent = raw::sent_in(&resolved.parts);
+        let raw = raw::plan_rig(
+            &mut calibrated,
+            sent,
+            Some(size),
+            resolved.rectify,
+            &mut problems,
+        );
+        if !problems.is_empty() {
+            return Err(problems.into_error());
+        }
+        let matched = raw.as_deref().map_or(size, |r| {
+            let s = r.rectification.size;
+            (s.width, s.height)
+        });
+        let pixels = matched.0 as usize * matched.1 as usize;
+        let filter = self
+            .resolved
+            .temporal
+            .map_or(0, |_| pixels.saturating_mul(temporal::BYTES_A_PIXEL));
+        let maps_bytes = raw.as_deref().map_or(0, Maps::bytes_for);
+        let held = self
+            .budget
+            .reserve(filter.saturating_add(maps_bytes))
+            .map_err(ApiError::Memory)?;
+        let maps = raw.as_deref().map(|r| self.maps.get(r).0);
+        Ok(AtSize {
+            size,
+            rig: calibrated,
+            raw,
+            maps,
+            _held: held,
+        })
+    }
+
+    /// Reserves what matching a frame of `size` holds at its peak (a side-by-side frame's
+    /// halves cut out besides).
+    fn reserve(&self, at: &AtSize, size: (u32, u32)) -> Result<Reservation, ApiError> {
+        let outputs = &self.resolved.outputs;
+        let count = self.resolved.params.count();
+        let need = raw::match_need(at.raw.as_deref(), size, count, |w, h, n| {
+            limits::depth_map_bytes(w, h, n, outputs)
+        });
+        let split = match self.resolved.layout {
+            Layout::SideBySide => (size.0 as usize * size.1 as usize).saturating_mul(4),
+            Layout::Pair => 0,
+        };
+        let bytes = (need.need)(need.count).saturating_add(split);
+        match self.budget.reserve(bytes) {
+            Ok(held) => Ok(held),
+            Err(Refusal::TooLarge { total, .. }) => Err(ApiError::Oversized(limits::shrink(
+                need.size, need.count, total, &need.need,
+            ))),
+            Err(busy) => Err(ApiError::Memory(busy)),
+        }
+    }
+
+    fn wants_colour(&self) -> bool {
+        self.resolved
+            .outputs
+            .iter()
+            .filter_map(|o| o.product())
+            .any(pipeline::Product::wants_colour)
+    }
+
+    /// The frame's two images, decoded within the limits.
+    fn decode(&self, bytes: &Bytes, colour: bool) -> Result<(Decoded, Decoded), ApiError> {
+        match self.resolved.layout {
+            Layout::SideBySide => {
+                let frame = decode::decode(bytes, self.limits, colour)
+                    .map_err(|e| ApiError::invalid("frame", limits::describe(&e, self.limits)))?;
+                decode::split_side_by_side(frame).map_err(odd_width)
+            }
+            Layout::Pair => {
+                let (left, right) = pair_parts(bytes)?;
+                let parts: Parts = [("left".to_owned(), left), ("right".to_owned(), right)]
+                    .into_iter()
+                    .collect();
+                work::decode_pair(&parts, self.limits, [colour, false]).map_err(in_frame)
+            }
+        }
+    }
+}
+
+/// What an answer's JSON and messages hold besides its files, at most.
+const ANSWER_BYTES: usize = 64 * 1024;
+
+/// The files asked for, written from the map in order.
+fn files(
+    map: &pipeline::DepthMap,
+    outputs: &[DepthMapOutput],
+) -> Result<Vec<(FileAnswer, Vec<u8>)>, ApiError> {
+    outputs
+        .iter()
+        .filter_map(|o| o.product().map(|p| (o, p)))
+        .map(|(output, product)| {
+            let bytes = product.encode(map).map_err(ApiError::Internal)?;
+            let file = FileAnswer {
+                name: output.name(),
+                media_type: output.media_type(),
+                bytes: bytes.len(),
+            };
+            Ok((file, bytes))
+        })
+        .collect()
+}
+
+/// A pair-layout frame's two images: after the left image's length (4 bytes, little-endian),
+/// the left image, then the right.
+fn pair_parts(bytes: &Bytes) -> Result<(Bytes, Bytes), ApiError> {
+    let Some(head) = bytes.get(..4) else {
+        return Err(ApiError::invalid(
+            "frame",
+            format!(
+                "has {} bytes: a pair frame starts with the left image's length (4 bytes, \
+                 little-endian)",
+                bytes.len()
+            ),
+        ));
+    };
+    let len = u32::from_le_bytes([head[0], head[1], head[2], head[3]]) as usize;
+    let rest = bytes.len() - 4;
+    if len == 0 || len >= rest {
+        return Err(ApiError::invalid(
+            "frame",
+            format!(
+                "says its left image has {len} bytes, but {rest} follow the length: a pair \
+                 frame is the left image's length (4 bytes, little-endian), the left image, \
+                 then the right image"
+            ),
+        ));
+    }
+    Ok((bytes.slice(4..4 + len), bytes.slice(4 + len..)))
+}
+
+/// An error about a pair frame's `left` or `right` image, named `frame.left`, `frame.right`.
+fn in_frame(e: ApiError) -> ApiError {
+    let named = |errors: Vec<FieldError>| -> Vec<FieldError> {
+        errors
+            .into_iter()
+            .map(|e| FieldError::new(format!("frame.{}", e.field), e.message))
+            .collect()
+    };
+    match e {
+        ApiError::Invalid(errors) => ApiError::Invalid(named(errors)),
+        ApiError::Oversized(errors) => ApiError::Oversized(named(errors)),
+        other => other,
+    }
+}
+
+/// The error of a side-by-side frame that cannot be cut in two.
+fn odd_width(width: usize) -> ApiError {
+    ApiError::invalid(
+        "frame",
+        format!(
+            "is {width} px wide: a side-by-side frame holds the left and right images of one \
+             width side by side (an even width, each half at least {} px)",
+            decode::MIN_SIDE
+        ),
+    )
+}
