@@ -44,7 +44,7 @@ pub struct Asset {
 /// The script is ES modules under `/js/`, loaded by `<script type="module">` from
 /// `/js/app.js`, which imports the rest (one per mode, the state and events the modes share,
 /// the rig form, drawing, the API).
-pub const ASSETS: [Asset; 15] = [
+pub const ASSETS: [Asset; 17] = [
     asset("/", HTML, include_str!("web/index.html")),
     asset("/guide.html", HTML, include_str!("web/guide.html")),
     asset("/js/app.js", JAVASCRIPT, include_str!("web/js/app.js")),
@@ -69,6 +69,12 @@ pub const ASSETS: [Asset; 15] = [
         "/js/images.js",
         JAVASCRIPT,
         include_str!("web/js/images.js"),
+    ),
+    asset("/js/live.js", JAVASCRIPT, include_str!("web/js/live.js")),
+    asset(
+        "/js/live-camera.js",
+        JAVASCRIPT,
+        include_str!("web/js/live-camera.js"),
     ),
     asset(
         "/js/numbers.js",

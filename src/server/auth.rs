@@ -1,7 +1,10 @@
 //! Optional bearer tokens (RFC 6750). Given tokens (`--api-tokens-file`, `API_TOKENS`), the
 //! service takes a request to an API route or to `/metrics` only with `Authorization: Bearer`
 //! and one of them; the probes, the page and its files, `/docs` and `/openapi.json` stay open.
-//! Several tokens are accepted at once, so that a new one can be handed out before the old
+//! A browser cannot set `Authorization` on a WebSocket, so the upgrade of `/depth-stream` may
+//! carry its token as a `Sec-WebSocket-Protocol` entry instead, `bearer.` and the token in
+//! base64url (as Kubernetes' API server takes it), offered beside the stream's own protocol
+//! `depth-stream`, which the server selects. Several tokens are accepted at once, so that a new one can be handed out before the old
 //! one is withdrawn; the file is read again when it changes (a Kubernetes Secret rotated in
 //! place), and a file that no longer reads keeps the tokens it had.
 //!
@@ -143,8 +146,8 @@ pub async fn require(State(auth): State<Auth>, request: Request, next: Next) -> 
     if OPEN_PROBES.contains(&request.uri().path()) {
         return next.run(request).await;
     }
-    let presented = request
-        .headers()
+    let headers = request.headers();
+    let presented = headers
         .get(header::AUTHORIZATION)
         .and_then(|v| v.to_str().ok())
         .and_then(|v| {
@@ -152,7 +155,8 @@ pub async fn require(State(auth): State<Auth>, request: Request, next: Next) -> 
             scheme
                 .eq_ignore_ascii_case("bearer")
                 .then(|| token.trim().to_owned())
-        });
+        })
+        .or_else(|| protocol_token(headers.get_all(header::SEC_WEBSOCKET_PROTOCOL)));
     match presented {
         Some(token) if auth.admits(&token) => next.run(request).await,
         Some(_) => ApiError::Unauthorized { refused: true }.into_response(),
@@ -160,9 +164,65 @@ pub async fn require(State(auth): State<Auth>, request: Request, next: Next) -> 
     }
 }
 
+/// The prefix of a token carried in `Sec-WebSocket-Protocol`.
+pub const PROTOCOL_PREFIX: &str = "bearer.";
+
+/// The token of a `Sec-WebSocket-Protocol` entry `bearer.<base64url>` (unpadded, as a
+/// protocol name cannot hold `=`), among the comma-separated protocols the client offers. An
+/// entry that does not decode to UTF-8 is presented as itself, and so refused.
+fn protocol_token(values: header::GetAll<'_, header::HeaderValue>) -> Option<String> {
+    use base64::Engine as _;
+    use base64::engine::general_purpose::URL_SAFE_NO_PAD;
+    values
+        .iter()
+        .filter_map(|v| v.to_str().ok())
+        .flat_map(|v| v.split(','))
+        .find_map(|entry| entry.trim().strip_prefix(PROTOCOL_PREFIX))
+        .map(|encoded| {
+            URL_SAFE_NO_PAD
+                .decode(encoded.trim_end_matches('='))
+                .ok()
+                .and_then(|bytes| String::from_utf8(bytes).ok())
+                .unwrap_or_else(|| encoded.to_owned())
+        })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A token in a `Sec-WebSocket-Protocol` entry is read from base64url among the other
+    /// protocols offered, in one header or several; without the entry there is none.
+    #[test]
+    fn a_websocket_protocol_entry_carries_a_token() {
+        use base64::Engine as _;
+        let encoded = base64::engine::general_purpose::URL_SAFE_NO_PAD.encode(B);
+        let mut headers = header::HeaderMap::new();
+        let offered = format!("depth-stream, bearer.{encoded}");
+        headers.insert(header::SEC_WEBSOCKET_PROTOCOL, offered.parse().unwrap());
+        let read = protocol_token(headers.get_all(header::SEC_WEBSOCKET_PROTOCOL));
+        assert_eq!(read.as_deref(), Some(B));
+        let mut two = header::HeaderMap::new();
+        two.append(
+            header::SEC_WEBSOCKET_PROTOCOL,
+            "depth-stream".parse().unwrap(),
+        );
+        two.append(
+            header::SEC_WEBSOCKET_PROTOCOL,
+            format!("bearer.{encoded}").parse().unwrap(),
+        );
+        let read = protocol_token(two.get_all(header::SEC_WEBSOCKET_PROTOCOL));
+        assert_eq!(read.as_deref(), Some(B));
+        let mut none = header::HeaderMap::new();
+        none.insert(
+            header::SEC_WEBSOCKET_PROTOCOL,
+            "depth-stream".parse().unwrap(),
+        );
+        assert_eq!(
+            protocol_token(none.get_all(header::SEC_WEBSOCKET_PROTOCOL)),
+            None
+        );
+    }
 
     const A: &str = "alpha-token-0123456789";
     const B: &str = "bravo/token+0123456789==";

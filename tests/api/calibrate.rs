@@ -51,7 +51,7 @@ fn board() -> Board {
 }
 
 /// Eight rendered pairs as PNG files (rendered once for every test here).
-fn views() -> &'static Vec<(Vec<u8>, Vec<u8>)> {
+pub(crate) fn views() -> &'static Vec<(Vec<u8>, Vec<u8>)> {
     static VIEWS: OnceLock<Vec<(Vec<u8>, Vec<u8>)>> = OnceLock::new();
     VIEWS.get_or_init(|| {
         let pair = truth();
@@ -78,9 +78,9 @@ pub(crate) fn gray_png(width: usize, height: usize, grey: &[u8]) -> Vec<u8> {
     encode::png_rgb(width, height, &rgb)
 }
 
-const BOARD: &str = r#"{"columns": 7, "rows": 5, "square_size": 20, "unit": "mm"}"#;
+pub(crate) const BOARD: &str = r#"{"columns": 7, "rows": 5, "square_size": 20, "unit": "mm"}"#;
 
-fn image(bytes: &[u8], name: &str) -> Part {
+pub(crate) fn image(bytes: &[u8], name: &str) -> Part {
     Part::bytes(bytes.to_vec())
         .file_name(name.to_owned())
         .mime_str("image/png")

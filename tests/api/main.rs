@@ -2,6 +2,7 @@
 //! socket with reqwest.
 
 mod batch;
+mod board;
 mod calibrate;
 mod calibration;
 mod chart;

@@ -135,7 +135,8 @@ async fn page_script(app: &TestApp) -> BTreeMap<String, String> {
 
 /// The script calls only the public API's documented routes: the page is a client of
 /// `/distance`, `/table` and `/chart-data` (GET), `/depth-map`, `/match`, `/rectify`,
-/// `/calibration` and `/calibrate` (POST), with no physics or private endpoint of its own;
+/// `/calibration`, `/calibrate`, `/board` and `/distance` (POST) and the `/depth-stream`
+/// WebSocket (in the AsyncAPI document), with no physics or private endpoint of its own;
 /// besides them it fetches only the samples' files. Every module is under 600 lines.
 #[tokio::test]
 async fn the_page_calls_only_the_public_api() {
@@ -188,13 +189,18 @@ async fn the_page_calls_only_the_public_api() {
     assert_eq!(
         posted,
         set(&[
+            "/board",
             "/calibrate",
             "/calibration",
             "/depth-map",
+            "/distance",
             "/match",
             "/rectify"
         ])
     );
+    assert_eq!(paths("openSocket('"), set(&["/depth-stream"]));
+    let asyncapi = app.get("/asyncapi.yaml").await.text().await.unwrap();
+    assert!(asyncapi.contains("address: /depth-stream"));
     assert_eq!(fetched, set(&["/sample/calib.txt"]));
     assert_eq!(authorised, set(&["${path}?${params}", "${path}?${query}"]));
     assert_eq!(files, set(&["/sample/${side}.png"]));

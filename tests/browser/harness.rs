@@ -132,12 +132,34 @@ impl Browser {
         Self::serving(test_config(), width, height, mobile).await
     }
 
+    /// As [`Browser::start`], Chromium's fake camera playing `y4m` (a Y4M file, looped) to
+    /// `getUserMedia`, its permission granted.
+    pub async fn with_camera(y4m: &std::path::Path, width: u32, height: u32) -> Browser {
+        let args = [
+            "--use-fake-ui-for-media-stream".to_owned(),
+            "--use-fake-device-for-media-stream".to_owned(),
+            format!("--use-file-for-fake-video-capture={}", y4m.display()),
+        ];
+        Self::serving_with(test_config(), width, height, None, &args).await
+    }
+
     /// As [`Browser::start_with`], the server started with `config` (port 0).
     pub async fn serving(
         config: Config,
         width: u32,
         height: u32,
         mobile: Option<Value>,
+    ) -> Browser {
+        Self::serving_with(config, width, height, mobile, &[]).await
+    }
+
+    /// As [`Browser::serving`], with Chromium given `extra` arguments too.
+    pub async fn serving_with(
+        config: Config,
+        width: u32,
+        height: u32,
+        mobile: Option<Value>,
+        extra: &[String],
     ) -> Browser {
         let application = Application::build(config).await.expect("the server binds");
         let base = format!("http://{}", application.local_addr().expect("bound"));
@@ -174,6 +196,9 @@ impl Browser {
                     format!("--window-size={width},{height}"),
                 ],
         });
+        if let Some(args) = options["args"].as_array_mut() {
+            args.extend(extra.iter().map(|a| json!(a)));
+        }
         if let Some(mobile) = mobile {
             options["mobileEmulation"] = mobile;
         }

@@ -10,6 +10,7 @@
 mod calibrate;
 mod harness;
 mod images;
+mod live;
 mod photographs;
 mod tokens;
 

@@ -365,6 +365,14 @@ impl Engine {
                 if w % 2 != 0 || w / 2 < decode::MIN_SIDE {
                     return Err(odd_width(w as usize));
                 }
+                // Each half is one camera's image, held to one image's limits: two 4K images
+                // side by side are as welcome as a 4K pair.
+                if let Some(why) = limits::over_the_limits((w / 2, h), self.limits) {
+                    return Err(ApiError::Oversized(vec![FieldError::new(
+                        "frame",
+                        format!("holds two images side by side, and each {why}"),
+                    )]));
+                }
                 Ok((w / 2, h))
             }
             Layout::Pair => {
@@ -453,8 +461,14 @@ impl Engine {
     fn decode(&self, bytes: &Bytes, colour: bool) -> Result<(Decoded, Decoded), ApiError> {
         match self.resolved.layout {
             Layout::SideBySide => {
-                let frame = decode::decode(bytes, self.limits, colour)
-                    .map_err(|e| ApiError::invalid("frame", limits::describe(&e, self.limits)))?;
+                // The halves were judged against one image's limits (`size_of`); the whole
+                // frame is two of them.
+                let two = DecodeLimits {
+                    max_side: self.limits.max_side.saturating_mul(2),
+                    max_pixels: self.limits.max_pixels.saturating_mul(2),
+                };
+                let frame = decode::decode(bytes, two, colour)
+                    .map_err(|e| ApiError::invalid("frame", limits::describe(&e, two)))?;
                 decode::split_side_by_side(frame).map_err(odd_width)
             }
             Layout::Pair => {

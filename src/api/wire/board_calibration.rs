@@ -515,3 +515,77 @@ image_answers! {
         "application/x-yaml" => text(),
     }
 }
+
+/// The `multipart/form-data` parts of `/board` (for the documentation: the handler reads the
+/// parts itself, to name each one in its errors).
+#[derive(ToSchema)]
+#[serde(deny_unknown_fields)]
+#[allow(dead_code)]
+pub struct BoardForm {
+    /// The left camera's image (PNG or JPEG).
+    #[schema(value_type = String, format = Binary)]
+    left: Vec<u8>,
+    /// The right camera's image of the same moment, of the same size; optional.
+    #[schema(value_type = Option<String>, format = Binary, nullable = false)]
+    right: Option<Vec<u8>>,
+    /// The board, as JSON, as `/calibrate` takes it.
+    board: BoardSpec,
+}
+
+/// One corner found: its id on the board and where it lies.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct CornerSeen {
+    /// The corner's id: OpenCV's order (row by row of inner corners, or the ChArUco id).
+    pub id: usize,
+    /// Its position in pixels (x right, y down; the centre of the top-left pixel is 0, 0).
+    pub x: f64,
+    pub y: f64,
+}
+
+/// What one image shows of the board.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct SightingSummary {
+    /// Whether the board was found, as `/calibrate` would count the view.
+    pub found: bool,
+    /// Each corner found, refined as `/calibrate` refines them.
+    pub corners: Vec<CornerSeen>,
+    /// The convex hull of the corners found, `[x, y]` points in order around it: the part of
+    /// the image the view covers.
+    pub outline: Vec<[f64; 2]>,
+    /// Why the board was not found.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub reason: Option<String>,
+}
+
+/// `/board`'s answer: the board in each image, and whether the pair would be a view.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+#[schema(example = json!({
+    "width": 640, "height": 480, "view": false,
+    "left": {"found": true, "corners": [{"id": 0, "x": 212.4, "y": 160.9}],
+             "outline": [[212.4, 160.9], [421.7, 158.2], [425.0, 301.5], [209.8, 304.1]]},
+    "right": {"found": false, "corners": [], "outline": [],
+              "reason": "no chessboard grid was found"},
+    "warnings": []
+}))]
+pub struct BoardAnswer {
+    /// The images' size, in pixels.
+    pub width: u32,
+    pub height: u32,
+    /// Whether the pair (or the left image, sent alone) would count as a view of a
+    /// calibration: the board found in each image.
+    pub view: bool,
+    pub left: SightingSummary,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub right: Option<SightingSummary>,
+    /// What the decoder forgave.
+    pub warnings: Vec<String>,
+}
+
+image_answers! {
+    /// `/board`'s responses: the board in each image, or the errors.
+    pub struct BoardAnswers: "The board in each image." {
+        "application/json" => named::<BoardAnswer>(),
+    }
+}

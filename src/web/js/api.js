@@ -1,7 +1,7 @@
 // Talking to the service: GET with query members, POST of JSON or multipart forms, the
 // problem+json answers turned into `{ field, message }` lists, NumPy arrays read from
-// /depth-map's NPZ, and answers saved as files. Every request the page makes goes through here,
-// and so does the access token: a service given tokens answers 401, the page asks for one
+// /depth-map's NPZ, answers saved as files, and the live stream's WebSocket. Every request the
+// page makes goes through here, and so does the access token: a service given tokens answers 401, the page asks for one
 // once (a dialog), keeps it for the tab (sessionStorage) and sends it as a bearer token with
 // every request after; a token refused is asked for again.
 
@@ -151,12 +151,51 @@ export function readNpz(buffer) {
   return arrays;
 }
 
+/** An NPY image: float32 (`<f4`) or boolean (`|b1`, as the stream's `filled`). */
 export function readNpy(buffer) {
   const headerLength = new DataView(buffer).getUint16(8, true);
   const header = new TextDecoder().decode(new Uint8Array(buffer, 10, headerLength));
   const shape = /'shape': \((\d+), (\d+)\)/.exec(header);
-  if (!header.includes("'<f4'") || !shape) throw new Error('an array that is not a float32 image');
-  return { height: Number(shape[1]), width: Number(shape[2]), data: new Float32Array(buffer, 10 + headerLength) };
+  const float = header.includes("'<f4'");
+  if (!(float || header.includes("'|b1'")) || !shape) throw new Error('an array that is not a float32 or boolean image');
+  const data = float ? new Float32Array(buffer, 10 + headerLength) : new Uint8Array(buffer, 10 + headerLength);
+  return { height: Number(shape[1]), width: Number(shape[2]), data };
+}
+
+/** base64url without padding, as a WebSocket protocol entry can hold it. */
+function base64url(text) {
+  const bytes = new TextEncoder().encode(text);
+  let binary = '';
+  for (const b of bytes) binary += String.fromCharCode(b);
+  return btoa(binary).replace(/\+/g, '-').replace(/\//g, '_').replace(/=+$/, '');
+}
+
+/** Opens the WebSocket at `path` on this origin (wss on an HTTPS page), resolved once open.
+ * A browser cannot send `Authorization` on a WebSocket, so the tab's token goes as a protocol
+ * entry, `bearer.` and its base64url, beside `depth-stream`. A browser learns nothing of a
+ * refused upgrade, so after a failure a plain GET asks why: a 401 brings the token dialog as
+ * every request does (then the socket is tried again), and anything but 426 (the upgrade that
+ * GET lacks) is the answer's problem, thrown. */
+export async function openSocket(path) {
+  const scheme = location.protocol === 'https:' ? 'wss' : 'ws';
+  for (let attempt = 0; attempt < 3; attempt += 1) {
+    const token = storedToken();
+    const protocols = token ? ['depth-stream', `bearer.${base64url(token)}`] : ['depth-stream'];
+    const socket = new WebSocket(`${scheme}://${location.host}${path}`, protocols);
+    socket.binaryType = 'arraybuffer';
+    const opened = await new Promise((resolve) => {
+      socket.addEventListener('open', () => resolve(true), { once: true });
+      socket.addEventListener('error', () => resolve(false), { once: true });
+    });
+    if (opened) return socket;
+    const response = await fetchWithToken(path, { headers: { accept: 'application/json' } });
+    if (response.status !== 426) {
+      const type = response.headers.get('content-type') || '';
+      const body = type.includes('json') ? await response.json() : null;
+      throw new Error(problemsOf({ status: response.status, body })[0].message);
+    }
+  }
+  throw new Error('the stream could not be opened');
 }
 
 /** A multipart POST that reports the upload's progress (`onUpload(fraction)`), as `post`

@@ -1,20 +1,21 @@
 // The page's entry (loaded as `<script type="module">`): its modes (Numbers, Images,
-// Calibrate), each a module of its own, switched in place and kept in the address; and the wiring of the
+// Calibrate, Live), each a module of its own, switched in place and kept in the address; and the wiring of the
 // form every mode shares. Every number comes from the service's API: the page computes
 // nothing itself.
 
 import { openCalibrationSample, readCalibrateQuery, rememberCalibrate, wireCalibrate } from './calibrate.js';
 import { fetchPair, loadPair, openSample, requestDepth, scheduleDepth, wireImages } from './images.js';
 import { wirePointing } from './findings.js';
+import { enterLive, leaveLive, useLiveCalibration, wireLive } from './live.js';
 import { compute, copyResults, copyText, reset, schedule } from './numbers.js';
 import {
   FOCAL_MODES, RIG_INPUTS, forgetUnknown, forgetUnknownScale, importCalibration, readForm, showFocalMode, showUnit,
   stateFromQuery, writeForm,
 } from './rig.js';
-import { pair } from './store.js';
+import { EVENTS, emit, pair } from './store.js';
 import { $, page } from './util.js';
 
-const MODES = ['numbers', 'images', 'calibrate'];
+const MODES = ['numbers', 'images', 'calibrate', 'live'];
 const status = $('status');
 
 function modeFromQuery(search) {
@@ -23,10 +24,13 @@ function modeFromQuery(search) {
 }
 
 function setMode(next) {
+  if (page.mode === 'live' && next !== 'live') leaveLive();
   page.mode = next;
   document.body.dataset.mode = next;
   $('images').hidden = next !== 'images';
   $('calibrate').hidden = next !== 'calibrate';
+  $('live').hidden = next !== 'live';
+  if (next === 'live') enterLive();
   for (const name of MODES) {
     const link = $(`mode-${name}`);
     if (name === next) link.setAttribute('aria-current', 'page');
@@ -50,6 +54,11 @@ function enter(name) {
     document.body.dataset.state = 'done';
     return;
   }
+  if (name === 'live') {
+    history.replaceState(null, '', '/?mode=live');
+    document.body.dataset.state = 'done';
+    return;
+  }
   compute();
   if (name === 'images' && pair.files.left && pair.files.right && !pair.arrays) requestDepth();
 }
@@ -65,15 +74,28 @@ for (const name of MODES) {
 /** "Use this calibration": Images mode with the calibration imported as a file would be (so
  * raw frames are rectified by the service), the rig's σ in its fields, and for the sample its
  * raw pair, matched at once. */
-async function useCalibration(summary, yaml, sample) {
-  setMode('images');
+async function useCalibration(summary, yaml, sample, from = null) {
   $('calibration_text').value = yaml;
   $('calibration_right_text').value = '';
   $('calibration_unit').value = '';
-  await importCalibration(async (note) => {
+  const withSigma = () => {
     const state = readForm();
     state.focal_length_std_px = String(summary.rig.focal_length_std_px ?? '');
     state.baseline_std = String(summary.rig.baseline_std ?? '');
+    return state;
+  };
+  if (from === 'live') {
+    // Views grabbed live: back to Live mode, streaming with the calibration at once.
+    await importCalibration(async () => writeForm(withSigma()));
+    if (!$('import-errors').hidden) return;
+    history.pushState(null, '', '/?mode=live');
+    setMode('live');
+    useLiveCalibration();
+    return;
+  }
+  setMode('images');
+  await importCalibration(async (note) => {
+    const state = withSigma();
     if (sample) state.max_disparity = String(sample.raw.max_disparity);
     writeForm(state);
     if (sample) {
@@ -99,6 +121,13 @@ $('calibration_file').addEventListener('change', async (event) => {
 wireImages();
 wirePointing();
 wireCalibrate(useCalibration);
+/** Live mode's grabbed board views, calibrated in Calibrate mode as chosen files would be. */
+function calibrateGrabbed(files) {
+  history.pushState(null, '', '/?mode=calibrate');
+  enter('calibrate');
+  return emit(EVENTS.calibratePairs, files, 'live')[0];
+}
+wireLive(calibrateGrabbed);
 
 
 $('calculator').addEventListener('input', (event) => {
@@ -151,7 +180,7 @@ window.addEventListener('popstate', () => {
   setMode(modeFromQuery(location.search));
   writeForm(stateFromQuery(location.search));
   if (page.mode === 'calibrate') readCalibrateQuery(location.search);
-  else compute();
+  else if (page.mode !== 'live') compute();
 });
 
 setMode(modeFromQuery(location.search));
@@ -164,6 +193,8 @@ if (page.mode === 'calibrate') {
   if (sample) openCalibrationSample();
 } else if (page.mode === 'images' && sample) {
   openSample();
+} else if (page.mode === 'live') {
+  document.body.dataset.state = 'done';
 } else {
   compute();
 }

@@ -2,10 +2,11 @@
 // a ChArUco board, with its picture) and the lens model, sent to /calibrate with progress,
 // elapsed time and a cancel; the answer shown by calibrate-view.js; a view left out by a click and the rest calibrated again; the files
 // downloaded; and "Use this calibration", which takes the rig and its uncertainty to Images
-// mode. The service does the calibrating: the page sends the files and shows the answer.
+// mode (or back to Live mode, whose grabbed board views it was given). The service does the calibrating: the page sends the files and shows the answer.
 
 import { fetchFile, fetchJson, postWithProgress, save } from './api.js';
 import { drawBoardPicture, showCalibration, wireBars } from './calibrate-view.js';
+import { EVENTS, on } from './store.js';
 import { $, clearFieldErrors, fmt, page, setFiles, showFieldErrors } from './util.js';
 
 /** The board's text fields and the `board` part's member each is. */
@@ -34,6 +35,8 @@ export const calibration = {
   controller: null,
   /** The sample's `boards.json` when the sample is loaded (its raw pair is the wall). */
   sample: null,
+  /** The mode the pairs came from (`live`), which "Use this calibration" goes back to. */
+  from: null,
 };
 
 // ---------------------------------------------------------------------------------------
@@ -97,8 +100,10 @@ export function pairFiles(files) {
 }
 
 /** Takes chosen or dropped files as the pairs to calibrate. */
-export function choosePairs(files, sample = null) {
+export function choosePairs(files, sample = null, from = null) {
   const { pairs, unpaired } = pairFiles(files);
+  calibration.from = from;
+  $('use-calibration').textContent = from === 'live' ? 'Use this calibration live' : 'Use this calibration';
   calibration.pairs = pairs;
   calibration.excluded = new Set();
   calibration.summary = null;
@@ -346,8 +351,8 @@ export async function openCalibrationSample() {
   }
 }
 
-/** Calibrate mode's controls. `useCalibration(summary, yaml, sample)` takes the result to
- * Images mode. */
+/** Calibrate mode's controls. `useCalibration(summary, yaml, sample, from)` takes the result
+ * to Images mode, or back to Live mode when the pairs were grabbed there. */
 export function wireCalibrate(useCalibration) {
   showBoardType();
   $('board_type').addEventListener('change', () => {
@@ -384,9 +389,19 @@ export function wireCalibrate(useCalibration) {
     const button = event.target.closest('button[data-output]');
     if (button) download(button.dataset.output);
   });
+  on(EVENTS.boardPart, () => {
+    // Calibrate mode not yet shown: its board is the default one.
+    if ($('board_columns').value === '' && $('squares_x').value === '') readCalibrateQuery('');
+    return boardPart();
+  });
+  on(EVENTS.calibratePairs, (files, from) => {
+    setFiles('board_files', files);
+    choosePairs(files, null, from);
+    return calibrate();
+  });
   $('use-calibration').addEventListener('click', async () => {
     const line = $('calibration-download-status');
-    line.textContent = 'Preparing the calibration for Images mode…';
+    line.textContent = `Preparing the calibration for ${calibration.from === 'live' ? 'Live' : 'Images'} mode…`;
     const { body } = calibrationForm();
     const answer = await postWithProgress('/calibrate', query('opencv.yml'), body).catch((error) => ({ ok: false, errors: [{ field: 'service', message: error.message }] }));
     if (!answer.ok) {
@@ -394,6 +409,6 @@ export function wireCalibrate(useCalibration) {
       return;
     }
     line.textContent = '';
-    useCalibration(calibration.summary, await answer.blob.text(), calibration.sample);
+    useCalibration(calibration.summary, await answer.blob.text(), calibration.sample, calibration.from);
   });
 }

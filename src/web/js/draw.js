@@ -226,9 +226,11 @@ function turboStrip(bar, id, ticks) {
   }
 }
 
-export function drawColourBar(range, unit) {
-  const bar = $('colour-bar');
-  const title = $('colour-bar-title');
+/** The depth map's colour bar (the element `id`, its title `${id}-title`): Turbo on inverse
+ * depth from `range`'s far (blue) to near (red) in `unit`, or disparities for `px`. */
+export function drawColourBar(range, unit, id = 'colour-bar') {
+  const bar = $(id);
+  const title = $(`${id}-title`);
   bar.replaceChildren(title);
   bar.dataset.kind = 'depth';
   if (!range || !unit) {
@@ -241,7 +243,7 @@ export function drawColourBar(range, unit) {
   const [near, far] = range;
   const at = (z) => BAR_LEFT + ((1 / z - 1 / far) / (1 / near - 1 / far)) * (BAR_RIGHT - BAR_LEFT);
   // Inverse depth crowds the far ticks together: a label needs 34 units of its own.
-  turboStrip(bar, 'turbo-gradient', linearTicks(near, far, 7).map((z) => [at(z), label(z)]));
+  turboStrip(bar, `${id}-turbo`, linearTicks(near, far, 7).map((z) => [at(z), label(z)]));
   bar.append(svg('text', { x: (BAR_LEFT + BAR_RIGHT) / 2, y: 42, 'text-anchor': 'middle' }, px
     ? 'Disparity (px), far = blue, near = red'
     : `Depth (${unit}), far = blue, near = red`));

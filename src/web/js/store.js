@@ -76,4 +76,9 @@ export const EVENTS = {
   showRegion: 'show-region',
   /** findings.js: the lines "Copy results" adds in Images mode. */
   findingsLines: 'findings-lines',
+  /** calibrate.js: the `board` part of the board set in Calibrate mode (JSON text). */
+  boardPart: 'board-part',
+  /** calibrate.js: take these files (`live_N_left.jpg`, `live_N_right.jpg`) as the pairs and
+   * calibrate them; "Use this calibration" then goes back to `from` (a mode's name). */
+  calibratePairs: 'calibrate-pairs',
 };

@@ -9,7 +9,7 @@ export const DEBOUNCE_MS = 300;
 
 /** The page's state across its modes. */
 export const page = {
-  /** `numbers`, `images` or `calibrate`: what the address's `mode` says. */
+  /** `numbers`, `images`, `calibrate` or `live`: what the address's `mode` says. */
   mode: 'numbers',
   /** Whether the person gave a rig (imported, the sample's, typed, or in the address), not
    * the Numbers mode's example, which would label a real scene's depths with a made-up rig. */

@@ -284,8 +284,13 @@ impl Row<'_> {
                 let agrees = last.is_finite() && (value - last).abs() < delta;
                 if agrees {
                     let v = alpha * value + (1.0 - alpha) * last;
-                    let var = alpha * alpha * sigma * sigma
-                        + (1.0 - alpha) * (1.0 - alpha) * self.variance[i];
+                    // The σ of an average of errors that are not independent: consecutive
+                    // frames of a still scene share their texture, their lighting and most of
+                    // their matching error, so σ is the weighted mean of the two σs, not the
+                    // independent errors' α²σ² + (1 − α)²σ_last², which would claim a σ the
+                    // values do not hold (docs/live.md, "σ_d of an average").
+                    let mixed = alpha * sigma + (1.0 - alpha) * self.variance[i].sqrt();
+                    let var = mixed * mixed;
                     self.data[i] = v;
                     self.std[i] = var.sqrt();
                     self.last[i] = v;
@@ -328,7 +333,7 @@ mod tests {
         }
     }
 
-    /// Within δ the value is the average of weight α, and σ_d² is α²σ² + (1 − α)²σ_last²;
+    /// Within δ the value is the average of weight α, and σ_d is ασ + (1 − α)σ_last;
     /// beyond δ the new value and its σ are taken as they came.
     #[test]
     fn values_within_delta_are_averaged_and_jumps_taken() {
@@ -346,8 +351,7 @@ mod tests {
         let counts = f.apply(&mut second);
         assert_eq!((counts.averaged, counts.taken), (1, 1));
         assert!((second.data[0] - (0.25 * 10.8 + 0.75 * 10.0)).abs() < 1e-6);
-        let var = 0.0625 * 0.04 + 0.5625 * 0.16;
-        assert!((second.std[0] - f32::sqrt(var)).abs() < 1e-6);
+        assert!((second.std[0] - (0.25 * 0.2 + 0.75 * 0.4)).abs() < 1e-6);
         assert_eq!((second.data[1], second.std[1]), (25.0, 0.3));
         // The average is what the next frame is compared with.
         let mut third = map(&[10.2 + 0.99, 25.0], &[0.2, 0.3]);
@@ -395,7 +399,7 @@ mod tests {
         assert_eq!(f.apply(&mut hole).carried, 1);
         assert_eq!(hole.data[1], 8.0);
         assert!(hole.filled[1] && !hole.filled[0]);
-        assert!((hole.std[1] - f32::sqrt(0.25 * 0.04 + 0.25 * 0.04)).abs() < 1e-6);
+        assert!((hole.std[1] - 0.2).abs() < 1e-6);
         // History now valid, valid, hole: 2 of the last 3 still.
         let mut again = map(&[8.0, nan], &[0.2, nan]);
         assert_eq!(f.apply(&mut again).carried, 1);
@@ -530,8 +534,9 @@ mod sequence {
             .collect()
     }
 
-    /// Matches each pair (`preset=fast`, 48 disparities), through the filter when given.
-    fn score(pairs: &[synthetic::Pair], filter: Option<Settings>) -> Score {
+    /// Each pair matched (`preset=fast`, 48 disparities), in order through the filter when
+    /// given.
+    fn matched(pairs: &[synthetic::Pair], filter: Option<Settings>) -> Vec<Disparity> {
         let params = Params::new(&crate::vision::Settings {
             max_disparity: Some(48),
             preset: Some(Preset::Fast),
@@ -540,15 +545,22 @@ mod sequence {
         .unwrap();
         let never = AtomicBool::new(false);
         let mut temporal = filter.map(Temporal::new);
-        let mut maps = Vec::new();
-        for pair in pairs {
-            let (mut map, _) =
-                crate::vision::disparity(&pair.left, &pair.right, &params, &never).unwrap();
-            if let Some(t) = temporal.as_mut() {
-                t.apply(&mut map);
-            }
-            maps.push(map);
-        }
+        pairs
+            .iter()
+            .map(|pair| {
+                let (mut map, _) =
+                    crate::vision::disparity(&pair.left, &pair.right, &params, &never).unwrap();
+                if let Some(t) = temporal.as_mut() {
+                    t.apply(&mut map);
+                }
+                map
+            })
+            .collect()
+    }
+
+    /// Scores the pairs' maps, through the filter when given.
+    fn score(pairs: &[synthetic::Pair], filter: Option<Settings>) -> Score {
+        let maps = matched(pairs, filter);
         let mut changes = Vec::new();
         let (mut off, mut valued, mut seen) = (0usize, 0usize, 0usize);
         for (t, (map, pair)) in maps.iter().zip(pairs).enumerate() {
@@ -605,6 +617,52 @@ mod sequence {
             assert!(raw.median_change >= 2.0 * filtered.median_change, "{what}");
             assert!(filtered.bad1 <= raw.bad1, "{what}");
             assert!(filtered.density >= raw.density, "{what}");
+        }
+    }
+
+    /// Each frame's share of valued pixels both cameras see whose value lies within 1σ and 2σ
+    /// of the truth, %.
+    fn within_sigma(pairs: &[synthetic::Pair], filter: Settings) -> Vec<(f64, f64)> {
+        matched(pairs, Some(filter))
+            .iter()
+            .zip(pairs)
+            .map(|(map, pair)| {
+                let (mut n, mut one, mut two) = (0usize, 0usize, 0usize);
+                for (i, (&d, &s)) in map.data.iter().zip(&map.std).enumerate() {
+                    if !pair.visible[i] || !d.is_finite() {
+                        continue;
+                    }
+                    let off = (d - pair.truth[i]).abs();
+                    n += 1;
+                    one += usize::from(off <= s);
+                    two += usize::from(off <= 2.0 * s);
+                }
+                (100.0 * one as f64 / n as f64, 100.0 * two as f64 / n as f64)
+            })
+            .collect()
+    }
+
+    /// σ_d still holds after the filter: in every frame of the still and the moving sequence,
+    /// at least 75 % of the filtered values lie within 1σ of the truth and 90 % within 2σ (a
+    /// normal error gives 68 and 95 %; single frames measure 84 and 99 %). Measured
+    /// (`--nocapture`): 87.8 / 99.4 % still, 81–85 / 92–98 % moving. The independent errors'
+    /// formula, α²σ² + (1 − α)²σ_last², gave 59 / 88 % here: frames share their errors.
+    #[test]
+    fn sigma_holds_after_the_filter() {
+        for moving in [false, true] {
+            let pairs = sequence(8, moving);
+            let shares = within_sigma(&pairs, Settings::default());
+            eprintln!("moving {moving}: within 1σ, 2σ per frame {shares:.1?}");
+            for (t, &(one, two)) in shares.iter().enumerate() {
+                assert!(
+                    one >= 75.0,
+                    "moving {moving}, frame {t}: {one:.1} % within 1σ"
+                );
+                assert!(
+                    two >= 90.0,
+                    "moving {moving}, frame {t}: {two:.1} % within 2σ"
+                );
+            }
         }
     }
 }

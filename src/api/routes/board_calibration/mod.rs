@@ -1,10 +1,11 @@
-//! `/calibrate`: checkerboard views in (multipart, repeated `left` and `right` parts and a
+//! `/calibrate` (and `/board`, one image or pair's board, in [`sight`]): checkerboard views in (multipart, repeated `left` and `right` parts and a
 //! `board`), a calibrated camera or stereo rig out, as a JSON summary with each parameter's
 //! standard deviation or as OpenCV's and ROS's files. The engine is
 //! [`stereo_core::pipeline::calibrate`]; this module reads the form, judges it against the
 //! limits, runs the engine off the async runtime and writes its answer or names its faults.
 
 mod board;
+mod sight;
 mod summary;
 pub use crate::api::wire::board_calibration as types;
 
@@ -25,9 +26,11 @@ use crate::api::images::work;
 use crate::api::respond::Json;
 use stereo_core::pipeline::calibrate as engine;
 
-/// `POST /calibrate`.
+/// `POST /calibrate`, and `POST /board` (one image or pair's board, for a live view).
 pub fn router() -> OpenApiRouter<HeavyState> {
-    OpenApiRouter::new().routes(routes!(post_calibrate))
+    OpenApiRouter::new()
+        .routes(routes!(post_calibrate))
+        .routes(routes!(sight::post_board))
 }
 
 /// The form's parts: the views' images in order, the board, and what was wrong.
@@ -126,19 +129,7 @@ pub async fn post_calibrate(
     let images = left.len() + right.len();
     let size = (settings.size.width, settings.size.height);
     let bytes = engine::bytes_needed(&settings.board, size, images);
-    let too_large = |total: usize| {
-        vec![FieldError::new(
-            "left",
-            format!(
-                "{} × {} views need {} MiB to calibrate, more than the {} MiB this server has \
-                 for image requests: send smaller images",
-                size.0,
-                size.1,
-                bytes / (1024 * 1024),
-                total / (1024 * 1024)
-            ),
-        )]
-    };
+    let too_large = |total| over_the_budget(size, "views need", "to calibrate", bytes, total);
     work::run_reserved(admitted, bytes, too_large, move |cancel, _| {
         let left: Vec<&[u8]> = left.iter().map(|b| b.as_ref()).collect();
         let right: Vec<&[u8]> = right.iter().map(|b| b.as_ref()).collect();
@@ -147,6 +138,28 @@ pub async fn post_calibrate(
         answer(&made, output)
     })
     .await?
+}
+
+/// The error of images whose boards need more memory than the heavy budget has in all: `what`
+/// (`views need`) `bytes` `why` (`to calibrate`), `total` there is.
+fn over_the_budget(
+    size: (u32, u32),
+    what: &str,
+    why: &str,
+    bytes: usize,
+    total: usize,
+) -> Vec<FieldError> {
+    vec![FieldError::new(
+        "left",
+        format!(
+            "{} × {} {what} {} MiB {why}, more than the {} MiB this server has for image \
+             requests: send smaller images",
+            size.0,
+            size.1,
+            bytes / (1024 * 1024),
+            total / (1024 * 1024)
+        ),
+    )]
 }
 
 /// The engine's settings from the query and the form, every fault named at once: the query's

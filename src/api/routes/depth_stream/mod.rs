@@ -21,6 +21,9 @@ use utoipa_axum::router::OpenApiRouter;
 use crate::api::error::ApiError;
 use crate::api::images::HeavyState;
 
+/// The stream's WebSocket subprotocol, selected when the client offers it.
+pub const PROTOCOL: &str = "depth-stream";
+
 /// `GET /depth-stream`, documented by the AsyncAPI file rather than the OpenAPI one.
 pub fn router() -> OpenApiRouter<HeavyState> {
     OpenApiRouter::new().route("/depth-stream", get(open))
@@ -43,7 +46,10 @@ pub async fn open(
         .reserve(streams.max_frame_bytes)
         .map_err(ApiError::Memory)?;
     let max = streams.max_frame_bytes;
+    // A browser offers `depth-stream` beside its token's entry (`bearer.…`, read by the
+    // auth middleware), and closes a socket whose server selects none of its protocols.
     Ok(upgrade
+        .protocols([PROTOCOL])
         .max_message_size(max)
         .max_frame_size(max)
         .on_upgrade(move |socket| session::run(socket, state, (slot, held))))

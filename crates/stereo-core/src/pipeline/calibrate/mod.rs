@@ -38,6 +38,7 @@
 
 pub mod report;
 pub mod settings;
+pub mod sight;
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
@@ -47,6 +48,7 @@ use rayon::prelude::*;
 pub use self::report::Report;
 use self::report::rectified_rig;
 pub use self::settings::Settings;
+pub use self::sight::{Sighting, sight};
 pub use crate::calibration::boards::charuco::{CharucoBoard, CharucoSpec, Dictionary};
 use crate::calibration::boards::corners::{Luma, Miss};
 pub use crate::calibration::boards::report::{CharucoMistake, Coverage, Determination, tilt_deg};

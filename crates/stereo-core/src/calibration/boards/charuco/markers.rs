@@ -281,8 +281,10 @@ fn quad_of(spans: &[(usize, usize, usize)]) -> Option<[[f64; 2]; 4]> {
     hull.iter().all(near_edge).then_some(quad)
 }
 
-/// The convex hull (Andrew's monotone chain), counter-clockwise in x-right y-up terms.
-fn convex_hull(mut points: Vec<[f64; 2]>) -> Vec<[f64; 2]> {
+/// The convex hull (Andrew's monotone chain), counter-clockwise in x-right y-up terms,
+/// without collinear points: a marker's quad here, a live view's outline in
+/// [`crate::pipeline::calibrate::sight`].
+pub fn convex_hull(mut points: Vec<[f64; 2]>) -> Vec<[f64; 2]> {
     points.sort_by(|a, b| a[0].total_cmp(&b[0]).then(a[1].total_cmp(&b[1])));
     points.dedup();
     if points.len() < 3 {
