@@ -78,7 +78,8 @@ use self::routes::ops::OpsState;
         wire::images::FileBody,
         wire::depth_map::DepthMapSummary,
         wire::rectify::RectifySummary,
-        wire::board_calibration::CalibrationSummary
+        wire::board_calibration::CalibrationSummary,
+        wire::board_calibration::BoardAnswer
     )),
     tags(
         (name = "calibration", description = "Calibration files read into a rig"),

@@ -140,6 +140,38 @@ async fn optional_members_are_not_nullable() {
     assert_eq!(required, &json!(["baseline"]));
 }
 
+/// Every `$ref` in the document names a schema it holds: an answer named by reference (the
+/// image routes' bodies) is registered among the components, so that clients generated from
+/// the document can read it.
+#[tokio::test]
+async fn every_reference_resolves() {
+    fn refs(value: &Value, found: &mut Vec<String>) {
+        match value {
+            Value::Object(map) => {
+                if let Some(Value::String(target)) = map.get("$ref") {
+                    found.push(target.clone());
+                }
+                map.values().for_each(|v| refs(v, found));
+            }
+            Value::Array(items) => items.iter().for_each(|v| refs(v, found)),
+            _ => {}
+        }
+    }
+    let spec = serde_json::to_value(stereo_distance::api::openapi()).unwrap();
+    let mut found = Vec::new();
+    refs(&spec, &mut found);
+    assert!(found.iter().any(|r| r.ends_with("/BoardAnswer")));
+    for target in found {
+        let name = target
+            .strip_prefix("#/components/schemas/")
+            .unwrap_or_else(|| panic!("{target} points into the components' schemas"));
+        assert!(
+            spec["components"]["schemas"][name].is_object(),
+            "{target} is not in the document"
+        );
+    }
+}
+
 /// Swagger UI is served from the binary at /docs/, with no CDN.
 #[tokio::test]
 async fn swagger_ui_is_served_offline() {
