@@ -2,10 +2,10 @@
 //! outline they span, or why the board was not found. A camera held at a board is judged
 //! frame by frame with it before a view is kept for a calibration.
 
-use super::{DecodeLimits, Target};
+use crate::calibration::boards::Target;
 use crate::calibration::boards::charuco::markers::convex_hull;
 use crate::calibration::boards::corners::Luma;
-use crate::vision::decode::{self, DecodeError};
+use crate::vision::decode::{self, DecodeError, DecodeLimits};
 
 /// What one image shows of a board.
 #[derive(Debug, Clone, PartialEq)]
@@ -60,10 +60,10 @@ pub fn sight(bytes: &[u8], board: &Target, limits: DecodeLimits) -> Result<Sight
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::calibration::boards::Board;
     use crate::calibration::boards::synthetic::{Style, poses, sample_rig, stereo_views};
     use crate::camera::Size;
     use crate::physics::LengthUnit;
-    use crate::pipeline::calibrate::Board;
     use crate::vision::encode;
 
     /// The hull of a grid is its four corners; inner and collinear points are left out.
