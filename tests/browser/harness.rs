@@ -105,6 +105,16 @@ impl WebDriverCompatibleCommand for BrowserLog {
     }
 }
 
+/// Chromium's arguments for its fake camera playing `y4m` (looped) to `getUserMedia`, the
+/// permission granted.
+pub fn fake_camera(y4m: &std::path::Path) -> [String; 3] {
+    [
+        "--use-fake-ui-for-media-stream".to_owned(),
+        "--use-fake-device-for-media-stream".to_owned(),
+        format!("--use-file-for-fake-video-capture={}", y4m.display()),
+    ]
+}
+
 /// A served application, a chromedriver and one browser session.
 pub struct Browser {
     pub client: Client,
@@ -135,12 +145,7 @@ impl Browser {
     /// As [`Browser::start`], Chromium's fake camera playing `y4m` (a Y4M file, looped) to
     /// `getUserMedia`, its permission granted.
     pub async fn with_camera(y4m: &std::path::Path, width: u32, height: u32) -> Browser {
-        let args = [
-            "--use-fake-ui-for-media-stream".to_owned(),
-            "--use-fake-device-for-media-stream".to_owned(),
-            format!("--use-file-for-fake-video-capture={}", y4m.display()),
-        ];
-        Self::serving_with(test_config(), width, height, None, &args).await
+        Self::serving_with(test_config(), width, height, None, &fake_camera(y4m)).await
     }
 
     /// As [`Browser::start_with`], the server started with `config` (port 0).

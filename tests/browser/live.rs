@@ -15,7 +15,7 @@ use stereo_core::physics::LengthUnit;
 use stereo_core::pipeline::calibrate::{Board, DecodeLimits, Target, sight};
 use stereo_core::vision::{encode, synthetic};
 
-use crate::harness::Browser;
+use crate::harness::{Browser, fake_camera};
 
 /// One image's size: the camera's frame is twice as wide.
 const W: usize = 400;
@@ -113,13 +113,7 @@ async fn a_stereo_camera_streams_depth_and_a_click_measures_within_sigma() {
     assert_eq!(browser.attr("live", "hidden").await, None);
     // 127.0.0.1 is a secure context: no note.
     assert!(browser.attr("live-secure", "hidden").await.is_some());
-    browser.choose("live-calibration", "file").await;
-    browser
-        .find("live-calibration-file")
-        .await
-        .send_keys(&calibration.display().to_string())
-        .await
-        .expect("the file chosen");
+    choose_calibration_file(&browser, &calibration).await;
 
     // Act: start, and let several frames come back.
     browser
@@ -128,12 +122,7 @@ async fn a_stereo_camera_streams_depth_and_a_click_measures_within_sigma() {
         .click()
         .await
         .expect("click");
-    browser
-        .until("five frames answered", || async {
-            let frames = browser.attr("live-status", "data-frames").await?;
-            (frames.parse::<u32>().ok()? >= 5).then_some(())
-        })
-        .await;
+    until_frames(&browser, 5).await;
 
     // Assert: the rates, the depth over the left image, the colour bar in mm.
     let fps: f64 = browser
@@ -212,6 +201,27 @@ async fn a_stereo_camera_streams_depth_and_a_click_measures_within_sigma() {
     let errors = browser.console_errors().await;
     assert!(errors.is_empty(), "{errors:?}");
     browser.close().await;
+}
+
+/// Chooses the calibration file `path` for the stream.
+async fn choose_calibration_file(browser: &Browser, path: &std::path::Path) {
+    browser.choose("live-calibration", "file").await;
+    browser
+        .find("live-calibration-file")
+        .await
+        .send_keys(&path.display().to_string())
+        .await
+        .expect("the file chosen");
+}
+
+/// Waits until the stream has answered `frames` frames.
+async fn until_frames(browser: &Browser, frames: u32) {
+    browser
+        .until(&format!("{frames} frames answered"), || async {
+            let answered = browser.attr("live-status", "data-frames").await?;
+            (answered.parse::<u32>().ok()? >= frames).then_some(())
+        })
+        .await;
 }
 
 /// Clicks the live image's pixel (`x`, `y`) and waits for its distance: the distance, its σ
@@ -448,20 +458,9 @@ async fn the_stream_carries_the_tabs_token() {
         api_tokens: Some(stereo_distance::config::ApiTokens(vec![token.to_owned()])),
         ..crate::harness::test_config()
     };
-    let args = [
-        "--use-fake-ui-for-media-stream".to_owned(),
-        "--use-fake-device-for-media-stream".to_owned(),
-        format!("--use-file-for-fake-video-capture={}", camera.display()),
-    ];
-    let browser = Browser::serving_with(config, 1280, 1500, None, &args).await;
+    let browser = Browser::serving_with(config, 1280, 1500, None, &fake_camera(&camera)).await;
     browser.open("/?mode=live").await;
-    browser.choose("live-calibration", "file").await;
-    browser
-        .find("live-calibration-file")
-        .await
-        .send_keys(&calibration.display().to_string())
-        .await
-        .expect("the file chosen");
+    choose_calibration_file(&browser, &calibration).await;
 
     // Act: Start; the dialog asks; the token given.
     browser
@@ -470,29 +469,11 @@ async fn the_stream_carries_the_tabs_token() {
         .click()
         .await
         .expect("click");
-    browser
-        .until("the token dialog", || async {
-            let open = browser
-                .script("return document.getElementById('token-dialog').open")
-                .await;
-            (open == true).then_some(())
-        })
-        .await;
-    browser.type_into("token-input", token).await;
-    browser
-        .find("token-use")
-        .await
-        .click()
-        .await
-        .expect("clicked");
+    browser.token_asked().await;
+    browser.give_token(token).await;
 
     // Assert: frames answered, and a click measured.
-    browser
-        .until("two frames answered", || async {
-            let frames = browser.attr("live-status", "data-frames").await?;
-            (frames.parse::<u32>().ok()? >= 2).then_some(())
-        })
-        .await;
+    until_frames(&browser, 2).await;
     let (distance, _, _) = click_distance(&browser, 120.0, 140.0).await;
     assert!((distance - FB / 22.0).abs() < 0.05 * distance, "{distance}");
     browser.close().await;

@@ -11,7 +11,7 @@ const TOKEN: &str = "page-token-0123456789abcdef";
 
 impl Browser {
     /// Waits until the token dialog is open, and gives its message.
-    async fn token_asked(&self) -> String {
+    pub(crate) async fn token_asked(&self) -> String {
         self.until("the token dialog", || async {
             let open = self
                 .script("return document.getElementById('token-dialog').open")
@@ -23,7 +23,7 @@ impl Browser {
     }
 
     /// Types `token` into the dialog and submits it.
-    async fn give_token(&self, token: &str) {
+    pub(crate) async fn give_token(&self, token: &str) {
         self.type_into("token-input", token).await;
         self.find("token-use").await.click().await.expect("clicked");
     }
