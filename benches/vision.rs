@@ -4,7 +4,8 @@
 //! winner-takes-all of a row, the speckle filter and the median over the whole map, and the
 //! whole `vision::disparity` with the best build the CPU runs (AVX-512 for the census and the
 //! cost's row), the AVX2 build and the portable one; and coarse to fine at 256 disparities: halving, the prior's windows, the whole
-//! matcher through the pyramid. The comparison with OpenCV is `scripts/evaluate/matcher` (README,
+//! matcher through the pyramid; and a depth map's summary (its spread) against a selection
+//! over every value. The comparison with OpenCV is `scripts/evaluate/matcher` (README,
 //! Performance).
 //!
 //! ```text
@@ -15,6 +16,7 @@ use std::hint::black_box;
 use std::sync::atomic::AtomicBool;
 
 use criterion::{Criterion, criterion_group, criterion_main};
+use stereo_core::pipeline;
 use stereo_core::vision::{
     self, Params, census, cost, filters, pyramid, refine, sgm, simd, synthetic,
 };
@@ -175,5 +177,43 @@ fn stages(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, stages);
+/// A depth map's summary: the spread (min, median, max) of a matched 1280 × 720 map's
+/// disparities as `pipeline::spread` finds it (a histogram, then the median's bucket), against
+/// the bare baseline, a selection over every finite value (what it replaced).
+fn summary(c: &mut Criterion) {
+    let pair = synthetic::render(&synthetic::Scene {
+        noise: 0.01,
+        ..synthetic::layered(1280, 720)
+    });
+    let never = AtomicBool::new(false);
+    let (map, _) = vision::disparity(
+        &pair.left,
+        &pair.right,
+        &Params::range(0, 128).unwrap(),
+        &never,
+    )
+    .unwrap();
+    let selection = |values: &[f32]| {
+        let mut valid: Vec<f32> = values.iter().copied().filter(|v| v.is_finite()).collect();
+        let mid = valid.len() / 2;
+        let (_, median, _) = valid.select_nth_unstable_by(mid, f32::total_cmp);
+        let median = *median;
+        let (min, max) = valid
+            .iter()
+            .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &v| {
+                (lo.min(v), hi.max(v))
+            });
+        (min, median, max)
+    };
+    let mut group = c.benchmark_group("summary, 1280 x 720");
+    group.bench_function("spread (histogram)", |b| {
+        b.iter(|| pipeline::spread(black_box(&map.data)))
+    });
+    group.bench_function("selection over every value (baseline)", |b| {
+        b.iter(|| selection(black_box(&map.data)))
+    });
+    group.finish();
+}
+
+criterion_group!(benches, stages, summary);
 criterion_main!(benches);

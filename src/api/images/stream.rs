@@ -313,8 +313,11 @@ impl Engine {
         let map = matched.depth_map(request);
         let started = Instant::now();
         let rig = at.rig.as_ref().map(|c| CalibratedRig::from(&c.rig));
-        let summary = DepthMapSummary::of(&map, &resolved.params, rig, decode);
-        let files = files(&map, &resolved.outputs)?;
+        let (summary, files) = rayon::join(
+            || DepthMapSummary::of(&map, &resolved.params, rig, decode),
+            || files(&map, &resolved.outputs),
+        );
+        let files = files?;
         let ms = |d: Duration| (d.as_secs_f64() * 1e4).round() / 10.0;
         let t = &map.timings;
         let filter = map.temporal.map_or(Duration::ZERO, |(_, d)| d);

@@ -364,11 +364,6 @@ impl From<pipeline::Spread> for Spread {
     }
 }
 
-/// The spread of the finite values, as the summary states it.
-fn spread(values: &[f32]) -> Option<Spread> {
-    pipeline::spread(values).map(Spread::from)
-}
-
 impl DepthMapSummary {
     /// The summary of a depth map matched with `params` from a pair that took `decode` to
     /// read, with the rig it used echoed.
@@ -381,16 +376,17 @@ impl DepthMapSummary {
         let ms = |d: Duration| (d.as_secs_f64() * 1e4).round() / 10.0;
         let d = &map.disparity;
         let t = &map.timings;
+        let spreads = pipeline::Spreads::of(map);
         DepthMapSummary {
             width: d.width,
             height: d.height,
             min_disparity: params.min_disparity(),
             max_disparity: params.max_disparity(),
             valid_fraction: (map.valid_fraction * 1e4).round() / 1e4,
-            disparity_px: spread(&d.data),
-            distance: map.depth.as_deref().and_then(spread),
-            disparity_std_px: spread(&d.std),
-            distance_std: map.depth_std.as_deref().and_then(spread),
+            disparity_px: spreads.disparity.map(Spread::from),
+            distance: spreads.depth.map(Spread::from),
+            disparity_std_px: spreads.disparity_std.map(Spread::from),
+            distance_std: spreads.depth_std.map(Spread::from),
             rig,
             parameters: MatcherParameters::of(params, t.paths),
             timings_ms: StageTimes {

@@ -266,43 +266,6 @@ pub fn depth_stds(map: &Disparity, depth: &[f32], rig: Rig) -> Vec<f32> {
         .collect()
 }
 
-/// The valid values' min, median and max, each to 4 decimals.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Spread {
-    pub min: f64,
-    pub median: f64,
-    pub max: f64,
-}
-
-/// The spread of the finite values; `None` when there are none. The median is NumPy's
-/// (`numpy.nanmedian` of the NPY and NPZ outputs): the middle value, or the mean of the two
-/// middle values of an even count.
-pub fn spread(values: &[f32]) -> Option<Spread> {
-    let mut valid: Vec<f32> = values.iter().copied().filter(|v| v.is_finite()).collect();
-    if valid.is_empty() {
-        return None;
-    }
-    let (count, mid) = (valid.len(), valid.len() / 2);
-    let (below, &mut upper, _) = valid.select_nth_unstable_by(mid, f32::total_cmp);
-    let median = if count.is_multiple_of(2) {
-        let lower = below.iter().copied().fold(f32::NEG_INFINITY, f32::max);
-        (f64::from(lower) + f64::from(upper)) / 2.0
-    } else {
-        f64::from(upper)
-    };
-    let (min, max) = valid
-        .iter()
-        .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &v| {
-            (lo.min(v), hi.max(v))
-        });
-    let round = |v: f64| (v * 1e4).round() / 1e4;
-    Some(Spread {
-        min: round(min.into()),
-        median: round(median),
-        max: round(max.into()),
-    })
-}
-
 /// The file a depth map is written as.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Product {

@@ -39,8 +39,10 @@ pub mod calibrated;
 pub mod depth;
 pub mod matches;
 pub mod rectify;
+pub mod spread;
 
 pub use crate::vision::sgm::Paths;
 pub use calibrated::{Calibrated, PlanFault, RectifyMode, Sent, SizeFault, plan, raw_rig};
-pub use depth::{DepthMap, Matched, Product, Request, Spread, depth_map, matched, spread};
+pub use depth::{DepthMap, Matched, Product, Request, depth_map, matched};
 pub use rectify::Maps;
+pub use spread::{Spread, Spreads, spread};
