@@ -3,6 +3,8 @@
 //! only the values in its bucket are sorted out. Exact: the same numbers as sorting them all.
 //! A map's four spreads are found side by side ([`Spreads::of`]).
 
+use rayon::prelude::*;
+
 use super::depth::DepthMap;
 
 /// The valid values' min, median and max, each to 4 decimals.
@@ -26,21 +28,18 @@ impl Spreads {
     /// The map's spreads, each found on its own rayon task (a 720p map's four take a few ms
     /// one after another, which a stream's every frame would wait for).
     pub fn of(map: &DepthMap) -> Spreads {
-        let of = |values: Option<&[f32]>| values.and_then(spread);
-        let ((disparity, depth), (disparity_std, depth_std)) = rayon::join(
-            || {
-                rayon::join(
-                    || of(Some(&map.disparity.data)),
-                    || of(map.depth.as_deref()),
-                )
-            },
-            || {
-                rayon::join(
-                    || of(Some(&map.disparity.std)),
-                    || of(map.depth_std.as_deref()),
-                )
-            },
-        );
+        let arrays = [
+            Some(&map.disparity.data[..]),
+            map.depth.as_deref(),
+            Some(&map.disparity.std[..]),
+            map.depth_std.as_deref(),
+        ];
+        let mut found = [None; 4];
+        found
+            .par_iter_mut()
+            .zip(arrays)
+            .for_each(|(spread_of, values)| *spread_of = values.and_then(spread));
+        let [disparity, depth, disparity_std, depth_std] = found;
         Spreads {
             disparity,
             depth,
@@ -90,23 +89,21 @@ pub fn spread(values: &[f32]) -> Option<Spread> {
     // bucket) do not wait on each other's increments.
     let mut counts = vec![[0u32; 4]; BUCKETS];
     let (mut least, mut greatest) = ([u32::MAX; 4], [0u32; 4]);
+    let mut tally = |lane: usize, v: f32| {
+        let k = key(v);
+        counts[bucket(k)][lane] += 1;
+        let finite = FINITE.contains(&bucket(k));
+        least[lane] = least[lane].min(if finite { k } else { u32::MAX });
+        greatest[lane] = greatest[lane].max(if finite { k } else { 0 });
+    };
     let mut quads = values.chunks_exact(4);
     for quad in &mut quads {
         for (lane, &v) in quad.iter().enumerate() {
-            let k = key(v);
-            counts[bucket(k)][lane] += 1;
-            let finite = FINITE.contains(&bucket(k));
-            least[lane] = least[lane].min(if finite { k } else { u32::MAX });
-            greatest[lane] = greatest[lane].max(if finite { k } else { 0 });
+            tally(lane, v);
         }
     }
     for &v in quads.remainder() {
-        let k = key(v);
-        counts[bucket(k)][0] += 1;
-        if FINITE.contains(&bucket(k)) {
-            least[0] = least[0].min(k);
-            greatest[0] = greatest[0].max(k);
-        }
+        tally(0, v);
     }
     let counts: Vec<usize> = counts[FINITE]
         .iter()
@@ -121,21 +118,9 @@ pub fn spread(values: &[f32]) -> Option<Spread> {
     // The ranks of the middle value(s), and the buckets that hold them.
     let mid = count / 2;
     let even = count.is_multiple_of(2);
-    let first_rank = if even { mid - 1 } else { mid };
-    let (mut below, mut first, mut last, mut seen) = (0usize, None, 0usize, 0usize);
-    for (b, &n) in counts.iter().enumerate() {
-        if first.is_none() && seen + n > first_rank {
-            first = Some(b);
-            below = seen;
-        }
-        if seen + n > mid {
-            last = b;
-            break;
-        }
-        seen += n;
-    }
-    let first = first.unwrap_or(last) + FINITE.start();
-    let last = last + FINITE.start();
+    let (first, below) = locate(&counts, if even { mid - 1 } else { mid });
+    let (last, _) = locate(&counts, mid);
+    let (first, last) = (first + FINITE.start(), last + FINITE.start());
     // Only the values in those buckets (all finite), sorted out: the middle rank counted
     // from the values below them.
     let mut middle: Vec<f32> = Vec::new();
@@ -159,9 +144,23 @@ pub fn spread(values: &[f32]) -> Option<Spread> {
     })
 }
 
+/// The bucket holding the value of `rank` (counted from 0 in the values' order), and how
+/// many values lie in the buckets below it. `rank` is below the counts' sum.
+fn locate(counts: &[usize], rank: usize) -> (usize, usize) {
+    let mut below = 0;
+    for (b, &n) in counts.iter().enumerate() {
+        if below + n > rank {
+            return (b, below);
+        }
+        below += n;
+    }
+    (counts.len().saturating_sub(1), below)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::noise::Rng;
 
     /// The spread by sorting every finite value, as the summary once found it.
     fn sorted_spread(values: &[f32]) -> Option<Spread> {
@@ -184,15 +183,10 @@ mod tests {
         })
     }
 
-    /// A small deterministic generator (xorshift), so the draws need no crate.
+    /// `n` uniform draws in [0, 1), the project's seeded generator's.
     fn draws(seed: u64, n: usize) -> impl Iterator<Item = f32> {
-        let mut s = seed | 1;
-        (0..n).map(move |_| {
-            s ^= s << 13;
-            s ^= s >> 7;
-            s ^= s << 17;
-            (s >> 40) as f32 / (1u64 << 24) as f32
-        })
+        let mut rng = Rng::new(seed);
+        (0..n).map(move |_| rng.unit())
     }
 
     /// The histogram's median is the sorted median to the digit: odd and even counts, ties,
