@@ -77,6 +77,7 @@ fn app_with(config: &Config, ops: OpsState, extra_heavy: Router<HeavyState>) -> 
             idle_timeout: heavy.stream_idle_timeout,
             write_timeout: config.write_timeout,
             max_frame_bytes: heavy.stream_frame_bytes,
+            pools: Default::default(),
         },
     };
     let ops = OpsState {

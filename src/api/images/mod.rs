@@ -12,6 +12,8 @@
 //! - [`output`]: a file answer with its media type and name, and `Server-Timing`;
 //! - [`limits`]: what the server accepts: image sizes, the matcher's settings mapped onto the
 //!   query's names, and what to shrink when a request cannot fit;
+//! - [`pools`]: thread pools lent to a stream's frames in work, one a frame, so that two
+//!   frames matched side by side do not wait on each other's tasks;
 //! - [`stream`]: what the depth streams share and are held to (the budget, the cap on open
 //!   streams, the idle and write timeouts, the frame limit);
 //! - [`work`]: a compute slot taken and the memory reserved when the work starts (not while
@@ -26,6 +28,7 @@ pub mod limits;
 pub mod maps;
 pub mod output;
 pub mod parts;
+pub mod pools;
 pub mod raw;
 pub mod rig;
 pub mod stream;

@@ -17,6 +17,7 @@ use axum::body::Bytes;
 use super::limits;
 use super::maps::MapCache;
 use super::parts::Parts;
+use super::pools::FramePools;
 use super::{raw, rig, work};
 use crate::api::error::{ApiError, FieldError, FieldErrors};
 use crate::api::wire::depth_map::{DepthMapOutput, DepthMapSummary, MatcherParameters};
@@ -47,6 +48,8 @@ pub struct Streams {
     pub write_timeout: Duration,
     /// The largest frame message (`--stream-frame-limit`).
     pub max_frame_bytes: usize,
+    /// The pools the streams' frames in work are matched in, one a frame.
+    pub pools: Arc<FramePools>,
 }
 
 impl Default for Streams {
@@ -57,6 +60,7 @@ impl Default for Streams {
             idle_timeout: crate::config::DEFAULT_STREAM_IDLE_TIMEOUT,
             write_timeout: crate::config::DEFAULT_WRITE_TIMEOUT,
             max_frame_bytes: crate::config::DEFAULT_STREAM_FRAME_LIMIT,
+            pools: Arc::default(),
         }
     }
 }

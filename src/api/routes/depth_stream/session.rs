@@ -20,6 +20,7 @@ use tokio::time::{Instant, sleep, sleep_until, timeout};
 use super::types::{FrameAnswer, FrameError, StreamSettings};
 use crate::api::error::ApiError;
 use crate::api::images::HeavyState;
+use crate::api::images::pools::FramePools;
 use crate::api::images::stream::{Done, Engine, Frame, Resolved, Streams};
 use crate::budget::{Reservation, Slot, Slots};
 
@@ -135,7 +136,7 @@ async fn frames(
         Arc::clone(&state.maps),
         state.image_limits,
     );
-    let mut work = InWork::new(engine);
+    let mut work = InWork::new(engine, Arc::clone(&streams.pools));
     let (mut received, mut heard) = (0u64, Instant::now());
     let out = replies.out.clone();
     loop {
@@ -187,10 +188,12 @@ const IN_WORK: usize = 2;
 type Finished = (u64, u64, Result<Done, ApiError>);
 
 /// The frames of a stream between their arrival and their answers: the newest waiting, at
-/// most [`IN_WORK`] on blocking threads, and the answers that ended before an earlier one
+/// most [`IN_WORK`] on blocking threads (each matched in a pool of its own when one is free,
+/// [`FramePools`]), and the answers that ended before an earlier one
 /// held back until it has.
 struct InWork {
     engine: Arc<Engine>,
+    pools: Arc<FramePools>,
     cancel: Arc<AtomicBool>,
     pending: Option<Frame>,
     running: FuturesUnordered<JoinHandle<Finished>>,
@@ -200,9 +203,10 @@ struct InWork {
 }
 
 impl InWork {
-    fn new(engine: Engine) -> Self {
+    fn new(engine: Engine, pools: Arc<FramePools>) -> Self {
         InWork {
             engine: Arc::new(engine),
+            pools,
             cancel: Arc::new(AtomicBool::new(false)),
             pending: None,
             running: FuturesUnordered::new(),
@@ -227,9 +231,10 @@ impl InWork {
         let seq = self.started;
         self.started += 1;
         let (engine, cancel) = (Arc::clone(&self.engine), Arc::clone(&self.cancel));
+        let pools = Arc::clone(&self.pools);
         self.running.push(tokio::task::spawn_blocking(move || {
             let _slot = slot;
-            let result = engine.frame(&frame, seq, &cancel);
+            let result = pools.run(|| engine.frame(&frame, seq, &cancel));
             (seq, frame.id, result)
         }));
     }
