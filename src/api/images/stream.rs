@@ -76,6 +76,10 @@ pub struct Resolved {
     pub parts: Parts,
     pub rectify: (Option<RectifyMode>, Option<f64>),
     pub temporal: Option<temporal::Settings>,
+    /// Whether a file asked for needs the left image's colour.
+    pub colour: bool,
+    /// Whether a file asked for needs each depth's σ_Z.
+    pub depth_std: bool,
 }
 
 impl Resolved {
@@ -148,6 +152,11 @@ impl Resolved {
             },
             warnings: calibrated.map_or_else(Vec::new, |c| c.warnings),
         };
+        let colour = outputs
+            .iter()
+            .filter_map(|o| o.product())
+            .any(pipeline::Product::wants_colour);
+        let depth_std = outputs.iter().any(|o| o.wants_depth_std());
         let resolved = Resolved {
             layout: settings.layout,
             params,
@@ -155,6 +164,8 @@ impl Resolved {
             parts,
             rectify,
             temporal: settings.temporal,
+            colour,
+            depth_std,
         };
         Ok((resolved, answer))
     }
@@ -300,7 +311,7 @@ impl Engine {
         let setup = started.elapsed();
         let held = self.reserve(&at, size)?;
         let started = Instant::now();
-        let colour = self.wants_colour();
+        let colour = self.resolved.colour;
         let (left, right) = self.decode(&frame.bytes, colour)?;
         let decode = started.elapsed();
         let resolved = &*self.resolved;
@@ -309,7 +320,7 @@ impl Engine {
             calibrated: at.rig.as_ref(),
             maps: at.maps.as_deref(),
             colour,
-            depth_std: resolved.outputs.iter().any(|o| o.wants_depth_std()),
+            depth_std: resolved.depth_std,
         };
         let mut matched = pipeline::matched(left, right, request, cancel)
             .map_err(|Cancelled| ApiError::Internal("cancelled".to_owned()))?;
@@ -456,14 +467,6 @@ impl Engine {
         }
     }
 
-    fn wants_colour(&self) -> bool {
-        self.resolved
-            .outputs
-            .iter()
-            .filter_map(|o| o.product())
-            .any(pipeline::Product::wants_colour)
-    }
-
     /// The frame's two images, decoded within the limits.
     fn decode(&self, bytes: &Bytes, colour: bool) -> Result<(Decoded, Decoded), ApiError> {
         match self.resolved.layout {
@@ -542,12 +545,7 @@ fn pair_parts(bytes: &Bytes) -> Result<(Bytes, Bytes), ApiError> {
 
 /// An error about a pair frame's `left` or `right` image, named `frame.left`, `frame.right`.
 fn in_frame(e: ApiError) -> ApiError {
-    let named = |errors: Vec<FieldError>| -> Vec<FieldError> {
-        errors
-            .into_iter()
-            .map(|e| FieldError::new(format!("frame.{}", e.field), e.message))
-            .collect()
-    };
+    let named = |errors: Vec<FieldError>| FieldErrors::from(errors).prefixed("frame.");
     match e {
         ApiError::Invalid(errors) => ApiError::Invalid(named(errors)),
         ApiError::Oversized(errors) => ApiError::Oversized(named(errors)),
