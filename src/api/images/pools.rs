@@ -8,9 +8,11 @@
 //! steals only its own tasks, and the operating system shares the cores between the pools'
 //! threads.
 
-use std::sync::{Mutex, PoisonError};
+use std::sync::Mutex;
 
 use rayon::ThreadPool;
+
+use super::lock;
 
 /// The pools lent at once, at most: each has a thread a core, so this bounds the threads
 /// they add. A frame that finds none free runs in the global pool, as a request does.
@@ -43,7 +45,7 @@ impl FramePools {
     }
 
     fn lend(&self) -> Option<ThreadPool> {
-        let mut state = self.state.lock().unwrap_or_else(PoisonError::into_inner);
+        let mut state = lock(&self.state);
         if let Some(pool) = state.free.pop() {
             return Some(pool);
         }
@@ -60,11 +62,9 @@ impl FramePools {
     }
 
     /// The pools made so far.
-    pub fn made(&self) -> usize {
-        self.state
-            .lock()
-            .unwrap_or_else(PoisonError::into_inner)
-            .made
+    #[cfg(test)]
+    fn made(&self) -> usize {
+        lock(&self.state).made
     }
 }
 
@@ -77,12 +77,7 @@ struct Loan<'a> {
 impl Drop for Loan<'_> {
     fn drop(&mut self) {
         if let Some(pool) = self.pool.take() {
-            let mut state = self
-                .pools
-                .state
-                .lock()
-                .unwrap_or_else(PoisonError::into_inner);
-            state.free.push(pool);
+            lock(&self.pools.state).free.push(pool);
         }
     }
 }

@@ -9,7 +9,7 @@
 
 use std::collections::BTreeSet;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::{Arc, Condvar, Mutex, MutexGuard, PoisonError};
+use std::sync::{Arc, Condvar, Mutex};
 use std::time::{Duration, Instant};
 
 use axum::body::Bytes;
@@ -18,7 +18,7 @@ use super::limits;
 use super::maps::MapCache;
 use super::parts::Parts;
 use super::pools::FramePools;
-use super::{raw, rig, work};
+use super::{lock, raw, rig, work};
 use crate::api::error::{ApiError, FieldError, FieldErrors};
 use crate::api::wire::depth_map::{DepthMapOutput, DepthMapSummary, MatcherParameters};
 use crate::api::wire::depth_stream::{
@@ -265,11 +265,6 @@ impl Drop for Turn<'_> {
             self.pass(&mut lock(&engine.order));
         }
     }
-}
-
-/// A lock that a panic elsewhere did not spoil (what it guards is whole between statements).
-fn lock<T>(mutex: &Mutex<T>) -> MutexGuard<'_, T> {
-    mutex.lock().unwrap_or_else(PoisonError::into_inner)
 }
 
 impl Engine {

@@ -189,8 +189,7 @@ type Finished = (u64, u64, Result<Done, ApiError>);
 
 /// The frames of a stream between their arrival and their answers: the newest waiting, at
 /// most [`IN_WORK`] on blocking threads (each matched in a pool of its own when one is free,
-/// [`FramePools`]), and the answers that ended before an earlier one
-/// held back until it has.
+/// [`FramePools`]), and the answers that ended before an earlier one held back until it has.
 struct InWork {
     engine: Arc<Engine>,
     pools: Arc<FramePools>,
