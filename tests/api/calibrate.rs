@@ -487,3 +487,40 @@ async fn real_photographs_show_model_error_and_a_true_sigma() {
             .contains("model error dominates")
     );
 }
+
+/// The user's slips are named: a 20 mm board typed as 0.02 with `mm` names `square_size` and
+/// the 0.06 mm baseline it calibrates, with metres as the likely unit, and says nothing of
+/// swapped cameras; the same views with left and right swapped calibrate a right camera on the
+/// left (T_x > 0), and the summary says the views look swapped, with no word about units.
+#[tokio::test]
+async fn wrong_units_and_swapped_views_are_named() {
+    let app = spawn_app().await;
+    let slip = r#"{"columns": 7, "rows": 5, "square_size": 0.02, "unit": "mm"}"#;
+    let summary = ok_json(calibrate(&app, "", form(8, false, Some(slip))).await).await;
+    let said = summary["warnings"].to_string();
+    assert!(
+        said.contains("the board's square_size is 0.02 mm, under 1 mm"),
+        "{said}"
+    );
+    assert!(
+        said.contains("the calibrated baseline is 0.06 mm"),
+        "{said}"
+    );
+    assert!(said.contains("meant in m"), "{said}");
+    assert!(!said.contains("swapped"), "{said}");
+
+    let mut swapped = Form::new();
+    for (i, (l, r)) in views().iter().enumerate() {
+        swapped = swapped
+            .part("left", image(r, &format!("right{i}.png")))
+            .part("right", image(l, &format!("left{i}.png")));
+    }
+    let summary = ok_json(calibrate(&app, "", swapped.text("board", BOARD)).await).await;
+    let said = summary["warnings"].to_string();
+    assert!(
+        said.contains("the right camera lies to the left of the left one"),
+        "{said}"
+    );
+    assert!(said.contains("look swapped"), "{said}");
+    assert!(!said.contains("under 1 mm"), "{said}");
+}

@@ -1098,3 +1098,37 @@ async fn the_summary_median_is_numpys() {
         assert!((got - numpy).abs() <= 0.5e-4, "{name}: {got} vs {numpy}");
     }
 }
+
+/// A rig whose baseline is in the wrong unit (0.1 mm for 100 mm) gets its depths all the same,
+/// and the summary's warnings name `baseline` and the likely unit; the right rig's do not.
+#[tokio::test]
+async fn a_rig_in_the_wrong_unit_is_named() {
+    let app = spawn_app().await;
+    let pair = pair();
+    let slip = json!({"focal_length_px": 500, "baseline": 0.1, "unit": "mm"});
+    let body = ok_json(
+        depth_map(
+            &app,
+            "?max_disparity=48",
+            form(&pair, &[("rig", slip.to_string())]),
+        )
+        .await,
+    )
+    .await;
+    let said = body["warnings"].to_string();
+    assert!(said.contains("baseline is 0.1 mm, under 1 mm"), "{said}");
+    assert!(said.contains("meant in m"), "{said}");
+    let right = ok_json(
+        depth_map(
+            &app,
+            "?max_disparity=48",
+            form(&pair, &[("rig", rig().to_string())]),
+        )
+        .await,
+    )
+    .await;
+    assert!(
+        !right["warnings"].to_string().contains("baseline is"),
+        "{right}"
+    );
+}

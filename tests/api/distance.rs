@@ -464,3 +464,38 @@ async fn overflowing_distance_is_refused() {
     .await;
     assert_eq!(fields(&body), vec!["focal_length_px", "baseline"]);
 }
+
+/// A baseline no stereo rig has (0.083 mm: a 25 mm board typed as 0.025 with `mm`) is still
+/// answered, with an `implausible_baseline` warning naming the member and metres as the likely
+/// unit; a 120 mm baseline says nothing of the kind.
+#[tokio::test]
+async fn a_baseline_in_the_wrong_unit_is_named() {
+    let app = spawn_app().await;
+    let at = |baseline: f64| {
+        json!({"focal_length_px": 800, "baseline": baseline, "unit": "mm",
+               "disparity_px": 170, "image_width": 640, "image_height": 480})
+    };
+    let slip = ok_json(app.post("/distance", &at(0.083)).await).await;
+    assert_close(
+        slip["distance"].as_f64().unwrap(),
+        0.083 * 800.0 / 170.0,
+        "distance",
+    );
+    let warning = slip["warnings"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|w| w["code"] == "implausible_baseline")
+        .unwrap_or_else(|| panic!("no implausible_baseline in {slip}"));
+    let message = warning["message"].as_str().unwrap();
+    assert!(
+        message.starts_with("baseline is 0.083 mm, under 1 mm"),
+        "{message}"
+    );
+    assert!(
+        message.contains("meant in m (0.083 m = 83 mm)"),
+        "{message}"
+    );
+    let right = ok_json(app.post("/distance", &at(120.0)).await).await;
+    assert_eq!(right["warnings"], json!([]), "{right}");
+}

@@ -89,20 +89,28 @@ async fn statuses_follow_the_scene() {
     let (mut within, mut ok_sigma, mut hidden_sigma) = (0, Vec::new(), Vec::new());
     for (&(x, y), m) in points.iter().zip(&found) {
         let i = y * W + x;
-        if let Some(d) = m["disparity_px"].as_f64()
-            && let Some(z) = m["distance"].as_f64()
-        {
+        if let Some(d) = m["disparity_px"].as_f64() {
             let s = m["disparity_std_px"]
                 .as_f64()
                 .expect("σ_d beside a disparity");
-            let sz = m["distance_std"].as_f64().expect("σ_Z beside a distance");
-            // σ_d at least the model's floor (answered to 1/1000 px); σ_Z from σ_d as
-            // answered, without σ_f and σ_B.
-            assert!(
-                s >= f64::from(MODEL.floor) - 5e-4
-                    && (sz - z * z * s / 50_000.0).abs() <= 1e-9 * sz,
-                "{m}"
-            );
+            assert!(s >= f64::from(MODEL.floor) - 5e-4, "{m}");
+            match m["distance"].as_f64() {
+                // σ_Z from σ_d as answered, without σ_f and σ_B.
+                Some(z) => {
+                    let sz = m["distance_std"].as_f64().expect("σ_Z beside a distance");
+                    assert!((sz - z * z * s / 50_000.0).abs() <= 1e-9 * sz, "{m}");
+                    assert!(!["occluded", "out_of_range"].contains(&status(m)), "{m}");
+                }
+                // A disparity that is not the point's match is answered without a distance,
+                // and says why.
+                None => {
+                    assert!(["occluded", "out_of_range"].contains(&status(m)), "{m}");
+                    assert!(
+                        m["error"].as_str().unwrap().starts_with("no distance"),
+                        "{m}"
+                    );
+                }
+            }
             if status(m) == "ok" {
                 ok_sigma.push(s);
                 within += usize::from((d - f64::from(pair.truth[i])).abs() <= s);

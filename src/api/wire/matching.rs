@@ -123,7 +123,8 @@ impl From<MatchOutcome> for MatchStatus {
 }
 
 /// The distance members a point's match and a region share, as `/distance` answers them:
-/// each absent without a distance.
+/// each absent without a distance, but for a point's disparity and its σ_d (a point
+/// `out_of_range` or `occluded` keeps both and gets no distance).
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize, ToSchema)]
 pub struct MatchDistance {
     /// The disparity the distance is computed from, in pixels (to 1/1000 px): the point's
@@ -227,7 +228,8 @@ pub struct PointMatch {
     #[serde(skip_serializing_if = "Option::is_none")]
     #[schema(nullable = false)]
     pub warnings: Option<Vec<Warning>>,
-    /// Why a point with a disparity has no distance (it triangulates at infinity).
+    /// Why a point with a disparity has no distance: it triangulates at infinity, or its
+    /// status (`out_of_range`, `occluded`) says the disparity is not the point's match.
     #[serde(skip_serializing_if = "Option::is_none")]
     #[schema(nullable = false)]
     pub error: Option<String>,
@@ -359,6 +361,10 @@ impl PointMatch {
                 answer.warnings = Some(m.warnings);
             }
             Some(Err(e)) => answer.error = Some(e.to_string()),
+            None if p.disparity.is_some() => {
+                answer.measured.disparity_std_px = p.disparity_std;
+                answer.error = p.found.status.withheld().map(str::to_owned);
+            }
             None => {}
         }
         answer

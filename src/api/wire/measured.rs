@@ -27,7 +27,8 @@ impl From<physics::Point3> for Point {
 /// Something worth knowing about a result that was still computed.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
 pub struct Warning {
-    /// Stable code: `negative_disparity`, `large_relative_error` or `no_principal_point`.
+    /// Stable code: `negative_disparity`, `large_relative_error`, `no_principal_point` or
+    /// `implausible_baseline` (a baseline under 1 mm or over 10 m: its unit typed wrong).
     pub code: String,
     /// What it means and what to check.
     pub message: String,

@@ -145,7 +145,7 @@ export function showMatch(m) {
     : '';
   const where = m.frame === 'raw' ? 'raw left image' : m.frame === 'rectified' ? 'rectified left image' : 'left image';
   $('match-summary').textContent = m.x_right !== undefined
-    ? `(${m.x}, ${m.y}) in the ${where} is at x = ${fmt(m.x_right, 7)} px in the ${m.frame === 'plain' || !m.frame ? 'right image' : 'rectified right image'}: ${m.status}, ${meaning}.${raw}`
+    ? `(${m.x}, ${m.y}) in the ${where} is at x = ${fmt(m.x_right, 7)} px in the ${m.frame === 'plain' || !m.frame ? 'right image' : 'rectified right image'}: ${m.status}, ${meaning}.${raw}${m.error ? ` ${m.error}.` : ''}`
     : `(${m.x}, ${m.y}): no match, ${m.status}: ${meaning}.`;
   $('match-left').textContent = `(${m.x}, ${m.y}) px`;
   $('match-x-right').textContent = m.x_right !== undefined ? `${fmt(m.x_right, 7)} px` : '–';
@@ -154,9 +154,11 @@ export function showMatch(m) {
   statusCell.textContent = m.status;
   statusCell.className = m.status === 'ok' ? 'status-ok' : 'status-other';
   $('match-confidence').textContent = fmt(m.confidence, 3);
-  $('match-sigma').textContent = m.disparity_std_px !== undefined
-    ? `${fmt(m.disparity_std_px, 3)} px (distance ± ${fmt(m.distance_std, 3)})`
-    : '–';
+  $('match-sigma').textContent = m.disparity_std_px === undefined
+    ? '–'
+    : m.distance_std === undefined
+      ? `${fmt(m.disparity_std_px, 3)} px (no distance)`
+      : `${fmt(m.disparity_std_px, 3)} px (distance ± ${fmt(m.distance_std, 3)})`;
   values.hidden = false;
 }
 
@@ -248,7 +250,8 @@ export async function matchAt(x, y) {
   pair.match = m;
   showMatch(m);
   drawMarkers();
-  if (m.x_right !== undefined) {
+  if (m.x_right !== undefined && m.distance !== undefined) {
+    // A point the service gives no distance (out_of_range, occluded) is not sent on.
     // /distance takes the rectified pair's coordinates: a raw click's are x_rectified, y_rectified.
     const rectified = m.x_rectified !== undefined;
     $('x_left').value = String(rectified ? m.x_rectified : m.x);

@@ -15,11 +15,13 @@
 use std::fmt;
 
 mod camera;
+mod plausible;
 mod rig;
 
 pub use camera::{
     CameraSpec, DEFAULT_DISPARITY_ERROR_PX, Fault, Focal, MM_ALONE, Member, RectifiedCamera,
 };
+pub use plausible::Implausible;
 pub use rig::{DepthErrorTerms, Rig, RigSpec};
 
 /// Relative depth error above which a measurement carries a [`Warning::LargeRelativeError`].
@@ -180,6 +182,9 @@ pub enum Warning {
     /// The rig has no principal point (neither `cx`, `cy` nor the image size): the depth is
     /// known, the 3D point and the range are not.
     NoPrincipalPoint,
+    /// The baseline is one no stereo rig has (under 1 mm or over 10 m): its unit was likely
+    /// typed wrong, and every distance is off by the same factor.
+    ImplausibleBaseline(Implausible),
 }
 
 impl Warning {
@@ -189,6 +194,7 @@ impl Warning {
             Warning::NegativeDisparity { .. } => "negative_disparity",
             Warning::LargeRelativeError { .. } => "large_relative_error",
             Warning::NoPrincipalPoint => "no_principal_point",
+            Warning::ImplausibleBaseline(_) => "implausible_baseline",
         }
     }
 }
@@ -216,6 +222,7 @@ impl fmt::Display for Warning {
                  also need the principal point: give cx and cy, or image_width and \
                  image_height (the default principal point is the image centre)",
             ),
+            Warning::ImplausibleBaseline(implausible) => implausible.fmt(f),
         }
     }
 }
@@ -308,6 +315,9 @@ pub fn measure(rig: &Rig, c: Correspondence) -> Result<Measurement, PhysicsError
     }
     if point.is_none() {
         warnings.push(Warning::NoPrincipalPoint);
+    }
+    if let Some(implausible) = Implausible::baseline(rig.baseline(), rig.unit()) {
+        warnings.push(Warning::ImplausibleBaseline(implausible));
     }
     Ok(Measurement {
         disparity_px,

@@ -7,7 +7,7 @@ use std::fmt;
 
 use crate::calibration::files::{Raw, Read};
 use crate::camera::{Alpha, RectifyOptions, stereo_rectify};
-use crate::physics::{Fault as RigFault, LengthUnit, Rig};
+use crate::physics::{Fault as RigFault, Implausible, LengthUnit, Rig};
 
 /// A rig with what its calibration file adds: the rig of the images (the rectified rig, for a
 /// file of raw cameras), the file's disparity range and warnings, and the raw cameras.
@@ -23,6 +23,12 @@ pub struct Calibrated {
     pub raw: Option<Box<Raw>>,
     /// The unit of the file's lengths (the rig's own, for a rig given by its members).
     pub file_unit: LengthUnit,
+}
+
+/// The warning for a rig whose baseline no stereo camera has (a unit typed wrong), naming
+/// the unit it was likely meant in ([`Implausible`]).
+fn implausible(rig: &Rig) -> Option<String> {
+    Implausible::baseline(rig.baseline(), rig.unit()).map(|i| i.to_string())
 }
 
 /// Why a calibration is not the calibration of images of a size.
@@ -42,9 +48,9 @@ impl Calibrated {
     pub fn of_rig(rig: Rig) -> Self {
         Self {
             file_unit: rig.unit(),
+            warnings: implausible(&rig).into_iter().collect(),
             rig,
             max_disparity: None,
-            warnings: Vec::new(),
             raw: None,
         }
     }
@@ -56,11 +62,12 @@ impl Calibrated {
         let Read {
             rig,
             max_disparity_px,
-            warnings,
+            mut warnings,
             raw,
             file_unit,
             ..
         } = read;
+        warnings.extend(implausible(&rig));
         let raw_size = raw.as_ref().map(|r| (r.size.width, r.size.height));
         let given = |rig| Calibrated {
             rig,

@@ -224,7 +224,9 @@ pub fn rect(b: [f64; 4], w: usize, h: usize) -> Option<Rect> {
 }
 
 /// A point's match at `(x, y)` (where it was matched): with a disparity (to 1/1000 px, the
-/// value the distance is computed from), its match and its `/distance` measurement.
+/// value the distance is computed from), its match and its `/distance` measurement, which a
+/// status that says the disparity is not the point's match withholds
+/// ([`MatchOutcome::withheld`]).
 fn point_match(rig: &Rig, (x, y): (f64, f64), found: Found) -> PointMatch {
     let mut answer = PointMatch {
         x,
@@ -243,7 +245,9 @@ fn point_match(rig: &Rig, (x, y): (f64, f64), found: Found) -> PointMatch {
         answer.x_right = Some(round_to(x - d, 3));
         let (rig, sigma) = with_sigma(rig, found.disparity_std);
         answer.disparity_std = sigma;
-        answer.measured = Some(physics::measure(&rig, Correspondence::at(x, y, d)));
+        if found.status.withheld().is_none() {
+            answer.measured = Some(physics::measure(&rig, Correspondence::at(x, y, d)));
+        }
     }
     answer
 }

@@ -71,6 +71,26 @@ pub enum MatchOutcome {
     Inconsistent,
 }
 
+impl MatchOutcome {
+    /// Why a point with this status and a disparity gets no distance, when it gets none: its
+    /// disparity is the best cost in the range, not its match (beyond the range, or hidden from
+    /// the right camera), and a distance from it would be confidently wrong.
+    pub fn withheld(self) -> Option<&'static str> {
+        match self {
+            MatchOutcome::OutOfRange => Some(
+                "no distance: the match lies outside the disparity search range, so this \
+                 disparity is only the range's best cost, not the point's match; search a wider \
+                 range (max_disparity, min_disparity)",
+            ),
+            MatchOutcome::Occluded => Some(
+                "no distance: the right camera does not see this point (the left-right check \
+                 failed), so this disparity is not its match",
+            ),
+            _ => None,
+        }
+    }
+}
+
 /// A point's correspondence.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Found {

@@ -8,7 +8,7 @@ use crate::calibration::boards::Target;
 use crate::calibration::boards::report::{self, Coverage, Determination, Rectified};
 use crate::calibration::boards::{Corners, Fit, cross_validation, uncertainty};
 use crate::camera::Rectification;
-use crate::physics::Rig;
+use crate::physics::{Implausible, Rig};
 
 /// A view's residuals (px), left and right.
 pub type Residuals = [Option<Vec<[f64; 2]>>; 2];
@@ -80,6 +80,7 @@ impl Report {
             rectified,
         ));
         warnings.extend(cross_warning);
+        warnings.extend(lengths_warnings(fit, &settings.board, rig.as_ref()));
         if let Some(u) = uncertainty.as_ref() {
             warnings.extend(model_error_warnings(u));
         }
@@ -101,6 +102,33 @@ impl Report {
             warnings,
         }
     }
+}
+
+/// What the lengths say of a user's slips: a board's square or a baseline no camera has (a
+/// unit typed wrong), and a right camera that lies to the left of the left one (T_x > 0 in
+/// OpenCV's X_right = R·X_left + T: the views' left and right swapped).
+fn lengths_warnings(fit: &Fit, board: &Target, rig: Option<&Rig>) -> Vec<String> {
+    let mut warnings = Vec::new();
+    if let Some(i) = Implausible::square_size(board.square_size(), board.unit()) {
+        warnings.push(format!("the board's {i}"));
+    }
+    if let Some(i) = rig.and_then(|r| Implausible::baseline(r.baseline(), r.unit())) {
+        warnings.push(format!("the calibrated {i}"));
+    }
+    if let Some(t) = fit.extrinsics.as_ref().map(|e| e.translation)
+        && t.x > 0.0
+        && t.x.abs() >= t.y.abs()
+    {
+        warnings.push(format!(
+            "the right camera lies to the left of the left one: T_x = +{} {} (OpenCV's \
+             X_right = R·X_left + T, so a right camera on the right has T_x < 0). The views \
+             look swapped: send each pair's left camera's image as `left` and the other as \
+             `right`, or every disparity will come out negative",
+            crate::numbers::short(t.x),
+            board.unit().symbol()
+        ));
+    }
+    warnings
 }
 
 /// A warning for each camera whose projection uncertainty the lens model's error dominates.
