@@ -250,8 +250,11 @@ export async function matchAt(x, y) {
   pair.match = m;
   showMatch(m);
   drawMarkers();
-  if (m.x_right !== undefined && m.distance !== undefined) {
-    // A point the service gives no distance (out_of_range, occluded) is not sent on.
+  // A match the service gives no distance (out_of_range, occluded: its disparity is not the
+  // point's match) is not sent on to /distance; the match panel says why.
+  const withheld = m.x_right !== undefined && m.distance === undefined;
+  if (withheld) return;
+  if (m.x_right !== undefined) {
     // /distance takes the rectified pair's coordinates: a raw click's are x_rectified, y_rectified.
     const rectified = m.x_rectified !== undefined;
     $('x_left').value = String(rectified ? m.x_rectified : m.x);
