@@ -1105,30 +1105,17 @@ async fn the_summary_median_is_numpys() {
 async fn a_rig_in_the_wrong_unit_is_named() {
     let app = spawn_app().await;
     let pair = pair();
-    let slip = json!({"focal_length_px": 500, "baseline": 0.1, "unit": "mm"});
-    let body = ok_json(
-        depth_map(
-            &app,
-            "?max_disparity=48",
-            form(&pair, &[("rig", slip.to_string())]),
-        )
-        .await,
-    )
-    .await;
-    let said = body["warnings"].to_string();
-    assert!(said.contains("baseline is 0.1 mm, under 1 mm"), "{said}");
-    assert!(said.contains("meant in m"), "{said}");
-    let right = ok_json(
-        depth_map(
-            &app,
-            "?max_disparity=48",
-            form(&pair, &[("rig", rig().to_string())]),
-        )
-        .await,
-    )
-    .await;
-    assert!(
-        !right["warnings"].to_string().contains("baseline is"),
-        "{right}"
-    );
+    let said = |rig: Value| {
+        let form = form(&pair, &[("rig", rig.to_string())]);
+        let app = &app;
+        async move {
+            let body = ok_json(depth_map(app, "?max_disparity=48", form).await).await;
+            body["warnings"].to_string()
+        }
+    };
+    let slip = said(json!({"focal_length_px": 500, "baseline": 0.1, "unit": "mm"})).await;
+    assert!(slip.contains("baseline is 0.1 mm, under 1 mm"), "{slip}");
+    assert!(slip.contains("meant in m"), "{slip}");
+    let right = said(rig()).await;
+    assert!(!right.contains("baseline is"), "{right}");
 }

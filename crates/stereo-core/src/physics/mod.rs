@@ -21,7 +21,7 @@ mod rig;
 pub use camera::{
     CameraSpec, DEFAULT_DISPARITY_ERROR_PX, Fault, Focal, MM_ALONE, Member, RectifiedCamera,
 };
-pub use plausible::Implausible;
+pub use plausible::{Implausible, Length};
 pub use rig::{DepthErrorTerms, Rig, RigSpec};
 
 /// Relative depth error above which a measurement carries a [`Warning::LargeRelativeError`].

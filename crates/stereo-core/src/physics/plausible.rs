@@ -16,11 +16,43 @@ pub const MIN_SQUARE_M: f64 = 1e-3;
 /// The largest square a board has, in metres.
 pub const MAX_SQUARE_M: f64 = 1.0;
 
+/// The lengths checked, each with the range of values rigs and boards have.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Length {
+    Baseline,
+    SquareSize,
+}
+
+impl Length {
+    /// The member as the API names it.
+    pub fn name(self) -> &'static str {
+        match self {
+            Length::Baseline => "baseline",
+            Length::SquareSize => "square_size",
+        }
+    }
+
+    /// The plausible values, in metres.
+    fn bounds(self) -> (f64, f64) {
+        match self {
+            Length::Baseline => (MIN_BASELINE_M, MAX_BASELINE_M),
+            Length::SquareSize => (MIN_SQUARE_M, MAX_SQUARE_M),
+        }
+    }
+
+    /// What has no such length, as a message says it.
+    fn none_has(self) -> &'static str {
+        match self {
+            Length::Baseline => "no stereo camera has",
+            Length::SquareSize => "no calibration board has",
+        }
+    }
+}
+
 /// A length no camera rig has, with the unit it was probably meant in.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Implausible {
-    /// The member as the API names it: `baseline`, `square_size`.
-    pub member: &'static str,
+    pub member: Length,
     pub value: f64,
     pub unit: LengthUnit,
     /// Under the plausible range (true) or over it.
@@ -32,20 +64,16 @@ pub struct Implausible {
 impl Implausible {
     /// The baseline `value` in `unit`, when no stereo rig has it.
     pub fn baseline(value: f64, unit: LengthUnit) -> Option<Implausible> {
-        Implausible::of("baseline", value, unit, (MIN_BASELINE_M, MAX_BASELINE_M))
+        Implausible::of(Length::Baseline, value, unit)
     }
 
     /// A board's square `value` in `unit`, when no board has it.
     pub fn square_size(value: f64, unit: LengthUnit) -> Option<Implausible> {
-        Implausible::of("square_size", value, unit, (MIN_SQUARE_M, MAX_SQUARE_M))
+        Implausible::of(Length::SquareSize, value, unit)
     }
 
-    fn of(
-        member: &'static str,
-        value: f64,
-        unit: LengthUnit,
-        (lo, hi): (f64, f64),
-    ) -> Option<Implausible> {
+    fn of(member: Length, value: f64, unit: LengthUnit) -> Option<Implausible> {
+        let (lo, hi) = member.bounds();
         let metres = value.abs() * unit.metres();
         if !metres.is_finite() || metres == 0.0 || (lo..=hi).contains(&metres) {
             return None;
@@ -73,10 +101,8 @@ impl Implausible {
 
 impl fmt::Display for Implausible {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        let (lo, hi, what) = match self.member {
-            "square_size" => (MIN_SQUARE_M, MAX_SQUARE_M, "no calibration board has"),
-            _ => (MIN_BASELINE_M, MAX_BASELINE_M, "no stereo camera has"),
-        };
+        let (lo, hi) = self.member.bounds();
+        let what = self.member.none_has();
         let bound = if self.under {
             format!("under {} mm", Num(lo * 1000.0))
         } else {
@@ -86,7 +112,7 @@ impl fmt::Display for Implausible {
             f,
             "{} is {} {}, {bound}: {what} that, and every distance from it is off by the \
              same factor",
-            self.member,
+            self.member.name(),
             figures(self.value),
             self.unit.symbol()
         )?;
@@ -133,7 +159,7 @@ mod tests {
         assert!(said.contains("meant in m (0.083 m = 83 mm)"), "{said}");
         let s = Implausible::square_size(0.025, LengthUnit::Millimetre).unwrap();
         assert_eq!(
-            (s.member, s.likely),
+            (s.member.name(), s.likely),
             ("square_size", Some(LengthUnit::Metre))
         );
     }
