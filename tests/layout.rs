@@ -19,6 +19,7 @@ const MAX_LINES: usize = 600;
 /// before it.
 const CORE_LAYERS: &[&str] = &[
     "numbers",
+    "grid",
     "noise",
     "physics",
     "camera",

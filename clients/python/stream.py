@@ -25,7 +25,7 @@ def frames():
 
 with connect(url, max_size=None) as ws:
     ws.send(json.dumps({"calibration": calibration, "calibration_unit": "mm",
-                        "options": {"max_disparity": 128}, "outputs": ["depth.npy"]}))
+                        "outputs": ["depth.npy"]}))
     settings = json.loads(ws.recv())
     if settings["type"] == "error":
         sys.exit(settings["problem"]["detail"])

@@ -84,8 +84,9 @@ def pairs(data):
 
 def ours(url, left, right, ndisp, query=""):
     """One /depth-map request's NPZ: `disparity`, `disparity_std` and, with `&fill=true` in
-    `query`, `filled`."""
-    answer = service.post_once(url, f"/depth-map?max_disparity={ndisp}&output=arrays.npz{query}", {
+    `query`, `filled`. `ndisp` None sends no range: the service finds it from the pair."""
+    given = "" if ndisp is None else f"max_disparity={ndisp}&"
+    answer = service.post_once(url, f"/depth-map?{given}output=arrays.npz{query}", {
         "left": (cv2.imencode(".png", left)[1].tobytes(), "left.png", "image/png"),
         "right": (cv2.imencode(".png", right)[1].tobytes(), "right.png", "image/png")})
     return np.load(io.BytesIO(answer))

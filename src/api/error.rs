@@ -534,6 +534,17 @@ impl IntoResponse for ApiError {
     }
 }
 
+impl From<stereo_core::pipeline::Stopped> for ApiError {
+    /// A cancel is the server's (the deadline's); a range the scene needs past what one search
+    /// covers is a 422 naming `max_disparity`, with what to send instead.
+    fn from(stopped: stereo_core::pipeline::Stopped) -> Self {
+        match stopped.advice() {
+            Some(advice) => ApiError::Invalid(vec![FieldError::new("max_disparity", advice)]),
+            None => ApiError::Internal("cancelled".to_owned()),
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

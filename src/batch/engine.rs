@@ -120,7 +120,7 @@ impl Engine {
         let need = raw::match_need(
             resolved.calibrated.as_ref().and_then(|c| c.raw.as_deref()),
             l,
-            resolved.params.count(),
+            resolved.params.most_searched(),
             |w, h, n| depth_map::bytes_needed(w, h, n, self.output),
         );
         if (need.need)(need.count) > self.memory_budget {
@@ -152,8 +152,12 @@ impl Engine {
             colour,
             depth_std: self.output.wants_depth_std(),
         };
-        let map = pipeline::depth_map(left, right, request, &AtomicBool::new(false))
-            .map_err(|_| vec![FieldError::new("left", "was not matched: cancelled")])?;
+        let map = pipeline::depth_map(left, right, request, &AtomicBool::new(false)).map_err(
+            |stopped| match stopped.advice() {
+                Some(advice) => vec![FieldError::new("max_disparity", advice)],
+                None => vec![FieldError::new("left", "was not matched: cancelled")],
+            },
+        )?;
         let bytes = match self.output.product() {
             Some(product) => product
                 .encode(&map)

@@ -1119,3 +1119,90 @@ async fn a_rig_in_the_wrong_unit_is_named() {
     let right = said(rig()).await;
     assert!(!right.contains("baseline is"), "{right}");
 }
+
+/// The synthetic scene five times nearer, 640 × 360: disparities 30–150 px, past the old
+/// default of 128.
+fn near_pair() -> (Pair, Form, Form, Form) {
+    let mut scene = synthetic::layered(640, 360);
+    for plane in &mut scene.planes {
+        plane.disparity = plane.disparity.map(|v| 5.0 * v);
+    }
+    let near = synthetic::render(&scene);
+    let form = |a: &[u8], b: &[u8]| {
+        Form::new()
+            .part("left", image_part(png(a, 640, 360)))
+            .part("right", image_part(png(b, 640, 360)))
+            .text("rig", rig().to_string())
+    };
+    let sent = form(&near.left_rgb, &near.right_rgb);
+    let again = form(&near.left_rgb, &near.right_rgb);
+    let swapped = form(&near.right_rgb, &near.left_rgb);
+    (near, sent, again, swapped)
+}
+
+/// With no range given, a scene nearer than 128 disparities reach is searched over the range
+/// found from the pair (covering its 150 px, and said so), and its disc at 130–150 px is
+/// answered right; a given max_disparity of 80 that stops short is named, with the nearest
+/// distance it reaches, and the disc refused rather than answered; the pair sent swapped is
+/// named, and the right way round is not.
+#[tokio::test]
+async fn the_range_is_found_a_short_one_refused_and_swapped_cameras_named() {
+    let app = spawn_app().await;
+    let (near, sent, again, swapped) = near_pair();
+    let found = ok_json(depth_map(&app, "", sent).await).await;
+    assert_eq!(found["disparity_range"]["chosen"], "found", "{found}");
+    let max = found["max_disparity"].as_i64().unwrap();
+    assert!((151..=224).contains(&max), "{found}");
+    assert!(
+        !found["warnings"].to_string().contains("swapped"),
+        "{found}"
+    );
+    let disc = |map: &[f32]| {
+        let (cx, cy) = (448, 180);
+        let values: Vec<(f32, f32)> = (cy - 30..cy + 30)
+            .flat_map(|y| (cx - 30..cx + 30).map(move |x| y * 640 + x))
+            .filter(|&i| !map[i].is_nan())
+            .map(|i| (map[i], near.truth[i]))
+            .collect();
+        let right = values.iter().filter(|(d, t)| (d - t).abs() <= 1.0).count();
+        (values.len(), right)
+    };
+    let response = depth_map(&app, "?output=disparity.npy", {
+        let (_, f, _, _) = near_pair();
+        f
+    })
+    .await;
+    assert_eq!(response.status(), 200);
+    let bytes = response.bytes().await.unwrap();
+    let len = u16::from_le_bytes([bytes[8], bytes[9]]) as usize;
+    let map = floats(&bytes[10 + len..]);
+    let (answered, right) = disc(&map);
+    assert!(
+        answered > 3000 && right as f64 >= 0.9 * answered as f64,
+        "{right} of {answered}"
+    );
+    let short = ok_json(depth_map(&app, "?max_disparity=80", again).await).await;
+    let said = short["warnings"].to_string();
+    assert!(said.contains("max_disparity 80 stops short"), "{said}");
+    assert!(said.contains("Z_min = f·B / d_max = 625 mm"), "{said}");
+    assert_eq!(short["disparity_range"]["chosen"], "given");
+    let response = depth_map(&app, "?max_disparity=80&output=disparity.npy", {
+        let (_, f, _, _) = near_pair();
+        f
+    })
+    .await;
+    let bytes = response.bytes().await.unwrap();
+    let map = floats(&bytes[10 + len..]);
+    let (answered, _) = disc(&map);
+    assert!(
+        answered < 100,
+        "{answered} disc pixels answered past the range"
+    );
+    let swapped = ok_json(depth_map(&app, "", swapped).await).await;
+    assert!(
+        swapped["warnings"]
+            .to_string()
+            .contains("left and right look swapped"),
+        "{swapped}"
+    );
+}

@@ -6,6 +6,7 @@
 //! Layout, each layer using only those above it (the service's `tests/layout.rs` holds the code
 //! to it):
 //! - [`numbers`]: every number written as text (messages, CSV), short and exact.
+//! - [`grid`]: a pixel's neighbours on a row-major grid, for flood fills.
 //! - [`noise`]: seeded random numbers and noise textures, for the renders with exact truth.
 //! - [`physics`]: the triangulation model: the camera and the rectified rig, each built only
 //!   through its checking constructor (`Rig::new`), focal conversions,
@@ -40,6 +41,7 @@
 
 pub mod calibration;
 pub mod camera;
+pub mod grid;
 pub mod noise;
 pub mod numbers;
 pub mod physics;

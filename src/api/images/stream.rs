@@ -32,7 +32,7 @@ use stereo_core::calibration::files::Raw;
 use stereo_core::pipeline::{self, Calibrated, Maps, Matched, Request};
 use stereo_core::vision::decode::{self, DecodeLimits, Decoded};
 use stereo_core::vision::temporal::{self, Temporal};
-use stereo_core::vision::{Cancelled, Params, Preset};
+use stereo_core::vision::{Params, Preset};
 
 /// The streams' limits and what they share.
 #[derive(Debug, Clone)]
@@ -140,7 +140,7 @@ impl Resolved {
             kind: "settings",
             layout: settings.layout.name(),
             min_disparity: params.min_disparity(),
-            max_disparity: params.max_disparity(),
+            max_disparity: (!params.range_found()).then(|| params.max_disparity()),
             parameters: MatcherParameters::of(&params, None),
             outputs: outputs.iter().map(|o| o.name()).collect(),
             rig: calibrated.as_ref().map(|c| CalibratedRig::from(&c.rig)),
@@ -317,8 +317,8 @@ impl Engine {
             colour,
             depth_std: resolved.depth_std,
         };
-        let mut matched = pipeline::matched(left, right, request, cancel)
-            .map_err(|Cancelled| ApiError::Internal("cancelled".to_owned()))?;
+        let mut matched =
+            pipeline::matched(left, right, request, cancel).map_err(ApiError::from)?;
         turn.steady(&mut matched, cancel);
         let map = matched.depth_map(request);
         let started = Instant::now();
@@ -444,7 +444,7 @@ impl Engine {
     /// halves cut out besides).
     fn reserve(&self, at: &AtSize, size: (u32, u32)) -> Result<Reservation, ApiError> {
         let outputs = &self.resolved.outputs;
-        let count = self.resolved.params.count();
+        let count = self.resolved.params.most_searched();
         let need = raw::match_need(at.raw.as_deref(), size, count, |w, h, n| {
             limits::depth_map_bytes(w, h, n, outputs)
         });

@@ -234,8 +234,9 @@ request! {
         min_disparity: i32,
         /// The search stops before this disparity: `min_disparity ≤ d < max_disparity`, at
         /// most 512 disparities. Default: the calibration file's `ndisp` when one is given,
-        /// else 128.
-        #[schema(minimum = -4095, maximum = 4608, example = 64, default = 128)]
+        /// else found from the pair (its coarse view's nearest matches with a margin; the
+        /// answer's `disparity_range` says what was searched and why).
+        #[schema(minimum = -4095, maximum = 4608, example = 64)]
         max_disparity: i32,
         /// What to answer (default `summary`); also chosen by `Accept` for
         /// `application/json`, `image/x-portable-floatmap` and `application/x-ply`.
@@ -364,6 +365,39 @@ impl From<pipeline::Spread> for Spread {
     }
 }
 
+/// How a depth map's or a match's disparity range was chosen.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum RangeChosen {
+    /// `max_disparity` (or the calibration file's `ndisp`).
+    Given,
+    /// Found from the pair: its coarse view's nearest matches, with a margin.
+    Found,
+    /// The default 0 .. 128: too little of the pair matched to find it.
+    Default,
+}
+
+/// The range searched and why.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct RangeAnswer {
+    pub chosen: RangeChosen,
+    /// Why, in a sentence.
+    pub why: String,
+}
+
+impl From<&pipeline::RangeUsed> for RangeAnswer {
+    fn from(used: &pipeline::RangeUsed) -> Self {
+        RangeAnswer {
+            chosen: match used.chosen {
+                pipeline::Chosen::Given => RangeChosen::Given,
+                pipeline::Chosen::Found { .. } => RangeChosen::Found,
+                pipeline::Chosen::Default => RangeChosen::Default,
+            },
+            why: used.why(),
+        }
+    }
+}
+
 impl DepthMapSummary {
     /// The summary of a depth map matched with `params` from a pair that took `decode` to
     /// read, with the rig it used echoed.
@@ -380,8 +414,9 @@ impl DepthMapSummary {
         DepthMapSummary {
             width: d.width,
             height: d.height,
-            min_disparity: params.min_disparity(),
-            max_disparity: params.max_disparity(),
+            min_disparity: map.range.min,
+            max_disparity: map.range.max,
+            disparity_range: RangeAnswer::from(&map.range),
             valid_fraction: (map.valid_fraction * 1e4).round() / 1e4,
             disparity_px: spreads.disparity.map(Spread::from),
             distance: spreads.depth.map(Spread::from),
@@ -450,7 +485,7 @@ pub struct MatcherParameters {
 /// The depth map in numbers.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
 #[schema(example = json!({
-    "width": 741, "height": 500, "min_disparity": 0, "max_disparity": 64, "rectified": false,
+    "width": 741, "height": 500, "min_disparity": 0, "max_disparity": 64, "disparity_range": {"chosen": "given", "why": "given: max_disparity (or the calibration file's ndisp)"}, "rectified": false,
     "valid_fraction": 0.859,
     "disparity_px": {"min": 3.21, "median": 28.4, "max": 61.9},
     "distance": {"min": 1196.1, "median": 3215.0, "max": 14987.2},
@@ -473,6 +508,8 @@ pub struct DepthMapSummary {
     pub min_disparity: i32,
     /// The search stopped before this disparity.
     pub max_disparity: i32,
+    /// How the disparity range was chosen: given, found from the pair, or the default.
+    pub disparity_range: RangeAnswer,
     /// The share of pixels with a disparity, in [0, 1].
     pub valid_fraction: f64,
     /// The valid disparities, in pixels; absent when none is valid.

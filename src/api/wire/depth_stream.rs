@@ -286,7 +286,9 @@ pub struct SettingsAnswer {
     pub kind: &'static str,
     pub layout: &'static str,
     pub min_disparity: i32,
-    pub max_disparity: i32,
+    /// The end of the search; null when none was given: each frame's range is then found from
+    /// it (the frame's summary says which).
+    pub max_disparity: Option<i32>,
     pub parameters: MatcherParameters,
     /// The files each frame's answer is followed by, in this order, one binary message each.
     pub outputs: Vec<&'static str>,

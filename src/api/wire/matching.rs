@@ -22,7 +22,8 @@ request! {
         min_disparity: i32,
         /// The search stops before this disparity: `min_disparity ≤ d < max_disparity`, at
         /// most 512 disparities. Default: the calibration file's `ndisp` when one is given,
-        /// else 128.
+        /// else found from the pair (its coarse view's nearest matches with a margin; the
+        /// answer's `disparity_range` says what was searched and why).
         #[schema(minimum = -4095, maximum = 4608, example = 64)]
         max_disparity: i32,
         /// Rectify the pair first: `auto` (the default) when the calibration describes raw
@@ -275,7 +276,7 @@ pub struct RegionMatch {
 /// The answer of `/match`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
 #[schema(example = json!({
-    "width": 741, "height": 500, "min_disparity": 0, "max_disparity": 64, "unit": "mm", "rectified": false,
+    "width": 741, "height": 500, "min_disparity": 0, "max_disparity": 64, "disparity_range": {"chosen": "given", "why": "given: max_disparity (or the calibration file's ndisp)"}, "unit": "mm", "rectified": false,
     "ok": 1,
     "matches": [{"x": 420, "y": 260, "status": "ok", "confidence": 0.81, "x_right": 391.642,
                  "disparity_px": 28.358, "distance": 3221.3, "range": 3282.9,
@@ -298,6 +299,8 @@ pub struct MatchResponse {
     pub min_disparity: i32,
     /// The search stopped before this disparity.
     pub max_disparity: i32,
+    /// How the disparity range was chosen: given, found from the pair, or the default.
+    pub disparity_range: super::depth_map::RangeAnswer,
     /// The unit of every length in the answer: the rig's.
     pub unit: Unit,
     /// How many points are `ok`.
@@ -398,11 +401,10 @@ impl RegionMatch {
 }
 
 impl MatchResponse {
-    /// The answer of the engine's matches, made with `params` and `rig`, from a pair that took
+    /// The answer of the engine's matches, made with `rig`, from a pair that took
     /// `decode` to read.
     pub fn of(
         found: &matches::Matches,
-        params: &stereo_core::vision::Params,
         rig: &stereo_core::physics::Rig,
         decode: std::time::Duration,
     ) -> MatchResponse {
@@ -413,8 +415,9 @@ impl MatchResponse {
         MatchResponse {
             width: found.width,
             height: found.height,
-            min_disparity: params.min_disparity(),
-            max_disparity: params.max_disparity(),
+            min_disparity: found.range.min,
+            max_disparity: found.range.max,
+            disparity_range: super::depth_map::RangeAnswer::from(&found.range),
             unit: rig.unit,
             ok: points
                 .iter()

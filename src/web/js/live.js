@@ -280,7 +280,7 @@ function received(event) {
   const message = JSON.parse(event.data);
   if (message.type === 'settings') {
     showErrors([]);
-    status(`Streaming: ${message.max_disparity - message.min_disparity} disparities, ${message.temporal ? 'temporal filter on' : 'no temporal filter'}${message.rig ? `, B = ${fmt(message.rig.baseline, 4)} ${message.rig.unit}` : ''}.`);
+    status(`Streaming: ${message.max_disparity === null ? 'the range found from each frame' : `${message.max_disparity - message.min_disparity} disparities`}, ${message.temporal ? 'temporal filter on' : 'no temporal filter'}${message.rig ? `, B = ${fmt(message.rig.baseline, 4)} ${message.rig.unit}` : ''}.`);
     (message.warnings || []).forEach((w) => status(`${$('live-status').textContent} ${w}`));
     pump();
   } else if (message.type === 'frame') {

@@ -7,12 +7,13 @@ use std::sync::atomic::AtomicBool;
 use std::time::{Duration, Instant};
 
 use super::calibrated::Calibrated;
+use super::range::{self, RangeUsed, Stopped};
 use super::rectify::Maps;
 use crate::physics::{LengthUnit, Rig};
 use crate::vision::decode::Decoded;
 use crate::vision::rows::{self, RowOffsets};
 use crate::vision::temporal::{Counts, Temporal};
-use crate::vision::{self, Cancelled, Disparity, Params, Timings, encode};
+use crate::vision::{self, Disparity, Params, Timings, encode};
 
 /// Below this share of matched pixels, a pair sent as rectified may well be raw.
 pub const UNRECTIFIED_SHARE: f64 = 0.2;
@@ -61,6 +62,8 @@ pub struct DepthMap {
     pub depths: Duration,
     /// What a stream's temporal filter did to the disparities, and how long it took.
     pub temporal: Option<(Counts, Duration)>,
+    /// The range matched over, and why.
+    pub range: RangeUsed,
 }
 
 impl DepthMap {
@@ -80,13 +83,15 @@ impl DepthMap {
 }
 
 /// A depth map of the decoded pair: rectified first through `request.maps`, matched with
-/// `request.params`, and given depths with the rig. `Err` when `cancel` was set.
+/// `request.params` over the range they give or the one found from the pair
+/// ([`range::choose`]), and given depths with the rig. `Err` when `cancel` was set, or no
+/// range was given and the scene needs more than one search covers.
 pub fn depth_map(
     left: Decoded,
     right: Decoded,
     request: Request<'_>,
     cancel: &AtomicBool,
-) -> Result<DepthMap, Cancelled> {
+) -> Result<DepthMap, Stopped> {
     matched(left, right, request, cancel).map(|m| m.depth_map(request))
 }
 
@@ -102,32 +107,47 @@ pub struct Matched {
     timings: Timings,
     rectify: Option<Duration>,
     temporal: Option<(Counts, Duration)>,
+    range: RangeUsed,
 }
 
 /// The first half of [`depth_map`]: the pair rectified through `request.maps` when there are
 /// some, matched, and what a user should hear about it (a pair sent as rectified that looks
-/// raw, what the decoder forgave). `Err` when `cancel` was set.
+/// raw, what the decoder forgave, a range that stops short, cameras that look swapped). `Err`
+/// as [`depth_map`]'s.
 pub fn matched(
     mut left: Decoded,
     mut right: Decoded,
     request: Request<'_>,
     cancel: &AtomicBool,
-) -> Result<Matched, Cancelled> {
+) -> Result<Matched, Stopped> {
     let rectify = request
         .maps
         .map(|maps| maps.rectify_pair(&mut left, &mut right, request.colour));
-    let (map, timings) = vision::disparity(&left.grey, &right.grey, request.params, cancel)?;
+    let started = Instant::now();
+    let ranged = range::choose(&left.grey, &right.grey, request.params, cancel)?;
+    let surveyed = started.elapsed();
+    let params = &ranged.params;
+    let (mut map, mut timings) = vision::disparity(&left.grey, &right.grey, params, cancel)?;
+    timings.cost += surveyed;
+    let started = Instant::now();
+    let judged = ranged.judge(&mut map, request.calibrated.map(|c| c.rig));
+    timings.refine += started.elapsed();
     // A pair sent as rectified: do its matched corners lie on their rows?
     let rows = rectify
         .is_none()
-        .then(|| row_check(&left, &right, request.params))
+        .then(|| row_check(&left, &right, params))
         .flatten();
     let mut warnings = request
         .calibrated
         .map_or_else(Vec::new, |c| c.warnings.clone());
     warnings.extend(decode_notes(&left, &right));
+    let swapped = judged
+        .iter()
+        .any(|s| s.starts_with("left and right look swapped"));
+    warnings.extend(judged);
     drop(right);
     if rectify.is_none()
+        && !swapped
         && let Some(warning) = unrectified_warning(Some(valid_share(&map)), rows)
     {
         warnings.push(warning);
@@ -139,6 +159,7 @@ pub fn matched(
         timings,
         rectify,
         temporal: None,
+        range: ranged.used,
     })
 }
 
@@ -180,6 +201,7 @@ impl Matched {
             rectify: self.rectify,
             depths: started.elapsed(),
             temporal: self.temporal,
+            range: self.range,
         }
     }
 }

@@ -8,6 +8,7 @@ use std::time::Duration;
 
 use super::calibrated::Calibrated;
 use super::depth::{decode_notes, row_check, unrectified_warning};
+use super::range::{self, RangeUsed, Stopped};
 use super::rectify::Maps;
 use crate::calibration::files::Raw;
 use crate::numbers::round_to;
@@ -15,7 +16,7 @@ use crate::physics::{self, Correspondence, Measurement, PhysicsError, Rig};
 use crate::vision::correspond::{self, Correspondences};
 pub use crate::vision::correspond::{Found, MatchOutcome, Rect};
 use crate::vision::decode::Decoded;
-use crate::vision::{Cancelled, Disparity, Params, Timings};
+use crate::vision::{Disparity, Params, Timings};
 
 /// How points and regions are matched: the matcher's settings, the rig, and for a raw pair
 /// its raw cameras and their maps.
@@ -83,6 +84,8 @@ pub struct Matches {
     pub rectify: Option<Duration>,
     /// What is wrong or was forgiven, in sentences.
     pub warnings: Vec<String>,
+    /// The range matched over, and why.
+    pub range: RangeUsed,
 }
 
 /// The matches of `points` and `regions` (`[x, y, width, height]`) in the decoded pair.
@@ -93,7 +96,7 @@ pub fn matches(
     regions: &[[f64; 4]],
     request: Request<'_>,
     cancel: &AtomicBool,
-) -> Result<Matches, Cancelled> {
+) -> Result<Matches, Stopped> {
     let raw = request.maps.and(request.calibrated.raw.as_deref());
     let rectify = request
         .maps
@@ -123,13 +126,28 @@ pub fn matches(
         })
         .collect();
     let wanted: Vec<Rect> = boxes.iter().flatten().copied().collect();
-    let params = request.params;
+    let started = std::time::Instant::now();
+    let ranged = range::choose(&left.grey, &right.grey, request.params, cancel)?;
+    let surveyed = started.elapsed();
+    let params = &ranged.params;
     let Correspondences {
-        map,
-        found,
-        timings,
+        mut map,
+        mut found,
+        mut timings,
         rows_matched,
     } = correspond::correspond(&left.grey, &right.grey, params, &rectified, &wanted, cancel)?;
+    timings.cost += surveyed;
+    // A point the coarse view puts past the range's end is out of range, whatever its best
+    // cost inside it.
+    for (f, &(x, y)) in found.iter_mut().zip(&rectified) {
+        if let Some(pixel) = correspond::pixel(x, y, w, h)
+            && f.disparity.is_some()
+            && ranged.past(pixel)
+        {
+            f.status = MatchOutcome::OutOfRange;
+        }
+    }
+    let judged = ranged.judge(&mut map, Some(request.calibrated.rig));
     let rig = &request.calibrated.rig;
     let points = points
         .iter()
@@ -154,7 +172,13 @@ pub fn matches(
     let rows = raw.is_none().then(|| row_check(&left, &right, params));
     let mut warnings = request.calibrated.warnings.clone();
     warnings.extend(decode_notes(&left, &right));
-    warnings.extend(rows.and_then(|r| unrectified_warning(None, r)));
+    let swapped = judged
+        .iter()
+        .any(|s| s.starts_with("left and right look swapped"));
+    warnings.extend(judged);
+    if !swapped {
+        warnings.extend(rows.and_then(|r| unrectified_warning(None, r)));
+    }
     Ok(Matches {
         width: w,
         height: h,
@@ -164,6 +188,7 @@ pub fn matches(
         timings,
         rectify,
         warnings,
+        range: ranged.used,
     })
 }
 

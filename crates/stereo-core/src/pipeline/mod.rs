@@ -38,11 +38,13 @@ pub mod calibrate;
 pub mod calibrated;
 pub mod depth;
 pub mod matches;
+pub mod range;
 pub mod rectify;
 pub mod spread;
 
 pub use crate::vision::sgm::Paths;
 pub use calibrated::{Calibrated, PlanFault, RectifyMode, Sent, SizeFault, plan, raw_rig};
 pub use depth::{DepthMap, Matched, Product, Request, depth_map, matched};
+pub use range::{Chosen, RangeUsed, Stopped};
 pub use rectify::Maps;
 pub use spread::{Spread, Spreads, spread};

@@ -158,6 +158,10 @@ pub struct Params {
     pub(super) plane: bool,
     pub(super) paths: sgm::Paths,
     pub(super) preset: Preset,
+    /// Whether the caller gave no end of range, so that it is found from the pair
+    /// ([`super::survey`]); `min_disparity .. max_disparity` is then the default, until
+    /// [`Params::with_range`] sets the one found.
+    pub(super) found: bool,
 }
 
 impl Default for Params {
@@ -183,6 +187,7 @@ impl Default for Params {
             plane: true,
             paths: sgm::Paths::Auto,
             preset: Preset::Accurate,
+            found: true,
         }
     }
 }
@@ -347,6 +352,7 @@ impl Params {
                 plane: d.plane,
                 paths,
                 preset,
+                found: s.max_disparity.is_none(),
             }),
             _ => Err(faults.0),
         }
@@ -359,6 +365,35 @@ impl Params {
             max_disparity: Some(max_disparity),
             ..Settings::default()
         })
+    }
+
+    /// These parameters searching `min_disparity .. max_disparity` (a range found from the
+    /// pair: within the bounds of [`Params::new`], at most [`MAX_DISPARITIES`]).
+    pub fn with_range(&self, min_disparity: i32, max_disparity: i32) -> Params {
+        let count =
+            (i64::from(max_disparity) - i64::from(min_disparity)).clamp(1, MAX_DISPARITIES as i64);
+        Params {
+            min_disparity,
+            count: count as usize,
+            found: false,
+            ..*self
+        }
+    }
+
+    /// Whether the range is to be found from the pair: the caller gave no `max_disparity`.
+    pub fn range_found(&self) -> bool {
+        self.found
+    }
+
+    /// The most disparities these parameters may search, what a request is charged for: the
+    /// range's own, or for a range to be found, [`MAX_DISPARITIES`] (the matcher's peak
+    /// memory stops growing past [`super::pyramid::NARROW`], so this costs little more).
+    pub fn most_searched(&self) -> usize {
+        if self.found {
+            MAX_DISPARITIES
+        } else {
+            self.count
+        }
     }
 
     /// The smallest disparity searched, in pixels.

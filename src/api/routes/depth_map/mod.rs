@@ -27,7 +27,7 @@ use crate::api::respond::Json;
 use crate::api::wire::rig::CalibratedRig;
 use stereo_core::calibration::files::Raw;
 use stereo_core::pipeline::{self, Product, Request};
-use stereo_core::vision::{Cancelled, Params};
+use stereo_core::vision::Params;
 
 /// `POST /depth-map`.
 pub fn router() -> OpenApiRouter<HeavyState> {
@@ -120,7 +120,7 @@ pub async fn post_depth_map(
     let need = raw::match_need(
         raw.as_deref(),
         (raw_w, raw_h),
-        params.count(),
+        params.most_searched(),
         move |w, h, n| bytes_needed(w, h, n, output),
     );
     let cache = state.maps.clone();
@@ -162,8 +162,7 @@ fn compute(
         colour,
         depth_std: output.wants_depth_std(),
     };
-    let map = pipeline::depth_map(left, right, request, cancel)
-        .map_err(|Cancelled| ApiError::Internal("cancelled".to_owned()))?;
+    let map = pipeline::depth_map(left, right, request, cancel).map_err(ApiError::from)?;
     let started = Instant::now();
     let mut response = match output.product() {
         Some(product) => {

@@ -29,7 +29,7 @@ use crate::api::respond::Json;
 use crate::api::wire::openapi::ImageErrors;
 use stereo_core::calibration::files::Raw;
 use stereo_core::pipeline::matches;
-use stereo_core::vision::{self, Cancelled, Params, Settings};
+use stereo_core::vision::{self, Params, Settings};
 
 /// `POST /match`.
 pub fn router() -> OpenApiRouter<HeavyState> {
@@ -130,7 +130,7 @@ pub async fn post_match(
     let need = raw::match_need(
         raw.as_deref(),
         (width, height),
-        params.count(),
+        params.most_searched(),
         bytes_needed,
     );
     let points = points.unwrap_or_default();
@@ -311,8 +311,8 @@ fn compute(
         maps: maps.as_deref(),
     };
     let found = matches::matches(left, right, points, regions, request, job.cancel)
-        .map_err(|Cancelled| ApiError::Internal("cancelled".to_owned()))?;
-    let answer = MatchResponse::of(&found, params, &given.rig, decode);
+        .map_err(ApiError::from)?;
+    let answer = MatchResponse::of(&found, &given.rig, decode);
     let mut response = Json(&answer).into_response();
     output::set_warnings(&mut response, &answer.warnings);
     let (timings, rectify) = (found.timings, found.rectify);

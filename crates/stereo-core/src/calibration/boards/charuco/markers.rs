@@ -153,23 +153,11 @@ fn quads(dark: &[bool], w: usize, h: usize) -> Vec<[[f64; 2]; 4]> {
             let e = &mut rows[r];
             e.0 = e.0.min(x);
             e.1 = e.1.max(x);
-            let mut visit = |j: usize| {
+            for j in crate::grid::four_neighbours(i, w, h) {
                 if dark[j] && label[j] == u32::MAX {
                     label[j] = next;
                     stack.push(j);
                 }
-            };
-            if x > 0 {
-                visit(i - 1);
-            }
-            if x + 1 < w {
-                visit(i + 1);
-            }
-            if y > 0 {
-                visit(i - w);
-            }
-            if y + 1 < h {
-                visit(i + w);
             }
         }
         next += 1;

@@ -1,0 +1,389 @@
+//! The range a pair needs, found before it is matched: the pair is matched on a coarse level
+//! (a quarter or an eighth of its size) over a wide range of both signs, and what that level
+//! matched says how far the scene's disparities reach ([`Survey::needs`]), whether the cameras
+//! look swapped (most matches at negative disparities, [`Survey::swapped`]), and which pixels
+//! lie beyond a range that stops short ([`refuse`]).
+//!
+//! The coarse level costs a few per cent of the full match: at a quarter of the size a pixel
+//! stands for 16, and the matcher's own pyramid keeps its cells per pixel bounded whatever the
+//! range.
+
+use std::sync::atomic::AtomicBool;
+
+use super::{Cancelled, Disparity, Gray, Params, Settings, pyramid};
+
+/// The most disparities a found range holds, whatever the image: [`super::MAX_DISPARITIES`].
+pub const CEILING: usize = super::MAX_DISPARITIES;
+/// How many times more of the pair must match the other way round for it to look swapped.
+pub const SWAPPED_GAIN: f64 = 1.5;
+/// The coarse level is at least this many pixels wide (when the image is).
+const COARSE_WIDTH: usize = 160;
+/// … and this many rows tall.
+const COARSE_HEIGHT: usize = 90;
+/// The most times the pair is halved for the survey.
+const MAX_LEVELS: usize = 3;
+/// The share of the coarse pixels that must match for the survey to speak (of the range, of
+/// pixels past a range, of swapped cameras): a pair that matches less is not a rectified pair
+/// of one scene (raw frames, a wrong image), and what its few matches say is noise.
+pub const MIN_MATCHED: f64 = 0.2;
+/// The quantile of the matched disparities taken as the scene's nearest: the few pixels past
+/// it are either mismatches or refused by the range's end ([`refuse`]).
+pub const NEAR_QUANTILE: f64 = 0.995;
+/// Of the matches at least a coarse pixel from zero, the share at negative disparities past
+/// which the cameras look swapped.
+pub const SWAPPED_SHARE: f64 = 0.6;
+
+/// What the coarse level matched, in full-size pixels.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Survey {
+    /// How many times the pair was halved: a coarse pixel is `2^levels` full-size pixels.
+    pub levels: usize,
+    /// The disparities searched, `(min, max)` exclusive, in full-size pixels.
+    pub searched: (i32, i32),
+    /// The share of the coarse pixels that matched.
+    pub matched: f64,
+    /// The share that matched the other way round (right as left), when that was tried.
+    pub reversed: Option<f64>,
+    /// The [`NEAR_QUANTILE`] of the positive matches, and their greatest.
+    pub near: f32,
+    pub greatest: f32,
+    /// The share, of the matches a coarse pixel or more from zero, at negative disparities,
+    /// and their median (full-size px; 0 when none).
+    pub negative: f64,
+    pub negative_median: f32,
+    /// The coarse map (disparities in coarse pixels).
+    map: Disparity,
+}
+
+/// The coarse level of a `width × height` pair: halved while it stays at least
+/// [`COARSE_WIDTH`] × [`COARSE_HEIGHT`], at most [`MAX_LEVELS`] times.
+pub fn levels(width: usize, height: usize) -> usize {
+    let mut n = 0;
+    while n < MAX_LEVELS && width >> (n + 1) >= COARSE_WIDTH && height >> (n + 1) >= COARSE_HEIGHT {
+        n += 1;
+    }
+    n
+}
+
+/// The widest range the survey searches either way, in full-size pixels: half the image's
+/// width (a match further off leaves less than half the image seen by both cameras), at most
+/// [`CEILING`], a multiple of 16.
+pub fn reach(width: usize) -> usize {
+    (width / 2)
+        .div_ceil(16)
+        .saturating_mul(16)
+        .clamp(16, CEILING)
+}
+
+/// The pair matched on its coarse level over `−reach/4 .. reach` ([`reach`]: a quarter of the
+/// negative side, for pairs whose disparities dip below zero; a search as wide on both sides
+/// leaves near objects unmatched on the coarse level's few pixels), and when that matched
+/// little or much of it negative, matched again the other way round (right as left), to tell
+/// swapped cameras. `None` for a pair too small to halve and match.
+pub fn survey(left: &Gray, right: &Gray, cancel: &AtomicBool) -> Result<Option<Survey>, Cancelled> {
+    let levels = levels(left.width, left.height);
+    let (mut l, mut r) = (left.clone(), right.clone());
+    for _ in 0..levels {
+        (l, r) = rayon::join(|| pyramid::halve(&l), || pyramid::halve(&r));
+    }
+    let scale = 1i32 << levels;
+    let coarse_reach = (reach(left.width).div_ceil(scale as usize) as i32).max(8);
+    let Ok(params) = Params::new(&Settings {
+        min_disparity: Some(-coarse_reach / 4),
+        max_disparity: Some(coarse_reach),
+        median: Some(false),
+        speckle_size: Some((100 >> (2 * levels)).max(4) as u32),
+        ..Settings::default()
+    }) else {
+        return Ok(None);
+    };
+    let params = Params {
+        plane: false,
+        ..params
+    };
+    let (map, _) = super::disparity(&l, &r, &params, cancel)?;
+    let mut survey = Survey::of(map, levels, (-coarse_reach / 4, coarse_reach));
+    if survey.matched < SUSPECT_MATCHED || survey.negative >= 1.0 - SWAPPED_SHARE {
+        let (reversed, _) = super::disparity(&r, &l, &params, cancel)?;
+        let valid = reversed.data.iter().filter(|d| !d.is_nan()).count();
+        survey.reversed = Some(valid as f64 / reversed.data.len().max(1) as f64);
+    }
+    Ok(Some(survey))
+}
+
+/// Below this share of its coarse pixels matched, a pair is matched the other way round too
+/// ([`survey`]).
+pub const SUSPECT_MATCHED: f64 = 0.5;
+
+impl Survey {
+    /// What a coarse map matched over `range` (coarse px) says.
+    fn of(map: Disparity, levels: usize, range: (i32, i32)) -> Survey {
+        let scale = (1i32 << levels) as f32;
+        let valid: Vec<f32> = map.data.iter().copied().filter(|d| !d.is_nan()).collect();
+        let matched = valid.len() as f64 / map.data.len().max(1) as f64;
+        let mut positive: Vec<f32> = valid.iter().copied().filter(|&d| d >= 0.0).collect();
+        positive.sort_by(f32::total_cmp);
+        let near = quantile(&positive, NEAR_QUANTILE) * scale;
+        let greatest = positive.last().copied().unwrap_or(0.0) * scale;
+        let mut negatives: Vec<f32> = valid.iter().copied().filter(|&d| d <= -1.0).collect();
+        let away = valid.iter().filter(|d| d.abs() >= 1.0).count();
+        let negative = negatives.len() as f64 / away.max(1) as f64;
+        negatives.sort_by(f32::total_cmp);
+        let negative_median = quantile(&negatives, 0.5) * scale;
+        let s = 1 << levels;
+        Survey {
+            levels,
+            searched: (range.0 * s, range.1 * s),
+            matched,
+            reversed: None,
+            near,
+            greatest,
+            negative,
+            negative_median,
+            map,
+        }
+    }
+
+    /// Whether enough of the pair matched ([`MIN_MATCHED`]) to speak of its range.
+    pub fn usable(&self) -> bool {
+        self.matched >= MIN_MATCHED
+    }
+
+    /// The range `(min, max)` (exclusive) the scene needs: from 0 to the scene's nearest
+    /// ([`NEAR_QUANTILE`]) with a margin of two coarse pixels and a tenth, rounded up to 16;
+    /// at least 16 disparities. `Err` with that range when it holds more than [`CEILING`].
+    pub fn needs(&self) -> Result<(i32, i32), (i32, i32)> {
+        let margin = 2.0 * (1u32 << self.levels) as f32 + 0.1 * self.near;
+        let max = ((self.near + margin).max(16.0) / 16.0).ceil() as i32 * 16;
+        if max as usize > CEILING {
+            Err((0, max))
+        } else {
+            Ok((0, max))
+        }
+    }
+
+    /// Whether the left image looks like the right camera's: most matches at negative
+    /// disparities ([`SWAPPED_SHARE`], at least two coarse pixels from zero), or the pair
+    /// matched the other way round matching far more of it ([`SWAPPED_GAIN`]).
+    pub fn swapped(&self) -> bool {
+        let negative = self.usable()
+            && self.negative >= SWAPPED_SHARE
+            && self.negative_median <= -2.0 * (1u32 << self.levels) as f32;
+        let reversed = self
+            .reversed
+            .is_some_and(|r| r >= MIN_MATCHED && r >= SWAPPED_GAIN * self.matched);
+        negative || reversed
+    }
+
+    /// Whether the coarse level puts the full-size pixel `(x, y)` past `max`, by a coarse pixel
+    /// or more (within one, its rounding may put a pixel just inside the range there).
+    pub fn past(&self, (x, y): (usize, usize), max: i32) -> bool {
+        if !self.usable() {
+            return false;
+        }
+        let scale = (1u32 << self.levels) as f32;
+        let (cw, ch) = (self.map.width, self.map.height);
+        let (u, v) = (
+            (x >> self.levels).min(cw - 1),
+            (y >> self.levels).min(ch - 1),
+        );
+        self.map.data[v * cw + u] >= max as f32 / scale + 1.0
+    }
+
+    /// The share of the coarse pixels whose match lies past `max` (full-size px) by a coarse
+    /// pixel or more.
+    pub fn beyond(&self, max: i32) -> f64 {
+        if !self.usable() {
+            return 0.0;
+        }
+        let scale = (1u32 << self.levels) as f32;
+        let past = self
+            .map
+            .data
+            .iter()
+            .filter(|&&d| d >= max as f32 / scale + 1.0)
+            .count();
+        past as f64 / self.map.data.len().max(1) as f64
+    }
+}
+
+/// Which coarse pixels lie at or past `max` (coarse px): those matched there, and the holes
+/// between two such matches along their row or their column (a near object's pixels that
+/// the coarse level's checks left empty).
+fn past_map(map: &Disparity, max: f32) -> Vec<bool> {
+    let (w, h) = (map.width, map.height);
+    // For each pixel, whether the nearest match before it (along the line) is past.
+    let mut past: Vec<bool> = map.data.iter().map(|&d| d >= max).collect();
+    let line = |cells: &[usize]| -> Vec<bool> {
+        let mut before = vec![false; cells.len()];
+        let mut last = false;
+        for (i, &c) in cells.iter().enumerate() {
+            let d = map.data[c];
+            if !d.is_nan() {
+                last = d >= max;
+            }
+            before[i] = last;
+        }
+        let mut both = vec![false; cells.len()];
+        last = false;
+        for (i, &c) in cells.iter().enumerate().rev() {
+            let d = map.data[c];
+            if !d.is_nan() {
+                last = d >= max;
+            }
+            both[i] = d.is_nan() && last && before[i];
+        }
+        both
+    };
+    for y in 0..h {
+        let cells: Vec<usize> = (0..w).map(|x| y * w + x).collect();
+        for (c, hole) in cells.iter().zip(line(&cells)) {
+            past[*c] |= hole;
+        }
+    }
+    for x in 0..w {
+        let cells: Vec<usize> = (0..h).map(|y| y * w + x).collect();
+        for (c, hole) in cells.iter().zip(line(&cells)) {
+            past[*c] |= hole;
+        }
+    }
+    past
+}
+
+/// `past` grown into the holes of `map` it touches (4-connected): where a given range stops
+/// short, a near object's pixels the coarse level left empty (a chessboard's repeated squares
+/// match at several disparities) lie past the range with the matched ones around them.
+/// The holes are grown from the pixels clearly past it only (at `clear` coarse px or more, two
+/// past the range's end), not from those the coarse level's rounding puts there.
+fn flood(map: &Disparity, past: &mut [bool], clear: f32) {
+    let (w, h) = (map.width, map.height);
+    let mut stack: Vec<usize> = (0..w * h).filter(|&i| map.data[i] >= clear).collect();
+    while let Some(i) = stack.pop() {
+        for j in crate::grid::four_neighbours(i, w, h) {
+            if !past[j] && map.data[j].is_nan() {
+                past[j] = true;
+                stack.push(j);
+            }
+        }
+    }
+}
+
+/// The `q` quantile of sorted values (0 for none).
+fn quantile(sorted: &[f32], q: f64) -> f32 {
+    if sorted.is_empty() {
+        return 0.0;
+    }
+    let i = ((sorted.len() - 1) as f64 * q).round() as usize;
+    sorted[i.min(sorted.len() - 1)]
+}
+
+/// Refuses (leaves empty) the pixels of `map`, matched over `min .. max`, whose match lies
+/// beyond the range: a disparity in the range's last pixel (the cost still falling at its
+/// end), or a pixel the survey's coarse level put at or past `max` (its own coarse pixel or
+/// any of the 3 × 3 around it, since the edge of a near object is blurred at the coarse
+/// level). Returns how many pixels it refused that had a disparity.
+///
+/// With `grow` (a range the caller gave), the coarse level's holes that touch a pixel past the
+/// range are taken as past too ([`flood`]).
+pub fn refuse(map: &mut Disparity, survey: Option<&Survey>, max: i32, grow: bool) -> usize {
+    let (w, h) = (map.width, map.height);
+    let end = (max - 1) as f32;
+    let mut refused = 0;
+    let past: Option<(Vec<bool>, usize, usize, usize)> = survey.filter(|s| s.usable()).map(|s| {
+        let scale = (1u32 << s.levels) as f32;
+        let (cw, ch) = (s.map.width, s.map.height);
+        let mut own = past_map(&s.map, max as f32 / scale + 1.0);
+        if grow {
+            flood(&s.map, &mut own, max as f32 / scale + 2.0);
+        }
+        let mut near = vec![false; cw * ch];
+        for y in 0..ch {
+            for x in 0..cw {
+                near[y * cw + x] = (y.saturating_sub(1)..(y + 2).min(ch))
+                    .any(|v| (x.saturating_sub(1)..(x + 2).min(cw)).any(|u| own[v * cw + u]));
+            }
+        }
+        (near, cw, ch, s.levels)
+    });
+    for y in 0..h {
+        for x in 0..w {
+            let i = y * w + x;
+            let d = map.data[i];
+            if d.is_nan() {
+                continue;
+            }
+            let beyond = past.as_ref().is_some_and(|(near, cw, ch, levels)| {
+                let (u, v) = ((x >> levels).min(cw - 1), (y >> levels).min(ch - 1));
+                near[v * cw + u]
+            });
+            if d >= end || beyond {
+                map.data[i] = f32::NAN;
+                map.std[i] = f32::NAN;
+                refused += 1;
+            }
+        }
+    }
+    refused
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::vision::synthetic;
+
+    /// The coarse level is a quarter or an eighth of the usual sizes, never under 160 × 90.
+    #[test]
+    fn the_coarse_level_keeps_enough_pixels() {
+        assert_eq!(levels(640, 480), 2);
+        assert_eq!(levels(1280, 720), 3);
+        assert_eq!(levels(320, 240), 1);
+        assert_eq!(levels(200, 100), 0);
+        assert_eq!(reach(640), 320);
+        assert_eq!(reach(2000), 512);
+        assert_eq!(reach(20), 16);
+    }
+
+    /// A rendered scene whose disparities reach past 128 (the layered scene, its disparities
+    /// 5 ×: 30–200 px) is found to need them, its range covering the truth's greatest and not
+    /// far past it; swapped, it is named, and the right way round it is not.
+    #[test]
+    fn a_near_scene_is_found_and_a_swapped_one_named() {
+        let mut scene = synthetic::layered(640, 360);
+        for plane in &mut scene.planes {
+            plane.disparity = plane.disparity.map(|v| 5.0 * v);
+        }
+        let pair = synthetic::render(&scene);
+        let truth = pair.seen_truth().into_iter().fold(0.0f32, f32::max);
+        let cancel = AtomicBool::new(false);
+        let s = survey(&pair.left, &pair.right, &cancel).unwrap().unwrap();
+        let (_, max) = s.needs().unwrap();
+        assert!(
+            max as f32 > truth && (max as f32) < 1.3 * truth + 16.0,
+            "{max} for a truth of {truth}: {:?}",
+            (s.near, s.greatest, s.matched)
+        );
+        assert!(!s.swapped(), "{:?}", (s.negative, s.negative_median));
+        let swapped = survey(&pair.right, &pair.left, &cancel).unwrap().unwrap();
+        assert!(
+            swapped.swapped(),
+            "{:?}",
+            (swapped.negative, swapped.negative_median)
+        );
+    }
+
+    /// With a range that stops short of a near scene, the pixels past it are refused: those in
+    /// the range's last pixel and those the coarse level puts past it.
+    #[test]
+    fn pixels_past_a_short_range_are_refused() {
+        let mut map = Disparity {
+            width: 4,
+            height: 1,
+            data: vec![10.0, 79.2, 40.0, f32::NAN],
+            std: vec![0.5; 4],
+            filled: Vec::new(),
+        };
+        assert_eq!(refuse(&mut map, None, 80, false), 1);
+        assert!(map.data[1].is_nan() && map.std[1].is_nan());
+        assert_eq!((map.data[0], map.data[2]), (10.0, 40.0));
+    }
+}
