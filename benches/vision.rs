@@ -5,7 +5,7 @@
 //! whole `vision::disparity` with the best build the CPU runs (AVX-512 for the census and the
 //! cost's row), the AVX2 build and the portable one; and coarse to fine at 256 disparities: halving, the prior's windows, the whole
 //! matcher through the pyramid; and a depth map's summary (its spread) against a selection
-//! over every value. The comparison with OpenCV is `scripts/evaluate/matcher` (README,
+//! over every value; and the survey that finds a pair's range beside the match it precedes. The comparison with OpenCV is `scripts/evaluate/matcher` (README,
 //! Performance).
 //!
 //! ```text
@@ -215,5 +215,27 @@ fn summary(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, stages, summary);
+/// The survey that finds a pair's range (`vision::survey`), beside the match it comes before:
+/// the synthetic pair at 741 × 500 and 1280 × 720, matched over 0..128, in turns.
+fn survey(c: &mut Criterion) {
+    let never = AtomicBool::new(false);
+    for (w, h) in [(741, 500), (1280, 720)] {
+        let pair = synthetic::render(&synthetic::Scene {
+            noise: 0.01,
+            ..synthetic::layered(w, h)
+        });
+        let params = Params::range(0, 128).unwrap();
+        let mut group = c.benchmark_group(format!("range {w}x{h}"));
+        group.sample_size(20);
+        group.bench_function("survey", |b| {
+            b.iter(|| vision::survey::survey(&pair.left, &pair.right, &never).unwrap())
+        });
+        group.bench_function("disparity 0..128", |b| {
+            b.iter(|| vision::disparity(&pair.left, &pair.right, &params, &never).unwrap())
+        });
+        group.finish();
+    }
+}
+
+criterion_group!(benches, stages, summary, survey);
 criterion_main!(benches);
