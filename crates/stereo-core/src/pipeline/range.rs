@@ -74,12 +74,12 @@ impl RangeUsed {
             Chosen::Given => "given: max_disparity (or the calibration file's ndisp)".to_owned(),
             Chosen::Found { near } => format!(
                 "found from the pair: its coarse view's nearest matches reach {near:.0} px \
-                 ({} % of them nearer), with a margin",
+                 ({:.1} % of them nearer), with a margin",
                 100.0 * (1.0 - survey::NEAR_QUANTILE)
             ),
             Chosen::Default => format!(
                 "the default 0 .. {DEFAULT_MAX_DISPARITY}: the pair's coarse view matched \
-                 under {} % of its pixels, too little to find the range from",
+                 under {:.0} % of its pixels, too little to find the range from",
                 100.0 * survey::MIN_MATCHED
             ),
         }
@@ -250,6 +250,8 @@ mod tests {
             "{:?} for a truth reaching {truth}",
             ranged.used
         );
+        let why = ranged.used.why();
+        assert!(why.contains("(0.5 % of them nearer)"), "{why}");
         let given = Params::range(0, 80).unwrap();
         let ranged = choose(&pair.left, &pair.right, &given, &cancel).unwrap();
         assert_eq!(
