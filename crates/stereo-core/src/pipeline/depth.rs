@@ -141,9 +141,7 @@ pub fn matched(
         .calibrated
         .map_or_else(Vec::new, |c| c.warnings.clone());
     warnings.extend(decode_notes(&left, &right));
-    let swapped = judged
-        .iter()
-        .any(|s| s.starts_with("left and right look swapped"));
+    let swapped = ranged.swapped();
     warnings.extend(judged);
     drop(right);
     if rectify.is_none()

@@ -172,9 +172,7 @@ pub fn matches(
     let rows = raw.is_none().then(|| row_check(&left, &right, params));
     let mut warnings = request.calibrated.warnings.clone();
     warnings.extend(decode_notes(&left, &right));
-    let swapped = judged
-        .iter()
-        .any(|s| s.starts_with("left and right look swapped"));
+    let swapped = ranged.swapped();
     warnings.extend(judged);
     if !swapped {
         warnings.extend(rows.and_then(|r| unrectified_warning(None, r)));

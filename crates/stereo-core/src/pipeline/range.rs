@@ -205,9 +205,13 @@ impl Ranged {
         }
         said
     }
-}
 
-impl Ranged {
+    /// Whether the pair's coarse view says the cameras look swapped (the warning
+    /// [`Ranged::judge`] then writes).
+    pub fn swapped(&self) -> bool {
+        self.survey.as_ref().is_some_and(Survey::swapped)
+    }
+
     /// Whether the pair's coarse view puts the pixel `(x, y)` past the range's end.
     pub fn past(&self, pixel: (usize, usize)) -> bool {
         self.survey

@@ -38,8 +38,6 @@ pub const SWAPPED_SHARE: f64 = 0.6;
 pub struct Survey {
     /// How many times the pair was halved: a coarse pixel is `2^levels` full-size pixels.
     pub levels: usize,
-    /// The disparities searched, `(min, max)` exclusive, in full-size pixels.
-    pub searched: (i32, i32),
     /// The share of the coarse pixels that matched.
     pub matched: f64,
     /// The share that matched the other way round (right as left), when that was tried.
@@ -82,10 +80,13 @@ pub fn reach(width: usize) -> usize {
 /// swapped cameras. `None` for a pair too small to halve and match.
 pub fn survey(left: &Gray, right: &Gray, cancel: &AtomicBool) -> Result<Option<Survey>, Cancelled> {
     let levels = levels(left.width, left.height);
-    let (mut l, mut r) = (left.clone(), right.clone());
+    // Halved from the caller's images: no copy of the full-size pair.
+    let mut halved: Option<(Gray, Gray)> = None;
     for _ in 0..levels {
-        (l, r) = rayon::join(|| pyramid::halve(&l), || pyramid::halve(&r));
+        let (l, r) = halved.as_ref().map_or((left, right), |(l, r)| (l, r));
+        halved = Some(rayon::join(|| pyramid::halve(l), || pyramid::halve(r)));
     }
+    let (l, r) = halved.as_ref().map_or((left, right), |(l, r)| (l, r));
     let scale = 1i32 << levels;
     let coarse_reach = (reach(left.width).div_ceil(scale as usize) as i32).max(8);
     let Ok(params) = Params::new(&Settings {
@@ -101,10 +102,10 @@ pub fn survey(left: &Gray, right: &Gray, cancel: &AtomicBool) -> Result<Option<S
         plane: false,
         ..params
     };
-    let (map, _) = super::disparity(&l, &r, &params, cancel)?;
-    let mut survey = Survey::of(map, levels, (-coarse_reach / 4, coarse_reach));
+    let (map, _) = super::disparity(l, r, &params, cancel)?;
+    let mut survey = Survey::of(map, levels);
     if survey.matched < SUSPECT_MATCHED || survey.negative >= 1.0 - SWAPPED_SHARE {
-        let (reversed, _) = super::disparity(&r, &l, &params, cancel)?;
+        let (reversed, _) = super::disparity(r, l, &params, cancel)?;
         let valid = reversed.data.iter().filter(|d| !d.is_nan()).count();
         survey.reversed = Some(valid as f64 / reversed.data.len().max(1) as f64);
     }
@@ -116,8 +117,8 @@ pub fn survey(left: &Gray, right: &Gray, cancel: &AtomicBool) -> Result<Option<S
 pub const SUSPECT_MATCHED: f64 = 0.5;
 
 impl Survey {
-    /// What a coarse map matched over `range` (coarse px) says.
-    fn of(map: Disparity, levels: usize, range: (i32, i32)) -> Survey {
+    /// What a coarse map matched says.
+    fn of(map: Disparity, levels: usize) -> Survey {
         let scale = (1i32 << levels) as f32;
         let valid: Vec<f32> = map.data.iter().copied().filter(|d| !d.is_nan()).collect();
         let matched = valid.len() as f64 / map.data.len().max(1) as f64;
@@ -130,10 +131,8 @@ impl Survey {
         let negative = negatives.len() as f64 / away.max(1) as f64;
         negatives.sort_by(f32::total_cmp);
         let negative_median = quantile(&negatives, 0.5) * scale;
-        let s = 1 << levels;
         Survey {
             levels,
-            searched: (range.0 * s, range.1 * s),
             matched,
             reversed: None,
             near,
