@@ -267,6 +267,62 @@ fn flood(map: &Disparity, past: &mut [bool], clear: f32) {
     }
 }
 
+/// Marks as past the coarse level's smooth regions (4-connected matches within a coarse pixel
+/// of each other) that the pixels past the range mostly enclose ([`ENCLOSED_SHARE`] of their
+/// border): where a given range stops short, a chessboard's or a fence's repeated pattern
+/// matches one period off, inside the range, on patches of a near surface whose rest lies
+/// past it. A far surface seen only through holes in a near one is refused with it: with
+/// a range that stops short, a pixel left empty is better than one answered wrong.
+fn enclosed(map: &Disparity, past: &mut [bool]) {
+    let (w, h) = (map.width, map.height);
+    let mut label = vec![usize::MAX; w * h];
+    let mut regions: Vec<Vec<usize>> = Vec::new();
+    for seed in 0..w * h {
+        if past[seed] || map.data[seed].is_nan() || label[seed] != usize::MAX {
+            continue;
+        }
+        let id = regions.len();
+        label[seed] = id;
+        let mut region = vec![seed];
+        let mut next = 0;
+        while next < region.len() {
+            let i = region[next];
+            next += 1;
+            for j in crate::grid::four_neighbours(i, w, h) {
+                if label[j] == usize::MAX && !past[j] && (map.data[j] - map.data[i]).abs() <= 1.0 {
+                    label[j] = id;
+                    region.push(j);
+                }
+            }
+        }
+        regions.push(region);
+    }
+    for (id, region) in regions.iter().enumerate() {
+        let (mut border, mut by_past) = (0usize, 0usize);
+        for &i in region {
+            let (x, y) = (i % w, i / w);
+            // The image's edge counts as border not past: the region may go on beyond it.
+            border += usize::from(x == 0) + usize::from(x + 1 == w);
+            border += usize::from(y == 0) + usize::from(y + 1 == h);
+            for j in crate::grid::four_neighbours(i, w, h) {
+                if label[j] != id {
+                    border += 1;
+                    by_past += usize::from(past[j]);
+                }
+            }
+        }
+        if by_past as f64 >= ENCLOSED_SHARE * border as f64 {
+            for &i in region {
+                past[i] = true;
+            }
+        }
+    }
+}
+
+/// The share of a coarse region's border past the range at which [`enclosed`] takes the
+/// region as past too.
+const ENCLOSED_SHARE: f64 = 0.5;
+
 /// The `q` quantile of sorted values (0 for none).
 fn quantile(sorted: &[f32], q: f64) -> f32 {
     if sorted.is_empty() {
@@ -294,6 +350,7 @@ pub fn refuse(map: &mut Disparity, survey: Option<&Survey>, max: i32, grow: bool
         let mut own = past_map(&s.map, max as f32 / scale + 1.0);
         if grow {
             flood(&s.map, &mut own, max as f32 / scale + 2.0);
+            enclosed(&s.map, &mut own);
         }
         let mut near = vec![false; cw * ch];
         for y in 0..ch {
@@ -368,6 +425,34 @@ mod tests {
             "{:?}",
             (swapped.negative, swapped.negative_median)
         );
+    }
+
+    /// A smooth patch the pixels past the range surround (a chessboard matched one period off)
+    /// is taken as past; one that reaches the image's edge, with less than half its border
+    /// past, is not.
+    #[test]
+    fn a_patch_the_past_pixels_enclose_is_past_too() {
+        // 8 × 6 coarse pixels: a ring past (30) around a patch at 12 in columns 1..4; columns
+        // 5..8 a far surface at 5 running to the image's edge.
+        let (w, h) = (8, 6);
+        let mut data = vec![5.0f32; w * h];
+        for y in 0..h {
+            for x in 0..5 {
+                let ring = x == 0 || x == 4 || y == 0 || y + 1 == h;
+                data[y * w + x] = if ring { 30.0 } else { 12.0 };
+            }
+        }
+        let map = Disparity {
+            width: w,
+            height: h,
+            data,
+            std: vec![0.5; w * h],
+            filled: Vec::new(),
+        };
+        let mut past: Vec<bool> = map.data.iter().map(|&d| d >= 21.0).collect();
+        enclosed(&map, &mut past);
+        assert!(past[2 * w + 2], "the enclosed patch at 12 is past");
+        assert!(!past[2 * w + 6], "the far surface at the edge is not");
     }
 
     /// With a range that stops short of a near scene, the pixels past it are refused: those in
