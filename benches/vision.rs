@@ -110,7 +110,7 @@ fn stages(c: &mut Criterion) {
     });
     // The whole-map filters on the map as it leaves the stripes (no speckle filter, no median).
     let raw = Params::new(&vision::Settings {
-        max_disparity: Some(64),
+        max_disparity: Some(vision::RangeEnd::Px(64)),
         speckle_size: Some(0),
         median: Some(false),
         ..vision::Settings::default()

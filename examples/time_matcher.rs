@@ -34,7 +34,7 @@ fn main() {
     let count: i32 = count.parse().expect("COUNT is a number");
     let runs: usize = runs.parse().expect("RUNS is a number");
     let params = Params::new(&Settings {
-        max_disparity: Some(count),
+        max_disparity: Some(stereo_core::vision::RangeEnd::Px(count)),
         preset: Some(preset),
         ..Settings::default()
     })

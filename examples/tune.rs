@@ -33,7 +33,7 @@ fn main() {
         .collect();
     let count: i32 = args.get(3).map_or(64, |c| c.parse().unwrap());
     let mut grid: Vec<Settings> = vec![Settings {
-        max_disparity: Some(count),
+        max_disparity: Some(stereo_core::vision::RangeEnd::Px(count)),
         ..Settings::default()
     }];
     for spec in args.iter().skip(4) {

@@ -195,9 +195,10 @@ pub struct DepthMapArgs {
     /// The smallest disparity searched (default 0).
     #[arg(long, value_name = "PX", allow_negative_numbers = true)]
     pub min_disparity: Option<i32>,
-    /// The search stops before this disparity (default: the calibration's ndisp, else 128).
-    #[arg(long, value_name = "PX", allow_negative_numbers = true)]
-    pub max_disparity: Option<i32>,
+    /// The search stops before this disparity, or `auto` to find it from each pair (default:
+    /// the calibration's ndisp, else auto).
+    #[arg(long, value_name = "PX|auto", allow_negative_numbers = true)]
+    pub max_disparity: Option<stereo_core::vision::RangeEnd>,
     /// Leave out each pixel whose disparity's σ_d exceeds this many pixels (as /depth-map's
     /// `max_disparity_std`; default 4).
     #[arg(long, value_name = "PX")]

@@ -46,7 +46,7 @@ fn score(pair: &Pair, params: &Params) -> Score {
 
 fn settings() -> Settings {
     Settings {
-        max_disparity: Some(48),
+        max_disparity: Some(vision::RangeEnd::Px(48)),
         ..Settings::default()
     }
 }
@@ -242,7 +242,7 @@ fn a_wide_range_is_matched_coarse_to_fine() {
     assert_eq!(vision::pyramid::levels(960, 640, 320, false), 3);
     let pair = synthetic::render(&deep(960, 640, 8.0));
     let wide = Params::new(&Settings {
-        max_disparity: Some(320),
+        max_disparity: Some(vision::RangeEnd::Px(320)),
         ..Settings::default()
     })
     .unwrap();
@@ -340,7 +340,7 @@ fn a_smooth_pair_is_matched_with_its_census_spread() {
         })
         .unzip();
     let params = Params::new(&Settings {
-        max_disparity: Some(160),
+        max_disparity: Some(vision::RangeEnd::Px(160)),
         ..Settings::default()
     })
     .unwrap();

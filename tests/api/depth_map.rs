@@ -381,7 +381,8 @@ async fn sigma_reaches_the_summary_and_takes_the_rigs_calibration() {
     }
 }
 
-/// A Middlebury calib.txt gives the rig and, by its ndisp, the search range.
+/// A Middlebury calib.txt gives the rig and, by its ndisp, the search range, unless
+/// `max_disparity=auto` asks for it found; a value neither `auto` nor a number is refused.
 #[tokio::test]
 async fn a_calibration_file_gives_the_rig_and_the_range() {
     let app = spawn_app().await;
@@ -398,6 +399,23 @@ async fn a_calibration_file_gives_the_rig_and_the_range() {
     assert_eq!(body["rig"]["focal_length_px"], 500.0);
     assert_eq!(body["rig"]["baseline"], 100.0);
     assert!(body["distance"]["median"].as_f64().unwrap() > 1000.0);
+    assert_eq!(body["disparity_range"]["chosen"], "given", "{body}");
+    // `max_disparity=auto` finds the range from the pair even with the file's ndisp.
+    let with = || form(&pair(), &[("calibration", calib.to_owned())]);
+    let body = ok_json(depth_map(&app, "?max_disparity=auto", with()).await).await;
+    assert_eq!(body["disparity_range"]["chosen"], "found", "{body}");
+    // Neither `auto` nor a number: a 422 naming the member and what it takes.
+    let response = depth_map(&app, "?max_disparity=automatic", with()).await;
+    assert_eq!(response.status(), 422);
+    let body: serde_json::Value = response.json().await.unwrap();
+    assert_eq!(body["errors"][0]["field"], "max_disparity", "{body}");
+    assert!(
+        body["errors"][0]["message"]
+            .as_str()
+            .unwrap()
+            .contains("must be auto or a whole number"),
+        "{body}"
+    );
 }
 
 /// `Accept: image/x-portable-floatmap` answers the PFM; an explicit `output` wins.

@@ -601,3 +601,34 @@ async fn a_side_by_side_frame_is_judged_by_its_halves() {
         .unwrap();
     assert_eq!(text(&mut socket).await["id"], 3);
 }
+
+/// With no range given, the stream finds it from its frames and keeps it: a near frame's
+/// range (past 128) is still searched on the far frame after it, and the far frame's summary
+/// says the range is the stream's recent frames' and what it alone needs.
+#[tokio::test]
+async fn the_range_found_is_kept_over_the_streams_frames() {
+    use stereo_core::vision::synthetic;
+    let app = spawn_app().await;
+    let settings = json!({"layout": "pair", "rig": rig(), "outputs": []});
+    let (mut socket, resolved) = open_with(&app, settings).await;
+    assert_eq!(resolved["max_disparity"], Value::Null, "{resolved}");
+    let frame = |scale: f32| {
+        let mut scene = synthetic::layered(640, 360);
+        for plane in &mut scene.planes {
+            plane.disparity = plane.disparity.map(|v| scale * v);
+        }
+        let p = synthetic::render(&scene);
+        pair_frame(&png(&p.left_rgb, 640, 360), &png(&p.right_rgb, 640, 360))
+    };
+    socket.send(Message::binary(frame(5.0))).await.unwrap();
+    let near = text(&mut socket).await;
+    let near_max = near["summary"]["max_disparity"].as_i64().unwrap();
+    assert!(near_max > 150, "{near}");
+    assert_eq!(near["summary"]["disparity_range"]["chosen"], "found");
+    socket.send(Message::binary(frame(1.0))).await.unwrap();
+    let far = text(&mut socket).await;
+    assert_eq!(far["summary"]["max_disparity"], near_max, "{far}");
+    let why = far["summary"]["disparity_range"]["why"].as_str().unwrap();
+    assert!(why.contains("the stream's recent frames needed"), "{why}");
+    socket.close(None).await.unwrap();
+}

@@ -95,7 +95,8 @@ pub fn check_pair(
 }
 
 /// The matcher's parameters from the query's settings, with a calibration file's `ndisp` as
-/// the default end of the range; each fault named by its query parameter.
+/// the end of the range where none is given (`max_disparity=auto` finds it from the pair
+/// even then); each fault named by its query parameter.
 pub fn params(
     mut settings: Settings,
     ndisp: Option<u32>,
@@ -103,8 +104,10 @@ pub fn params(
 ) -> Option<Params> {
     if settings.max_disparity.is_none() {
         settings.max_disparity = ndisp.map(|n| {
-            i32::try_from(n.min(stereo_core::vision::MAX_DISPARITIES as u32))
-                .unwrap_or(stereo_core::vision::DEFAULT_MAX_DISPARITY)
+            stereo_core::vision::RangeEnd::Px(
+                i32::try_from(n.min(stereo_core::vision::MAX_DISPARITIES as u32))
+                    .unwrap_or(stereo_core::vision::DEFAULT_MAX_DISPARITY),
+            )
         });
     }
     match Params::new(&settings) {

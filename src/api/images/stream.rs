@@ -7,7 +7,7 @@
 //! side by side; only the filter takes them one at a time. The socket, the queue and the drops
 //! are the route's.
 
-use std::collections::BTreeSet;
+use std::collections::{BTreeSet, VecDeque};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Condvar, Mutex};
 use std::time::{Duration, Instant};
@@ -29,7 +29,7 @@ use crate::api::wire::images::RectifyMode;
 use crate::api::wire::rig::CalibratedRig;
 use crate::budget::{MemoryBudget, Refusal, Reservation, Slots};
 use stereo_core::calibration::files::Raw;
-use stereo_core::pipeline::{self, Calibrated, Maps, Matched, Request};
+use stereo_core::pipeline::{self, Calibrated, Chosen, Maps, Matched, RangeUsed, Request};
 use stereo_core::vision::decode::{self, DecodeLimits, Decoded};
 use stereo_core::vision::temporal::{self, Temporal};
 use stereo_core::vision::{Params, Preset};
@@ -218,7 +218,14 @@ pub struct Engine {
     at: Mutex<Option<Arc<AtSize>>>,
     order: Mutex<Order>,
     turn: Condvar,
+    /// The ends of range the stream's latest frames needed ([`KEPT_FRAMES`] of them), when
+    /// each frame finds its own: the range searched is the widest of them, kept as the scene
+    /// moves nearer (widened at once) and narrowed only once it has stayed further away.
+    needs: Mutex<VecDeque<i32>>,
 }
+
+/// How many of a stream's latest frames the range found is kept over.
+const KEPT_FRAMES: usize = 30;
 
 /// How long a frame waiting for its turn at the filter sleeps before it looks at its flag.
 const TURN_POLL: Duration = Duration::from_millis(50);
@@ -287,6 +294,28 @@ impl Engine {
                 temporal,
             }),
             turn: Condvar::new(),
+            needs: Mutex::new(VecDeque::with_capacity(KEPT_FRAMES)),
+        }
+    }
+
+    /// The parameters for the next frame: where the range is found from each frame, at least
+    /// the widest the latest frames needed.
+    fn params(&self) -> Params {
+        let params = self.resolved.params;
+        match lock(&self.needs).iter().max() {
+            Some(&kept) if params.range_found() => params.at_least(kept),
+            _ => params,
+        }
+    }
+
+    /// Keeps what a frame's range found needed, for the frames after it.
+    fn keep(&self, used: &RangeUsed) {
+        if let Chosen::Found { needs, .. } = used.chosen {
+            let mut kept = lock(&self.needs);
+            if kept.len() == KEPT_FRAMES {
+                kept.pop_front();
+            }
+            kept.push_back(needs);
         }
     }
 
@@ -310,8 +339,9 @@ impl Engine {
         let (left, right) = self.decode(&frame.bytes, colour)?;
         let decode = started.elapsed();
         let resolved = &*self.resolved;
+        let params = self.params();
         let request = Request {
-            params: &resolved.params,
+            params: &params,
             calibrated: at.rig.as_ref(),
             maps: at.maps.as_deref(),
             colour,
@@ -319,6 +349,7 @@ impl Engine {
         };
         let mut matched =
             pipeline::matched(left, right, request, cancel).map_err(ApiError::from)?;
+        self.keep(&matched.range());
         turn.steady(&mut matched, cancel);
         let map = matched.depth_map(request);
         let started = Instant::now();

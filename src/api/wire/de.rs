@@ -218,6 +218,51 @@ impl Member for i32 {
     }
 }
 
+/// The end of the search: the word `auto` (found from the pair) or a whole number of pixels,
+/// read as [`Member for i32`] reads one.
+impl Member for stereo_core::vision::RangeEnd {
+    fn read<'de, D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        use serde::de::Error;
+        use stereo_core::vision::RangeEnd;
+
+        match serde_json::Value::deserialize(deserializer)? {
+            serde_json::Value::String(s) if s == "auto" => Ok(RangeEnd::Auto),
+            value @ serde_json::Value::Number(_) => i32::read(value)
+                .map(RangeEnd::Px)
+                .map_err(|e| D::Error::custom(e.to_string())),
+            other => Err(D::Error::custom(format!(
+                "must be auto or a whole number of pixels, got {}",
+                member_messages::describe(&other)
+            ))),
+        }
+    }
+}
+
+/// The schema of `max_disparity` ([`stereo_core::vision::RangeEnd`]): `auto` or an integer
+/// the engine's range bounds take, described by `description`.
+pub fn max_disparity_schema(description: &str) -> utoipa::openapi::schema::Schema {
+    use utoipa::openapi::schema::{ObjectBuilder, OneOfBuilder, SchemaFormat, Type};
+    OneOfBuilder::new()
+        .item(
+            ObjectBuilder::new()
+                .schema_type(Type::Integer)
+                .format(Some(SchemaFormat::KnownFormat(
+                    utoipa::openapi::KnownFormat::Int32,
+                )))
+                .minimum(Some(-4095))
+                .maximum(Some(4608)),
+        )
+        .item(
+            ObjectBuilder::new()
+                .schema_type(Type::String)
+                .enum_values(Some(["auto"])),
+        )
+        .description(Some(description))
+        .examples([serde_json::json!(64)])
+        .build()
+        .into()
+}
+
 /// A switch: `true` or `false`, as JSON booleans or, in a query string, as those words.
 impl Member for bool {
     fn read<'de, D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {

@@ -15,7 +15,7 @@ use crate::api::wire::openapi::{image_answers, named};
 use crate::api::wire::rig::CalibratedRig;
 use stereo_core::pipeline::{self, DepthMap, Product};
 
-use stereo_core::vision::{Params, Preset, Settings, Subpixel};
+use stereo_core::vision::{Params, Preset, RangeEnd, Settings, Subpixel};
 
 /// What `/depth-map` answers.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize, Serialize, ToSchema)]
@@ -226,6 +226,17 @@ impl From<Preset> for PresetChoice {
 
 choice_members!(DepthMapOutput, SubpixelChoice, PresetChoice);
 
+/// What `max_disparity` means, on `/depth-map`, `/match` and the stream.
+pub const RANGE_END: &str = "The search stops before this disparity: `min_disparity ≤ d < \
+     max_disparity`, at most 512 disparities. `auto` finds it from the pair (its coarse view's \
+     nearest matches with a margin; the answer's `disparity_range` says what was searched and \
+     why). Default: the calibration file's `ndisp` when one is given, else `auto`.";
+
+/// [`RANGE_END`]'s schema.
+pub fn range_end() -> utoipa::openapi::schema::Schema {
+    super::de::max_disparity_schema(RANGE_END)
+}
+
 request! {
     /// The options of `/depth-map`, in the query string.
     pub struct DepthMapQuery {
@@ -233,11 +244,9 @@ request! {
         #[schema(minimum = -4096, maximum = 4096, example = 0, default = 0)]
         min_disparity: i32,
         /// The search stops before this disparity: `min_disparity ≤ d < max_disparity`, at
-        /// most 512 disparities. Default: the calibration file's `ndisp` when one is given,
-        /// else found from the pair (its coarse view's nearest matches with a margin; the
-        /// answer's `disparity_range` says what was searched and why).
-        #[schema(minimum = -4095, maximum = 4608, example = 64)]
-        max_disparity: i32,
+        /// most 512 disparities ([`RANGE_END`]).
+        #[schema(schema_with = range_end)]
+        max_disparity: RangeEnd,
         /// What to answer (default `summary`); also chosen by `Accept` for
         /// `application/json`, `image/x-portable-floatmap` and `application/x-ply`.
         #[schema(inline, default = "summary")]

@@ -20,12 +20,9 @@ request! {
         /// The smallest disparity searched, in pixels. Default 0.
         #[schema(minimum = -4096, maximum = 4096, example = 0)]
         min_disparity: i32,
-        /// The search stops before this disparity: `min_disparity ≤ d < max_disparity`, at
-        /// most 512 disparities. Default: the calibration file's `ndisp` when one is given,
-        /// else found from the pair (its coarse view's nearest matches with a margin; the
-        /// answer's `disparity_range` says what was searched and why).
-        #[schema(minimum = -4095, maximum = 4608, example = 64)]
-        max_disparity: i32,
+        /// The search stops before this disparity ([`super::depth_map::RANGE_END`]).
+        #[schema(schema_with = super::depth_map::range_end)]
+        max_disparity: stereo_core::vision::RangeEnd,
         /// Rectify the pair first: `auto` (the default) when the calibration describes raw
         /// cameras and the frames are their raw size; `yes`, or `no`. Points and boxes are
         /// then given in the raw left image, as a person clicks them.

@@ -35,6 +35,7 @@ pub fn query_parameters(schema: RefOr<Schema>) -> Vec<Parameter> {
             let (description, list) = match &property {
                 RefOr::T(Schema::Object(o)) => (o.description.clone(), false),
                 RefOr::T(Schema::Array(a)) => (a.description.clone(), true),
+                RefOr::T(Schema::OneOf(o)) => (o.description.clone(), false),
                 _ => (None, false),
             };
             let required = if object.required.contains(&name) {

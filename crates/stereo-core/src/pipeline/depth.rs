@@ -168,6 +168,11 @@ fn valid_share(map: &Disparity) -> f64 {
 }
 
 impl Matched {
+    /// The range the pair was matched over, and why.
+    pub fn range(&self) -> RangeUsed {
+        self.range
+    }
+
     /// Steadies the disparities with a stream's temporal filter (this frame being the
     /// filter's next), recording what it did and how long it took.
     pub fn steady(&mut self, filter: &mut Temporal) {

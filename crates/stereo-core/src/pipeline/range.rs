@@ -52,8 +52,9 @@ pub enum Chosen {
     /// The caller's (or the calibration file's `ndisp`).
     Given,
     /// Found from the pair: its coarse view's nearest match ([`survey::NEAR_QUANTILE`]), in
-    /// pixels, with a margin.
-    Found { near: f32 },
+    /// pixels, with a margin: the range's end this pair `needs`, which a stream's range kept
+    /// from its earlier frames may pass ([`Params::at_least`]).
+    Found { near: f32, needs: i32 },
     /// No range was given and the coarse view matched too little of the pair to find one:
     /// the default [`DEFAULT_MAX_DISPARITY`].
     Default,
@@ -72,10 +73,19 @@ impl RangeUsed {
     pub fn why(&self) -> String {
         match self.chosen {
             Chosen::Given => "given: max_disparity (or the calibration file's ndisp)".to_owned(),
-            Chosen::Found { near } => format!(
+            Chosen::Found { near, needs } => format!(
                 "found from the pair: its coarse view's nearest matches reach {near:.0} px \
-                 ({:.1} % of them nearer), with a margin",
-                100.0 * (1.0 - survey::NEAR_QUANTILE)
+                 ({:.1} % of them nearer), with a margin{}",
+                100.0 * (1.0 - survey::NEAR_QUANTILE),
+                if self.max > needs {
+                    format!(
+                        "; searched to {}, the range the stream's recent frames needed, where \
+                         this one needs {needs}",
+                        self.max
+                    )
+                } else {
+                    String::new()
+                }
             ),
             Chosen::Default => format!(
                 "the default 0 .. {DEFAULT_MAX_DISPARITY}: the pair's coarse view matched \
@@ -109,9 +119,16 @@ pub fn choose(
     let (params, chosen) = match (usable, given) {
         (_, true) => (*params, Chosen::Given),
         (Some(s), false) => {
-            let (_, max) = s.needs().map_err(|needs| Stopped::TooWide { needs })?;
+            let (_, needs) = s.needs().map_err(|needs| Stopped::TooWide { needs })?;
+            let max = needs.max(params.least_max());
             let min = params.min_disparity().min(max - 16);
-            (params.with_range(min, max), Chosen::Found { near: s.near })
+            (
+                params.with_range(min, max),
+                Chosen::Found {
+                    near: s.near,
+                    needs,
+                },
+            )
         }
         (None, false) => {
             let min = params.min_disparity();

@@ -76,7 +76,7 @@ pub use stripes::{
 
 pub use params::{
     DEFAULT_MAX_DISPARITY, DEFAULT_MAX_DISPARITY_STD, MAX_DISPARITIES, MAX_DISPARITY_STD_BOUND,
-    MAX_P2, ParamFault, Params, Preset, Setting, Settings,
+    MAX_P2, ParamFault, Params, Preset, RangeEnd, Setting, Settings,
 };
 
 /// A grey image, 16 bits a pixel (8-bit sources are scaled by 257), row-major.

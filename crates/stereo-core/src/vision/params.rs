@@ -71,14 +71,57 @@ impl Preset {
     }
 }
 
+/// The end of the search as a caller writes it: `auto` (found from the pair, [`super::survey`],
+/// even where a calibration file has an `ndisp`) or a disparity in pixels.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum RangeEnd {
+    Auto,
+    Px(i32),
+}
+
+impl RangeEnd {
+    /// The disparity given, `None` for `auto`.
+    pub fn px(self) -> Option<i32> {
+        match self {
+            RangeEnd::Auto => None,
+            RangeEnd::Px(d) => Some(d),
+        }
+    }
+}
+
+impl std::str::FromStr for RangeEnd {
+    type Err = String;
+
+    /// `auto`, or a whole number of pixels.
+    fn from_str(text: &str) -> Result<RangeEnd, String> {
+        if text == "auto" {
+            return Ok(RangeEnd::Auto);
+        }
+        text.parse::<i32>()
+            .map(RangeEnd::Px)
+            .map_err(|_| format!("must be auto or a whole number of pixels, got {text:?}"))
+    }
+}
+
+impl std::fmt::Display for RangeEnd {
+    fn fmt(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        match self {
+            RangeEnd::Auto => f.write_str("auto"),
+            RangeEnd::Px(d) => write!(f, "{d}"),
+        }
+    }
+}
+
 /// The matcher's settings as asked for; each `None` takes its preset's, then the default.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct Settings {
     /// The named set the settings not given come from; `None` is [`Preset::Accurate`].
     pub preset: Option<Preset>,
     pub min_disparity: Option<i32>,
-    /// The end of the search, exclusive: disparities `min_disparity .. max_disparity`.
-    pub max_disparity: Option<i32>,
+    /// The end of the search, exclusive: disparities `min_disparity .. max_disparity`;
+    /// `None` and [`RangeEnd::Auto`] find it from the pair (`None` also takes a calibration
+    /// file's `ndisp` where the caller has one, `Auto` does not).
+    pub max_disparity: Option<RangeEnd>,
     pub p1: Option<u32>,
     pub p2: Option<u32>,
     pub p2_edge: Option<u32>,
@@ -162,6 +205,9 @@ pub struct Params {
     /// ([`super::survey`]); `min_disparity .. max_disparity` is then the default, until
     /// [`Params::with_range`] sets the one found.
     pub(super) found: bool,
+    /// With `found`: the least end of range to search, whatever the pair's own needs (a
+    /// stream's range kept from its earlier frames, [`Params::at_least`]); 0 for none.
+    pub(super) at_least: i32,
 }
 
 impl Default for Params {
@@ -188,6 +234,7 @@ impl Default for Params {
             paths: sgm::Paths::Auto,
             preset: Preset::Accurate,
             found: true,
+            at_least: 0,
         }
     }
 }
@@ -253,7 +300,11 @@ impl Params {
         let s = &asked.over(preset.settings());
         let d = Params::default();
         let mut faults = Faults::default();
-        let range = range(s.min_disparity, s.max_disparity, &mut faults);
+        let range = range(
+            s.min_disparity,
+            s.max_disparity.and_then(RangeEnd::px),
+            &mut faults,
+        );
         let p1 = faults.whole(Setting::P1, s.p1, d.penalties.p1.into(), 1, 255);
         let p2 = faults.whole(Setting::P2, s.p2, d.penalties.p2.into(), 2, MAX_P2.into());
         if let (Some(p1), Some(p2)) = (p1, p2)
@@ -352,7 +403,8 @@ impl Params {
                 plane: d.plane,
                 paths,
                 preset,
-                found: s.max_disparity.is_none(),
+                found: s.max_disparity.and_then(RangeEnd::px).is_none(),
+                at_least: 0,
             }),
             _ => Err(faults.0),
         }
@@ -362,7 +414,7 @@ impl Params {
     pub fn range(min_disparity: i32, max_disparity: i32) -> Result<Params, Vec<ParamFault>> {
         Params::new(&Settings {
             min_disparity: Some(min_disparity),
-            max_disparity: Some(max_disparity),
+            max_disparity: Some(RangeEnd::Px(max_disparity)),
             ..Settings::default()
         })
     }
@@ -383,6 +435,25 @@ impl Params {
     /// Whether the range is to be found from the pair: the caller gave no `max_disparity`.
     pub fn range_found(&self) -> bool {
         self.found
+    }
+
+    /// These parameters, with a range to be found, searching at least to `max` (at most
+    /// [`MAX_DISPARITIES`]) whatever the pair's own needs: a stream's range kept from its
+    /// earlier frames. Parameters with a range given are returned as they are.
+    pub fn at_least(&self, max: i32) -> Params {
+        Params {
+            at_least: if self.found {
+                max.clamp(0, MAX_DISPARITIES as i32)
+            } else {
+                0
+            },
+            ..*self
+        }
+    }
+
+    /// The least end of range [`Params::at_least`] set (0 for none).
+    pub fn least_max(&self) -> i32 {
+        self.at_least
     }
 
     /// The most disparities these parameters may search, what a request is charged for: the

@@ -91,7 +91,7 @@ pub fn survey(left: &Gray, right: &Gray, cancel: &AtomicBool) -> Result<Option<S
     let coarse_reach = (reach(left.width).div_ceil(scale as usize) as i32).max(8);
     let Ok(params) = Params::new(&Settings {
         min_disparity: Some(-coarse_reach / 4),
-        max_disparity: Some(coarse_reach),
+        max_disparity: Some(super::RangeEnd::Px(coarse_reach)),
         median: Some(false),
         speckle_size: Some((100 >> (2 * levels)).max(4) as u32),
         ..Settings::default()

@@ -538,7 +538,7 @@ mod sequence {
     /// given.
     fn matched(pairs: &[synthetic::Pair], filter: Option<Settings>) -> Vec<Disparity> {
         let params = Params::new(&crate::vision::Settings {
-            max_disparity: Some(48),
+            max_disparity: Some(crate::vision::RangeEnd::Px(48)),
             preset: Some(Preset::Fast),
             ..Default::default()
         })
