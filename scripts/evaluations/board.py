@@ -92,6 +92,20 @@ def slips(url, left, right, plane, mask, ndisp):
             "swapped_named": named(swapped_said), "right_way_named": named(said["warnings"])}
 
 
+def raw_swaps(url, folder):
+    """Issue 92's raw pass: each raw pair with the calibration, as sent and swapped: whether
+    /depth-map names it swapped. (name, swapped named, the right way round named)."""
+    files, calibration = indoor.calibrated(url, folder)
+    named = lambda ws: any("look swapped" in w for w in ws)  # noqa: E731
+    for n, (l, r) in files.items():
+        said = []
+        for a, b in ((r, l), (l, r)):
+            said.append(named(json.loads(service.post_once(url, "/depth-map?output=summary", {
+                "left": (a, "left.jpg", "image/jpeg"), "right": (b, "right.jpg", "image/jpeg"),
+                "calibration": (calibration, "opencv.yml", "application/x-yaml")}))["warnings"]))
+        yield n, said[0], said[1]
+
+
 def score(disp, truth, mask):
     """answered, wrong > 1 and > 2 px of those answered, and right of the board."""
     d, t = disp[mask], truth[mask]
@@ -216,6 +230,14 @@ def main():
          warned == len(pairs)),
         (f"swapped pairs named: {named} of {len(pairs)}", named == len(pairs)),
         (f"the right way round named swapped: {false_named} of {len(pairs)}", false_named == 0),
+    ]
+    raw = list(raw_swaps(args.url, args.photographs))
+    raw_named, raw_false = sum(r[1] for r in raw), sum(r[2] for r in raw)
+    slips_goals += [
+        (f"raw pairs swapped (with the calibration), named: {raw_named} of {len(raw)}",
+         raw_named == len(raw)),
+        (f"raw pairs the right way round named swapped: {raw_false} of {len(raw)}",
+         raw_false == 0),
     ]
     for text, met in slips_goals:
         print(f"  {'met    ' if met else 'NOT met'}  {text}")

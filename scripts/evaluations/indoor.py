@@ -45,9 +45,9 @@ MODES = {"SGBM": cv2.STEREO_SGBM_MODE_SGBM, "HH": cv2.STEREO_SGBM_MODE_HH,
          "SGBM_3WAY": cv2.STEREO_SGBM_MODE_SGBM_3WAY, "HH4": cv2.STEREO_SGBM_MODE_HH4}
 
 
-def rectified_pairs(url, folder):
-    """The calibration from all 13 pairs, then each pair rectified by the service: (name,
-    left, right) as 8-bit grey arrays."""
+def calibrated(url, folder):
+    """The 13 raw pairs' JPEG bytes by name, and the calibration the service makes from all
+    of them (OpenCV's YAML)."""
     files = {n: (Path(folder, f"left{n}.jpg").read_bytes(), Path(folder, f"right{n}.jpg").read_bytes())
              for n in NAMES}
     parts = []
@@ -55,7 +55,13 @@ def rectified_pairs(url, folder):
         parts += [("left", (l, f"left{n}.jpg", "image/jpeg")),
                   ("right", (r, f"right{n}.jpg", "image/jpeg"))]
     parts.append(("board", (json.dumps(BOARD).encode(), None, "application/json")))
-    calibration = service.post_once(url, "/calibrate?output=opencv.yml", parts)
+    return files, service.post_once(url, "/calibrate?output=opencv.yml", parts)
+
+
+def rectified_pairs(url, folder):
+    """The calibration from all 13 pairs, then each pair rectified by the service: (name,
+    left, right) as 8-bit grey arrays."""
+    files, calibration = calibrated(url, folder)
     for n, (l, r) in files.items():
         images = []
         for side in ("left", "right"):

@@ -972,3 +972,38 @@ async fn rows_that_do_not_line_up_are_warned() {
         }
     }
 }
+
+/// A raw pair sent with its calibration is matched without a word about its cameras; sent
+/// swapped (the right camera's frame as left), `/depth-map` says "left and right look
+/// swapped", where it used to answer a sparse map silently.
+#[tokio::test]
+async fn a_raw_pair_sent_swapped_is_named() {
+    let app = spawn_app().await;
+    let pair = raw_pair(Model::PlumbBob);
+    let size = Size {
+        width: W,
+        height: H,
+    };
+    let rect = stereo_rectify(&pair, size, RectifyOptions::default()).unwrap();
+    let [left, right] = render_raw(&pair, &rect);
+    let yml = stereo_calibrate_yml(&pair);
+    let parts = |a: &[u8], b: &[u8]| {
+        form(
+            grey_png(a),
+            grey_png(b),
+            &[
+                ("calibration", yml.clone()),
+                ("calibration_unit", "mm".into()),
+            ],
+        )
+    };
+    let said = |body: &serde_json::Value| {
+        body["warnings"]
+            .to_string()
+            .contains("left and right look swapped")
+    };
+    let sent = ok_json(app.post_form("/depth-map", parts(&left, &right)).await).await;
+    assert!(!said(&sent), "{sent}");
+    let swapped = ok_json(app.post_form("/depth-map", parts(&right, &left)).await).await;
+    assert!(said(&swapped), "{swapped}");
+}

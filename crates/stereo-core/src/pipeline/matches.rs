@@ -98,6 +98,10 @@ pub fn matches(
     cancel: &AtomicBool,
 ) -> Result<Matches, Stopped> {
     let raw = request.maps.and(request.calibrated.raw.as_deref());
+    // The raw grey frames, kept until the range is chosen ([`range::Ranged::check_raw`]).
+    let raw_grey = request
+        .maps
+        .map(|_| (left.grey.clone(), right.grey.clone()));
     let rectify = request
         .maps
         .map(|maps| maps.rectify_pair(&mut left, &mut right, false));
@@ -127,7 +131,10 @@ pub fn matches(
         .collect();
     let wanted: Vec<Rect> = boxes.iter().flatten().copied().collect();
     let started = std::time::Instant::now();
-    let ranged = range::choose(&left.grey, &right.grey, request.params, cancel)?;
+    let mut ranged = range::choose(&left.grey, &right.grey, request.params, cancel)?;
+    if let (Some(maps), Some((l, r))) = (request.maps, raw_grey) {
+        ranged.check_raw(maps, &l, &r, cancel)?;
+    }
     let surveyed = started.elapsed();
     let params = &ranged.params;
     let Correspondences {

@@ -6,6 +6,7 @@
 use std::sync::atomic::AtomicBool;
 
 use crate::physics::Rig;
+use crate::pipeline::Maps;
 use crate::vision::survey::{self, Survey};
 use crate::vision::{Cancelled, DEFAULT_MAX_DISPARITY, Disparity, Gray, MAX_DISPARITIES, Params};
 
@@ -103,6 +104,9 @@ pub struct Ranged {
     pub params: Params,
     pub used: RangeUsed,
     survey: Option<Survey>,
+    /// A raw pair that matched far better rectified the other way round: the share of its
+    /// coarse view that matched so, and as sent ([`Ranged::check_raw`]).
+    raw_swapped: Option<(f64, f64)>,
 }
 
 /// Surveys a rectified pair and chooses the range it is matched over: the caller's when
@@ -146,6 +150,7 @@ pub fn choose(
         },
         params,
         survey,
+        raw_swapped: None,
     })
 }
 
@@ -199,7 +204,16 @@ impl Ranged {
                     .unwrap_or_default(),
             ));
         }
-        if let Some(s) = self.survey.as_ref().filter(|s| s.swapped()) {
+        if let Some((other, sent)) = self.raw_swapped {
+            said.push(format!(
+                "left and right look swapped: rectified the other way round (the right image \
+                 as the left camera's), {:.0} % of the pair's coarse view matches, against \
+                 {:.0} % as sent; send the left camera's image as left and the right camera's \
+                 as right",
+                other * 100.0,
+                sent * 100.0
+            ));
+        } else if let Some(s) = self.survey.as_ref().filter(|s| s.swapped()) {
             let evidence = match s.reversed {
                 Some(r) if r >= survey::SWAPPED_GAIN * s.matched => format!(
                     "matched the other way round (right as left), {:.0} % of the pair's coarse \
@@ -226,7 +240,34 @@ impl Ranged {
     /// Whether the pair's coarse view says the cameras look swapped (the warning
     /// [`Ranged::judge`] then writes).
     pub fn swapped(&self) -> bool {
-        self.survey.as_ref().is_some_and(Survey::swapped)
+        self.raw_swapped.is_some() || self.survey.as_ref().is_some_and(Survey::swapped)
+    }
+
+    /// For a raw pair rectified through `maps` (its raw grey frames `left` and `right`): where
+    /// its coarse view matched little ([`survey::SUSPECT_MATCHED`]) and does not already look
+    /// swapped, the frames rectified the other way round ([`Maps::swapped_grey`]) are surveyed
+    /// too, and a pair that matches at least [`survey::SWAPPED_GAIN`] times as much so is taken
+    /// as swapped: a calibration that works only one way round.
+    pub fn check_raw(
+        &mut self,
+        maps: &Maps,
+        left: &Gray,
+        right: &Gray,
+        cancel: &AtomicBool,
+    ) -> Result<(), Cancelled> {
+        let matched = self.survey.as_ref().map_or(0.0, |s| s.matched);
+        if self.swapped() || matched >= survey::SUSPECT_MATCHED {
+            return Ok(());
+        }
+        let (l, r) = maps.swapped_grey(left, right);
+        if let Some(other) = survey::survey(&l, &r, cancel)?
+            && other.usable()
+            && !other.swapped()
+            && other.matched >= survey::SWAPPED_GAIN * matched
+        {
+            self.raw_swapped = Some((other.matched, matched));
+        }
+        Ok(())
     }
 
     /// Whether the pair's coarse view puts the pixel `(x, y)` past the range's end.

@@ -148,6 +148,19 @@ impl Maps {
         encode::png_rgb(w * 2, h, &out)
     }
 
+    /// Raw grey frames rectified the other way round: `right` through the left camera's map
+    /// and `left` through the right's, as if the cameras had been sent swapped.
+    pub fn swapped_grey(&self, left: &Gray, right: &Gray) -> (Gray, Gray) {
+        let grey = |g: &Gray, map: &Fixed| {
+            Gray::new(
+                map.width,
+                map.height,
+                remap::remap_fixed(RawImage::grey(g), map, Interpolation::Linear),
+            )
+        };
+        rayon::join(|| grey(right, &self.left), || grey(left, &self.right))
+    }
+
     /// Both frames' grey levels read through the maps with `how`; the time it took.
     pub fn remap_grey(&self, left: &Decoded, right: &Decoded, how: Interpolation) -> Duration {
         let started = Instant::now();
