@@ -224,7 +224,8 @@ impl Browser {
 /// pixel's σ_d from the arrays; "Show each pixel's σ" draws the σ map with its colour bar in mm;
 /// a click there matches at x − 22 in the right image, marked on its row, the distance card
 /// reads B·f/22 and splits the match's error bar into matching and calibration; a box dragged
-/// on the disc reads its median; "Copy results" includes the match.
+/// on the disc reads its median; "Copy results" includes the match; a range typed short of
+/// the scene is named in the status.
 #[tokio::test]
 #[ignore = "needs chromium and chromedriver; .ci/run runs it"]
 async fn an_uploaded_pair_is_matched_hovered_clicked_and_boxed() {
@@ -417,6 +418,18 @@ async fn an_uploaded_pair_is_matched_hovered_clicked_and_boxed() {
         })
         .await;
     assert!(saved.starts_with("Saved points.ply ("), "{saved}");
+
+    // Act / Assert: a search that stops short of the scene (its box at 22 px) is named in the
+    // status, as the service warns of it, rather than drawn as if it were right.
+    browser.type_into("max_disparity", "16").await;
+    let short = browser
+        .until("the short range's warning", || async {
+            let text = browser.text("depth-status").await;
+            text.contains("Warnings: max_disparity 16 stops short of the scene")
+                .then_some(text)
+        })
+        .await;
+    assert!(short.contains("refused (left empty)"), "{short}");
 
     browser.assert_clean().await;
     browser.assert_no_alert().await;

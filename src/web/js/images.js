@@ -239,6 +239,9 @@ export async function requestDepth() {
     };
     const elapsed = performance.now() - started;
     const server = serverTime(response);
+    // What the service warns of (a range that stops short, cameras that look swapped), but
+    // the raw pair's rectification, which the status says in its own words.
+    const warnings = serviceWarnings(response).filter((w) => !w.startsWith('the raw pair was rectified first'));
     let valid = 0;
     for (const d of pair.arrays.disparity) if (!Number.isNaN(d)) valid += 1;
     const fraction = valid / (width * height);
@@ -253,12 +256,23 @@ export async function requestDepth() {
     $('depth-status').textContent =
       `Depth map ${width} × ${height}: ${percent(fraction)} of the pixels matched, in ${fmt(elapsed, 3)} ms ` +
       `(${fmt(server, 3)} ms of it on the server).` +
-      (rawPair() ? ' The service rectified the raw pair first: the depth map is drawn in the rectified left image\'s frame.' : '');
+      (rawPair() ? ' The service rectified the raw pair first: the depth map is drawn in the rectified left image\'s frame.' : '') +
+      (warnings.length > 0 ? ` Warnings: ${warnings.join('; ')}.` : '');
   } catch (error) {
     if (error.name === 'AbortError' || token !== depthToken) return;
     $('depth-status').textContent = `No depth map: ${error.message}.`;
   } finally {
     if (token === depthToken) document.body.dataset.depth = 'done';
+  }
+}
+
+/** The answer's `Stereo-Warnings` header: a JSON array of strings, none when absent or bad. */
+function serviceWarnings(response) {
+  try {
+    const said = JSON.parse(response.headers.get('stereo-warnings') || '[]');
+    return Array.isArray(said) ? said.filter((w) => typeof w === 'string') : [];
+  } catch {
+    return [];
   }
 }
 
