@@ -156,6 +156,31 @@ fn form(left: Vec<u8>, right: Vec<u8>, extra: &[(&str, String)]) -> Form {
     form
 }
 
+/// `model`'s raw pair ([`raw_pair`]) seeing the scene, rendered, with its `stereoCalibrate`
+/// file.
+fn rendered(model: Model) -> ([Vec<u8>; 2], String) {
+    let pair = raw_pair(model);
+    let size = Size {
+        width: W,
+        height: H,
+    };
+    let rect = stereo_rectify(&pair, size, RectifyOptions::default()).unwrap();
+    (render_raw(&pair, &rect), stereo_calibrate_yml(&pair))
+}
+
+/// The form of a raw pair's frames `left` and `right` (grey levels) with the calibration `yml`
+/// in mm.
+fn raw_form(left: &[u8], right: &[u8], yml: &str) -> Form {
+    form(
+        grey_png(left),
+        grey_png(right),
+        &[
+            ("calibration", yml.to_owned()),
+            ("calibration_unit", "mm".into()),
+        ],
+    )
+}
+
 async fn rectify(app: &TestApp, query: &str, form: Form) -> reqwest::Response {
     app.post_form(&format!("/rectify{query}"), form).await
 }
@@ -176,16 +201,7 @@ async fn rectified_frames_match_the_scene_for_every_model() {
         let rect = stereo_rectify(&pair, size, RectifyOptions::default()).unwrap();
         let [left, right] = render_raw(&pair, &rect);
         let yml = stereo_calibrate_yml(&pair);
-        let parts = |l: &[u8], r: &[u8]| {
-            form(
-                grey_png(l),
-                grey_png(r),
-                &[
-                    ("calibration", yml.clone()),
-                    ("calibration_unit", "mm".into()),
-                ],
-            )
-        };
+        let parts = |l: &[u8], r: &[u8]| raw_form(l, r, &yml);
         let png = rectify(&app, "?output=left.png", parts(&left, &right)).await;
         assert_eq!(png.status(), 200, "{model}");
         assert_eq!(png.headers()["content-type"], "image/png");
@@ -238,16 +254,7 @@ async fn outputs_cache_pair_and_maps() {
     let rect = stereo_rectify(&pair, size, RectifyOptions::default()).unwrap();
     let [left, right] = render_raw(&pair, &rect);
     let yml = stereo_calibrate_yml(&pair);
-    let parts = || {
-        form(
-            grey_png(&left),
-            grey_png(&right),
-            &[
-                ("calibration", yml.clone()),
-                ("calibration_unit", "mm".into()),
-            ],
-        )
-    };
+    let parts = || raw_form(&left, &right, &yml);
     let first = ok_json(rectify(&app, "", parts()).await).await;
     let second = ok_json(rectify(&app, "", parts()).await).await;
     assert_eq!(first["maps_cached"], false);
@@ -979,31 +986,22 @@ async fn rows_that_do_not_line_up_are_warned() {
 #[tokio::test]
 async fn a_raw_pair_sent_swapped_is_named() {
     let app = spawn_app().await;
-    let pair = raw_pair(Model::PlumbBob);
-    let size = Size {
-        width: W,
-        height: H,
-    };
-    let rect = stereo_rectify(&pair, size, RectifyOptions::default()).unwrap();
-    let [left, right] = render_raw(&pair, &rect);
-    let yml = stereo_calibrate_yml(&pair);
-    let parts = |a: &[u8], b: &[u8]| {
-        form(
-            grey_png(a),
-            grey_png(b),
-            &[
-                ("calibration", yml.clone()),
-                ("calibration_unit", "mm".into()),
-            ],
-        )
-    };
+    let ([left, right], yml) = rendered(Model::PlumbBob);
     let said = |body: &serde_json::Value| {
         body["warnings"]
             .to_string()
             .contains("left and right look swapped")
     };
-    let sent = ok_json(app.post_form("/depth-map", parts(&left, &right)).await).await;
+    let sent = ok_json(
+        app.post_form("/depth-map", raw_form(&left, &right, &yml))
+            .await,
+    )
+    .await;
     assert!(!said(&sent), "{sent}");
-    let swapped = ok_json(app.post_form("/depth-map", parts(&right, &left)).await).await;
+    let swapped = ok_json(
+        app.post_form("/depth-map", raw_form(&right, &left, &yml))
+            .await,
+    )
+    .await;
     assert!(said(&swapped), "{swapped}");
 }
