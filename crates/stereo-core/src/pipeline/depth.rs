@@ -120,20 +120,13 @@ pub fn matched(
     request: Request<'_>,
     cancel: &AtomicBool,
 ) -> Result<Matched, Stopped> {
-    // A raw pair's grey frames, kept until the range is chosen: a pair that matches little
-    // is tried rectified the other way round too ([`range::Ranged::check_raw`]).
-    let raw_grey = request
-        .maps
-        .map(|_| (left.grey.clone(), right.grey.clone()));
-    let rectify = request
-        .maps
-        .map(|maps| maps.rectify_pair(&mut left, &mut right, request.colour));
-    let started = Instant::now();
-    let mut ranged = range::choose(&left.grey, &right.grey, request.params, cancel)?;
-    if let (Some(maps), Some((l, r))) = (request.maps, raw_grey) {
-        ranged.check_raw(maps, &l, &r, cancel)?;
-    }
-    let surveyed = started.elapsed();
+    let (rectify, ranged, surveyed) = range::rectify_and_choose(
+        request.maps,
+        (&mut left, &mut right),
+        request.colour,
+        request.params,
+        cancel,
+    )?;
     let params = &ranged.params;
     let (mut map, mut timings) = vision::disparity(&left.grey, &right.grey, params, cancel)?;
     timings.cost += surveyed;

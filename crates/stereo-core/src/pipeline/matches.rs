@@ -98,13 +98,13 @@ pub fn matches(
     cancel: &AtomicBool,
 ) -> Result<Matches, Stopped> {
     let raw = request.maps.and(request.calibrated.raw.as_deref());
-    // The raw grey frames, kept until the range is chosen ([`range::Ranged::check_raw`]).
-    let raw_grey = request
-        .maps
-        .map(|_| (left.grey.clone(), right.grey.clone()));
-    let rectify = request
-        .maps
-        .map(|maps| maps.rectify_pair(&mut left, &mut right, false));
+    let (rectify, ranged, surveyed) = range::rectify_and_choose(
+        request.maps,
+        (&mut left, &mut right),
+        false,
+        request.params,
+        cancel,
+    )?;
     let (w, h) = (left.grey.width, left.grey.height);
     // Points and boxes are clicked on the raw frame: matched where they land once rectified
     // (a box as the rectangle around its corners' images).
@@ -130,12 +130,6 @@ pub fn matches(
         })
         .collect();
     let wanted: Vec<Rect> = boxes.iter().flatten().copied().collect();
-    let started = std::time::Instant::now();
-    let mut ranged = range::choose(&left.grey, &right.grey, request.params, cancel)?;
-    if let (Some(maps), Some((l, r))) = (request.maps, raw_grey) {
-        ranged.check_raw(maps, &l, &r, cancel)?;
-    }
-    let surveyed = started.elapsed();
     let params = &ranged.params;
     let Correspondences {
         mut map,

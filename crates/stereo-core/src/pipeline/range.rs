@@ -4,9 +4,11 @@
 //! cameras that look swapped named.
 
 use std::sync::atomic::AtomicBool;
+use std::time::{Duration, Instant};
 
 use crate::physics::Rig;
 use crate::pipeline::Maps;
+use crate::vision::decode::Decoded;
 use crate::vision::survey::{self, Survey};
 use crate::vision::{Cancelled, DEFAULT_MAX_DISPARITY, Disparity, Gray, MAX_DISPARITIES, Params};
 
@@ -107,6 +109,30 @@ pub struct Ranged {
     /// A raw pair that matched far better rectified the other way round: the share of its
     /// coarse view that matched so, and as sent ([`Ranged::check_raw`]).
     raw_swapped: Option<(f64, f64)>,
+}
+
+/// Rectifies a pair through `maps` when there are some (in place, [`Maps::rectify_pair`]),
+/// then chooses its range ([`choose`]), a raw pair checked rectified the other way round too
+/// ([`Ranged::check_raw`]). The rectification's time, the range, and the time choosing it
+/// took.
+pub fn rectify_and_choose(
+    maps: Option<&Maps>,
+    (left, right): (&mut Decoded, &mut Decoded),
+    colour: bool,
+    params: &Params,
+    cancel: &AtomicBool,
+) -> Result<(Option<Duration>, Ranged, Duration), Stopped> {
+    let rectified = maps.map(|m| (m, m.rectify_pair(left, right, colour)));
+    let started = Instant::now();
+    let mut ranged = choose(&left.grey, &right.grey, params, cancel)?;
+    if let Some((maps, (_, (raw_left, raw_right)))) = &rectified {
+        ranged.check_raw(maps, raw_left, raw_right, cancel)?;
+    }
+    Ok((
+        rectified.map(|(_, (took, _))| took),
+        ranged,
+        started.elapsed(),
+    ))
 }
 
 /// Surveys a rectified pair and chooses the range it is matched over: the caller's when

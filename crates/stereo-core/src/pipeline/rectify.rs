@@ -50,8 +50,14 @@ impl Maps {
     }
 
     /// Both frames of a pair read through the maps, in place: grey always, the left colours
-    /// too when `colour` (a point cloud's). The time it took.
-    pub fn rectify_pair(&self, left: &mut Decoded, right: &mut Decoded, colour: bool) -> Duration {
+    /// too when `colour` (a point cloud's). The time it took, and the raw grey frames the
+    /// rectified ones replaced.
+    pub fn rectify_pair(
+        &self,
+        left: &mut Decoded,
+        right: &mut Decoded,
+        colour: bool,
+    ) -> (Duration, (Gray, Gray)) {
         let started = Instant::now();
         let grey = |d: &Decoded, map: &Fixed| {
             Gray::new(
@@ -74,9 +80,11 @@ impl Maps {
                 Interpolation::Linear,
             ));
         }
-        left.grey = l;
-        right.grey = r;
-        started.elapsed()
+        let raw = (
+            std::mem::replace(&mut left.grey, l),
+            std::mem::replace(&mut right.grey, r),
+        );
+        (started.elapsed(), raw)
     }
 }
 
