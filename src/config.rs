@@ -192,9 +192,10 @@ pub struct DepthMapArgs {
     /// The matcher's preset: accurate (the default) or fast.
     #[arg(long, value_name = "PRESET", value_parser = ["accurate", "fast"])]
     pub preset: Option<String>,
-    /// The smallest disparity searched (default 0).
-    #[arg(long, value_name = "PX", allow_negative_numbers = true)]
-    pub min_disparity: Option<i32>,
+    /// The smallest disparity searched, or `auto` to find it from each pair (default: auto
+    /// where the end is found, else 0).
+    #[arg(long, value_name = "PX|auto", allow_negative_numbers = true)]
+    pub min_disparity: Option<stereo_core::vision::RangeEnd>,
     /// The search stops before this disparity, or `auto` to find it from each pair (default:
     /// the calibration's ndisp, else auto).
     #[arg(long, value_name = "PX|auto", allow_negative_numbers = true)]

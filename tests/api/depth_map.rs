@@ -1224,3 +1224,60 @@ async fn the_range_is_found_a_short_one_refused_and_swapped_cameras_named() {
         "{swapped}"
     );
 }
+
+/// A scene near everywhere (the synthetic scene five times nearer and 60 px further: about
+/// 90–210 px) at the defaults is searched from past 0, short of its farthest truth, and says
+/// so; its disc is answered right. `min_disparity=0` searches from 0, and `min_disparity`
+/// neither `auto` nor a number is a 422 naming it.
+#[tokio::test]
+async fn a_scene_near_everywhere_is_searched_from_the_start_it_needs() {
+    let app = spawn_app().await;
+    let mut scene = synthetic::layered(640, 360);
+    for plane in &mut scene.planes {
+        plane.disparity = plane.disparity.map(|v| 5.0 * v);
+        plane.disparity[0] += 60.0;
+    }
+    let near = synthetic::render(&scene);
+    let least = near.seen_truth().into_iter().fold(f32::MAX, f32::min);
+    let form = || {
+        Form::new()
+            .part("left", image_part(png(&near.left_rgb, 640, 360)))
+            .part("right", image_part(png(&near.right_rgb, 640, 360)))
+    };
+    let found = ok_json(depth_map(&app, "", form()).await).await;
+    let min = found["min_disparity"].as_i64().unwrap();
+    assert!(
+        min > 0 && (min as f32) < least,
+        "{min} for a truth from {least}: {found}"
+    );
+    assert!(
+        found["disparity_range"]["why"]
+            .as_str()
+            .unwrap()
+            .contains("the start found from the pair too"),
+        "{found}"
+    );
+    let response = depth_map(&app, "?output=disparity.npy", form()).await;
+    assert_eq!(response.status(), 200);
+    let bytes = response.bytes().await.unwrap();
+    let len = u16::from_le_bytes([bytes[8], bytes[9]]) as usize;
+    let map = floats(&bytes[10 + len..]);
+    let (cx, cy) = (448, 180);
+    let disc: Vec<(f32, f32)> = (cy - 30..cy + 30)
+        .flat_map(|y| (cx - 30..cx + 30).map(move |x| y * 640 + x))
+        .filter(|&i| !map[i].is_nan())
+        .map(|i| (map[i], near.truth[i]))
+        .collect();
+    let right = disc.iter().filter(|(d, t)| (d - t).abs() <= 1.0).count();
+    assert!(
+        disc.len() > 3000 && right as f64 >= 0.9 * disc.len() as f64,
+        "{right} of {}",
+        disc.len()
+    );
+    let from_zero = ok_json(depth_map(&app, "?min_disparity=0", form()).await).await;
+    assert_eq!(from_zero["min_disparity"], 0, "{from_zero}");
+    let response = depth_map(&app, "?min_disparity=far", form()).await;
+    assert_eq!(response.status(), 422);
+    let problem: serde_json::Value = response.json().await.unwrap();
+    assert_eq!(problem["errors"][0]["field"], "min_disparity", "{problem}");
+}

@@ -350,8 +350,9 @@ async fn every_error_status_has_its_own_example() {
 
 /// `/depth-map`'s query parameters state their defaults in the document (Swagger's "Try it
 /// out" shows them), and each is the engine's own: what the matcher takes when the parameter
-/// is left out. `paths` and `alpha` have none (the preset's choice, the file's own), nor has
-/// `max_disparity`: left out, the range is found from the pair.
+/// is left out. `paths` and `alpha` have none (the preset's choice, the file's own), nor have
+/// `min_disparity` and `max_disparity`: left out, the range (its start too) is found from the
+/// pair.
 #[tokio::test]
 async fn the_depth_map_parameters_state_the_engines_defaults() {
     use stereo_core::vision::{Params, Settings, Subpixel};
@@ -369,8 +370,8 @@ async fn the_depth_map_parameters_state_the_engines_defaults() {
     };
     let engine = Params::new(&Settings::default()).expect("the defaults are valid");
     let penalties = engine.penalties();
-    assert_eq!(default("min_disparity"), json!(engine.min_disparity()));
-    assert!(engine.range_found());
+    assert!(engine.range_found() && engine.min_found());
+    assert_eq!(default("min_disparity"), Value::Null);
     assert_eq!(default("max_disparity"), Value::Null);
     assert_eq!(default("p1"), json!(penalties.p1));
     assert_eq!(default("p2"), json!(penalties.p2));
@@ -403,5 +404,8 @@ async fn the_depth_map_parameters_state_the_engines_defaults() {
         .filter(|p| p["schema"]["default"].is_null())
         .filter_map(|p| p["name"].as_str())
         .collect();
-    assert_eq!(without, ["max_disparity", "paths", "alpha"]);
+    assert_eq!(
+        without,
+        ["min_disparity", "max_disparity", "paths", "alpha"]
+    );
 }

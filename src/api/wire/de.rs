@@ -241,6 +241,20 @@ impl Member for stereo_core::vision::RangeEnd {
 /// The schema of `max_disparity` ([`stereo_core::vision::RangeEnd`]): `auto` or an integer
 /// the engine's range bounds take, described by `description`.
 pub fn max_disparity_schema(description: &str) -> utoipa::openapi::schema::Schema {
+    range_end_schema(description, (-4095, 4608), 64)
+}
+
+/// The schema of `min_disparity`: `auto` or an integer within the engine's bounds.
+pub fn min_disparity_schema(description: &str) -> utoipa::openapi::schema::Schema {
+    range_end_schema(description, (-4096, 4096), 0)
+}
+
+/// `auto` or an integer in `low ..= high`, described by `description`, with an example.
+fn range_end_schema(
+    description: &str,
+    (low, high): (i32, i32),
+    example: i32,
+) -> utoipa::openapi::schema::Schema {
     use utoipa::openapi::schema::{ObjectBuilder, OneOfBuilder, SchemaFormat, Type};
     OneOfBuilder::new()
         .item(
@@ -249,8 +263,8 @@ pub fn max_disparity_schema(description: &str) -> utoipa::openapi::schema::Schem
                 .format(Some(SchemaFormat::KnownFormat(
                     utoipa::openapi::KnownFormat::Int32,
                 )))
-                .minimum(Some(-4095))
-                .maximum(Some(4608)),
+                .minimum(Some(low))
+                .maximum(Some(high)),
         )
         .item(
             ObjectBuilder::new()
@@ -258,7 +272,7 @@ pub fn max_disparity_schema(description: &str) -> utoipa::openapi::schema::Schem
                 .enum_values(Some(["auto"])),
         )
         .description(Some(description))
-        .examples([serde_json::json!(64)])
+        .examples([serde_json::json!(example)])
         .build()
         .into()
 }

@@ -237,12 +237,23 @@ pub fn range_end() -> utoipa::openapi::schema::Schema {
     super::de::max_disparity_schema(RANGE_END)
 }
 
+/// What `min_disparity` means, on `/depth-map`, `/match` and the stream.
+pub const RANGE_START: &str = "The smallest disparity searched, in pixels. `auto` finds it \
+     from the pair: its coarse view's farthest matches less a margin, rounded down to 16 and \
+     never below 0, so that a scene near everywhere is not searched from 0 (the pixels short of \
+     it are refused). Default: `auto` where `max_disparity` is found, else 0.";
+
+/// [`RANGE_START`]'s schema.
+pub fn range_start() -> utoipa::openapi::schema::Schema {
+    super::de::min_disparity_schema(RANGE_START)
+}
+
 request! {
     /// The options of `/depth-map`, in the query string.
     pub struct DepthMapQuery {
-        /// The smallest disparity searched, in pixels. Default 0.
-        #[schema(minimum = -4096, maximum = 4096, example = 0, default = 0)]
-        min_disparity: i32,
+        /// The smallest disparity searched ([`RANGE_START`]).
+        #[schema(schema_with = range_start)]
+        min_disparity: RangeEnd,
         /// The search stops before this disparity: `min_disparity ≤ d < max_disparity`, at
         /// most 512 disparities ([`RANGE_END`]).
         #[schema(schema_with = range_end)]

@@ -285,6 +285,8 @@ pub struct SettingsAnswer {
     #[serde(rename = "type")]
     pub kind: &'static str,
     pub layout: &'static str,
+    /// The start of the search; where it is found (no `min_disparity` with no end given, or
+    /// `auto`), each frame's own is found too (its summary says which), and this is 0.
     pub min_disparity: i32,
     /// The end of the search; null when none was given: each frame's range is then found from
     /// it (the frame's summary says which).

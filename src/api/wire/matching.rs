@@ -17,9 +17,9 @@ use stereo_core::pipeline::matches::{self, MatchOutcome};
 request! {
     /// The disparity range of `/match`, in the query string.
     pub struct MatchQuery {
-        /// The smallest disparity searched, in pixels. Default 0.
-        #[schema(minimum = -4096, maximum = 4096, example = 0)]
-        min_disparity: i32,
+        /// The smallest disparity searched ([`super::depth_map::RANGE_START`]).
+        #[schema(schema_with = super::depth_map::range_start)]
+        min_disparity: stereo_core::vision::RangeEnd,
         /// The search stops before this disparity ([`super::depth_map::RANGE_END`]).
         #[schema(schema_with = super::depth_map::range_end)]
         max_disparity: stereo_core::vision::RangeEnd,

@@ -69,11 +69,30 @@ pub struct RangeUsed {
     pub min: i32,
     pub max: i32,
     pub chosen: Chosen,
+    /// Where the start was found from the pair too: its coarse view's farthest matches
+    /// ([`survey::FAR_QUANTILE`]), in pixels.
+    pub start: Option<f32>,
 }
 
 impl RangeUsed {
     /// The reason, in a sentence's words.
     pub fn why(&self) -> String {
+        let start = self
+            .start
+            .map(|far| {
+                format!(
+                    "; the start found from the pair too: its coarse view's farthest matches \
+                     reach {far:.0} px ({:.1} % of them farther), less a margin, rounded down \
+                     to 16 and never below 0",
+                    100.0 * survey::FAR_QUANTILE
+                )
+            })
+            .unwrap_or_default();
+        self.end_why() + &start
+    }
+
+    /// The reason for the range's end.
+    fn end_why(&self) -> String {
         match self.chosen {
             Chosen::Given => "given: max_disparity (or the calibration file's ndisp)".to_owned(),
             Chosen::Found { near, needs } => format!(
@@ -146,12 +165,20 @@ pub fn choose(
     let survey = survey::survey(left, right, cancel)?;
     let given = !params.range_found();
     let usable = survey.as_ref().filter(|s| s.usable());
+    // The start given, or `None` to find it (with a usable survey).
+    let start = (!params.min_found() || usable.is_none()).then(|| params.min_disparity());
     let (params, chosen) = match (usable, given) {
+        (Some(s), true) if start.is_none() => {
+            let max = params.max_disparity();
+            let min = s.needs(None).map_or(0, |(min, _)| min).min(max - 16);
+            (params.with_range(min, max), Chosen::Given)
+        }
         (_, true) => (*params, Chosen::Given),
         (Some(s), false) => {
-            let (_, needs) = s.needs().map_err(|needs| Stopped::TooWide { needs })?;
+            let (min, needs) = s.needs(start).map_err(|needs| Stopped::TooWide { needs })?;
             let max = needs.max(params.least_max());
-            let min = params.min_disparity().min(max - 16);
+            // A stream's kept end may widen the range past one search: its start moves up.
+            let min = min.min(max - 16).max(max - MAX_DISPARITIES as i32);
             (
                 params.with_range(min, max),
                 Chosen::Found {
@@ -173,6 +200,7 @@ pub fn choose(
             min: params.min_disparity(),
             max: params.max_disparity(),
             chosen,
+            start: usable.filter(|_| start.is_none()).map(|s| s.far),
         },
         params,
         survey,
@@ -193,7 +221,17 @@ impl Ranged {
                 .survey
                 .as_ref()
                 .is_some_and(|s| s.beyond(max) >= SHORT_SHARE);
-        let refused = survey::refuse(map, self.survey.as_ref(), max, grow);
+        let refused = survey::refuse(map, self.survey.as_ref(), (None, max), grow);
+        // A start found past 0: the few pixels short of it are refused too (not counted above:
+        // they say nothing of the range's end).
+        if self.used.start.is_some() && self.used.min > 0 {
+            survey::refuse(
+                map,
+                self.survey.as_ref(),
+                (Some(self.used.min), i32::MAX),
+                false,
+            );
+        }
         let mut said = Vec::new();
         // The share refused, or where only bands of the map were matched (`/match`), the
         // share the coarse view puts past the range.
@@ -347,9 +385,39 @@ mod tests {
             RangeUsed {
                 min: 0,
                 max: 80,
-                chosen: Chosen::Given
+                chosen: Chosen::Given,
+                start: None,
             }
         );
+    }
+
+    /// A scene near everywhere (disparities about 90–260 px) is searched from past 0 at the
+    /// defaults, short of its farthest truth, and its range says why; a start given stands.
+    #[test]
+    fn a_scene_near_everywhere_is_searched_from_past_zero() {
+        let mut scene = synthetic::layered(640, 360);
+        for plane in &mut scene.planes {
+            plane.disparity = plane.disparity.map(|v| 5.0 * v);
+            plane.disparity[0] += 60.0;
+        }
+        let pair = synthetic::render(&scene);
+        let least = pair.seen_truth().into_iter().fold(f32::MAX, f32::min);
+        let cancel = AtomicBool::new(false);
+        let ranged = choose(&pair.left, &pair.right, &Params::default(), &cancel).unwrap();
+        assert!(
+            ranged.used.min > 0 && (ranged.used.min as f32) < least,
+            "{:?} for a truth from {least}",
+            ranged.used
+        );
+        let why = ranged.used.why();
+        assert!(why.contains("the start found from the pair too"), "{why}");
+        let from_zero = Params::new(&crate::vision::Settings {
+            min_disparity: Some(crate::vision::RangeEnd::Px(0)),
+            ..Default::default()
+        })
+        .unwrap();
+        let ranged = choose(&pair.left, &pair.right, &from_zero, &cancel).unwrap();
+        assert_eq!((ranged.used.min, ranged.used.start), (0, None));
     }
 
     /// A given range that stops short is warned of by name, and the pixels past it refused:

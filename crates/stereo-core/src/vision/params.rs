@@ -117,7 +117,9 @@ impl std::fmt::Display for RangeEnd {
 pub struct Settings {
     /// The named set the settings not given come from; `None` is [`Preset::Accurate`].
     pub preset: Option<Preset>,
-    pub min_disparity: Option<i32>,
+    /// The start: pixels, or [`RangeEnd::Auto`] to find it from the pair (the farthest matches
+    /// with a margin); `None` finds it where the end is found too, else is 0.
+    pub min_disparity: Option<RangeEnd>,
     /// The end of the search, exclusive: disparities `min_disparity .. max_disparity`;
     /// `None` and [`RangeEnd::Auto`] find it from the pair (`None` also takes a calibration
     /// file's `ndisp` where the caller has one, `Auto` does not).
@@ -205,6 +207,8 @@ pub struct Params {
     /// ([`super::survey`]); `min_disparity .. max_disparity` is then the default, until
     /// [`Params::with_range`] sets the one found.
     pub(super) found: bool,
+    /// Whether the start is found from the pair too (`min_disparity` is 0 until it is).
+    pub(super) min_found: bool,
     /// With `found`: the least end of range to search, whatever the pair's own needs (a
     /// stream's range kept from its earlier frames, [`Params::at_least`]); 0 for none.
     pub(super) at_least: i32,
@@ -234,6 +238,7 @@ impl Default for Params {
             paths: sgm::Paths::Auto,
             preset: Preset::Accurate,
             found: true,
+            min_found: true,
             at_least: 0,
         }
     }
@@ -301,7 +306,7 @@ impl Params {
         let d = Params::default();
         let mut faults = Faults::default();
         let range = range(
-            s.min_disparity,
+            s.min_disparity.and_then(RangeEnd::px),
             s.max_disparity.and_then(RangeEnd::px),
             &mut faults,
         );
@@ -404,6 +409,11 @@ impl Params {
                 paths,
                 preset,
                 found: s.max_disparity.and_then(RangeEnd::px).is_none(),
+                min_found: match s.min_disparity {
+                    Some(RangeEnd::Auto) => true,
+                    Some(RangeEnd::Px(_)) => false,
+                    None => s.max_disparity.and_then(RangeEnd::px).is_none(),
+                },
                 at_least: 0,
             }),
             _ => Err(faults.0),
@@ -413,7 +423,7 @@ impl Params {
     /// The defaults with the search `min_disparity .. max_disparity`.
     pub fn range(min_disparity: i32, max_disparity: i32) -> Result<Params, Vec<ParamFault>> {
         Params::new(&Settings {
-            min_disparity: Some(min_disparity),
+            min_disparity: Some(RangeEnd::Px(min_disparity)),
             max_disparity: Some(RangeEnd::Px(max_disparity)),
             ..Settings::default()
         })
@@ -428,6 +438,7 @@ impl Params {
             min_disparity,
             count: count as usize,
             found: false,
+            min_found: false,
             ..*self
         }
     }
@@ -435,6 +446,11 @@ impl Params {
     /// Whether the range is to be found from the pair: the caller gave no `max_disparity`.
     pub fn range_found(&self) -> bool {
         self.found
+    }
+
+    /// Whether the range's start is to be found from the pair ([`Settings::min_disparity`]).
+    pub fn min_found(&self) -> bool {
+        self.min_found
     }
 
     /// These parameters, with a range to be found, searching at least to `max` (at most
@@ -560,7 +576,7 @@ fn range(min: Option<i32>, max: Option<i32>, faults: &mut Faults) -> Option<(i32
         );
         ok = false;
     }
-    let max = max.unwrap_or(DEFAULT_MAX_DISPARITY);
+    let max = max.unwrap_or(min.saturating_add(DEFAULT_MAX_DISPARITY));
     let count = i64::from(max) - i64::from(min);
     if count < 1 {
         faults.add(
@@ -601,11 +617,12 @@ mod tests {
         );
     }
 
-    /// Every setting out of bounds is named once, with the bound.
+    /// Every setting out of bounds is named once, with the bound; a start with the end to be
+    /// found stands on its own (the end found past it).
     #[test]
     fn every_fault_is_named() {
         let faults = Params::new(&Settings {
-            min_disparity: Some(5000),
+            min_disparity: Some(RangeEnd::Px(5000)),
             p1: Some(0),
             p2: Some(2000),
             uniqueness: Some(101),
@@ -619,7 +636,6 @@ mod tests {
             names(&faults),
             [
                 "min_disparity",
-                "max_disparity",
                 "p1",
                 "p2",
                 "uniqueness",
@@ -627,7 +643,16 @@ mod tests {
                 "lr_tolerance"
             ]
         );
-        assert!(faults[3].message.contains("from 2 to 1024"));
+        assert!(faults[2].message.contains("from 2 to 1024"));
+        // A start out of bounds with the end to be found names the start alone; with an end
+        // given before it, the end too.
+        let faults = Params::new(&Settings {
+            min_disparity: Some(RangeEnd::Px(200)),
+            ..Settings::default()
+        });
+        assert!(faults.is_ok(), "{faults:?}");
+        let faults = Params::range(200, 100).unwrap_err();
+        assert_eq!(names(&faults), ["max_disparity"]);
     }
 
     /// The range's count is end − start, from 1 to 512; p2 must exceed p1.

@@ -29,6 +29,9 @@ pub const MIN_MATCHED: f64 = 0.2;
 /// The quantile of the matched disparities taken as the scene's nearest: the few pixels past
 /// it are either mismatches or refused by the range's end ([`refuse`]).
 pub const NEAR_QUANTILE: f64 = 0.995;
+/// The quantile of the matched disparities taken as the scene's farthest, where the range's
+/// start is found ([`Survey::needs`]).
+pub const FAR_QUANTILE: f64 = 0.005;
 /// Of the matches at least a coarse pixel from zero, the share at negative disparities past
 /// which the cameras look swapped.
 pub const SWAPPED_SHARE: f64 = 0.6;
@@ -45,6 +48,8 @@ pub struct Survey {
     /// The [`NEAR_QUANTILE`] of the positive matches, and their greatest.
     pub near: f32,
     pub greatest: f32,
+    /// The [`FAR_QUANTILE`] of the matches right of the nearest's width (full-size px).
+    pub far: f32,
     /// The share, of the matches a coarse pixel or more from zero, at negative disparities,
     /// and their median (full-size px; 0 when none).
     pub negative: f64,
@@ -90,7 +95,7 @@ pub fn survey(left: &Gray, right: &Gray, cancel: &AtomicBool) -> Result<Option<S
     let scale = 1i32 << levels;
     let coarse_reach = (reach(left.width).div_ceil(scale as usize) as i32).max(8);
     let Ok(params) = Params::new(&Settings {
-        min_disparity: Some(-coarse_reach / 4),
+        min_disparity: Some(super::RangeEnd::Px(-coarse_reach / 4)),
         max_disparity: Some(super::RangeEnd::Px(coarse_reach)),
         median: Some(false),
         speckle_size: Some((100 >> (2 * levels)).max(4) as u32),
@@ -122,9 +127,22 @@ impl Survey {
         let scale = (1i32 << levels) as f32;
         let valid: Vec<f32> = map.data.iter().copied().filter(|d| !d.is_nan()).collect();
         let matched = valid.len() as f64 / map.data.len().max(1) as f64;
+
         let mut positive: Vec<f32> = valid.iter().copied().filter(|&d| d >= 0.0).collect();
         positive.sort_by(f32::total_cmp);
         let near = quantile(&positive, NEAR_QUANTILE) * scale;
+        // The farthest from the columns the right camera sees at every disparity up to the
+        // nearest (left of them a pixel has no match, and the coarse level puts a mismatch there).
+        let seen_from = (near / scale).ceil().max(0.0) as usize;
+        let mut seen: Vec<f32> = map
+            .data
+            .chunks(map.width.max(1))
+            .flat_map(|row| row.iter().skip(seen_from))
+            .copied()
+            .filter(|d| !d.is_nan())
+            .collect();
+        seen.sort_by(f32::total_cmp);
+        let far = quantile(&seen, FAR_QUANTILE) * scale;
         let greatest = positive.last().copied().unwrap_or(0.0) * scale;
         let mut negatives: Vec<f32> = valid.iter().copied().filter(|&d| d <= -1.0).collect();
         let away = valid.iter().filter(|d| d.abs() >= 1.0).count();
@@ -137,6 +155,7 @@ impl Survey {
             reversed: None,
             near,
             greatest,
+            far,
             negative,
             negative_median,
             map,
@@ -148,16 +167,22 @@ impl Survey {
         self.matched >= MIN_MATCHED
     }
 
-    /// The range `(min, max)` (exclusive) the scene needs: from 0 to the scene's nearest
+    /// The range `(min, max)` (exclusive) the scene needs: to the scene's nearest
     /// ([`NEAR_QUANTILE`]) with a margin of two coarse pixels and a tenth, rounded up to 16;
-    /// at least 16 disparities. `Err` with that range when it holds more than [`CEILING`].
-    pub fn needs(&self) -> Result<(i32, i32), (i32, i32)> {
-        let margin = 2.0 * (1u32 << self.levels) as f32 + 0.1 * self.near;
-        let max = ((self.near + margin).max(16.0) / 16.0).ceil() as i32 * 16;
-        if max as usize > CEILING {
-            Err((0, max))
+    /// from `min` where one is given, else from the scene's farthest ([`FAR_QUANTILE`]) less
+    /// the same margin, rounded down to 16 and never below 0 (a scene that reaches far starts
+    /// at 0); at least 16 disparities. `Err` with that range when it holds more than
+    /// [`CEILING`].
+    pub fn needs(&self, min: Option<i32>) -> Result<(i32, i32), (i32, i32)> {
+        let coarse = 2.0 * (1u32 << self.levels) as f32;
+        let max = ((self.near + coarse + 0.1 * self.near).max(16.0) / 16.0).ceil() as i32 * 16;
+        let found = ((self.far - coarse - 0.1 * self.far.abs()) / 16.0).floor() as i32 * 16;
+        let min = min.unwrap_or_else(|| found.clamp(0, max - 16));
+        let max = max.max(min + 16);
+        if (max - min) as usize > CEILING {
+            Err((min, max))
         } else {
-            Ok((0, max))
+            Ok((min, max))
         }
     }
 
@@ -339,10 +364,22 @@ fn quantile(sorted: &[f32], q: f64) -> f32 {
 /// level). Returns how many pixels it refused that had a disparity.
 ///
 /// With `grow` (a range the caller gave), the coarse level's holes that touch a pixel past the
-/// range are taken as past too ([`flood`]).
-pub fn refuse(map: &mut Disparity, survey: Option<&Survey>, max: i32, grow: bool) -> usize {
+/// range are taken as past too ([`flood`]). With `start` (a range's start found from the pair,
+/// above 0), the pixels short of it are refused alike: a disparity in the range's first pixel,
+/// or one the coarse level put a coarse pixel or more below it.
+pub fn refuse(
+    map: &mut Disparity,
+    survey: Option<&Survey>,
+    (start, max): (Option<i32>, i32),
+    grow: bool,
+) -> usize {
     let (w, h) = (map.width, map.height);
     let end = (max - 1) as f32;
+    let first = start.map_or(f32::NEG_INFINITY, |s| (s + 1) as f32);
+    let short = survey
+        .filter(|s| s.usable())
+        .zip(start)
+        .map(|(s, start)| (s, start as f32 / (1u32 << s.levels) as f32 - 1.0));
     let mut refused = 0;
     let past: Option<(Vec<bool>, usize, usize, usize)> = survey.filter(|s| s.usable()).map(|s| {
         let scale = (1u32 << s.levels) as f32;
@@ -372,7 +409,12 @@ pub fn refuse(map: &mut Disparity, survey: Option<&Survey>, max: i32, grow: bool
                 let (u, v) = ((x >> levels).min(cw - 1), (y >> levels).min(ch - 1));
                 near[v * cw + u]
             });
-            if d >= end || beyond {
+            let below = short.is_some_and(|(s, under)| {
+                let (cw, ch) = (s.map.width, s.map.height);
+                let (u, v) = ((x >> s.levels).min(cw - 1), (y >> s.levels).min(ch - 1));
+                s.map.data[v * cw + u] <= under
+            });
+            if d >= end || d < first || beyond || below {
                 map.data[i] = f32::NAN;
                 map.std[i] = f32::NAN;
                 refused += 1;
@@ -412,7 +454,7 @@ mod tests {
         let truth = pair.seen_truth().into_iter().fold(0.0f32, f32::max);
         let cancel = AtomicBool::new(false);
         let s = survey(&pair.left, &pair.right, &cancel).unwrap().unwrap();
-        let (_, max) = s.needs().unwrap();
+        let (_, max) = s.needs(None).unwrap();
         assert!(
             max as f32 > truth && (max as f32) < 1.3 * truth + 16.0,
             "{max} for a truth of {truth}: {:?}",
@@ -425,6 +467,35 @@ mod tests {
             "{:?}",
             (swapped.negative, swapped.negative_median)
         );
+    }
+
+    /// A scene that is near everywhere (the layered scene, its disparities 5 × and 60 px
+    /// further: about 90–260 px) is found to start past 0, short of its farthest truth, and its
+    /// range holds less than starting at 0 would; a scene that reaches far starts at 0.
+    #[test]
+    fn a_scene_near_everywhere_starts_past_zero() {
+        let mut scene = synthetic::layered(640, 360);
+        for plane in &mut scene.planes {
+            plane.disparity = plane.disparity.map(|v| 5.0 * v);
+            plane.disparity[0] += 60.0;
+        }
+        let pair = synthetic::render(&scene);
+        let seen = pair.seen_truth();
+        let (least, most) = seen
+            .iter()
+            .fold((f32::MAX, 0.0f32), |(a, b), &d| (a.min(d), b.max(d)));
+        let cancel = AtomicBool::new(false);
+        let s = survey(&pair.left, &pair.right, &cancel).unwrap().unwrap();
+        let (min, max) = s.needs(None).unwrap();
+        assert!(
+            min > 0 && (min as f32) < least && max as f32 > most,
+            "{min}..{max} for a truth of {least}..{most}: {:?}",
+            (s.far, s.near)
+        );
+        assert_eq!(s.needs(Some(0)).unwrap().0, 0, "a given start is kept");
+        let near = synthetic::render(&synthetic::layered(640, 360));
+        let s = survey(&near.left, &near.right, &cancel).unwrap().unwrap();
+        assert_eq!(s.needs(None).unwrap().0, 0, "{:?}", s.far);
     }
 
     /// A smooth patch the pixels past the range surround (a chessboard matched one period off)
@@ -466,8 +537,18 @@ mod tests {
             std: vec![0.5; 4],
             filled: Vec::new(),
         };
-        assert_eq!(refuse(&mut map, None, 80, false), 1);
+        assert_eq!(refuse(&mut map, None, (None, 80), false), 1);
         assert!(map.data[1].is_nan() && map.std[1].is_nan());
         assert_eq!((map.data[0], map.data[2]), (10.0, 40.0));
+        // A start found at 32: the pixel in its first disparity is refused too.
+        let mut map = Disparity {
+            width: 3,
+            height: 1,
+            data: vec![32.4, 50.0, 33.5],
+            std: vec![0.5; 3],
+            filled: Vec::new(),
+        };
+        assert_eq!(refuse(&mut map, None, (Some(32), 80), false), 1);
+        assert!(map.data[0].is_nan() && map.data[2] == 33.5);
     }
 }
