@@ -102,11 +102,20 @@ pub(crate) fn npz_entries(zip: &[u8]) -> Vec<(String, Vec<u8>)> {
 /// The float32 data of an NPY file, after checking its header says `(H, W)` little-endian
 /// float32 in C order.
 pub(crate) fn npy(bytes: &[u8]) -> Vec<f32> {
+    npy_of(bytes, (H, W))
+}
+
+/// The float32 data of an NPY file, after checking its header says `(height, width)`
+/// little-endian float32 in C order.
+pub(crate) fn npy_of(bytes: &[u8], (height, width): (usize, usize)) -> Vec<f32> {
     assert_eq!(&bytes[..8], b"\x93NUMPY\x01\x00");
     let len = u16::from_le_bytes([bytes[8], bytes[9]]) as usize;
     let header = std::str::from_utf8(&bytes[10..10 + len]).unwrap();
     assert!(header.contains("'descr': '<f4'") && header.contains("'fortran_order': False"));
-    assert!(header.contains(&format!("'shape': ({H}, {W})")), "{header}");
+    assert!(
+        header.contains(&format!("'shape': ({height}, {width})")),
+        "{header}"
+    );
     floats(&bytes[10 + len..])
 }
 
@@ -1141,11 +1150,7 @@ async fn a_rig_in_the_wrong_unit_is_named() {
 /// The synthetic scene five times nearer, 640 × 360: disparities 30–150 px, past the old
 /// default of 128.
 fn near_pair() -> (Pair, Form, Form, Form) {
-    let mut scene = synthetic::layered(640, 360);
-    for plane in &mut scene.planes {
-        plane.disparity = plane.disparity.map(|v| 5.0 * v);
-    }
-    let near = synthetic::render(&scene);
+    let near = synthetic::render(&synthetic::nearer(640, 360, 5.0, 0.0));
     let form = |a: &[u8], b: &[u8]| {
         Form::new()
             .part("left", image_part(png(a, 640, 360)))
@@ -1156,6 +1161,23 @@ fn near_pair() -> (Pair, Form, Form, Form) {
     let again = form(&near.left_rgb, &near.right_rgb);
     let swapped = form(&near.right_rgb, &near.left_rgb);
     (near, sent, again, swapped)
+}
+
+/// A 640 × 360 near scene's disparity map from `/depth-map` with `query` (an NPY output) and
+/// `form`, scored on its disc's central 60 × 60 px: how many answered, and how many of those
+/// within 1 px of `near`'s truth.
+async fn near_disc(app: &TestApp, query: &str, near: &Pair, form: Form) -> (usize, usize) {
+    let response = depth_map(app, query, form).await;
+    assert_eq!(response.status(), 200);
+    let map = npy_of(&response.bytes().await.unwrap(), (360, 640));
+    let (cx, cy) = (448, 180);
+    let values: Vec<(f32, f32)> = (cy - 30..cy + 30)
+        .flat_map(|y| (cx - 30..cx + 30).map(move |x| y * 640 + x))
+        .filter(|&i| !map[i].is_nan())
+        .map(|i| (map[i], near.truth[i]))
+        .collect();
+    let right = values.iter().filter(|(d, t)| (d - t).abs() <= 1.0).count();
+    (values.len(), right)
 }
 
 /// With no range given, a scene nearer than 128 disparities reach is searched over the range
@@ -1175,26 +1197,11 @@ async fn the_range_is_found_a_short_one_refused_and_swapped_cameras_named() {
         !found["warnings"].to_string().contains("swapped"),
         "{found}"
     );
-    let disc = |map: &[f32]| {
-        let (cx, cy) = (448, 180);
-        let values: Vec<(f32, f32)> = (cy - 30..cy + 30)
-            .flat_map(|y| (cx - 30..cx + 30).map(move |x| y * 640 + x))
-            .filter(|&i| !map[i].is_nan())
-            .map(|i| (map[i], near.truth[i]))
-            .collect();
-        let right = values.iter().filter(|(d, t)| (d - t).abs() <= 1.0).count();
-        (values.len(), right)
-    };
-    let response = depth_map(&app, "?output=disparity.npy", {
+    let (answered, right) = near_disc(&app, "?output=disparity.npy", &near, {
         let (_, f, _, _) = near_pair();
         f
     })
     .await;
-    assert_eq!(response.status(), 200);
-    let bytes = response.bytes().await.unwrap();
-    let len = u16::from_le_bytes([bytes[8], bytes[9]]) as usize;
-    let map = floats(&bytes[10 + len..]);
-    let (answered, right) = disc(&map);
     assert!(
         answered > 3000 && right as f64 >= 0.9 * answered as f64,
         "{right} of {answered}"
@@ -1204,14 +1211,11 @@ async fn the_range_is_found_a_short_one_refused_and_swapped_cameras_named() {
     assert!(said.contains("max_disparity 80 stops short"), "{said}");
     assert!(said.contains("Z_min = f·B / d_max = 625 mm"), "{said}");
     assert_eq!(short["disparity_range"]["chosen"], "given");
-    let response = depth_map(&app, "?max_disparity=80&output=disparity.npy", {
+    let (answered, _) = near_disc(&app, "?max_disparity=80&output=disparity.npy", &near, {
         let (_, f, _, _) = near_pair();
         f
     })
     .await;
-    let bytes = response.bytes().await.unwrap();
-    let map = floats(&bytes[10 + len..]);
-    let (answered, _) = disc(&map);
     assert!(
         answered < 100,
         "{answered} disc pixels answered past the range"
@@ -1232,12 +1236,7 @@ async fn the_range_is_found_a_short_one_refused_and_swapped_cameras_named() {
 #[tokio::test]
 async fn a_scene_near_everywhere_is_searched_from_the_start_it_needs() {
     let app = spawn_app().await;
-    let mut scene = synthetic::layered(640, 360);
-    for plane in &mut scene.planes {
-        plane.disparity = plane.disparity.map(|v| 5.0 * v);
-        plane.disparity[0] += 60.0;
-    }
-    let near = synthetic::render(&scene);
+    let near = synthetic::render(&synthetic::nearer(640, 360, 5.0, 60.0));
     let least = near.seen_truth().into_iter().fold(f32::MAX, f32::min);
     let form = || {
         Form::new()
@@ -1257,22 +1256,10 @@ async fn a_scene_near_everywhere_is_searched_from_the_start_it_needs() {
             .contains("the start found from the pair too"),
         "{found}"
     );
-    let response = depth_map(&app, "?output=disparity.npy", form()).await;
-    assert_eq!(response.status(), 200);
-    let bytes = response.bytes().await.unwrap();
-    let len = u16::from_le_bytes([bytes[8], bytes[9]]) as usize;
-    let map = floats(&bytes[10 + len..]);
-    let (cx, cy) = (448, 180);
-    let disc: Vec<(f32, f32)> = (cy - 30..cy + 30)
-        .flat_map(|y| (cx - 30..cx + 30).map(move |x| y * 640 + x))
-        .filter(|&i| !map[i].is_nan())
-        .map(|i| (map[i], near.truth[i]))
-        .collect();
-    let right = disc.iter().filter(|(d, t)| (d - t).abs() <= 1.0).count();
+    let (answered, right) = near_disc(&app, "?output=disparity.npy", &near, form()).await;
     assert!(
-        disc.len() > 3000 && right as f64 >= 0.9 * disc.len() as f64,
-        "{right} of {}",
-        disc.len()
+        answered > 3000 && right as f64 >= 0.9 * answered as f64,
+        "{right} of {answered}"
     );
     let from_zero = ok_json(depth_map(&app, "?min_disparity=0", form()).await).await;
     assert_eq!(from_zero["min_disparity"], 0, "{from_zero}");

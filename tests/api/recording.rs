@@ -81,12 +81,7 @@ fn run(dir: &Path, out: &str, extra: &[&str]) -> Output {
 
 /// The float32 values of an NPY file of the scene's size.
 fn npy_values(path: &Path) -> Vec<f32> {
-    let bytes = std::fs::read(path).unwrap();
-    assert_eq!(&bytes[..8], b"\x93NUMPY\x01\x00");
-    let len = usize::from(u16::from_le_bytes([bytes[8], bytes[9]]));
-    let header = std::str::from_utf8(&bytes[10..10 + len]).unwrap();
-    assert!(header.contains(&format!("'shape': ({H}, {W})")), "{header}");
-    crate::depth_map::floats(&bytes[10 + len..])
+    crate::depth_map::npy(&std::fs::read(path).unwrap())
 }
 
 /// The median of the finite values.

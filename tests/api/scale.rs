@@ -118,9 +118,7 @@ async fn admitted_within_its_reservation(
     let peak = status_bytes("VmHWM").saturating_sub(before);
     assert_eq!(response.status(), 200);
     let body = response.bytes().await.unwrap();
-    let len = u16::from_le_bytes([body[8], body[9]]) as usize;
-    let map = crate::depth_map::floats(&body[10 + len..]);
-    assert_eq!(map.len(), w * h);
+    let map = crate::depth_map::npy_of(&body, (h, w));
     let (density, bad1) = accuracy(&pair, &map);
     assert!(density > 0.95, "density {density}");
     assert!(bad1 < 0.01, "bad-1.0 {bad1}");

@@ -177,8 +177,13 @@ pub fn choose(
         (Some(s), false) => {
             let (min, needs) = s.needs(start).map_err(|needs| Stopped::TooWide { needs })?;
             let max = needs.max(params.least_max());
-            // A stream's kept end may widen the range past one search: its start moves up.
-            let min = min.min(max - 16).max(max - MAX_DISPARITIES as i32);
+            // A stream's kept end may widen the range past one search: a start found moves
+            // up, a start given stands and the end is held to one search from it.
+            let (min, max) = if start.is_some() {
+                (min, max.min(min + MAX_DISPARITIES as i32))
+            } else {
+                (min.min(max - 16).max(max - MAX_DISPARITIES as i32), max)
+            };
             (
                 params.with_range(min, max),
                 Chosen::Found {
@@ -221,17 +226,10 @@ impl Ranged {
                 .survey
                 .as_ref()
                 .is_some_and(|s| s.beyond(max) >= SHORT_SHARE);
-        let refused = survey::refuse(map, self.survey.as_ref(), (None, max), grow);
-        // A start found past 0: the few pixels short of it are refused too (not counted above:
-        // they say nothing of the range's end).
-        if self.used.start.is_some() && self.used.min > 0 {
-            survey::refuse(
-                map,
-                self.survey.as_ref(),
-                (Some(self.used.min), i32::MAX),
-                false,
-            );
-        }
+        // A start found past 0: the few pixels short of it are refused too (not counted in
+        // the share below: they say nothing of the range's end).
+        let start = (self.used.start.is_some() && self.used.min > 0).then_some(self.used.min);
+        let refused = survey::refuse(map, self.survey.as_ref(), (start, max), grow).past;
         let mut said = Vec::new();
         // The share refused, or where only bands of the map were matched (`/match`), the
         // share the coarse view puts past the range.
@@ -355,11 +353,7 @@ mod tests {
     use crate::vision::synthetic;
 
     fn near_scene() -> synthetic::Pair {
-        let mut scene = synthetic::layered(640, 360);
-        for plane in &mut scene.planes {
-            plane.disparity = plane.disparity.map(|v| 5.0 * v);
-        }
-        synthetic::render(&scene)
+        synthetic::render(&synthetic::nearer(640, 360, 5.0, 0.0))
     }
 
     /// No range given: the range is found from the pair and covers it; a given one stands.
@@ -395,12 +389,7 @@ mod tests {
     /// defaults, short of its farthest truth, and its range says why; a start given stands.
     #[test]
     fn a_scene_near_everywhere_is_searched_from_past_zero() {
-        let mut scene = synthetic::layered(640, 360);
-        for plane in &mut scene.planes {
-            plane.disparity = plane.disparity.map(|v| 5.0 * v);
-            plane.disparity[0] += 60.0;
-        }
-        let pair = synthetic::render(&scene);
+        let pair = synthetic::render(&synthetic::nearer(640, 360, 5.0, 60.0));
         let least = pair.seen_truth().into_iter().fold(f32::MAX, f32::min);
         let cancel = AtomicBool::new(false);
         let ranged = choose(&pair.left, &pair.right, &Params::default(), &cancel).unwrap();
@@ -418,6 +407,19 @@ mod tests {
         .unwrap();
         let ranged = choose(&pair.left, &pair.right, &from_zero, &cancel).unwrap();
         assert_eq!((ranged.used.min, ranged.used.start), (0, None));
+        // A stream's kept end one search past a given start: the start stands, the end is
+        // held to one search from it.
+        let below = Params::new(&crate::vision::Settings {
+            min_disparity: Some(crate::vision::RangeEnd::Px(-32)),
+            ..Default::default()
+        })
+        .unwrap()
+        .at_least(MAX_DISPARITIES as i32);
+        let ranged = choose(&pair.left, &pair.right, &below, &cancel).unwrap();
+        assert_eq!(
+            (ranged.used.min, ranged.used.max),
+            (-32, MAX_DISPARITIES as i32 - 32)
+        );
     }
 
     /// A given range that stops short is warned of by name, and the pixels past it refused:

@@ -206,12 +206,13 @@ impl Survey {
             return false;
         }
         let scale = (1u32 << self.levels) as f32;
+        self.map.data[self.coarse_at((x, y))] >= max as f32 / scale + 1.0
+    }
+
+    /// The index in the coarse map of the coarse pixel holding the full-size pixel `(x, y)`.
+    pub fn coarse_at(&self, (x, y): (usize, usize)) -> usize {
         let (cw, ch) = (self.map.width, self.map.height);
-        let (u, v) = (
-            (x >> self.levels).min(cw - 1),
-            (y >> self.levels).min(ch - 1),
-        );
-        self.map.data[v * cw + u] >= max as f32 / scale + 1.0
+        ((y >> self.levels).min(ch - 1)) * cw + (x >> self.levels).min(cw - 1)
     }
 
     /// The share of the coarse pixels whose match lies past `max` (full-size px) by a coarse
@@ -357,11 +358,21 @@ fn quantile(sorted: &[f32], q: f64) -> f32 {
     sorted[i.min(sorted.len() - 1)]
 }
 
+/// How many pixels [`refuse`] refused that had a disparity: past the range's end, and short
+/// of its start.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Refused {
+    /// Those whose match lies past the range's end.
+    pub past: usize,
+    /// Those whose match lies short of a start given to [`refuse`] (and not past its end).
+    pub short: usize,
+}
+
 /// Refuses (leaves empty) the pixels of `map`, matched over `min .. max`, whose match lies
 /// beyond the range: a disparity in the range's last pixel (the cost still falling at its
 /// end), or a pixel the survey's coarse level put at or past `max` (its own coarse pixel or
 /// any of the 3 × 3 around it, since the edge of a near object is blurred at the coarse
-/// level). Returns how many pixels it refused that had a disparity.
+/// level).
 ///
 /// With `grow` (a range the caller gave), the coarse level's holes that touch a pixel past the
 /// range are taken as past too ([`flood`]). With `start` (a range's start found from the pair,
@@ -372,16 +383,16 @@ pub fn refuse(
     survey: Option<&Survey>,
     (start, max): (Option<i32>, i32),
     grow: bool,
-) -> usize {
+) -> Refused {
     let (w, h) = (map.width, map.height);
     let end = (max - 1) as f32;
     let first = start.map_or(f32::NEG_INFINITY, |s| (s + 1) as f32);
-    let short = survey
-        .filter(|s| s.usable())
+    let survey = survey.filter(|s| s.usable());
+    // The coarse disparity (coarse px) at or under which a pixel is short of the start.
+    let under = survey
         .zip(start)
-        .map(|(s, start)| (s, start as f32 / (1u32 << s.levels) as f32 - 1.0));
-    let mut refused = 0;
-    let past: Option<(Vec<bool>, usize, usize, usize)> = survey.filter(|s| s.usable()).map(|s| {
+        .map(|(s, start)| start as f32 / (1u32 << s.levels) as f32 - 1.0);
+    let near: Option<Vec<bool>> = survey.map(|s| {
         let scale = (1u32 << s.levels) as f32;
         let (cw, ch) = (s.map.width, s.map.height);
         let mut own = past_map(&s.map, max as f32 / scale + 1.0);
@@ -396,8 +407,9 @@ pub fn refuse(
                     .any(|v| (x.saturating_sub(1)..(x + 2).min(cw)).any(|u| own[v * cw + u]));
             }
         }
-        (near, cw, ch, s.levels)
+        near
     });
+    let mut refused = Refused::default();
     for y in 0..h {
         for x in 0..w {
             let i = y * w + x;
@@ -405,19 +417,21 @@ pub fn refuse(
             if d.is_nan() {
                 continue;
             }
-            let beyond = past.as_ref().is_some_and(|(near, cw, ch, levels)| {
-                let (u, v) = ((x >> levels).min(cw - 1), (y >> levels).min(ch - 1));
-                near[v * cw + u]
-            });
-            let below = short.is_some_and(|(s, under)| {
-                let (cw, ch) = (s.map.width, s.map.height);
-                let (u, v) = ((x >> s.levels).min(cw - 1), (y >> s.levels).min(ch - 1));
-                s.map.data[v * cw + u] <= under
-            });
-            if d >= end || d < first || beyond || below {
+            let coarse = survey.map(|s| s.coarse_at((x, y)));
+            let beyond = d >= end || near.as_ref().zip(coarse).is_some_and(|(n, c)| n[c]);
+            let below = d < first
+                || survey
+                    .zip(coarse)
+                    .zip(under)
+                    .is_some_and(|((s, c), under)| s.map.data[c] <= under);
+            if beyond || below {
                 map.data[i] = f32::NAN;
                 map.std[i] = f32::NAN;
-                refused += 1;
+                if beyond {
+                    refused.past += 1;
+                } else {
+                    refused.short += 1;
+                }
             }
         }
     }
@@ -446,11 +460,7 @@ mod tests {
     /// far past it; swapped, it is named, and the right way round it is not.
     #[test]
     fn a_near_scene_is_found_and_a_swapped_one_named() {
-        let mut scene = synthetic::layered(640, 360);
-        for plane in &mut scene.planes {
-            plane.disparity = plane.disparity.map(|v| 5.0 * v);
-        }
-        let pair = synthetic::render(&scene);
+        let pair = synthetic::render(&synthetic::nearer(640, 360, 5.0, 0.0));
         let truth = pair.seen_truth().into_iter().fold(0.0f32, f32::max);
         let cancel = AtomicBool::new(false);
         let s = survey(&pair.left, &pair.right, &cancel).unwrap().unwrap();
@@ -474,12 +484,7 @@ mod tests {
     /// range holds less than starting at 0 would; a scene that reaches far starts at 0.
     #[test]
     fn a_scene_near_everywhere_starts_past_zero() {
-        let mut scene = synthetic::layered(640, 360);
-        for plane in &mut scene.planes {
-            plane.disparity = plane.disparity.map(|v| 5.0 * v);
-            plane.disparity[0] += 60.0;
-        }
-        let pair = synthetic::render(&scene);
+        let pair = synthetic::render(&synthetic::nearer(640, 360, 5.0, 60.0));
         let seen = pair.seen_truth();
         let (least, most) = seen
             .iter()
@@ -537,7 +542,7 @@ mod tests {
             std: vec![0.5; 4],
             filled: Vec::new(),
         };
-        assert_eq!(refuse(&mut map, None, (None, 80), false), 1);
+        assert_eq!(refuse(&mut map, None, (None, 80), false).past, 1);
         assert!(map.data[1].is_nan() && map.std[1].is_nan());
         assert_eq!((map.data[0], map.data[2]), (10.0, 40.0));
         // A start found at 32: the pixel in its first disparity is refused too.
@@ -548,7 +553,10 @@ mod tests {
             std: vec![0.5; 3],
             filled: Vec::new(),
         };
-        assert_eq!(refuse(&mut map, None, (Some(32), 80), false), 1);
+        assert_eq!(
+            refuse(&mut map, None, (Some(32), 80), false),
+            Refused { past: 0, short: 1 }
+        );
         assert!(map.data[0].is_nan() && map.data[2] == 33.5);
     }
 }

@@ -293,6 +293,17 @@ pub fn layered(width: usize, height: usize) -> Scene {
     }
 }
 
+/// The test scene ([`layered`]) nearer: its disparities `times` as great and `plus` px
+/// further (`nearer(640, 360, 5.0, 0.0)`: 30–200 px; with `plus` 60, near everywhere).
+pub fn nearer(width: usize, height: usize, times: f32, plus: f32) -> Scene {
+    let mut scene = layered(width, height);
+    for plane in &mut scene.planes {
+        plane.disparity = plane.disparity.map(|v| times * v);
+        plane.disparity[0] += plus;
+    }
+    scene
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
