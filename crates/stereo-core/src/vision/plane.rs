@@ -12,9 +12,9 @@
 //! - the support is the textured pixels with a disparity whose σ_d is at most [`SUPPORT_STD`];
 //! - in the [`WINDOW`] × [`WINDOW`] window around each hole without texture, a plane is fitted
 //!   to the support by least squares (running sums of the ten moments, so each pixel costs the
-//!   same whatever the window); where that window gives none (a flat area wider than it: a
-//!   board's square seen near, or in a large image), the window 2 · [`WINDOW`] + 1 wide is
-//!   tried (issue 92: OpenCV's 13 photographs enlarged 2 ×, their squares 60–90 px, went from
+//!   same whatever the window); where that window gives none to a block holding a flat pixel
+//!   (a flat area wider than it: a board's square seen near, or in a large image), the window
+//!   2 · [`WINDOW`] + 1 wide is tried (issue 92: OpenCV's 13 photographs enlarged 2 ×, their squares 60–90 px, went from
 //!   40 to 52 % of the board's errors within 1 σ_d and from 17 to 33 % of the board answered
 //!   right);
 //! - a hole takes the plane's value when at least [`MIN_SUPPORT`] pixels support it, with
@@ -97,20 +97,35 @@ pub fn fill(
         .into_par_iter()
         .map(|(&f, d)| f && d.is_nan())
         .collect();
-    drop(flat);
-    // The planes of the window, then, for the blocks it gives none (a flat area wider than
-    // it, such as a large square seen near), of the window twice as wide.
+    // The planes of the window, then, for the blocks it gives none that hold a flat pixel (a
+    // flat area wider than it, such as a large square seen near), of the window twice as wide.
     let maps = (&*disparity, &*std);
-    let mut planes = planes_of(maps, &support, width, WINDOW / 2);
-    if planes.iter().any(Option::is_none) {
-        let wide = planes_of(maps, &support, width, WINDOW);
-        for (plane, wide) in planes.iter_mut().zip(wide) {
-            if plane.is_none() {
-                *plane = wide;
+    let groups = width.div_ceil(COLUMNS);
+    let mut planes = planes_of(maps, &support, width, (WINDOW / 2, None));
+    let mut wanted = vec![false; planes.len()];
+    wanted
+        .par_chunks_mut(groups)
+        .zip(planes.par_chunks(groups))
+        .zip(flat.par_chunks(width * BLOCK))
+        .for_each(|((wanted, planes), flat)| {
+            for row in flat.chunks(width) {
+                for ((w, plane), flat) in wanted.iter_mut().zip(planes).zip(row.chunks(COLUMNS)) {
+                    *w |= plane.is_none() && flat.contains(&true);
+                }
             }
+        });
+    drop(flat);
+    if wanted.contains(&true) {
+        let wide = planes_of(maps, &support, width, (WINDOW, Some(&wanted)));
+        for ((plane, wide), _) in planes
+            .iter_mut()
+            .zip(wide)
+            .zip(&wanted)
+            .filter(|(_, w)| **w)
+        {
+            *plane = wide;
         }
     }
-    let groups = width.div_ceil(COLUMNS);
     drop(support);
     let last = (count.max(1) - 1) as f32;
     let mut filled = vec![false; n];
@@ -150,12 +165,14 @@ pub fn fill(
 /// row; `std` its σ_d; `support` the pixels that may support a plane), fitted around its
 /// middle pixel over the window reaching `half` pixels each way, where the module's rules
 /// allow: bands of whole blocks side by side on the cores, each writing its own blocks'
-/// planes.
+/// planes. With `wanted` (a flag a block), only the rows of blocks with a wanted one are
+/// fitted (the others left `None`), the window moved down to them, or made again where that
+/// would slide it further than making it costs.
 fn planes_of(
     (disparity, std): (&[f32], &[f32]),
     support: &[bool],
     width: usize,
-    half: usize,
+    (half, wanted): (usize, Option<&[bool]>),
 ) -> Vec<Option<Plane>> {
     let height = disparity.len() / width;
     let groups = width.div_ceil(COLUMNS);
@@ -168,14 +185,26 @@ fn planes_of(
         .enumerate()
         .for_each(|(band, out)| {
             let top = band * rows;
-            let at = middle(top, height);
-            let mut window = Window::at((disparity, std), support, (width, half), at);
+            let mut window: Option<Window> = None;
             for (base, out) in (top..(top + rows).min(height))
                 .step_by(BLOCK)
                 .zip(out.chunks_mut(groups))
             {
-                window.move_to(middle(base, height));
-                window.planes(out);
+                let blocks = base / BLOCK * groups..(base / BLOCK + 1) * groups;
+                if wanted.is_some_and(|w| !w[blocks].contains(&true)) {
+                    continue;
+                }
+                let centre = middle(base, height);
+                match window.as_mut() {
+                    // Sliding moves two rows' sums a row; making it, a row's each of its own.
+                    Some(w) if centre - w.centre <= half => w.move_to(centre),
+                    _ => {
+                        window = Some(Window::at((disparity, std), support, (width, half), centre))
+                    }
+                }
+                if let Some(w) = &window {
+                    w.planes(out);
+                }
             }
         });
     planes
