@@ -1210,6 +1210,8 @@ async fn the_range_is_found_a_short_one_refused_and_swapped_cameras_named() {
     let said = short["warnings"].to_string();
     assert!(said.contains("max_disparity 80 stops short"), "{said}");
     assert!(said.contains("Z_min = f·B / d_max = 625 mm"), "{said}");
+    // The pixels refused are the range's, not a sign of a raw pair.
+    assert!(!said.contains("need rectifying"), "{said}");
     assert_eq!(short["disparity_range"]["chosen"], "given");
     let (answered, _) = near_disc(&app, "?max_disparity=80&output=disparity.npy", &near, {
         let (_, f, _, _) = near_pair();

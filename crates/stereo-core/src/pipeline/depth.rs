@@ -7,7 +7,7 @@ use std::sync::atomic::AtomicBool;
 use std::time::{Duration, Instant};
 
 use super::calibrated::Calibrated;
-use super::range::{self, RangeUsed, Stopped};
+use super::range::{self, RangeUsed, Ranged, Stopped};
 use super::rectify::Maps;
 use crate::physics::{LengthUnit, Rig};
 use crate::vision::decode::Decoded;
@@ -130,13 +130,16 @@ pub fn matched(
     let params = &ranged.params;
     let (mut map, mut timings) = vision::disparity(&left.grey, &right.grey, params, cancel)?;
     timings.cost += surveyed;
+    // What the matcher answered, before a range that stops short refuses what lies past it
+    // (a low share then is the range's, not a raw pair's).
+    let matched_share = valid_share(&map);
     let started = Instant::now();
     let judged = ranged.judge(&mut map, request.calibrated.map(|c| c.rig));
     timings.refine += started.elapsed();
     // A pair sent as rectified: do its matched corners lie on their rows?
     let rows = rectify
         .is_none()
-        .then(|| row_check(&left, &right, params))
+        .then(|| row_check(&left, &right, &ranged))
         .flatten();
     let mut warnings = request
         .calibrated
@@ -147,7 +150,7 @@ pub fn matched(
     drop(right);
     if rectify.is_none()
         && !swapped
-        && let Some(warning) = unrectified_warning(Some(valid_share(&map)), rows)
+        && let Some(warning) = unrectified_warning(Some(matched_share), rows)
     {
         warnings.push(warning);
     }
@@ -219,10 +222,10 @@ pub fn decode_notes(left: &Decoded, right: &Decoded) -> Vec<String> {
         .collect()
 }
 
-/// The row check of a pair sent as rectified ([`vision::rows`]), over the matcher's range.
-pub fn row_check(left: &Decoded, right: &Decoded, params: &Params) -> Option<RowOffsets> {
-    let range = (params.min_disparity(), params.max_disparity());
-    rows::row_offsets(&left.grey, &right.grey, range)
+/// The row check of a pair sent as rectified ([`vision::rows`]), over the range the scene
+/// needs ([`Ranged::rows_range`]).
+pub fn row_check(left: &Decoded, right: &Decoded, ranged: &Ranged) -> Option<RowOffsets> {
+    rows::row_offsets(&left.grey, &right.grey, ranged.rows_range())
 }
 
 /// The warning for a pair sent as rectified that looks raw: too few pixels matched

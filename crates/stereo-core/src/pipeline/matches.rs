@@ -170,7 +170,7 @@ pub fn matches(
         .map(|(&b, r)| region_match(rig, &map, b, r))
         .collect();
     // A pair sent as rectified: do its corners lie on their rows?
-    let rows = raw.is_none().then(|| row_check(&left, &right, params));
+    let rows = raw.is_none().then(|| row_check(&left, &right, &ranged));
     let mut warnings = request.calibrated.warnings.clone();
     warnings.extend(decode_notes(&left, &right));
     let swapped = ranged.swapped();

@@ -229,7 +229,7 @@ impl Ranged {
         // A start found past 0: the few pixels short of it are refused too (not counted in
         // the share below: they say nothing of the range's end).
         let start = (self.used.start.is_some() && self.used.min > 0).then_some(self.used.min);
-        let refused = survey::refuse(map, self.survey.as_ref(), (start, max), grow).past;
+        let refused = survey::refuse(map, self.survey.as_ref(), (start, max), grow);
         let mut said = Vec::new();
         // The share refused, or where only bands of the map were matched (`/match`), the
         // share the coarse view puts past the range.
@@ -330,6 +330,20 @@ impl Ranged {
             self.raw_swapped = Some((other.matched, matched));
         }
         Ok(())
+    }
+
+    /// The range the pair's corners are looked for in by the row check: the one searched,
+    /// its end widened to what the pair's coarse view reaches past it (a given range that
+    /// stops short would otherwise match a near board's corners to their neighbours, off
+    /// their rows, and call a rectified pair raw).
+    pub fn rows_range(&self) -> (i32, i32) {
+        let (min, max) = (self.params.min_disparity(), self.params.max_disparity());
+        let reach = self
+            .survey
+            .as_ref()
+            .filter(|s| s.usable() && s.greatest >= max as f32)
+            .and_then(|s| survey_max(s.greatest, max - min));
+        (min, reach.map_or(max, |r| max.max(min + r)))
     }
 
     /// Whether the pair's coarse view puts the pixel `(x, y)` past the range's end.

@@ -14,9 +14,9 @@
 //!   to the support by least squares (running sums of the ten moments, so each pixel costs the
 //!   same whatever the window); where that window gives none to a block holding a flat pixel
 //!   (a flat area wider than it: a board's square seen near, or in a large image), the window
-//!   2 · [`WINDOW`] + 1 wide is tried (issue 92: OpenCV's 13 photographs enlarged 2 ×, their squares 60–90 px, went from
-//!   40 to 52 % of the board's errors within 1 σ_d and from 17 to 33 % of the board answered
-//!   right);
+//!   2 · [`WINDOW`] + 1 wide is tried (on OpenCV's 13 photographs enlarged 2 ×, their
+//!   squares 60–90 px, it took the board's errors within 1 σ_d from 40 to 52 % and the board
+//!   answered right from 17 to 33 %);
 //! - a hole takes the plane's value when at least [`MIN_SUPPORT`] pixels support it, with
 //!   [`MIN_SIDE`] of them on each side of it, left, right, above and below (so that the plane
 //!   is interpolated between edges, not carried past them), their RMS off the plane is within
@@ -117,13 +117,10 @@ pub fn fill(
     drop(flat);
     if wanted.contains(&true) {
         let wide = planes_of(maps, &support, width, (WINDOW, Some(&wanted)));
-        for ((plane, wide), _) in planes
-            .iter_mut()
-            .zip(wide)
-            .zip(&wanted)
-            .filter(|(_, w)| **w)
-        {
-            *plane = wide;
+        for ((plane, wide), &wanted) in planes.iter_mut().zip(wide).zip(&wanted) {
+            if wanted {
+                *plane = wide;
+            }
         }
     }
     drop(support);
@@ -269,8 +266,8 @@ const KEPT: usize = 8;
 const KEPT_ABOVE: usize = 7;
 
 /// The window of `2 · half + 1` rows around a centre row: each column's sums, slid down one
-/// row at a time. The sums are kept as [`KEPT`] rows of `width` (`sums[k][x]` is column `x`'s kept sum
-/// `k`), so that a row of the image enters or leaves them on whole registers.
+/// row at a time. The sums are kept as [`KEPT`] rows of `width` (`sums[k][x]` is column `x`'s
+/// kept sum `k`), so that a row of the image enters or leaves them on whole registers.
 struct Window<'a> {
     disparity: &'a [f32],
     std: &'a [f32],

@@ -358,16 +358,6 @@ fn quantile(sorted: &[f32], q: f64) -> f32 {
     sorted[i.min(sorted.len() - 1)]
 }
 
-/// How many pixels [`refuse`] refused that had a disparity: past the range's end, and short
-/// of its start.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct Refused {
-    /// Those whose match lies past the range's end.
-    pub past: usize,
-    /// Those whose match lies short of a start given to [`refuse`] (and not past its end).
-    pub short: usize,
-}
-
 /// Refuses (leaves empty) the pixels of `map`, matched over `min .. max`, whose match lies
 /// beyond the range: a disparity in the range's last pixel (the cost still falling at its
 /// end), or a pixel the survey's coarse level put at or past `max` (its own coarse pixel or
@@ -377,13 +367,14 @@ pub struct Refused {
 /// With `grow` (a range the caller gave), the coarse level's holes that touch a pixel past the
 /// range are taken as past too ([`flood`]). With `start` (a range's start found from the pair,
 /// above 0), the pixels short of it are refused alike: a disparity in the range's first pixel,
-/// or one the coarse level put a coarse pixel or more below it.
+/// or one the coarse level put a coarse pixel or more below it. Answers how many pixels with a
+/// disparity were refused as past the end (those short of the start say nothing of the end).
 pub fn refuse(
     map: &mut Disparity,
     survey: Option<&Survey>,
     (start, max): (Option<i32>, i32),
     grow: bool,
-) -> Refused {
+) -> usize {
     let (w, h) = (map.width, map.height);
     let end = (max - 1) as f32;
     let first = start.map_or(f32::NEG_INFINITY, |s| (s + 1) as f32);
@@ -409,7 +400,7 @@ pub fn refuse(
         }
         near
     });
-    let mut refused = Refused::default();
+    let mut past = 0;
     for y in 0..h {
         for x in 0..w {
             let i = y * w + x;
@@ -427,15 +418,11 @@ pub fn refuse(
             if beyond || below {
                 map.data[i] = f32::NAN;
                 map.std[i] = f32::NAN;
-                if beyond {
-                    refused.past += 1;
-                } else {
-                    refused.short += 1;
-                }
+                past += usize::from(beyond);
             }
         }
     }
-    refused
+    past
 }
 
 #[cfg(test)]
@@ -542,7 +529,7 @@ mod tests {
             std: vec![0.5; 4],
             filled: Vec::new(),
         };
-        assert_eq!(refuse(&mut map, None, (None, 80), false).past, 1);
+        assert_eq!(refuse(&mut map, None, (None, 80), false), 1);
         assert!(map.data[1].is_nan() && map.std[1].is_nan());
         assert_eq!((map.data[0], map.data[2]), (10.0, 40.0));
         // A start found at 32: the pixel in its first disparity is refused too.
@@ -553,10 +540,8 @@ mod tests {
             std: vec![0.5; 3],
             filled: Vec::new(),
         };
-        assert_eq!(
-            refuse(&mut map, None, (Some(32), 80), false),
-            Refused { past: 0, short: 1 }
-        );
-        assert!(map.data[0].is_nan() && map.data[2] == 33.5);
+        assert_eq!(refuse(&mut map, None, (Some(32), 80), false), 0);
+        assert!(map.data[0].is_nan() && map.std[0].is_nan());
+        assert_eq!((map.data[1], map.data[2]), (50.0, 33.5));
     }
 }
