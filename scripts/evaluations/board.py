@@ -89,6 +89,8 @@ def slips(url, left, right, plane, mask, ndisp):
             "chosen": said["disparity_range"]["chosen"], "short": short,
             "short_confident_wrong": confident_wrong,
             "short_warned": any(w.startswith(f"max_disparity {short} stops short") for w in short_said),
+            # The short range's refusals are not a raw pair's sign.
+            "short_called_raw": any("need rectifying" in w for w in short_said),
             "swapped_named": named(swapped_said), "right_way_named": named(said["warnings"])}
 
 
@@ -216,6 +218,7 @@ def main():
     defaults_ratio = float(np.median(ratios))
     worst_short = max(r["slips"]["short_confident_wrong"] for r in pairs)
     warned = sum(r["slips"]["short_warned"] for r in pairs)
+    called_raw = sum(r["slips"]["short_called_raw"] for r in pairs)
     named = sum(r["slips"]["swapped_named"] for r in pairs)
     false_named = sum(r["slips"]["right_way_named"] for r in pairs)
     slips_goals = [
@@ -228,6 +231,8 @@ def main():
          worst_short <= FLOORS["short_confident_wrong"]),
         (f"short range: max_disparity named on every pair: {warned} of {len(pairs)}",
          warned == len(pairs)),
+        (f"short range: the rectified pair called raw ('need rectifying'): {called_raw} of "
+         f"{len(pairs)}", called_raw == 0),
         (f"swapped pairs named: {named} of {len(pairs)}", named == len(pairs)),
         (f"the right way round named swapped: {false_named} of {len(pairs)}", false_named == 0),
     ]
