@@ -11,11 +11,10 @@ the share within 1 sigma_d. Reported, not floored, not in CI (about 2 minutes at
 """
 import argparse
 
-import cv2
 import numpy as np
 
 from . import indoor, sigma
-from .board_truth import board_truth, search_range
+from .board_truth import search_range
 
 
 def breakdown(disp, std, truth, mask):
@@ -43,17 +42,10 @@ def main():
     parser.add_argument("--pairs", help="comma-separated names (default: all 13)")
     args = parser.parse_args()
     wanted = set(args.pairs.split(",")) if args.pairs else None
-    grow = (lambda img: img) if args.scale == 1 else (  # noqa: E731
-        lambda img: cv2.resize(img, None, fx=args.scale, fy=args.scale,
-                               interpolation=cv2.INTER_CUBIC))
     print(f"OpenCV's 13 photographs at {args.scale:g} x, searched past the board; of the board "
           "answered: within 1/2/3 sigma_d, off > 10 px (confident), off 2-10 px (confident), "
           "and of those within 2 px, within 1 sigma_d")
-    for name, left, right in indoor.rectified_pairs(args.url, args.photographs):
-        if wanted and name not in wanted:
-            continue
-        left, right = grow(left), grow(right)
-        truth = board_truth(left, right)
+    for name, left, right, truth in indoor.boards(args.url, args.photographs, args.scale, wanted):
         if truth is None:
             print(f"{name}: board not found")
             continue

@@ -23,7 +23,7 @@ import numpy as np
 
 from . import indoor, peers, sigma
 from .board import score
-from .board_truth import board_truth, search_range
+from .board_truth import search_range
 
 
 def main():
@@ -35,17 +35,13 @@ def main():
     args = parser.parse_args()
     cv2.setNumThreads(2)
     rows, errs, stds = [], [], []
-    grow = lambda img: cv2.resize(img, None, fx=args.scale, fy=args.scale,  # noqa: E731
-                                  interpolation=cv2.INTER_CUBIC)
     print(f"OpenCV's 13 stereo photographs rectified by the service, enlarged {args.scale:g} x; "
           f"truth from the board's plane; OpenCV {cv2.__version__} HH4 b3 in the same run")
     header = (f"{'pair':<5} {'board px':>9} {'cover':>5} {'ours right':>10} {'wrong>2':>7} "
               f"{'defaults':>8} {'HH4 right':>9} {'wrong>2':>7} {'conf.wrong':>10} {'1 sigma':>7}")
     print(header)
     print("-" * len(header))
-    for name, left, right in indoor.rectified_pairs(args.url, args.photographs):
-        left, right = grow(left), grow(right)
-        truth = board_truth(left, right)
+    for name, left, right, truth in indoor.boards(args.url, args.photographs, args.scale):
         if truth is None:
             print(f"{name:<5} board not found")
             continue

@@ -102,6 +102,19 @@ def arbitration(mine, other, board):
             "neither": float(np.sum(on & ~ours_right & ~theirs_right) / n)}
 
 
+def boards(url, folder, scale=1.0, names=None):
+    """Each pair rectified by the service ([`rectified_pairs`]), enlarged `scale` times
+    (bicubic) unless 1, with its board's truth (board_truth's, None where the board is not
+    found): (name, left, right, truth), for the pairs in `names` (all when None)."""
+    for name, left, right in rectified_pairs(url, folder):
+        if names is not None and name not in names:
+            continue
+        if scale != 1:
+            left, right = (cv2.resize(img, None, fx=scale, fy=scale, interpolation=cv2.INTER_CUBIC)
+                           for img in (left, right))
+        yield name, left, right, board_truth(left, right)
+
+
 def scene_range(left, right):
     """The disparities a user would search for this pair: past the nearest thing in it, the
     board held in front (eval_board's rule: its largest disparity plus 8 px, a multiple of 16),
