@@ -390,6 +390,55 @@ fn no_route_imports_another() {
     );
 }
 
+/// The callers of the engine's depth job: the `/depth-map` and `/match` routes, a stream's
+/// frames, and the `depth-map` command's frames and its check before them.
+const DEPTH_CALLERS: &[&[&str]] = &[
+    &["api", "routes", "depth_map"],
+    &["api", "routes", "matching"],
+    &["api", "images", "stream"],
+    &["batch", "engine"],
+    &["batch", "preflight"],
+];
+
+/// One depth job for every caller: each plans its work through the engine's `DepthJob`
+/// (`api::images::job::plan`), none imports another caller or any route, and none decides
+/// the end of the search itself: the calibration file's range is the engine's default, set
+/// where the job is planned and read in `Params::new` alone.
+#[test]
+fn every_depth_caller_plans_one_job() {
+    let graph = graph(SRC);
+    let owned = |m: &[&str]| m.iter().map(|w| (*w).to_owned()).collect::<Vec<String>>();
+    let callers: Vec<Vec<String>> = DEPTH_CALLERS.iter().map(|m| owned(m)).collect();
+    let job = owned(&["api", "images", "job"]);
+    let routes = owned(&["api", "routes"]);
+    let mut wrong = Vec::new();
+    for caller in &callers {
+        let uses = graph.get(caller).expect("a caller's module");
+        if !uses.contains(&job) {
+            wrong.push(format!(
+                "{} does not plan through api::images::job",
+                show(caller)
+            ));
+        }
+        for used in uses {
+            let is_caller = callers.iter().any(|c| c != caller && used.starts_with(c));
+            let is_route = !caller.starts_with(&routes) && used.starts_with(&routes);
+            if is_caller || is_route {
+                wrong.push(format!("{} → {}", show(caller), show(used)));
+            }
+        }
+    }
+    for (module, file) in modules(SRC) {
+        let code = code_of(&fs::read_to_string(&file).expect("readable"));
+        if code.contains("file_range") || code.contains("Params::new") {
+            wrong.push(format!("{} decides the matcher's defaults", show(&module)));
+        }
+    }
+    let core = code_of(&fs::read_to_string(format!("{CORE_SRC}/pipeline/job.rs")).expect("job.rs"));
+    assert!(core.contains("settings.file_range =") && core.contains("Params::new(&settings)"));
+    assert!(wrong.is_empty(), "{wrong:#?}");
+}
+
 /// The most lines `src/api/routes/` may hold: the routes only translate (wire types to the
 /// engine's, one call, its faults to problem+json); the wire types live in `api::wire`.
 const MAX_ROUTE_LINES: usize = 4_500;
@@ -764,4 +813,25 @@ fn the_checker_sees_what_it_looks_for() {
     .into_iter()
     .collect();
     assert_eq!(circles(&edges), vec![BTreeSet::from(["a", "b", "c"])]);
+}
+
+/// The README is for users: at most 900 lines, and no internal issue numbers (histories and
+/// per-issue tables live in `docs/`).
+#[test]
+fn the_readme_is_for_users() {
+    let readme =
+        fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/README.md")).expect("README.md");
+    let lines = readme.lines().count();
+    assert!(lines <= 900, "README.md has {lines} lines, 900 at most");
+    let numbered: Vec<&str> = readme
+        .lines()
+        .filter(|l| {
+            let l = l.to_lowercase();
+            (0..10).any(|d| l.contains(&format!("issue {d}")))
+        })
+        .collect();
+    assert!(
+        numbered.is_empty(),
+        "issue numbers in README.md: {numbered:#?}"
+    );
 }

@@ -1,6 +1,6 @@
 //! The `depth-map` command's frames matched in this process: the engine's
-//! [`stereo_core::pipeline::depth_map`] called directly, with the calibration read and resolved
-//! once for each frame size the recording has (its rectification maps built once with it), and
+//! [`stereo_core::pipeline::depth_map`] called directly, with the depth job planned once for
+//! each frame size the recording has (its rectification maps built once with it), and
 //! each frame judged as the service judges it: the image limits, the pair's sizes, the memory
 //! budget, the same sentences naming the same files.
 
@@ -10,38 +10,29 @@ use std::sync::atomic::AtomicBool;
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
-use axum::body::Bytes;
-
 use crate::api::error::{ApiError, FieldError, FieldErrors};
-use crate::api::images::{limits, parts::Parts, raw, rig};
-use crate::api::routes::depth_map;
+use crate::api::images::{job, limits, rig};
 use crate::api::wire::depth_map::{DepthMapOutput, DepthMapSummary};
+use crate::api::wire::images::RigInput;
 use crate::api::wire::rig::CalibratedRig;
 use crate::config::Config;
-use stereo_core::pipeline::{self, Calibrated, Maps, Request, Sent};
+use stereo_core::pipeline::{self, Answer, DepthJob, Maps};
+use stereo_core::vision::Settings;
 use stereo_core::vision::decode::{self, DecodeLimits};
-use stereo_core::vision::{Params, Settings};
 
-/// A calibration resolved for one frame size: the rig (the rectified one for raw frames), the
-/// maps of raw frames, and the matcher's parameters with the file's `ndisp`.
-struct Resolved {
-    calibrated: Option<Calibrated>,
-    maps: Option<Maps>,
-    params: Params,
-}
-
-/// A frame size's calibration and parameters, or the faults that refuse every frame of it.
-type Resolution = Result<Arc<Resolved>, Vec<FieldError>>;
+/// A frame size's depth job, or the faults that refuse every frame of it.
+type Resolution = Result<Arc<DepthJob>, Vec<FieldError>>;
 
 /// What every frame of the run shares.
 pub struct Engine {
     output: DepthMapOutput,
     settings: Settings,
-    /// The calibration's parts as the service reads them (`calibration`, `calibration_unit`).
-    calibration: Option<Parts>,
+    /// The calibration file and its unit, as the service reads them.
+    calibration: RigInput,
     limits: DecodeLimits,
     memory_budget: usize,
-    /// Each frame size's calibration, resolved the first time a frame of that size comes.
+    /// Each frame size's job, planned (its maps built) the first time a frame of that size
+    /// comes.
     resolved: Mutex<HashMap<(u32, u32), Resolution>>,
 }
 
@@ -57,12 +48,8 @@ impl Engine {
         settings: Settings,
         calibration: Option<(&[u8], Option<&str>)>,
     ) -> Engine {
-        let calibration = calibration.map(|(bytes, unit)| {
-            let mut parts = vec![("calibration".to_owned(), Bytes::copy_from_slice(bytes))];
-            if let Some(unit) = unit {
-                parts.push(("calibration_unit".to_owned(), Bytes::from(unit.to_owned())));
-            }
-            parts.into_iter().collect()
+        let calibration = calibration.map_or_else(RigInput::default, |(bytes, unit)| {
+            RigInput::calibration(bytes, unit)
         });
         // The matcher's buffer pools and glibc's thresholds as the service sets them, so that a
         // run in process goes as fast as the service it would otherwise call.
@@ -116,19 +103,15 @@ impl Engine {
         if !problems.is_empty() {
             return Err(problems.prefixed(""));
         }
-        let resolved = self.resolve(l)?;
-        let need = raw::match_need(
-            resolved.calibrated.as_ref().and_then(|c| c.raw.as_deref()),
-            l,
-            resolved.params.most_searched(),
-            |w, h, n| depth_map::bytes_needed(w, h, n, self.output),
-        );
-        if (need.need)(need.count) > self.memory_budget {
+        let planned = self.resolve(l)?;
+        let products = self.output.product().into_iter().collect();
+        let need = planned.need(l, Answer::Files(products));
+        if need.bytes(need.count) > self.memory_budget {
             return Err(limits::shrink(
                 need.size,
                 need.count,
                 self.memory_budget,
-                &need.need,
+                |n| need.bytes(n),
             ));
         }
         let started = Instant::now();
@@ -145,13 +128,7 @@ impl Engine {
             (l, r) => return Err([l.err(), r.err()].into_iter().flatten().collect()),
         };
         let decoded = started.elapsed();
-        let request = Request {
-            params: &resolved.params,
-            calibrated: resolved.calibrated.as_ref(),
-            maps: resolved.maps.as_ref(),
-            colour,
-            depth_std: self.output.wants_depth_std(),
-        };
+        let request = planned.request(colour, self.output.wants_depth_std());
         let map = pipeline::depth_map(left, right, request, &AtomicBool::new(false)).map_err(
             |stopped| match stopped.advice() {
                 Some(advice) => vec![FieldError::new("max_disparity", advice)],
@@ -163,11 +140,8 @@ impl Engine {
                 .encode(&map)
                 .map_err(|e| vec![FieldError::new("output", e)])?,
             None => {
-                let rig = resolved
-                    .calibrated
-                    .as_ref()
-                    .map(|c| CalibratedRig::from(&c.rig));
-                let summary = DepthMapSummary::of(&map, &resolved.params, rig, decoded);
+                let rig = planned.calibrated().map(|c| CalibratedRig::from(&c.rig));
+                let summary = DepthMapSummary::of(&map, planned.params(), rig, decoded);
                 serde_json::to_vec(&summary)
                     .map_err(|e| vec![FieldError::new("output", e.to_string())])?
             }
@@ -175,47 +149,35 @@ impl Engine {
         Ok((bytes, map.warnings))
     }
 
-    /// The calibration and parameters for frames of `size`, resolved once.
+    /// The job for frames of `size`, planned once.
     fn resolve(&self, size: (u32, u32)) -> Resolution {
         let mut cache = self.resolved.lock().unwrap_or_else(|e| e.into_inner());
         cache
             .entry(size)
-            .or_insert_with(|| self.resolved_for(size).map(Arc::new))
+            .or_insert_with(|| self.planned(size).map(Arc::new))
             .clone()
     }
 
-    fn resolved_for(&self, size: (u32, u32)) -> Result<Resolved, Vec<FieldError>> {
+    fn planned(&self, size: (u32, u32)) -> Result<DepthJob, Vec<FieldError>> {
         let mut problems = FieldErrors::default();
-        let calibrated = self
-            .calibration
-            .as_ref()
-            .and_then(|parts| rig::rig(parts, Some(size), true, &mut problems));
-        let sent = if self.calibration.is_some() {
-            Sent::Calibration
-        } else {
-            Sent::Nothing
+        let calibrated = rig::rig(&self.calibration, Some(size), true, &mut problems);
+        let asked = job::Asked {
+            rectify: None,
+            alpha: None,
+            settings: self.settings,
+            prefix: "",
         };
-        let mode = pipeline::RectifyMode::Auto;
-        let (calibrated, raw) =
-            match pipeline::plan(calibrated.as_ref(), sent, Some(size), mode, None) {
-                Ok(Some(rectifying)) => {
-                    let raw = rectifying.raw.clone();
-                    (Some(rectifying), raw)
-                }
-                Ok(None) => (calibrated, None),
-                Err(fault) => {
-                    problems.add("calibration", fault.to_string());
-                    (None, None)
-                }
-            };
-        let ndisp = calibrated.as_ref().and_then(|c| c.max_disparity);
-        let params = limits::params(self.settings, ndisp, &mut problems);
-        match params {
-            Some(params) if problems.is_empty() => Ok(Resolved {
-                maps: raw.as_deref().map(Maps::build),
-                calibrated,
-                params,
-            }),
+        let planned = job::plan(
+            calibrated,
+            &self.calibration,
+            Some(size),
+            asked,
+            &mut problems,
+        );
+        match planned {
+            Some(planned) if problems.is_empty() => {
+                Ok(planned.with_maps(|raw| Arc::new(Maps::build(raw))))
+            }
             _ => Err(problems.prefixed("")),
         }
     }

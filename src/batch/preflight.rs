@@ -6,11 +6,10 @@
 
 use std::path::Path;
 
-use axum::body::Bytes;
-
 use crate::api::error::FieldErrors;
-use crate::api::images::{limits, parts::Parts, rig};
+use crate::api::images::{job, rig};
 use crate::api::wire::depth_map::DepthMapOutput;
+use crate::api::wire::images::RigInput;
 use crate::config::DepthMapArgs;
 use stereo_core::vision::decode;
 use stereo_core::vision::{Preset, Settings};
@@ -32,20 +31,15 @@ pub fn check<'a>(
             format!("{output} is depths: give the rig's --calibration, or write disparities"),
         );
     }
-    let mut ndisp = None;
+    let (mut given, mut input, mut size) = (None, RigInput::default(), None);
     if let Some((_, bytes)) = calibration {
-        let size = left_frames.into_iter().find_map(|path| {
+        size = left_frames.into_iter().find_map(|path| {
             let bytes = std::fs::read(path).ok()?;
             decode::dimensions(&bytes).ok()
         });
-        let mut parts = vec![("calibration".to_owned(), Bytes::from(bytes.clone()))];
-        if let Some(unit) = &args.calibration_unit {
-            parts.push(("calibration_unit".to_owned(), Bytes::from(unit.clone())));
-        }
-        let parts: Parts = parts.into_iter().collect();
+        input = RigInput::calibration(bytes, args.calibration_unit.as_deref());
         let mut found = FieldErrors::default();
-        let given = rig::rig(&parts, size, true, &mut found);
-        ndisp = given.and_then(|g| g.max_disparity);
+        given = rig::rig(&input, size, true, &mut found);
         for fault in found.iter() {
             let field = match fault.field.as_str() {
                 "calibration" | "right_calibration" => "--calibration".to_owned(),
@@ -56,7 +50,13 @@ pub fn check<'a>(
         }
     }
     let mut range = FieldErrors::default();
-    limits::params(settings(args), ndisp, &mut range);
+    let asked = job::Asked {
+        rectify: None,
+        alpha: None,
+        settings: settings(args),
+        prefix: "",
+    };
+    job::plan(given, &input, size, asked, &mut range);
     for fault in range.iter() {
         problems.add(
             &format!("--{}", fault.field.replace('_', "-")),

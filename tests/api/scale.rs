@@ -10,8 +10,15 @@
 //! peak RSS is this test's).
 
 use reqwest::multipart::Form;
+use stereo_core::pipeline::Product;
+use stereo_core::pipeline::job::depth_map_bytes;
 use stereo_core::vision::synthetic::{self, Pair, Scene};
-use stereo_distance::api::{routes::depth_map::bytes_needed, wire::depth_map::DepthMapOutput};
+
+/// What `/depth-map` reserves for a `w × h` pair over `count` disparities answering a
+/// disparity NPY.
+fn bytes_needed(w: usize, h: usize, count: usize) -> usize {
+    depth_map_bytes(w, h, count, &[Product::DisparityNpy])
+}
 
 use stereo_core::vision::encode::png_grey;
 
@@ -122,7 +129,7 @@ async fn admitted_within_its_reservation(
     let (density, bad1) = accuracy(&pair, &map);
     assert!(density > 0.95, "density {density}");
     assert!(bad1 < 0.01, "bad-1.0 {bad1}");
-    let reserved = bytes_needed(w, h, count, DepthMapOutput::DisparityNpy);
+    let reserved = bytes_needed(w, h, count);
     assert!(
         peak <= reserved,
         "peak RSS {} MiB above the {} MiB reserved",
@@ -156,12 +163,7 @@ async fn a_phones_twelve_megapixel_jpeg_pair_is_answered_at_every_range() {
         // The layered scene's planes lie 6 to 34 px apart before scaling.
         let k = 0.85 * count as f32 / 34.0;
         admitted_within_its_reservation((4032, 3024), count, k, phone_jpegs).await;
-        reserved.push(bytes_needed(
-            4032,
-            3024,
-            count,
-            DepthMapOutput::DisparityNpy,
-        ));
+        reserved.push(bytes_needed(4032, 3024, count));
     }
     assert!(reserved.windows(2).all(|r| r[0] <= r[1]), "{reserved:?}");
 }
@@ -176,7 +178,7 @@ async fn a_twenty_four_megapixel_jpeg_pair_is_answered_at_64_and_256() {
         let k = 0.85 * count as f32 / 34.0;
         admitted_within_its_reservation((6000, 4000), count, k, phone_jpegs).await;
     }
-    let reserved = |count| bytes_needed(6000, 4000, count, DepthMapOutput::DisparityNpy);
+    let reserved = |count| bytes_needed(6000, 4000, count);
     assert!(reserved(64) <= reserved(256));
 }
 

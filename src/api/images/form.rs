@@ -39,6 +39,8 @@ pub trait ImageForm {
 /// The pair of an image request, read and judged before anything is decoded.
 pub struct ImagePair<F> {
     pub parts: Parts,
+    /// The parts that describe the rig.
+    pub input: rig::RigInput,
     /// The pair's size (the left image's), when its header could be read.
     pub size: Option<(u32, u32)>,
     /// The rig from the `rig` or `calibration` part, when one is given and valid.
@@ -130,9 +132,11 @@ impl<F: ImageForm> FromRequest<HeavyState> for ImagePair<F> {
         if let (Some(l), Some(r)) = (left, right) {
             limits::check_pair(l, r, image_limits, &mut problems)?;
         }
-        let rig = rig::rig(&parts, left, F::TAKES_RIG, &mut problems);
+        let input = parts.rig_input();
+        let rig = rig::rig(&input, left, F::TAKES_RIG, &mut problems);
         Ok(ImagePair {
             parts,
+            input,
             size: left,
             rig,
             problems,

@@ -1,14 +1,10 @@
-//! What the server accepts of an image request: the images' sizes (judged from their headers),
-//! the matcher's settings (checked by [`Params::new`], its faults named by the query's
-//! parameters), and, when a request cannot fit in the memory budget, what to shrink.
+//! What the server accepts of an image request: the images' sizes (judged from their headers)
+//! and, when a request cannot fit in the memory budget, what to shrink.
 
 use axum::body::Bytes;
 
 use crate::api::error::{ApiError, FieldError, FieldErrors};
-use crate::api::wire::depth_map::DepthMapOutput;
-use stereo_core::pipeline::Product;
 use stereo_core::vision::decode::{DecodeError, DecodeLimits, MAX_SIDE, MIN_SIDE};
-use stereo_core::vision::{self, Params, Settings};
 
 /// The decoder's limits for every image route: [`MAX_SIDE`] a side and the server's
 /// `--max-image-pixels`.
@@ -93,82 +89,6 @@ pub fn check_pair(
     }
     Ok(())
 }
-
-/// The matcher's parameters from the query's settings, with a calibration file's `ndisp` as
-/// the end of the range where none is given (`max_disparity=auto` finds it from the pair
-/// even then); each fault named by its query parameter.
-pub fn params(
-    mut settings: Settings,
-    ndisp: Option<u32>,
-    problems: &mut FieldErrors,
-) -> Option<Params> {
-    if settings.max_disparity.is_none() {
-        settings.max_disparity = ndisp.map(|n| {
-            stereo_core::vision::RangeEnd::Px(
-                i32::try_from(n.min(stereo_core::vision::MAX_DISPARITIES as u32))
-                    .unwrap_or(stereo_core::vision::DEFAULT_MAX_DISPARITY),
-            )
-        });
-    }
-    match Params::new(&settings) {
-        Ok(params) => Some(params),
-        Err(faults) => {
-            for fault in faults {
-                problems.add(fault.setting.name(), fault.message);
-            }
-            None
-        }
-    }
-}
-
-/// The bytes the decoded pair holds: for each image, the decoder's buffer at up to 8 bytes a
-/// pixel and the grey levels at 2.
-pub fn decoded_bytes(width: usize, height: usize) -> usize {
-    width.saturating_mul(height).saturating_mul(2 * (8 + 2))
-}
-
-/// The peak of a request that decodes a `width × height` pair and then holds `after` bytes
-/// besides the pair's grey levels (2 bytes a pixel each, all that decoding leaves): the decode's
-/// peak or the rest's, whichever is larger, since the decoder's buffers are freed before the
-/// matcher starts.
-pub fn decode_then(width: usize, height: usize, after: usize) -> usize {
-    let grey = width.saturating_mul(height).saturating_mul(4);
-    decoded_bytes(width, height).max(grey.saturating_add(after))
-}
-
-/// The bytes a depth map's work holds at its peak besides its body: the decoded pair
-/// ([`decode_then`]), then the left image's colours for a point cloud, and the larger of the
-/// matcher's peak and the answer's: the map, its depths and σ (17 bytes a pixel), and each
-/// file written from them (up to 7 bytes a pixel, and the file's own extra). The matcher's buffers are freed before the
-/// answer is made. What a `w × h` rectified pair searching `count` disparities reserves from
-/// the heavy budget to answer `outputs`.
-pub fn depth_map_bytes(w: usize, h: usize, count: usize, outputs: &[DepthMapOutput]) -> usize {
-    let products = || outputs.iter().filter_map(|o| o.product());
-    let extra: usize = products().map(Product::extra_bytes_per_pixel).sum();
-    let colour = if products().any(Product::wants_colour) {
-        3
-    } else {
-        0
-    };
-    let pixels = w.saturating_mul(h);
-    let files = outputs
-        .iter()
-        .filter(|o| o.product().is_some())
-        .count()
-        .max(1);
-    let a_pixel = MAP_BYTES_A_PIXEL + FILE_BYTES_A_PIXEL * files + extra;
-    let answer = pixels.saturating_mul(a_pixel);
-    let after = pixels
-        .saturating_mul(colour)
-        .saturating_add(vision::bytes_needed(w, h, count).max(answer));
-    decode_then(w, h, after)
-}
-
-/// What a depth map's answer holds a pixel before its files: the map and its σ and mask (9
-/// bytes), the depths and their σ (8).
-const MAP_BYTES_A_PIXEL: usize = 17;
-/// What each file written from the map holds a pixel besides its own extra (up to 7 bytes).
-const FILE_BYTES_A_PIXEL: usize = 7;
 
 /// What to shrink so that a `w × h` request searching `count` disparities, needing
 /// `need(count)` bytes, fits in a budget of `total` bytes: the images (to how many megapixels

@@ -7,8 +7,8 @@
 //! - [`rig`]: the rig from a `rig` part or a `calibration` file, through the one constructor
 //!   every rig goes through;
 //! - [`maps`]: the rectification maps of the raw rigs seen lately, cached within the budget;
-//! - [`raw`]: whether a request rectifies its pair, the memory that takes, the frames read
-//!   through the maps, and the row check of a pair sent as rectified;
+//! - [`job`]: the engine's depth job planned with what a request sent, its refusals named,
+//!   and the memory its work reserves;
 //! - [`output`]: a file answer with its media type and name, and `Server-Timing`;
 //! - [`limits`]: what the server accepts: image sizes, the matcher's settings mapped onto the
 //!   query's names, and what to shrink when a request cannot fit;
@@ -24,12 +24,12 @@
 //! none of them.
 
 pub mod form;
+pub mod job;
 pub mod limits;
 pub mod maps;
 pub mod output;
 pub mod parts;
 pub mod pools;
-pub mod raw;
 pub mod rig;
 pub mod stream;
 pub mod work;

@@ -6,6 +6,7 @@ use std::collections::BTreeMap;
 use axum::body::Bytes;
 
 use crate::api::error::FieldErrors;
+use crate::api::wire::images::{RIG_PARTS, RigInput};
 
 /// The parts of a multipart form, by name.
 #[derive(Debug, Default)]
@@ -19,22 +20,23 @@ impl FromIterator<(String, Bytes)> for Parts {
 }
 
 impl Parts {
+    /// The parts that describe the rig ([`RigInput`]).
+    pub fn rig_input(&self) -> RigInput {
+        let mut input = RigInput::default();
+        for name in RIG_PARTS {
+            if let Some(bytes) = self.get(name) {
+                input.set(name, bytes.clone());
+            }
+        }
+        input
+    }
+
     pub fn get(&self, name: &str) -> Option<&Bytes> {
         self.0.get(name)
     }
 
     /// The part as UTF-8 text, or an error naming it.
     pub fn text(&self, name: &str, problems: &mut FieldErrors) -> Option<String> {
-        let bytes = self.get(name)?;
-        match std::str::from_utf8(bytes) {
-            Ok(text) => Some(text.to_owned()),
-            Err(e) => {
-                problems.add(
-                    name,
-                    format!("must be UTF-8 text; byte {} is not", e.valid_up_to()),
-                );
-                None
-            }
-        }
+        crate::api::wire::images::utf8(name, self.get(name)?, problems)
     }
 }

@@ -6,7 +6,6 @@
 use axum::body::Bytes;
 use serde_json::{Map, Value};
 
-use super::parts::Parts;
 use crate::api::error::FieldErrors;
 use crate::api::extract::decode_object;
 use crate::api::validate;
@@ -18,15 +17,16 @@ use stereo_core::calibration::files::{self, ReadOptions, Source};
 use stereo_core::physics::LengthUnit;
 use stereo_core::pipeline::{Calibrated, SizeFault};
 
-pub use crate::api::wire::images::RIG_PARTS;
+pub use crate::api::wire::images::{RIG_PARTS, RigInput};
 
 /// The prefix of a rig member's name in the image routes' answers.
 const RIG: &str = "rig.";
 
-/// The rig from the `rig` part or the `calibration` parts (not both), for images of `size`;
+/// The rig from the `rig` member or the `calibration` members (not both) that a request sent
+/// (`parts`: a form's parts, a stream's settings), for images of `size`;
 /// `None` when neither is given or either is at fault (then `problems` says why).
 pub fn rig(
-    parts: &Parts,
+    parts: &RigInput,
     size: Option<(u32, u32)>,
     takes_rig: bool,
     problems: &mut FieldErrors,
@@ -110,8 +110,8 @@ fn std_beside(json: &Bytes, problems: &mut FieldErrors) -> Option<(f64, f64, Opt
 
 /// Names `rig` as required, saying `why`, when the form has neither a `rig` nor a
 /// `calibration` part (a part that is there but at fault is named by [`rig`] itself).
-pub fn require_rig(parts: &Parts, why: &str, problems: &mut FieldErrors) {
-    if parts.get("rig").is_none() && parts.get("calibration").is_none() {
+pub fn require_rig(parts: &RigInput, why: &str, problems: &mut FieldErrors) {
+    if !parts.has_rig() {
         problems.add(
             "rig",
             format!(
@@ -185,7 +185,7 @@ request! {
 /// The calibration parts, read as `/calibration` reads a file; their errors name the parts,
 /// and the rig's members `rig.…`.
 fn calibration_parts(
-    parts: &Parts,
+    parts: &RigInput,
     size: Option<(u32, u32)>,
     takes_rig: bool,
     problems: &mut FieldErrors,

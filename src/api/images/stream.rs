@@ -18,21 +18,20 @@ use super::limits;
 use super::maps::MapCache;
 use super::parts::Parts;
 use super::pools::FramePools;
-use super::{lock, raw, rig, work};
+use super::{job, lock, rig, work};
 use crate::api::error::{ApiError, FieldError, FieldErrors};
 use crate::api::wire::depth_map::{DepthMapOutput, DepthMapSummary, MatcherParameters};
 use crate::api::wire::depth_stream::{
     FileAnswer, FrameTimes, Layout, SettingsAnswer, StreamLimitsAnswer, StreamSettings,
     TemporalCounts,
 };
-use crate::api::wire::images::RectifyMode;
+use crate::api::wire::images::{RectifyMode, RigInput};
 use crate::api::wire::rig::CalibratedRig;
 use crate::budget::{MemoryBudget, Refusal, Reservation, Slots};
-use stereo_core::calibration::files::Raw;
-use stereo_core::pipeline::{self, Calibrated, Chosen, Maps, Matched, RangeUsed, Request};
+use stereo_core::pipeline::{self, Answer, Chosen, DepthJob, Maps, Matched, RangeUsed, Request};
 use stereo_core::vision::decode::{self, DecodeLimits, Decoded};
 use stereo_core::vision::temporal::{self, Temporal};
-use stereo_core::vision::{Params, Preset};
+use stereo_core::vision::{Params, Preset, Settings};
 
 /// The streams' limits and what they share.
 #[derive(Debug, Clone)]
@@ -69,11 +68,15 @@ impl Default for Streams {
 #[derive(Debug)]
 pub struct Resolved {
     pub layout: Layout,
+    /// The matcher's settings as asked (the `fast` preset unless another is given), the job
+    /// planned with them at each frame size.
+    pub settings: Settings,
+    /// The matcher's parameters as the settings answer gave them.
     pub params: Params,
     /// The files each answer carries, in order.
     pub outputs: Vec<DepthMapOutput>,
-    /// The rig's members, as `/depth-map`'s form parts.
-    pub parts: Parts,
+    /// The members that describe the rig, read into it at each frame size.
+    pub input: RigInput,
     pub rectify: (Option<RectifyMode>, Option<f64>),
     pub temporal: Option<temporal::Settings>,
     /// Whether a file asked for needs the left image's colour.
@@ -92,17 +95,19 @@ impl Resolved {
         streams: &Streams,
     ) -> Result<(Resolved, SettingsAnswer), FieldErrors> {
         let mut problems = FieldErrors::default();
-        let parts: Parts = settings.rig_parts.into_iter().collect();
+        let input = settings.rig;
         let rectify = (settings.options.rectify, settings.options.alpha);
-        let mut calibrated = rig::rig(&parts, None, true, &mut problems);
-        raw::plan_rig(
-            &mut calibrated,
-            raw::sent_in(&parts),
+        let mut asked = settings.options.settings();
+        asked.preset = asked.preset.or(Some(Preset::Fast));
+        let calibrated = rig::rig(&input, None, true, &mut problems);
+        let planned = job::plan(
+            calibrated,
+            &input,
             None,
-            rectify,
+            asked_of(asked, rectify),
             &mut problems,
         );
-        let has_rig = parts.get("rig").is_some() || parts.get("calibration").is_some();
+        let has_rig = input.has_rig();
         let outputs = settings.outputs.unwrap_or_else(|| {
             if has_rig {
                 vec![DepthMapOutput::DepthNpy, DepthMapOutput::DepthStdNpy]
@@ -125,17 +130,11 @@ impl Resolved {
                 );
             }
         }
-        let mut asked = settings.options.settings();
-        asked.preset = asked.preset.or(Some(Preset::Fast));
-        let ndisp = calibrated.as_ref().and_then(|c| c.max_disparity);
-        let mut refused = FieldErrors::default();
-        let params = limits::params(asked, ndisp, &mut refused);
-        for error in refused.prefixed("options.") {
-            problems.add_new(error.field, error.message);
-        }
-        let Some(params) = params.filter(|_| problems.is_empty()) else {
+        let Some(planned) = planned.filter(|_| problems.is_empty()) else {
             return Err(problems);
         };
+        let params = *planned.params();
+        let calibrated = planned.calibrated();
         let answer = SettingsAnswer {
             kind: "settings",
             layout: settings.layout.name(),
@@ -143,14 +142,14 @@ impl Resolved {
             max_disparity: (!params.range_found()).then(|| params.max_disparity()),
             parameters: MatcherParameters::of(&params, None),
             outputs: outputs.iter().map(|o| o.name()).collect(),
-            rig: calibrated.as_ref().map(|c| CalibratedRig::from(&c.rig)),
+            rig: calibrated.map(|c| CalibratedRig::from(&c.rig)),
             temporal: settings.temporal.map(Into::into),
             limits: StreamLimitsAnswer {
                 max_frame_bytes: streams.max_frame_bytes,
                 idle_timeout_s: streams.idle_timeout.as_secs_f64(),
                 write_timeout_s: streams.write_timeout.as_secs_f64(),
             },
-            warnings: calibrated.map_or_else(Vec::new, |c| c.warnings),
+            warnings: calibrated.map_or_else(Vec::new, |c| c.warnings.clone()),
         };
         let colour = outputs
             .iter()
@@ -159,15 +158,30 @@ impl Resolved {
         let depth_std = outputs.iter().any(|o| o.wants_depth_std());
         let resolved = Resolved {
             layout: settings.layout,
+            settings: asked,
             params,
             outputs,
-            parts,
+            input,
             rectify,
             temporal: settings.temporal,
             colour,
             depth_std,
         };
         Ok((resolved, answer))
+    }
+}
+
+/// What a stream asks of each frame size's job: its settings, rectified as its options say,
+/// a setting's fault named `options.…`.
+fn asked_of(
+    settings: Settings,
+    (rectify, alpha): (Option<RectifyMode>, Option<f64>),
+) -> job::Asked<'static> {
+    job::Asked {
+        rectify,
+        alpha,
+        settings,
+        prefix: "options.",
     }
 }
 
@@ -190,13 +204,12 @@ pub struct Done {
     pub held: Reservation,
 }
 
-/// What holds for the frames of one size: the rig at that size, the raw rig and its maps when
-/// the frames are rectified, and the budget the maps and the filter's state hold.
+/// What holds for the frames of one size: the depth job at that size (its rig, and the raw
+/// rig and its maps when the frames are rectified), and the budget the maps and the filter's
+/// state hold.
 struct AtSize {
     size: (u32, u32),
-    rig: Option<Calibrated>,
-    raw: Option<Box<Raw>>,
-    maps: Option<Arc<Maps>>,
+    job: DepthJob,
     _held: Reservation,
 }
 
@@ -300,8 +313,8 @@ impl Engine {
 
     /// The parameters for the next frame: where the range is found from each frame, at least
     /// the widest the latest frames needed.
-    fn params(&self) -> Params {
-        let params = self.resolved.params;
+    fn params(&self, at: &AtSize) -> Params {
+        let params = *at.job.params();
         match lock(&self.needs).iter().max() {
             Some(&kept) if params.range_found() => params.at_least(kept),
             _ => params,
@@ -339,13 +352,10 @@ impl Engine {
         let (left, right) = self.decode(&frame.bytes, colour)?;
         let decode = started.elapsed();
         let resolved = &*self.resolved;
-        let params = self.params();
+        let params = self.params(&at);
         let request = Request {
             params: &params,
-            calibrated: at.rig.as_ref(),
-            maps: at.maps.as_deref(),
-            colour,
-            depth_std: resolved.depth_std,
+            ..at.job.request(colour, resolved.depth_std)
         };
         let mut matched =
             pipeline::matched(left, right, request, cancel).map_err(ApiError::from)?;
@@ -353,7 +363,7 @@ impl Engine {
         turn.steady(&mut matched, cancel);
         let map = matched.depth_map(request);
         let started = Instant::now();
-        let rig = at.rig.as_ref().map(|c| CalibratedRig::from(&c.rig));
+        let rig = at.job.calibrated().map(|c| CalibratedRig::from(&c.rig));
         let (summary, files) = rayon::join(
             || DepthMapSummary::of(&map, &resolved.params, rig, decode),
             || files(&map, &resolved.outputs),
@@ -430,24 +440,24 @@ impl Engine {
         }
     }
 
-    /// The rig at `size` (a calibration is read for the frames' size) and, when the frames
+    /// The job at `size` (a calibration is read for the frames' size) and, when the frames
     /// are raw, the maps, their memory and the filter's reserved for the stream's life.
     fn resolve(&self, size: (u32, u32)) -> Result<AtSize, ApiError> {
         let resolved = &*self.resolved;
         let mut problems = FieldErrors::default();
-        let mut calibrated = rig::rig(&resolved.parts, Some(size), true, &mut problems);
-        let sent = raw::sent_in(&resolved.parts);
-        let raw = raw::plan_rig(
-            &mut calibrated,
-            sent,
+        let calibrated = rig::rig(&resolved.input, Some(size), true, &mut problems);
+        let asked = asked_of(resolved.settings, resolved.rectify);
+        let planned = job::plan(
+            calibrated,
+            &resolved.input,
             Some(size),
-            resolved.rectify,
+            asked,
             &mut problems,
         );
-        if !problems.is_empty() {
+        let Some(planned) = planned.filter(|_| problems.is_empty()) else {
             return Err(problems.into_error());
-        }
-        let matched = raw.as_deref().map_or(size, |r| {
+        };
+        let matched = planned.raw().map_or(size, |r| {
             let s = r.rectification.size;
             (s.width, s.height)
         });
@@ -456,17 +466,14 @@ impl Engine {
             .resolved
             .temporal
             .map_or(0, |_| pixels.saturating_mul(temporal::BYTES_A_PIXEL));
-        let maps_bytes = raw.as_deref().map_or(0, Maps::bytes_for);
+        let maps_bytes = planned.raw().map_or(0, Maps::bytes_for);
         let held = self
             .budget
             .reserve(filter.saturating_add(maps_bytes))
             .map_err(ApiError::Memory)?;
-        let maps = raw.as_deref().map(|r| self.maps.get(r).0);
         Ok(AtSize {
             size,
-            rig: calibrated,
-            raw,
-            maps,
+            job: planned.with_maps(|r| self.maps.get(r).0),
             _held: held,
         })
     }
@@ -474,20 +481,20 @@ impl Engine {
     /// Reserves what matching a frame of `size` holds at its peak (a side-by-side frame's
     /// halves cut out besides).
     fn reserve(&self, at: &AtSize, size: (u32, u32)) -> Result<Reservation, ApiError> {
-        let outputs = &self.resolved.outputs;
-        let count = self.resolved.params.most_searched();
-        let need = raw::match_need(at.raw.as_deref(), size, count, |w, h, n| {
-            limits::depth_map_bytes(w, h, n, outputs)
-        });
+        let products = self.resolved.outputs.iter().filter_map(|o| o.product());
+        let need = at.job.need(size, Answer::Files(products.collect()));
         let split = match self.resolved.layout {
             Layout::SideBySide => (size.0 as usize * size.1 as usize).saturating_mul(4),
             Layout::Pair => 0,
         };
-        let bytes = (need.need)(need.count).saturating_add(split);
+        let bytes = need.bytes(need.count).saturating_add(split);
         match self.budget.reserve(bytes) {
             Ok(held) => Ok(held),
             Err(Refusal::TooLarge { total, .. }) => Err(ApiError::Oversized(limits::shrink(
-                need.size, need.count, total, &need.need,
+                need.size,
+                need.count,
+                total,
+                |n| need.bytes(n),
             ))),
             Err(busy) => Err(ApiError::Memory(busy)),
         }

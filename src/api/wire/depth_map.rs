@@ -354,6 +354,7 @@ impl DepthMapQuery {
             fill: self.fill,
             paths: self.paths,
             preset: self.preset.map(Into::into),
+            ..Settings::default()
         }
     }
 }

@@ -9,7 +9,7 @@ use serde_json::{Map, Value};
 
 use super::de::request;
 use super::depth_map::{DepthMapOutput, DepthMapQuery, DepthMapSummary, MatcherParameters};
-use super::images::RIG_PARTS;
+use super::images::{RIG_PARTS, RigInput};
 use super::rig::CalibratedRig;
 use crate::api::error::{FieldErrors, Problem};
 use crate::api::extract::decode_object;
@@ -49,9 +49,9 @@ pub struct StreamSettings {
     /// The files each answer carries; `None` for the default (the depth and its σ with a
     /// rig, the disparity and its σ without).
     pub outputs: Option<Vec<DepthMapOutput>>,
-    /// The rig's members as `/depth-map`'s form parts: `rig` as its JSON text, the
-    /// calibration's as their text.
-    pub rig_parts: Vec<(String, Bytes)>,
+    /// The members that describe the rig: `rig` as its JSON text, the calibration's as their
+    /// text.
+    pub rig: RigInput,
     /// The temporal filter, or `None` when it is turned off.
     pub temporal: Option<temporal::Settings>,
 }
@@ -101,9 +101,9 @@ impl StreamSettings {
                 "outputs" => settings.outputs = outputs(&value, &mut problems),
                 "temporal" => settings.temporal = temporal_members(value, &mut problems),
                 "rig" => match value {
-                    Value::Object(_) => settings
-                        .rig_parts
-                        .push((key, Bytes::from(value.to_string()))),
+                    Value::Object(_) => {
+                        settings.rig.set(&key, Bytes::from(value.to_string()));
+                    }
                     _ => problems.add(
                         "rig",
                         "must be a JSON object with the members of /distance (or, beside a \
@@ -111,7 +111,9 @@ impl StreamSettings {
                     ),
                 },
                 name if RIG_PARTS.contains(&name) => match value {
-                    Value::String(text) => settings.rig_parts.push((key, Bytes::from(text))),
+                    Value::String(text) => {
+                        settings.rig.set(&key, Bytes::from(text));
+                    }
                     _ => problems.add(name, "must be a string: the file's text or the option"),
                 },
                 _ => problems.add_new(

@@ -1,11 +1,15 @@
 //! The wire types the image routes share: their multipart form's documentation
-//! ([`image_form!`]), whether a pair is rectified before matching ([`RectifyMode`]) and how
+//! ([`image_form!`]), what a request sent to describe its rig ([`RigInput`]), whether a pair is rectified before matching ([`RectifyMode`]) and how
 //! long a match's stages took ([`StageTimes`]).
 
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
+use axum::body::Bytes;
+
+use crate::api::error::FieldErrors;
 use crate::api::wire::de::choice_members;
+use stereo_core::pipeline::Sent;
 
 /// The parts (or, in a stream's settings, the members) that carry a rig.
 pub const RIG_PARTS: [&str; 6] = [
@@ -16,6 +20,78 @@ pub const RIG_PARTS: [&str; 6] = [
     "calibration_unit",
     "calibration_cameras",
 ];
+
+/// What a request sent to describe its rig: each of [`RIG_PARTS`] as it came, taken once at
+/// the request's edge (a form's parts, a stream's settings members, the command's flags) and
+/// read into the rig at each frame size.
+#[derive(Debug, Clone, Default)]
+pub struct RigInput([Option<Bytes>; RIG_PARTS.len()]);
+
+impl RigInput {
+    /// A calibration file and its unit, as the `depth-map` command's flags give them.
+    pub fn calibration(bytes: &[u8], unit: Option<&str>) -> RigInput {
+        let mut input = RigInput::default();
+        input.set("calibration", Bytes::copy_from_slice(bytes));
+        if let Some(unit) = unit {
+            input.set("calibration_unit", Bytes::from(unit.to_owned()));
+        }
+        input
+    }
+
+    /// Takes `bytes` as the member `name`; `false` (and nothing taken) when `name` is not one
+    /// of [`RIG_PARTS`].
+    pub fn set(&mut self, name: &str, bytes: Bytes) -> bool {
+        match RIG_PARTS.iter().position(|p| *p == name) {
+            Some(i) => {
+                self.0[i] = Some(bytes);
+                true
+            }
+            None => false,
+        }
+    }
+
+    /// The member `name`, when it was sent.
+    pub fn get(&self, name: &str) -> Option<&Bytes> {
+        let i = RIG_PARTS.iter().position(|p| *p == name)?;
+        self.0[i].as_ref()
+    }
+
+    /// The member as UTF-8 text, or an error naming it.
+    pub fn text(&self, name: &str, problems: &mut FieldErrors) -> Option<String> {
+        utf8(name, self.get(name)?, problems)
+    }
+
+    /// Whether a rig was sent: its members, or a calibration file.
+    pub fn has_rig(&self) -> bool {
+        self.get("rig").is_some() || self.get("calibration").is_some()
+    }
+
+    /// What was sent to describe the rig: a `rig` wins, as it describes rectified images
+    /// whatever came with it.
+    pub fn sent(&self) -> Sent {
+        if self.get("rig").is_some() {
+            Sent::Rig
+        } else if self.get("calibration").is_some() {
+            Sent::Calibration
+        } else {
+            Sent::Nothing
+        }
+    }
+}
+
+/// A part's (or member's) bytes as UTF-8 text, or an error naming it.
+pub fn utf8(name: &str, bytes: &Bytes, problems: &mut FieldErrors) -> Option<String> {
+    match std::str::from_utf8(bytes) {
+        Ok(text) => Some(text.to_owned()),
+        Err(e) => {
+            problems.add(
+                name,
+                format!("must be UTF-8 text; byte {} is not", e.valid_up_to()),
+            );
+            None
+        }
+    }
+}
 
 /// Whether an image route rectifies the pair before matching.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize, Serialize, ToSchema)]

@@ -37,6 +37,7 @@
 pub mod calibrate;
 pub mod calibrated;
 pub mod depth;
+pub mod job;
 pub mod matches;
 pub mod range;
 pub mod rectify;
@@ -45,6 +46,7 @@ pub mod spread;
 pub use crate::vision::sgm::Paths;
 pub use calibrated::{Calibrated, PlanFault, RectifyMode, Sent, SizeFault, plan, raw_rig};
 pub use depth::{DepthMap, Matched, Product, Request, depth_map, matched};
+pub use job::{Answer, DepthJob, JobFaults, Need, Rectify};
 pub use range::{Chosen, RangeUsed, Stopped};
 pub use rectify::Maps;
 pub use spread::{Spread, Spreads, spread};

@@ -9,12 +9,8 @@ use crate::numbers::Num;
 /// The end of the disparity search (exclusive) when neither the caller nor a calibration file
 /// gives one: disparities `0 ..` this.
 pub const DEFAULT_MAX_DISPARITY: i32 = 128;
-/// The largest σ_d (px) a kept disparity may have when the caller gives no
-/// `max_disparity_std` ([`sigma::keep`]): lenient, so that the left-right check, uniqueness and
-/// speckle rules stay the main ones, dropping only the values known to ±4 px or worse (on
-/// Motorcycle 0.2 % of the pixels, on clean renders none; docs/matcher.md).
-///
-/// [`sigma::keep`]: super::sigma::keep
+/// The largest σ_d (px) kept when the caller gives no `max_disparity_std`
+/// ([`super::sigma::keep`]): lenient, dropping only the values known to ±4 px or worse.
 pub const DEFAULT_MAX_DISPARITY_STD: f64 = 4.0;
 /// The largest `max_disparity_std` a caller may ask for, in pixels.
 pub const MAX_DISPARITY_STD_BOUND: f64 = 64.0;
@@ -34,10 +30,8 @@ pub enum Preset {
     /// its texture stands well above its noise, [`sgm::Paths::Auto`]).
     #[default]
     Accurate,
-    /// For video: one pass on every pair ([`sgm::Paths::Lean`]: the 4 paths from above and
-    /// the left where the pair is clear, and the path from the right too where it is noisy)
-    /// and no 3 × 3 median, for less time than `Accurate` (docs/matcher.md gives the
-    /// measurements).
+    /// For video: one pass on every pair ([`sgm::Paths::Lean`]) and no 3 × 3 median, for
+    /// less time than `Accurate` (docs/matcher.md gives the measurements).
     Fast,
 }
 
@@ -140,6 +134,8 @@ pub struct Settings {
     /// The paths aggregated: 4, 5 or 8 (`None`: the preset's, [`sgm::Paths::Auto`] or, for
     /// [`Preset::Fast`], [`sgm::Paths::Lean`]).
     pub paths: Option<u32>,
+    /// A calibration file's `ndisp`: the end where `max_disparity` is `None` ([`Params::new`]).
+    pub file_range: Option<u32>,
 }
 
 /// The settings a [`ParamFault`] can name.
@@ -302,7 +298,10 @@ impl Params {
     /// reported.
     pub fn new(asked: &Settings) -> Result<Params, Vec<ParamFault>> {
         let preset = asked.preset.unwrap_or_default();
-        let s = &asked.over(preset.settings());
+        let mut s = asked.over(preset.settings());
+        let file = s.file_range.map(|n| n.min(MAX_DISPARITIES as u32) as i32);
+        s.max_disparity = s.max_disparity.or(file.map(RangeEnd::Px));
+        let s = &s;
         let d = Params::default();
         let mut faults = Faults::default();
         let range = range(
@@ -560,6 +559,7 @@ impl Settings {
             median: self.median.or(base.median),
             fill: self.fill.or(base.fill),
             paths: self.paths.or(base.paths),
+            file_range: self.file_range.or(base.file_range),
         }
     }
 }

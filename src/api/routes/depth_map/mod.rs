@@ -18,16 +18,11 @@ use axum::extract::State;
 use crate::api::error::ApiError;
 use crate::api::extract::QueryParams;
 use crate::api::images::HeavyState;
-use crate::api::images::maps::MapCache;
 use crate::api::images::output::{self, Disposition, set_server_timing};
-use crate::api::images::raw;
-use crate::api::images::work;
-use crate::api::images::{ImageForm, ImagePair, Job, limits, rig};
+use crate::api::images::{ImageForm, ImagePair, Job, job, rig, work};
 use crate::api::respond::Json;
 use crate::api::wire::rig::CalibratedRig;
-use stereo_core::calibration::files::Raw;
-use stereo_core::pipeline::{self, Product, Request};
-use stereo_core::vision::Params;
+use stereo_core::pipeline::{self, Answer, DepthJob, Product};
 
 /// `POST /depth-map`.
 pub fn router() -> OpenApiRouter<HeavyState> {
@@ -94,7 +89,19 @@ pub async fn post_depth_map(
     mut pair: ImagePair<DepthMapForm>,
 ) -> Result<Response, ApiError> {
     let mut problems = pair.problems(problems);
-    let raw = raw::plan(&mut pair, query.rectify, query.alpha, &mut problems);
+    let asked = job::Asked {
+        rectify: query.rectify,
+        alpha: query.alpha,
+        settings: query.settings(),
+        prefix: "",
+    };
+    let planned = job::plan(
+        pair.rig.take(),
+        &pair.input,
+        pair.size,
+        asked,
+        &mut problems,
+    );
     let output = query.output.unwrap_or_else(|| {
         headers
             .get(header::ACCEPT)
@@ -103,65 +110,38 @@ pub async fn post_depth_map(
             .unwrap_or_default()
     });
     if output.needs_rig() {
-        rig::require_rig(
-            &pair.parts,
-            &format!("for output={}", output.name()),
-            &mut problems,
-        );
+        let why = format!("for output={}", output.name());
+        rig::require_rig(&pair.input, &why, &mut problems);
     }
-    let ndisp = pair.rig.as_ref().and_then(|g| g.max_disparity);
-    let params = limits::params(query.settings(), ndisp, &mut problems);
-    let (Some((raw_w, raw_h)), Some(params)) = (pair.size, params) else {
+    let (Some(size), Some(planned)) = (pair.size, planned) else {
         return Err(problems.into_error());
     };
     if !problems.is_empty() {
         return Err(problems.into_error());
     }
-    let need = raw::match_need(
-        raw.as_deref(),
-        (raw_w, raw_h),
-        params.most_searched(),
-        move |w, h, n| bytes_needed(w, h, n, output),
-    );
+    let products = output.product().into_iter().collect();
+    let need = job::need(planned.need(size, Answer::Files(products)));
     let cache = state.maps.clone();
-    pair.run(need, move |job| {
-        compute(job, &params, output, raw.as_deref().map(|r| (r, &*cache)))
+    pair.run(need, move |work| {
+        compute(work, planned.with_maps(|raw| cache.get(raw).0), output)
     })
     .await?
 }
 
-/// The bytes a `w × h` rectified pair searching `count` disparities reserves from the heavy
-/// budget to answer `output` ([`limits::depth_map_bytes`]).
-pub fn bytes_needed(w: usize, h: usize, count: usize, output: DepthMapOutput) -> usize {
-    limits::depth_map_bytes(w, h, count, &[output])
-}
-
 /// Decodes, runs the engine's depth map and writes the answer, on a blocking thread.
-fn compute(
-    job: Job,
-    params: &Params,
-    output: DepthMapOutput,
-    raw: Option<(&Raw, &MapCache)>,
-) -> Result<Response, ApiError> {
+fn compute(work: Job, job: DepthJob, output: DepthMapOutput) -> Result<Response, ApiError> {
     let Job {
         parts,
         limits: allowed,
-        rig: calibrated,
         cancel,
         waited: [read, queue],
-    } = job;
+        ..
+    } = work;
     let started = Instant::now();
     let colour = output.product().is_some_and(Product::wants_colour);
     let (left, right) = work::decode_pair(parts, allowed, [colour, false])?;
     let decode = started.elapsed();
-    let maps = raw.map(|(raw, cache)| cache.get(raw).0);
-    let request = Request {
-        params,
-        calibrated: calibrated.as_ref(),
-        maps: maps.as_deref(),
-        colour,
-        depth_std: output.wants_depth_std(),
-    };
+    let request = job.request(colour, output.wants_depth_std());
     let map = pipeline::depth_map(left, right, request, cancel).map_err(ApiError::from)?;
     let started = Instant::now();
     let mut response = match output.product() {
@@ -174,8 +154,8 @@ fn compute(
             output::file(bytes, output.media_type(), output.name(), how)
         }
         None => {
-            let rig = calibrated.as_ref().map(|c| CalibratedRig::from(&c.rig));
-            Json(DepthMapSummary::of(&map, params, rig, decode)).into_response()
+            let rig = job.calibrated().map(|c| CalibratedRig::from(&c.rig));
+            Json(DepthMapSummary::of(&map, job.params(), rig, decode)).into_response()
         }
     };
     let encode = started.elapsed() + map.depths;

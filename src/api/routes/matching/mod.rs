@@ -20,16 +20,12 @@ use axum::extract::State;
 use crate::api::error::{ApiError, FieldErrors};
 use crate::api::extract::{QueryParams, decode_object};
 use crate::api::images::HeavyState;
-use crate::api::images::maps::MapCache;
 use crate::api::images::output::{self, set_server_timing};
-use crate::api::images::raw;
-use crate::api::images::work;
-use crate::api::images::{ImageForm, ImagePair, Job, Parts, limits, rig};
+use crate::api::images::{ImageForm, ImagePair, Job, Parts, job, rig, work};
 use crate::api::respond::Json;
 use crate::api::wire::openapi::ImageErrors;
-use stereo_core::calibration::files::Raw;
-use stereo_core::pipeline::matches;
-use stereo_core::vision::{self, Params, Settings};
+use stereo_core::pipeline::{Answer, DepthJob, matches};
+use stereo_core::vision::Settings;
 
 /// `POST /match`.
 pub fn router() -> OpenApiRouter<HeavyState> {
@@ -99,9 +95,27 @@ pub async fn post_match(
     mut pair: ImagePair<MatchForm>,
 ) -> Result<Response, ApiError> {
     let mut problems = pair.problems(problems);
-    let raw = raw::plan(&mut pair, query.rectify, query.alpha, &mut problems);
+    let settings = Settings {
+        min_disparity: query.min_disparity,
+        max_disparity: query.max_disparity,
+        ..Settings::default()
+    };
+    let asked = job::Asked {
+        rectify: query.rectify,
+        alpha: query.alpha,
+        settings,
+        prefix: "",
+    };
+    let has_rig = pair.rig.is_some();
+    let planned = job::plan(
+        pair.rig.take(),
+        &pair.input,
+        pair.size,
+        asked,
+        &mut problems,
+    );
     let parts = &pair.parts;
-    rig::require_rig(parts, "for the distances", &mut problems);
+    rig::require_rig(&pair.input, "for the distances", &mut problems);
     let points = list::<MatchPoint>(parts, "points", MAX_POINTS, &mut problems);
     let regions = list::<MatchRegion>(parts, "regions", MAX_REGIONS, &mut problems);
     let points = points.map(|ps| check_points(ps, &mut problems));
@@ -113,49 +127,21 @@ pub async fn post_match(
              image",
         );
     }
-    let ndisp = pair.rig.as_ref().and_then(|g| g.max_disparity);
-    let settings = Settings {
-        min_disparity: query.min_disparity,
-        max_disparity: query.max_disparity,
-        ..Settings::default()
-    };
-    let params = limits::params(settings, ndisp, &mut problems);
-    let (Some((width, height)), true, Some(params)) = (pair.size, pair.rig.is_some(), params)
-    else {
+    let (Some(size), true, Some(planned)) = (pair.size, has_rig, planned) else {
         return Err(problems.into_error());
     };
     if !problems.is_empty() {
         return Err(problems.into_error());
     }
-    let need = raw::match_need(
-        raw.as_deref(),
-        (width, height),
-        params.most_searched(),
-        bytes_needed,
-    );
+    let need = job::need(planned.need(size, Answer::Matches));
     let points = points.unwrap_or_default();
     let regions = regions.unwrap_or_default();
     let cache = state.maps.clone();
-    pair.run(need, move |job| {
-        compute(
-            job,
-            &params,
-            &points,
-            &regions,
-            raw.as_deref().map(|r| (r, &*cache)),
-        )
+    pair.run(need, move |work| {
+        let planned = planned.with_maps(|raw| cache.get(raw).0);
+        compute(work, &planned, &points, &regions)
     })
     .await?
-}
-
-/// The bytes a request holds at its peak: the decoded pair, then the matcher's as for the
-/// whole image, and the map.
-fn bytes_needed(w: usize, h: usize, count: usize) -> usize {
-    let after = w
-        .saturating_mul(h)
-        .saturating_mul(8)
-        .saturating_add(vision::bytes_needed(w, h, count));
-    limits::decode_then(w, h, after)
 }
 
 /// A part holding a JSON array of objects `T` (or one object alone, as a generated client
@@ -292,27 +278,20 @@ fn check_regions(
 /// Decodes, calls the engine's matches and answers, on a blocking thread.
 fn compute(
     job: Job,
-    params: &Params,
+    planned: &DepthJob,
     points: &[(f64, f64)],
     regions: &[[f64; 4]],
-    raw: Option<(&Raw, &MapCache)>,
 ) -> Result<Response, ApiError> {
     // The route runs the work only with a rig.
-    let Some(given) = job.rig else {
+    let Some(request) = planned.matches_request() else {
         return Err(ApiError::Internal("matched without a rig".to_owned()));
     };
     let started = Instant::now();
     let (left, right) = work::decode_pair(job.parts, job.limits, [false, false])?;
     let decode = started.elapsed();
-    let maps = raw.map(|(raw, cache)| cache.get(raw).0);
-    let request = matches::Request {
-        params,
-        calibrated: &given,
-        maps: maps.as_deref(),
-    };
     let found = matches::matches(left, right, points, regions, request, job.cancel)
         .map_err(ApiError::from)?;
-    let answer = MatchResponse::of(&found, &given.rig, decode);
+    let answer = MatchResponse::of(&found, &request.calibrated.rig, decode);
     let mut response = Json(&answer).into_response();
     output::set_warnings(&mut response, &answer.warnings);
     let (timings, rectify) = (found.timings, found.rectify);

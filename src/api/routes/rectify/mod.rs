@@ -17,9 +17,9 @@ use self::types::{
 use crate::api::error::ApiError;
 use crate::api::extract::QueryParams;
 use crate::api::images::HeavyState;
+use crate::api::images::job;
 use crate::api::images::maps::MapCache;
 use crate::api::images::output::{self, Disposition, set_server_timing};
-use crate::api::images::raw;
 use crate::api::images::work::{self, Need};
 use crate::api::images::{ImageForm, ImagePair, Job};
 use crate::api::respond::Json;
@@ -74,7 +74,7 @@ pub async fn post_rectify(
     let output = query.output.unwrap_or_default();
     let how: Interpolation = query.interpolation.unwrap_or_default().into();
     let alpha = problems.alpha(query.alpha);
-    let given = raw::raw_rig(&pair, alpha, &mut problems);
+    let given = job::raw_rig(&pair, alpha, &mut problems);
     let (Some(_), Some(given)) = (pair.size, given) else {
         return Err(problems.into_error());
     };
@@ -86,8 +86,8 @@ pub async fn post_rectify(
     let (rw, rh) = (rect.width as usize, rect.height as usize);
     // The decoded pair, the maps while they are built, both remapped images in colour and
     // grey, and the PNG being written.
-    let bytes =
-        raw::rectifying_bytes(&raw).saturating_add(rw.saturating_mul(rh).saturating_mul(24));
+    let bytes = stereo_core::pipeline::job::rectifying_bytes(&raw)
+        .saturating_add(rw.saturating_mul(rh).saturating_mul(24));
     let need = Need {
         size: (rw, rh),
         count: 1,

@@ -1,0 +1,99 @@
+//! The engine's depth job ([`stereo_core::pipeline::DepthJob`]) planned with what a request
+//! sent, its refusals named by part or query parameter, and the memory its work reserves; and
+//! the raw rig `/rectify` rectifies with.
+
+use super::form::{ImageForm, ImagePair};
+use super::work::Need;
+use crate::api::error::FieldErrors;
+use crate::api::wire::images::{RectifyMode, RigInput};
+use stereo_core::camera::Alpha;
+use stereo_core::pipeline::{self, Calibrated, DepthJob, PlanFault, Rectify};
+use stereo_core::vision::Settings;
+
+impl From<RectifyMode> for pipeline::RectifyMode {
+    fn from(mode: RectifyMode) -> Self {
+        match mode {
+            RectifyMode::Auto => pipeline::RectifyMode::Auto,
+            RectifyMode::Yes => pipeline::RectifyMode::Yes,
+            RectifyMode::No => pipeline::RectifyMode::No,
+        }
+    }
+}
+
+/// The part a plan's refusal is about.
+fn field(fault: &PlanFault) -> &'static str {
+    match fault {
+        PlanFault::AlphaUnused => "alpha",
+        PlanFault::RigIsRectified => "rig",
+        PlanFault::WrongSize { .. } => "left",
+        PlanFault::NoCalibration
+        | PlanFault::NotRaw
+        | PlanFault::CannotRectify(_)
+        | PlanFault::Vertical => "calibration",
+    }
+}
+
+/// What a request asks of its job besides its rig: rectified as `rectify` (with `alpha`, as
+/// the request states it), matched with `settings`, whose faults are named with `prefix`
+/// (`options.` in a stream's settings).
+pub struct Asked<'a> {
+    pub rectify: Option<RectifyMode>,
+    pub alpha: Option<f64>,
+    pub settings: Settings,
+    pub prefix: &'a str,
+}
+
+/// The depth job for frames of `size` with the rig `given` (read at that size from `input`),
+/// or `None` with each refusal in `problems`.
+pub fn plan(
+    given: Option<Calibrated>,
+    input: &RigInput,
+    size: Option<(u32, u32)>,
+    asked: Asked<'_>,
+    problems: &mut FieldErrors,
+) -> Option<DepthJob> {
+    let rectify = Rectify {
+        mode: asked.rectify.unwrap_or_default().into(),
+        alpha: problems.alpha(asked.alpha),
+    };
+    match DepthJob::plan(given, input.sent(), size, rectify, asked.settings) {
+        Ok(job) => Some(job),
+        Err(faults) => {
+            if let Some(fault) = faults.plan {
+                problems.add(field(&fault), fault.to_string());
+            }
+            for fault in faults.settings {
+                problems.add_new(
+                    format!("{}{}", asked.prefix, fault.setting.name()),
+                    fault.message,
+                );
+            }
+            None
+        }
+    }
+}
+
+/// The memory a job's work reserves, as the heavy group's work takes it.
+pub fn need(need: pipeline::Need) -> Need<impl Fn(usize) -> usize> {
+    Need {
+        size: need.size,
+        count: need.count,
+        need: move |count| need.bytes(count),
+    }
+}
+
+/// The raw rig of the request, with `alpha` applied; `None` with the reasons in `problems`
+/// when the form has no calibration of raw cameras for these images.
+pub fn raw_rig(
+    pair: &ImagePair<impl ImageForm>,
+    alpha: Option<Alpha>,
+    problems: &mut FieldErrors,
+) -> Option<Calibrated> {
+    match pipeline::raw_rig(pair.rig.as_ref(), pair.input.sent(), pair.size, alpha) {
+        Ok(calibrated) => calibrated,
+        Err(fault) => {
+            problems.add(field(&fault), fault.to_string());
+            None
+        }
+    }
+}
