@@ -120,12 +120,58 @@ fn code_of(text: &str) -> String {
 /// The paths a file's code names: each `use` tree expanded, and every `crate::…`, `super::…`
 /// and `self::…` path written inline.
 fn paths_in(code: &str) -> Vec<Vec<String>> {
-    paths_in_with(code, true)
+    paths_in_with(code, true, &[])
+}
+
+/// A crate's `macro_rules!` macros: each name with the path (`crate::…`) of the module that
+/// defines it.
+type Macros = Vec<(String, Vec<String>)>;
+
+/// The `macro_rules!` macros each module of `modules` defines.
+fn macros_of(modules: &BTreeMap<Vec<String>, PathBuf>) -> Macros {
+    let mut found = Vec::new();
+    for (module, file) in modules {
+        let code = code_of(&fs::read_to_string(file).expect("readable"));
+        for part in code.split("macro_rules!").skip(1) {
+            let name: String = part
+                .trim_start()
+                .chars()
+                .take_while(|c| c.is_alphanumeric() || *c == '_')
+                .collect();
+            let mut path = vec!["crate".to_owned()];
+            path.extend(module.iter().cloned());
+            found.push((name, path));
+        }
+    }
+    found
+}
+
+/// Whether `code` invokes the macro `name` (`name!`, not its `macro_rules!` definition).
+fn uses_macro(code: &str, name: &str) -> bool {
+    let call = format!("{name}!");
+    let mut from = 0;
+    while let Some(at) = code[from..].find(&call) {
+        let i = from + at;
+        from = i + call.len();
+        let before = code[..i].trim_end();
+        let word_edge = !code[..i]
+            .chars()
+            .last()
+            .is_some_and(|c| c.is_alphanumeric() || c == '_');
+        if word_edge && !before.ends_with("macro_rules!") {
+            return true;
+        }
+    }
+    false
 }
 
 /// [`paths_in`], leaving out `pub use` re-exports unless `re_exports`: a module's facade
 /// names its children's items without using them.
-fn paths_in_with(code: &str, re_exports: bool) -> Vec<Vec<String>> {
+fn paths_in_with(
+    code: &str,
+    re_exports: bool,
+    macros: &[(String, Vec<String>)],
+) -> Vec<Vec<String>> {
     let mut paths = Vec::new();
     let words = |s: &str| -> Vec<String> {
         s.split("::")
@@ -145,12 +191,57 @@ fn paths_in_with(code: &str, re_exports: bool) -> Vec<Vec<String>> {
         }
         rest = &after[end..];
     }
-    // Inline paths.
+    // Bare inline paths (`stream::Streams`, `census::transform(…)`, a macro's
+    // `chart::router()`): [`resolve`] keeps those whose first word is a child module.
+    let uses: Vec<(usize, usize)> = {
+        let mut spans = Vec::new();
+        let mut from = 0;
+        while let Some(at) = find_word(&code[from..], "use") {
+            let begin = from + at;
+            let end = code[begin..].find(';').map_or(code.len(), |e| begin + e);
+            spans.push((begin, end));
+            from = end;
+        }
+        spans
+    };
+    let mut from = 0;
+    while let Some(at) = code[from..].find("::") {
+        let colons = from + at;
+        from = colons + 2;
+        if uses.iter().any(|&(b, e)| (b..e).contains(&colons)) {
+            continue;
+        }
+        let start = code[..colons]
+            .rfind(|c: char| !(c.is_alphanumeric() || c == '_'))
+            .map_or(0, |i| i + 1);
+        let word = &code[start..colons];
+        let before = code[..start].chars().last();
+        if word.is_empty()
+            || before.is_some_and(|c| c == ':' || c == '$')
+            || ["crate", "super", "self"].contains(&word)
+        {
+            continue;
+        }
+        let end = code[start..]
+            .find(|c: char| !(c.is_alphanumeric() || c == '_' || c == ':'))
+            .map_or(code.len(), |e| start + e);
+        paths.push(words(&code[start..end]));
+    }
+    // Macros by their `macro_rules!` name: a use of the module that defines them.
+    for (name, module) in macros {
+        if uses_macro(code, name) {
+            paths.push(module.clone());
+        }
+    }
+    // Inline paths (those in `use` trees were read above).
     for start in ["crate::", "super::", "self::"] {
         let mut from = 0;
         while let Some(at) = code[from..].find(start) {
             let begin = from + at;
             from = begin + start.len();
+            if uses.iter().any(|&(b, e)| (b..e).contains(&begin)) {
+                continue;
+            }
             if code[..begin]
                 .chars()
                 .last()
@@ -218,14 +309,8 @@ fn expand(out: &mut Vec<Vec<String>>, prefix: Vec<String>, tree: &str) {
     }
 }
 
-/// The module a path names (the longest known module it starts with), from the module `at`
-/// (whose file is a `mod.rs` or `lib.rs` when `dir`).
-fn resolve(
-    path: &[String],
-    at: &[String],
-    dir: bool,
-    known: &BTreeSet<Vec<String>>,
-) -> Option<Vec<String>> {
+/// The module a path names (the longest known module it starts with), from the module `at`.
+fn resolve(path: &[String], at: &[String], known: &BTreeSet<Vec<String>>) -> Option<Vec<String>> {
     let mut base: Vec<String> = at.to_vec();
     let mut rest = path;
     match rest.first().map(String::as_str) {
@@ -241,10 +326,10 @@ fn resolve(
             }
         }
         Some(first) => {
-            // A child module named bare (`use types::X;` in a `mod.rs`).
+            // A child module named bare (`use types::X;`, `stream::Streams`).
             let mut child = at.to_vec();
             child.push(first.to_owned());
-            if !(dir && known.contains(&child)) {
+            if !known.contains(&child) {
                 return None;
             }
         }
@@ -273,14 +358,14 @@ fn graph(src: &str) -> BTreeMap<Vec<String>, BTreeSet<Vec<String>>> {
 fn graph_with(src: &str, re_exports: bool) -> BTreeMap<Vec<String>, BTreeSet<Vec<String>>> {
     let modules = modules(src);
     let known: BTreeSet<Vec<String>> = modules.keys().cloned().collect();
+    let macros = macros_of(&modules);
     modules
         .iter()
         .map(|(module, file)| {
-            let dir = file.ends_with("mod.rs") || file.ends_with("lib.rs");
             let code = code_of(&fs::read_to_string(file).expect("readable"));
-            let uses = paths_in_with(&code, re_exports)
+            let uses = paths_in_with(&code, re_exports, &macros)
                 .iter()
-                .filter_map(|p| resolve(p, module, dir, &known))
+                .filter_map(|p| resolve(p, module, &known))
                 .filter(|m| m != module)
                 .collect();
             (module.clone(), uses)
@@ -442,7 +527,7 @@ fn every_depth_caller_plans_one_job() {
 /// The most lines `src/api/routes/` may hold: the routes only translate (wire types to the
 /// engine's, one call, its faults to problem+json); the wire types live in `api::wire`.
 const MAX_ROUTE_LINES: usize = 4_500;
-/// The most lines a handler (an `async fn` in a route module) may have.
+/// The most lines a function of a route module (a handler or the work it runs) may have.
 const MAX_HANDLER_LINES: usize = 60;
 /// The most paths of the engine `/calibrate`'s modules may import.
 const MAX_CALIBRATE_CORE_PATHS: usize = 5;
@@ -478,18 +563,27 @@ fn route_files() -> Vec<(PathBuf, String)> {
         .collect()
 }
 
-/// The `async fn`s of `code` with their line counts.
+/// The functions of `code` (handlers and the synchronous work they call alike) with their
+/// line counts.
 fn handlers(code: &str) -> Vec<(String, usize)> {
     let mut found = Vec::new();
     let lines: Vec<&str> = code.lines().collect();
     for (i, line) in lines.iter().enumerate() {
-        let Some(at) = line.find("async fn ") else {
+        let Some(at) = find_word(line, "fn") else {
             continue;
         };
-        let name: String = line[at + 9..]
+        let name: String = line[at + 3..]
             .chars()
             .take_while(|c| c.is_alphanumeric() || *c == '_')
             .collect();
+        let tail = line.trim_end();
+        if name.is_empty() || tail.ends_with(';') {
+            continue;
+        }
+        if tail.ends_with('}') {
+            found.push((name, 1));
+            continue;
+        }
         let indent = line.len() - line.trim_start().len();
         let end = lines[i + 1..]
             .iter()
@@ -552,8 +646,13 @@ fn the_routes_only_translate() {
 /// The route checks see what they look for: a handler's length, and an import's path.
 #[test]
 fn the_route_checks_see_what_they_look_for() {
-    let code = "pub async fn a(\n    x: u8,\n) -> u8 {\n    x\n}\n\nfn b() {}\n";
-    assert_eq!(handlers(code), vec![("a".to_owned(), 5)]);
+    let code = "pub async fn a(\n    x: u8,\n) -> u8 {\n    x\n}\n\nfn b() {}\nfn c() {\n}\n";
+    let found = vec![
+        ("a".to_owned(), 5),
+        ("b".to_owned(), 1),
+        ("c".to_owned(), 2),
+    ];
+    assert_eq!(handlers(code), found);
     let paths = paths_in("use stereo_core::camera::{Alpha, stereo_rectify};");
     assert!(
         paths

@@ -15,7 +15,9 @@
 //!   route groups: light (JSON), heavy (images) and the probes. No route imports another.
 //! - [`state`]: what the light group's handlers see ([`AppState`]; the heavy group's,
 //!   [`HeavyState`], is the image routes' and lives in [`images`]).
-//! - [`respond`], [`csv`]: JSON answers in one buffer, and CSV answers.
+//! - [`respond`], [`csv`], [`svg`]: JSON answers in one buffer, CSV answers, and the chart
+//!   drawn as SVG.
+//! - [`operation`]: the macros that declare a JSON resource's `GET` and `POST` handlers.
 //! - [`member_messages`]: serde's refusal of a request member said in the API's words.
 
 pub mod csv;
@@ -23,9 +25,11 @@ pub mod error;
 pub mod extract;
 pub mod images;
 pub mod member_messages;
+pub mod operation;
 pub mod respond;
 pub mod routes;
 pub mod state;
+pub mod svg;
 pub mod validate;
 pub mod wire;
 
@@ -93,10 +97,6 @@ use self::routes::ops::OpsState;
     )
 )]
 struct ApiDoc;
-
-/// The probes, open to all whether or not the service takes tokens: the kubelet asks them, and
-/// they say nothing but "up" (`/metrics`, beside them, needs a token when tokens are set).
-pub const OPEN_PROBES: [&str; 2] = ["/healthz", "/readyz"];
 
 /// The service's routers, one per route group, each to be wrapped in its own limits.
 pub struct Routers {

@@ -22,8 +22,8 @@ use axum::middleware::Next;
 use axum::response::{IntoResponse, Response};
 use sha2::{Digest, Sha256};
 
-use crate::api::OPEN_PROBES;
 use crate::api::error::ApiError;
+use crate::api::wire::openapi::OPEN_PROBES;
 use crate::config::tokens::{read_tokens_file, tokens_of_file};
 
 type Digested = [u8; 32];

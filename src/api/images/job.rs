@@ -73,6 +73,15 @@ pub fn plan(
     }
 }
 
+/// The depth job of an image route's pair ([`plan`]), its rig taken from the pair.
+pub fn plan_pair<F: ImageForm>(
+    pair: &mut ImagePair<F>,
+    asked: Asked<'_>,
+    problems: &mut FieldErrors,
+) -> Option<DepthJob> {
+    plan(pair.rig.take(), &pair.input, pair.size, asked, problems)
+}
+
 /// The memory a job's work reserves, as the heavy group's work takes it.
 pub fn need(need: pipeline::Need) -> Need<impl Fn(usize) -> usize> {
     Need {

@@ -37,8 +37,6 @@ pub mod work;
 pub use form::{ImageForm, ImagePair, Job};
 pub use parts::Parts;
 
-use std::sync::{Mutex, MutexGuard, PoisonError};
-
 use axum::extract::FromRef;
 
 use crate::api::extract::BodyLimit;
@@ -74,10 +72,4 @@ impl FromRef<HeavyState> for BodyLimit {
     fn from_ref(state: &HeavyState) -> Self {
         state.body_limit
     }
-}
-
-/// A lock that a panic elsewhere did not spoil (what the streams' and pools' mutexes guard is
-/// whole between statements).
-fn lock<T>(mutex: &Mutex<T>) -> MutexGuard<'_, T> {
-    mutex.lock().unwrap_or_else(PoisonError::into_inner)
 }

@@ -8,11 +8,15 @@
 //! steals only its own tasks, and the operating system shares the cores between the pools'
 //! threads.
 
-use std::sync::Mutex;
+use std::sync::{Mutex, MutexGuard, PoisonError};
 
 use rayon::ThreadPool;
 
-use super::lock;
+/// A lock that a panic elsewhere did not spoil (what the streams' and pools' mutexes guard is
+/// whole between statements).
+pub fn lock<T>(mutex: &Mutex<T>) -> MutexGuard<'_, T> {
+    mutex.lock().unwrap_or_else(PoisonError::into_inner)
+}
 
 /// The pools lent at once, at most: each has a thread a core, so this bounds the threads
 /// they add. A frame that finds none free runs in the global pool, as a request does.

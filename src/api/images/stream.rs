@@ -17,8 +17,8 @@ use axum::body::Bytes;
 use super::limits;
 use super::maps::MapCache;
 use super::parts::Parts;
-use super::pools::FramePools;
-use super::{job, lock, rig, work};
+use super::pools::{FramePools, lock};
+use super::{job, rig, work};
 use crate::api::error::{ApiError, FieldError, FieldErrors};
 use crate::api::wire::depth_map::{DepthMapOutput, DepthMapSummary, MatcherParameters};
 use crate::api::wire::depth_stream::{

@@ -13,6 +13,7 @@ use crate::api::wire::images::image_form;
 pub use crate::api::wire::images::{RectifyMode, StageTimes};
 use crate::api::wire::openapi::{image_answers, named};
 use crate::api::wire::rig::CalibratedRig;
+use stereo_core::pipeline::depth::{NPZ, PFM, PLY};
 use stereo_core::pipeline::{self, DepthMap, Product};
 
 use stereo_core::vision::{Params, Preset, RangeEnd, Settings, Subpixel};
@@ -69,39 +70,15 @@ pub enum DepthMapOutput {
 }
 
 impl DepthMapOutput {
-    /// The name, as the query takes it and as the file is called.
+    /// The name, as the query takes it and as the file is called ([`Product::name`]).
     pub fn name(self) -> &'static str {
-        match self {
-            DepthMapOutput::Summary => "summary",
-            DepthMapOutput::DisparityPfm => "disparity.pfm",
-            DepthMapOutput::DisparityPng => "disparity.png",
-            DepthMapOutput::DisparityNpy => "disparity.npy",
-            DepthMapOutput::DepthNpy => "depth.npy",
-            DepthMapOutput::DisparityStdNpy => "disparity_std.npy",
-            DepthMapOutput::DisparityStdPfm => "disparity_std.pfm",
-            DepthMapOutput::DepthStdNpy => "depth_std.npy",
-            DepthMapOutput::ArraysNpz => "arrays.npz",
-            DepthMapOutput::DepthPng => "depth.png",
-            DepthMapOutput::PreviewPng => "preview.png",
-            DepthMapOutput::PointsPly => "points.ply",
-        }
+        self.product().map_or("summary", Product::name)
     }
 
-    /// The media type of the answer.
+    /// The media type of the answer ([`Product::media_type`]).
     pub fn media_type(self) -> &'static str {
-        match self {
-            DepthMapOutput::Summary => "application/json",
-            DepthMapOutput::DisparityPfm | DepthMapOutput::DisparityStdPfm => PFM,
-            DepthMapOutput::DisparityPng
-            | DepthMapOutput::DepthPng
-            | DepthMapOutput::PreviewPng => "image/png",
-            DepthMapOutput::DisparityNpy
-            | DepthMapOutput::DepthNpy
-            | DepthMapOutput::DisparityStdNpy
-            | DepthMapOutput::DepthStdNpy => NPY,
-            DepthMapOutput::PointsPly => PLY,
-            DepthMapOutput::ArraysNpz => NPZ,
-        }
+        self.product()
+            .map_or("application/json", Product::media_type)
     }
 
     /// The file the engine writes, or `None` for the JSON summary.
@@ -152,15 +129,6 @@ impl DepthMapOutput {
             })
     }
 }
-
-/// The media type of a PFM answer.
-pub const PFM: &str = "image/x-portable-floatmap";
-/// The media type of an NPY answer.
-pub const NPY: &str = "application/x-npy";
-/// The media type of an NPZ answer (a zip archive of NPY files).
-pub const NPZ: &str = "application/zip";
-/// The media type of a PLY answer.
-pub const PLY: &str = "application/x-ply";
 
 /// How the disparity is refined between whole pixels.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize, ToSchema)]
@@ -574,5 +542,34 @@ image_answers! {
         "application/x-npy" => named::<FileBody>(),
         "application/x-ply" => named::<FileBody>(),
         "application/zip" => named::<FileBody>(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The wire's outputs are the engine's catalogue and the summary, no more and no less:
+    /// each file the engine writes is an `output` of its own name that maps back to it, and
+    /// the OpenAPI schema's choices are those names.
+    #[test]
+    fn the_outputs_are_the_engines_catalogue() {
+        for product in Product::ALL {
+            let output: DepthMapOutput =
+                serde_json::from_value(product.name().into()).expect("an output of its name");
+            assert_eq!(output.product(), Some(product));
+            assert_eq!(output.name(), product.name());
+        }
+        let schema = serde_json::to_value(<DepthMapOutput as utoipa::PartialSchema>::schema())
+            .expect("a schema");
+        let mut choices: Vec<String> =
+            serde_json::from_value(schema["enum"].clone()).expect("the schema's choices");
+        let mut names: Vec<String> = std::iter::once("summary")
+            .chain(Product::ALL.map(Product::name))
+            .map(str::to_owned)
+            .collect();
+        choices.sort();
+        names.sort();
+        assert_eq!(choices, names);
     }
 }

@@ -6,11 +6,13 @@
 //! what the image routes share on the wire ([`images`]), and the OpenAPI glue ([`openapi`]).
 //! Then each endpoint's own types, one module a route (its `types`, as the route names it):
 //! [`distance`], [`table`], [`chart`], [`rig_design`], [`file_calibration`], [`depth_map`],
-//! [`depth_stream`], [`matching`], [`rectify`], [`board_calibration`]. The command (`batch`) writes the same
+//! [`depth_stream`], [`matching`], [`rectify`], [`board_calibration`] (its summary made in
+//! [`calibration_summary`]). The command (`batch`) writes the same
 //! `/depth-map` answers from them.
 
 pub mod board_calibration;
 pub mod calibration;
+pub mod calibration_summary;
 pub mod chart;
 pub mod de;
 pub mod depth_map;

@@ -21,6 +21,10 @@ use crate::config::{
     DEFAULT_BODY_LIMIT, DEFAULT_BODY_RATE_GRACE, DEFAULT_MIN_BODY_RATE, DEFAULT_REQUEST_TIMEOUT,
 };
 
+/// The probes, open to all whether or not the service takes tokens: the kubelet asks them, and
+/// they say nothing but "up" (`/metrics`, beside them, needs a token when tokens are set).
+pub const OPEN_PROBES: [&str; 2] = ["/healthz", "/readyz"];
+
 /// Documents each member of a request body schema as a query parameter, so that the GET form of
 /// an operation is described by the very type its POST form takes.
 pub fn query_parameters(schema: RefOr<Schema>) -> Vec<Parameter> {
@@ -316,7 +320,7 @@ pub fn bearer_tokens(doc: &mut utoipa::openapi::OpenApi) {
             .build(),
     );
     for (path, item) in doc.paths.paths.iter_mut() {
-        let open = crate::api::OPEN_PROBES.contains(&path.as_str());
+        let open = OPEN_PROBES.contains(&path.as_str());
         for operation in [&mut item.get, &mut item.post].into_iter().flatten() {
             if open {
                 operation.security = Some(vec![SecurityRequirement::default()]);

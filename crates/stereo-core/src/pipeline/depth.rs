@@ -322,7 +322,63 @@ pub enum Product {
     PointsPly,
 }
 
+/// The media type of a PFM file.
+pub const PFM: &str = "image/x-portable-floatmap";
+/// The media type of an NPY file.
+pub const NPY: &str = "application/x-npy";
+/// The media type of an NPZ file (a zip archive of NPY files).
+pub const NPZ: &str = "application/zip";
+/// The media type of a PLY file.
+pub const PLY: &str = "application/x-ply";
+
 impl Product {
+    /// Every file a depth map is written as: the one catalogue of outputs, which the service's
+    /// `output` choices, the command's `--output` and the OpenAPI document all follow.
+    pub const ALL: [Product; 11] = [
+        Product::DisparityPfm,
+        Product::DisparityPng,
+        Product::DisparityNpy,
+        Product::DepthNpy,
+        Product::DisparityStdNpy,
+        Product::DisparityStdPfm,
+        Product::DepthStdNpy,
+        Product::ArraysNpz,
+        Product::DepthPng,
+        Product::PreviewPng,
+        Product::PointsPly,
+    ];
+
+    /// The file's name, as a caller asks for it (`output=depth.npy`) and as it is written.
+    pub fn name(self) -> &'static str {
+        match self {
+            Product::DisparityPfm => "disparity.pfm",
+            Product::DisparityPng => "disparity.png",
+            Product::DisparityNpy => "disparity.npy",
+            Product::DepthNpy => "depth.npy",
+            Product::DisparityStdNpy => "disparity_std.npy",
+            Product::DisparityStdPfm => "disparity_std.pfm",
+            Product::DepthStdNpy => "depth_std.npy",
+            Product::ArraysNpz => "arrays.npz",
+            Product::DepthPng => "depth.png",
+            Product::PreviewPng => "preview.png",
+            Product::PointsPly => "points.ply",
+        }
+    }
+
+    /// The file's media type.
+    pub fn media_type(self) -> &'static str {
+        match self {
+            Product::DisparityPfm | Product::DisparityStdPfm => PFM,
+            Product::DisparityPng | Product::DepthPng | Product::PreviewPng => "image/png",
+            Product::DisparityNpy
+            | Product::DepthNpy
+            | Product::DisparityStdNpy
+            | Product::DepthStdNpy => NPY,
+            Product::PointsPly => PLY,
+            Product::ArraysNpz => NPZ,
+        }
+    }
+
     /// Whether the file holds depths, hence needs a rig.
     pub fn needs_rig(self) -> bool {
         matches!(

@@ -46,6 +46,28 @@ pub fn read_board(bytes: Option<&Bytes>, problems: &mut FieldErrors) -> Option<e
     let mut faulty = !refused.is_empty();
     problems.extend(FieldErrors::from(refused.prefixed("board.")));
     let charuco = spec.board_type.unwrap_or_default() == BoardType::Charuco;
+    faulty |= members(&spec, charuco, problems);
+    // The members that were read are judged even when others were missing or refused, so
+    // that every fault is named at once; an absent member is judged as a valid stand-in.
+    let judged = judge(&spec, charuco);
+    match judged {
+        Ok(target) => (!faulty).then_some(target),
+        Err(faults) => {
+            for (member, message) in faults {
+                let name = format!("board.{member}");
+                if !problems.has(&name) {
+                    problems.add(&name, message);
+                }
+            }
+            None
+        }
+    }
+}
+
+/// Names each member the board's type needs that is missing and each member of the other
+/// type that is given; whether any was.
+fn members(spec: &BoardSpec, charuco: bool, problems: &mut FieldErrors) -> bool {
+    let mut faulty = false;
     let given = |member: &str| match member {
         "columns" => spec.columns.is_some(),
         "rows" => spec.rows.is_some(),
@@ -89,15 +111,19 @@ pub fn read_board(bytes: Option<&Bytes>, problems: &mut FieldErrors) -> Option<e
         );
         faulty = true;
     }
-    // The members that were read are judged even when others were missing or refused, so
-    // that every fault is named at once; an absent member is judged as a valid stand-in.
+    faulty
+}
+
+/// The board the members describe (an absent member judged as a valid stand-in), or each
+/// fault as its member's name and message.
+fn judge(spec: &BoardSpec, charuco: bool) -> Result<engine::Target, Vec<(&'static str, String)>> {
     let unit = spec.unit.unwrap_or_default().into();
     let square = spec.square_size.unwrap_or_else(|| {
         spec.marker_size
             .filter(|m| m.is_finite() && *m > 0.0)
             .map_or(1.0, |m| 2.0 * m)
     });
-    let judged = if charuco {
+    if charuco {
         engine::CharucoBoard::new(engine::CharucoSpec {
             squares_x: spec.squares_x.unwrap_or(5),
             squares_y: spec.squares_y.unwrap_or(5),
@@ -130,18 +156,6 @@ pub fn read_board(bytes: Option<&Bytes>, problems: &mut FieldErrors) -> Option<e
                 .map(|f| (f.member.name(), f.message))
                 .collect::<Vec<_>>()
         })
-    };
-    match judged {
-        Ok(target) => (!faulty).then_some(target),
-        Err(faults) => {
-            for (member, message) in faults {
-                let name = format!("board.{member}");
-                if !problems.has(&name) {
-                    problems.add(&name, message);
-                }
-            }
-            None
-        }
     }
 }
 

@@ -6,20 +6,19 @@
 
 mod board;
 mod sight;
-mod summary;
+mod upload;
 pub use crate::api::wire::board_calibration as types;
 
 use axum::body::Bytes;
-use axum::extract::{FromRequest, Request};
 use axum::response::{IntoResponse, Response};
 use utoipa_axum::{router::OpenApiRouter, routes};
 
 use self::board::{fault, read_board};
 use self::types::{CalibrateAnswers, CalibrateForm, CalibrateOutput, CalibrateQuery};
+use self::upload::{Upload, over_the_budget};
 use crate::api::error::{ApiError, FieldError, FieldErrors};
 use crate::api::extract::QueryParams;
 use crate::api::images::HeavyState;
-use crate::api::images::form::{Form, FormSpec};
 use crate::api::images::limits;
 use crate::api::images::output::{self, Disposition, set_server_timing};
 use crate::api::images::work;
@@ -31,48 +30,6 @@ pub fn router() -> OpenApiRouter<HeavyState> {
     OpenApiRouter::new()
         .routes(routes!(post_calibrate))
         .routes(routes!(sight::post_board))
-}
-
-/// The form's parts: the views' images in order, the board, and what was wrong.
-pub struct Upload {
-    left: Vec<Bytes>,
-    right: Vec<Bytes>,
-    board: Option<Bytes>,
-    problems: FieldErrors,
-    admitted: work::Admitted,
-    /// What the decoder takes (`--max-image-pixels`).
-    limits: engine::DecodeLimits,
-}
-
-impl FromRequest<HeavyState> for Upload {
-    type Rejection = ApiError;
-
-    async fn from_request(req: Request, state: &HeavyState) -> Result<Self, ApiError> {
-        let spec = FormSpec {
-            known: &["left", "right", "board"],
-            repeatable: &["left", "right"],
-            example: "multipart/form-data: the views as repeated file parts (curl -F \
-                      left=@l0.png -F right=@r0.png -F left=@l1.png … -F \
-                      board='{\"columns\":9,…}')",
-        };
-        let form = Form::read(req, state, spec).await?;
-        let mut upload = Upload {
-            left: Vec::new(),
-            right: Vec::new(),
-            board: None,
-            problems: form.problems,
-            admitted: form.admitted,
-            limits: state.image_limits,
-        };
-        for (name, bytes) in form.parts {
-            match name.as_str() {
-                "left" => upload.left.push(bytes),
-                "right" => upload.right.push(bytes),
-                _ => upload.board = Some(bytes),
-            }
-        }
-        Ok(upload)
-    }
 }
 
 #[utoipa::path(
@@ -140,28 +97,6 @@ pub async fn post_calibrate(
     .await?
 }
 
-/// The error of images whose boards need more memory than the heavy budget has in all: `what`
-/// (`views need`) `bytes` `why` (`to calibrate`), `total` there is.
-fn over_the_budget(
-    size: (u32, u32),
-    what: &str,
-    why: &str,
-    bytes: usize,
-    total: usize,
-) -> Vec<FieldError> {
-    vec![FieldError::new(
-        "left",
-        format!(
-            "{} × {} {what} {} MiB {why}, more than the {} MiB this server has for image \
-             requests: send smaller images",
-            size.0,
-            size.1,
-            bytes / (1024 * 1024),
-            total / (1024 * 1024)
-        ),
-    )]
-}
-
 /// The engine's settings from the query and the form, every fault named at once: the query's
 /// members, the board's, the views' counts, sizes and limits (413 past them).
 fn settings(
@@ -197,6 +132,31 @@ fn settings(
         );
     }
     let board = read_board(board, problems);
+    count_views([left, right], problems)?;
+    let size = limits::view_sizes(left, right, allowed, problems)?;
+    let (Some(board), Some((width, height))) = (board, size) else {
+        return Err(std::mem::take(problems).into_error());
+    };
+    if !problems.is_empty() {
+        return Err(std::mem::take(problems).into_error());
+    }
+    Ok(engine::Settings {
+        board,
+        model: query.model.unwrap_or_default().into(),
+        alpha,
+        size: engine::Size { width, height },
+        limits: allowed,
+        uncertainty: output == CalibrateOutput::Summary,
+        corners: query.corners.unwrap_or(false),
+        cross_validate: query.cross_validate.unwrap_or(false),
+        uncertainty_distance: query.uncertainty_distance,
+    })
+}
+
+/// The views' counts: at least one left image, as many right images as left ones (or none),
+/// at most [`engine::MAX_VIEWS`] (413 past it).
+fn count_views([left, right]: [&[Bytes]; 2], problems: &mut FieldErrors) -> Result<(), ApiError> {
+    let stereo = !right.is_empty();
     if left.is_empty() {
         problems.add(
             "left",
@@ -223,41 +183,27 @@ fn settings(
             ),
         )]));
     }
-    let size = limits::view_sizes(left, right, allowed, problems)?;
-    let (Some(board), Some((width, height))) = (board, size) else {
-        return Err(std::mem::take(problems).into_error());
-    };
-    if !problems.is_empty() {
-        return Err(std::mem::take(problems).into_error());
-    }
-    Ok(engine::Settings {
-        board,
-        model: query.model.unwrap_or_default().into(),
-        alpha,
-        size: engine::Size { width, height },
-        limits: allowed,
-        uncertainty: output == CalibrateOutput::Summary,
-        corners: query.corners.unwrap_or(false),
-        cross_validate: query.cross_validate.unwrap_or(false),
-        uncertainty_distance: query.uncertainty_distance,
-    })
+    Ok(())
+}
+
+/// A calibration file answer.
+fn yaml_file(text: String, output: CalibrateOutput) -> Response {
+    let bytes = text.into_bytes();
+    output::file(
+        bytes,
+        "application/x-yaml",
+        output.name(),
+        Disposition::Attachment,
+    )
 }
 
 /// The calibration as the output asked for, with its stages in `Server-Timing` and the
 /// decoder's notes (with a summary, all its warnings) in `Stereo-Warnings`.
 fn answer(made: &engine::Calibration, output: CalibrateOutput) -> Result<Response, ApiError> {
-    let yaml = |text: String| {
-        let bytes = text.into_bytes();
-        output::file(
-            bytes,
-            "application/x-yaml",
-            output.name(),
-            Disposition::Attachment,
-        )
-    };
+    let yaml = |text: String| yaml_file(text, output);
     let (mut response, warnings) = match output {
         CalibrateOutput::Summary => {
-            let summary = summary::summarize(made);
+            let summary = crate::api::wire::calibration_summary::summarize(made);
             let warnings = summary.warnings.clone();
             (Json(summary).into_response(), warnings)
         }

@@ -6,13 +6,15 @@ use axum::body::Bytes;
 use axum::response::{IntoResponse, Response};
 
 use super::board::read_board;
-use super::types::{BoardAnswer, BoardAnswers, BoardForm, CornerSeen, SightingSummary};
-use super::{Upload, over_the_budget};
+use super::upload::{Upload, over_the_budget};
 use crate::api::error::{ApiError, FieldError, FieldErrors};
 use crate::api::images::limits;
 use crate::api::images::output::set_server_timing;
 use crate::api::images::work;
 use crate::api::respond::Json;
+use crate::api::wire::board_calibration::{
+    BoardAnswer, BoardAnswers, BoardForm, CornerSeen, SightingSummary,
+};
 use stereo_core::pipeline::calibrate as engine;
 
 #[utoipa::path(

@@ -2,7 +2,6 @@
 //! disparity for a rig, as series for a chart library or a spreadsheet (GET and POST) or drawn
 //! as a self-contained SVG (GET).
 
-pub mod svg;
 pub use crate::api::wire::chart as types;
 
 use axum::extract::State;
@@ -11,10 +10,10 @@ use axum::response::{IntoResponse, Response};
 use utoipa_axum::{router::OpenApiRouter, routes};
 
 use self::types::{Axis, AxisScale, ChartPoint, ChartRequest, ChartResponse, Series};
-use super::data_operation;
 use crate::api::csv;
 use crate::api::error::{ApiError, FieldErrors};
 use crate::api::extract::{JsonBody, QueryParams};
+use crate::api::operation::data_operation;
 use crate::api::state::AppState;
 use crate::api::validate::{self, Bounds, Feature};
 use crate::api::wire::openapi::{BodyErrors, QueryErrors};
@@ -121,7 +120,7 @@ pub async fn get_chart_svg(
     let chart = chart(&state, &request, problems)?;
     Ok((
         [(header::CONTENT_TYPE, HeaderValue::from_static(IMAGE_SVG))],
-        svg::chart(&chart),
+        crate::api::svg::chart(&chart),
     )
         .into_response())
 }
@@ -159,6 +158,17 @@ fn chart(
     let mut samples = physics::sweep(&rig, range, points, spacing)
         .map_err(|e| ApiError::from((e, validate::range_fields(request.range_params()))))?;
     samples.sort_by(|a, b| a.disparity_px.total_cmp(&b.disparity_px));
+    Ok(response(request, &rig, &samples, marker))
+}
+
+/// The chart of `rig`'s distance and depth error over `samples` (sorted by disparity), with
+/// the measured point's `marker`.
+fn response(
+    request: &ChartRequest,
+    rig: &physics::Rig,
+    samples: &[physics::Sample],
+    marker: Option<ChartPoint>,
+) -> ChartResponse {
     let unit = rig.unit().symbol();
     let series = |name: &str, label: String, y: fn(&physics::Sample) -> f64| Series {
         name: name.to_owned(),
@@ -172,7 +182,7 @@ fn chart(
             })
             .collect(),
     };
-    Ok(ChartResponse {
+    ChartResponse {
         unit: request.unit.unwrap_or_default(),
         x_axis: Axis {
             label: "Disparity d (px)".to_owned(),
@@ -196,5 +206,5 @@ fn chart(
             ),
         ],
         marker,
-    })
+    }
 }

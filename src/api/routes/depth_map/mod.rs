@@ -95,13 +95,7 @@ pub async fn post_depth_map(
         settings: query.settings(),
         prefix: "",
     };
-    let planned = job::plan(
-        pair.rig.take(),
-        &pair.input,
-        pair.size,
-        asked,
-        &mut problems,
-    );
+    let planned = job::plan_pair(&mut pair, asked, &mut problems);
     let output = query.output.unwrap_or_else(|| {
         headers
             .get(header::ACCEPT)

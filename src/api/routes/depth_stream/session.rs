@@ -17,11 +17,11 @@ use tokio::sync::mpsc::{self, error::TrySendError};
 use tokio::task::JoinHandle;
 use tokio::time::{Instant, sleep, sleep_until, timeout};
 
-use super::types::{FrameAnswer, FrameError, StreamSettings};
 use crate::api::error::ApiError;
 use crate::api::images::HeavyState;
 use crate::api::images::pools::FramePools;
 use crate::api::images::stream::{Done, Engine, Frame, Resolved, Streams};
+use crate::api::wire::depth_stream::{FrameAnswer, FrameError, StreamSettings};
 use crate::budget::{Reservation, Slot, Slots};
 
 /// What a stream holds for its life: its place among the open streams and its frame limit

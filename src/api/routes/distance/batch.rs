@@ -202,26 +202,7 @@ pub fn answer(batch: Batch, limits: &Limits) -> Result<BatchDistanceResponse, Ap
     for error in rig_problems.prefixed("rig.") {
         problems.add(error.field.trim_end_matches('.'), error.message);
     }
-    match &points {
-        None if !problems.has("points") => problems.add("points", "is required"),
-        Some(points) if points.is_empty() => {
-            problems.add("points", "must hold at least one point");
-        }
-        Some(points) if points.len() > limits.batch_points => problems.add(
-            "points",
-            format!(
-                "holds {} points; at most {} (the server's cap) are allowed in one batch",
-                points.len(),
-                limits.batch_points
-            ),
-        ),
-        _ => {}
-    }
-    if let Some(points) = &points {
-        for (index, (point, shape)) in points.iter().enumerate() {
-            refuse_malformed(index, point, shape, &mut problems);
-        }
-    }
+    check_points(points.as_deref(), limits, &mut problems);
     let (rig, points) = problems.finish(rig.zip(points))?;
     let spec = spec.unwrap_or_default();
     let bounds = Bounds::of(&spec.camera_spec());
@@ -244,6 +225,35 @@ pub fn answer(batch: Batch, limits: &Limits) -> Result<BatchDistanceResponse, Ap
         failed,
         results,
     })
+}
+
+/// The batch's points: required, at least one, within the server's cap, each of the
+/// schema's shape (what breaks it named).
+fn check_points(
+    points: Option<&[(BatchPoint, FieldErrors)]>,
+    limits: &Limits,
+    problems: &mut FieldErrors,
+) {
+    match points {
+        None if !problems.has("points") => problems.add("points", "is required"),
+        Some([]) => {
+            problems.add("points", "must hold at least one point");
+        }
+        Some(points) if points.len() > limits.batch_points => problems.add(
+            "points",
+            format!(
+                "holds {} points; at most {} (the server's cap) are allowed in one batch",
+                points.len(),
+                limits.batch_points
+            ),
+        ),
+        _ => {}
+    }
+    if let Some(points) = points {
+        for (index, (point, shape)) in points.iter().enumerate() {
+            refuse_malformed(index, point, shape, problems);
+        }
+    }
 }
 
 /// Names, among the batch's own problems, what makes point `index` break the schema: what

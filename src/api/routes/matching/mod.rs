@@ -107,13 +107,7 @@ pub async fn post_match(
         prefix: "",
     };
     let has_rig = pair.rig.is_some();
-    let planned = job::plan(
-        pair.rig.take(),
-        &pair.input,
-        pair.size,
-        asked,
-        &mut problems,
-    );
+    let planned = job::plan_pair(&mut pair, asked, &mut problems);
     let parts = &pair.parts;
     rig::require_rig(&pair.input, "for the distances", &mut problems);
     let points = list::<MatchPoint>(parts, "points", MAX_POINTS, &mut problems);
@@ -153,6 +147,33 @@ fn list<T: DeserializeOwned + Default>(
     cap: usize,
     problems: &mut FieldErrors,
 ) -> Option<Vec<(T, FieldErrors)>> {
+    let items = items(parts, name, cap, problems)?;
+    let mut decoded = Vec::with_capacity(items.len());
+    for (index, item) in items.into_iter().enumerate() {
+        let prefix = format!("{name}[{index}]");
+        match item {
+            Value::Object(map) => {
+                let (value, refused) = decode_object::<T>(map);
+                for e in refused.iter() {
+                    problems.add_new(format!("{prefix}.{}", e.field), e.message.clone());
+                }
+                decoded.push((value, refused));
+            }
+            other => problems.add_new(
+                prefix,
+                format!(
+                    "must be an object, got {}",
+                    crate::api::member_messages::describe(&other)
+                ),
+            ),
+        }
+    }
+    Some(decoded)
+}
+
+/// A part's JSON array (one object alone as a one-item array), within `cap` items and not
+/// empty; `None` when the part is absent or at fault (named in `problems`).
+fn items(parts: &Parts, name: &str, cap: usize, problems: &mut FieldErrors) -> Option<Vec<Value>> {
     let bytes: &Bytes = parts.get(name)?;
     let items = match serde_json::from_slice::<Value>(bytes) {
         Ok(Value::Array(items)) => items,
@@ -189,27 +210,7 @@ fn list<T: DeserializeOwned + Default>(
         );
         return None;
     }
-    let mut decoded = Vec::with_capacity(items.len());
-    for (index, item) in items.into_iter().enumerate() {
-        let prefix = format!("{name}[{index}]");
-        match item {
-            Value::Object(map) => {
-                let (value, refused) = decode_object::<T>(map);
-                for e in refused.iter() {
-                    problems.add_new(format!("{prefix}.{}", e.field), e.message.clone());
-                }
-                decoded.push((value, refused));
-            }
-            other => problems.add_new(
-                prefix,
-                format!(
-                    "must be an object, got {}",
-                    crate::api::member_messages::describe(&other)
-                ),
-            ),
-        }
-    }
-    Some(decoded)
+    Some(items)
 }
 
 /// The points, each with both coordinates (a missing one is named).

@@ -27,7 +27,7 @@ use crate::api::wire::calibration::RawCameras;
 use crate::api::wire::rig::CalibratedRig;
 use stereo_core::calibration::files::Raw;
 use stereo_core::pipeline::rectify::{self, Interpolation};
-use stereo_core::pipeline::{Calibrated, depth};
+use stereo_core::pipeline::{Calibrated, Maps, depth};
 
 /// `POST /rectify`.
 pub fn router() -> OpenApiRouter<HeavyState> {
@@ -109,22 +109,18 @@ fn compute(
     how: Interpolation,
 ) -> Result<Response, ApiError> {
     let [read, queue] = job.waited;
-    let decode_both = || work::decode_pair(job.parts, job.limits, [true, true]);
     let started = Instant::now();
-    let ms = |d: std::time::Duration| (d.as_secs_f64() * 1e4).round() / 10.0;
     if output == RectifyOutput::MapsNpz {
         // The float maps themselves, as OpenCV makes them (the cache holds them in fixed
         // point).
         let bytes = rectify::maps_npz(raw).map_err(ApiError::Internal)?;
         let mut response = file(bytes, output);
-        set_server_timing(
-            &mut response,
-            &[
-                ("read", read),
-                ("queue", queue),
-                ("maps", started.elapsed()),
-            ],
-        );
+        let timing = [
+            ("read", read),
+            ("queue", queue),
+            ("maps", started.elapsed()),
+        ];
+        set_server_timing(&mut response, &timing);
         return Ok(response);
     }
     let (maps, cached) = cache.get(raw);
@@ -134,63 +130,69 @@ fn compute(
         started.elapsed()
     };
     let mut timing = vec![("read", read), ("queue", queue), ("maps", maps_time)];
+    let t = Instant::now();
+    let (left, right) = work::decode_pair(job.parts, job.limits, [true, true])?;
+    let decode_time = t.elapsed();
     let mut warnings = given.warnings.clone();
-    let body = match output {
-        RectifyOutput::Summary => {
-            let t = Instant::now();
-            let (left, right) = decode_both()?;
-            let decode_time = t.elapsed();
-            let mut warnings = given.warnings.clone();
-            warnings.extend(depth::decode_notes(&left, &right));
-            let remap_time = maps.remap_grey(&left, &right, how);
-            let [share_left, share_right] =
-                maps.valid_shares((raw.size.width as usize, raw.size.height as usize));
-            let summary = RectifySummary {
-                width: maps.left.width as u32,
-                height: maps.left.height as u32,
-                interpolation: match how {
-                    Interpolation::Linear => types::InterpolationChoice::Linear,
-                    Interpolation::Nearest => types::InterpolationChoice::Nearest,
-                    Interpolation::Cubic => types::InterpolationChoice::Cubic,
-                },
-                raw: RawCameras::new(raw, given.file_unit),
-                rig: CalibratedRig::from(&given.rig),
-                valid_fraction: ValidShare {
-                    left: share_left,
-                    right: share_right,
-                },
-                maps_cached: cached,
-                timings_ms: RectifyTimes {
-                    decode: ms(decode_time),
-                    maps: ms(maps_time),
-                    remap: ms(remap_time),
-                },
-                warnings: warnings.clone(),
-            };
-            let mut response = Json(summary).into_response();
-            set_server_timing(&mut response, &timing);
-            output::set_warnings(&mut response, &warnings);
-            return Ok(response);
-        }
-        _ => {
-            let t = Instant::now();
-            let (left, right) = decode_both()?;
-            timing.push(("decode", t.elapsed()));
-            warnings.extend(depth::decode_notes(&left, &right));
-            let t = Instant::now();
-            let bytes = match output {
-                RectifyOutput::LeftPng => maps.png(&left, false, how),
-                RectifyOutput::RightPng => maps.png(&right, true, how),
-                _ => maps.side_by_side_png(&left, &right, how),
-            };
-            timing.push(("remap", t.elapsed()));
-            bytes
-        }
+    warnings.extend(depth::decode_notes(&left, &right));
+    let mut response = if output == RectifyOutput::Summary {
+        let remap_time = maps.remap_grey(&left, &right, how);
+        let times = [decode_time, maps_time, remap_time];
+        let summary = summary(given, raw, &maps, how, cached, times, warnings.clone());
+        Json(summary).into_response()
+    } else {
+        timing.push(("decode", decode_time));
+        let t = Instant::now();
+        let bytes = match output {
+            RectifyOutput::LeftPng => maps.png(&left, false, how),
+            RectifyOutput::RightPng => maps.png(&right, true, how),
+            _ => maps.side_by_side_png(&left, &right, how),
+        };
+        timing.push(("remap", t.elapsed()));
+        file(bytes, output)
     };
-    let mut response = file(body, output);
     set_server_timing(&mut response, &timing);
     output::set_warnings(&mut response, &warnings);
     Ok(response)
+}
+
+/// The summary of a rectification: the rectified size, the raw cameras and the rectified rig,
+/// the share of each rectified image the raw one covers, and the stages' times (decode, maps,
+/// remap).
+fn summary(
+    given: &Calibrated,
+    raw: &Raw,
+    maps: &Maps,
+    how: Interpolation,
+    cached: bool,
+    [decode, built, remap]: [std::time::Duration; 3],
+    warnings: Vec<String>,
+) -> RectifySummary {
+    let ms = |d: std::time::Duration| (d.as_secs_f64() * 1e4).round() / 10.0;
+    let [share_left, share_right] =
+        maps.valid_shares((raw.size.width as usize, raw.size.height as usize));
+    RectifySummary {
+        width: maps.left.width as u32,
+        height: maps.left.height as u32,
+        interpolation: match how {
+            Interpolation::Linear => types::InterpolationChoice::Linear,
+            Interpolation::Nearest => types::InterpolationChoice::Nearest,
+            Interpolation::Cubic => types::InterpolationChoice::Cubic,
+        },
+        raw: RawCameras::new(raw, given.file_unit),
+        rig: CalibratedRig::from(&given.rig),
+        valid_fraction: ValidShare {
+            left: share_left,
+            right: share_right,
+        },
+        maps_cached: cached,
+        timings_ms: RectifyTimes {
+            decode: ms(decode),
+            maps: ms(built),
+            remap: ms(remap),
+        },
+        warnings,
+    }
 }
 
 /// `output`'s file: the maps to save, the pictures to show.

@@ -12,9 +12,9 @@ use self::types::{
     BaselineRequest, BaselineResponse, DepthErrorAt, ErrorBudget, MAX_AT_DISTANCES, RigRequest,
     RigResponse,
 };
-use super::json_operation;
 use crate::api::error::{ApiError, FieldErrors};
 use crate::api::extract::{JsonBody, QueryParams};
+use crate::api::operation::json_operation;
 use crate::api::respond::Json;
 use crate::api::state::AppState;
 use crate::api::validate;
@@ -97,61 +97,9 @@ fn rig(
     mut problems: FieldErrors,
 ) -> Result<RigResponse, ApiError> {
     let rig = validate::rig(request.rig_spec(), &mut problems);
-    let max_disparity = problems
-        .required("max_disparity_px", request.max_disparity_px)
-        .and_then(|d| problems.positive("max_disparity_px", d));
-    let min_disparity = match (request.min_disparity_px, rig) {
-        (Some(d), _) => problems.positive("min_disparity_px", d),
-        (None, Some(r)) if r.disparity_error_px() > 0.0 => Some(r.disparity_error_px()),
-        (None, Some(_)) => {
-            problems.add(
-                "min_disparity_px",
-                "is required when disparity_error_px is 0 (it defaults to disparity_error_px)",
-            );
-            None
-        }
-        (None, None) => None,
-    };
-    if let (Some(min), Some(max)) = (min_disparity, max_disparity)
-        && min >= max
-    {
-        problems.add(
-            "max_disparity_px",
-            format!(
-                "must be greater than min_disparity_px ({}), got {}",
-                Num(min),
-                Num(max)
-            ),
-        );
-    }
-    if let (Some(min), Some(r)) = (min_disparity, rig) {
-        validate::short_of_infinity("min_disparity_px", min, &r, &mut problems);
-    }
+    let (min_disparity, max_disparity) = disparity_bounds(request, rig, &mut problems);
     let distances = at_distances(request.at_distances.as_deref(), &mut problems);
-    let max_relative_error = request
-        .max_relative_error
-        .map(|r| budget("max_relative_error", r, &mut problems));
-    if let (Some(Some(_)), Some(r)) = (max_relative_error, rig)
-        && r.disparity_error_px() <= 0.0
-    {
-        problems.add(
-            "disparity_error_px",
-            "must be greater than 0 with max_relative_error: with no disparity error the \
-             relative error is 0 at every distance",
-        );
-    }
-    if let (Some(Some(budget)), Some(r)) = (max_relative_error, rig)
-        && r.calibration_relative_error() >= budget
-    {
-        problems.add(
-            "max_relative_error",
-            format!(
-                "cannot be met at any distance: the calibration alone (focal_length_std_px, \
-                 baseline_std) gives a relative error of {}; allow more, or calibrate better",
-                Num(r.calibration_relative_error())
-            ),
-        );
-    }
+    let max_relative_error = relative_budget(request, rig, &mut problems);
     let (rig, ((min_disparity, max_disparity), distances)) =
         problems.finish(rig.zip(min_disparity.zip(max_disparity).zip(distances)))?;
     let max_relative_error = max_relative_error.flatten();
@@ -187,6 +135,80 @@ fn rig(
             .map_err(blame(&["at_distances"]))?,
         error_budget,
     })
+}
+
+/// The disparity range of `/rig`: `max_disparity_px` required, `min_disparity_px` defaulting
+/// to the rig's disparity error, the one below the other and short of infinity.
+fn disparity_bounds(
+    request: &RigRequest,
+    rig: Option<Rig>,
+    problems: &mut FieldErrors,
+) -> (Option<f64>, Option<f64>) {
+    let max_disparity = problems
+        .required("max_disparity_px", request.max_disparity_px)
+        .and_then(|d| problems.positive("max_disparity_px", d));
+    let min_disparity = match (request.min_disparity_px, rig) {
+        (Some(d), _) => problems.positive("min_disparity_px", d),
+        (None, Some(r)) if r.disparity_error_px() > 0.0 => Some(r.disparity_error_px()),
+        (None, Some(_)) => {
+            problems.add(
+                "min_disparity_px",
+                "is required when disparity_error_px is 0 (it defaults to disparity_error_px)",
+            );
+            None
+        }
+        (None, None) => None,
+    };
+    if let (Some(min), Some(max)) = (min_disparity, max_disparity)
+        && min >= max
+    {
+        problems.add(
+            "max_disparity_px",
+            format!(
+                "must be greater than min_disparity_px ({}), got {}",
+                Num(min),
+                Num(max)
+            ),
+        );
+    }
+    if let (Some(min), Some(r)) = (min_disparity, rig) {
+        validate::short_of_infinity("min_disparity_px", min, &r, problems);
+    }
+    (min_disparity, max_disparity)
+}
+
+/// `/rig`'s `max_relative_error`, checked against the rig: a fraction, meaningful only with a
+/// disparity error, and above what the calibration alone gives.
+fn relative_budget(
+    request: &RigRequest,
+    rig: Option<Rig>,
+    problems: &mut FieldErrors,
+) -> Option<Option<f64>> {
+    let max_relative_error = request
+        .max_relative_error
+        .map(|r| budget("max_relative_error", r, problems));
+    if let (Some(Some(_)), Some(r)) = (max_relative_error, rig)
+        && r.disparity_error_px() <= 0.0
+    {
+        problems.add(
+            "disparity_error_px",
+            "must be greater than 0 with max_relative_error: with no disparity error the \
+             relative error is 0 at every distance",
+        );
+    }
+    if let (Some(Some(budget)), Some(r)) = (max_relative_error, rig)
+        && r.calibration_relative_error() >= budget
+    {
+        problems.add(
+            "max_relative_error",
+            format!(
+                "cannot be met at any distance: the calibration alone (focal_length_std_px, \
+                 baseline_std) gives a relative error of {}; allow more, or calibrate better",
+                Num(r.calibration_relative_error())
+            ),
+        );
+    }
+    max_relative_error
 }
 
 /// The requested distances: each finite and positive, at most [`MAX_AT_DISTANCES`].
@@ -264,16 +286,14 @@ fn error_budget(rig: &Rig, budget: f64, at: f64, (near, far): (f64, f64)) -> Err
     }
 }
 
-fn baseline(
-    _: &AppState,
+/// `/baseline`'s depth-error budget at `target`: `max_depth_error`, or `max_relative_error`
+/// of the target distance; one of them, not both.
+fn depth_budget(
     request: &BaselineRequest,
-    mut problems: FieldErrors,
-) -> Result<BaselineResponse, ApiError> {
-    let camera = validate::camera(request.camera_spec(), &mut problems);
-    let target = problems
-        .required("target_distance", request.target_distance)
-        .and_then(|z| problems.positive("target_distance", z));
-    let max_depth_error = match (request.max_depth_error, request.max_relative_error) {
+    target: Option<f64>,
+    problems: &mut FieldErrors,
+) -> Option<f64> {
+    match (request.max_depth_error, request.max_relative_error) {
         (Some(_), Some(_)) => {
             for field in ["max_depth_error", "max_relative_error"] {
                 problems.add(
@@ -285,7 +305,7 @@ fn baseline(
         }
         (Some(dz), None) => problems.positive("max_depth_error", dz),
         (None, Some(r)) => {
-            budget("max_relative_error", r, &mut problems).and_then(|r| target.map(|z| r * z))
+            budget("max_relative_error", r, problems).and_then(|r| target.map(|z| r * z))
         }
         (None, None) => {
             problems.add(
@@ -295,7 +315,37 @@ fn baseline(
             );
             None
         }
-    };
+    }
+}
+
+/// The baseline's formula with the request's numbers in it.
+fn formula(
+    camera: &physics::RectifiedCamera,
+    z: f64,
+    dz: f64,
+    baseline: f64,
+    unit: &str,
+) -> String {
+    format!(
+        "B = Z²·Δd / (f·ΔZ) = ({} {unit})² × {} px / ({} px × {} {unit}) = {} {unit}",
+        short(z),
+        short(camera.disparity_error_px()),
+        short(camera.focal_px()),
+        short(dz),
+        short(baseline),
+    )
+}
+
+fn baseline(
+    _: &AppState,
+    request: &BaselineRequest,
+    mut problems: FieldErrors,
+) -> Result<BaselineResponse, ApiError> {
+    let camera = validate::camera(request.camera_spec(), &mut problems);
+    let target = problems
+        .required("target_distance", request.target_distance)
+        .and_then(|z| problems.positive("target_distance", z));
+    let max_depth_error = depth_budget(request, target, &mut problems);
     let max_disparity = request
         .max_disparity_px
         .map(|d| problems.positive("max_disparity_px", d));
@@ -339,14 +389,7 @@ fn baseline(
         max_relative_error: max_depth_error / target,
         baseline,
         disparity_at_target_px,
-        formula: format!(
-            "B = Z²·Δd / (f·ΔZ) = ({} {unit})² × {} px / ({} px × {} {unit}) = {} {unit}",
-            short(target),
-            short(camera.disparity_error_px()),
-            short(camera.focal_px()),
-            short(max_depth_error),
-            short(baseline),
-        ),
+        formula: formula(&camera, target, max_depth_error, baseline, unit),
         max_disparity_px: max_disparity,
         min_distance,
     })

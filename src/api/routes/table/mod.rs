@@ -9,10 +9,10 @@ use axum::response::Response;
 use utoipa_axum::{router::OpenApiRouter, routes};
 
 use self::types::{TableRequest, TableResponse, TableRow};
-use super::data_operation;
 use crate::api::csv;
 use crate::api::error::{ApiError, FieldErrors};
 use crate::api::extract::{JsonBody, QueryParams};
+use crate::api::operation::data_operation;
 use crate::api::state::AppState;
 use crate::api::validate::{self, Bounds};
 use crate::api::wire::openapi::{BodyErrors, QueryErrors};

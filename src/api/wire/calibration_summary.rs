@@ -1,4 +1,5 @@
-//! `/calibrate`'s JSON summary: the engine's calibration, its report
+//! `/calibrate`'s JSON summary made from the engine's (the route's `of`, as every answer's is
+//! in `wire`): the engine's calibration, its report
 //! ([`stereo_core::pipeline::calibrate::report`]) and the rectification mapped onto the wire
 //! types, and nothing computed here.
 

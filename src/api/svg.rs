@@ -1,4 +1,4 @@
-//! `/chart.svg`: the chart data drawn as a self-contained SVG (no scripts, fonts, styles or
+//! `/chart.svg`'s renderer, below the routes as [`super::csv`] is: the chart data drawn as a self-contained SVG (no scripts, fonts, styles or
 //! images from elsewhere), for people who would rather look than read and for reports.
 //!
 //! Layout: disparity on x; distance on the left y axis; depth error on its own right y axis,
@@ -8,7 +8,7 @@
 
 use std::fmt::Write;
 
-use super::types::{AxisScale, ChartPoint, ChartResponse};
+use crate::api::wire::chart::{AxisScale, ChartPoint, ChartResponse};
 use stereo_core::numbers::short;
 
 /// Canvas size; the `viewBox` lets it scale to any width.

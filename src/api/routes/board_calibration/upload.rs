@@ -1,0 +1,75 @@
+//! The form `/calibrate` and `/board` read (the views' images in order and the board), and the
+//! refusal of views that need more memory than the heavy budget has.
+
+use axum::body::Bytes;
+use axum::extract::{FromRequest, Request};
+
+use crate::api::error::{ApiError, FieldError, FieldErrors};
+use crate::api::images::HeavyState;
+use crate::api::images::form::{Form, FormSpec};
+use crate::api::images::work;
+use stereo_core::pipeline::calibrate as engine;
+
+/// The form's parts: the views' images in order, the board, and what was wrong.
+pub struct Upload {
+    pub left: Vec<Bytes>,
+    pub right: Vec<Bytes>,
+    pub board: Option<Bytes>,
+    pub problems: FieldErrors,
+    pub admitted: work::Admitted,
+    /// What the decoder takes (`--max-image-pixels`).
+    pub limits: engine::DecodeLimits,
+}
+
+impl FromRequest<HeavyState> for Upload {
+    type Rejection = ApiError;
+
+    async fn from_request(req: Request, state: &HeavyState) -> Result<Self, ApiError> {
+        let spec = FormSpec {
+            known: &["left", "right", "board"],
+            repeatable: &["left", "right"],
+            example: "multipart/form-data: the views as repeated file parts (curl -F \
+                      left=@l0.png -F right=@r0.png -F left=@l1.png … -F \
+                      board='{\"columns\":9,…}')",
+        };
+        let form = Form::read(req, state, spec).await?;
+        let mut upload = Upload {
+            left: Vec::new(),
+            right: Vec::new(),
+            board: None,
+            problems: form.problems,
+            admitted: form.admitted,
+            limits: state.image_limits,
+        };
+        for (name, bytes) in form.parts {
+            match name.as_str() {
+                "left" => upload.left.push(bytes),
+                "right" => upload.right.push(bytes),
+                _ => upload.board = Some(bytes),
+            }
+        }
+        Ok(upload)
+    }
+}
+
+/// The error of images whose boards need more memory than the heavy budget has in all: `what`
+/// (`views need`) `bytes` `why` (`to calibrate`), `total` there is.
+pub fn over_the_budget(
+    size: (u32, u32),
+    what: &str,
+    why: &str,
+    bytes: usize,
+    total: usize,
+) -> Vec<FieldError> {
+    vec![FieldError::new(
+        "left",
+        format!(
+            "{} × {} {what} {} MiB {why}, more than the {} MiB this server has for image \
+             requests: send smaller images",
+            size.0,
+            size.1,
+            bytes / (1024 * 1024),
+            total / (1024 * 1024)
+        ),
+    )]
+}
