@@ -10,6 +10,7 @@ use clap::{Args, Parser, Subcommand, ValueEnum};
 use values::{count, delay, duration, size, timeout};
 
 pub mod environment;
+pub mod help;
 pub mod tokens;
 pub mod values;
 
@@ -149,7 +150,8 @@ pub enum Command {
         timeout: Duration,
     },
     /// Every pair of a recording to depth maps, as /depth-map makes them: in this process
-    /// (under the server's limits, set by its options before or after `depth-map`), or sent to a running service
+    /// (under the server's limits, set by its options before or after `depth-map`; its help
+    /// shows those a run uses, `serve --help` all of them), or sent to a running service
     /// with --server. Pairs already written are skipped, so a stopped run resumes; a file
     /// without a partner or that cannot be read is named and the rest go on. A progress bar
     /// shows on a terminal.
@@ -183,11 +185,9 @@ pub struct DepthMapArgs {
     pub out: PathBuf,
     /// What to write for each pair, as /depth-map's `output` (default: depth.npy with a
     /// calibration, disparity.npy without).
-    #[arg(long, value_name = "OUTPUT", value_parser = [
-        "summary", "disparity.pfm", "disparity.png", "disparity.npy", "depth.npy", "depth.png",
-        "disparity_std.npy", "disparity_std.pfm", "depth_std.npy", "arrays.npz", "preview.png",
-        "points.ply",
-    ])]
+    #[arg(long, value_name = "OUTPUT", value_parser = clap::builder::PossibleValuesParser::new(
+        std::iter::once("summary").chain(stereo_core::pipeline::Product::ALL.map(|p| p.name()))
+    ))]
     pub output: Option<String>,
     /// The matcher's preset: accurate (the default) or fast.
     #[arg(long, value_name = "PRESET", value_parser = ["accurate", "fast"])]
@@ -541,13 +541,15 @@ impl Cli {
         T: Into<std::ffi::OsString> + Clone,
     {
         let args: Vec<std::ffi::OsString> = args.into_iter().map(Into::into).collect();
-        match <Self as Parser>::try_parse_from(&args) {
+        let depth_map = args.iter().skip(1).any(|a| a == "depth-map");
+        let command = Self::command_for(depth_map);
+        let parsed = command
+            .clone()
+            .try_get_matches_from(&args)
+            .and_then(|matches| <Self as clap::FromArgMatches>::from_arg_matches(&matches));
+        match parsed {
             Ok(cli) => cli.finish(),
-            Err(error) => Err(environment::named(
-                error,
-                &args,
-                &<Self as clap::CommandFactory>::command(),
-            )),
+            Err(error) => Err(environment::named(error, &args, &command)),
         }
     }
 

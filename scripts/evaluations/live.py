@@ -120,24 +120,37 @@ def ws_latency(url, pairs, calibration):
 
 def readme_client(url, pairs, calibration):
     """The README's client (clients/python/stream.py) run on a folder of side-by-side frames
-    made from the first pairs: the lines it prints, one a frame."""
+    made from the first pairs, then on the same pairs as two folders (`--right`, the pair
+    layout): the lines it prints, one a frame, for each."""
+    client = os.path.join(os.path.dirname(__file__), "..", "..", "clients", "python",
+                          "stream.py")
+    said = []
     with tempfile.TemporaryDirectory() as folder:
+        for side in ("both", "left", "right"):
+            os.mkdir(os.path.join(folder, side))
         for i, (left, right) in enumerate(pairs):
             images = [cv2.imdecode(np.frombuffer(b, np.uint8), cv2.IMREAD_COLOR)
                       for b in (left, right)]
-            cv2.imwrite(os.path.join(folder, f"{i:03}.jpg"), cv2.hconcat(images),
+            cv2.imwrite(os.path.join(folder, "both", f"{i:03}.jpg"), cv2.hconcat(images),
                         [cv2.IMWRITE_JPEG_QUALITY, 95])
+            for side, data in (("left", left), ("right", right)):
+                with open(os.path.join(folder, side, f"{i:03}.jpg"), "wb") as f:
+                    f.write(data)
         path = os.path.join(folder, "rig.yml")
         with open(path, "w") as f:
             f.write(calibration)
-        client = os.path.join(os.path.dirname(__file__), "..", "..", "clients", "python",
-                              "stream.py")
-        run = subprocess.run([sys.executable, client, folder, path, ws_url(url)],
-                             capture_output=True, text=True, timeout=300)
-    lines = run.stdout.splitlines()
-    if run.returncode != 0 or len(lines) != len(pairs) or any("mm" not in l for l in lines):
-        sys.exit(f"clients/python/stream.py failed: {run.returncode}\n{run.stdout}\n{run.stderr}")
-    return lines
+        for extra in ([os.path.join(folder, "both")],
+                      [os.path.join(folder, "left"), "--right", os.path.join(folder, "right")]):
+            command = [sys.executable, client, extra[0], path, ws_url(url), "--unit", "mm",
+                       *extra[1:]]
+            run = subprocess.run(command, capture_output=True, text=True, timeout=300)
+            lines = run.stdout.splitlines()
+            if (run.returncode != 0 or len(lines) != len(pairs)
+                    or any(" mm " not in l for l in lines)):
+                sys.exit(f"clients/python/stream.py {' '.join(extra[1:])} failed: "
+                         f"{run.returncode}\n{run.stdout}\n{run.stderr}")
+            said.append(lines)
+    return said
 
 
 def main():
@@ -215,9 +228,9 @@ def main():
           f"(medians of each round's ratio, {len(fps_ratios)} and {len(lat_ratios)} rounds in "
           f"turns, their range in brackets; reported, never asserted)")
 
-    lines = readme_client(args.url, pairs[:5], calibration)
+    both, two = readme_client(args.url, pairs[:5], calibration)
     print(f"  the README's client (clients/python/stream.py), 5 side-by-side JPEG frames: "
-          f"{' | '.join(lines)}")
+          f"{' | '.join(both)}; the same pairs as two folders (--right): {' | '.join(two)}")
     acc = {k: stream.accuracy(m, truths) for k, m in maps.items()}
     print(f"  temporal filter over the moving sequence: bad-1.0 {acc['ws']['bad1']:.2f} % with, "
           f"{acc['ws_off']['bad1']:.2f} % without; nonocc {acc['ws']['nonocc_bad1']:.2f} % "

@@ -157,6 +157,8 @@ pub enum ApiError {
     Malformed(FieldError),
     /// 413: the body is larger than the limit, in bytes.
     PayloadTooLarge(usize),
+    /// 413: an image request's form is larger than the heavy group's limit, in bytes.
+    ImagesTooLarge(usize),
     /// 415: the body is not declared as a type the route reads (`got`; `accepted` names
     /// those it reads).
     UnsupportedMediaType { got: String, accepted: &'static str },
@@ -207,7 +209,9 @@ impl ApiError {
     pub fn status(&self) -> StatusCode {
         match self {
             ApiError::Malformed(_) => StatusCode::BAD_REQUEST,
-            ApiError::PayloadTooLarge(_) => StatusCode::PAYLOAD_TOO_LARGE,
+            ApiError::PayloadTooLarge(_) | ApiError::ImagesTooLarge(_) => {
+                StatusCode::PAYLOAD_TOO_LARGE
+            }
             ApiError::UnsupportedMediaType { .. } => StatusCode::UNSUPPORTED_MEDIA_TYPE,
             ApiError::Invalid(_) => StatusCode::UNPROCESSABLE_ENTITY,
             ApiError::NotFound(_) => StatusCode::NOT_FOUND,
@@ -260,6 +264,23 @@ impl ApiError {
                     format!("must be at most {limit} bytes"),
                 )],
             ),
+            ApiError::ImagesTooLarge(limit) => {
+                let mib = stereo_core::numbers::short(*limit as f64 / (1024.0 * 1024.0));
+                plain(
+                    format!(
+                        "the form is larger than this server's limit for image requests, \
+                         {mib} MiB ({limit} bytes: --heavy-body-limit, HEAVY_BODY_LIMIT)"
+                    ),
+                    vec![FieldError::new(
+                        "body",
+                        format!(
+                            "must be at most {mib} MiB: send the images as JPEG (quality 90 is \
+                             about a tenth of a PNG's size) or smaller, or start the server \
+                             with a larger --heavy-body-limit"
+                        ),
+                    )],
+                )
+            }
             ApiError::UnsupportedMediaType { got, accepted } => plain(
                 format!("the request body must be sent as {accepted}, not {got}"),
                 vec![FieldError::new(

@@ -51,6 +51,39 @@ fn the_servers_options_go_before_or_after_a_subcommand() {
     }
 }
 
+/// `depth-map --help` lists the command's own options and the server's that a run in process
+/// uses (its memory budget and image limit, the logs), not the ports, origins, timeouts and
+/// tokens of a server; those are still taken after `depth-map` (above).
+#[test]
+fn depth_map_help_shows_its_own_options() {
+    let help = binary().args(["depth-map", "--help"]).output().unwrap();
+    assert_eq!(help.status.code(), Some(0));
+    let help = String::from_utf8_lossy(&help.stdout);
+    for flag in [
+        "--calibration <FILE>",
+        "--max-disparity",
+        "--server <URL>",
+        "--heavy-memory-budget",
+        "--max-image-pixels",
+    ] {
+        assert!(
+            help.contains(flag),
+            "{flag} not in depth-map --help:\n{help}"
+        );
+    }
+    for flag in [
+        "--port",
+        "--host",
+        "--cors-allowed-origins",
+        "--api-tokens",
+        "--request-timeout",
+        "--body-limit",
+        "--max-streams",
+    ] {
+        assert!(!help.contains(flag), "{flag} in depth-map --help:\n{help}");
+    }
+}
+
 /// Every size flag takes units (`--body-limit 64KiB` as `--heavy-body-limit 32MiB`), and a
 /// value refused from the environment names its variable, not only the flag.
 #[test]

@@ -920,6 +920,37 @@ async fn an_image_claiming_too_many_pixels_is_413() {
     assert_eq!(again.status(), 200);
 }
 
+/// A form past the heavy group's body limit is a 413 naming `body`, the limit in MiB, the
+/// option that sets it, and how to send less: JPEG or smaller images.
+#[tokio::test]
+async fn a_form_past_the_body_limit_names_the_option_and_a_smaller_jpeg() {
+    let mut config = Config {
+        port: 0,
+        ..Config::default()
+    };
+    config.heavy.body_bytes = 1024 * 1024;
+    let app = spawn_app_with(config).await;
+    let big = vec![7u8; 1536 * 1024];
+    let form = Form::new()
+        .part("left", image_part(big.clone()))
+        .part("right", image_part(big));
+    let body = problem(depth_map(&app, "", form).await, 413).await;
+    assert_eq!(fields(&body), vec!["body"]);
+    let message = message_for(&body, "body");
+    assert!(message.contains("at most 1 MiB"), "{message}");
+    assert!(
+        message.contains("JPEG") && message.contains("--heavy-body-limit"),
+        "{message}"
+    );
+    assert!(
+        body["detail"]
+            .as_str()
+            .unwrap_or_default()
+            .contains("HEAVY_BODY_LIMIT"),
+        "{body}"
+    );
+}
+
 fn form_of_pair() -> Form {
     form(&pair(), &[])
 }

@@ -298,7 +298,7 @@ pub fn join_lists(
 /// A multipart body that cannot be read: too large (413) or broken (400).
 fn multipart_error(e: &MultipartError, limit: usize) -> ApiError {
     if e.status() == StatusCode::PAYLOAD_TOO_LARGE {
-        ApiError::PayloadTooLarge(limit)
+        ApiError::ImagesTooLarge(limit)
     } else {
         ApiError::Malformed(FieldError::new(
             "body",

@@ -368,7 +368,7 @@ function drawParameters(summary) {
     const r = summary.rotation;
     const angle = Math.acos(Math.min(1, Math.max(-1, (r[0][0] + r[1][1] + r[2][2] - 1) / 2)));
     const rs = summary.rotation_std_deg;
-    rows.push(row(['R: angle (°), σ about x, y, z (°)', `${fmt((angle * 180) / Math.PI, 4)}; ± ${rs.map((v) => fmt(v, 2)).join(', ')}`]));
+    rows.push(row(['R: angle (°), with its σ about x, y and z', `${fmt((angle * 180) / Math.PI, 4)}° (σ ${rs.map((v) => fmt(v, 2)).join(' / ')}°)`]));
   }
   if (summary.rig) {
     const rig = summary.rig;
