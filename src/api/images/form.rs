@@ -157,18 +157,18 @@ impl<F> ImagePair<F> {
     }
 
     /// Takes a compute slot, reserves the memory `need` says and runs `work` on a blocking
-    /// thread with the form's parts and rig ([`work::run`]).
+    /// thread with the form's parts ([`work::run`]); the rig is the route's to plan with
+    /// before (a depth job, or `/rectify`'s raw rig).
     pub async fn run<T: Send + 'static>(
         self,
         need: work::Need<impl Fn(usize) -> usize>,
         work: impl FnOnce(Job<'_>) -> T + Send + 'static,
     ) -> Result<T, ApiError> {
-        let (parts, rig, read, limits) = (self.parts, self.rig, self.read, self.limits);
+        let (parts, read, limits) = (self.parts, self.read, self.limits);
         work::run(self.admitted, need, move |cancel, started| {
             work(Job {
                 parts: &parts,
                 limits,
-                rig,
                 cancel,
                 waited: [read, started.queue()],
             })
@@ -182,7 +182,6 @@ pub struct Job<'a> {
     pub parts: &'a Parts,
     /// What the decoder takes (`--max-image-pixels`).
     pub limits: DecodeLimits,
-    pub rig: Option<Calibrated>,
     /// Set when the request is abandoned: stop at the next check.
     pub cancel: &'a std::sync::atomic::AtomicBool,
     /// How long the body took to read and the work waited for a thread, for `Server-Timing`.

@@ -129,7 +129,6 @@ fn compute(work: Job, job: DepthJob, output: DepthMapOutput) -> Result<Response,
         limits: allowed,
         cancel,
         waited: [read, queue],
-        ..
     } = work;
     let started = Instant::now();
     let colour = output.product().is_some_and(Product::wants_colour);

@@ -106,7 +106,6 @@ pub async fn post_match(
         settings,
         prefix: "",
     };
-    let has_rig = pair.rig.is_some();
     let planned = job::plan_pair(&mut pair, asked, &mut problems);
     let parts = &pair.parts;
     rig::require_rig(&pair.input, "for the distances", &mut problems);
@@ -121,7 +120,9 @@ pub async fn post_match(
              image",
         );
     }
-    let (Some(size), true, Some(planned)) = (pair.size, has_rig, planned) else {
+    // Without a rig, `require_rig` (or the rig's own fault) has named it.
+    let planned = planned.filter(|p| p.calibrated().is_some());
+    let (Some(size), Some(planned)) = (pair.size, planned) else {
         return Err(problems.into_error());
     };
     if !problems.is_empty() {
