@@ -524,6 +524,78 @@ fn every_depth_caller_plans_one_job() {
     assert!(wrong.is_empty(), "{wrong:#?}");
 }
 
+/// Each rig input parsed once at its edge: a form (`api::images::form`), a stream's settings
+/// (`api::images::stream`, once for the stream) and the command's flags
+/// (`batch::preflight`, which hands the parsed input to the command's engine) each turn the
+/// rig's parts into the engine's `RigInput` once, and only `api::images::rig` builds one; no
+/// depth caller reads a calibration file itself, each making the rig of a frame size from its
+/// `RigInput` (`rig::at`).
+#[test]
+fn each_rig_input_is_parsed_once_at_its_edge() {
+    let edges: BTreeMap<String, usize> = [
+        ("api::images::form", 1),
+        ("api::images::stream", 1),
+        ("batch::preflight", 1),
+    ]
+    .into_iter()
+    .map(|(m, n)| (m.to_owned(), n))
+    .collect();
+    let mut parsing = BTreeMap::new();
+    let mut wrong = Vec::new();
+    for (module, file) in modules(SRC) {
+        let code = code_of(&fs::read_to_string(&file).expect("readable"));
+        let name = show(&module);
+        let parses = code.matches("rig::parsed(").count() + code.matches("rig::input(").count();
+        if parses > 0 {
+            parsing.insert(name.clone(), parses);
+        }
+        let builds = code.contains("RigInput::file(") || code.contains("RigInput::members(");
+        if builds && name != "api::images::rig" {
+            wrong.push(format!("{name} builds a RigInput"));
+        }
+        let caller = DEPTH_CALLERS.iter().any(|c| module == c.to_vec());
+        if caller && (code.contains("files::read(") || code.contains("Calibrated::from_file(")) {
+            wrong.push(format!("{name} reads a calibration file itself"));
+        }
+    }
+    assert_eq!(
+        parsing, edges,
+        "the modules that parse a rig input, and how often"
+    );
+    let engine = code_of(&fs::read_to_string(format!("{SRC}/batch/engine.rs")).expect("engine"));
+    assert!(engine.contains("rig::at(") && engine.contains("calibration: RigInput"));
+    assert!(wrong.is_empty(), "{wrong:#?}");
+}
+
+/// The maths out of the routes: the rig design's figures are the engine's
+/// (`physics::design`), which `/rig` and `/baseline` only word; no route computes a depth
+/// error, a disparity at a distance or a baseline itself, nor remaps a frame but for the file
+/// it answers.
+#[test]
+fn the_routes_leave_the_maths_to_the_engine() {
+    let maths = [
+        "baseline_for(",
+        "distance_at_relative_error(",
+        ".relative_error_at(",
+        ".depth_error_at(",
+        ".disparity_at(",
+        "remap_grey(",
+    ];
+    let mut wrong = Vec::new();
+    for (module, file) in modules(SRC) {
+        if !module.starts_with(&["api".to_owned(), "routes".to_owned()]) {
+            continue;
+        }
+        let code = code_of(&fs::read_to_string(&file).expect("readable"));
+        for call in maths.iter().filter(|m| code.contains(*m)) {
+            wrong.push(format!("{} calls {call}", show(&module)));
+        }
+    }
+    let design = fs::read_to_string(format!("{SRC}/api/routes/rig_design/mod.rs")).expect("rig");
+    assert!(design.contains("design::baseline_design(") && design.contains(".budget_reach("));
+    assert!(wrong.is_empty(), "{wrong:#?}");
+}
+
 /// The most lines `src/api/routes/` may hold: the routes only translate (wire types to the
 /// engine's, one call, its faults to problem+json); the wire types live in `api::wire`.
 const MAX_ROUTE_LINES: usize = 4_500;

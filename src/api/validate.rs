@@ -144,6 +144,13 @@ pub fn camera(spec: CameraSpec, problems: &mut FieldErrors) -> Option<RectifiedC
         .ok()
 }
 
+/// A rig as a request states it, the members `problems` already refused marked unreadable
+/// (so that their absence is not reported again).
+pub fn marked_rig(mut spec: RigSpec, problems: &FieldErrors) -> RigSpec {
+    spec.camera = marked(spec.camera, problems);
+    spec
+}
+
 /// The rig a request states, through [`Rig::new`], the one constructor every rig goes
 /// through.
 pub fn rig(mut spec: RigSpec, problems: &mut FieldErrors) -> Option<Rig> {

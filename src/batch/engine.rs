@@ -13,10 +13,9 @@ use std::time::Instant;
 use crate::api::error::{ApiError, FieldError, FieldErrors};
 use crate::api::images::{job, limits, rig};
 use crate::api::wire::depth_map::{DepthMapOutput, DepthMapSummary};
-use crate::api::wire::images::RigInput;
 use crate::api::wire::rig::CalibratedRig;
 use crate::config::Config;
-use stereo_core::pipeline::{self, Answer, DepthJob, Maps};
+use stereo_core::pipeline::{self, Answer, DepthJob, Maps, RigInput};
 use stereo_core::vision::Settings;
 use stereo_core::vision::decode::{self, DecodeLimits};
 
@@ -27,7 +26,7 @@ type Resolution = Result<Arc<DepthJob>, Vec<FieldError>>;
 pub struct Engine {
     output: DepthMapOutput,
     settings: Settings,
-    /// The calibration file and its unit, as the service reads them.
+    /// The calibration, parsed once as the service parses it (by the run's preflight).
     calibration: RigInput,
     limits: DecodeLimits,
     memory_budget: usize,
@@ -40,17 +39,15 @@ pub struct Engine {
 pub type Made = (Vec<u8>, Vec<String>);
 
 impl Engine {
-    /// The engine of a run writing `output` with the matcher's `settings`, the calibration file's
-    /// bytes and unit when there is one, under `config`'s image limits and memory budget.
+    /// The engine of a run writing `output` with the matcher's `settings` and the rig's
+    /// `calibration` (parsed by the run's preflight), under `config`'s image limits and memory
+    /// budget.
     pub fn new(
         config: &Config,
         output: DepthMapOutput,
         settings: Settings,
-        calibration: Option<(&[u8], Option<&str>)>,
+        calibration: RigInput,
     ) -> Engine {
-        let calibration = calibration.map_or_else(RigInput::default, |(bytes, unit)| {
-            RigInput::calibration(bytes, unit)
-        });
         // The matcher's buffer pools and glibc's thresholds as the service sets them, so that a
         // run in process goes as fast as the service it would otherwise call.
         stereo_core::vision::huge_pages::tune_for_budget(config.heavy.memory_budget);
@@ -160,7 +157,7 @@ impl Engine {
 
     fn planned(&self, size: (u32, u32)) -> Result<DepthJob, Vec<FieldError>> {
         let mut problems = FieldErrors::default();
-        let calibrated = rig::rig(&self.calibration, Some(size), true, &mut problems);
+        let calibrated = rig::at(&self.calibration, Some(size), true, &mut problems);
         let asked = job::Asked {
             rectify: None,
             alpha: None,
@@ -169,7 +166,7 @@ impl Engine {
         };
         let planned = job::plan(
             calibrated,
-            &self.calibration,
+            self.calibration.sent(),
             Some(size),
             asked,
             &mut problems,

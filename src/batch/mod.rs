@@ -148,7 +148,7 @@ pub async fn depth_maps<W: std::io::Write>(
         )),
         None => None,
     };
-    preflight::check(
+    let rig = preflight::check(
         &args,
         &output,
         calibration.as_ref(),
@@ -205,15 +205,11 @@ pub async fn depth_maps<W: std::io::Write>(
         None => {
             let output = serde_json::from_value::<DepthMapOutput>(output.as_str().into())
                 .map_err(|e| format!("--output {output}: {e}"))?;
-            let calibration = plan
-                .calibration
-                .as_ref()
-                .map(|(_, bytes)| (bytes.as_slice(), plan.calibration_unit.as_deref()));
             Transport::InProcess(Arc::new(Engine::new(
                 &config,
                 output,
                 preflight::settings(&args),
-                calibration,
+                rig,
             )))
         }
     };

@@ -9,19 +9,21 @@ use std::path::Path;
 use crate::api::error::FieldErrors;
 use crate::api::images::{job, rig};
 use crate::api::wire::depth_map::DepthMapOutput;
-use crate::api::wire::images::RigInput;
+use crate::api::wire::images::RigParts;
 use crate::config::DepthMapArgs;
+use stereo_core::pipeline::{RigInput, Sent};
 use stereo_core::vision::decode;
 use stereo_core::vision::{Preset, Settings};
 
 /// Checks the run's settings for frames like `first_left` (the first of the recording's left
-/// frames whose header reads; none when no frame's does). `Err` names every fault.
+/// frames whose header reads; none when no frame's does): the calibration as the run's engine
+/// takes it, parsed once (read for that size), or `Err` naming every fault.
 pub fn check<'a>(
     args: &DepthMapArgs,
     output: &str,
     calibration: Option<&(String, Vec<u8>)>,
     left_frames: impl IntoIterator<Item = &'a Path>,
-) -> Result<(), String> {
+) -> Result<RigInput, String> {
     let mut problems = FieldErrors::default();
     let depths = serde_json::from_value::<DepthMapOutput>(output.into())
         .is_ok_and(DepthMapOutput::needs_rig);
@@ -31,15 +33,17 @@ pub fn check<'a>(
             format!("{output} is depths: give the rig's --calibration, or write disparities"),
         );
     }
-    let (mut given, mut input, mut size) = (None, RigInput::default(), None);
+    let (mut given, mut input, mut size) = (None, Some(RigInput::Nothing), None);
+    let mut sent = Sent::Nothing;
     if let Some((_, bytes)) = calibration {
         size = left_frames.into_iter().find_map(|path| {
             let bytes = std::fs::read(path).ok()?;
             decode::dimensions(&bytes).ok()
         });
-        input = RigInput::calibration(bytes, args.calibration_unit.as_deref());
+        let parts = RigParts::calibration(bytes, args.calibration_unit.as_deref());
+        sent = parts.sent();
         let mut found = FieldErrors::default();
-        given = rig::rig(&input, size, true, &mut found);
+        (input, given) = rig::parsed(&parts, size, true, &mut found);
         for fault in found.iter() {
             let field = match fault.field.as_str() {
                 "calibration" | "right_calibration" => "--calibration".to_owned(),
@@ -56,15 +60,15 @@ pub fn check<'a>(
         settings: settings(args),
         prefix: "",
     };
-    job::plan(given, &input, size, asked, &mut range);
+    job::plan(given, sent, size, asked, &mut range);
     for fault in range.iter() {
         problems.add(
             &format!("--{}", fault.field.replace('_', "-")),
             fault.message.clone(),
         );
     }
-    if problems.is_empty() {
-        return Ok(());
+    if let Some(input) = input.filter(|_| problems.is_empty()) {
+        return Ok(input);
     }
     let said: Vec<String> = problems
         .iter()

@@ -720,7 +720,8 @@ pub(crate) fn raw_scene() -> RawScene {
 /// disparities (median within 0.5 px of the rectified pair's, more than half the pixels
 /// valid); `rectify=no` on the same raw frames matches far fewer and
 /// warns;
-/// `rectify=yes` with a Middlebury file names what is missing.
+/// `rectify=yes` with a Middlebury file names what is missing; the σ beside a raw
+/// calibration keeps it rectifying.
 #[tokio::test]
 async fn depth_map_rectifies_raw_frames() {
     use crate::depth_map::rig as scene_rig;
@@ -787,6 +788,24 @@ async fn depth_map_rectifies_raw_frames() {
     );
     let f_rig = from_raw["rig"]["focal_length_px"].as_f64().unwrap();
     assert!((f_rig - f).abs() < 1e-9);
+
+    // The calibration's σ beside its file is still a calibration of raw cameras: rectified
+    // when asked, the σ carried (it once counted as a rig's members, and was refused).
+    let mut with_std = calibration.clone();
+    with_std.push(("rig", r#"{"focal_length_std_px": 1.5}"#.to_owned()));
+    let with_std = ok_json(
+        send(
+            "?max_disparity=48&rectify=yes",
+            png(&raw_left),
+            png(&raw_right),
+            with_std,
+        )
+        .await,
+    )
+    .await;
+    assert_eq!(with_std["rectified"], true, "{with_std}");
+    assert_eq!(with_std["rig"]["focal_length_std_px"], 1.5, "{with_std}");
+    assert_eq!(with_std["valid_fraction"], from_raw["valid_fraction"]);
 
     let unrectified = ok_json(
         send(

@@ -301,6 +301,32 @@ impl Browser {
             .unwrap_or_else(|e| panic!("#{id} offers {value}: {e}"));
     }
 
+    /// Opens the folded section `#id` (a `<details>`) by clicking its summary, as a person
+    /// would, unless it is open.
+    pub async fn unfold(&self, id: &str) {
+        if self.attr(id, "open").await.is_none() {
+            self.client
+                .find(Locator::Css(&format!("#{id} > summary")))
+                .await
+                .unwrap_or_else(|e| panic!("#{id} has a summary: {e}"))
+                .click()
+                .await
+                .expect("click");
+        }
+    }
+
+    /// The top and bottom of `#id` in the viewport, and the viewport's height, in CSS pixels.
+    pub async fn place(&self, id: &str) -> (f64, f64, f64) {
+        let got = self
+            .script(&format!(
+                "const r = document.getElementById('{id}').getBoundingClientRect(); \
+                 return [r.top, r.bottom, window.innerHeight]"
+            ))
+            .await;
+        let at = |i: usize| got[i].as_f64().expect("a number");
+        (at(0), at(1), at(2))
+    }
+
     /// Clears a text field and types `text` into it, as a person would.
     pub async fn type_into(&self, id: &str, text: &str) {
         let field = self.find(id).await;

@@ -938,3 +938,81 @@ async fn a_sigma_threshold_is_sent_kept_and_refused_when_zero() {
     browser.assert_clean_but(&["422"]).await;
     browser.close().await;
 }
+
+/// At a laptop's 1280 × 900, the first screen of Images mode holds the pair's file inputs and
+/// the top of the views the depth map is drawn in, the matcher's options folded under their
+/// summary (a permalink that gives one opens them); Calibrate mode's holds the board inputs
+/// and its Calibrate button.
+#[tokio::test]
+#[ignore = "needs chromium and chromedriver; .ci/run runs it"]
+async fn a_laptops_first_screen_reaches_the_depth_map() {
+    // Arrange
+    let browser = Browser::start(1280, 900).await;
+
+    // Act
+    browser.open("/?mode=images").await;
+
+    // Assert
+    for id in ["left_image", "right_image"] {
+        let (_, bottom, height) = browser.place(id).await;
+        assert!(bottom < height, "#{id} ends at {bottom} of {height}");
+    }
+    let (top, _, height) = browser.place("views").await;
+    assert!(top < height - 150.0, "the views start at {top} of {height}");
+    assert_eq!(browser.attr("matcher-options", "open").await, None);
+    browser.open("/?mode=images&max_disparity=48").await;
+    assert!(browser.attr("matcher-options", "open").await.is_some());
+    assert_eq!(browser.value("max_disparity").await, "48");
+
+    browser.open("/?mode=calibrate").await;
+    for id in ["board_files", "board_columns", "calibrate-button"] {
+        let (_, bottom, height) = browser.place(id).await;
+        assert!(bottom < height, "#{id} ends at {bottom} of {height}");
+    }
+    browser.assert_clean().await;
+    browser.close().await;
+}
+
+/// The depth map's colour bar keeps every label inside it: with a rig whose scene lies 22 to
+/// 60 m away, the far end's five digits read whole at the bar's left end (they read "0000",
+/// cut, when centred on their tick).
+#[tokio::test]
+#[ignore = "needs chromium and chromedriver; .ci/run runs it"]
+async fn the_colour_bars_labels_are_never_cut() {
+    // Arrange: f·B = 480 000 px·mm, the scene's 8 to 22 px at 21.8 to 60 m.
+    let [left, right] = synthetic_pair();
+    let browser = Browser::start(1280, 1500).await;
+    browser
+        .open("/?mode=images&focal_mode=px&focal_length_px=400&baseline=1200&unit=mm&max_disparity=48")
+        .await;
+
+    // Act
+    browser.upload(&left, &right).await;
+    browser.depth_map_shown().await;
+
+    // Assert: each label's box within the bar's 320 units, one of them five digits long.
+    let labels = browser
+        .script(
+            "return [...document.querySelectorAll('#colour-bar text')].map(t => { \
+             const b = t.getBBox(); return [t.textContent, b.x, b.x + b.width]; })",
+        )
+        .await;
+    let labels = labels.as_array().expect("labels");
+    assert!(labels.len() >= 3, "{labels:?}");
+    for label in labels {
+        let (from, to) = (label[1].as_f64().unwrap(), label[2].as_f64().unwrap());
+        assert!(from >= -0.5 && to <= 320.5, "{label} leaves the bar");
+    }
+    assert!(
+        labels.iter().any(|l| l[0]
+            .as_str()
+            .unwrap()
+            .chars()
+            .filter(char::is_ascii_digit)
+            .count()
+            >= 5),
+        "{labels:?}"
+    );
+    browser.assert_clean().await;
+    browser.close().await;
+}

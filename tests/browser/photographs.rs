@@ -189,6 +189,7 @@ async fn a_real_board_pair_shows_its_squares_right_or_unsure() {
         .await;
 
     // Act: pair 01, raw, searched past its board; then the σ view.
+    browser.unfold("matcher-options").await;
     browser.type_into("max_disparity", SEARCH).await;
     let pair = [
         photographs().join("left01.jpg"),

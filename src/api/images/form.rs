@@ -17,7 +17,7 @@ use super::rig;
 use super::{limits, work};
 use crate::api::error::{ApiError, FieldError, FieldErrors};
 use crate::api::extract;
-use stereo_core::pipeline::Calibrated;
+use stereo_core::pipeline::{Calibrated, Sent};
 use stereo_core::vision::decode::{self, DecodeLimits};
 
 /// The media type the image routes read.
@@ -39,8 +39,8 @@ pub trait ImageForm {
 /// The pair of an image request, read and judged before anything is decoded.
 pub struct ImagePair<F> {
     pub parts: Parts,
-    /// The parts that describe the rig.
-    pub input: rig::RigInput,
+    /// What was sent to describe the rig (parsed into [`ImagePair::rig`]).
+    pub sent: Sent,
     /// The pair's size (the left image's), when its header could be read.
     pub size: Option<(u32, u32)>,
     /// The rig from the `rig` or `calibration` part, when one is given and valid.
@@ -132,11 +132,11 @@ impl<F: ImageForm> FromRequest<HeavyState> for ImagePair<F> {
         if let (Some(l), Some(r)) = (left, right) {
             limits::check_pair(l, r, image_limits, &mut problems)?;
         }
-        let input = parts.rig_input();
-        let rig = rig::rig(&input, left, F::TAKES_RIG, &mut problems);
+        let input = parts.rig_parts();
+        let (_, rig) = rig::parsed(&input, left, F::TAKES_RIG, &mut problems);
         Ok(ImagePair {
             parts,
-            input,
+            sent: input.sent(),
             size: left,
             rig,
             problems,

@@ -5,9 +5,9 @@
 use super::form::{ImageForm, ImagePair};
 use super::work::Need;
 use crate::api::error::FieldErrors;
-use crate::api::wire::images::{RectifyMode, RigInput};
+use crate::api::wire::images::RectifyMode;
 use stereo_core::camera::Alpha;
-use stereo_core::pipeline::{self, Calibrated, DepthJob, PlanFault, Rectify};
+use stereo_core::pipeline::{self, Calibrated, DepthJob, PlanFault, Rectify, Sent};
 use stereo_core::vision::Settings;
 
 impl From<RectifyMode> for pipeline::RectifyMode {
@@ -43,11 +43,11 @@ pub struct Asked<'a> {
     pub prefix: &'a str,
 }
 
-/// The depth job for frames of `size` with the rig `given` (read at that size from `input`),
-/// or `None` with each refusal in `problems`.
+/// The depth job for frames of `size` with the rig `given` (made at that size from what was
+/// `sent`), or `None` with each refusal in `problems`.
 pub fn plan(
     given: Option<Calibrated>,
-    input: &RigInput,
+    sent: Sent,
     size: Option<(u32, u32)>,
     asked: Asked<'_>,
     problems: &mut FieldErrors,
@@ -56,7 +56,7 @@ pub fn plan(
         mode: asked.rectify.unwrap_or_default().into(),
         alpha: problems.alpha(asked.alpha),
     };
-    match DepthJob::plan(given, input.sent(), size, rectify, asked.settings) {
+    match DepthJob::plan(given, sent, size, rectify, asked.settings) {
         Ok(job) => Some(job),
         Err(faults) => {
             if let Some(fault) = faults.plan {
@@ -79,7 +79,7 @@ pub fn plan_pair<F: ImageForm>(
     asked: Asked<'_>,
     problems: &mut FieldErrors,
 ) -> Option<DepthJob> {
-    plan(pair.rig.take(), &pair.input, pair.size, asked, problems)
+    plan(pair.rig.take(), pair.sent, pair.size, asked, problems)
 }
 
 /// The memory a job's work reserves, as the heavy group's work takes it.
@@ -98,7 +98,7 @@ pub fn raw_rig(
     alpha: Option<Alpha>,
     problems: &mut FieldErrors,
 ) -> Option<Calibrated> {
-    match pipeline::raw_rig(pair.rig.as_ref(), pair.input.sent(), pair.size, alpha) {
+    match pipeline::raw_rig(pair.rig.as_ref(), pair.sent, pair.size, alpha) {
         Ok(calibrated) => calibrated,
         Err(fault) => {
             problems.add(field(&fault), fault.to_string());

@@ -6,7 +6,7 @@ use std::collections::BTreeMap;
 use axum::body::Bytes;
 
 use crate::api::error::FieldErrors;
-use crate::api::wire::images::{RIG_PARTS, RigInput};
+use crate::api::wire::images::{RIG_PARTS, RigParts};
 
 /// The parts of a multipart form, by name.
 #[derive(Debug, Default)]
@@ -20,9 +20,9 @@ impl FromIterator<(String, Bytes)> for Parts {
 }
 
 impl Parts {
-    /// The parts that describe the rig ([`RigInput`]).
-    pub fn rig_input(&self) -> RigInput {
-        let mut input = RigInput::default();
+    /// The parts that describe the rig ([`RigParts`]).
+    pub fn rig_parts(&self) -> RigParts {
+        let mut input = RigParts::default();
         for name in RIG_PARTS {
             if let Some(bytes) = self.get(name) {
                 input.set(name, bytes.clone());

@@ -1,7 +1,8 @@
 //! The rig of an image request, from a `rig` part (the members of `/distance`) or from a
-//! `calibration` part with its options (read as `/calibration` reads a file), built through
-//! [`Rig::new`] like every rig: a rig `/distance` refuses is refused here with the same
-//! message, its members named `rig.cx`, `rig.baseline`…
+//! `calibration` part with its options (read as `/calibration` reads a file), parsed once at
+//! the request's edge into the engine's [`RigInput`] and made the rig of each frame size
+//! there: a rig `/distance` refuses is refused here with the same message, its members named
+//! `rig.cx`, `rig.baseline`…
 
 use axum::body::Bytes;
 use serde_json::{Map, Value};
@@ -13,50 +14,103 @@ use crate::api::wire::calibration::{Cameras, FormatChoice, add_read_faults};
 use crate::api::wire::de::request;
 use crate::api::wire::params::Unit;
 use crate::api::wire::rig::StereoRig;
-use stereo_core::calibration::files::{self, ReadOptions, Source};
+use stereo_core::calibration::files::ReadOptions;
 use stereo_core::physics::LengthUnit;
-use stereo_core::pipeline::{Calibrated, SizeFault};
+use stereo_core::pipeline::{
+    self, AtFault, Calibrated, CalibrationFile, RigInput, Sent, SizeFault,
+};
 
-pub use crate::api::wire::images::{RIG_PARTS, RigInput};
+pub use crate::api::wire::images::{RIG_PARTS, RigParts};
 
 /// The prefix of a rig member's name in the image routes' answers.
 const RIG: &str = "rig.";
 
-/// The rig from the `rig` member or the `calibration` members (not both) that a request sent
-/// (`parts`: a form's parts, a stream's settings), for images of `size`;
-/// `None` when neither is given or either is at fault (then `problems` says why).
-pub fn rig(
-    parts: &RigInput,
+/// What a request sent to describe its rig (`parts`: a form's parts, a stream's settings, the
+/// command's flags), parsed once: the `rig` member or the `calibration` members (not both),
+/// a file read for images of `size` when the request has one size. `None` when either is at
+/// fault (then `problems` says why); [`RigInput::Nothing`] when neither is given.
+pub fn input(
+    parts: &RigParts,
     size: Option<(u32, u32)>,
     takes_rig: bool,
     problems: &mut FieldErrors,
-) -> Option<Calibrated> {
+) -> Option<RigInput> {
     let has_calibration = parts.get("calibration").is_some();
     match (parts.get("rig"), has_calibration) {
         (Some(json), true) => {
             // Beside a calibration, a rig part may carry only the calibration's σ.
             let std = std_beside(json, problems);
-            let given = calibration_parts(parts, size, takes_rig, problems)?;
-            let (focal, baseline, unit) = std?;
-            let unit = unit.map_or(given.rig.unit(), LengthUnit::from);
-            let baseline = unit.convert(baseline, given.rig.unit());
-            match given.rig.with_calibration_std(focal, baseline) {
-                Ok(rig) => Some(Calibrated { rig, ..given }),
-                Err(faults) => {
-                    validate::faults(faults, RIG, problems);
-                    None
-                }
-            }
+            let input = calibration_parts(parts, std.flatten(), size, takes_rig, problems);
+            input.filter(|_| std.is_some())
         }
-        (Some(json), false) => rig_part(json, size, problems),
-        (None, true) => calibration_parts(parts, size, takes_rig, problems),
+        (Some(json), false) => rig_part(json, problems),
+        (None, true) => calibration_parts(parts, None, size, takes_rig, problems),
         (None, false) => {
+            let mut ok = true;
             for option in &RIG_PARTS[2..] {
                 if parts.get(option).is_some() {
                     problems.add(option, "applies only with a calibration part");
+                    ok = false;
                 }
             }
-            None
+            ok.then_some(RigInput::Nothing)
+        }
+    }
+}
+
+/// The rig `input` describes for images of `size` (unknown: `None`); `None` when nothing was
+/// sent, or when it is not the rig of these images (then `problems` says why, naming the
+/// calibration's parts and the rig's members `rig.…`).
+pub fn at(
+    input: &RigInput,
+    size: Option<(u32, u32)>,
+    takes_rig: bool,
+    problems: &mut FieldErrors,
+) -> Option<Calibrated> {
+    input
+        .at(size)
+        .map_err(|fault| at_fault(fault, takes_rig, problems))
+        .ok()
+        .flatten()
+}
+
+/// What a request sent, parsed ([`input`], to make the rig of other sizes) and made the rig
+/// of its images of `size` ([`at`]).
+pub fn parsed(
+    parts: &RigParts,
+    size: Option<(u32, u32)>,
+    takes_rig: bool,
+    problems: &mut FieldErrors,
+) -> (Option<RigInput>, Option<Calibrated>) {
+    let input = input(parts, size, takes_rig, problems);
+    let rig = input
+        .as_ref()
+        .and_then(|i| at(i, size, takes_rig, problems));
+    (input, rig)
+}
+
+/// Names the parts or members an [`AtFault`] is about.
+fn at_fault(fault: AtFault, takes_rig: bool, problems: &mut FieldErrors) {
+    match fault {
+        AtFault::Read(faults) => {
+            add_read_faults(faults, ["calibration", "right_calibration"], problems);
+        }
+        AtFault::Size(SizeFault::Mismatch { calibrated, images }) => {
+            problems.add("calibration", size_mismatch(calibrated, images, takes_rig));
+        }
+        AtFault::Size(SizeFault::Rig(faults)) | AtFault::Rig(faults) => {
+            validate::faults(faults, RIG, problems);
+        }
+        AtFault::Declared(declared) => {
+            for (member, declared, actual) in declared {
+                problems.add(
+                    &format!("{RIG}{member}"),
+                    format!(
+                        "is {declared}, but the images are {actual} px: give the rig of these \
+                         images (scale focal_length_px, cx, cy and doffs with them)"
+                    ),
+                );
+            }
         }
     }
 }
@@ -73,7 +127,8 @@ request! {
 
 /// A `rig` part beside a `calibration` part: `focal_length_std_px` and `baseline_std` (in
 /// `unit`, default the calibration's), each 0 when absent; any other member is named.
-fn std_beside(json: &Bytes, problems: &mut FieldErrors) -> Option<(f64, f64, Option<Unit>)> {
+/// `None` when at fault.
+fn std_beside(json: &Bytes, problems: &mut FieldErrors) -> Option<Option<pipeline::StdBeside>> {
     let Ok(Value::Object(map)) = serde_json::from_slice::<Value>(json) else {
         problems.add(
             "rig",
@@ -99,19 +154,17 @@ fn std_beside(json: &Bytes, problems: &mut FieldErrors) -> Option<(f64, f64, Opt
     for error in refused.prefixed(RIG) {
         problems.add_new(error.field, error.message);
     }
-    ok.then(|| {
-        (
-            given.focal_length_std_px.unwrap_or(0.0),
-            given.baseline_std.unwrap_or(0.0),
-            given.unit,
-        )
-    })
+    ok.then_some(Some(pipeline::StdBeside {
+        focal_px: given.focal_length_std_px.unwrap_or(0.0),
+        baseline: given.baseline_std.unwrap_or(0.0),
+        unit: given.unit.map(LengthUnit::from),
+    }))
 }
 
 /// Names `rig` as required, saying `why`, when the form has neither a `rig` nor a
 /// `calibration` part (a part that is there but at fault is named by [`rig`] itself).
-pub fn require_rig(parts: &RigInput, why: &str, problems: &mut FieldErrors) {
-    if !parts.has_rig() {
+pub fn require_rig(sent: Sent, why: &str, problems: &mut FieldErrors) {
+    if sent == Sent::Nothing {
         problems.add(
             "rig",
             format!(
@@ -122,12 +175,9 @@ pub fn require_rig(parts: &RigInput, why: &str, problems: &mut FieldErrors) {
     }
 }
 
-/// The `rig` part: a JSON object with the members of `/distance`.
-fn rig_part(
-    json: &Bytes,
-    size: Option<(u32, u32)>,
-    problems: &mut FieldErrors,
-) -> Option<Calibrated> {
+/// The `rig` part: a JSON object with the members of `/distance`, checked at the size it
+/// declares (the images' is checked by [`at`]).
+fn rig_part(json: &Bytes, problems: &mut FieldErrors) -> Option<RigInput> {
     let map = match serde_json::from_slice::<Value>(json) {
         Ok(Value::Object(map)) => map,
         Ok(other) => {
@@ -145,51 +195,38 @@ fn rig_part(
             return None;
         }
     };
-    let (mut given, refused) = decode_object::<StereoRig>(map);
+    let (given, refused) = decode_object::<StereoRig>(map);
     let mut local = FieldErrors::from(refused.prefixed(""));
-    if let Some((w, h)) = size {
-        for (field, declared, actual) in [
-            ("image_width", &mut given.image_width, w),
-            ("image_height", &mut given.image_height, h),
-        ] {
-            match *declared {
-                None => *declared = Some(actual),
-                Some(d) if d != actual => local.add(
-                    field,
-                    format!(
-                        "is {d}, but the images are {actual} px: give the rig of these images \
-                         (scale focal_length_px, cx, cy and doffs with them)"
-                    ),
-                ),
-                Some(_) => {}
-            }
-        }
-    }
-    let rig = validate::rig(given.rig_spec(), &mut local);
+    let spec = validate::marked_rig(given.rig_spec(), &local);
+    let input = RigInput::members(spec)
+        .map_err(|faults| validate::faults(faults, "", &mut local))
+        .ok();
     let ok = local.is_empty();
     for error in local.prefixed(RIG) {
         problems.add_new(error.field, error.message);
     }
-    rig.filter(|_| ok).map(Calibrated::of_rig)
+    input.filter(|_| ok)
 }
 
 request! {
     /// The options of a `calibration` part, each its own part.
-    pub struct CalibrationParts {
+    pub struct CalibrationOptions {
         calibration_format: FormatChoice,
         calibration_unit: Unit,
         calibration_cameras: Cameras,
     }
 }
 
-/// The calibration parts, read as `/calibration` reads a file; their errors name the parts,
-/// and the rig's members `rig.…`.
+/// The calibration parts, read as `/calibration` reads a file (for images of `size`, when
+/// known), with the σ sent beside them; their errors name the parts, and the rig's members
+/// `rig.…`.
 fn calibration_parts(
-    parts: &RigInput,
+    parts: &RigParts,
+    std: Option<pipeline::StdBeside>,
     size: Option<(u32, u32)>,
     takes_rig: bool,
     problems: &mut FieldErrors,
-) -> Option<Calibrated> {
+) -> Option<RigInput> {
     let mut local = FieldErrors::default();
     let mut map = Map::new();
     for part in [
@@ -201,7 +238,7 @@ fn calibration_parts(
             map.insert(part.to_owned(), Value::String(text.trim().to_owned()));
         }
     }
-    let (options, refused) = decode_object::<CalibrationParts>(map);
+    let (options, refused) = decode_object::<CalibrationOptions>(map);
     local.extend(refused);
     let text = parts.text("calibration", &mut local);
     let right_text = parts.text("right_calibration", &mut local);
@@ -209,39 +246,20 @@ fn calibration_parts(
         problems.extend(local);
         return None;
     }
-    let source = Source {
-        text: text.as_deref().unwrap_or_default(),
-        right_text: right_text.as_deref(),
+    let file = CalibrationFile {
+        text: text.unwrap_or_default(),
+        right_text,
         format: options.calibration_format.unwrap_or_default().format(),
         kitti_pair: options.calibration_cameras.map(Into::into),
-        alpha: None,
-        image_size: size,
-    };
-    let read = files::read(
-        source,
-        ReadOptions {
+        options: ReadOptions {
             calibration_unit: options.calibration_unit.map(LengthUnit::from),
             unit: None,
         },
-    );
-    let read = match read {
-        Ok(read) => read,
-        Err(faults) => {
-            add_read_faults(faults, ["calibration", "right_calibration"], problems);
-            return None;
-        }
+        std,
     };
-    match Calibrated::from_file(read, size) {
-        Ok(calibrated) => Some(calibrated),
-        Err(SizeFault::Mismatch { calibrated, images }) => {
-            problems.add("calibration", size_mismatch(calibrated, images, takes_rig));
-            None
-        }
-        Err(SizeFault::Rig(faults)) => {
-            validate::faults(faults, RIG, problems);
-            None
-        }
-    }
+    RigInput::file(file, size)
+        .map_err(|fault| at_fault(fault, takes_rig, problems))
+        .ok()
 }
 
 /// Why images of `(w, h)` do not fit a calibration of `(cw, ch)`, with the scale when it is a

@@ -1,11 +1,10 @@
 //! What the depth streams (`/depth-stream`) share and are held to, and a stream's work between
-//! the socket and the engine: its settings resolved once ([`Resolved`]), then each frame
-//! ([`Engine::frame`]) read in its layout, the rig resolved and the rectification maps built
-//! once for each frame size, the memory reserved before anything is decoded, the engine's
-//! [`pipeline::matched`], the stream's temporal filter in the frames' order, then
-//! [`Matched::depth_map`], and the answer with the files asked for. Two frames may be matched
-//! side by side; only the filter takes them one at a time. The socket, the queue and the drops
-//! are the route's.
+//! the socket and the engine: its settings resolved once ([`Resolved`], the rig parsed once),
+//! then each frame ([`Engine::frame`]) read in its layout, the depth job planned once a frame
+//! size, the memory reserved before anything is decoded, [`pipeline::matched`], the temporal
+//! filter in the frames' order, [`Matched::depth_map`], and the files asked for. Two frames
+//! may be matched side by side; only the filter takes them one at a time. The socket, the
+//! queue and the drops are the route's.
 
 use std::collections::{BTreeSet, VecDeque};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -25,10 +24,12 @@ use crate::api::wire::depth_stream::{
     FileAnswer, FrameTimes, Layout, SettingsAnswer, StreamLimitsAnswer, StreamSettings,
     TemporalCounts,
 };
-use crate::api::wire::images::{RectifyMode, RigInput};
+use crate::api::wire::images::RectifyMode;
 use crate::api::wire::rig::CalibratedRig;
 use crate::budget::{MemoryBudget, Refusal, Reservation, Slots};
-use stereo_core::pipeline::{self, Answer, Chosen, DepthJob, Maps, Matched, RangeUsed, Request};
+use stereo_core::pipeline::{
+    self, Answer, Chosen, DepthJob, Maps, Matched, RangeUsed, Request, RigInput, Sent,
+};
 use stereo_core::vision::decode::{self, DecodeLimits, Decoded};
 use stereo_core::vision::temporal::{self, Temporal};
 use stereo_core::vision::{Params, Preset, Settings};
@@ -75,7 +76,7 @@ pub struct Resolved {
     pub params: Params,
     /// The files each answer carries, in order.
     pub outputs: Vec<DepthMapOutput>,
-    /// The members that describe the rig, read into it at each frame size.
+    /// The rig as the settings sent it, parsed once, made the rig of each frame size.
     pub input: RigInput,
     pub rectify: (Option<RectifyMode>, Option<f64>),
     pub temporal: Option<temporal::Settings>,
@@ -86,8 +87,8 @@ pub struct Resolved {
 }
 
 impl Resolved {
-    /// The settings message's members judged together: the rig (read without a size; it is
-    /// read again at the frames'), the matcher's settings (the `fast` preset unless another is
+    /// The settings message's members judged together: the rig (parsed once, without a
+    /// size), the matcher's settings (the `fast` preset unless another is
     /// given), and the files (each depth file needs a rig). The settings as resolved, or every
     /// member at fault.
     pub fn of(
@@ -95,19 +96,19 @@ impl Resolved {
         streams: &Streams,
     ) -> Result<(Resolved, SettingsAnswer), FieldErrors> {
         let mut problems = FieldErrors::default();
-        let input = settings.rig;
+        let sent = settings.rig.sent();
         let rectify = (settings.options.rectify, settings.options.alpha);
         let mut asked = settings.options.settings();
         asked.preset = asked.preset.or(Some(Preset::Fast));
-        let calibrated = rig::rig(&input, None, true, &mut problems);
+        let (input, calibrated) = rig::parsed(&settings.rig, None, true, &mut problems);
         let planned = job::plan(
             calibrated,
-            &input,
+            sent,
             None,
             asked_of(asked, rectify),
             &mut problems,
         );
-        let has_rig = input.has_rig();
+        let has_rig = sent != Sent::Nothing;
         let outputs = settings.outputs.unwrap_or_else(|| {
             if has_rig {
                 vec![DepthMapOutput::DepthNpy, DepthMapOutput::DepthStdNpy]
@@ -130,7 +131,7 @@ impl Resolved {
                 );
             }
         }
-        let Some(planned) = planned.filter(|_| problems.is_empty()) else {
+        let (Some(planned), Some(input), true) = (planned, input, problems.is_empty()) else {
             return Err(problems);
         };
         let params = *planned.params();
@@ -440,16 +441,16 @@ impl Engine {
         }
     }
 
-    /// The job at `size` (a calibration is read for the frames' size) and, when the frames
+    /// The job at `size` (the rig made for the frames' size) and, when the frames
     /// are raw, the maps, their memory and the filter's reserved for the stream's life.
     fn resolve(&self, size: (u32, u32)) -> Result<AtSize, ApiError> {
         let resolved = &*self.resolved;
         let mut problems = FieldErrors::default();
-        let calibrated = rig::rig(&resolved.input, Some(size), true, &mut problems);
+        let calibrated = rig::at(&resolved.input, Some(size), true, &mut problems);
         let asked = asked_of(resolved.settings, resolved.rectify);
         let planned = job::plan(
             calibrated,
-            &resolved.input,
+            resolved.input.sent(),
             Some(size),
             asked,
             &mut problems,

@@ -9,7 +9,7 @@ use serde_json::{Map, Value};
 
 use super::de::request;
 use super::depth_map::{DepthMapOutput, DepthMapQuery, DepthMapSummary, MatcherParameters};
-use super::images::{RIG_PARTS, RigInput};
+use super::images::{RIG_PARTS, RigParts};
 use super::rig::CalibratedRig;
 use crate::api::error::{FieldErrors, Problem};
 use crate::api::extract::decode_object;
@@ -51,7 +51,7 @@ pub struct StreamSettings {
     pub outputs: Option<Vec<DepthMapOutput>>,
     /// The members that describe the rig: `rig` as its JSON text, the calibration's as their
     /// text.
-    pub rig: RigInput,
+    pub rig: RigParts,
     /// The temporal filter, or `None` when it is turned off.
     pub temporal: Option<temporal::Settings>,
 }

@@ -1,5 +1,5 @@
 //! The wire types the image routes share: their multipart form's documentation
-//! ([`image_form!`]), what a request sent to describe its rig ([`RigInput`]), whether a pair is rectified before matching ([`RectifyMode`]) and how
+//! ([`image_form!`]), what a request sent to describe its rig ([`RigParts`]), whether a pair is rectified before matching ([`RectifyMode`]) and how
 //! long a match's stages took ([`StageTimes`]).
 
 use serde::{Deserialize, Serialize};
@@ -23,14 +23,14 @@ pub const RIG_PARTS: [&str; 6] = [
 
 /// What a request sent to describe its rig: each of [`RIG_PARTS`] as it came, taken once at
 /// the request's edge (a form's parts, a stream's settings members, the command's flags) and
-/// read into the rig at each frame size.
+/// parsed once into the engine's `RigInput` (`api::images::rig::input`).
 #[derive(Debug, Clone, Default)]
-pub struct RigInput([Option<Bytes>; RIG_PARTS.len()]);
+pub struct RigParts([Option<Bytes>; RIG_PARTS.len()]);
 
-impl RigInput {
+impl RigParts {
     /// A calibration file and its unit, as the `depth-map` command's flags give them.
-    pub fn calibration(bytes: &[u8], unit: Option<&str>) -> RigInput {
-        let mut input = RigInput::default();
+    pub fn calibration(bytes: &[u8], unit: Option<&str>) -> RigParts {
+        let mut input = RigParts::default();
         input.set("calibration", Bytes::copy_from_slice(bytes));
         if let Some(unit) = unit {
             input.set("calibration_unit", Bytes::from(unit.to_owned()));
@@ -61,18 +61,13 @@ impl RigInput {
         utf8(name, self.get(name)?, problems)
     }
 
-    /// Whether a rig was sent: its members, or a calibration file.
-    pub fn has_rig(&self) -> bool {
-        self.get("rig").is_some() || self.get("calibration").is_some()
-    }
-
-    /// What was sent to describe the rig: a `rig` wins, as it describes rectified images
-    /// whatever came with it.
+    /// What was sent to describe the rig: a calibration file (a `rig` beside it carries
+    /// only its σ), a rig's members, or nothing.
     pub fn sent(&self) -> Sent {
-        if self.get("rig").is_some() {
-            Sent::Rig
-        } else if self.get("calibration").is_some() {
+        if self.get("calibration").is_some() {
             Sent::Calibration
+        } else if self.get("rig").is_some() {
+            Sent::Rig
         } else {
             Sent::Nothing
         }

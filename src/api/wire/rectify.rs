@@ -119,10 +119,10 @@ pub struct ValidShare {
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, ToSchema)]
 pub struct RectifyTimes {
     pub decode: f64,
-    /// Building the maps; 0 when they came from the cache.
+    /// Building the maps; 0 when they came from the cache. No frame is remapped for a
+    /// summary: `/depth-map`'s `timings_ms.rectify` times the remapping its matching needs,
+    /// and the image outputs' `Server-Timing` times theirs.
     pub maps: f64,
-    /// Remapping both images.
-    pub remap: f64,
 }
 
 /// What `/rectify` answers as `summary`.

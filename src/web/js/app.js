@@ -6,8 +6,8 @@
 import { openCalibrationSample, readCalibrateQuery, rememberCalibrate, wireCalibrate } from './calibrate.js';
 import { fetchPair, loadPair, openSample, requestDepth, scheduleDepth, wireImages } from './images.js';
 import { wirePointing } from './findings.js';
-import { enterLive, leaveLive, useLiveCalibration, wireLive } from './live.js';
-import { compute, copyResults, copyText, reset, schedule } from './numbers.js';
+import { enterLive, leaveLive, nameInUse, useLiveCalibration, wireLive } from './live.js';
+import { compute, copyResults, copyText, permalink, reset, schedule } from './numbers.js';
 import {
   FOCAL_MODES, RIG_INPUTS, forgetUnknown, forgetUnknownScale, importCalibration, readForm, showFocalMode, showUnit,
   stateFromQuery, writeForm,
@@ -55,7 +55,8 @@ function enter(name) {
     return;
   }
   if (name === 'live') {
-    history.replaceState(null, '', '/?mode=live');
+    // The address keeps the rig under Inputs, so that Back and a reload stream with it.
+    history.replaceState(null, '', permalink(readForm()));
     document.body.dataset.state = 'done';
     return;
   }
@@ -179,12 +180,14 @@ $('permalink').addEventListener('click', async (event) => {
 window.addEventListener('popstate', () => {
   setMode(modeFromQuery(location.search));
   writeForm(stateFromQuery(location.search));
+  if (page.mode === 'live') nameInUse();
   if (page.mode === 'calibrate') readCalibrateQuery(location.search);
   else if (page.mode !== 'live') compute();
 });
 
 setMode(modeFromQuery(location.search));
 writeForm(stateFromQuery(location.search));
+if (page.mode === 'live') nameInUse();
 const sample = new URLSearchParams(location.search).get('sample') === '1';
 if (page.mode === 'calibrate') {
   readCalibrateQuery(location.search);

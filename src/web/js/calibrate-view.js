@@ -438,7 +438,14 @@ export function showCalibration(calibration) {
   $('use-calibration').disabled = !stereo;
   $('calibration-results').querySelector("button[data-output='ros-right.yaml']").disabled = !stereo;
   $('calibration-download-status').textContent = stereo ? '' : 'Only the left camera was calibrated: a rig needs right images too.';
-  $('calibration-results').hidden = false;
+  const results = $('calibration-results');
+  const fresh = results.hidden;
+  results.hidden = false;
+  // A first answer below the fold is brought up (the form fills a laptop's first screen); a
+  // view left out and calibrated again stays where the person clicked.
+  if (fresh && results.getBoundingClientRect().top > window.innerHeight * 0.6) {
+    results.scrollIntoView({ block: 'start' });
+  }
   return drawThumbs(calibration);
 }
 

@@ -205,6 +205,10 @@ export function colourRange(values) {
 /** The colour bar's strip, from x = BAR_LEFT to BAR_RIGHT of its 320 units. */
 const BAR_LEFT = 10;
 const BAR_RIGHT = 310;
+/** The colour bars' viewBox width: a label is kept inside it. */
+const BAR_WIDTH = 320;
+/** Half a 10 px label's width per character, near enough for digits. */
+const HALF_CHAR = 3.1;
 
 /** Turbo across the colour bar (its gradient named `id`) with `ticks`, [x, label] pairs, each
  * label given 34 units of its own. */
@@ -222,7 +226,11 @@ function turboStrip(bar, id, ticks) {
     if (x < BAR_LEFT - 0.5 || x > BAR_RIGHT + 0.5 || x - last < 34) continue;
     last = x;
     bar.append(svg('line', { class: 'tick', x1: x, x2: x, y1: 14, y2: 18 }));
-    bar.append(svg('text', { x, y: 28, 'text-anchor': 'middle' }, label));
+    // A label at an end is set against the edge instead of centred on its tick and cut
+    // ("10000" at the left end read "0000").
+    const half = label.length * HALF_CHAR;
+    const [at, anchor] = x - half < 0 ? [0, 'start'] : x + half > BAR_WIDTH ? [BAR_WIDTH, 'end'] : [x, 'middle'];
+    bar.append(svg('text', { x: at, y: 28, 'text-anchor': anchor }, label));
   }
 }
 

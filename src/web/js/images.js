@@ -300,6 +300,8 @@ const SIGMA_SCALE_PX = 2;
 export function drawDepth() {
   const a = pair.arrays;
   if (!a) return;
+  // The view's tools (blend, σ) once there is a map to use them on.
+  $('view-tools').hidden = false;
   const sigma = $('show-sigma').checked;
   const depthImage = new ImageData(a.width, a.height);
   const blendImage = new ImageData(a.width, a.height);

@@ -67,17 +67,18 @@ function settings() {
   const max = $('live-max-disparity').value.trim();
   if (max !== '') message.options = { max_disparity: Number.isFinite(Number(max)) ? Number(max) : max };
   const choice = $('live-calibration').value;
+  const used = nameInUse();
   if (choice === 'file') {
     if (live.fileText === null) return { reason: 'Choose the calibration file first.' };
     message.calibration = live.fileText;
     if ($('live-calibration-unit').value !== '') message.calibration_unit = $('live-calibration-unit').value;
   } else if (choice === 'in-use') {
-    if (page.calibration) {
+    if (used === 'calibration') {
       const { request } = page.calibration;
       message.calibration = request.text;
       if (request.right_text) message.right_calibration = request.right_text;
       if (request.calibration_unit) message.calibration_unit = request.calibration_unit;
-    } else if (rigGiven()) {
+    } else if (used === 'rig') {
       message.rig = JSON.parse(rigPart(readForm()));
     } else {
       return { reason: 'No calibration in use: calibrate in Calibrate mode, import one under Inputs, or choose a file.' };
@@ -496,13 +497,25 @@ export function useLiveCalibration() {
   start();
 }
 
+/** What the menu's "in use" stands for now, named in the menu: Calibrate mode's (or an
+ * imported) calibration, the rig under Inputs, or nothing. Start sends what this says, so the
+ * menu and the stream cannot disagree; the page calls it again whenever the form is
+ * rewritten (the address read back, a calibration imported). */
+export function nameInUse() {
+  const used = page.calibration ? 'calibration' : rigGiven() ? 'rig' : null;
+  const option = $('live-calibration').querySelector('option[value="in-use"]');
+  option.textContent = {
+    calibration: 'The one in use (Calibrate mode\'s, or imported)',
+    rig: 'The rig under Inputs (rectified cameras)',
+    null: 'The one in use (none yet)',
+  }[used];
+  return used;
+}
+
 /** Entering Live mode: the secure-context note, and the calibration in use named. */
 export function enterLive() {
   $('live-secure').hidden = cameraAllowed();
-  const option = $('live-calibration').querySelector('option[value="in-use"]');
-  option.textContent = page.calibration
-    ? 'The one in use (Calibrate mode\'s, or imported)'
-    : rigGiven() ? 'The rig under Inputs (rectified cameras)' : 'The one in use (none yet)';
+  nameInUse();
 }
 
 /** Leaving Live mode stops the stream and the camera. */

@@ -47,6 +47,10 @@ const RIG_FIELDS = [
 ];
 export const OPTIONAL_FIELDS = ['y', 'disparity_error_px', 'doffs', 'cx', 'cy', 'focal_length_std_px', 'baseline_std'];
 
+/** Images mode's matcher options, folded away under their summary until one is given, so
+ * that the first screen holds the pair and its depth map. */
+const MATCHER_FIELDS = ['min_disparity', 'max_disparity', 'max_disparity_std', 'preset'];
+
 /** The original calculator's first example, with its focal length read as pixels. */
 export const DEFAULTS = Object.freeze({
   focal_mode: 'px',
@@ -136,6 +140,7 @@ export function writeForm(state) {
   showUnit(UNITS.includes(state.unit) ? state.unit : '?');
   // Optional values given in a permalink should be visible.
   if (OPTIONAL_FIELDS.some((name) => state[name] !== '')) $('optional').open = true;
+  if (MATCHER_FIELDS.some((name) => state[name] !== DEFAULTS[name])) $('matcher-options').open = true;
 }
 
 /** The state a query string describes; the defaults when it describes none. */
@@ -256,6 +261,7 @@ export function showErrors(errors, state) {
     slot.textContent = messages.join(' ');
     slot.hidden = false;
     if (OPTIONAL_FIELDS.includes(input)) $('optional').open = true;
+    if (MATCHER_FIELDS.includes(input)) $('matcher-options').open = true;
   }
   if (general.length > 0) {
     $('form-errors-list').replaceChildren(

@@ -15,6 +15,7 @@
 use std::fmt;
 
 mod camera;
+pub mod design;
 mod plausible;
 mod rig;
 

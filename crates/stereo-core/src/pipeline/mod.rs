@@ -41,6 +41,7 @@ pub mod job;
 pub mod matches;
 pub mod range;
 pub mod rectify;
+pub mod rig_input;
 pub mod spread;
 
 pub use crate::vision::sgm::Paths;
@@ -49,4 +50,5 @@ pub use depth::{DepthMap, Matched, Product, Request, depth_map, matched};
 pub use job::{Answer, DepthJob, JobFaults, Need, Rectify};
 pub use range::{Chosen, RangeUsed, Stopped};
 pub use rectify::Maps;
+pub use rig_input::{AtFault, CalibrationFile, RigInput, StdBeside};
 pub use spread::{Spread, Spreads, spread};

@@ -169,14 +169,6 @@ impl Maps {
         rayon::join(|| grey(right, &self.left), || grey(left, &self.right))
     }
 
-    /// Both frames' grey levels read through the maps with `how`; the time it took.
-    pub fn remap_grey(&self, left: &Decoded, right: &Decoded, how: Interpolation) -> Duration {
-        let started = Instant::now();
-        let grey = |d: &Decoded, map| remap::remap_fixed(RawImage::grey(&d.grey), map, how);
-        let _ = rayon::join(|| grey(left, &self.left), || grey(right, &self.right));
-        started.elapsed()
-    }
-
     /// The share of each rectified image that raw frames of `(width, height)` fill, to 4
     /// decimals, left and right.
     pub fn valid_shares(&self, (width, height): (usize, usize)) -> [f64; 2] {

@@ -105,7 +105,7 @@ pub async fn post_depth_map(
     });
     if output.needs_rig() {
         let why = format!("for output={}", output.name());
-        rig::require_rig(&pair.input, &why, &mut problems);
+        rig::require_rig(pair.sent, &why, &mut problems);
     }
     let (Some(size), Some(planned)) = (pair.size, planned) else {
         return Err(problems.into_error());

@@ -108,7 +108,7 @@ pub async fn post_match(
     };
     let planned = job::plan_pair(&mut pair, asked, &mut problems);
     let parts = &pair.parts;
-    rig::require_rig(&pair.input, "for the distances", &mut problems);
+    rig::require_rig(pair.sent, "for the distances", &mut problems);
     let points = list::<MatchPoint>(parts, "points", MAX_POINTS, &mut problems);
     let regions = list::<MatchRegion>(parts, "regions", MAX_REGIONS, &mut problems);
     let points = points.map(|ps| check_points(ps, &mut problems));

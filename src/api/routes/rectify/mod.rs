@@ -136,8 +136,7 @@ fn compute(
     let mut warnings = given.warnings.clone();
     warnings.extend(depth::decode_notes(&left, &right));
     let mut response = if output == RectifyOutput::Summary {
-        let remap_time = maps.remap_grey(&left, &right, how);
-        let times = [decode_time, maps_time, remap_time];
+        let times = [decode_time, maps_time];
         let summary = summary(given, raw, &maps, how, cached, times, warnings.clone());
         Json(summary).into_response()
     } else {
@@ -157,15 +156,15 @@ fn compute(
 }
 
 /// The summary of a rectification: the rectified size, the raw cameras and the rectified rig,
-/// the share of each rectified image the raw one covers, and the stages' times (decode, maps,
-/// remap).
+/// the share of each rectified image the raw one covers, and the stages' times (decode,
+/// maps): nothing is remapped only to be timed.
 fn summary(
     given: &Calibrated,
     raw: &Raw,
     maps: &Maps,
     how: Interpolation,
     cached: bool,
-    [decode, built, remap]: [std::time::Duration; 3],
+    [decode, built]: [std::time::Duration; 2],
     warnings: Vec<String>,
 ) -> RectifySummary {
     let ms = |d: std::time::Duration| (d.as_secs_f64() * 1e4).round() / 10.0;
@@ -189,7 +188,6 @@ fn summary(
         timings_ms: RectifyTimes {
             decode: ms(decode),
             maps: ms(built),
-            remap: ms(remap),
         },
         warnings,
     }

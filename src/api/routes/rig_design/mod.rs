@@ -20,7 +20,8 @@ use crate::api::state::AppState;
 use crate::api::validate;
 use crate::api::wire::openapi::{BodyErrors, QueryErrors};
 use stereo_core::numbers::{percent, short};
-use stereo_core::physics::{self, Rig, finite};
+use stereo_core::physics::design::{self, DepthBudget, DesignFault, ErrorAt, Reach};
+use stereo_core::physics::{self, Rig};
 
 /// `GET` and `POST /rig` and `/baseline`.
 pub fn router() -> OpenApiRouter<AppState> {
@@ -106,10 +107,11 @@ fn rig(
     let (min_distance, max_distance) = rig
         .depth_range(min_disparity, max_disparity)
         .map_err(blame(&["min_disparity_px", "max_disparity_px"]))?;
+    let range = (min_distance, max_distance);
     let error_budget = max_relative_error
         .map(|r| {
-            rig.distance_at_relative_error(r)
-                .map(|z| error_budget(&rig, r, z, (min_distance, max_distance)))
+            rig.budget_reach(r, range)
+                .map(|reach| error_budget(&rig, r, reach, range))
                 .ok_or(physics::PhysicsError::NotFinite)
                 .map_err(blame(&["max_relative_error", "disparity_error_px"]))
         })
@@ -130,7 +132,7 @@ fn rig(
         max_distance,
         at_distances: distances
             .into_iter()
-            .map(|z| depth_error_at(&rig, z, (min_distance, max_distance)))
+            .map(|z| rig.error_at(z, range).map(depth_error_at))
             .collect::<Result<_, _>>()
             .map_err(blame(&["at_distances"]))?,
         error_budget,
@@ -237,47 +239,48 @@ fn blame(fields: &'static [&'static str]) -> impl Fn(physics::PhysicsError) -> A
     move |error| ApiError::from((error, fields))
 }
 
-fn depth_error_at(
-    rig: &Rig,
-    distance: f64,
-    (near, far): (f64, f64),
-) -> Result<DepthErrorAt, physics::PhysicsError> {
-    let relative_error = finite(rig.relative_error_at(distance))?;
-    Ok(DepthErrorAt {
-        distance,
-        disparity_px: finite(rig.disparity_at(distance))?,
-        depth_error: finite(rig.depth_error_at(distance))?,
-        relative_error,
-        relative_error_pct: finite(relative_error * 100.0)?,
-        in_range: (near..=far).contains(&distance),
-    })
+/// The engine's depth error at a distance, as `/rig` answers it.
+fn depth_error_at(at: ErrorAt) -> DepthErrorAt {
+    DepthErrorAt {
+        distance: at.distance,
+        disparity_px: at.disparity_px,
+        depth_error: at.depth_error,
+        relative_error: at.relative_error,
+        relative_error_pct: at.relative_error * 100.0,
+        in_range: at.in_range,
+    }
 }
 
 /// Where the budget is passed, said in words against the range the search can see.
-fn error_budget(rig: &Rig, budget: f64, at: f64, (near, far): (f64, f64)) -> ErrorBudget {
+fn error_budget(
+    rig: &Rig,
+    budget: f64,
+    (at, reach): (f64, Reach),
+    (near, far): (f64, f64),
+) -> ErrorBudget {
     let unit = rig.unit().symbol();
     let (r, z) = (percent(budget), |v: f64| format!("{} {unit}", short(v)));
-    let summary = if at >= far {
-        format!(
+    let summary = match reach {
+        Reach::Whole => format!(
             "the relative depth error stays below {r} across the whole range the search sees, \
              {} to {} (it would reach {r} at {})",
             z(near),
             z(far),
             z(at)
-        )
-    } else if at > near {
-        format!(
+        ),
+        Reach::UpTo => format!(
             "the relative depth error is below {r} from {} up to {}",
             z(near),
             z(at)
-        )
-    } else {
-        format!(
+        ),
+        Reach::Nowhere {
+            relative_error_at_near,
+        } => format!(
             "the relative depth error exceeds {r} everywhere the search sees: it is already {} \
              at the nearest distance, {}",
-            percent(rig.relative_error_at(near)),
+            percent(relative_error_at_near),
             z(near)
-        )
+        ),
     };
     ErrorBudget {
         max_relative_error: budget,
@@ -286,13 +289,9 @@ fn error_budget(rig: &Rig, budget: f64, at: f64, (near, far): (f64, f64)) -> Err
     }
 }
 
-/// `/baseline`'s depth-error budget at `target`: `max_depth_error`, or `max_relative_error`
-/// of the target distance; one of them, not both.
-fn depth_budget(
-    request: &BaselineRequest,
-    target: Option<f64>,
-    problems: &mut FieldErrors,
-) -> Option<f64> {
+/// `/baseline`'s depth-error budget: `max_depth_error`, or `max_relative_error` of the target
+/// distance; one of them, not both.
+fn depth_budget(request: &BaselineRequest, problems: &mut FieldErrors) -> Option<DepthBudget> {
     match (request.max_depth_error, request.max_relative_error) {
         (Some(_), Some(_)) => {
             for field in ["max_depth_error", "max_relative_error"] {
@@ -303,10 +302,10 @@ fn depth_budget(
             }
             None
         }
-        (Some(dz), None) => problems.positive("max_depth_error", dz),
-        (None, Some(r)) => {
-            budget("max_relative_error", r, problems).and_then(|r| target.map(|z| r * z))
-        }
+        (Some(dz), None) => problems
+            .positive("max_depth_error", dz)
+            .map(DepthBudget::Error),
+        (None, Some(r)) => budget("max_relative_error", r, problems).map(DepthBudget::Relative),
         (None, None) => {
             problems.add(
                 "max_depth_error",
@@ -345,7 +344,7 @@ fn baseline(
     let target = problems
         .required("target_distance", request.target_distance)
         .and_then(|z| problems.positive("target_distance", z));
-    let max_depth_error = depth_budget(request, target, &mut problems);
+    let budget = depth_budget(request, &mut problems);
     let max_disparity = request
         .max_disparity_px
         .map(|d| problems.positive("max_disparity_px", d));
@@ -357,40 +356,39 @@ fn baseline(
             "must be greater than 0: with no disparity error any baseline meets the budget",
         );
     }
-    let (camera, (target, max_depth_error)) =
-        problems.finish(camera.zip(target.zip(max_depth_error)))?;
+    let (camera, (target, budget)) = problems.finish(camera.zip(target.zip(budget)))?;
     let max_disparity = max_disparity.flatten();
-    let baseline = physics::baseline_for(
-        camera.focal_px(),
-        target,
-        max_depth_error,
-        camera.disparity_error_px(),
-    )
-    .map_err(blame(&["target_distance", "max_depth_error"]))?;
-    let rig = Rig::from_camera(camera, baseline).map_err(|faults| {
-        let mut fields = FieldErrors::default();
-        validate::faults(faults, "", &mut fields);
-        fields.into_error()
-    })?;
-    let min_distance = max_disparity
-        .map(|d| rig.distance_at(d))
-        .transpose()
-        .map_err(blame(&["max_disparity_px"]))?;
-    let disparity_at_target_px =
-        finite(rig.disparity_at(target)).map_err(blame(&["target_distance"]))?;
-    let unit = rig.unit().symbol();
+    let design = design::baseline_design(camera, target, budget, max_disparity).map_err(
+        |fault| match fault {
+            DesignFault::Baseline(e) => blame(&["target_distance", "max_depth_error"])(e),
+            DesignFault::MinDistance(e) => blame(&["max_disparity_px"])(e),
+            DesignFault::Target(e) => blame(&["target_distance"])(e),
+            DesignFault::Rig(faults) => {
+                let mut fields = FieldErrors::default();
+                validate::faults(faults, "", &mut fields);
+                fields.into_error()
+            }
+        },
+    )?;
+    let unit = design.rig.unit().symbol();
     Ok(BaselineResponse {
         unit: request.unit.unwrap_or_default(),
         focal_length_px: camera.focal_px(),
-        horizontal_fov_deg: rig.fields_of_view_deg().0,
+        horizontal_fov_deg: design.rig.fields_of_view_deg().0,
         disparity_error_px: camera.disparity_error_px(),
         target_distance: target,
-        max_depth_error,
-        max_relative_error: max_depth_error / target,
-        baseline,
-        disparity_at_target_px,
-        formula: formula(&camera, target, max_depth_error, baseline, unit),
+        max_depth_error: design.max_depth_error,
+        max_relative_error: design.max_relative_error,
+        baseline: design.baseline,
+        disparity_at_target_px: design.disparity_at_target_px,
+        formula: formula(
+            &camera,
+            target,
+            design.max_depth_error,
+            design.baseline,
+            unit,
+        ),
         max_disparity_px: max_disparity,
-        min_distance,
+        min_distance: design.min_distance,
     })
 }
