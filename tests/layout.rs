@@ -529,7 +529,7 @@ fn every_depth_caller_plans_one_job() {
 /// (`batch::preflight`, which hands the parsed input to the command's engine) each turn the
 /// rig's parts into the engine's `RigInput` once, and only `api::images::rig` builds one; no
 /// depth caller reads a calibration file itself, each making the rig of a frame size from its
-/// `RigInput` (`rig::at`).
+/// `RigInput` (`job::plan_at`).
 #[test]
 fn each_rig_input_is_parsed_once_at_its_edge() {
     let edges: BTreeMap<String, usize> = [
@@ -563,7 +563,7 @@ fn each_rig_input_is_parsed_once_at_its_edge() {
         "the modules that parse a rig input, and how often"
     );
     let engine = code_of(&fs::read_to_string(format!("{SRC}/batch/engine.rs")).expect("engine"));
-    assert!(engine.contains("rig::at(") && engine.contains("calibration: RigInput"));
+    assert!(engine.contains("job::plan_at(") && engine.contains("calibration: RigInput"));
     assert!(wrong.is_empty(), "{wrong:#?}");
 }
 

@@ -12,6 +12,7 @@ use axum::{
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
+use crate::api::body_limit::BodyLimit;
 use crate::{budget::Refusal, observe::telemetry};
 use stereo_core::physics::PhysicsError;
 
@@ -155,10 +156,8 @@ pub struct Problem {
 pub enum ApiError {
     /// 400: the body is not JSON, or the query string cannot be decoded.
     Malformed(FieldError),
-    /// 413: the body is larger than the limit, in bytes.
-    PayloadTooLarge(usize),
-    /// 413: an image request's form is larger than the heavy group's limit, in bytes.
-    ImagesTooLarge(usize),
+    /// 413: the body is larger than the limit.
+    PayloadTooLarge(BodyLimit),
     /// 415: the body is not declared as a type the route reads (`got`; `accepted` names
     /// those it reads).
     UnsupportedMediaType { got: String, accepted: &'static str },
@@ -209,9 +208,7 @@ impl ApiError {
     pub fn status(&self) -> StatusCode {
         match self {
             ApiError::Malformed(_) => StatusCode::BAD_REQUEST,
-            ApiError::PayloadTooLarge(_) | ApiError::ImagesTooLarge(_) => {
-                StatusCode::PAYLOAD_TOO_LARGE
-            }
+            ApiError::PayloadTooLarge(_) => StatusCode::PAYLOAD_TOO_LARGE,
             ApiError::UnsupportedMediaType { .. } => StatusCode::UNSUPPORTED_MEDIA_TYPE,
             ApiError::Invalid(_) => StatusCode::UNPROCESSABLE_ENTITY,
             ApiError::NotFound(_) => StatusCode::NOT_FOUND,
@@ -257,29 +254,9 @@ impl ApiError {
                 errors: vec![error.clone()],
                 request_id: None,
             },
-            ApiError::PayloadTooLarge(limit) => plain(
-                format!("the request body is larger than the limit of {limit} bytes"),
-                vec![FieldError::new(
-                    "body",
-                    format!("must be at most {limit} bytes"),
-                )],
-            ),
-            ApiError::ImagesTooLarge(limit) => {
-                let mib = stereo_core::numbers::short(*limit as f64 / (1024.0 * 1024.0));
-                plain(
-                    format!(
-                        "the form is larger than this server's limit for image requests, \
-                         {mib} MiB ({limit} bytes: --heavy-body-limit, HEAVY_BODY_LIMIT)"
-                    ),
-                    vec![FieldError::new(
-                        "body",
-                        format!(
-                            "must be at most {mib} MiB: send the images as JPEG (quality 90 is \
-                             about a tenth of a PNG's size) or smaller, or start the server \
-                             with a larger --heavy-body-limit"
-                        ),
-                    )],
-                )
+            ApiError::PayloadTooLarge(limit) => {
+                let (detail, message) = limit.refusal();
+                plain(detail, vec![FieldError::new("body", message)])
             }
             ApiError::UnsupportedMediaType { got, accepted } => plain(
                 format!("the request body must be sent as {accepted}, not {got}"),

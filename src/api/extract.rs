@@ -15,6 +15,7 @@ use percent_encoding::percent_decode_str;
 use serde::de::DeserializeOwned;
 use serde_json::{Map, Value};
 
+use super::body_limit::BodyLimit;
 use super::error::{ApiError, FieldError, FieldErrors};
 use super::member_messages::{self, Complaint, ECHO};
 use stereo_core::numbers::clip;
@@ -83,8 +84,8 @@ pub fn unsupported(content_type: Option<&HeaderValue>, accepted: &'static str) -
 }
 
 /// The body, whatever its type, within `limit`: 413 beyond it.
-pub async fn body_bytes(req: Request, BodyLimit(limit): BodyLimit) -> Result<Bytes, ApiError> {
-    axum::body::to_bytes(req.into_body(), limit)
+pub async fn body_bytes(req: Request, limit: BodyLimit) -> Result<Bytes, ApiError> {
+    axum::body::to_bytes(req.into_body(), limit.bytes)
         .await
         .map_err(|error| {
             let too_large = std::error::Error::source(&error)
@@ -120,12 +121,6 @@ where
             .map(|(value, problems)| QueryParams(value, problems))
     }
 }
-
-/// The largest body a route accepts, in bytes. It is the one body-limit mechanism: each route
-/// group's state provides it (`FromRef`), and every extractor that reads a body reads it within
-/// this limit, so the 413 names the limit that applied.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct BodyLimit(pub usize);
 
 /// A media type without its parameters: `text/plain` of `text/plain; charset=utf-8`.
 pub fn essence(content_type: &str) -> &str {

@@ -2,7 +2,7 @@
 //! [`error`] ← [`extract`] ← [`wire`] ← [`validate`] ← [`images`] ← [`routes`].
 //!
 //! - [`error`]: [`error::ApiError`] rendered as problem+json, and [`error::FieldErrors`], the
-//!   collector that names every offending field.
+//!   collector that names every offending field; [`body_limit`], the body limits a 413 names.
 //! - [`extract`]: JSON-body and query-string extractors that record every refused member.
 //! - [`wire`]: what every request and answer shares: deserialization rules, the request macros,
 //!   the unvalidated members, the measured values, the OpenAPI glue.
@@ -20,6 +20,7 @@
 //! - [`operation`]: the macros that declare a JSON resource's `GET` and `POST` handlers.
 //! - [`member_messages`]: serde's refusal of a request member said in the API's words.
 
+pub mod body_limit;
 pub mod csv;
 pub mod error;
 pub mod extract;

@@ -2,7 +2,7 @@
 
 use axum::extract::FromRef;
 
-use crate::api::extract::BodyLimit;
+use crate::api::body_limit::{BodyLimit, LimitOption};
 use crate::config::Limits;
 
 /// What the light group's handlers see.
@@ -13,6 +13,9 @@ pub struct AppState {
 
 impl FromRef<AppState> for BodyLimit {
     fn from_ref(state: &AppState) -> Self {
-        BodyLimit(state.limits.body_bytes)
+        BodyLimit {
+            bytes: state.limits.body_bytes,
+            set_by: LimitOption::Body,
+        }
     }
 }

@@ -11,7 +11,7 @@ use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
 use crate::api::error::{ApiError, FieldError, FieldErrors};
-use crate::api::images::{job, limits, rig};
+use crate::api::images::{job, limits};
 use crate::api::wire::depth_map::{DepthMapOutput, DepthMapSummary};
 use crate::api::wire::rig::CalibratedRig;
 use crate::config::Config;
@@ -157,20 +157,13 @@ impl Engine {
 
     fn planned(&self, size: (u32, u32)) -> Result<DepthJob, Vec<FieldError>> {
         let mut problems = FieldErrors::default();
-        let calibrated = rig::at(&self.calibration, Some(size), true, &mut problems);
         let asked = job::Asked {
             rectify: None,
             alpha: None,
             settings: self.settings,
             prefix: "",
         };
-        let planned = job::plan(
-            calibrated,
-            self.calibration.sent(),
-            Some(size),
-            asked,
-            &mut problems,
-        );
+        let planned = job::plan_at(&self.calibration, size, asked, &mut problems);
         match planned {
             Some(planned) if problems.is_empty() => {
                 Ok(planned.with_maps(|raw| Arc::new(Maps::build(raw))))

@@ -22,7 +22,7 @@ use tower_http::{catch_panic::CatchPanicLayer, compression::CompressionLayer};
 use crate::{
     api::{
         self, AppState, HeavyState, Routers,
-        extract::BodyLimit,
+        body_limit::{BodyLimit, LimitOption},
         routes::{
             self,
             ops::{OpsState, Readiness},
@@ -67,7 +67,10 @@ fn app_with(config: &Config, ops: OpsState, extra_heavy: Router<HeavyState>) -> 
     // glibc's thresholds as a warm server has them (a no-op under another allocator).
     stereo_core::vision::huge_pages::tune_for_budget(heavy.memory_budget);
     let heavy_state = HeavyState {
-        body_limit: BodyLimit(heavy.body_bytes),
+        body_limit: BodyLimit {
+            bytes: heavy.body_bytes,
+            set_by: LimitOption::HeavyBody,
+        },
         maps: std::sync::Arc::new(MapCache::new(Some(budget.clone()), maps::MAX_ENTRIES)),
         slots: Slots::new(heavy.concurrency_limit),
         image_limits: api::images::limits::decode_limits(heavy.max_image_pixels),

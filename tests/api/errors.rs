@@ -64,8 +64,8 @@ async fn wrong_content_type_is_415() {
     assert_eq!(ok.status(), 200);
 }
 
-/// A body over the 64 KiB limit is a 413 naming the body; `/distance`, which takes batches,
-/// has its own 2 MiB limit.
+/// A body over the 64 KiB limit is a 413 naming the body and the option that raises the
+/// limit; `/distance`, which takes batches, has its own 2 MiB limit, and names its own.
 #[tokio::test]
 async fn oversized_body_is_413() {
     let app = spawn_app().await;
@@ -79,6 +79,7 @@ async fn oversized_body_is_413() {
     .await;
     assert_eq!(fields(&table), vec!["body"]);
     assert!(message_for(&table, "body").contains("65536"));
+    assert!(message_for(&table, "body").contains("--body-limit"));
     // The same body is within /distance's limit: it is decoded and found wanting.
     let within = app
         .post_raw("/distance", Some("application/json"), body.into())
@@ -94,6 +95,7 @@ async fn oversized_body_is_413() {
     )
     .await;
     assert!(message_for(&batch, "body").contains("2097152"));
+    assert!(message_for(&batch, "body").contains("--batch-body-limit"));
 }
 
 /// A string where a number belongs is a 422 naming it, in JSON and in a query alike; so are

@@ -15,6 +15,7 @@ use super::HeavyState;
 use super::parts::Parts;
 use super::rig;
 use super::{limits, work};
+use crate::api::body_limit::BodyLimit;
 use crate::api::error::{ApiError, FieldError, FieldErrors};
 use crate::api::extract;
 use stereo_core::pipeline::{Calibrated, Sent};
@@ -93,7 +94,7 @@ impl Form {
             form,
             spec.known,
             spec.repeatable,
-            state.body_limit.0,
+            state.body_limit,
             &mut problems,
         )
         .await?;
@@ -215,7 +216,7 @@ async fn read_parts_with(
     mut form: Multipart,
     known: &[&str],
     repeatable: &[&str],
-    limit: usize,
+    limit: BodyLimit,
     problems: &mut FieldErrors,
 ) -> Result<Vec<(String, Bytes)>, ApiError> {
     let mut parts: Vec<(String, Bytes)> = Vec::new();
@@ -295,9 +296,9 @@ pub fn join_lists(
 }
 
 /// A multipart body that cannot be read: too large (413) or broken (400).
-fn multipart_error(e: &MultipartError, limit: usize) -> ApiError {
+fn multipart_error(e: &MultipartError, limit: BodyLimit) -> ApiError {
     if e.status() == StatusCode::PAYLOAD_TOO_LARGE {
-        ApiError::ImagesTooLarge(limit)
+        ApiError::PayloadTooLarge(limit)
     } else {
         ApiError::Malformed(FieldError::new(
             "body",

@@ -3,11 +3,12 @@
 //! the raw rig `/rectify` rectifies with.
 
 use super::form::{ImageForm, ImagePair};
+use super::rig;
 use super::work::Need;
 use crate::api::error::FieldErrors;
 use crate::api::wire::images::RectifyMode;
 use stereo_core::camera::Alpha;
-use stereo_core::pipeline::{self, Calibrated, DepthJob, PlanFault, Rectify, Sent};
+use stereo_core::pipeline::{self, Calibrated, DepthJob, PlanFault, Rectify, RigInput, Sent};
 use stereo_core::vision::Settings;
 
 impl From<RectifyMode> for pipeline::RectifyMode {
@@ -71,6 +72,18 @@ pub fn plan(
             None
         }
     }
+}
+
+/// The depth job for frames of `size` from a rig input parsed once (a stream's settings, the
+/// command's flags), made the rig of that size first ([`rig::at`]).
+pub fn plan_at(
+    input: &RigInput,
+    size: (u32, u32),
+    asked: Asked<'_>,
+    problems: &mut FieldErrors,
+) -> Option<DepthJob> {
+    let given = rig::at(input, Some(size), true, problems);
+    plan(given, input.sent(), Some(size), asked, problems)
 }
 
 /// The depth job of an image route's pair ([`plan`]), its rig taken from the pair.

@@ -39,7 +39,7 @@ pub use parts::Parts;
 
 use axum::extract::FromRef;
 
-use crate::api::extract::BodyLimit;
+use crate::api::body_limit::{BodyLimit, LimitOption};
 
 /// What the heavy group's handlers see. Its memory budget reaches them as the
 /// [`crate::budget::Reservation`] the group's guard made for the request.
@@ -59,7 +59,10 @@ pub struct HeavyState {
 impl Default for HeavyState {
     fn default() -> Self {
         Self {
-            body_limit: BodyLimit(crate::config::DEFAULT_HEAVY_BODY_LIMIT),
+            body_limit: BodyLimit {
+                bytes: crate::config::DEFAULT_HEAVY_BODY_LIMIT,
+                set_by: LimitOption::HeavyBody,
+            },
             maps: std::sync::Arc::default(),
             slots: crate::budget::Slots::new(crate::config::default_heavy_concurrency()),
             image_limits: limits::decode_limits(crate::config::DEFAULT_MAX_IMAGE_PIXELS),

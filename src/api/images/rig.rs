@@ -29,7 +29,7 @@ const RIG: &str = "rig.";
 /// command's flags), parsed once: the `rig` member or the `calibration` members (not both),
 /// a file read for images of `size` when the request has one size. `None` when either is at
 /// fault (then `problems` says why); [`RigInput::Nothing`] when neither is given.
-pub fn input(
+fn input(
     parts: &RigParts,
     size: Option<(u32, u32)>,
     takes_rig: bool,
@@ -104,7 +104,7 @@ fn at_fault(fault: AtFault, takes_rig: bool, problems: &mut FieldErrors) {
         AtFault::Declared(declared) => {
             for (member, declared, actual) in declared {
                 problems.add(
-                    &format!("{RIG}{member}"),
+                    &format!("{RIG}{}", member.name()),
                     format!(
                         "is {declared}, but the images are {actual} px: give the rig of these \
                          images (scale focal_length_px, cx, cy and doffs with them)"

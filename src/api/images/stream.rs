@@ -446,15 +446,8 @@ impl Engine {
     fn resolve(&self, size: (u32, u32)) -> Result<AtSize, ApiError> {
         let resolved = &*self.resolved;
         let mut problems = FieldErrors::default();
-        let calibrated = rig::at(&resolved.input, Some(size), true, &mut problems);
         let asked = asked_of(resolved.settings, resolved.rectify);
-        let planned = job::plan(
-            calibrated,
-            resolved.input.sent(),
-            Some(size),
-            asked,
-            &mut problems,
-        );
+        let planned = job::plan_at(&resolved.input, size, asked, &mut problems);
         let Some(planned) = planned.filter(|_| problems.is_empty()) else {
             return Err(problems.into_error());
         };

@@ -23,7 +23,7 @@ pub const RIG_PARTS: [&str; 6] = [
 
 /// What a request sent to describe its rig: each of [`RIG_PARTS`] as it came, taken once at
 /// the request's edge (a form's parts, a stream's settings members, the command's flags) and
-/// parsed once into the engine's `RigInput` (`api::images::rig::input`).
+/// parsed once into the engine's `RigInput` (`api::images::rig::parsed`).
 #[derive(Debug, Clone, Default)]
 pub struct RigParts([Option<Bytes>; RIG_PARTS.len()]);
 

@@ -14,6 +14,7 @@ use utoipa::openapi::{
     schema::Schema,
 };
 
+use crate::api::body_limit::{BodyLimit, LimitOption};
 use crate::api::error::RETRY_AFTER_SECS;
 use crate::api::error::{ApiError, FieldError, PROBLEM_JSON};
 use crate::api::extract::{QueryForm, decode_query, malformed_json};
@@ -204,7 +205,10 @@ const TOO_LARGE: ErrorDoc = ErrorDoc {
     examples: || {
         vec![(
             "A body over the default limit",
-            ApiError::PayloadTooLarge(DEFAULT_BODY_LIMIT),
+            ApiError::PayloadTooLarge(BodyLimit {
+                bytes: DEFAULT_BODY_LIMIT,
+                set_by: LimitOption::Body,
+            }),
         )]
     },
 };

@@ -7,6 +7,7 @@ use utoipa::ToSchema;
 use crate::api::extract::QueryForm;
 use crate::api::wire::de::{camera_request, rig_request};
 use crate::api::wire::params::Unit;
+use stereo_core::physics::design::ErrorAt;
 
 rig_request! {
     /// A rig and its disparity search: the depth range it sees and the error it makes there.
@@ -109,6 +110,19 @@ pub struct DepthErrorAt {
     /// Whether the distance lies within [min_distance, max_distance], the range the
     /// disparity search can see.
     pub in_range: bool,
+}
+
+impl From<ErrorAt> for DepthErrorAt {
+    fn from(at: ErrorAt) -> Self {
+        DepthErrorAt {
+            distance: at.distance,
+            disparity_px: at.disparity_px,
+            depth_error: at.depth_error,
+            relative_error: at.relative_error,
+            relative_error_pct: at.relative_error * 100.0,
+            in_range: at.in_range,
+        }
+    }
 }
 
 /// Where the relative depth error passes the caller's budget.

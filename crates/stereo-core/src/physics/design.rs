@@ -85,8 +85,8 @@ impl Rig {
 /// rig built with it sees.
 #[derive(Debug, Clone, PartialEq)]
 pub struct BaselineDesign {
+    /// The rig with the baseline found.
     pub rig: Rig,
-    pub baseline: f64,
     /// The budget as a length at the target.
     pub max_depth_error: f64,
     /// The budget as a fraction of the target.
@@ -133,7 +133,6 @@ pub fn baseline_design(
     let disparity_at_target_px = finite(rig.disparity_at(target)).map_err(DesignFault::Target)?;
     Ok(BaselineDesign {
         rig,
-        baseline,
         max_depth_error,
         max_relative_error: max_depth_error / target,
         disparity_at_target_px,
@@ -166,7 +165,7 @@ mod tests {
         assert_eq!(design.max_depth_error, 40.0);
         assert_eq!(design.max_relative_error, 0.02);
         let b = 2000.0 * 2000.0 * 0.1 / (424.0 * 40.0);
-        assert!((design.baseline - b).abs() < 1e-9, "{}", design.baseline);
+        assert!((design.rig.baseline() - b).abs() < 1e-9, "{:?}", design.rig);
         let err = design.rig.error_at(2000.0, (0.0, f64::INFINITY)).unwrap();
         assert!((err.depth_error - 40.0).abs() < 1e-9, "{err:?}");
         assert!((design.disparity_at_target_px - 424.0 * b / 2000.0).abs() < 1e-9);

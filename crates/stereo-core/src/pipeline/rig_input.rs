@@ -6,7 +6,7 @@
 
 use super::calibrated::{Calibrated, Sent, SizeFault};
 use crate::calibration::files::{self, Format, KittiPair, Read, ReadFault, ReadOptions, Source};
-use crate::physics::{Fault, LengthUnit, Rig, RigSpec};
+use crate::physics::{Fault, LengthUnit, Member, Rig, RigSpec};
 
 /// The σ of a calibration's rectified rig sent beside its file, which a file from elsewhere
 /// does not carry: the focal length's in pixels, the baseline's in `unit` (the file's when
@@ -16,6 +16,15 @@ pub struct StdBeside {
     pub focal_px: f64,
     pub baseline: f64,
     pub unit: Option<LengthUnit>,
+}
+
+impl StdBeside {
+    /// `rig` with this σ, the baseline's converted from its unit to the rig's.
+    fn on(self, rig: Rig) -> Result<Rig, Vec<Fault>> {
+        let unit = self.unit.unwrap_or(rig.unit());
+        let baseline = unit.convert(self.baseline, rig.unit());
+        rig.with_calibration_std(self.focal_px, baseline)
+    }
 }
 
 /// A calibration file as sent: its text (and the right camera's, for ROS), how to read it, and
@@ -75,7 +84,7 @@ pub enum AtFault {
     /// The file is not the calibration of these frames.
     Size(SizeFault),
     /// The members declare another image size: `(member, declared, the frames')`.
-    Declared(Vec<(&'static str, u32, u32)>),
+    Declared(Vec<(Member, u32, u32)>),
     /// The rig made for the frames' size, or with the σ sent beside the file, is refused.
     Rig(Vec<Fault>),
 }
@@ -88,17 +97,17 @@ impl RigInput {
     }
 
     /// A calibration file, read once for frames of `size` (the request's, when it has one
-    /// size; `None` for frames yet to come).
+    /// size; `None` for frames yet to come), the σ beside it checked against its rig.
     pub fn file(file: CalibrationFile, size: Option<(u32, u32)>) -> Result<RigInput, AtFault> {
         let read = file.read(size).map_err(AtFault::Read)?;
-        let input = RigInput::File(Box::new(ReadFile {
+        if let Some(std) = file.std {
+            std.on(read.rig).map_err(AtFault::Rig)?;
+        }
+        Ok(RigInput::File(Box::new(ReadFile {
             file,
             read,
             read_at: size,
-        }));
-        // The σ beside the file, and a size stated beside the frames', are refused now.
-        input.at(size)?;
-        Ok(input)
+        })))
     }
 
     /// What was sent.
@@ -127,8 +136,8 @@ fn members_at(spec: &RigSpec, size: Option<(u32, u32)>) -> Result<Calibrated, At
     if let Some((w, h)) = size {
         let mut declared = Vec::new();
         for (member, given, actual) in [
-            ("image_width", &mut spec.camera.image_width, w),
-            ("image_height", &mut spec.camera.image_height, h),
+            (Member::ImageWidth, &mut spec.camera.image_width, w),
+            (Member::ImageHeight, &mut spec.camera.image_height, h),
         ] {
             match *given {
                 Some(d) if d != actual => declared.push((member, d, actual)),
@@ -162,12 +171,8 @@ impl ReadFile {
         let Some(std) = self.file.std else {
             return Ok(given);
         };
-        let unit = std.unit.unwrap_or(given.rig.unit());
-        let baseline = unit.convert(std.baseline, given.rig.unit());
-        match given.rig.with_calibration_std(std.focal_px, baseline) {
-            Ok(rig) => Ok(Calibrated { rig, ..given }),
-            Err(faults) => Err(AtFault::Rig(faults)),
-        }
+        let rig = std.on(given.rig).map_err(AtFault::Rig)?;
+        Ok(Calibrated { rig, ..given })
     }
 }
 
@@ -256,7 +261,7 @@ mod tests {
         let input = RigInput::members(spec).unwrap();
         assert_eq!(
             input.at(Some((160, 120))).unwrap_err(),
-            AtFault::Declared(vec![("image_width", 640, 160)])
+            AtFault::Declared(vec![(Member::ImageWidth, 640, 160)])
         );
         assert_eq!(input.sent(), Sent::Rig);
     }

@@ -22,8 +22,9 @@ use crate::api::wire::distance::{
 };
 use crate::{
     api::{
+        body_limit::{BodyLimit, LimitOption},
         error::{ApiError, FieldErrors},
-        extract::{self, BodyLimit, decode_object, expect_object},
+        extract::{self, decode_object, expect_object},
         state::AppState,
         validate::{self, Bounds, Feature},
         wire::{de::Object, measured::Measured},
@@ -84,7 +85,10 @@ impl FromRequest<AppState> for DistanceBody {
 
     async fn from_request(req: Request, state: &AppState) -> Result<Self, Self::Rejection> {
         let unread = extract::unread_query(req.uri());
-        let limit = BodyLimit(state.limits.batch_body_bytes);
+        let limit = BodyLimit {
+            bytes: state.limits.batch_body_bytes,
+            set_by: LimitOption::BatchBody,
+        };
         let bytes = extract::json_bytes(req, limit).await?;
         expect_object(&bytes)?;
         let one = |mut problems: FieldErrors| {

@@ -12,12 +12,14 @@ use self::types::{
     CalibratedRig, CalibrationFile, CalibrationQuery, CalibrationRequest, CalibrationResponse,
     RawCameras,
 };
+use crate::api::body_limit::BodyLimit;
 use crate::api::error::{ApiError, FieldErrors};
-use crate::api::extract::{self, BodyLimit, QueryParams};
+use crate::api::extract::{self, QueryParams};
 use crate::api::respond::Json;
 use crate::api::state::AppState;
 use crate::api::wire::calibration::add_read_faults;
 use crate::api::wire::openapi::BodyErrors;
+use axum::extract::FromRef;
 use stereo_core::calibration::files::{self, ReadOptions, Source};
 use stereo_core::physics::LengthUnit;
 use stereo_core::vision::decode::MAX_SIDE;
@@ -43,7 +45,7 @@ impl FromRequest<AppState> for CalibrationBody {
         let req = Request::from_parts(parts, body);
         let content_type = req.headers().get(header::CONTENT_TYPE).cloned();
         let media = content_type.as_ref().and_then(|ct| ct.to_str().ok());
-        let limit = BodyLimit(state.limits.body_bytes);
+        let limit = BodyLimit::from_ref(state);
         let mut request = match media {
             Some(ct) if extract::is_json(ct) => {
                 let bytes = extract::json_bytes(req, limit).await?;

@@ -20,7 +20,7 @@ use crate::api::state::AppState;
 use crate::api::validate;
 use crate::api::wire::openapi::{BodyErrors, QueryErrors};
 use stereo_core::numbers::{percent, short};
-use stereo_core::physics::design::{self, DepthBudget, DesignFault, ErrorAt, Reach};
+use stereo_core::physics::design::{self, DepthBudget, DesignFault, Reach};
 use stereo_core::physics::{self, Rig};
 
 /// `GET` and `POST /rig` and `/baseline`.
@@ -132,7 +132,7 @@ fn rig(
         max_distance,
         at_distances: distances
             .into_iter()
-            .map(|z| rig.error_at(z, range).map(depth_error_at))
+            .map(|z| rig.error_at(z, range).map(DepthErrorAt::from))
             .collect::<Result<_, _>>()
             .map_err(blame(&["at_distances"]))?,
         error_budget,
@@ -237,18 +237,6 @@ fn at_distances(values: Option<&[f64]>, problems: &mut FieldErrors) -> Option<Ve
 /// Turns a physics failure into a 422 naming `fields`.
 fn blame(fields: &'static [&'static str]) -> impl Fn(physics::PhysicsError) -> ApiError {
     move |error| ApiError::from((error, fields))
-}
-
-/// The engine's depth error at a distance, as `/rig` answers it.
-fn depth_error_at(at: ErrorAt) -> DepthErrorAt {
-    DepthErrorAt {
-        distance: at.distance,
-        disparity_px: at.disparity_px,
-        depth_error: at.depth_error,
-        relative_error: at.relative_error,
-        relative_error_pct: at.relative_error * 100.0,
-        in_range: at.in_range,
-    }
 }
 
 /// Where the budget is passed, said in words against the range the search can see.
@@ -379,13 +367,13 @@ fn baseline(
         target_distance: target,
         max_depth_error: design.max_depth_error,
         max_relative_error: design.max_relative_error,
-        baseline: design.baseline,
+        baseline: design.rig.baseline(),
         disparity_at_target_px: design.disparity_at_target_px,
         formula: formula(
             &camera,
             target,
             design.max_depth_error,
-            design.baseline,
+            design.rig.baseline(),
             unit,
         ),
         max_disparity_px: max_disparity,
