@@ -535,6 +535,7 @@ fn each_rig_input_is_parsed_once_at_its_edge() {
     let edges: BTreeMap<String, usize> = [
         ("api::images::form", 1),
         ("api::images::stream", 1),
+        ("api::routes::calibration_check", 1),
         ("batch::preflight", 1),
     ]
     .into_iter()

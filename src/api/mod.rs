@@ -84,7 +84,8 @@ use self::routes::ops::OpsState;
         wire::depth_map::DepthMapSummary,
         wire::rectify::RectifySummary,
         wire::board_calibration::CalibrationSummary,
-        wire::board_calibration::BoardAnswer
+        wire::board_calibration::BoardAnswer,
+        wire::calibration_check::CheckAnswer
     )),
     tags(
         (name = "calibration", description = "Calibration files read into a rig"),

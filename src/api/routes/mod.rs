@@ -4,6 +4,7 @@
 //! [`crate::server::startup`].
 
 pub mod board_calibration;
+pub mod calibration_check;
 pub mod chart;
 pub mod depth_map;
 pub mod depth_stream;
@@ -37,6 +38,7 @@ pub fn light() -> OpenApiRouter<AppState> {
 pub fn heavy() -> OpenApiRouter<HeavyState> {
     OpenApiRouter::new()
         .merge(board_calibration::router())
+        .merge(calibration_check::router())
         .merge(depth_map::router())
         .merge(depth_stream::router())
         .merge(matching::router())

@@ -7,11 +7,12 @@
 //! Then each endpoint's own types, one module a route (its `types`, as the route names it):
 //! [`distance`], [`table`], [`chart`], [`rig_design`], [`file_calibration`], [`depth_map`],
 //! [`depth_stream`], [`matching`], [`rectify`], [`board_calibration`] (its summary made in
-//! [`calibration_summary`]). The command (`batch`) writes the same
+//! [`calibration_summary`]), [`calibration_check`]. The command (`batch`) writes the same
 //! `/depth-map` answers from them.
 
 pub mod board_calibration;
 pub mod calibration;
+pub mod calibration_check;
 pub mod calibration_summary;
 pub mod chart;
 pub mod de;

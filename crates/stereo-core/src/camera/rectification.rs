@@ -21,6 +21,25 @@ pub struct StereoPair {
     pub translation: Vector3<f64>,
 }
 
+impl StereoPair {
+    /// The essential matrix E = [T]ₓ R.
+    pub fn essential(&self) -> Matrix3<f64> {
+        let t = self.translation;
+        let tx = Matrix3::new(0.0, -t.z, t.y, t.z, 0.0, -t.x, -t.y, t.x, 0.0);
+        tx * self.rotation.matrix()
+    }
+
+    /// The fundamental matrix K₂⁻ᵀ E K₁⁻¹, scaled so that F₃₃ = 1 as OpenCV returns it.
+    pub fn fundamental(&self) -> Matrix3<f64> {
+        let inverse = |m: Matrix3<f64>| m.try_inverse().unwrap_or_else(Matrix3::zeros);
+        let f = inverse(self.right.matrix()).transpose()
+            * self.essential()
+            * inverse(self.left.matrix());
+        let scale = f[(2, 2)];
+        if scale.abs() > 0.0 { f / scale } else { f }
+    }
+}
+
 /// Which camera of a pair.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Side {

@@ -36,6 +36,7 @@
 
 pub mod calibrate;
 pub mod calibrated;
+pub mod check;
 pub mod depth;
 pub mod job;
 pub mod matches;

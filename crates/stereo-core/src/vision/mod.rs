@@ -60,6 +60,7 @@ pub mod rows;
 pub mod sgm;
 pub mod sigma;
 pub mod simd;
+pub mod sparse;
 pub mod stripes;
 pub mod survey;
 pub mod synthetic;

@@ -64,7 +64,27 @@ pub fn row_offsets(left: &Gray, right: &Gray, (min_d, max_d): (i32, i32)) -> Opt
     {
         return None;
     }
-    // The pyramids below full size (a third of the pixels more, at most).
+    let (lefts, rights) = pyramid(left, right);
+    let searched_rows = SEARCH_ROWS * (1i32 << lefts.len());
+    let mut offsets: Vec<f64> = trace(left, right, (&lefts, &rights), (min_d, max_d), CELLS)
+        .into_iter()
+        .map(|t| (t.row * f64::from(1i32 << t.level)).abs())
+        .collect();
+    if offsets.is_empty() {
+        return None;
+    }
+    offsets.sort_by(f64::total_cmp);
+    Some(RowOffsets {
+        features: offsets.len(),
+        median_offset: offsets[offsets.len() / 2],
+        searched_rows,
+    })
+}
+
+/// The halved levels of an image, down to about [`COARSE_HEIGHT`] rows (a third of its
+/// pixels more, at most).
+pub(super) fn pyramid(left: &Gray, right: &Gray) -> (Vec<Gray>, Vec<Gray>) {
+    let side = 2 * RADIUS + 1;
     let (mut lefts, mut rights): (Vec<Gray>, Vec<Gray>) = (Vec::new(), Vec::new());
     loop {
         let (l, r) = (lefts.last().unwrap_or(left), rights.last().unwrap_or(right));
@@ -75,6 +95,33 @@ pub fn row_offsets(left: &Gray, right: &Gray, (min_d, max_d): (i32, i32)) -> Opt
         lefts.push(l);
         rights.push(r);
     }
+    (lefts, rights)
+}
+
+/// A corner of the coarsest level followed down the pyramid.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Traced {
+    /// The corner at the finest level it was followed to (pixels of that level).
+    pub x: usize,
+    pub y: usize,
+    /// The match there: its whole disparity and row offset, and the row to a fraction.
+    pub d: i32,
+    pub dy: i32,
+    pub row: f64,
+    /// That level (0: full size).
+    pub level: usize,
+}
+
+/// The strongest corner of each of `cells` in the coarsest level, matched there over the
+/// scaled range and [`SEARCH_ROWS`] rows either way, and each followed down the levels
+/// (`lefts`, `rights`: [`pyramid`]'s) within [`FOLLOW`] px, as far as a clear peak holds.
+pub(super) fn trace(
+    left: &Gray,
+    right: &Gray,
+    (lefts, rights): (&[Gray], &[Gray]),
+    (min_d, max_d): (i32, i32),
+    cells: (usize, usize),
+) -> Vec<Traced> {
     let level = |level: usize| match level {
         0 => (left, right),
         n => (&lefts[n - 1], &rights[n - 1]),
@@ -89,12 +136,11 @@ pub fn row_offsets(left: &Gray, right: &Gray, (min_d, max_d): (i32, i32)) -> Opt
         min_d.div_euclid(scale) - SEARCH_ROWS,
         max_d.div_euclid(scale) + i32::from(max_d.rem_euclid(scale) != 0) + SEARCH_ROWS,
     );
-    // The corners side by side on the cores (their order does not matter: the median is
-    // taken).
-    let mut offsets: Vec<f64> = corners(coarse_l)
+    // The corners side by side on the cores.
+    corners(coarse_l, cells)
         .into_par_iter()
         .filter_map(|(x, y)| {
-            let mut found = search(
+            let found = search(
                 coarse_l,
                 coarse_r,
                 (x, y),
@@ -102,12 +148,18 @@ pub fn row_offsets(left: &Gray, right: &Gray, (min_d, max_d): (i32, i32)) -> Opt
                 (-SEARCH_ROWS, SEARCH_ROWS),
                 true,
             )?;
-            let (mut x, mut y) = (x, y);
-            let mut level_scale = f64::from(scale);
+            let mut traced = Traced {
+                x,
+                y,
+                d: found.d,
+                dy: found.dy,
+                row: found.row,
+                level: levels,
+            };
             for finer in (0..levels).rev() {
                 // The same place a level finer: the centre of the coarser pixel.
-                (x, y) = (2 * x + 1, 2 * y + 1);
-                let (d, dy) = (2 * found.d, 2 * found.dy);
+                let (x, y) = (2 * traced.x + 1, 2 * traced.y + 1);
+                let (d, dy) = (2 * traced.d, 2 * traced.dy);
                 let (l, r) = level(finer);
                 match search(
                     l,
@@ -118,26 +170,22 @@ pub fn row_offsets(left: &Gray, right: &Gray, (min_d, max_d): (i32, i32)) -> Opt
                     false,
                 ) {
                     Some(peak) => {
-                        found = peak;
-                        level_scale = f64::from(1i32 << finer);
+                        traced = Traced {
+                            x,
+                            y,
+                            d: peak.d,
+                            dy: peak.dy,
+                            row: peak.row,
+                            level: finer,
+                        };
                     }
                     // No texture or no clear peak here: the coarser level's answer stands.
                     None => break,
                 }
             }
-            Some(found.row * level_scale)
+            Some(traced)
         })
-        .map(f64::abs)
-        .collect();
-    if offsets.is_empty() {
-        return None;
-    }
-    offsets.sort_by(f64::total_cmp);
-    Some(RowOffsets {
-        features: offsets.len(),
-        median_offset: offsets[offsets.len() / 2],
-        searched_rows: SEARCH_ROWS * scale,
-    })
+        .collect()
 }
 
 /// The image at half the size, each pixel the mean of a 2 × 2 block.
@@ -170,7 +218,7 @@ fn halve(img: &Gray) -> Gray {
 /// The tensor's three sums over each window come from running sums of the gradients'
 /// products (whole numbers, so exact whatever the order): a column sum of 7 rows kept for
 /// every column, then 7 columns of it a candidate, where each window summed its 49 products.
-fn corners(img: &Gray) -> Vec<(usize, usize)> {
+pub(super) fn corners(img: &Gray, cells: (usize, usize)) -> Vec<(usize, usize)> {
     const WINDOW: usize = 3;
     const SIDE: usize = 2 * WINDOW + 1;
     let (w, h) = (img.width, img.height);
@@ -193,7 +241,7 @@ fn corners(img: &Gray) -> Vec<(usize, usize)> {
     };
     // Central differences in grey levels of 8 bits: the products scaled by 1 / 257².
     let scale = 1.0 / (257.0f64 * 257.0);
-    let mut best = vec![(0.0f32, 0usize, 0usize); CELLS.0 * CELLS.1];
+    let mut best = vec![(0.0f32, 0usize, 0usize); cells.0 * cells.1];
     // The rows the columns' sums hold: `top .. top + SIDE`.
     let mut top = y0 - WINDOW;
     for v in top..top + SIDE {
@@ -215,7 +263,7 @@ fn corners(img: &Gray) -> Vec<(usize, usize)> {
             let [xx, xy, yy] = window.map(|s| (s as f64 * scale) as f32);
             let half_trace = 0.5 * (xx + yy);
             let min_eigen = half_trace - (0.25 * (xx - yy) * (xx - yy) + xy * xy).sqrt();
-            let cell = (y - y0) * CELLS.1 / (y1 - y0) * CELLS.0 + (x - x0) * CELLS.0 / (x1 - x0);
+            let cell = (y - y0) * cells.1 / (y1 - y0) * cells.0 + (x - x0) * cells.0 / (x1 - x0);
             if min_eigen > best[cell].0 {
                 best[cell] = (min_eigen, x, y);
             }
@@ -494,7 +542,7 @@ mod tests {
                 "{} corners at {w} × {h}",
                 expected.len()
             );
-            assert_eq!(corners(&img), expected, "{w} × {h}");
+            assert_eq!(corners(&img, CELLS), expected, "{w} × {h}");
         }
     }
 

@@ -431,20 +431,12 @@ impl Fit {
 
     /// The essential matrix E = [T]ₓ R.
     pub fn essential(&self) -> Option<Matrix3<f64>> {
-        let e = self.extrinsics?;
-        let t = e.translation;
-        let tx = Matrix3::new(0.0, -t.z, t.y, t.z, 0.0, -t.x, -t.y, t.x, 0.0);
-        Some(tx * e.rotation.matrix())
+        Some(self.pair()?.essential())
     }
 
     /// The fundamental matrix K₂⁻ᵀ E K₁⁻¹, scaled so that F₃₃ = 1 as OpenCV returns it.
     pub fn fundamental(&self) -> Option<Matrix3<f64>> {
-        let pair = self.pair()?;
-        let f = pair.right.matrix().try_inverse()?.transpose()
-            * self.essential()?
-            * pair.left.matrix().try_inverse()?;
-        let scale = f[(2, 2)];
-        Some(if scale.abs() > 0.0 { f / scale } else { f })
+        Some(self.pair()?.fundamental())
     }
 
     /// The mean distance (px) of each corner from its partner's epipolar line, both ways, over

@@ -123,15 +123,18 @@ pub struct StereoFile<'a> {
     pub essential: Matrix3<f64>,
     pub fundamental: Matrix3<f64>,
     pub rectification: &'a Rectification,
-    pub target: Target,
+    /// The board it was calibrated with, when it was (a corrected calibration has none).
+    pub target: Option<Target>,
+    /// The unit of T and P2's translation.
+    pub unit: LengthUnit,
     /// The rectified rig's σ, written as `rigFocalLengthStd` and `rigBaselineStd` (nodes
     /// `cv2.FileStorage` reads and OpenCV's functions never look for).
     pub rig_std: Option<RigStd>,
 }
 
 /// OpenCV FileStorage YAML with M1 D1 M2 D2 R T E F R1 R2 P1 P2 Q, `imageSize` and the target
-/// (`cv2.FileStorage(path, cv2.FILE_STORAGE_READ).getNode("M1").mat()`). Lengths are in the
-/// target's unit, which is recorded as `unit`.
+/// (`cv2.FileStorage(path, cv2.FILE_STORAGE_READ).getNode("M1").mat()`). Lengths are in
+/// `unit`, which is recorded.
 pub fn write(file: &StereoFile<'_>) -> String {
     let matrix = |out: &mut String, name: &str, rows: usize, cols: usize, data: &[f64]| {
         let data: Vec<String> = data.iter().map(|&v| yaml::write_number(v)).collect();
@@ -141,20 +144,26 @@ pub fn write(file: &StereoFile<'_>) -> String {
             data.join(", ")
         );
     };
-    let (pair, rect, target) = (file.pair, file.rectification, file.target);
+    let (pair, rect) = (file.pair, file.rectification);
     let mut out = String::from("%YAML:1.0\n---\n");
     let _ = writeln!(
         out,
         "imageSize: [ {}, {} ]",
         file.size.width, file.size.height
     );
+    if let Some(target) = file.target {
+        let _ = writeln!(
+            out,
+            "boardSize: [ {}, {} ]\nsquareSize: {}",
+            target.columns,
+            target.rows,
+            yaml::write_number(target.unit.convert(target.square_size, file.unit)),
+        );
+    }
     let _ = writeln!(
         out,
-        "boardSize: [ {}, {} ]\nsquareSize: {}\nunit: \"{}\"\ndistortionModel: \"{}\"",
-        target.columns,
-        target.rows,
-        yaml::write_number(target.square_size),
-        target.unit.symbol(),
+        "unit: \"{}\"\ndistortionModel: \"{}\"",
+        file.unit.symbol(),
         pair.left.distortion().model().name()
     );
     for (k, camera) in [(1, &pair.left), (2, &pair.right)] {
@@ -599,12 +608,13 @@ mod tests {
             essential: Matrix3::identity(),
             fundamental: Matrix3::identity(),
             rectification: &rect,
-            target: Target {
+            target: Some(Target {
                 columns: 9,
                 rows: 6,
                 square_size: 25.0,
                 unit: LengthUnit::Millimetre,
-            },
+            }),
+            unit: LengthUnit::Millimetre,
             rig_std,
         })
     }

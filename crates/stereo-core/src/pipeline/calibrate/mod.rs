@@ -317,7 +317,8 @@ impl Calibration {
             essential,
             fundamental,
             rectification,
-            target: self.settings.board.recorded(),
+            target: Some(self.settings.board.recorded()),
+            unit: self.settings.board.unit(),
             rig_std: self.std(),
         }))
     }

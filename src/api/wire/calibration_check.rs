@@ -1,0 +1,301 @@
+//! The wire types of `/calibration/check`: the query's options, the multipart form
+//! (documentation) and the JSON answer, made from the engine's [`engine::Check`].
+
+use serde::{Deserialize, Serialize};
+use utoipa::ToSchema;
+
+use crate::api::extract::QueryForm;
+use crate::api::wire::board_calibration::CalibrateOutput;
+use crate::api::wire::de::request;
+use crate::api::wire::openapi::{image_answers, named, text};
+use crate::api::wire::params::Unit;
+use stereo_core::numbers::Num;
+use stereo_core::pipeline::check as engine;
+
+request! {
+    /// The options of `/calibration/check`, in the query string.
+    pub struct CheckQuery {
+        /// What to answer (default `summary`): the check as JSON, or the corrected
+        /// calibration as `opencv.yml`, `ros-left.yaml` or `ros-right.yaml`.
+        output: CalibrateOutput,
+        /// How far (px) the drift found may move a row anywhere in the image and the
+        /// calibration still hold. Default 0.2.
+        #[schema(exclusive_minimum = 0.0, maximum = 10.0)]
+        tolerance_px: f64,
+    }
+}
+
+impl QueryForm for CheckQuery {}
+
+/// The `multipart/form-data` parts of `/calibration/check` (for the documentation: the
+/// handler reads the parts itself, to name each one in its errors).
+#[derive(ToSchema)]
+#[serde(deny_unknown_fields)]
+#[allow(dead_code)]
+pub struct CheckForm {
+    /// The left camera's raw frames of any textured scene, one part a pair, in order (PNG or
+    /// JPEG, the calibration's raw size).
+    #[schema(value_type = Vec<String>, format = Binary)]
+    left: Vec<Vec<u8>>,
+    /// The right camera's frames, as many as `left`: the i-th of each is one pair.
+    #[schema(value_type = Vec<String>, format = Binary)]
+    right: Vec<Vec<u8>>,
+    /// The calibration to check, as `/calibration` reads it (OpenCV, ROS, KITTI raw): it
+    /// must describe the raw cameras.
+    #[schema(value_type = String, format = Binary)]
+    calibration: Vec<u8>,
+    /// The calibration's format, or `auto` (the default).
+    #[schema(nullable = false)]
+    calibration_format: Option<String>,
+    /// The right camera's ROS `CameraInfo`, for ROS calibrations.
+    #[schema(value_type = Option<String>, format = Binary, nullable = false)]
+    right_calibration: Option<Vec<u8>>,
+    /// The unit of the calibration's lengths (required for OpenCV files not written here).
+    #[schema(nullable = false)]
+    calibration_unit: Option<String>,
+    /// KITTI only: the camera pair, `2-3` (the default) or `0-1`.
+    #[schema(nullable = false)]
+    calibration_cameras: Option<String>,
+    /// The calibration's σ, when its file does not carry it:
+    /// `{"focal_length_std_px": …, "baseline_std": …}`.
+    #[schema(value_type = Option<Object>, nullable = false)]
+    rig: Option<String>,
+}
+
+/// A value and its standard deviation.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct Estimate {
+    pub value: f64,
+    pub std: f64,
+}
+
+impl From<engine::Estimate> for Estimate {
+    fn from(e: engine::Estimate) -> Self {
+        Estimate {
+            value: e.value,
+            std: e.std,
+        }
+    }
+}
+
+/// The matches' row offsets (right − left, px) over a region.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct RowStats {
+    pub matches: usize,
+    /// Absent where the region has no match.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub mean: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub rms: Option<f64>,
+    /// The 95th percentile of the offsets' size.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub p95: Option<f64>,
+}
+
+impl From<engine::Rows> for RowStats {
+    fn from(r: engine::Rows) -> Self {
+        let finite = |v: f64| v.is_finite().then_some(v);
+        RowStats {
+            matches: r.matches,
+            mean: finite(r.mean_px),
+            rms: finite(r.rms_px),
+            p95: finite(r.p95_px),
+        }
+    }
+}
+
+/// One cell of the 3 × 3 grid over the rectified image.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct RowsCell {
+    /// 0 (left) to 2 (right).
+    pub column: usize,
+    /// 0 (top) to 2 (bottom).
+    pub row: usize,
+    pub before_px: RowStats,
+    pub after_px: RowStats,
+}
+
+/// The matches' vertical disparity: with the calibration as it was, after the correction
+/// (the fit's residuals), and both over a 3 × 3 grid of the rectified image.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct Rows {
+    pub before_px: RowStats,
+    pub after_px: RowStats,
+    pub over_image: Vec<RowsCell>,
+}
+
+/// The right camera's turn since it was calibrated, degrees about its own axes; absent
+/// where the frames cannot see it.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct Rotation {
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub x: Option<Estimate>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub y: Option<Estimate>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub z: Option<Estimate>,
+}
+
+/// What explains the rows, each with its σ, and what the frames cannot see.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct Correction {
+    pub rotation_deg: Rotation,
+    /// The right camera's fy over the calibrated fy.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub focal_ratio: Option<Estimate>,
+    /// The right camera's principal point moved down by this many rows.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub cy_shift_px: Option<Estimate>,
+    /// What the frames cannot see, in sentences.
+    pub unseen: Vec<String>,
+}
+
+/// What the drift does to a distance measured with the calibration as it was.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct DepthEffect {
+    /// The distance, in `unit`.
+    pub distance: f64,
+    pub unit: Unit,
+    /// The distance read at the image's centre less the truth, in `unit`.
+    pub error_centre: f64,
+    /// The largest error over the image, signed.
+    pub error_largest: f64,
+    /// σ of a distance there from the calibration's own uncertainty (0 when unknown).
+    pub calibration_std: f64,
+}
+
+/// `/calibration/check`'s answer.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct CheckAnswer {
+    /// Whether the calibration still holds: the drift found moves no row by more than
+    /// `tolerance_px` (or by no more than its own 3σ).
+    pub holds: bool,
+    /// The verdict in a sentence.
+    pub verdict: String,
+    /// The matches found in each pair, in order.
+    pub matches: Vec<usize>,
+    /// Matches left out of the fit, their rows far from every other's.
+    pub outliers: usize,
+    pub rows: Rows,
+    /// The largest row the drift found moves over the image (px), with its σ.
+    pub largest_row_shift_px: Estimate,
+    pub tolerance_px: f64,
+    pub correction: Correction,
+    /// What the drift does to a distance at 1 m and 5 m.
+    pub depth_effect: Vec<DepthEffect>,
+    /// The calibration file's notes.
+    pub warnings: Vec<String>,
+}
+
+impl CheckAnswer {
+    /// The answer of a check, with the file's `warnings` and distances in `unit`.
+    pub fn of(check: &engine::Check, unit: Unit, warnings: Vec<String>) -> CheckAnswer {
+        let over_image = check
+            .before
+            .grid
+            .iter()
+            .zip(&check.after.grid)
+            .enumerate()
+            .map(|(k, (b, a))| RowsCell {
+                column: k % engine::GRID,
+                row: k / engine::GRID,
+                before_px: (*b).into(),
+                after_px: (*a).into(),
+            })
+            .collect();
+        let c = &check.correction;
+        let [x, y, z] = c.rotation_deg.map(|e| e.map(Estimate::from));
+        CheckAnswer {
+            holds: check.holds,
+            verdict: verdict(check),
+            matches: check.matches.clone(),
+            outliers: check.outliers,
+            rows: Rows {
+                before_px: check.before.whole.into(),
+                after_px: check.after.whole.into(),
+                over_image,
+            },
+            largest_row_shift_px: check.largest_row_shift.into(),
+            tolerance_px: check.tolerance_px,
+            correction: Correction {
+                rotation_deg: Rotation { x, y, z },
+                focal_ratio: c.focal_ratio.map(Into::into),
+                cy_shift_px: c.cy_shift_px.map(Into::into),
+                unseen: c.unseen.clone(),
+            },
+            depth_effect: check
+                .depth_effect
+                .iter()
+                .map(|e| DepthEffect {
+                    distance: e.distance,
+                    unit,
+                    error_centre: e.error_centre,
+                    error_largest: e.error_largest,
+                    calibration_std: e.calibration_std,
+                })
+                .collect(),
+            warnings,
+        }
+    }
+}
+
+/// `v` with `decimals` decimals.
+fn fixed(v: f64, decimals: usize) -> String {
+    format!("{v:.decimals$}")
+}
+
+/// The verdict in words: the rows before and after, and what explains them.
+fn verdict(check: &engine::Check) -> String {
+    let rows = |r: &engine::Rows| fixed(r.rms_px, 2);
+    let shift = check.largest_row_shift;
+    if check.holds {
+        return format!(
+            "holds: the matches' rows agree to {} px RMS, and the drift found moves no row \
+             more than {} px (the tolerance is {} px)",
+            rows(&check.before.whole),
+            fixed(shift.value, 2),
+            Num(check.tolerance_px)
+        );
+    }
+    let turns: Vec<String> = check
+        .correction
+        .rotation_deg
+        .iter()
+        .zip(["x", "y", "z"])
+        .filter_map(|(e, axis)| {
+            let e = (*e)?;
+            (e.value.abs() > 3.0 * e.std)
+                .then(|| format!("{}° ± {}° about {axis}", fixed(e.value, 3), fixed(e.std, 3)))
+        })
+        .collect();
+    let explained = if turns.is_empty() {
+        "the right camera's focal length or principal point moved".to_owned()
+    } else {
+        format!("the right camera turned {}", turns.join(" and "))
+    };
+    format!(
+        "drifted: rows {} px RMS off (up to {} px over the image, past the {} px tolerance); \
+         {explained}, which leaves {} px RMS. Ask for output=opencv.yml (or ros-left.yaml and \
+         ros-right.yaml) for the corrected calibration",
+        rows(&check.before.whole),
+        fixed(shift.value, 2),
+        Num(check.tolerance_px),
+        rows(&check.after.whole)
+    )
+}
+
+image_answers! {
+    /// `/calibration/check`'s responses: the check, or the corrected calibration.
+    pub struct CheckAnswers: "The check, or the corrected calibration in the `output` asked for." {
+        "application/json" => named::<CheckAnswer>(),
+        "application/x-yaml" => text(),
+    }
+}
