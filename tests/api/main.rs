@@ -5,6 +5,7 @@ mod batch;
 mod board;
 mod calibrate;
 mod calibration;
+mod calibration_check;
 mod chart;
 mod charuco;
 mod command_line;

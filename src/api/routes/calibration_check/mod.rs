@@ -21,8 +21,8 @@ use crate::api::images::rig::{self, RIG_PARTS, RigParts};
 use crate::api::images::{HeavyState, limits, work};
 use crate::api::respond::Json;
 use crate::api::wire::board_calibration::CalibrateOutput;
-use stereo_core::pipeline::Sent;
 use stereo_core::pipeline::check as engine;
+use stereo_core::pipeline::{Calibrated, Sent};
 use stereo_core::vision::decode::DecodeLimits;
 
 /// `POST /calibration/check`.
@@ -120,36 +120,8 @@ pub async fn post_check(
     } = upload;
     let mut problems = query_problems;
     problems.extend(form_problems);
-    let tolerance_px = query.tolerance_px.unwrap_or(engine::DEFAULT_TOLERANCE_PX);
-    if !(tolerance_px.is_finite() && tolerance_px > 0.0 && tolerance_px <= 10.0) {
-        problems.add(
-            "tolerance_px",
-            format!("must be a number of pixels above 0 and at most 10, not {tolerance_px}"),
-        );
-    }
-    count_pairs([&left, &right], &mut problems)?;
-    let size = limits::view_sizes(&left, &right, allowed, &mut problems)?;
-    if parts.sent() != Sent::Calibration {
-        problems.add(
-            "calibration",
-            "is required: the calibration to check, of the raw cameras (K, D, R, T), as \
-             /calibration reads it",
-        );
-    }
-    let (_, calibrated) = rig::parsed(&parts, size, false, &mut problems);
-    if let Some(c) = &calibrated
-        && c.raw.is_none()
-    {
-        problems.add(
-            "calibration",
-            "describes rectified images only (a rig's f, B, cx, cy): the check rectifies the \
-             raw frames, so it needs the raw cameras (K, D, R, T), as /calibrate's opencv.yml \
-             or a ROS CameraInfo pair gives them",
-        );
-    }
-    let (Some(calibrated), Some((w, h)), true) = (calibrated, size, problems.is_empty()) else {
-        return Err(problems.into_error());
-    };
+    let (calibrated, (w, h), tolerance_px) =
+        judged(&query, &parts, [&left, &right], allowed, problems)?;
     let output = query.output.unwrap_or_default();
     let warnings = calibrated.warnings.clone();
     let unit = calibrated.rig.unit().into();
@@ -182,6 +154,49 @@ pub async fn post_check(
         Ok(answer(&check, output, unit, warnings))
     })
     .await?
+}
+
+/// The form and the query judged, every fault named at once: the tolerance, the pairs'
+/// counts and sizes, and the calibration, which must describe the raw cameras of frames of
+/// that size. The calibration, the frames' size and the tolerance.
+fn judged(
+    query: &CheckQuery,
+    parts: &RigParts,
+    [left, right]: [&[Bytes]; 2],
+    allowed: DecodeLimits,
+    mut problems: FieldErrors,
+) -> Result<(Calibrated, (u32, u32), f64), ApiError> {
+    let tolerance_px = query.tolerance_px.unwrap_or(engine::DEFAULT_TOLERANCE_PX);
+    if !(tolerance_px.is_finite() && tolerance_px > 0.0 && tolerance_px <= 10.0) {
+        problems.add(
+            "tolerance_px",
+            format!("must be a number of pixels above 0 and at most 10, not {tolerance_px}"),
+        );
+    }
+    count_pairs([left, right], &mut problems)?;
+    let size = limits::view_sizes(left, right, allowed, &mut problems)?;
+    if parts.sent() != Sent::Calibration {
+        problems.add(
+            "calibration",
+            "is required: the calibration to check, of the raw cameras (K, D, R, T), as \
+             /calibration reads it",
+        );
+    }
+    let (_, calibrated) = rig::parsed(parts, size, false, &mut problems);
+    if let Some(c) = &calibrated
+        && c.raw.is_none()
+    {
+        problems.add(
+            "calibration",
+            "describes rectified images only (a rig's f, B, cx, cy): the check rectifies the \
+             raw frames, so it needs the raw cameras (K, D, R, T), as /calibrate's opencv.yml \
+             or a ROS CameraInfo pair gives them",
+        );
+    }
+    match (calibrated, size, problems.is_empty()) {
+        (Some(calibrated), Some(size), true) => Ok((calibrated, size, tolerance_px)),
+        _ => Err(problems.into_error()),
+    }
 }
 
 /// The pairs' counts: at least one, as many right frames as left ones, at most
@@ -244,6 +259,32 @@ fn answer(
     response
 }
 
+/// The cameras' frames sent the wrong way round: both parts named.
+fn swapped_cameras(found: usize, swapped: usize) -> ApiError {
+    let message = format!(
+        "looks swapped: the first pair gave {found} matches as sent and {swapped} with its \
+         points at negative disparities, as the left camera's frames sent as the right's give \
+         them; send the left camera's frames as left"
+    );
+    ApiError::Invalid(
+        ["left", "right"]
+            .map(|side| FieldError::new(side, message.clone()))
+            .into(),
+    )
+}
+
+/// Too few matches: how many each pair gave, and what to send.
+fn too_few(per_pair: &[usize]) -> String {
+    let found: usize = per_pair.iter().sum();
+    let each: Vec<String> = per_pair.iter().map(ToString::to_string).collect();
+    format!(
+        "the pairs gave {found} matches in all ({} a pair); the check needs {}: send frames \
+         of a textured scene, in focus, that both cameras see",
+        each.join(", "),
+        engine::MIN_MATCHES
+    )
+}
+
 /// An engine's refusal, naming the parts at fault.
 fn fault(fault: engine::Fault, allowed: DecodeLimits) -> ApiError {
     let one =
@@ -273,34 +314,8 @@ fn fault(fault: engine::Fault, allowed: DecodeLimits) -> ApiError {
                 size.0, size.1, expected.0, expected.1
             ),
         ),
-        engine::Fault::Swapped { found, swapped } => ApiError::Invalid(
-            ["left", "right"]
-                .map(|side| {
-                    FieldError::new(
-                        side,
-                        format!(
-                            "looks swapped: the first pair gave {found} matches as sent and \
-                             {swapped} with its points at negative disparities, as the left \
-                             camera's frames sent as the right's give them; send the left \
-                             camera's frames as left"
-                        ),
-                    )
-                })
-                .into(),
-        ),
-        engine::Fault::TooFewMatches { per_pair } => {
-            let found: usize = per_pair.iter().sum();
-            let each: Vec<String> = per_pair.iter().map(ToString::to_string).collect();
-            one(
-                "left",
-                format!(
-                    "the pairs gave {found} matches in all ({} a pair); the check needs {}: \
-                     send frames of a textured scene, in focus, that both cameras see",
-                    each.join(", "),
-                    engine::MIN_MATCHES
-                ),
-            )
-        }
+        engine::Fault::Swapped { found, swapped } => swapped_cameras(found, swapped),
+        engine::Fault::TooFewMatches { per_pair } => one("left", too_few(&per_pair)),
         engine::Fault::Undetermined => one(
             "left",
             "the matches do not determine the drift: send pairs whose texture spreads over \
