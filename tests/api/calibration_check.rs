@@ -4,10 +4,12 @@
 
 use std::sync::OnceLock;
 
+use nalgebra::{Isometry3, Translation3};
 use nalgebra::{Rotation3, Vector3};
 use reqwest::multipart::{Form, Part};
 use serde_json::Value;
-use stereo_core::calibration::boards::synthetic::{raw_wall, sample_rig};
+use stereo_core::calibration::boards::Board;
+use stereo_core::calibration::boards::synthetic::{Style, raw_wall, sample_rig, stereo_views};
 use stereo_core::calibration::files::opencv;
 use stereo_core::camera::{RectifyOptions, Size, StereoPair, stereo_rectify};
 use stereo_core::noise::Rng;
@@ -15,6 +17,9 @@ use stereo_core::physics::LengthUnit;
 
 use crate::calibrate::gray_png;
 use crate::helpers::{TestApp, assert_names, message_for, ok_json, problem, spawn_app};
+
+/// Pairs of encoded (or raw grey) frames, left and right.
+type Pairs = Vec<(Vec<u8>, Vec<u8>)>;
 
 const SIZE: Size = Size {
     width: 640,
@@ -66,8 +71,8 @@ fn pngs(frames: &[(Vec<u8>, Vec<u8>)]) -> Vec<(Vec<u8>, Vec<u8>)> {
 }
 
 /// Three pairs seen by the sample rig as calibrated, and by it turned 0.05° about x.
-fn scenes() -> &'static [Vec<(Vec<u8>, Vec<u8>)>; 2] {
-    static SCENES: OnceLock<[Vec<(Vec<u8>, Vec<u8>)>; 2]> = OnceLock::new();
+fn scenes() -> &'static [Pairs; 2] {
+    static SCENES: OnceLock<[Pairs; 2]> = OnceLock::new();
     SCENES.get_or_init(|| {
         let rig = sample_rig();
         [
@@ -241,6 +246,107 @@ async fn every_mistake_is_named() {
     let many: Vec<(Vec<u8>, Vec<u8>)> = (0..31).map(|_| (tiny.clone(), tiny.clone())).collect();
     let p = problem(check(&app, "", form(&many, &calibration)).await, 413).await;
     assert!(message_for(&p, "left").contains("at most 30"), "{p}");
+}
+
+/// One board view at 1 m sees what rows cannot: the rig turned 0.1° about y since its
+/// calibration (σ 0.3 px in f and 0.05 mm in B sent beside it) is found to ±0.02°, and the
+/// corners' distance error, past the calibration's σ before, falls below it after.
+#[tokio::test]
+async fn one_board_view_recovers_a_yaw() {
+    let app = spawn_app().await;
+    let rig = sample_rig();
+    let truth = turned(&rig, Vector3::y(), 0.1);
+    let board = Board::new(9, 6, 25.0, LengthUnit::Millimetre).expect("a board");
+    let style = Style {
+        supersampling: 2,
+        ..Style::default()
+    };
+    let pose = Isometry3::from_parts(
+        Translation3::new(-100.0, -60.0, 1000.0),
+        Rotation3::from_scaled_axis(Vector3::new(0.15, -0.2, 0.05)).into(),
+    );
+    let view = stereo_views(&truth, SIZE, &board, &[pose], &style).remove(0);
+    let frames = pngs(&[(view.left.pixels, view.right.pixels)]);
+    let form = form(&frames, &opencv_yml(&rig))
+        .text(
+            "board",
+            r#"{"columns": 9, "rows": 6, "square_size": 25, "unit": "mm"}"#,
+        )
+        .text(
+            "rig",
+            r#"{"focal_length_std_px": 0.3, "baseline_std": 0.05}"#,
+        );
+    let body = ok_json(check(&app, "", form).await).await;
+    let yaw = number(&body, "/correction/rotation_deg/y/value");
+    assert!((yaw - 0.1).abs() < 0.02, "{body}");
+    assert_eq!(body["holds"], false, "{body}");
+    assert!(
+        body["verdict"].as_str().unwrap().contains("about y"),
+        "{body}"
+    );
+    let distance = &body["distance"];
+    assert_eq!(distance["points"], 54, "{body}");
+    assert!(
+        (number(distance, "/median_distance") - 1000.0).abs() < 100.0,
+        "{body}"
+    );
+    let sigma = number(distance, "/calibration_std");
+    assert!(sigma > 0.0, "{body}");
+    assert!(
+        number(distance, "/before/mean").abs() > 3.0 * sigma,
+        "{body}"
+    );
+    assert!(number(distance, "/after/mean").abs() < sigma, "{body}");
+    assert!(number(distance, "/after/rms") < sigma, "{body}");
+}
+
+/// Points given with their true distance do what a board does: three walls seen by the rig
+/// turned 0.1° about y, 20 points each, give the yaw to ±0.02°; a point outside the frame,
+/// in a pair not sent or without a distance is named.
+#[tokio::test]
+async fn known_distances_recover_a_yaw_and_bad_points_are_named() {
+    let app = spawn_app().await;
+    let rig = sample_rig();
+    let truth = turned(&rig, Vector3::y(), 0.1);
+    let frames = walls(&truth, 3);
+    // The walls' true depth along the raw left camera's axis, from their definition in the
+    // rectified left frame of the rig that took them.
+    let rect = stereo_rectify(&truth, SIZE, RectifyOptions::default()).expect("a rig");
+    let mut points = Vec::new();
+    for (i, _) in frames.iter().enumerate() {
+        let distance = 800.0 + 3200.0 * i as f64 / 2.0;
+        let slope = [-0.3, 0.0, 0.3][i % 3];
+        for k in 0..20 {
+            let (x, y) = (60.0 + 26.0 * k as f64, 100.0 + 13.0 * k as f64);
+            let [xn, yn] = truth.left.normalize([x, y]).expect("a ray");
+            let ray = rect.r1 * Vector3::new(xn, yn, 1.0);
+            let t = distance / (ray.z - slope * ray.x);
+            let point = rect.r1.transpose() * (ray * t);
+            points.push(serde_json::json!({"pair": i, "x": x, "y": y, "distance": point.z}));
+        }
+    }
+    let known = serde_json::to_string(&points).expect("json");
+    let form_with =
+        |known: String| form(&pngs(&frames), &opencv_yml(&rig)).text("known_distances", known);
+    let body = ok_json(check(&app, "", form_with(known)).await).await;
+    let yaw = number(&body, "/correction/rotation_deg/y/value");
+    assert!((yaw - 0.1).abs() < 0.02, "{body}");
+    assert!(number(&body, "/distance/points") >= 40.0, "{body}");
+    assert!(
+        number(&body, "/distance/after/rms") < number(&body, "/distance/before/rms") / 5.0,
+        "{body}"
+    );
+
+    let bad = r#"[{"pair": 7, "x": 10, "y": 10, "distance": 1000}, {"x": 900, "y": 10, "distance": 1000}, {"x": 10, "y": 10}]"#;
+    let p = problem(check(&app, "", form_with(bad.to_owned())).await, 422).await;
+    assert_names(
+        &p,
+        &[
+            "known_distances[0].pair",
+            "known_distances[1].x",
+            "known_distances[2].distance",
+        ],
+    );
 }
 
 /// The goals over draws (release; CI runs it beside `scale`): 10 pairs of walls, each draw

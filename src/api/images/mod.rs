@@ -4,6 +4,7 @@
 //!   [`form::ImagePair`], the extractor that opens every image route (parts, sizes, the pair's
 //!   check, the rig);
 //! - [`parts`]: the form's parts by name;
+//! - [`board`]: the `board` part, a chessboard or a ChArUco board;
 //! - [`rig`]: the rig from a `rig` part or a `calibration` file, through the one constructor
 //!   every rig goes through;
 //! - [`maps`]: the rectification maps of the raw rigs seen lately, cached within the budget;
@@ -23,6 +24,7 @@
 //! It sits between [`super::validate`] and [`super::routes`]: the routes use it, it uses
 //! none of them.
 
+pub mod board;
 pub mod form;
 pub mod job;
 pub mod limits;

@@ -56,10 +56,39 @@ pub struct CheckForm {
     /// KITTI only: the camera pair, `2-3` (the default) or `0-1`.
     #[schema(nullable = false)]
     calibration_cameras: Option<String>,
+    /// A board the pairs show (as `/calibrate` takes it): its corners, their pose from the left
+    /// camera, give known distances, which see a turn about y and a baseline's change.
+    #[schema(nullable = false)]
+    board: Option<crate::api::wire::board_calibration::BoardSpec>,
+    /// Points with their true distance, a JSON array: `[{"pair": 0, "x": 320, "y": 240,
+    /// "distance": 1500}]`.
+    #[schema(nullable = false)]
+    known_distances: Option<Vec<KnownDistance>>,
     /// The calibration's σ, when its file does not carry it:
     /// `{"focal_length_std_px": …, "baseline_std": …}`.
     #[schema(value_type = Option<Object>, nullable = false)]
     rig: Option<String>,
+}
+
+request! {
+    /// A point of a pair's raw left image whose true distance is known (measured by tape,
+    /// a laser, a total station): depth along the left camera's optical axis.
+    #[schema(example = json!({"pair": 0, "x": 320, "y": 240, "distance": 1500}))]
+    pub struct KnownDistance {
+        /// The pair it is in, from 0 (default 0).
+        #[schema(minimum = 0)]
+        pair: u32,
+        /// Its pixel in the raw left image.
+        #[schema(required = true)]
+        x: f64,
+        #[schema(required = true)]
+        y: f64,
+        /// Its true distance, in `unit`.
+        #[schema(required = true, exclusive_minimum = 0.0)]
+        distance: f64,
+        /// The unit of `distance` (default the calibration's).
+        unit: Unit,
+    }
 }
 
 /// A value and its standard deviation.
@@ -154,6 +183,11 @@ pub struct Correction {
     #[serde(skip_serializing_if = "Option::is_none")]
     #[schema(nullable = false)]
     pub cy_shift_px: Option<Estimate>,
+    /// The baseline's length over the calibrated one (known distances at two depths or more
+    /// tell it from a turn about y).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub baseline_ratio: Option<Estimate>,
     /// What the frames cannot see, in sentences.
     pub unseen: Vec<String>,
 }
@@ -168,6 +202,27 @@ pub struct DepthEffect {
     pub error_centre: f64,
     /// The largest error over the image, signed.
     pub error_largest: f64,
+    /// σ of a distance there from the calibration's own uncertainty (0 when unknown).
+    pub calibration_std: f64,
+}
+
+/// Distance errors (measured less true) over the known points, in the rig's unit.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct Errors {
+    pub mean: f64,
+    pub rms: f64,
+}
+
+/// The known points' distances (a board's corners, `known_distances`) measured through the
+/// calibration as it was and as corrected, against their truth.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct DistanceCheck {
+    pub points: usize,
+    /// Their median true distance, in `unit`.
+    pub median_distance: f64,
+    pub unit: Unit,
+    pub before: Errors,
+    pub after: Errors,
     /// σ of a distance there from the calibration's own uncertainty (0 when unknown).
     pub calibration_std: f64,
 }
@@ -187,10 +242,16 @@ pub struct CheckAnswer {
     pub rows: Rows,
     /// The largest row the drift found moves over the image (px), with its σ.
     pub largest_row_shift_px: Estimate,
+    /// The largest disparity it moves (px): a turn about y's, seen with known distances.
+    pub largest_disparity_shift_px: Estimate,
     pub tolerance_px: f64,
     pub correction: Correction,
     /// What the drift does to a distance at 1 m and 5 m.
     pub depth_effect: Vec<DepthEffect>,
+    /// With a board or known distances: their distances before and after the correction.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub distance: Option<DistanceCheck>,
     /// The calibration file's notes.
     pub warnings: Vec<String>,
 }
@@ -224,11 +285,13 @@ impl CheckAnswer {
                 over_image,
             },
             largest_row_shift_px: check.largest_row_shift.into(),
+            largest_disparity_shift_px: check.largest_disparity_shift.into(),
             tolerance_px: check.tolerance_px,
             correction: Correction {
                 rotation_deg: Rotation { x, y, z },
                 focal_ratio: c.focal_ratio.map(Into::into),
                 cy_shift_px: c.cy_shift_px.map(Into::into),
+                baseline_ratio: c.baseline_ratio.map(Into::into),
                 unseen: c.unseen.clone(),
             },
             depth_effect: check
@@ -242,6 +305,20 @@ impl CheckAnswer {
                     calibration_std: e.calibration_std,
                 })
                 .collect(),
+            distance: check.distance.map(|d| DistanceCheck {
+                points: d.points,
+                median_distance: d.median_distance,
+                unit,
+                before: Errors {
+                    mean: d.before.mean,
+                    rms: d.before.rms,
+                },
+                after: Errors {
+                    mean: d.after.mean,
+                    rms: d.after.rms,
+                },
+                calibration_std: d.calibration_std,
+            }),
             warnings,
         }
     }
@@ -256,12 +333,13 @@ fn fixed(v: f64, decimals: usize) -> String {
 fn verdict(check: &engine::Check) -> String {
     let rows = |r: &engine::Rows| fixed(r.rms_px, 2);
     let shift = check.largest_row_shift;
+    let moved = check.largest_disparity_shift;
     if check.holds {
         return format!(
             "holds: the matches' rows agree to {} px RMS, and the drift found moves no row \
-             more than {} px (the tolerance is {} px)",
+             or disparity more than {} px (the tolerance is {} px)",
             rows(&check.before.whole),
-            fixed(shift.value, 2),
+            fixed(shift.value.max(moved.value), 2),
             Num(check.tolerance_px)
         );
     }
@@ -281,12 +359,23 @@ fn verdict(check: &engine::Check) -> String {
     } else {
         format!("the right camera turned {}", turns.join(" and "))
     };
+    let how = match check.depth_effect.first() {
+        Some(e) if moved.value > shift.value => format!(
+            "disparities up to {} px off (a distance of {} reads up to {} % off)",
+            fixed(moved.value, 2),
+            Num(e.distance),
+            fixed(100.0 * e.error_largest.abs() / e.distance, 2)
+        ),
+        _ => format!(
+            "rows {} px RMS off (up to {} px over the image)",
+            rows(&check.before.whole),
+            fixed(shift.value, 2)
+        ),
+    };
     format!(
-        "drifted: rows {} px RMS off (up to {} px over the image, past the {} px tolerance); \
-         {explained}, which leaves {} px RMS. Ask for output=opencv.yml (or ros-left.yaml and \
-         ros-right.yaml) for the corrected calibration",
-        rows(&check.before.whole),
-        fixed(shift.value, 2),
+        "drifted: {how}, past the {} px tolerance; {explained}, which leaves rows {} px RMS. \
+         Ask for output=opencv.yml (or ros-left.yaml and ros-right.yaml) for the corrected \
+         calibration",
         Num(check.tolerance_px),
         rows(&check.after.whole)
     )

@@ -279,12 +279,12 @@ pub(super) fn corners(img: &Gray, cells: (usize, usize)) -> Vec<(usize, usize)> 
 
 /// The best match of one patch.
 #[derive(Debug, Clone, Copy)]
-struct Peak {
+pub(super) struct Peak {
     /// Its disparity and row offset, in whole pixels.
-    d: i32,
-    dy: i32,
+    pub d: i32,
+    pub dy: i32,
     /// The row offset to a fraction of a pixel.
-    row: f64,
+    pub row: f64,
 }
 
 /// The left patch at `(x, y)` looked for in the right image over disparities `d_lo..=d_hi`
@@ -296,7 +296,7 @@ struct Peak {
 /// The score is the normalised cross-correlation. With the left patch made zero-mean, its
 /// dot product with a right patch needs no right mean, and each right patch's norm comes from
 /// running sums over the searched region: one multiply-add per pixel and candidate.
-fn search(
+pub(super) fn search(
     left: &Gray,
     right: &Gray,
     (x, y): (usize, usize),

@@ -72,6 +72,40 @@ pub fn sparse_matches(left: &Gray, right: &Gray, range: (i32, i32)) -> Vec<Spars
         .collect()
 }
 
+/// The matches of chosen left pixels `points` over disparities `range` and two rows up and
+/// down (a rectified pair), each refined as [`sparse_matches`] refines its corners; `None`
+/// where a point has no clear match.
+pub fn match_points(
+    left: &Gray,
+    right: &Gray,
+    points: &[(usize, usize)],
+    range: (i32, i32),
+) -> Vec<Option<SparseMatch>> {
+    let (w, h) = (left.width, left.height);
+    if right.width != w
+        || right.height != h
+        || left.data.len() != w * h
+        || right.data.len() != w * h
+    {
+        return vec![None; points.len()];
+    }
+    let (smooth_left, smooth_right) = rayon::join(|| Smooth::new(left), || Smooth::new(right));
+    points
+        .par_iter()
+        .map(|&(x, y)| {
+            let peak = super::rows::search(left, right, (x, y), range, (-2, 2), true)?;
+            let start = [-f64::from(peak.d), peak.row];
+            let (offset, score) = refine(&smooth_left, &smooth_right, (x, y), start)?;
+            let (xf, yf) = (x as f64, y as f64);
+            Some(SparseMatch {
+                left: [xf, yf],
+                right: [xf + offset[0], yf + offset[1]],
+                score,
+            })
+        })
+        .collect()
+}
+
 /// An image smoothed by a binomial kernel of σ = 1 px (1 4 6 4 1, each way), with its
 /// gradients: what refinement reads, so that its cost is smooth between pixels and the
 /// interpolation hardly blurs what it reads.

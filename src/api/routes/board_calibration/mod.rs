@@ -13,12 +13,13 @@ use axum::body::Bytes;
 use axum::response::{IntoResponse, Response};
 use utoipa_axum::{router::OpenApiRouter, routes};
 
-use self::board::{fault, read_board};
+use self::board::fault;
 use self::types::{CalibrateAnswers, CalibrateForm, CalibrateOutput, CalibrateQuery};
 use self::upload::{Upload, over_the_budget};
 use crate::api::error::{ApiError, FieldError, FieldErrors};
 use crate::api::extract::QueryParams;
 use crate::api::images::HeavyState;
+use crate::api::images::board::read_board;
 use crate::api::images::limits;
 use crate::api::images::output::{self, Disposition, set_server_timing};
 use crate::api::images::work;

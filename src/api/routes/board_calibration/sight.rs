@@ -5,9 +5,9 @@
 use axum::body::Bytes;
 use axum::response::{IntoResponse, Response};
 
-use super::board::read_board;
 use super::upload::{Upload, over_the_budget};
 use crate::api::error::{ApiError, FieldError, FieldErrors};
+use crate::api::images::board::read_board;
 use crate::api::images::limits;
 use crate::api::images::output::set_server_timing;
 use crate::api::images::work;

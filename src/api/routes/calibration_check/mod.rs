@@ -12,18 +12,25 @@ use axum::extract::{FromRequest, Request};
 use axum::response::{IntoResponse, Response};
 use utoipa_axum::{router::OpenApiRouter, routes};
 
-use self::types::{CheckAnswer, CheckAnswers, CheckForm, CheckQuery};
+use serde_json::Value;
+
+use self::types::{CheckAnswer, CheckAnswers, CheckForm, CheckQuery, KnownDistance};
 use crate::api::error::{ApiError, FieldError, FieldErrors};
-use crate::api::extract::QueryParams;
+use crate::api::extract::{QueryParams, decode_object};
+use crate::api::images::board::read_board;
 use crate::api::images::form::{Form, FormSpec};
 use crate::api::images::output::{self, Disposition};
 use crate::api::images::rig::{self, RIG_PARTS, RigParts};
 use crate::api::images::{HeavyState, limits, work};
 use crate::api::respond::Json;
 use crate::api::wire::board_calibration::CalibrateOutput;
+use stereo_core::physics::LengthUnit;
 use stereo_core::pipeline::check as engine;
 use stereo_core::pipeline::{Calibrated, Sent};
 use stereo_core::vision::decode::DecodeLimits;
+
+/// The most known points one check reads.
+const MAX_KNOWN: usize = 10_000;
 
 /// `POST /calibration/check`.
 pub fn router() -> OpenApiRouter<HeavyState> {
@@ -35,6 +42,8 @@ pub struct CheckUpload {
     left: Vec<Bytes>,
     right: Vec<Bytes>,
     rig: RigParts,
+    board: Option<Bytes>,
+    known_distances: Option<Bytes>,
     problems: FieldErrors,
     admitted: work::Admitted,
     limits: DecodeLimits,
@@ -44,7 +53,11 @@ impl FromRequest<HeavyState> for CheckUpload {
     type Rejection = ApiError;
 
     async fn from_request(req: Request, state: &HeavyState) -> Result<Self, ApiError> {
-        let known = [&["left", "right"][..], &RIG_PARTS[..]].concat();
+        let known = [
+            &["left", "right", "board", "known_distances"][..],
+            &RIG_PARTS[..],
+        ]
+        .concat();
         let spec = FormSpec {
             known: &known,
             repeatable: &["left", "right"],
@@ -57,6 +70,8 @@ impl FromRequest<HeavyState> for CheckUpload {
             left: Vec::new(),
             right: Vec::new(),
             rig: RigParts::default(),
+            board: None,
+            known_distances: None,
             problems: form.problems,
             admitted: form.admitted,
             limits: state.image_limits,
@@ -65,6 +80,8 @@ impl FromRequest<HeavyState> for CheckUpload {
             match name.as_str() {
                 "left" => upload.left.push(bytes),
                 "right" => upload.right.push(bytes),
+                "board" => upload.board = Some(bytes),
+                "known_distances" => upload.known_distances = Some(bytes),
                 other => {
                     upload.rig.set(other, bytes);
                 }
@@ -108,20 +125,23 @@ impl FromRequest<HeavyState> for CheckUpload {
 )]
 pub async fn post_check(
     QueryParams(query, query_problems): QueryParams<CheckQuery>,
-    upload: CheckUpload,
+    mut upload: CheckUpload,
 ) -> Result<Response, ApiError> {
+    let mut problems = query_problems;
+    problems.extend(std::mem::take(&mut upload.problems));
+    let Judged {
+        calibrated,
+        size: (w, h),
+        tolerance_px,
+        known,
+    } = judged(&query, &upload, problems)?;
     let CheckUpload {
         left,
         right,
-        rig: parts,
-        problems: form_problems,
         admitted,
         limits: allowed,
+        ..
     } = upload;
-    let mut problems = query_problems;
-    problems.extend(form_problems);
-    let (calibrated, (w, h), tolerance_px) =
-        judged(&query, &parts, [&left, &right], allowed, problems)?;
     let output = query.output.unwrap_or_default();
     let warnings = calibrated.warnings.clone();
     let unit = calibrated.rig.unit().into();
@@ -149,23 +169,30 @@ pub async fn post_check(
             right: &right,
             limits: allowed,
         };
-        let check = engine::check_encoded(&calibrated, &frames, settings, cancel)
+        let check = engine::check_encoded(&calibrated, &frames, &known, settings, cancel)
             .map_err(|f| fault(f, allowed))?;
         Ok(answer(&check, output, unit, warnings))
     })
     .await?
 }
 
+/// What a request asks, judged.
+struct Judged {
+    calibrated: Calibrated,
+    size: (u32, u32),
+    tolerance_px: f64,
+    known: engine::Known,
+}
+
 /// The form and the query judged, every fault named at once: the tolerance, the pairs'
-/// counts and sizes, and the calibration, which must describe the raw cameras of frames of
-/// that size. The calibration, the frames' size and the tolerance.
+/// counts and sizes, the calibration (which must describe the raw cameras of frames of that
+/// size), the board and the known distances.
 fn judged(
     query: &CheckQuery,
-    parts: &RigParts,
-    [left, right]: [&[Bytes]; 2],
-    allowed: DecodeLimits,
+    upload: &CheckUpload,
     mut problems: FieldErrors,
-) -> Result<(Calibrated, (u32, u32), f64), ApiError> {
+) -> Result<Judged, ApiError> {
+    let (left, right, parts) = (&upload.left, &upload.right, &upload.rig);
     let tolerance_px = query.tolerance_px.unwrap_or(engine::DEFAULT_TOLERANCE_PX);
     if !(tolerance_px.is_finite() && tolerance_px > 0.0 && tolerance_px <= 10.0) {
         problems.add(
@@ -174,7 +201,7 @@ fn judged(
         );
     }
     count_pairs([left, right], &mut problems)?;
-    let size = limits::view_sizes(left, right, allowed, &mut problems)?;
+    let size = limits::view_sizes(left, right, upload.limits, &mut problems)?;
     if parts.sent() != Sent::Calibration {
         problems.add(
             "calibration",
@@ -193,10 +220,116 @@ fn judged(
              or a ROS CameraInfo pair gives them",
         );
     }
+    let board = upload
+        .board
+        .as_ref()
+        .and_then(|b| read_board(Some(b), &mut problems));
+    let unit = calibrated.as_ref().map(|c| c.file_unit);
+    let points = upload
+        .known_distances
+        .as_ref()
+        .map_or_else(Vec::new, |bytes| {
+            known_distances(bytes, unit, left.len(), size, &mut problems)
+        });
     match (calibrated, size, problems.is_empty()) {
-        (Some(calibrated), Some(size), true) => Ok((calibrated, size, tolerance_px)),
+        (Some(calibrated), Some(size), true) => Ok(Judged {
+            calibrated,
+            size,
+            tolerance_px,
+            known: engine::Known { board, points },
+        }),
         _ => Err(problems.into_error()),
     }
+}
+
+/// The `known_distances` part: a JSON array of points, each named `known_distances[i].x`…
+/// where at fault: a pair that was sent, a pixel inside its frames, a distance above 0; the
+/// distances in the calibration's unit (`unit`).
+fn known_distances(
+    bytes: &Bytes,
+    unit: Option<LengthUnit>,
+    pairs: usize,
+    size: Option<(u32, u32)>,
+    problems: &mut FieldErrors,
+) -> Vec<engine::KnownPoint> {
+    const PART: &str = "known_distances";
+    let Ok(Value::Array(items)) = serde_json::from_slice::<Value>(bytes) else {
+        problems.add(
+            PART,
+            "must be a JSON array of points, such as [{\"pair\": 0, \"x\": 320, \"y\": 240, \
+             \"distance\": 1500}]",
+        );
+        return Vec::new();
+    };
+    if items.len() > MAX_KNOWN {
+        problems.add(
+            PART,
+            format!("has {} points; at most {MAX_KNOWN} are read", items.len()),
+        );
+        return Vec::new();
+    }
+    let sent = |n: usize, s: Option<(u32, u32)>| (n, s);
+    items
+        .into_iter()
+        .enumerate()
+        .filter_map(|(i, item)| known_point(i, item, unit, sent(pairs, size), problems))
+        .collect()
+}
+
+/// One point of `known_distances` (the `i`-th), its faults named `known_distances[i].x`…;
+/// `pairs` were sent, of frames of `size`.
+fn known_point(
+    i: usize,
+    item: Value,
+    unit: Option<LengthUnit>,
+    (pairs, size): (usize, Option<(u32, u32)>),
+    problems: &mut FieldErrors,
+) -> Option<engine::KnownPoint> {
+    let name = format!("known_distances[{i}]");
+    let Value::Object(map) = item else {
+        problems.add(&name, "must be an object {\"x\", \"y\", \"distance\"}");
+        return None;
+    };
+    let (given, refused): (KnownDistance, _) = decode_object(map);
+    let mut local = FieldErrors::from(refused.prefixed(&format!("{name}.")));
+    let pair = given.pair.unwrap_or(0) as usize;
+    if pair >= pairs {
+        local.add(
+            &format!("{name}.pair"),
+            format!("is {pair}, but {pairs} pairs were sent"),
+        );
+    }
+    let inside = |v: Option<f64>, side: Option<u32>| {
+        v.is_some_and(|v| v.is_finite() && v >= 0.0 && side.is_none_or(|s| v <= f64::from(s) - 1.0))
+    };
+    for (member, v, side) in [
+        ("x", given.x, size.map(|s| s.0)),
+        ("y", given.y, size.map(|s| s.1)),
+    ] {
+        if !inside(v, side) && !local.has(&format!("{name}.{member}")) {
+            local.add(
+                &format!("{name}.{member}"),
+                "is required: a pixel of the raw left frame",
+            );
+        }
+    }
+    let distance = given.distance.filter(|d| d.is_finite() && *d > 0.0);
+    if distance.is_none() && !local.has(&format!("{name}.distance")) {
+        local.add(
+            &format!("{name}.distance"),
+            "is required: the true distance, above 0",
+        );
+    }
+    let ok = local.is_empty();
+    problems.extend(local);
+    let (x, y, d, to) = (given.x?, given.y?, distance?, unit?);
+    let from = given.unit.map_or(to, LengthUnit::from);
+    ok.then(|| engine::KnownPoint {
+        pair,
+        x,
+        y,
+        distance: from.convert(d, to),
+    })
 }
 
 /// The pairs' counts: at least one, as many right frames as left ones, at most
@@ -316,6 +449,16 @@ fn fault(fault: engine::Fault, allowed: DecodeLimits) -> ApiError {
         ),
         engine::Fault::Swapped { found, swapped } => swapped_cameras(found, swapped),
         engine::Fault::TooFewMatches { per_pair } => one("left", too_few(&per_pair)),
+        engine::Fault::NothingKnown { board: true } => one(
+            "board",
+            "was found in both cameras of no pair: send pairs that show the whole board (a \
+             ChArUco board: 6 corners or more) to both cameras"
+                .to_owned(),
+        ),
+        engine::Fault::NothingKnown { board: false } => one(
+            "known_distances",
+            "matched in none of the pairs: give points on texture that both cameras see".to_owned(),
+        ),
         engine::Fault::Undetermined => one(
             "left",
             "the matches do not determine the drift: send pairs whose texture spreads over \

@@ -25,6 +25,8 @@ pub enum Param {
     FocalRatio,
     /// The right camera's cy moved, in pixels.
     CyShift,
+    /// The baseline's length over the calibrated one, less 1.
+    BaselineScale,
 }
 
 impl Param {
@@ -32,7 +34,7 @@ impl Param {
     fn step(self) -> f64 {
         match self {
             Param::AboutX | Param::AboutY | Param::AboutZ => 1e-6,
-            Param::FocalRatio => 1e-6,
+            Param::FocalRatio | Param::BaselineScale => 1e-6,
             Param::CyShift => 1e-3,
         }
     }
@@ -45,6 +47,7 @@ pub struct Drift {
     pub rotation: Vector3<f64>,
     pub focal_ratio: f64,
     pub cy_shift: f64,
+    pub baseline_scale: f64,
 }
 
 impl Drift {
@@ -64,11 +67,12 @@ impl Drift {
             Param::AboutZ => self.rotation.z += value,
             Param::FocalRatio => self.focal_ratio += value,
             Param::CyShift => self.cy_shift += value,
+            Param::BaselineScale => self.baseline_scale += value,
         }
     }
 
-    /// The pair as it is now: the right camera's fy and cy moved, and its pose turned about
-    /// its own centre (R' = Exp(ω)·R, T' = Exp(ω)·T).
+    /// The pair as it is now: the right camera's fy and cy moved, its pose turned about its
+    /// own centre (R' = Exp(ω)·R, T' = Exp(ω)·T) and the baseline scaled.
     pub fn corrected(&self, pair: &StereoPair) -> Option<StereoPair> {
         let turn = Rotation3::from_scaled_axis(self.rotation);
         let right = moved_camera(&pair.right, self)?;
@@ -76,7 +80,7 @@ impl Drift {
             left: pair.left,
             right,
             rotation: turn * pair.rotation,
-            translation: turn * pair.translation,
+            translation: turn * pair.translation * (1.0 + self.baseline_scale),
         })
     }
 }
@@ -154,12 +158,68 @@ impl<'a> Model<'a> {
     }
 }
 
-/// One match as the fit reads it: the left point's rectified row, and the right point's raw
-/// pixel.
+/// What the fit reads.
 #[derive(Debug, Clone, Copy)]
-pub struct Observed {
-    pub left_row: f64,
-    pub right_raw: [f64; 2],
+pub enum Observed {
+    /// A sparse match: the left point's rectified row, and the right point's raw pixel.
+    Row { left_row: f64, right_raw: [f64; 2] },
+    /// A point whose place in the left camera's frame is known (a board's corner, a point at
+    /// a known distance; in the calibration's unit) and the raw right pixel that sees it.
+    Known {
+        point: Vector3<f64>,
+        right_raw: [f64; 2],
+    },
+}
+
+impl Observed {
+    fn is_row(&self) -> bool {
+        matches!(self, Observed::Row { .. })
+    }
+}
+
+impl Model<'_> {
+    /// Where the right camera, drifted by `drift`, sees `point` (left camera's frame).
+    pub fn seen_at(&self, drift: &Drift, point: &Vector3<f64>) -> Option<[f64; 2]> {
+        let pair = drift.corrected(&self.raw.pair)?;
+        pair.right
+            .project(&(pair.rotation * point + pair.translation))
+    }
+
+    /// What the fit minimises for one observation: a row's offset (right − left, px), or a
+    /// known point's reprojection error in the raw right image (x, y).
+    fn residual(&self, drift: &Drift, o: &Observed) -> Option<([f64; 2], usize)> {
+        match *o {
+            Observed::Row {
+                left_row,
+                right_raw,
+            } => Some(([self.rectified(drift, right_raw)?[1] - left_row, 0.0], 1)),
+            Observed::Known { point, right_raw } => {
+                let p = self.seen_at(drift, &point)?;
+                Some(([p[0] - right_raw[0], p[1] - right_raw[1]], 2))
+            }
+        }
+    }
+
+    /// The residual's derivatives in each of `params`, by central differences: one
+    /// `[∂r₀, ∂r₁]` a parameter.
+    fn residual_derivatives(
+        &self,
+        drift: &Drift,
+        params: &[Param],
+        o: &Observed,
+    ) -> Option<Vec<[f64; 2]>> {
+        params
+            .iter()
+            .map(|&p| {
+                let h = p.step();
+                let (mut up, mut down) = (*drift, *drift);
+                up.add(p, h);
+                down.add(p, -h);
+                let (a, b) = (self.residual(&up, o)?.0, self.residual(&down, o)?.0);
+                Some([(a[0] - b[0]) / (2.0 * h), (a[1] - b[1]) / (2.0 * h)])
+            })
+            .collect()
+    }
 }
 
 /// A fit of a drift to rows.
@@ -175,32 +235,37 @@ pub struct Fitted {
     pub residuals: Vec<f64>,
 }
 
-/// The normal matrix JᵀJ of the rows over the kept matches at `drift`, and Jᵀr.
+/// The weighted normal matrix JᵀWJ over the kept observations at `drift` (a row's weight
+/// `weights[0]`, a known point's `weights[1]`), JᵀWr, and each observation's residual (a
+/// row's offset, a known point's error in x and y).
 fn normal(
     model: &Model,
     drift: &Drift,
     params: &[Param],
     seen: &[Observed],
     keep: &[bool],
-) -> (DMatrix<f64>, DVector<f64>, Vec<f64>) {
+    weights: [f64; 2],
+) -> (DMatrix<f64>, DVector<f64>, Vec<Option<[f64; 2]>>) {
     let n = params.len();
     let (mut jtj, mut jtr) = (DMatrix::zeros(n, n), DVector::zeros(n));
-    let mut residuals = vec![f64::NAN; seen.len()];
+    let mut residuals = vec![None; seen.len()];
     for (i, o) in seen.iter().enumerate() {
-        let (Some(at), Some(d)) = (
-            model.rectified(drift, o.right_raw),
-            model.derivatives(drift, params, o.right_raw),
+        let (Some((r, m)), Some(d)) = (
+            model.residual(drift, o),
+            model.residual_derivatives(drift, params, o),
         ) else {
             continue;
         };
-        let r = at[1] - o.left_row;
-        residuals[i] = r;
+        residuals[i] = Some(r);
         if !keep[i] {
             continue;
         }
-        let j = DVector::from_iterator(n, d.iter().map(|g| g[1]));
-        jtj += &j * j.transpose();
-        jtr += &j * r;
+        let w = if o.is_row() { weights[0] } else { weights[1] };
+        for (k, &rk) in r.iter().enumerate().take(m) {
+            let j = DVector::from_iterator(n, d.iter().map(|g| g[k]));
+            jtj += &j * j.transpose() * w;
+            jtr += &j * rk * w;
+        }
     }
     (jtj, jtr, residuals)
 }
@@ -229,7 +294,7 @@ pub fn separable(
     let mut dropped = Vec::new();
     let all = vec![true; seen.len()];
     while kept.len() > 1 {
-        let (jtj, _, _) = normal(model, &Drift::default(), &kept, seen, &all);
+        let (jtj, _, _) = normal(model, &Drift::default(), &kept, seen, &all, [1.0, 1.0]);
         let Some(corr) = correlations(&jtj) else {
             // Singular: the last parameter cannot be seen at all.
             let last = kept.pop().expect("more than one");
@@ -253,9 +318,34 @@ pub fn separable(
     (kept, dropped)
 }
 
-/// Fits `params` to the rows of `seen`: Gauss–Newton from no drift, the matches whose row
-/// lies more than 3.5 robust σ (at least 0.05 px) from the fit left out and the fit run
-/// again. `None` with too few matches or parameters the matches cannot see.
+/// The robust spread (1.4826 × the median size) of the residuals of one kind of
+/// observation; `None` with none.
+fn spread(residuals: &[Option<[f64; 2]>], seen: &[Observed], rows: bool) -> Option<f64> {
+    let mut sizes: Vec<f64> = residuals
+        .iter()
+        .zip(seen)
+        .filter(|(_, o)| o.is_row() == rows)
+        .filter_map(|(r, o)| {
+            r.map(|r| {
+                if o.is_row() {
+                    r[0].abs()
+                } else {
+                    r[0].hypot(r[1]) / std::f64::consts::SQRT_2
+                }
+            })
+        })
+        .collect();
+    if sizes.is_empty() {
+        return None;
+    }
+    sizes.sort_by(f64::total_cmp);
+    Some(1.4826 * sizes[sizes.len() / 2])
+}
+
+/// Fits `params` to `seen`: Gauss–Newton from no drift, each kind of observation weighted by
+/// its own robust spread, the observations more than 3.5 spreads (at least 0.05 px) from the
+/// fit left out and the fit run again. `None` with too few observations or parameters they
+/// cannot see.
 pub fn fit(model: &Model, params: &[Param], seen: &[Observed]) -> Option<Fitted> {
     let n = params.len();
     if seen.len() < 2 * n + 4 {
@@ -263,52 +353,75 @@ pub fn fit(model: &Model, params: &[Param], seen: &[Observed]) -> Option<Fitted>
     }
     let mut keep = vec![true; seen.len()];
     let mut values = DVector::<f64>::zeros(n);
+    let mut weights = [1.0, 1.0];
     for round in 0..4 {
         for _ in 0..3 {
             let drift = Drift::of(params, values.as_slice());
-            let (jtj, jtr, _) = normal(model, &drift, params, seen, &keep);
+            let (jtj, jtr, _) = normal(model, &drift, params, seen, &keep, weights);
             let step = jtj.cholesky()?.solve(&jtr);
             values -= step;
         }
         let drift = Drift::of(params, values.as_slice());
-        let (_, _, residuals) = normal(model, &drift, params, seen, &keep);
-        // The robust spread of every match's residual (NaN: not mappable, left out).
-        let mut sorted: Vec<f64> = residuals
+        let (_, _, residuals) = normal(model, &drift, params, seen, &keep, weights);
+        let sigma = [true, false].map(|rows| spread(&residuals, seen, rows));
+        let bound = sigma.map(|s| s.map_or(f64::INFINITY, |s| (3.5 * s).max(0.05)));
+        weights = sigma.map(|s| s.map_or(1.0, |s| 1.0 / s.max(0.01).powi(2)));
+        let next: Vec<bool> = residuals
             .iter()
-            .filter(|r| r.is_finite())
-            .map(|r| r.abs())
+            .zip(seen)
+            .map(|(r, o)| {
+                let b = if o.is_row() { bound[0] } else { bound[1] };
+                r.is_some_and(|r| r[0].abs() <= b && r[1].abs() <= b)
+            })
             .collect();
-        if sorted.len() < 2 * n + 4 {
+        if next.iter().filter(|&&k| k).count() < 2 * n + 4 {
             return None;
         }
-        sorted.sort_by(f64::total_cmp);
-        let sigma = 1.4826 * sorted[sorted.len() / 2];
-        let bound = (3.5 * sigma).max(0.05);
-        let next: Vec<bool> = residuals.iter().map(|r| r.abs() <= bound).collect();
         if next == keep && round > 0 {
             break;
         }
         keep = next;
     }
     let drift = Drift::of(params, values.as_slice());
-    let (jtj, _, residuals) = normal(model, &drift, params, seen, &keep);
-    let kept: Vec<f64> = residuals
-        .iter()
-        .zip(&keep)
-        .filter(|&(r, &k)| k && r.is_finite())
-        .map(|(r, _)| *r)
-        .collect();
-    if kept.len() < 2 * n + 4 {
-        return None;
-    }
-    let variance = kept.iter().map(|r| r * r).sum::<f64>() / (kept.len() - n) as f64;
-    let covariance = jtj.try_inverse()? * variance;
+    let (_, _, residuals) = normal(model, &drift, params, seen, &keep, weights);
+    // Weights from the kept residuals' own RMS, so that the covariance is in their units.
+    let rms = [true, false].map(|rows| {
+        let (sum, count) = residuals
+            .iter()
+            .zip(seen)
+            .zip(&keep)
+            .filter(|((r, o), k)| **k && o.is_row() == rows && r.is_some())
+            .fold((0.0, 0usize), |(s, c), ((r, o), _)| {
+                let r = r.expect("kept");
+                let m = if o.is_row() { 1 } else { 2 };
+                (
+                    s + r[0] * r[0] + if m == 2 { r[1] * r[1] } else { 0.0 },
+                    c + m,
+                )
+            });
+        (count > 0).then(|| (sum / count as f64).sqrt().max(1e-3))
+    });
+    let weights = rms.map(|s| s.map_or(1.0, |s| 1.0 / (s * s)));
+    let (jtj, _, _) = normal(model, &drift, params, seen, &keep, weights);
+    let kept = keep.iter().filter(|&&k| k).count();
+    let dof = (kept as f64 / (kept - n).max(1) as f64).max(1.0);
+    let covariance = jtj.try_inverse()? * dof;
     Some(Fitted {
         params: params.to_vec(),
         drift,
         covariance,
+        residuals: residuals
+            .iter()
+            .zip(&keep)
+            .map(|(r, &k)| {
+                if k {
+                    r.map_or(f64::NAN, |r| r[0])
+                } else {
+                    f64::NAN
+                }
+            })
+            .collect(),
         inliers: keep,
-        residuals,
     })
 }
 
@@ -337,6 +450,7 @@ impl Fitted {
             Param::AboutZ => self.drift.rotation.z,
             Param::FocalRatio => self.drift.focal_ratio,
             Param::CyShift => self.drift.cy_shift,
+            Param::BaselineScale => self.drift.baseline_scale,
         };
         Some((value, self.covariance[(i, i)].max(0.0).sqrt()))
     }
