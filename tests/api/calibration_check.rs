@@ -37,7 +37,7 @@ fn turned(pair: &StereoPair, axis: Vector3<f64>, degrees: f64) -> StereoPair {
 }
 
 /// `pair`'s calibration as `/calibrate` writes `opencv.yml` (millimetres).
-fn opencv_yml(pair: &StereoPair) -> String {
+pub(crate) fn opencv_yml(pair: &StereoPair) -> String {
     let rectification = stereo_rectify(pair, SIZE, RectifyOptions::default()).expect("a rig");
     opencv::write(&opencv::StereoFile {
         size: SIZE,
@@ -70,8 +70,8 @@ fn pngs(frames: &[(Vec<u8>, Vec<u8>)]) -> Vec<(Vec<u8>, Vec<u8>)> {
     frames.iter().map(|(l, r)| (png(l), png(r))).collect()
 }
 
-/// Three pairs seen by the sample rig as calibrated, and by it turned 0.05° about x.
-fn scenes() -> &'static [Pairs; 2] {
+/// Three pairs (PNG) seen by the sample rig as calibrated, and by it turned 0.05° about x.
+pub(crate) fn scenes() -> &'static [Pairs; 2] {
     static SCENES: OnceLock<[Pairs; 2]> = OnceLock::new();
     SCENES.get_or_init(|| {
         let rig = sample_rig();

@@ -632,3 +632,48 @@ async fn the_range_found_is_kept_over_the_streams_frames() {
     assert!(why.contains("the stream's recent frames needed"), "{why}");
     socket.close(None).await.unwrap();
 }
+
+/// A raw stream checks its calibration on its first frame and every 10th after: the rig
+/// turned 0.05° about x since its calibration is found there (±0.01°), with the corrected
+/// calibration in OpenCV's YAML; the frames between carry no check; the rig as calibrated
+/// holds.
+#[tokio::test]
+async fn a_raw_stream_checks_its_calibration() {
+    use crate::calibration_check::{opencv_yml, scenes};
+    use stereo_core::calibration::boards::synthetic::sample_rig;
+    let app = spawn_app().await;
+    let calibration = opencv_yml(&sample_rig());
+    for (frames, holds) in [(&scenes()[1], false), (&scenes()[0], true)] {
+        let settings =
+            json!({"layout": "pair", "calibration": calibration, "outputs": [], "temporal": false});
+        let (mut socket, resolved) = open_with(&app, settings).await;
+        assert_eq!(resolved["type"], "settings", "{resolved}");
+        for (i, (l, r)) in frames.iter().take(2).enumerate() {
+            socket
+                .send(Message::binary(pair_frame(l, r)))
+                .await
+                .unwrap();
+            let answer = text(&mut socket).await;
+            let check = &answer["calibration_check"];
+            if i > 0 {
+                assert!(check.is_null(), "frame {i}: {answer}");
+                continue;
+            }
+            assert_eq!(check["checked_frames"], 1, "{answer}");
+            assert_eq!(check["holds"], holds, "{check}");
+            if holds {
+                assert!(check.get("corrected_opencv_yml").is_none(), "{check}");
+            } else {
+                let x = check["correction"]["rotation_deg"]["x"]["value"]
+                    .as_f64()
+                    .unwrap();
+                assert!((x - 0.05).abs() < 0.01, "{check}");
+                let yml = check["corrected_opencv_yml"]
+                    .as_str()
+                    .expect("the corrected file");
+                assert!(yml.starts_with("%YAML:1.0"), "{yml}");
+            }
+        }
+        socket.close(None).await.unwrap();
+    }
+}

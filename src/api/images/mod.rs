@@ -16,7 +16,8 @@
 //! - [`pools`]: thread pools lent to a stream's frames in work, one a frame, so that two
 //!   frames matched side by side do not wait on each other's tasks;
 //! - [`stream`]: what the depth streams share and are held to (the budget, the cap on open
-//!   streams, the idle and write timeouts, the frame limit);
+//!   streams, the idle and write timeouts, the frame limit), with [`stream_frames`], a frame's
+//!   parts and files;
 //! - [`work`]: a compute slot taken and the memory reserved when the work starts (not while
 //!   the body arrives), the work run on a blocking thread that stops when its request is
 //!   abandoned, the pair decoded, the matcher's stages for `Server-Timing`.
@@ -34,6 +35,7 @@ pub mod parts;
 pub mod pools;
 pub mod rig;
 pub mod stream;
+pub mod stream_frames;
 pub mod work;
 
 pub use form::{ImageForm, ImagePair, Job};

@@ -17,20 +17,23 @@ use super::limits;
 use super::maps::MapCache;
 use super::parts::Parts;
 use super::pools::{FramePools, lock};
+use super::stream_frames::{files, in_frame, odd_width, pair_parts};
 use super::{job, rig, work};
 use crate::api::error::{ApiError, FieldError, FieldErrors};
 use crate::api::wire::depth_map::{DepthMapOutput, DepthMapSummary, MatcherParameters};
 use crate::api::wire::depth_stream::{
-    FileAnswer, FrameTimes, Layout, SettingsAnswer, StreamLimitsAnswer, StreamSettings,
-    TemporalCounts,
+    CalibrationWatch, FileAnswer, FrameTimes, Layout, SettingsAnswer, StreamLimitsAnswer,
+    StreamSettings, TemporalCounts,
 };
 use crate::api::wire::images::RectifyMode;
 use crate::api::wire::rig::CalibratedRig;
 use crate::budget::{MemoryBudget, Refusal, Reservation, Slots};
+use stereo_core::pipeline::check::{self, Watch};
 use stereo_core::pipeline::{
     self, Answer, Chosen, DepthJob, Maps, Matched, RangeUsed, Request, RigInput, Sent,
 };
 use stereo_core::vision::decode::{self, DecodeLimits, Decoded};
+use stereo_core::vision::sparse::SparseMatch;
 use stereo_core::vision::temporal::{self, Temporal};
 use stereo_core::vision::{Params, Preset, Settings};
 
@@ -201,6 +204,8 @@ pub struct Done {
     pub times: FrameTimes,
     pub summary: DepthMapSummary,
     pub temporal: Option<TemporalCounts>,
+    /// The calibration's check, on the frames that ran it.
+    pub calibration: Option<CalibrationWatch>,
     pub files: Vec<(FileAnswer, Vec<u8>)>,
     pub held: Reservation,
 }
@@ -236,6 +241,8 @@ pub struct Engine {
     /// each frame finds its own: the range searched is the widest of them, kept as the scene
     /// moves nearer (widened at once) and narrowed only once it has stayed further away.
     needs: Mutex<VecDeque<i32>>,
+    /// The calibration's check over the latest frames of a raw stream, at the frames' size.
+    watch: Mutex<Option<((u32, u32), Watch)>>,
 }
 
 /// How many of a stream's latest frames the range found is kept over.
@@ -309,6 +316,7 @@ impl Engine {
             }),
             turn: Condvar::new(),
             needs: Mutex::new(VecDeque::with_capacity(KEPT_FRAMES)),
+            watch: Mutex::new(None),
         }
     }
 
@@ -356,11 +364,13 @@ impl Engine {
         let params = self.params(&at);
         let request = Request {
             params: &params,
+            sparse: Watch::due(seq) && at.job.raw().is_some(),
             ..at.job.request(colour, resolved.depth_std)
         };
         let mut matched =
             pipeline::matched(left, right, request, cancel).map_err(ApiError::from)?;
         self.keep(&matched.range());
+        let calibration = self.watched(&at, matched.take_sparse());
         turn.steady(&mut matched, cancel);
         let map = matched.depth_map(request);
         let started = Instant::now();
@@ -391,9 +401,31 @@ impl Engine {
             times,
             summary,
             temporal,
+            calibration,
             files,
             held,
         })
+    }
+
+    /// The calibration's check with a frame's sparse matches added (none: not this frame's
+    /// turn), over the latest checked frames of this size; `None` when not checked or when
+    /// the frames so far do not determine it.
+    fn watched(&self, at: &AtSize, sparse: Vec<SparseMatch>) -> Option<CalibrationWatch> {
+        if sparse.is_empty() {
+            return None;
+        }
+        let mut kept = lock(&self.watch);
+        if kept.as_ref().is_none_or(|(size, _)| *size != at.size) {
+            let watch = Watch::of(at.job.calibrated()?, check::Settings::default())?;
+            *kept = Some((at.size, watch));
+        }
+        let (_, watch) = kept.as_mut()?;
+        let check = watch.add(sparse).ok()?;
+        Some(CalibrationWatch::of(
+            &check,
+            watch.frames(),
+            at.job.calibrated()?,
+        ))
     }
 
     /// What holds for frames of `size`: kept from the frame before, or resolved now.
@@ -521,73 +553,3 @@ impl Engine {
 
 /// What an answer's JSON and messages hold besides its files, at most.
 const ANSWER_BYTES: usize = 64 * 1024;
-
-/// The files asked for, written from the map in order.
-fn files(
-    map: &pipeline::DepthMap,
-    outputs: &[DepthMapOutput],
-) -> Result<Vec<(FileAnswer, Vec<u8>)>, ApiError> {
-    outputs
-        .iter()
-        .filter_map(|o| o.product().map(|p| (o, p)))
-        .map(|(output, product)| {
-            let bytes = product.encode(map).map_err(ApiError::Internal)?;
-            let file = FileAnswer {
-                name: output.name(),
-                media_type: output.media_type(),
-                bytes: bytes.len(),
-            };
-            Ok((file, bytes))
-        })
-        .collect()
-}
-
-/// A pair-layout frame's two images: after the left image's length (4 bytes, little-endian),
-/// the left image, then the right.
-fn pair_parts(bytes: &Bytes) -> Result<(Bytes, Bytes), ApiError> {
-    let Some(head) = bytes.get(..4) else {
-        return Err(ApiError::invalid(
-            "frame",
-            format!(
-                "has {} bytes: a pair frame starts with the left image's length (4 bytes, \
-                 little-endian)",
-                bytes.len()
-            ),
-        ));
-    };
-    let len = u32::from_le_bytes([head[0], head[1], head[2], head[3]]) as usize;
-    let rest = bytes.len() - 4;
-    if len == 0 || len >= rest {
-        return Err(ApiError::invalid(
-            "frame",
-            format!(
-                "says its left image has {len} bytes, but {rest} follow the length: a pair \
-                 frame is the left image's length (4 bytes, little-endian), the left image, \
-                 then the right image"
-            ),
-        ));
-    }
-    Ok((bytes.slice(4..4 + len), bytes.slice(4 + len..)))
-}
-
-/// An error about a pair frame's `left` or `right` image, named `frame.left`, `frame.right`.
-fn in_frame(e: ApiError) -> ApiError {
-    let named = |errors: Vec<FieldError>| FieldErrors::from(errors).prefixed("frame.");
-    match e {
-        ApiError::Invalid(errors) => ApiError::Invalid(named(errors)),
-        ApiError::Oversized(errors) => ApiError::Oversized(named(errors)),
-        other => other,
-    }
-}
-
-/// The error of a side-by-side frame that cannot be cut in two.
-fn odd_width(width: usize) -> ApiError {
-    ApiError::invalid(
-        "frame",
-        format!(
-            "is {width} px wide: a side-by-side frame holds the left and right images of one \
-             width side by side (an even width, each half at least {} px)",
-            decode::MIN_SIDE
-        ),
-    )
-}

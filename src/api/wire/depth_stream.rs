@@ -7,12 +7,14 @@ use axum::body::Bytes;
 use serde::Serialize;
 use serde_json::{Map, Value};
 
+use super::calibration_check::CheckAnswer;
 use super::de::request;
 use super::depth_map::{DepthMapOutput, DepthMapQuery, DepthMapSummary, MatcherParameters};
 use super::images::{RIG_PARTS, RigParts};
 use super::rig::CalibratedRig;
 use crate::api::error::{FieldErrors, Problem};
 use crate::api::extract::decode_object;
+use stereo_core::pipeline::{Calibrated, check};
 use stereo_core::vision::temporal::{self, Counts, Persistence};
 
 /// How the frames of a stream carry the pair.
@@ -368,7 +370,34 @@ pub struct FrameAnswer {
     pub summary: DepthMapSummary,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub temporal: Option<TemporalCounts>,
+    /// The calibration's check, on the frames that ran it (every 10th of a raw stream).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub calibration_check: Option<CalibrationWatch>,
     pub files: Vec<FileAnswer>,
+}
+
+/// A raw stream's check of its calibration over its latest checked frames: what
+/// `/calibration/check` answers, and the corrected calibration when it no longer holds.
+#[derive(Debug, Clone, Serialize)]
+pub struct CalibrationWatch {
+    /// The checked frames fitted together (every 10th frame, the latest 12).
+    pub checked_frames: usize,
+    #[serde(flatten)]
+    pub check: CheckAnswer,
+    /// The corrected calibration as OpenCV's FileStorage YAML, when it no longer holds.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub corrected_opencv_yml: Option<String>,
+}
+
+impl CalibrationWatch {
+    /// The check over `frames` checked frames of a stream calibrated by `calibrated`.
+    pub fn of(check: &check::Check, frames: usize, calibrated: &Calibrated) -> Self {
+        CalibrationWatch {
+            checked_frames: frames,
+            check: CheckAnswer::of(check, calibrated.rig.unit().into(), Vec::new()),
+            corrected_opencv_yml: (!check.holds).then(|| check.opencv_yml()),
+        }
+    }
 }
 
 /// A frame that could not be matched; the stream goes on.

@@ -12,6 +12,7 @@ use super::rectify::Maps;
 use crate::physics::{LengthUnit, Rig};
 use crate::vision::decode::Decoded;
 use crate::vision::rows::{self, RowOffsets};
+use crate::vision::sparse::{SparseMatch, full_range, sparse_matches};
 use crate::vision::temporal::{Counts, Temporal};
 use crate::vision::{self, Disparity, Params, Timings, encode};
 
@@ -35,6 +36,9 @@ pub struct Request<'a> {
     pub colour: bool,
     /// Compute each depth's σ_Z.
     pub depth_std: bool,
+    /// Match sparse corners of the rectified pair too ([`Matched::take_sparse`]), for a
+    /// stream that checks its calibration ([`super::check::Watch`]).
+    pub sparse: bool,
 }
 
 /// A depth map and what it was made from.
@@ -108,6 +112,7 @@ pub struct Matched {
     rectify: Option<Duration>,
     temporal: Option<(Counts, Duration)>,
     range: RangeUsed,
+    sparse: Vec<SparseMatch>,
 }
 
 /// The first half of [`depth_map`]: the pair rectified through `request.maps` when there are
@@ -129,6 +134,12 @@ pub fn matched(
     )?;
     let params = &ranged.params;
     let (mut map, mut timings) = vision::disparity(&left.grey, &right.grey, params, cancel)?;
+    // A raw pair, rectified: its corners' rows, for a calibration's check.
+    let sparse = if request.sparse && rectify.is_some() {
+        sparse_matches(&left.grey, &right.grey, full_range(left.grey.width))
+    } else {
+        Vec::new()
+    };
     timings.cost += surveyed;
     // What the matcher answered, before a range that stops short refuses what lies past it
     // (a low share then is the range's, not a raw pair's).
@@ -162,6 +173,7 @@ pub fn matched(
         rectify,
         temporal: None,
         range: ranged.used,
+        sparse,
     })
 }
 
@@ -175,6 +187,12 @@ impl Matched {
     /// The range the pair was matched over, and why.
     pub fn range(&self) -> RangeUsed {
         self.range
+    }
+
+    /// The rectified pair's sparse matches, when the request asked for them and the pair was
+    /// rectified here (empty otherwise), taken out.
+    pub fn take_sparse(&mut self) -> Vec<SparseMatch> {
+        std::mem::take(&mut self.sparse)
     }
 
     /// Steadies the disparities with a stream's temporal filter (this frame being the

@@ -117,6 +117,7 @@ impl DepthJob {
             maps: self.maps.as_deref(),
             colour,
             depth_std,
+            sparse: false,
         }
     }
 

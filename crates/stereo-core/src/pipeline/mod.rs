@@ -24,7 +24,7 @@
 //! let left = decode::decode(&left_png, limits, false).expect("a PNG");
 //! let right = decode::decode(&right_png, limits, false).expect("a PNG");
 //! let params = Params::default();
-//! let request = Request { params: &params, calibrated: Some(&calibrated), maps: None, colour: false, depth_std: true };
+//! let request = Request { params: &params, calibrated: Some(&calibrated), maps: None, colour: false, depth_std: true, sparse: false };
 //! let map = depth_map(left, right, request, &AtomicBool::new(false)).expect("not cancelled");
 //!
 //! // The box, in the middle of the left image: Z = f·B / d = 400 × 120 mm / 22 px.

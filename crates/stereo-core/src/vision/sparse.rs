@@ -37,6 +37,12 @@ pub struct SparseMatch {
     pub score: f64,
 }
 
+/// The disparities a pair of `width` is searched over for its sparse matches: a little below
+/// zero to a third of its width.
+pub fn full_range(width: usize) -> (i32, i32) {
+    (-8, (width / 3) as i32)
+}
+
 /// The pair's matches over disparities `range` (and [`super::rows::SEARCH_ROWS`] rows and more up
 /// and down, as the row check searches), in no particular order. Empty when the images
 /// differ in size or are too small.

@@ -297,6 +297,7 @@ impl Replies {
             times_ms: done.times,
             summary: done.summary,
             temporal: done.temporal,
+            calibration_check: done.calibration,
             files,
         };
         let text = serde_json::to_string(&answer).unwrap_or_default();

@@ -12,6 +12,7 @@
 pub mod known;
 pub mod model;
 pub mod report;
+pub mod watch;
 
 use std::sync::atomic::{AtomicBool, Ordering};
 
@@ -23,13 +24,14 @@ pub use self::report::{
     Rows,
 };
 use self::report::{correction, distances, effects, rig_std};
+pub use self::watch::Watch;
 use crate::calibration::files::Raw;
 use crate::camera::{Alpha, RectifyOptions, stereo_rectify};
 use crate::pipeline::Calibrated;
 use crate::vision::Gray;
 use crate::vision::decode::{self, DecodeError, DecodeLimits};
 use crate::vision::remap::{self, Interpolation, RawImage};
-use crate::vision::sparse::{SparseMatch, sparse_matches};
+use crate::vision::sparse::{SparseMatch, full_range, sparse_matches};
 
 /// The most pairs one check takes.
 pub const MAX_PAIRS: usize = 30;
@@ -226,7 +228,7 @@ fn gather(
 
 /// The disparities searched: a little below zero to a third of the rectified width.
 fn search_range(raw: &Raw) -> (i32, i32) {
-    (-8, (raw.rectification.size.width / 3) as i32)
+    full_range(raw.rectification.size.width as usize)
 }
 
 /// Checks `calibrated` (a calibration of raw cameras) against raw `pairs` of any scene, one
@@ -246,7 +248,6 @@ pub fn check(
         return Err(Fault::Vertical);
     }
     let model = Model::new(raw);
-    let rect_size = (raw.rectification.size.width, raw.rectification.size.height);
     let got = gather(calibrated, raw, &model, pairs, known, cancel)?;
     if got.matches.len() < MIN_MATCHES
         && got.located.is_empty()
@@ -267,9 +268,34 @@ pub fn check(
             board: known.board.is_some(),
         });
     }
+    if cancel.load(Ordering::Relaxed) {
+        return Err(Fault::Cancelled);
+    }
+    judge(
+        calibrated,
+        raw,
+        &got.matches,
+        &got.located,
+        got.per_pair,
+        settings,
+    )
+}
+
+/// The matches' rows and the known points fitted as a drift, and what it means: the verdict,
+/// the rows before and after, the correction and the corrected calibration. `per_pair` is
+/// how many matches each pair gave.
+fn judge(
+    calibrated: &Calibrated,
+    raw: &Raw,
+    matches: &[SparseMatch],
+    located: &[Located],
+    per_pair: Vec<usize>,
+    settings: Settings,
+) -> Result<Check, Fault> {
+    let model = Model::new(raw);
+    let rect_size = (raw.rectification.size.width, raw.rectification.size.height);
     // Each match's right point back in the raw right frame, where a drift acts.
-    let seen: Vec<(SparseMatch, Observed)> = got
-        .matches
+    let seen: Vec<(SparseMatch, Observed)> = matches
         .iter()
         .filter_map(|m| {
             let right_raw = model.raw_of(m.right)?;
@@ -282,17 +308,15 @@ pub fn check(
             ))
         })
         .collect();
-    if seen.len() < MIN_MATCHES && got.located.is_empty() {
-        return Err(Fault::TooFewMatches {
-            per_pair: got.per_pair,
-        });
+    if seen.len() < MIN_MATCHES && located.is_empty() {
+        return Err(Fault::TooFewMatches { per_pair });
     }
     let mut observed: Vec<Observed> = seen.iter().map(|(_, o)| *o).collect();
-    observed.extend(got.located.iter().map(|k| Observed::Known {
+    observed.extend(located.iter().map(|k| Observed::Known {
         point: k.point,
         right_raw: k.right_raw,
     }));
-    let candidates: &[Param] = if got.located.is_empty() {
+    let candidates: &[Param] = if located.is_empty() {
         &[
             Param::AboutX,
             Param::AboutZ,
@@ -311,9 +335,6 @@ pub fn check(
     };
     let (params, dropped) = model::separable(&model, candidates, &observed);
     let fitted = model::fit(&model, &params, &observed).ok_or(Fault::Undetermined)?;
-    if cancel.load(Ordering::Relaxed) {
-        return Err(Fault::Cancelled);
-    }
     let kept = |i: usize| fitted.inliers[i] && fitted.residuals[i].is_finite();
     let before: Vec<([f64; 2], f64)> = seen
         .iter()
@@ -333,8 +354,7 @@ pub fn check(
     let holds = within(shifts.rows) && within(shifts.disparity);
     let corrected = corrected(raw, &fitted.drift)?;
     // The known points the fit kept (a point matched wrongly lies far out).
-    let trusted: Vec<Located> = got
-        .located
+    let trusted: Vec<Located> = located
         .iter()
         .enumerate()
         .filter(|&(j, _)| fitted.inliers[seen.len() + j])
@@ -343,14 +363,14 @@ pub fn check(
     let distance = distances(&trusted, raw, &corrected, calibrated);
     Ok(Check {
         holds,
-        matches: got.per_pair,
+        matches: per_pair,
         outliers: seen.len() - before.len(),
         before: RowSpread::of(&before, rect_size),
         after: RowSpread::of(&after, rect_size),
         largest_row_shift: shifts.rows,
         largest_disparity_shift: shifts.disparity,
         tolerance_px: settings.tolerance_px,
-        correction: correction(&fitted, &dropped, !got.located.is_empty()),
+        correction: correction(&fitted, &dropped, !located.is_empty()),
         depth_effect: shifts.depth,
         distance,
         corrected,
@@ -388,9 +408,9 @@ fn corrected(raw: &Raw, drift: &Drift) -> Result<Raw, Fault> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::physics::LengthUnit;
     use crate::calibration::boards::synthetic::{raw_wall, sample_rig};
     use crate::camera::{Size, StereoPair};
+    use crate::physics::LengthUnit;
     use nalgebra::Vector3;
 
     const SIZE: Size = Size {
