@@ -44,7 +44,7 @@ pub struct Asset {
 /// The script is ES modules under `/js/`, loaded by `<script type="module">` from
 /// `/js/app.js`, which imports the rest (one per mode, the state and events the modes share,
 /// the rig form, drawing, the API).
-pub const ASSETS: [Asset; 17] = [
+pub const ASSETS: [Asset; 18] = [
     asset("/", HTML, include_str!("web/index.html")),
     asset("/guide.html", HTML, include_str!("web/guide.html")),
     asset("/js/app.js", JAVASCRIPT, include_str!("web/js/app.js")),
@@ -59,6 +59,7 @@ pub const ASSETS: [Asset; 17] = [
         JAVASCRIPT,
         include_str!("web/js/calibrate-view.js"),
     ),
+    asset("/js/check.js", JAVASCRIPT, include_str!("web/js/check.js")),
     asset("/js/draw.js", JAVASCRIPT, include_str!("web/js/draw.js")),
     asset(
         "/js/findings.js",

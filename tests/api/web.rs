@@ -192,6 +192,7 @@ async fn the_page_calls_only_the_public_api() {
             "/board",
             "/calibrate",
             "/calibration",
+            "/calibration/check",
             "/depth-map",
             "/distance",
             "/match",

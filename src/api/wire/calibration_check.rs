@@ -350,8 +350,11 @@ fn verdict(check: &engine::Check) -> String {
         .zip(["x", "y", "z"])
         .filter_map(|(e, axis)| {
             let e = (*e)?;
-            (e.value.abs() > 3.0 * e.std)
-                .then(|| format!("{}° ± {}° about {axis}", fixed(e.value, 3), fixed(e.std, 3)))
+            (e.value.abs() > 3.0 * e.std).then(|| {
+                // Decimals down to the σ's first digit, three at least.
+                let d = (1.0 - e.std.max(1e-9).log10().floor()).clamp(3.0, 9.0) as usize;
+                format!("{}° ± {}° about {axis}", fixed(e.value, d), fixed(e.std, d))
+            })
         })
         .collect();
     let explained = if turns.is_empty() {

@@ -4,6 +4,7 @@
 // nothing itself.
 
 import { openCalibrationSample, readCalibrateQuery, rememberCalibrate, wireCalibrate } from './calibrate.js';
+import { wireCheck } from './check.js';
 import { fetchPair, loadPair, openSample, requestDepth, scheduleDepth, wireImages } from './images.js';
 import { wirePointing } from './findings.js';
 import { enterLive, leaveLive, nameInUse, useLiveCalibration, wireLive } from './live.js';
@@ -122,6 +123,7 @@ $('calibration_file').addEventListener('change', async (event) => {
 wireImages();
 wirePointing();
 wireCalibrate(useCalibration);
+wireCheck();
 /** Live mode's grabbed board views, calibrated in Calibrate mode as chosen files would be. */
 function calibrateGrabbed(files) {
   history.pushState(null, '', '/?mode=calibrate');

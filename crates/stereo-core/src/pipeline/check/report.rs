@@ -357,14 +357,17 @@ pub(super) fn correction(fitted: &Fitted, dropped: &[(Param, Param)], known: boo
             Param::CyShift => "a shift of the principal point's row",
             Param::BaselineScale => "a change of baseline",
         };
-        let why = if lost == Param::BaselineScale {
-            "at the known distances given, it offsets the disparities as"
+        let (why, remedy) = if lost == Param::BaselineScale {
+            (
+                "at the known distances given, it offsets the disparities as",
+                " (points at two distances or more tell them apart)",
+            )
         } else {
-            "it moves these points as"
+            ("it moves these points as", "")
         };
         unseen.push(format!(
             "{}: {why} {} does; the frames cannot tell them apart, so the correction gives \
-             it to {} (points at two distances or more tell them apart)",
+             it to {}{remedy}",
             name(lost),
             name(with),
             name(with)
