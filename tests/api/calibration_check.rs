@@ -181,7 +181,7 @@ async fn a_drift_is_found_and_the_corrected_calibration_holds() {
 
 /// Each mistake gets a 422 naming its part: no calibration, a rig's members instead of one,
 /// counts that differ, frames of another size, an undecodable frame, the cameras swapped,
-/// a flat scene, a bad option; more than 30 pairs is a 413.
+/// a flat scene, a bad option, more than 30 pairs.
 #[tokio::test]
 async fn every_mistake_is_named() {
     let app = spawn_app().await;
@@ -244,7 +244,7 @@ async fn every_mistake_is_named() {
 
     let tiny = gray_png(16, 16, &[128; 256]);
     let many: Vec<(Vec<u8>, Vec<u8>)> = (0..31).map(|_| (tiny.clone(), tiny.clone())).collect();
-    let p = problem(check(&app, "", form(&many, &calibration)).await, 413).await;
+    let p = problem(check(&app, "", form(&many, &calibration)).await, 422).await;
     assert!(message_for(&p, "left").contains("at most 30"), "{p}");
 }
 

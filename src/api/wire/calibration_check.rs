@@ -34,11 +34,11 @@ impl QueryForm for CheckQuery {}
 #[allow(dead_code)]
 pub struct CheckForm {
     /// The left camera's raw frames of any textured scene, one part a pair, in order (PNG or
-    /// JPEG, the calibration's raw size).
-    #[schema(value_type = Vec<String>, format = Binary)]
+    /// JPEG, the calibration's raw size); at most 30.
+    #[schema(value_type = Vec<String>, format = Binary, max_items = 30)]
     left: Vec<Vec<u8>>,
     /// The right camera's frames, as many as `left`: the i-th of each is one pair.
-    #[schema(value_type = Vec<String>, format = Binary)]
+    #[schema(value_type = Vec<String>, format = Binary, max_items = 30)]
     right: Vec<Vec<u8>>,
     /// The calibration to check, as `/calibration` reads it (OpenCV, ROS, KITTI raw): it
     /// must describe the raw cameras.
@@ -62,7 +62,7 @@ pub struct CheckForm {
     board: Option<crate::api::wire::board_calibration::BoardSpec>,
     /// Points with their true distance, a JSON array: `[{"pair": 0, "x": 320, "y": 240,
     /// "distance": 1500}]`.
-    #[schema(nullable = false)]
+    #[schema(nullable = false, max_items = 10000)]
     known_distances: Option<Vec<KnownDistance>>,
     /// The calibration's σ, when its file does not carry it:
     /// `{"focal_length_std_px": …, "baseline_std": …}`.

@@ -147,8 +147,10 @@ pub async fn post_check(
     let unit = calibrated.rig.unit().into();
     let encoded: usize = left.iter().chain(&right).map(Bytes::len).sum();
     // One pair at a time: its raw and rectified frames, their pyramids and smoothed copies,
-    // and both cameras' float maps.
-    let bytes = (w as usize) * (h as usize) * 64 + encoded;
+    // and both cameras' float maps; with known points, their own smoothed copies and the
+    // board's search too.
+    let per_pixel = if known.is_empty() { 64 } else { 96 };
+    let bytes = (w as usize) * (h as usize) * per_pixel + encoded;
     let too_large = |total: usize| {
         vec![FieldError::new(
             "left",
@@ -333,7 +335,7 @@ fn known_point(
 }
 
 /// The pairs' counts: at least one, as many right frames as left ones, at most
-/// [`engine::MAX_PAIRS`] (413 past it).
+/// [`engine::MAX_PAIRS`] (a 422 past it, as the schema's `maxItems` says).
 fn count_pairs([left, right]: [&[Bytes]; 2], problems: &mut FieldErrors) -> Result<(), ApiError> {
     if left.is_empty() {
         problems.add(
@@ -353,13 +355,14 @@ fn count_pairs([left, right]: [&[Bytes]; 2], problems: &mut FieldErrors) -> Resu
     }
     let pairs = left.len().max(right.len());
     if pairs > engine::MAX_PAIRS {
-        return Err(ApiError::Oversized(vec![FieldError::new(
+        problems.add(
             "left",
             format!(
                 "has {pairs} pairs; this server checks at most {} in one request",
                 engine::MAX_PAIRS
             ),
-        )]));
+        );
+        return Err(std::mem::take(problems).into_error());
     }
     Ok(())
 }

@@ -144,18 +144,28 @@ impl<'a> Model<'a> {
         params: &[Param],
         raw: [f64; 2],
     ) -> Option<Vec<[f64; 2]>> {
-        params
-            .iter()
-            .map(|&p| {
-                let h = p.step();
-                let (mut up, mut down) = (*drift, *drift);
-                up.add(p, h);
-                down.add(p, -h);
-                let (a, b) = (self.rectified(&up, raw)?, self.rectified(&down, raw)?);
-                Some([(a[0] - b[0]) / (2.0 * h), (a[1] - b[1]) / (2.0 * h)])
-            })
-            .collect()
+        central(drift, params, |d| self.rectified(d, raw))
     }
+}
+
+/// How `f`'s two values move with each of `params` at `drift`, by central differences: one
+/// `[∂f₀, ∂f₁]` a parameter; `None` where `f` has no value.
+fn central(
+    drift: &Drift,
+    params: &[Param],
+    f: impl Fn(&Drift) -> Option<[f64; 2]>,
+) -> Option<Vec<[f64; 2]>> {
+    params
+        .iter()
+        .map(|&p| {
+            let h = p.step();
+            let (mut up, mut down) = (*drift, *drift);
+            up.add(p, h);
+            down.add(p, -h);
+            let (a, b) = (f(&up)?, f(&down)?);
+            Some([(a[0] - b[0]) / (2.0 * h), (a[1] - b[1]) / (2.0 * h)])
+        })
+        .collect()
 }
 
 /// What the fit reads.
@@ -208,17 +218,7 @@ impl Model<'_> {
         params: &[Param],
         o: &Observed,
     ) -> Option<Vec<[f64; 2]>> {
-        params
-            .iter()
-            .map(|&p| {
-                let h = p.step();
-                let (mut up, mut down) = (*drift, *drift);
-                up.add(p, h);
-                down.add(p, -h);
-                let (a, b) = (self.residual(&up, o)?.0, self.residual(&down, o)?.0);
-                Some([(a[0] - b[0]) / (2.0 * h), (a[1] - b[1]) / (2.0 * h)])
-            })
-            .collect()
+        central(drift, params, |d| Some(self.residual(d, o)?.0))
     }
 }
 
