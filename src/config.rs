@@ -115,12 +115,13 @@ pub fn default_heavy_concurrency() -> usize {
     name = "stereo-distance",
     version,
     about = "HTTP JSON service that turns a stereo rig and what it sees into distances with their \
-             error: calibration, rectification, depth maps, a live camera's frames streamed over a \
+             error: calibration and its check, rectification, depth maps, a live camera's frames streamed over a \
              WebSocket, matches, and recordings' folders",
     long_about = "HTTP JSON service that turns a stereo rig and what it sees into distances with \
                   their error: chessboard or ChArUco pairs to a calibration (σ per parameter, \
-                  OpenCV and ROS files), raw frames rectified, depth maps with each pixel's σ \
-                  and a clicked point's match, a live stereo camera's frames streamed over a \
+                  OpenCV and ROS files, or started from an earlier one), whether an old \
+                  calibration still holds from ordinary frames (/calibration/check), raw frames \
+                  rectified, depth maps with each pixel's σ and a clicked point's match, a live stereo camera's frames streamed over a \
                   WebSocket (/depth-stream, with a temporal filter) and board views found \
                   one at a time (/board), and the distance with its error bar; `depth-map` \
                   turns a recording's folder of pairs into depth maps.\n\nEvery option can also be set through the environment variable shown \

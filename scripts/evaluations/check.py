@@ -47,11 +47,8 @@ def read_yml(text):
     return got
 
 
-def rolled(text, degrees):
-    """The calibration `text` with the right camera turned by `degrees` about its optical
-    axis (R' = Rz R, T' = Rz T), written back through cv2.FileStorage."""
-    c = read_yml(text)
-    rz, _ = cv2.Rodrigues(np.array([0.0, 0.0, np.radians(degrees)]))
+def written(c, rotation, translation):
+    """The lenses of `c` with R and T, written through cv2.FileStorage."""
     with tempfile.NamedTemporaryFile("w", suffix=".yml", delete=False) as f:
         path = f.name
     fs = cv2.FileStorage(path, cv2.FILE_STORAGE_WRITE)
@@ -59,10 +56,38 @@ def rolled(text, degrees):
     fs.write("unit", "mm")
     for k in ("M1", "D1", "M2", "D2"):
         fs.write(k, c[k])
-    fs.write("R", rz @ c["R"])
-    fs.write("T", rz @ c["T"].reshape(3, 1))
+    fs.write("R", rotation)
+    fs.write("T", translation.reshape(3, 1))
     fs.release()
     return open(path).read()
+
+
+def rolled(text, degrees):
+    """The calibration `text` with the right camera turned by `degrees` about its optical
+    axis (R' = Rz R, T' = Rz T), written back through cv2.FileStorage."""
+    c = read_yml(text)
+    rz, _ = cv2.Rodrigues(np.array([0.0, 0.0, np.radians(degrees)]))
+    return written(c, rz @ c["R"], rz @ c["T"].reshape(3, 1))
+
+
+def opencv_again(text, corners):
+    """OpenCV's stereoCalibrate with CALIB_FIX_INTRINSIC: the lenses of `text` held, R and T
+    found from the board corners of the pairs `corners`."""
+    c = read_yml(text)
+    grid = np.zeros((54, 3), np.float32)
+    grid[:, :2] = np.mgrid[0:9, 0:6].T.reshape(-1, 2)
+    objects = [grid] * len(corners)
+    _, _, _, _, _, rotation, translation, _, _ = cv2.stereoCalibrate(
+        objects, [l for l, _ in corners], [r for _, r in corners], c["M1"], c["D1"], c["M2"],
+        c["D2"], (640, 480), flags=cv2.CALIB_FIX_INTRINSIC)
+    return written(c, rotation, translation)
+
+
+def turn_deg(before, after):
+    """The turn (degrees about x, y, z) from the R of `before` to that of `after`."""
+    a, b = read_yml(before)["R"], read_yml(after)["R"]
+    vector, _ = cv2.Rodrigues(b @ a.T)
+    return np.degrees(vector.ravel())
 
 
 def board_corners(files):
@@ -121,6 +146,23 @@ def main():
     rows = {name: board_rows(text, corners)
             for name, text in (("original", original), ("rolled", drifted),
                                ("corrected", corrected))}
+    # Found again from a few pairs, starting from the rolled calibration, beside OpenCV.
+    again = {}
+    for chosen in ([0], [0, 4, 8]):
+        some = [files[i] for i in chosen]
+        some_parts = [p for i, n in enumerate(NAMES) if i in chosen for p in parts[2 * i:2 * i + 2]]
+        initial = ("initial", (drifted.encode(), "opencv.yml", "application/x-yaml"))
+        summary = json.loads(post_once(args.url, "/calibrate", some_parts + [board, initial]))
+        ours_yml = post_once(args.url, "/calibrate?output=opencv.yml",
+                             some_parts + [board, initial]).decode()
+        theirs_yml = opencv_again(drifted, board_corners(some))
+        again[len(chosen)] = {
+            "ours_rows": board_rows(ours_yml, corners),
+            "opencv_rows": board_rows(theirs_yml, corners),
+            "ours_turn": turn_deg(drifted, ours_yml).tolist(),
+            "opencv_turn": turn_deg(drifted, theirs_yml).tolist(),
+            "ours_std": summary["rotation_std_deg"],
+        }
     # Time, taking turns: the whole check request against OpenCV's corner detection on the
     # same 13 pairs (the nearest thing OpenCV does to reading a rig's rows from its frames).
     ours, theirs = [], []
@@ -150,7 +192,22 @@ def main():
     print(f"  time, taking turns, median of {RUNS}: the whole check request "
           f"{1e3 * statistics.median(ours):.0f} ms; OpenCV findChessboardCorners + cornerSubPix "
           f"on the same pairs {1e3 * statistics.median(theirs):.0f} ms")
+    print(f"\nPOST /calibrate from the rolled calibration (initial=, lenses held) beside OpenCV's "
+          f"stereoCalibrate with CALIB_FIX_INTRINSIC, the same lenses and pairs")
+    print(f"  {'pairs':>5} {'turn back, ours (deg)':>30} {'OpenCV (deg)':>30} "
+          f"{'board rows, ours':>17} {'OpenCV':>7} {'original':>9}")
+    for k, a in again.items():
+        turn = lambda v: "[" + ", ".join(f"{x:+.3f}" for x in v) + "]"
+        print(f"  {k:5d} {turn(a['ours_turn']):>30} {turn(a['opencv_turn']):>30} "
+              f"{a['ours_rows']:17.3f} {a['opencv_rows']:7.3f} {rows['original']:9.3f}")
     failures = []
+    three = again[3]
+    if not three["ours_rows"] <= rows["original"] + 0.1:
+        failures.append(f"found again from 3 pairs, the board rows {three['ours_rows']:.3f} px "
+                        f"are not within 0.1 px of the original's {rows['original']:.3f}")
+    if not three["ours_rows"] <= three["opencv_rows"] + 0.05:
+        failures.append(f"found again from 3 pairs, the board rows {three['ours_rows']:.3f} px "
+                        f"are worse than OpenCV's {three['opencv_rows']:.3f} by over 0.05 px")
     if not holds["holds"]:
         failures.append("OpenCV's pairs against their own calibration do not hold")
     if found["holds"]:
@@ -162,7 +219,7 @@ def main():
                         f"0.1 px of the original's {rows['original']:.3f}")
     if args.json:
         with open(args.json, "w") as f:
-            json.dump({"holds": holds, "rolled": found, "board_rows": rows,
+            json.dump({"holds": holds, "rolled": found, "board_rows": rows, "again": again,
                        "ms": {"ours": 1e3 * statistics.median(ours),
                               "opencv_corners": 1e3 * statistics.median(theirs)}}, f, indent=1)
     for failure in failures:

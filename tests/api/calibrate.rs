@@ -20,12 +20,12 @@ use crate::helpers::{
     TestApp, assert_names, message_for, ok_json, problem, spawn_app, spawn_app_with,
 };
 
-const SIZE: Size = Size {
+pub(crate) const SIZE: Size = Size {
     width: 320,
     height: 240,
 };
 
-fn truth() -> StereoPair {
+pub(crate) fn truth() -> StereoPair {
     let camera = |fx: f64, cx: f64| {
         Camera::new(
             Intrinsics {
@@ -46,7 +46,7 @@ fn truth() -> StereoPair {
     }
 }
 
-fn board() -> Board {
+pub(crate) fn board() -> Board {
     Board::new(7, 5, 20.0, LengthUnit::Millimetre).unwrap()
 }
 

@@ -248,6 +248,31 @@ async fn every_mistake_is_named() {
     assert!(message_for(&p, "left").contains("at most 30"), "{p}");
 }
 
+/// A calibration whose lengths are in the wrong unit (the rig's 120 mm read as 120 m) still
+/// has its rows checked, but tells no depth effect from a baseline no rig has: the verdict
+/// says why and the warnings which unit was likely meant.
+#[tokio::test]
+async fn a_calibration_in_the_wrong_unit_is_named_not_trusted() {
+    let app = spawn_app().await;
+    let right = opencv_yml(&sample_rig());
+    let wrong = right.replace("unit: \"mm\"", "unit: \"m\"");
+    assert_ne!(wrong, right);
+    let body = ok_json(check(&app, "", form(&scenes()[0], &wrong)).await).await;
+    assert_eq!(body["holds"], true, "{body}");
+    assert_eq!(
+        body["depth_effect"].as_array().map(Vec::len),
+        Some(0),
+        "{body}"
+    );
+    let verdict = body["verdict"].as_str().unwrap_or_default();
+    assert!(verdict.contains("no depth effect is told"), "{verdict}");
+    assert!(verdict.contains("over 10 m"), "{verdict}");
+    assert!(
+        body["warnings"].to_string().contains("meant in mm"),
+        "{body}"
+    );
+}
+
 /// One board view at 1 m sees what rows cannot: the rig turned 0.1° about y since its
 /// calibration (σ 0.3 px in f and 0.05 mm in B sent beside it) is found to ±0.02°, and the
 /// corners' distance error, past the calibration's σ before, falls below it after.

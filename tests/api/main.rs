@@ -4,6 +4,7 @@
 mod batch;
 mod board;
 mod calibrate;
+mod calibrate_initial;
 mod calibration;
 mod calibration_check;
 mod chart;

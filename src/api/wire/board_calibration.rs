@@ -63,7 +63,25 @@ impl CalibrateOutput {
     }
 }
 
-choice_members!(ModelChoice, CalibrateOutput, BoardType, DictionaryName);
+/// What moves when a calibration starts from an earlier one (`initial`).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize, Serialize, ToSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum RefineChoice {
+    /// The lenses are held at the earlier calibration's (OpenCV's `CALIB_FIX_INTRINSIC`):
+    /// only R and T are found again, from one view or more.
+    #[default]
+    Extrinsics,
+    /// Every parameter is refined from the earlier ones, over 3 views or more.
+    All,
+}
+
+choice_members!(
+    ModelChoice,
+    CalibrateOutput,
+    BoardType,
+    DictionaryName,
+    RefineChoice
+);
 
 request! {
     /// The options of `/calibrate`, in the query string.
@@ -86,6 +104,10 @@ request! {
         /// board's unit (default: the boards' median distance).
         #[schema(exclusive_minimum = 0.0)]
         uncertainty_distance: f64,
+        /// With an `initial` part, what moves: `extrinsics` (the default: the lenses held,
+        /// R and T found again from one view or more) or `all` (every parameter refined
+        /// from the earlier ones, 3 views or more).
+        refine: RefineChoice,
     }
 }
 
@@ -184,15 +206,49 @@ request! {
 #[serde(deny_unknown_fields)]
 #[allow(dead_code)]
 pub struct CalibrateForm {
-    /// The left camera's images, one part per view, in order (PNG or JPEG, one size).
-    #[schema(value_type = Vec<String>, format = Binary)]
+    /// The left camera's images, one part per view, in order (PNG or JPEG, one size); at
+    /// most 60.
+    #[schema(value_type = Vec<String>, format = Binary, max_items = 60)]
     left: Vec<Vec<u8>>,
     /// The right camera's images, as many as `left`: the i-th left and the i-th right are one
     /// view. Without them, the left camera alone is calibrated.
-    #[schema(value_type = Option<Vec<String>>, format = Binary, nullable = false)]
+    #[schema(value_type = Option<Vec<String>>, format = Binary, nullable = false, max_items = 60)]
     right: Option<Vec<Vec<u8>>>,
     /// The board, as JSON.
     board: BoardSpec,
+    /// An earlier calibration of the pair to start from, as `/calibration` reads it (OpenCV,
+    /// ROS, KITTI raw; the raw cameras, at the views' size). Its lenses are held (see
+    /// `refine`), so that one view of the board finds R and T again.
+    #[schema(value_type = Option<String>, format = Binary, nullable = false)]
+    initial: Option<Vec<u8>>,
+    /// The right camera's ROS `CameraInfo`, for a ROS `initial`.
+    #[schema(value_type = Option<String>, format = Binary, nullable = false)]
+    initial_right: Option<Vec<u8>>,
+    /// The initial calibration's format, or `auto` (the default).
+    #[schema(nullable = false)]
+    initial_format: Option<String>,
+    /// The unit of the initial calibration's lengths (for OpenCV files not written here).
+    #[schema(nullable = false)]
+    initial_unit: Option<String>,
+    /// KITTI only: the camera pair, `2-3` (the default) or `0-1`.
+    #[schema(nullable = false)]
+    initial_cameras: Option<String>,
+    /// The initial calibration's σ, when its file does not carry it:
+    /// `{"focal_length_std_px": …, "baseline_std": …}`.
+    #[schema(value_type = Option<Object>, nullable = false)]
+    initial_rig: Option<String>,
+}
+
+/// How a pair calibrated again from `initial` moved since.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct SinceInitial {
+    /// What moved: `extrinsics` (the lenses held at the initial's) or `all`.
+    pub refined: RefineChoice,
+    /// The right camera's turn relative to the left since then, degrees about x, y and z.
+    pub rotation_deg: [f64; 3],
+    /// The baseline then and now, in the board's unit.
+    pub baseline_before: f64,
+    pub baseline_after: f64,
 }
 
 /// The board as used: its inner corners (for a ChArUco board, its squares less one each
@@ -503,6 +559,10 @@ pub struct CalibrationSummary {
     #[serde(skip_serializing_if = "Option::is_none")]
     #[schema(nullable = false)]
     pub cross_validation: Option<CrossValidationSummary>,
+    /// How the pair moved since the `initial` calibration it started from.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub since_initial: Option<SinceInitial>,
     /// Things that make the calibration less trustworthy, and what to do.
     pub warnings: Vec<String>,
     pub timings_ms: CalibrateTimes,

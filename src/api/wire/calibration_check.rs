@@ -331,6 +331,18 @@ fn fixed(v: f64, decimals: usize) -> String {
 
 /// The verdict in words: the rows before and after, and what explains them.
 fn verdict(check: &engine::Check) -> String {
+    let said = rows_verdict(check);
+    match &check.baseline_doubt {
+        Some(doubt) => format!(
+            "{said}. But the calibration's {doubt}: no depth effect is told until its unit is \
+             right (calibration_unit)"
+        ),
+        None => said,
+    }
+}
+
+/// What the rows say, in words.
+fn rows_verdict(check: &engine::Check) -> String {
     let rows = |r: &engine::Rows| fixed(r.rms_px, 2);
     let shift = check.largest_row_shift;
     let moved = check.largest_disparity_shift;

@@ -8,7 +8,8 @@ use std::time::Duration;
 use crate::api::wire::board_calibration::{
     self, BoardType, BoardUsed, CalibrateTimes, CalibrationSummary, CameraStd, CameraSummary,
     Coverage, CoverageSummary, CrossValidationSummary, ProjectionGrid,
-    ProjectionUncertaintySummary, RectificationSummary, RigStd, ViewStatus, ViewSummary,
+    ProjectionUncertaintySummary, RectificationSummary, RefineChoice, RigStd, SinceInitial,
+    ViewStatus, ViewSummary,
 };
 use crate::api::wire::calibration::matrix3;
 use crate::api::wire::params::Unit;
@@ -218,6 +219,16 @@ pub fn summarize(made: &engine::Calibration) -> CalibrationSummary {
             ratio_centre: round_to(c.ratio_centre, 3),
             ratio_edge: round_to(c.ratio_edge, 3),
             consistent: c.consistent(),
+        }),
+        since_initial: made.since.map(|since| SinceInitial {
+            refined: if fit.held {
+                RefineChoice::Extrinsics
+            } else {
+                RefineChoice::All
+            },
+            rotation_deg: since.rotation_deg.map(|a| round_to(a, 5)),
+            baseline_before: since.baseline[0],
+            baseline_after: since.baseline[1],
         }),
         warnings: report.warnings.clone(),
         timings_ms: CalibrateTimes {

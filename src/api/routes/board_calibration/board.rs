@@ -58,6 +58,10 @@ pub fn fault(fault: engine::CalibrateFault, allowed: engine::DecodeLimits) -> Ap
                 format!("refused, {cause} (of {views} views sent)"),
             )])
         }
+        engine::CalibrateFault::InitialNeedsPair => ApiError::Invalid(vec![FieldError::new(
+            "initial",
+            "calibrates a pair again: send a right image for each left one",
+        )]),
         engine::CalibrateFault::NotRectifiable => ApiError::Invalid(vec![FieldError::new(
             "right",
             "the calibrated pair cannot be rectified (the cameras do not overlap)",

@@ -5,6 +5,7 @@
 //! limits, runs the engine off the async runtime and writes its answer or names its faults.
 
 mod board;
+mod initial;
 mod sight;
 mod upload;
 pub use crate::api::wire::board_calibration as types;
@@ -16,14 +17,16 @@ use utoipa_axum::{router::OpenApiRouter, routes};
 use self::board::fault;
 use self::types::{CalibrateAnswers, CalibrateForm, CalibrateOutput, CalibrateQuery};
 use self::upload::{Upload, over_the_budget};
-use crate::api::error::{ApiError, FieldError, FieldErrors};
+use crate::api::error::{ApiError, FieldErrors};
 use crate::api::extract::QueryParams;
 use crate::api::images::HeavyState;
 use crate::api::images::board::read_board;
 use crate::api::images::limits;
 use crate::api::images::output::{self, Disposition, set_server_timing};
+use crate::api::images::rig::RigParts;
 use crate::api::images::work;
 use crate::api::respond::Json;
+use stereo_core::physics::LengthUnit;
 use stereo_core::pipeline::calibrate as engine;
 
 /// `POST /calibrate`, and `POST /board` (one image or pair's board, for a live view).
@@ -53,11 +56,20 @@ pub fn router() -> OpenApiRouter<HeavyState> {
                    \"squares_x\": 8, \"squares_y\": 6, \"square_size\": 30, \"marker_size\": \
                    22, \"dictionary\": \"DICT_4X4_50\"}`, whose views count with the corners \
                    they show (6 or more, over two rows and two columns; OpenCV's ids).\n\n\
+                   An `initial` part (an earlier calibration of the pair, as `/calibration` \
+                   reads it, with `initial_right`, `initial_format`, `initial_unit` and \
+                   `initial_rig` as the image routes' `calibration` parts) starts from it: \
+                   with `refine=extrinsics` (the default) its lenses are held, as OpenCV's \
+                   `CALIB_FIX_INTRINSIC` holds them, and R and T are found again from one \
+                   view or more; with `refine=all` every parameter is refined from it. The \
+                   summary's `since_initial` says how the pair turned since.\n\n\
                    Outputs (`output`): `summary` (JSON), `opencv.yml` (FileStorage with M1 D1 \
                    M2 D2 R T E F R1 R2 P1 P2 Q), `ros-left.yaml` and `ros-right.yaml` (ROS \
                    `camera_calibration`). `/calibration` reads all three.\n\n\
-                   Limits: at most 60 views; images up to 8192 px a side and the server's `--max-image-pixels` (34 megapixels by default), \
-                   one size; fewer than 3 usable views is a 422 naming each view and why.",
+                   Limits: at most 60 views (a 422 past them); images up to 8192 px a side \
+                   and the server's `--max-image-pixels` (34 megapixels by default), one \
+                   size; fewer than 3 usable views (1 with `initial`) is a 422 naming each \
+                   view and why.",
     params(CalibrateQuery),
     request_body(content = CalibrateForm, content_type = "multipart/form-data", description = "The views and the board."),
     responses(CalibrateAnswers)
@@ -70,6 +82,7 @@ pub async fn post_calibrate(
         left,
         right,
         board,
+        initial,
         problems: form_problems,
         admitted,
         limits: allowed,
@@ -79,7 +92,7 @@ pub async fn post_calibrate(
     let output = query.output.unwrap_or_default();
     let settings = settings(
         &query,
-        board.as_ref(),
+        (board.as_ref(), &initial),
         [&left, &right],
         allowed,
         &mut problems,
@@ -99,10 +112,11 @@ pub async fn post_calibrate(
 }
 
 /// The engine's settings from the query and the form, every fault named at once: the query's
-/// members, the board's, the views' counts, sizes and limits (413 past them).
+/// members, the board's, the views' counts, sizes and limits (413 past the image limits),
+/// and the earlier calibration's parts.
 fn settings(
     query: &CalibrateQuery,
-    board: Option<&Bytes>,
+    (board, initial): (Option<&Bytes>, &RigParts),
     [left, right]: [&[Bytes]; 2],
     allowed: engine::DecodeLimits,
     problems: &mut FieldErrors,
@@ -133,8 +147,34 @@ fn settings(
         );
     }
     let board = read_board(board, problems);
-    count_views([left, right], problems)?;
+    count_views([left, right], problems);
     let size = limits::view_sizes(left, right, allowed, problems)?;
+    let unit = board
+        .as_ref()
+        .map_or(LengthUnit::Millimetre, engine::Target::unit);
+    let initial = initial::read(initial, size, unit, query.refine, problems);
+    if let Some(initial) = &initial {
+        if !stereo && !left.is_empty() {
+            problems.add(
+                "initial",
+                "calibrates a pair again: send a right image for each left one",
+            );
+        }
+        let model = initial.start.pair.left.distortion().model();
+        if let Some(asked) = query.model
+            && engine::Model::from(asked) != model
+        {
+            problems.add(
+                "model",
+                format!(
+                    "is {}, but the initial calibration's lenses are {}: a calibration started \
+                     from it keeps its lens model (leave model out)",
+                    engine::Model::from(asked).name(),
+                    model.name()
+                ),
+            );
+        }
+    }
     let (Some(board), Some((width, height))) = (board, size) else {
         return Err(std::mem::take(problems).into_error());
     };
@@ -151,12 +191,13 @@ fn settings(
         corners: query.corners.unwrap_or(false),
         cross_validate: query.cross_validate.unwrap_or(false),
         uncertainty_distance: query.uncertainty_distance,
+        initial,
     })
 }
 
 /// The views' counts: at least one left image, as many right images as left ones (or none),
-/// at most [`engine::MAX_VIEWS`] (413 past it).
-fn count_views([left, right]: [&[Bytes]; 2], problems: &mut FieldErrors) -> Result<(), ApiError> {
+/// at most [`engine::MAX_VIEWS`] (the form's `maxItems`).
+fn count_views([left, right]: [&[Bytes]; 2], problems: &mut FieldErrors) {
     let stereo = !right.is_empty();
     if left.is_empty() {
         problems.add(
@@ -174,17 +215,18 @@ fn count_views([left, right]: [&[Bytes]; 2], problems: &mut FieldErrors) -> Resu
             ),
         );
     }
-    if left.len().max(right.len()) > engine::MAX_VIEWS {
-        return Err(ApiError::Oversized(vec![FieldError::new(
-            "left",
-            format!(
-                "has {} views; this server calibrates at most {} in one request",
-                left.len().max(right.len()),
-                engine::MAX_VIEWS
-            ),
-        )]));
+    for (part, images) in [("left", left), ("right", right)] {
+        if images.len() > engine::MAX_VIEWS {
+            problems.add(
+                part,
+                format!(
+                    "has {} views; this server calibrates at most {} in one request",
+                    images.len(),
+                    engine::MAX_VIEWS
+                ),
+            );
+        }
     }
-    Ok(())
 }
 
 /// A calibration file answer.

@@ -1,20 +1,25 @@
-//! The form `/calibrate` and `/board` read (the views' images in order and the board), and the
-//! refusal of views that need more memory than the heavy budget has.
+//! The form `/calibrate` and `/board` read (the views' images in order, the board and an
+//! earlier calibration's parts), and the refusal of views that need more memory than the
+//! heavy budget has.
 
 use axum::body::Bytes;
 use axum::extract::{FromRequest, Request};
 
+use super::initial::{INITIAL_PARTS, read_as};
 use crate::api::error::{ApiError, FieldError, FieldErrors};
 use crate::api::images::HeavyState;
 use crate::api::images::form::{Form, FormSpec};
+use crate::api::images::rig::RigParts;
 use crate::api::images::work;
 use stereo_core::pipeline::calibrate as engine;
 
-/// The form's parts: the views' images in order, the board, and what was wrong.
+/// The form's parts: the views' images in order, the board, the earlier calibration's parts
+/// (as the image routes' calibration parts), and what was wrong.
 pub struct Upload {
     pub left: Vec<Bytes>,
     pub right: Vec<Bytes>,
     pub board: Option<Bytes>,
+    pub initial: RigParts,
     pub problems: FieldErrors,
     pub admitted: work::Admitted,
     /// What the decoder takes (`--max-image-pixels`).
@@ -25,8 +30,12 @@ impl FromRequest<HeavyState> for Upload {
     type Rejection = ApiError;
 
     async fn from_request(req: Request, state: &HeavyState) -> Result<Self, ApiError> {
+        let known: Vec<&str> = ["left", "right", "board"]
+            .into_iter()
+            .chain(INITIAL_PARTS.iter().map(|(ours, _)| *ours))
+            .collect();
         let spec = FormSpec {
-            known: &["left", "right", "board"],
+            known: &known,
             repeatable: &["left", "right"],
             example: "multipart/form-data: the views as repeated file parts (curl -F \
                       left=@l0.png -F right=@r0.png -F left=@l1.png … -F \
@@ -37,6 +46,7 @@ impl FromRequest<HeavyState> for Upload {
             left: Vec::new(),
             right: Vec::new(),
             board: None,
+            initial: RigParts::default(),
             problems: form.problems,
             admitted: form.admitted,
             limits: state.image_limits,
@@ -45,7 +55,12 @@ impl FromRequest<HeavyState> for Upload {
             match name.as_str() {
                 "left" => upload.left.push(bytes),
                 "right" => upload.right.push(bytes),
-                _ => upload.board = Some(bytes),
+                "board" => upload.board = Some(bytes),
+                other => {
+                    if let Some(name) = read_as(other) {
+                        upload.initial.set(name, bytes);
+                    }
+                }
             }
         }
         Ok(upload)

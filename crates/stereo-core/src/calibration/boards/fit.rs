@@ -15,6 +15,29 @@ use crate::camera::{
 /// The fewest views a calibration takes.
 pub const MIN_VIEWS: usize = 3;
 
+/// The fewest views that refit a pair's R and T with its lenses held ([`Start::hold`]): one
+/// board seen by both cameras places each camera, and so the one against the other.
+pub const MIN_VIEWS_HELD: usize = 1;
+
+/// An earlier calibration a new one starts from.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Start {
+    /// The earlier pair. Its T's unit does not matter: R and T are found again from the
+    /// views, the board's unit theirs.
+    pub pair: StereoPair,
+    /// Hold both lenses at the earlier pair's (OpenCV's `CALIB_FIX_INTRINSIC`): only R, T and
+    /// the boards' poses move, from [`MIN_VIEWS_HELD`] view. Otherwise every parameter is
+    /// refined from the earlier ones, over [`MIN_VIEWS`] views.
+    pub hold: bool,
+}
+
+impl Start {
+    /// The fewest views this start takes.
+    pub fn fewest_views(&self) -> usize {
+        if self.hold { MIN_VIEWS_HELD } else { MIN_VIEWS }
+    }
+}
+
 /// A view whose RMS is above this many times the median, and above [`OUTLIER_FLOOR_PX`], is
 /// left out as an outlier.
 pub const OUTLIER_RATIO: f64 = 3.0;
@@ -85,6 +108,9 @@ pub struct Fit {
     pub rms: f64,
     /// Every parameter's covariance, the boards' poses included.
     pub joint: Joint,
+    /// Whether the lenses were held at an earlier calibration's ([`Start::hold`]): their σ
+    /// are zero here, the earlier calibration's own.
+    pub held: bool,
 }
 
 /// The whole state's covariance: the shared parameters (see [`Fit::covariance`]), then each
@@ -105,9 +131,9 @@ pub struct Joint {
 /// Why a calibration could not be made.
 #[derive(Debug, Clone, PartialEq)]
 pub enum FitFault {
-    /// Fewer than [`MIN_VIEWS`] views are usable (board found in every camera, not an
-    /// outlier).
-    TooFewViews { usable: usize },
+    /// Fewer than `needed` views ([`MIN_VIEWS`], or [`MIN_VIEWS_HELD`] with the lenses held)
+    /// are usable (board found in every camera, not an outlier).
+    TooFewViews { usable: usize, needed: usize },
     /// The views' homographies give no camera matrix (the boards are all alike or degenerate).
     NoFirstGuess,
     /// The refinement could not start or its covariance is singular (the views do not
@@ -118,9 +144,9 @@ pub enum FitFault {
 impl std::fmt::Display for FitFault {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
-            FitFault::TooFewViews { usable } => write!(
+            FitFault::TooFewViews { usable, needed } => write!(
                 f,
-                "{usable} usable views; a calibration needs at least {MIN_VIEWS}"
+                "{usable} usable views; a calibration needs at least {needed}"
             ),
             FitFault::NoFirstGuess => write!(
                 f,
@@ -158,7 +184,10 @@ pub fn calibrate(
         .collect();
     let mut used: Vec<usize> = (0..views.len()).filter(|&v| found[v]).collect();
     if used.len() < MIN_VIEWS {
-        return Err(FitFault::TooFewViews { usable: used.len() });
+        return Err(FitFault::TooFewViews {
+            usable: used.len(),
+            needed: MIN_VIEWS,
+        });
     }
     let left_of = |v: usize| views[v].left.as_deref().unwrap_or_default();
     let right_of = |v: usize| views[v].right.as_deref().unwrap_or_default();
@@ -193,29 +222,43 @@ pub fn calibrate(
         poses.push(l);
     }
     let extrinsics = average(&relative).ok_or(FitFault::Degenerate)?;
-    let mut state = State {
+    let state = State {
         lenses: vec![mono_left.0.state.lenses[0], mono_right.0.state.lenses[0]],
         extrinsics: Some(extrinsics),
         poses,
+        held: false,
     };
-    let mut kept = keep;
+    let joint = together(state, &object, views, keep, MIN_VIEWS)?;
+    finish(size, model, views, &found, joint, true)
+}
+
+/// Both cameras, R, T and the poses refined together from `state` over the views `kept` (one
+/// pose each), repeated without the views whose error is far above the others' while at
+/// least `fewest` remain. Returns the solution and the views it kept.
+fn together(
+    mut state: State,
+    object: &[Vector3<f64>],
+    views: &[Corners],
+    mut kept: Vec<usize>,
+    fewest: usize,
+) -> Result<(Solution, Vec<usize>), FitFault> {
     loop {
         let seen: Vec<ViewCorners> = kept
             .iter()
             .map(|&v| ViewCorners {
-                left: Some(left_of(v)),
-                right: Some(right_of(v)),
+                left: views[v].left.as_deref(),
+                right: views[v].right.as_deref(),
             })
             .collect();
-        let solution = refine(state.clone(), &object, &seen)?;
+        let solution = refine(state.clone(), object, &seen)?;
         let rms: Vec<f64> = solution
             .views
             .iter()
             .map(|e| e.rms(0).unwrap_or(0.0).max(e.rms(1).unwrap_or(0.0)))
             .collect();
         let out = outliers(&rms);
-        if out.is_empty() || kept.len() - out.len() < MIN_VIEWS {
-            return finish(size, model, views, &found, (solution, kept.clone()), true);
+        if out.is_empty() || kept.len() - out.len() < fewest {
+            return Ok((solution, kept));
         }
         state = solution.state;
         for &i in out.iter().rev() {
@@ -223,6 +266,97 @@ pub fn calibrate(
             state.poses.remove(i);
         }
     }
+}
+
+/// A pair calibrated again from an earlier one (`start`) and new views of the board: each
+/// camera's board pose in every view both cameras saw, placed by the earlier lens; R and T
+/// started from the poses' mean relative motion; then refined together, the lenses held or
+/// not as `start` says. The lens model is the earlier pair's.
+pub fn recalibrate(
+    object: &[Vector3<f64>],
+    size: Size,
+    start: &Start,
+    views: &[Corners],
+) -> Result<Fit, FitFault> {
+    let found: Vec<bool> = views
+        .iter()
+        .map(|v| v.left.is_some() && v.right.is_some())
+        .collect();
+    let fewest = start.fewest_views();
+    let (mut kept, mut poses, mut relative) = (Vec::new(), Vec::new(), Vec::new());
+    for v in (0..views.len()).filter(|&v| found[v]) {
+        let (Some(left), Some(right)) = (&views[v].left, &views[v].right) else {
+            continue;
+        };
+        let (Some(l), Some(r)) = (
+            board_pose(&start.pair.left, object, left),
+            board_pose(&start.pair.right, object, right),
+        ) else {
+            continue;
+        };
+        let rotation = r.rotation * l.rotation.inverse();
+        relative.push(Pose {
+            rotation,
+            translation: r.translation - rotation * l.translation,
+        });
+        poses.push(l);
+        kept.push(v);
+    }
+    if kept.len() < fewest {
+        return Err(FitFault::TooFewViews {
+            usable: kept.len(),
+            needed: fewest,
+        });
+    }
+    let extrinsics = average(&relative).ok_or(FitFault::Degenerate)?;
+    let lens = |c: &Camera| Lens::new(c.intrinsics(), &c.distortion());
+    let state = State {
+        lenses: vec![lens(&start.pair.left), lens(&start.pair.right)],
+        extrinsics: Some(extrinsics),
+        poses,
+        held: start.hold,
+    };
+    let joint = together(state, object, views, kept, fewest)?;
+    let model = start.pair.left.distortion().model();
+    let mut fit = finish(size, model, views, &found, joint, true)?;
+    fit.held = start.hold;
+    Ok(fit)
+}
+
+/// The board's pose in a calibrated camera from the corners it saw (`seen`, in the order of
+/// `object`): the homography of the undistorted corners gives it, then the reprojection is
+/// refined with the lens held. `None` with fewer than six corners or a degenerate view.
+pub fn board_pose(camera: &Camera, object: &[Vector3<f64>], seen: &Seen) -> Option<Pose> {
+    let (plane, rays): (Vec<[f64; 2]>, Vec<[f64; 2]>) = object
+        .iter()
+        .zip(seen)
+        .filter_map(|(p, c)| Some(([p.x, p.y], camera.normalize((*c)?)?)))
+        .unzip();
+    if plane.len() < 6 {
+        return None;
+    }
+    let unit = crate::camera::Intrinsics {
+        fx: 1.0,
+        fy: 1.0,
+        cx: 0.0,
+        cy: 0.0,
+    };
+    let (rotation, translation) = zhang::pose(&zhang::homography(&plane, &rays)?, &unit)?;
+    let state = State {
+        lenses: vec![Lens::new(camera.intrinsics(), &camera.distortion())],
+        extrinsics: None,
+        poses: vec![Pose {
+            rotation,
+            translation,
+        }],
+        held: true,
+    };
+    let view = ViewCorners {
+        left: Some(seen),
+        right: None,
+    };
+    let solution = refine(state, object, &[view]).ok()?;
+    Some(solution.state.poses[0])
 }
 
 /// The positions (in `rms`) of views whose RMS is far above the median.
@@ -268,12 +402,16 @@ fn single<'a>(
         }
     }
     if kept.len() < MIN_VIEWS {
-        return Err(FitFault::TooFewViews { usable: kept.len() });
+        return Err(FitFault::TooFewViews {
+            usable: kept.len(),
+            needed: MIN_VIEWS,
+        });
     }
     let mut state = State {
         lenses: vec![Lens::new(k, &Distortion::none(model))],
         extrinsics: None,
         poses,
+        held: false,
     };
     loop {
         let seen: Vec<ViewCorners> = kept
@@ -407,6 +545,7 @@ fn finish(
             sandwich: solution.sandwich_covariance.clone(),
             noise: covariance,
         },
+        held: false,
     })
 }
 

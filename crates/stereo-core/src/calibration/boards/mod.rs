@@ -37,7 +37,8 @@ pub use target::{Target, TargetMiss};
 mod tests;
 
 pub use fit::{
-    CameraFit, Corners, Extrinsics, Fit, FitFault, Seen, ViewFit, ViewOutcome, calibrate, whole,
+    CameraFit, Corners, Extrinsics, Fit, FitFault, Seen, Start, ViewFit, ViewOutcome, board_pose,
+    calibrate, recalibrate, whole,
 };
 
 /// The most views (pairs, or one camera's images) one calibration takes: 60 holds every board

@@ -103,7 +103,9 @@ impl Determination {
             .filter(|v| v.status == ViewOutcome::Used)
             .filter_map(|v| v.pose.as_ref())
             .collect();
+        // Held lenses need no variety of poses: R and T follow from any view.
         let alike = match poses.split_first() {
+            _ if fit.held => None,
             Some((first, rest)) if !rest.is_empty() => {
                 let distance = first.translation.norm().max(f64::MIN_POSITIVE);
                 let angle = rest
@@ -332,13 +334,16 @@ pub fn warnings(
         .iter()
         .filter(|v| v.status == ViewOutcome::Used)
         .count();
-    if used < MIN_GOOD_VIEWS {
+    // Held lenses (a pair calibrated again from an earlier one) need neither many views nor
+    // coverage nor tilt: those fit a lens.
+    let lens = !fit.held;
+    if lens && used < MIN_GOOD_VIEWS {
         warnings.push(format!(
             "only {used} views were used: 10 to 20 views at different places and tilts give a \
              trustworthy calibration"
         ));
     }
-    for (name, c) in ["left", "right"].into_iter().zip(coverage) {
+    for (name, c) in ["left", "right"].into_iter().zip(coverage).filter(|_| lens) {
         if let Some(c) = c.filter(|c| c.narrow()) {
             warnings.push(format!(
                 "the corners covered only x {:.2}–{:.2} and y {:.2}–{:.2} of the {name} image: \
@@ -348,7 +353,7 @@ pub fn warnings(
             ));
         }
     }
-    if tilt_range[1] < MIN_TILT_DEG {
+    if lens && tilt_range[1] < MIN_TILT_DEG {
         warnings.push(format!(
             "the board never tilted more than {:.0}°: tilt it 20–45° in some views, or the \
              focal length is poorly determined",
@@ -445,6 +450,7 @@ mod tests {
                 .collect(),
             rms,
             joint: Default::default(),
+            held: false,
         }
     }
 

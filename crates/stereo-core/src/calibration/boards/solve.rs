@@ -94,12 +94,15 @@ pub struct ViewCorners<'a> {
 }
 
 /// Everything the solver moves: one lens (a single camera: every view's `left`) or two with
-/// the pair's extrinsics, and the board's pose in the left camera per view.
+/// the pair's extrinsics, and the board's pose in the left camera per view. With `held`, the
+/// lenses stay where they start (OpenCV's `CALIB_FIX_INTRINSIC`): only the extrinsics and the
+/// poses move, and the lenses' rows of the covariance are zero.
 #[derive(Debug, Clone, PartialEq)]
 pub struct State {
     pub lenses: Vec<Lens>,
     pub extrinsics: Option<Pose>,
     pub poses: Vec<Pose>,
+    pub held: bool,
 }
 
 impl State {
@@ -111,6 +114,15 @@ impl State {
 
     fn len(&self) -> usize {
         self.global_len() + 6 * self.poses.len()
+    }
+
+    /// How many leading parameters are held (the lenses', when `held`).
+    fn held_len(&self) -> usize {
+        if self.held {
+            self.lenses.iter().map(Lens::len).sum()
+        } else {
+            0
+        }
     }
 
     fn moved(&self, step: &DVector<f64>) -> State {
@@ -373,13 +385,45 @@ fn linearize(state: &State, object: &[Vector3<f64>], seen: &[ViewCorners]) -> Op
         views.push(block.error);
         shares.push((block.index, block.jtj, block.jtr));
     }
-    cost.is_finite().then_some(Linear {
+    let mut linear = Linear {
         jtj,
         jtr,
         cost,
         views,
         residuals,
         shares,
+    };
+    hold(&mut linear, state.held_len());
+    cost.is_finite().then_some(linear)
+}
+
+/// Holds the first `held` parameters where they are: their rows and columns of the normal
+/// equations (each view's share too) become the identity's and their gradient zero, so that
+/// every step leaves them and the other parameters' covariance is theirs given these.
+fn hold(linear: &mut Linear, held: usize) {
+    for i in 0..held {
+        linear.jtj.row_mut(i).fill(0.0);
+        linear.jtj.column_mut(i).fill(0.0);
+        linear.jtj[(i, i)] = 1.0;
+        linear.jtr[i] = 0.0;
+    }
+    for (index, jtj, jtr) in &mut linear.shares {
+        for (a, _) in index.iter().enumerate().filter(|(_, g)| **g < held) {
+            jtj.row_mut(a).fill(0.0);
+            jtj.column_mut(a).fill(0.0);
+            jtr[a] = 0.0;
+        }
+    }
+}
+
+/// Zeroes the first `held` rows and columns of a covariance: held parameters do not vary.
+fn zero_held(covariance: Option<DMatrix<f64>>, held: usize) -> Option<DMatrix<f64>> {
+    covariance.map(|mut c| {
+        for i in 0..held {
+            c.row_mut(i).fill(0.0);
+            c.column_mut(i).fill(0.0);
+        }
+        c
     })
 }
 
@@ -422,7 +466,7 @@ pub fn refine(
             _ => lambda *= 10.0,
         }
     }
-    let n = state.len();
+    let n = state.len() - state.held_len();
     let dof = linear.residuals.saturating_sub(n).max(1) as f64;
     let sigma2 = linear.cost / dof;
     // Cholesky when JᵀJ is well conditioned; else (a model whose coefficients trade off, as
@@ -437,10 +481,15 @@ pub fn refine(
             .ok()
             .map(|p| p * sigma2),
     };
-    let view_covariance = jackknife(&linear, state.global_len());
-    let sandwich_covariance = covariance
-        .as_ref()
-        .and_then(|c| sandwich(&(c / sigma2), &linear.shares));
+    let held = state.held_len();
+    let view_covariance = zero_held(jackknife(&linear, state.global_len()), held);
+    let sandwich_covariance = zero_held(
+        covariance
+            .as_ref()
+            .and_then(|c| sandwich(&(c / sigma2), &linear.shares)),
+        held,
+    );
+    let covariance = zero_held(covariance, held);
     let corners: usize = linear
         .views
         .iter()

@@ -26,6 +26,7 @@
 //!     board: Target::Chessboard(board), model: Model::PlumbBob, alpha: Alpha::ZERO, size,
 //!     limits: DecodeLimits { max_side: 8192, max_pixels: 1 << 25 },
 //!     uncertainty: false, corners: false, cross_validate: false, uncertainty_distance: None,
+//!     initial: None,
 //! };
 //! let (l, r): (Vec<&[u8]>, Vec<&[u8]>) = (left.iter().map(|v| &v[..]).collect(), right.iter().map(|v| &v[..]).collect());
 //! let made = calibrate(&l, &r, &settings, &AtomicBool::new(false)).unwrap();
@@ -47,7 +48,7 @@ use rayon::prelude::*;
 
 pub use self::report::Report;
 use self::report::rectified_rig;
-pub use self::settings::Settings;
+pub use self::settings::{Initial, Settings};
 pub use self::sight::{Sighting, sight};
 pub use crate::calibration::boards::charuco::{CharucoBoard, CharucoSpec, Dictionary};
 use crate::calibration::boards::corners::{Luma, Miss};
@@ -55,7 +56,7 @@ pub use crate::calibration::boards::report::{CharucoMistake, Coverage, Determina
 use crate::calibration::boards::report::{Detections, agreed_charuco_mistake, agreed_other_size};
 use crate::calibration::boards::{self, TargetMiss};
 pub use crate::calibration::boards::{
-    Board, CameraFit, Corners, Fit, FitFault, MAX_VIEWS, Seen, Target, ViewOutcome,
+    Board, CameraFit, Corners, Fit, FitFault, MAX_VIEWS, Seen, Start, Target, ViewOutcome,
     cross_validation, uncertainty,
 };
 use crate::calibration::files::{RigStd, opencv, ros};
@@ -79,12 +80,28 @@ pub struct Calibration {
     pub rig_std: Option<[f64; 2]>,
     /// What a user checks it by.
     pub report: Report,
+    /// How the pair moved since the earlier calibration it started from, when it did.
+    pub since: Option<Since>,
     /// What the decoder forgave, each sentence naming its view (`left[2] has no …`).
     pub notes: Vec<String>,
     /// Finding the boards, solving, rectifying.
     pub times: [Duration; 3],
     settings: Settings,
 }
+
+/// How a pair calibrated again moved since its earlier calibration.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Since {
+    /// The right camera's turn relative to the left since then (R·R_earlierᵀ), degrees
+    /// about x, y and z.
+    pub rotation_deg: [f64; 3],
+    /// The baseline |T| then and now, in the board's unit.
+    pub baseline: [f64; 2],
+}
+
+/// A baseline that changed by more than this factor either way since the earlier
+/// calibration is named: a unit typed wrong, or another rig.
+const BASELINE_CHANGE: f64 = 1.25;
 
 /// Why no calibration came of the views.
 #[derive(Debug, Clone)]
@@ -116,6 +133,8 @@ pub enum CalibrateFault {
     Refused { cause: String, views: usize },
     /// The calibrated pair cannot be rectified, so it has no stereo file.
     NotRectifiable,
+    /// An earlier calibration was given for one camera's views: it calibrates a pair again.
+    InitialNeedsPair,
 }
 
 /// The bytes finding the boards of `images` images of `(width, height)` holds at once: per
@@ -202,13 +221,18 @@ pub fn calibrate(
     let detect = started.elapsed();
     let solving = Instant::now();
     let object = settings.board.object_points();
-    let fit = boards::calibrate(&object, settings.size, settings.model, &views, stereo).map_err(
-        |fault| CalibrateFault::Fit {
-            fault,
-            reasons: reasons.clone(),
-            views: n,
-        },
-    )?;
+    let fitted = match &settings.initial {
+        Some(initial) if stereo => {
+            boards::recalibrate(&object, settings.size, &initial.start, &views)
+        }
+        Some(_) => return Err(CalibrateFault::InitialNeedsPair),
+        None => boards::calibrate(&object, settings.size, settings.model, &views, stereo),
+    };
+    let fit = fitted.map_err(|fault| CalibrateFault::Fit {
+        fault,
+        reasons: reasons.clone(),
+        views: n,
+    })?;
     let determination = Determination::of(&fit);
     if determination.refused() {
         return Err(CalibrateFault::Refused {
@@ -223,14 +247,20 @@ pub fn calibrate(
         ..RectifyOptions::default()
     };
     let rectification = fit.rectify(options);
-    let rig_std = fit.rig_std(options);
+    let rig_std = fit
+        .rig_std(options)
+        .map(|own| with_held(own, &fit, settings.initial.as_ref()));
     let rectify = rectifying.elapsed();
-    let report = Report::of(
+    let mut report = Report::of(
         (&fit, &views, settings),
         (rectification.as_ref(), rig_std),
         &notes,
         determination,
     );
+    let since = settings.initial.as_ref().and_then(|i| since(&fit, i));
+    report
+        .warnings
+        .extend(initial_warnings(&fit, settings, since.as_ref()));
     Ok(Calibration {
         fit,
         views,
@@ -238,10 +268,78 @@ pub fn calibrate(
         rectification,
         rig_std,
         report,
+        since,
         notes,
         times: [detect, solve, rectify],
         settings: settings.clone(),
     })
+}
+
+/// The rig's σ with held lenses: the fit's own (the new views' noise through R and T) and
+/// the earlier calibration's, which the held lenses carry, added in quadrature.
+fn with_held(own: [f64; 2], fit: &Fit, initial: Option<&Initial>) -> [f64; 2] {
+    let earlier = initial.and_then(|i| i.rig_std).filter(|_| fit.held);
+    let baseline = fit.extrinsics.map_or(0.0, |e| e.translation.norm());
+    match earlier {
+        Some([focal, fraction]) => [own[0].hypot(focal), own[1].hypot(fraction * baseline)],
+        None => own,
+    }
+}
+
+/// How the pair moved since the earlier calibration.
+fn since(fit: &Fit, initial: &Initial) -> Option<Since> {
+    let e = fit.extrinsics?;
+    let earlier = &initial.start.pair;
+    let turn = (e.rotation * earlier.rotation.inverse()).scaled_axis();
+    Some(Since {
+        rotation_deg: [turn.x, turn.y, turn.z].map(f64::to_degrees),
+        baseline: [earlier.translation.norm(), e.translation.norm()],
+    })
+}
+
+/// What a user of an earlier calibration is told: lenses held without σ, and a baseline that
+/// changed past [`BASELINE_CHANGE`] (a unit typed wrong in the board or the earlier file).
+fn initial_warnings(fit: &Fit, settings: &Settings, since: Option<&Since>) -> Vec<String> {
+    let mut warnings = Vec::new();
+    let Some(initial) = &settings.initial else {
+        return warnings;
+    };
+    if fit.held && initial.rig_std.is_none() {
+        warnings.push(
+            "the lenses were held at the initial calibration's, which carries no σ: the rig's \
+             σ counts only the new views, so it is too small (send the initial calibration's \
+             σ in a `rig` part, or /calibrate's own opencv.yml, which carries it)"
+                .to_owned(),
+        );
+    }
+    let used = fit
+        .views
+        .iter()
+        .filter(|v| v.status == ViewOutcome::Used)
+        .count();
+    if fit.held && used < boards::fit::MIN_VIEWS {
+        warnings.push(format!(
+            "R and T were found again from {used} view{}: in a board at one distance a turn \
+             about x trades off with a shift along y (and about y with z), so their σ are \
+             wide; 3 views or more at different distances and tilts pin them down",
+            if used == 1 { "" } else { "s" }
+        ));
+    }
+    if let Some(s) = since {
+        let [before, after] = s.baseline;
+        let ratio = after / before.max(f64::MIN_POSITIVE);
+        if !(1.0 / BASELINE_CHANGE..=BASELINE_CHANGE).contains(&ratio) {
+            let unit = settings.board.unit().symbol();
+            warnings.push(format!(
+                "the baseline came out {} {unit}, {}× the initial calibration's {} {unit}: a \
+                 unit typed wrong (the board's, or the initial's `initial_unit`), or another rig",
+                crate::numbers::short(after),
+                crate::numbers::short(ratio),
+                crate::numbers::short(before),
+            ));
+        }
+    }
+    warnings
 }
 
 /// Refuses a board most images contradict: a chessboard of another size, a ChArUco board

@@ -1,7 +1,7 @@
-//! How a calibration is made: the board, the lens model, `alpha`, the views' size and the
-//! decoder's limits, and what its report holds.
+//! How a calibration is made: the board, the lens model, `alpha`, the views' size, the
+//! decoder's limits, what its report holds and the earlier calibration it may start from.
 
-use crate::calibration::boards::Target;
+use crate::calibration::boards::{Start, Target};
 use crate::camera::{Alpha, Model, Size};
 use crate::vision::decode::DecodeLimits;
 
@@ -28,4 +28,17 @@ pub struct Settings {
     pub cross_validate: bool,
     /// The distance the projection uncertainty is stated at (default: the boards' median).
     pub uncertainty_distance: Option<f64>,
+    /// An earlier calibration to start from (`/calibrate`'s `initial`): its lens model is
+    /// the one fitted, and `model` is not used.
+    pub initial: Option<Initial>,
+}
+
+/// An earlier calibration a pair's calibration starts from.
+#[derive(Debug, Clone)]
+pub struct Initial {
+    /// The earlier pair (its T in the board's unit) and whether its lenses are held.
+    pub start: Start,
+    /// The earlier rectified rig's σ: the focal length's (px) and the baseline's as a
+    /// fraction of the baseline; `None` when its file carried none.
+    pub rig_std: Option<[f64; 2]>,
 }

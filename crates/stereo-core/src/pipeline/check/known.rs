@@ -5,12 +5,12 @@
 //! measured through a calibration's rectification is compared with the truth, before the
 //! correction and after.
 
-use nalgebra::{Isometry3, Rotation3, Translation3, Vector3};
+use nalgebra::Vector3;
 
 use crate::calibration::boards::corners::Luma;
-use crate::calibration::boards::{Target, zhang};
+use crate::calibration::boards::{Seen, Target, board_pose};
 use crate::calibration::files::Raw;
-use crate::camera::{Camera, Intrinsics};
+use crate::camera::Camera;
 use crate::physics::LengthUnit;
 use crate::vision::Gray;
 use crate::vision::sparse::match_points;
@@ -50,8 +50,8 @@ pub struct Located {
 }
 
 /// The board's corners that both raw frames show, placed in the left camera's frame by the
-/// board's pose from the left corners alone (Zhang's homography on the undistorted corners,
-/// then Gauss–Newton on their reprojection). `to_unit` converts the board's unit into the
+/// board's pose from the left corners alone ([`board_pose`]: the homography of the
+/// undistorted corners, then their reprojection refined). `to_unit` converts the board's unit into the
 /// calibration's. Empty when either camera does not find the board.
 pub fn board_corners(
     target: &Target,
@@ -69,12 +69,11 @@ pub fn board_corners(
         return Vec::new();
     };
     // Each corner both cameras show: its place on the board (in the calibration's unit),
-    // its pixel in each camera, and its undistorted left ray.
+    // and its pixel in each camera.
     struct Both {
         object: Vector3<f64>,
         left: [f64; 2],
         right: [f64; 2],
-        ray: [f64; 2],
     }
     let objects = target.object_points();
     let both: Vec<Both> = objects
@@ -86,94 +85,24 @@ pub fn board_corners(
                 object: *o * to_unit,
                 left,
                 right,
-                ray: camera.normalize(left)?,
             })
         })
         .collect();
     if both.len() < 6 {
         return Vec::new();
     }
-    let plane: Vec<[f64; 2]> = both.iter().map(|b| [b.object.x, b.object.y]).collect();
-    let ideal: Vec<[f64; 2]> = both.iter().map(|b| b.ray).collect();
-    let unit = Intrinsics {
-        fx: 1.0,
-        fy: 1.0,
-        cx: 0.0,
-        cy: 0.0,
-    };
-    let Some((rotation, translation)) =
-        zhang::homography(&plane, &ideal).and_then(|h| zhang::pose(&h, &unit))
-    else {
+    let objects: Vec<Vector3<f64>> = both.iter().map(|b| b.object).collect();
+    let seen: Seen = both.iter().map(|b| Some(b.left)).collect();
+    let Some(pose) = board_pose(camera, &objects, &seen) else {
         return Vec::new();
     };
-    let mut pose = Isometry3::from_parts(Translation3::from(translation), rotation.into());
-    let objects: Vec<Vector3<f64>> = both.iter().map(|b| b.object).collect();
-    let seen: Vec<[f64; 2]> = both.iter().map(|b| b.left).collect();
-    refine_pose(&mut pose, &objects, &seen, camera);
     both.iter()
         .map(|b| Located {
-            point: pose.rotation * b.object + pose.translation.vector,
+            point: pose.apply(&b.object),
             left_raw: b.left,
             right_raw: b.right,
         })
         .collect()
-}
-
-/// The pose that best reprojects `objects` onto `seen` through `camera`: Gauss–Newton over
-/// a rotation vector and a translation, numerical derivatives, a few steps.
-fn refine_pose(
-    pose: &mut Isometry3<f64>,
-    objects: &[Vector3<f64>],
-    seen: &[[f64; 2]],
-    camera: &Camera,
-) {
-    let project = |p: &Isometry3<f64>| -> Option<Vec<f64>> {
-        let mut r = Vec::with_capacity(2 * objects.len());
-        for (o, s) in objects.iter().zip(seen) {
-            let q = camera.project(&(p.rotation * o + p.translation.vector))?;
-            r.push(q[0] - s[0]);
-            r.push(q[1] - s[1]);
-        }
-        Some(r)
-    };
-    let moved = |p: &Isometry3<f64>, step: &[f64]| {
-        let turn = Rotation3::from_scaled_axis(Vector3::new(step[0], step[1], step[2]));
-        Isometry3::from_parts(
-            Translation3::from(p.translation.vector + Vector3::new(step[3], step[4], step[5])),
-            (turn * p.rotation.to_rotation_matrix()).into(),
-        )
-    };
-    let scale = pose.translation.vector.norm().max(1e-9);
-    for _ in 0..8 {
-        let Some(r0) = project(pose) else { return };
-        let mut jacobian = nalgebra::DMatrix::<f64>::zeros(r0.len(), 6);
-        for k in 0..6 {
-            let h = if k < 3 { 1e-7 } else { 1e-7 * scale };
-            let mut step = [0.0; 6];
-            step[k] = h;
-            let Some(up) = project(&moved(pose, &step)) else {
-                return;
-            };
-            step[k] = -h;
-            let Some(down) = project(&moved(pose, &step)) else {
-                return;
-            };
-            for i in 0..r0.len() {
-                jacobian[(i, k)] = (up[i] - down[i]) / (2.0 * h);
-            }
-        }
-        let r = nalgebra::DVector::from_vec(r0);
-        let Some(step) = (jacobian.transpose() * &jacobian)
-            .cholesky()
-            .map(|c| -c.solve(&(jacobian.transpose() * r)))
-        else {
-            return;
-        };
-        *pose = moved(pose, step.as_slice());
-        if step.iter().take(3).all(|v| v.abs() < 1e-10) {
-            return;
-        }
-    }
 }
 
 /// The `points` of one pair matched in its rectified frames (`left`, `right`, rectified with

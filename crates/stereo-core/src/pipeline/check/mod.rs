@@ -27,6 +27,7 @@ use self::report::{correction, distances, effects, rig_std};
 pub use self::watch::Watch;
 use crate::calibration::files::Raw;
 use crate::camera::{Alpha, RectifyOptions, stereo_rectify};
+use crate::physics::Implausible;
 use crate::pipeline::Calibrated;
 use crate::vision::Gray;
 use crate::vision::decode::{self, DecodeError, DecodeLimits};
@@ -361,6 +362,9 @@ fn judge(
         .map(|(_, k)| *k)
         .collect();
     let distance = distances(&trusted, raw, &corrected, calibrated);
+    // A baseline no rig has (a unit typed wrong) makes every distance wrong by one factor:
+    // the rows still tell, but no depth effect is told from it.
+    let doubt = Implausible::baseline(rig.baseline(), rig.unit()).map(|i| i.to_string());
     Ok(Check {
         holds,
         matches: per_pair,
@@ -371,7 +375,12 @@ fn judge(
         largest_disparity_shift: shifts.disparity,
         tolerance_px: settings.tolerance_px,
         correction: correction(&fitted, &dropped, !located.is_empty()),
-        depth_effect: shifts.depth,
+        depth_effect: if doubt.is_some() {
+            Vec::new()
+        } else {
+            shifts.depth
+        },
+        baseline_doubt: doubt,
         distance,
         corrected,
         unit: calibrated.file_unit,

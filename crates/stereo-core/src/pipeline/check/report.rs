@@ -165,7 +165,10 @@ pub struct Check {
     pub largest_disparity_shift: Estimate,
     pub tolerance_px: f64,
     pub correction: Correction,
+    /// The drift's effect on distances (none when the baseline is in doubt).
     pub depth_effect: Vec<DepthEffect>,
+    /// Why the calibration's baseline is in doubt: no rig has it (a unit typed wrong).
+    pub baseline_doubt: Option<String>,
     /// The known points' distances before and after the correction.
     pub distance: Option<DistanceCheck>,
     /// The calibration corrected, with the σ it came with.
