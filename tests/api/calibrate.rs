@@ -53,23 +53,29 @@ pub(crate) fn board() -> Board {
 /// Eight rendered pairs as PNG files (rendered once for every test here).
 pub(crate) fn views() -> &'static Vec<(Vec<u8>, Vec<u8>)> {
     static VIEWS: OnceLock<Vec<(Vec<u8>, Vec<u8>)>> = OnceLock::new();
-    VIEWS.get_or_init(|| {
-        let pair = truth();
-        let found = poses(&pair, SIZE, &board(), 8, 40.0, 9);
-        let style = Style {
-            supersampling: 3,
-            ..Style::default()
-        };
-        stereo_views(&pair, SIZE, &board(), &found, &style)
-            .into_iter()
-            .map(|v| {
-                let png = |i: &stereo_core::calibration::boards::synthetic::Image| {
-                    gray_png(i.width as usize, i.height as usize, &i.pixels)
-                };
-                (png(&v.left), png(&v.right))
-            })
-            .collect()
-    })
+    VIEWS.get_or_init(|| rendered_views(&truth(), 8, 9))
+}
+
+/// `count` views of the board seen by `pair` (poses from `seed`), as PNG pairs.
+pub(crate) fn rendered_views(
+    pair: &StereoPair,
+    count: usize,
+    seed: u64,
+) -> Vec<(Vec<u8>, Vec<u8>)> {
+    let found = poses(pair, SIZE, &board(), count, 40.0, seed);
+    let style = Style {
+        supersampling: 3,
+        ..Style::default()
+    };
+    stereo_views(pair, SIZE, &board(), &found, &style)
+        .into_iter()
+        .map(|v| {
+            let png = |i: &stereo_core::calibration::boards::synthetic::Image| {
+                gray_png(i.width as usize, i.height as usize, &i.pixels)
+            };
+            (png(&v.left), png(&v.right))
+        })
+        .collect()
 }
 
 /// An 8-bit grey image as a PNG (through the RGB encoder).

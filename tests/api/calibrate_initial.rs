@@ -4,10 +4,9 @@
 
 use nalgebra::{Rotation3, Vector3};
 use reqwest::multipart::{Form, Part};
-use stereo_core::calibration::boards::synthetic::{Style, poses, stereo_views};
 use stereo_core::camera::{RectifyOptions, StereoPair, stereo_rectify};
 
-use crate::calibrate::{BOARD, SIZE, board, gray_png, image, truth, views};
+use crate::calibrate::{BOARD, SIZE, image, rendered_views, truth, views};
 use crate::helpers::{TestApp, assert_names, message_for, ok_json, problem, spawn_app};
 
 /// The truth knocked: the right camera turned 0.3° about y and 0.1° about x, and moved 1 mm
@@ -22,21 +21,7 @@ fn knocked() -> StereoPair {
 
 /// `count` views of the knocked rig, as PNG pairs.
 fn knocked_views(count: usize, seed: u64) -> Vec<(Vec<u8>, Vec<u8>)> {
-    let pair = knocked();
-    let found = poses(&pair, SIZE, &board(), count, 40.0, seed);
-    let style = Style {
-        supersampling: 3,
-        ..Style::default()
-    };
-    stereo_views(&pair, SIZE, &board(), &found, &style)
-        .into_iter()
-        .map(|v| {
-            let png = |i: &stereo_core::calibration::boards::synthetic::Image| {
-                gray_png(i.width as usize, i.height as usize, &i.pixels)
-            };
-            (png(&v.left), png(&v.right))
-        })
-        .collect()
+    rendered_views(&knocked(), count, seed)
 }
 
 fn views_form(views: &[(Vec<u8>, Vec<u8>)], board: &str) -> Form {
@@ -335,6 +320,25 @@ async fn mistakes_with_an_earlier_calibration_are_named() {
     assert!(said.contains("× the initial calibration's 6.00"), "{said}");
     assert!(said.contains("came out 61."), "{said}");
     assert!(said.contains("unit typed wrong"), "{said}");
+
+    // The earlier file's unit overridden wrongly: its reader's warnings come through, and
+    // the baseline 1000× off is named.
+    let summary = ok_json(
+        app.post_form(
+            "/calibrate",
+            views_form(&one, BOARD)
+                .part("initial", initial_part(&yaml))
+                .text("initial_unit", "m"),
+        )
+        .await,
+    )
+    .await;
+    let said = summary["warnings"].to_string();
+    assert!(
+        said.contains("the initial calibration: initial_unit m overrides"),
+        "{said}"
+    );
+    assert!(said.contains("0.001× the initial calibration's"), "{said}");
 
     // Each view's left and right swapped: the right camera comes out on the left.
     let swapped: Vec<(Vec<u8>, Vec<u8>)> =

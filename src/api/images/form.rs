@@ -68,6 +68,26 @@ pub struct Form {
     pub read: Duration,
 }
 
+impl Form {
+    /// The repeated `left` and `right` parts taken out in their order (the i-th of each one
+    /// view or pair), the other parts left in `parts`.
+    pub fn take_views(&mut self) -> [Vec<Bytes>; 2] {
+        let mut views = [Vec::new(), Vec::new()];
+        self.parts.retain(|(name, bytes)| match name.as_str() {
+            "left" => {
+                views[0].push(bytes.clone());
+                false
+            }
+            "right" => {
+                views[1].push(bytes.clone());
+                false
+            }
+            _ => true,
+        });
+        views
+    }
+}
+
 /// What a route's form holds: the parts it reads, those of them that may repeat, and how
 /// `curl` sends it (for the 415 of a body that is not a form).
 pub struct FormSpec<'a> {

@@ -7,6 +7,7 @@ use utoipa::ToSchema;
 use crate::api::extract::QueryForm;
 use crate::api::wire::board_calibration::CalibrateOutput;
 use crate::api::wire::de::request;
+use crate::api::wire::images::with_calibration_options;
 use crate::api::wire::openapi::{image_answers, named, text};
 use crate::api::wire::params::Unit;
 use stereo_core::numbers::Num;
@@ -27,47 +28,34 @@ request! {
 
 impl QueryForm for CheckQuery {}
 
-/// The `multipart/form-data` parts of `/calibration/check` (for the documentation: the
-/// handler reads the parts itself, to name each one in its errors).
-#[derive(ToSchema)]
-#[serde(deny_unknown_fields)]
-#[allow(dead_code)]
-pub struct CheckForm {
-    /// The left camera's raw frames of any textured scene, one part a pair, in order (PNG or
-    /// JPEG, the calibration's raw size); at most 30.
-    #[schema(value_type = Vec<String>, format = Binary, max_items = 30)]
-    left: Vec<Vec<u8>>,
-    /// The right camera's frames, as many as `left`: the i-th of each is one pair.
-    #[schema(value_type = Vec<String>, format = Binary, max_items = 30)]
-    right: Vec<Vec<u8>>,
-    /// The calibration to check, as `/calibration` reads it (OpenCV, ROS, KITTI raw): it
-    /// must describe the raw cameras.
-    #[schema(value_type = String, format = Binary)]
-    calibration: Vec<u8>,
-    /// The calibration's format, or `auto` (the default).
-    #[schema(nullable = false)]
-    calibration_format: Option<String>,
-    /// The right camera's ROS `CameraInfo`, for ROS calibrations.
-    #[schema(value_type = Option<String>, format = Binary, nullable = false)]
-    right_calibration: Option<Vec<u8>>,
-    /// The unit of the calibration's lengths (required for OpenCV files not written here).
-    #[schema(nullable = false)]
-    calibration_unit: Option<String>,
-    /// KITTI only: the camera pair, `2-3` (the default) or `0-1`.
-    #[schema(nullable = false)]
-    calibration_cameras: Option<String>,
-    /// A board the pairs show (as `/calibrate` takes it): its corners, their pose from the left
-    /// camera, give known distances, which see a turn about y and a baseline's change.
-    #[schema(nullable = false)]
-    board: Option<crate::api::wire::board_calibration::BoardSpec>,
-    /// Points with their true distance, a JSON array: `[{"pair": 0, "x": 320, "y": 240,
-    /// "distance": 1500}]`.
-    #[schema(nullable = false, max_items = 10000)]
-    known_distances: Option<Vec<KnownDistance>>,
-    /// The calibration's σ, when its file does not carry it:
-    /// `{"focal_length_std_px": …, "baseline_std": …}`.
-    #[schema(value_type = Option<Object>, nullable = false)]
-    rig: Option<String>,
+with_calibration_options! {
+    /// The `multipart/form-data` parts of `/calibration/check` (for the documentation: the
+    /// handler reads the parts itself, to name each one in its errors).
+    pub struct CheckForm {
+        /// The left camera's raw frames of any textured scene, one part a pair, in order (PNG
+        /// or JPEG, the calibration's raw size); at most 30.
+        #[schema(value_type = Vec<String>, format = Binary, max_items = 30)]
+        left: Vec<Vec<u8>>,
+        /// The right camera's frames, as many as `left`: the i-th of each is one pair.
+        #[schema(value_type = Vec<String>, format = Binary, max_items = 30)]
+        right: Vec<Vec<u8>>,
+        /// The calibration to check, as `/calibration` reads it (OpenCV, ROS, KITTI raw): it
+        /// must describe the raw cameras.
+        #[schema(value_type = String, format = Binary)]
+        calibration: Vec<u8>,
+        /// A board the pairs show (as `/calibrate` takes it): its corners, their pose from the
+        /// left camera, give known distances, which see a turn about y and a baseline's change.
+        #[schema(nullable = false)]
+        board: Option<crate::api::wire::board_calibration::BoardSpec>,
+        /// Points with their true distance, a JSON array: `[{"pair": 0, "x": 320, "y": 240,
+        /// "distance": 1500}]`.
+        #[schema(nullable = false, max_items = 10000)]
+        known_distances: Option<Vec<KnownDistance>>,
+        /// The calibration's σ, when its file does not carry it:
+        /// `{"focal_length_std_px": …, "baseline_std": …}`.
+        #[schema(value_type = Option<Object>, nullable = false)]
+        rig: Option<String>,
+    }
 }
 
 request! {

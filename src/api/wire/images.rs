@@ -122,10 +122,10 @@ pub struct StageTimes {
     pub rectify: Option<f64>,
 }
 
-/// Declares an image route's multipart form, for the documentation (the handler reads the
-/// parts itself, to name each one in its errors): `left` and `right`, the route's own parts,
-/// then the rig's parts, documented once here for every image route.
-macro_rules! image_form {
+/// Declares a multipart form for the documentation with the calibration file's option parts
+/// appended (`calibration_format`, `right_calibration`, `calibration_unit`,
+/// `calibration_cameras`), documented once here for every form that takes a `calibration`.
+macro_rules! with_calibration_options {
     (
         $(#[$meta:meta])*
         pub struct $name:ident { $($(#[$attr:meta])* $field:ident: $ty:ty),* $(,)? }
@@ -135,32 +135,51 @@ macro_rules! image_form {
         #[serde(deny_unknown_fields)]
         #[allow(dead_code)]
         pub struct $name {
-            /// The left image of the pair: PNG or JPEG, 8 or 16 bits, grey, RGB or RGBA.
-            #[schema(value_type = String, format = Binary)]
-            left: Vec<u8>,
-            /// The right image, the same size as the left.
-            #[schema(value_type = String, format = Binary)]
-            right: Vec<u8>,
             $($(#[$attr])* $field: $ty,)*
-            /// The rig, with the members of `/distance` (what `/calibration` answers as
-            /// `rig`). The image size defaults to the images'.
-            #[schema(nullable = false)]
-            rig: Option<$crate::api::wire::rig::StereoRig>,
-            /// A calibration file as `/calibration` reads it (Middlebury, KITTI, ROS, OpenCV).
-            #[schema(value_type = Option<String>, format = Binary, nullable = false)]
-            calibration: Option<Vec<u8>>,
             /// The calibration's format, or `auto` (the default).
             #[schema(nullable = false)]
             calibration_format: Option<String>,
             /// The right camera's ROS `CameraInfo`, for ROS calibrations.
             #[schema(value_type = Option<String>, format = Binary, nullable = false)]
             right_calibration: Option<Vec<u8>>,
-            /// The unit of the calibration's lengths (required for OpenCV files).
+            /// The unit of the calibration's lengths (required for OpenCV files not written
+            /// here).
             #[schema(nullable = false)]
             calibration_unit: Option<String>,
             /// KITTI only: the camera pair, `2-3` (the default) or `0-1`.
             #[schema(nullable = false)]
             calibration_cameras: Option<String>,
+        }
+    };
+}
+pub(crate) use with_calibration_options;
+
+/// Declares an image route's multipart form, for the documentation (the handler reads the
+/// parts itself, to name each one in its errors): `left` and `right`, the route's own parts,
+/// then the rig's parts, documented once here for every image route.
+macro_rules! image_form {
+    (
+        $(#[$meta:meta])*
+        pub struct $name:ident { $($(#[$attr:meta])* $field:ident: $ty:ty),* $(,)? }
+    ) => {
+        $crate::api::wire::images::with_calibration_options! {
+            $(#[$meta])*
+            pub struct $name {
+                /// The left image of the pair: PNG or JPEG, 8 or 16 bits, grey, RGB or RGBA.
+                #[schema(value_type = String, format = Binary)]
+                left: Vec<u8>,
+                /// The right image, the same size as the left.
+                #[schema(value_type = String, format = Binary)]
+                right: Vec<u8>,
+                $($(#[$attr])* $field: $ty,)*
+                /// The rig, with the members of `/distance` (what `/calibration` answers as
+                /// `rig`). The image size defaults to the images'.
+                #[schema(nullable = false)]
+                rig: Option<$crate::api::wire::rig::StereoRig>,
+                /// A calibration file as `/calibration` reads it (Middlebury, KITTI, ROS, OpenCV).
+                #[schema(value_type = Option<String>, format = Binary, nullable = false)]
+                calibration: Option<Vec<u8>>,
+            }
         }
     };
 }

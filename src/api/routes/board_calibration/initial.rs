@@ -106,6 +106,12 @@ pub fn read(
             hold: refine.unwrap_or_default() == RefineChoice::Extrinsics,
         },
         rig_std,
+        // Its reader's sentences, its parts named as this form names them.
+        warnings: calibrated
+            .warnings
+            .iter()
+            .map(|w| w.replace("calibration_unit", "initial_unit"))
+            .collect(),
     })
 }
 

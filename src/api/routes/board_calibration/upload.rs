@@ -41,10 +41,11 @@ impl FromRequest<HeavyState> for Upload {
                       left=@l0.png -F right=@r0.png -F left=@l1.png … -F \
                       board='{\"columns\":9,…}')",
         };
-        let form = Form::read(req, state, spec).await?;
+        let mut form = Form::read(req, state, spec).await?;
+        let [left, right] = form.take_views();
         let mut upload = Upload {
-            left: Vec::new(),
-            right: Vec::new(),
+            left,
+            right,
             board: None,
             initial: RigParts::default(),
             problems: form.problems,
@@ -53,8 +54,6 @@ impl FromRequest<HeavyState> for Upload {
         };
         for (name, bytes) in form.parts {
             match name.as_str() {
-                "left" => upload.left.push(bytes),
-                "right" => upload.right.push(bytes),
                 "board" => upload.board = Some(bytes),
                 other => {
                     if let Some(name) = read_as(other) {

@@ -65,10 +65,11 @@ impl FromRequest<HeavyState> for CheckUpload {
                       calibration (curl -F left=@l0.png -F right=@r0.png -F left=@l1.png … \
                       -F calibration=@opencv.yml)",
         };
-        let form = Form::read(req, state, spec).await?;
+        let mut form = Form::read(req, state, spec).await?;
+        let [left, right] = form.take_views();
         let mut upload = CheckUpload {
-            left: Vec::new(),
-            right: Vec::new(),
+            left,
+            right,
             rig: RigParts::default(),
             board: None,
             known_distances: None,
@@ -78,8 +79,6 @@ impl FromRequest<HeavyState> for CheckUpload {
         };
         for (name, bytes) in form.parts {
             match name.as_str() {
-                "left" => upload.left.push(bytes),
-                "right" => upload.right.push(bytes),
                 "board" => upload.board = Some(bytes),
                 "known_distances" => upload.known_distances = Some(bytes),
                 other => {

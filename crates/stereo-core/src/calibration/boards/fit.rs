@@ -214,11 +214,7 @@ pub fn calibrate(
         ) else {
             continue;
         };
-        let rotation = r.rotation * l.rotation.inverse();
-        relative.push(Pose {
-            rotation,
-            translation: r.translation - rotation * l.translation,
-        });
+        relative.push(right_from_left(&l, &r));
         poses.push(l);
     }
     let extrinsics = average(&relative).ok_or(FitFault::Degenerate)?;
@@ -294,11 +290,7 @@ pub fn recalibrate(
         ) else {
             continue;
         };
-        let rotation = r.rotation * l.rotation.inverse();
-        relative.push(Pose {
-            rotation,
-            translation: r.translation - rotation * l.translation,
-        });
+        relative.push(right_from_left(&l, &r));
         poses.push(l);
         kept.push(v);
     }
@@ -437,6 +429,16 @@ fn single<'a>(
             kept.remove(i);
             state.poses.remove(i);
         }
+    }
+}
+
+/// The right camera's pose from the left's (X_right = R·X_left + T) from one board's pose in
+/// each.
+fn right_from_left(left: &Pose, right: &Pose) -> Pose {
+    let rotation = right.rotation * left.rotation.inverse();
+    Pose {
+        rotation,
+        translation: right.translation - rotation * left.translation,
     }
 }
 

@@ -304,6 +304,12 @@ fn initial_warnings(fit: &Fit, settings: &Settings, since: Option<&Since>) -> Ve
     let Some(initial) = &settings.initial else {
         return warnings;
     };
+    warnings.extend(
+        initial
+            .warnings
+            .iter()
+            .map(|w| format!("the initial calibration: {w}")),
+    );
     if fit.held && initial.rig_std.is_none() {
         warnings.push(
             "the lenses were held at the initial calibration's, which carries no σ: the rig's \

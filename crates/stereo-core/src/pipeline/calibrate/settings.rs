@@ -41,4 +41,7 @@ pub struct Initial {
     /// The earlier rectified rig's σ: the focal length's (px) and the baseline's as a
     /// fraction of the baseline; `None` when its file carried none.
     pub rig_std: Option<[f64; 2]>,
+    /// What its file's reader noticed, in sentences (a unit overridden, a baseline no rig
+    /// has).
+    pub warnings: Vec<String>,
 }
