@@ -525,8 +525,9 @@ fn every_depth_caller_plans_one_job() {
 }
 
 /// Each rig input parsed once at its edge: a form (`api::images::form`), a stream's settings
-/// (`api::images::stream`, once for the stream) and the command's flags
-/// (`batch::preflight`, which hands the parsed input to the command's engine) each turn the
+/// (`api::images::stream`, once for the stream), the command's flags (`batch::preflight`,
+/// which hands the parsed input to the command's engine), `/calibration/check`'s calibration
+/// and `/calibrate`'s earlier one (`initial`) each turn the
 /// rig's parts into the engine's `RigInput` once, and only `api::images::rig` builds one; no
 /// depth caller reads a calibration file itself, each making the rig of a frame size from its
 /// `RigInput` (`job::plan_at`).
@@ -535,6 +536,7 @@ fn each_rig_input_is_parsed_once_at_its_edge() {
     let edges: BTreeMap<String, usize> = [
         ("api::images::form", 1),
         ("api::images::stream", 1),
+        ("api::routes::board_calibration::initial", 1),
         ("api::routes::calibration_check", 1),
         ("batch::preflight", 1),
     ]

@@ -3,6 +3,7 @@
 //! macros that declare request types with the common members ([`de`]), the members as stated
 //! before validation ([`params`]), the measured values every distance answer carries
 //! ([`measured`]), the rig's wire shapes ([`rig`]), the calibration options ([`calibration`]),
+//! the `board` part ([`board`]),
 //! what the image routes share on the wire ([`images`]), and the OpenAPI glue ([`openapi`]).
 //! Then each endpoint's own types, one module a route (its `types`, as the route names it):
 //! [`distance`], [`table`], [`chart`], [`rig_design`], [`file_calibration`], [`depth_map`],
@@ -10,6 +11,7 @@
 //! [`calibration_summary`]), [`calibration_check`]. The command (`batch`) writes the same
 //! `/depth-map` answers from them.
 
+pub mod board;
 pub mod board_calibration;
 pub mod calibration;
 pub mod calibration_check;

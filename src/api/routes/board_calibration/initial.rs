@@ -4,8 +4,9 @@
 
 use crate::api::error::FieldErrors;
 use crate::api::images::rig::{self, RigParts};
-use crate::api::wire::board_calibration::RefineChoice;
+use crate::api::wire::board_calibration::{ModelChoice, RefineChoice};
 use stereo_core::physics::LengthUnit;
+use stereo_core::pipeline::Calibrated;
 use stereo_core::pipeline::calibrate as engine;
 
 /// Each `initial` part and the image routes' part it is read as.
@@ -42,24 +43,29 @@ fn renamed(field: &str) -> String {
     field.to_owned()
 }
 
+/// What the rest of the request says of the earlier calibration: what moves, the lens model
+/// asked for, whether the views are pairs.
+pub struct Asked {
+    pub refine: Option<RefineChoice>,
+    pub model: Option<ModelChoice>,
+    pub stereo: bool,
+}
+
 /// The earlier calibration the form sent (`parts`, read as the image routes' parts), for
-/// views of `size`, its T in the board's `unit`; `refine` says what moves. `None` when none
+/// views of `size`, its T in the board's `unit`; `asked` says what moves. `None` when none
 /// was sent or it is at fault (then `problems` names each part): one that describes
-/// rectified images only, or cameras of another size; a `refine` without one.
+/// rectified images only, or cameras of another size; one camera's views; another lens model
+/// asked for; a `refine` or an `initial_…` part without one.
 pub fn read(
     parts: &RigParts,
     size: Option<(u32, u32)>,
     unit: LengthUnit,
-    refine: Option<RefineChoice>,
+    asked: &Asked,
     problems: &mut FieldErrors,
 ) -> Option<engine::Initial> {
     if parts.get("calibration").is_none() {
-        for (ours, theirs) in &INITIAL_PARTS[1..] {
-            if parts.get(theirs).is_some() {
-                problems.add(ours, "applies only with an initial part");
-            }
-        }
-        if refine.is_some() {
+        strays(parts, "applies only with an initial part", problems);
+        if asked.refine.is_some() {
             problems.add(
                 "refine",
                 "applies only with an initial part: the calibration to start from",
@@ -67,6 +73,46 @@ pub fn read(
         }
         return None;
     }
+    let calibrated = raw_calibration(parts, size, problems)?;
+    let raw = calibrated.raw.as_deref()?;
+    let mut pair = raw.pair;
+    pair.translation *= calibrated.file_unit.convert(1.0, unit);
+    judge(pair.left.distortion().model(), asked, problems);
+    let rig = &calibrated.rig;
+    let rig_std = (rig.focal_std_px() > 0.0 || rig.baseline_std() > 0.0)
+        .then(|| [rig.focal_std_px(), rig.baseline_std() / rig.baseline()]);
+    Some(engine::Initial {
+        start: engine::Start {
+            pair,
+            hold: asked.refine.unwrap_or_default() == RefineChoice::Extrinsics,
+        },
+        rig_std,
+        // Its reader's sentences, its parts named as this form names them.
+        warnings: calibrated
+            .warnings
+            .iter()
+            .map(|w| w.replace("calibration_unit", "initial_unit"))
+            .collect(),
+    })
+}
+
+/// Names each `initial…` part sent, saying `why` it does not apply (no `initial`, or a
+/// route that does not take one).
+pub fn strays(parts: &RigParts, why: &str, problems: &mut FieldErrors) {
+    for (ours, theirs) in INITIAL_PARTS {
+        if parts.get(theirs).is_some() {
+            problems.add(ours, why);
+        }
+    }
+}
+
+/// The earlier calibration read for views of `size`, its faults named as this form names
+/// the parts; `None` unless it describes the raw cameras of views of that size.
+fn raw_calibration(
+    parts: &RigParts,
+    size: Option<(u32, u32)>,
+    problems: &mut FieldErrors,
+) -> Option<Calibrated> {
     let mut found = FieldErrors::default();
     let (_, calibrated) = rig::parsed(parts, size, false, &mut found);
     for error in found.iter() {
@@ -83,8 +129,7 @@ pub fn read(
         return None;
     };
     let raw_size = (raw.size.width, raw.size.height);
-    if size.is_some_and(|s| s != raw_size) {
-        let (w, h) = size.unwrap_or_default();
+    if let Some((w, h)) = size.filter(|s| *s != raw_size) {
         problems.add(
             "initial",
             format!(
@@ -95,24 +140,30 @@ pub fn read(
         );
         return None;
     }
-    let mut pair = raw.pair;
-    pair.translation *= calibrated.file_unit.convert(1.0, unit);
-    let rig = &calibrated.rig;
-    let rig_std = (rig.focal_std_px() > 0.0 || rig.baseline_std() > 0.0)
-        .then(|| [rig.focal_std_px(), rig.baseline_std() / rig.baseline()]);
-    Some(engine::Initial {
-        start: engine::Start {
-            pair,
-            hold: refine.unwrap_or_default() == RefineChoice::Extrinsics,
-        },
-        rig_std,
-        // Its reader's sentences, its parts named as this form names them.
-        warnings: calibrated
-            .warnings
-            .iter()
-            .map(|w| w.replace("calibration_unit", "initial_unit"))
-            .collect(),
-    })
+    Some(calibrated)
+}
+
+/// What the rest of the request must agree with: pairs, and the earlier lens `model`.
+fn judge(model: engine::Model, asked: &Asked, problems: &mut FieldErrors) {
+    if !asked.stereo {
+        problems.add(
+            "initial",
+            "calibrates a pair again: send a right image for each left one",
+        );
+    }
+    if let Some(choice) = asked.model
+        && engine::Model::from(choice) != model
+    {
+        problems.add(
+            "model",
+            format!(
+                "is {}, but the initial calibration's lenses are {}: a calibration started \
+                 from it keeps its lens model (leave model out)",
+                engine::Model::from(choice).name(),
+                model.name()
+            ),
+        );
+    }
 }
 
 #[cfg(test)]

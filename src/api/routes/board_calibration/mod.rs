@@ -132,49 +132,19 @@ fn settings(
     }
     let output = query.output.unwrap_or_default();
     let stereo = !right.is_empty();
-    if !stereo
-        && matches!(
-            output,
-            CalibrateOutput::OpencvYml | CalibrateOutput::RosRightYaml
-        )
-    {
-        problems.add(
-            "output",
-            format!(
-                "{} needs a pair: send right images as well as left ones",
-                output.name()
-            ),
-        );
-    }
+    pair_output(output, stereo, problems);
     let board = read_board(board, problems);
     count_views([left, right], problems);
     let size = limits::view_sizes(left, right, allowed, problems)?;
     let unit = board
         .as_ref()
         .map_or(LengthUnit::Millimetre, engine::Target::unit);
-    let initial = initial::read(initial, size, unit, query.refine, problems);
-    if let Some(initial) = &initial {
-        if !stereo && !left.is_empty() {
-            problems.add(
-                "initial",
-                "calibrates a pair again: send a right image for each left one",
-            );
-        }
-        let model = initial.start.pair.left.distortion().model();
-        if let Some(asked) = query.model
-            && engine::Model::from(asked) != model
-        {
-            problems.add(
-                "model",
-                format!(
-                    "is {}, but the initial calibration's lenses are {}: a calibration started \
-                     from it keeps its lens model (leave model out)",
-                    engine::Model::from(asked).name(),
-                    model.name()
-                ),
-            );
-        }
-    }
+    let asked = initial::Asked {
+        refine: query.refine,
+        model: query.model,
+        stereo: stereo || left.is_empty(),
+    };
+    let initial = initial::read(initial, size, unit, &asked, problems);
     let (Some(board), Some((width, height))) = (board, size) else {
         return Err(std::mem::take(problems).into_error());
     };
@@ -193,6 +163,24 @@ fn settings(
         uncertainty_distance: query.uncertainty_distance,
         initial,
     })
+}
+
+/// A file of the pair asked of one camera's views.
+fn pair_output(output: CalibrateOutput, stereo: bool, problems: &mut FieldErrors) {
+    if !stereo
+        && matches!(
+            output,
+            CalibrateOutput::OpencvYml | CalibrateOutput::RosRightYaml
+        )
+    {
+        problems.add(
+            "output",
+            format!(
+                "{} needs a pair: send right images as well as left ones",
+                output.name()
+            ),
+        );
+    }
 }
 
 /// The views' counts: at least one left image, as many right images as left ones (or none),

@@ -5,7 +5,6 @@
 use axum::body::Bytes;
 use axum::response::{IntoResponse, Response};
 
-use super::initial::INITIAL_PARTS;
 use super::upload::{Upload, over_the_budget};
 use crate::api::error::{ApiError, FieldError, FieldErrors};
 use crate::api::images::board::read_board;
@@ -40,19 +39,11 @@ pub async fn post_board(upload: Upload) -> Result<Response, ApiError> {
         left,
         right,
         board,
-        initial,
         mut problems,
         admitted,
         limits: allowed,
-    } = upload;
-    for (ours, theirs) in INITIAL_PARTS {
-        if initial.get(theirs).is_some() {
-            problems.add(
-                ours,
-                "applies to /calibrate only: /board finds one image's board",
-            );
-        }
-    }
+        ..
+    } = upload.without_initial();
     let board = read_board(board.as_ref(), &mut problems);
     let left = one(left, "left", true, &mut problems);
     let right = one(right, "right", false, &mut problems);

@@ -66,6 +66,19 @@ impl FromRequest<HeavyState> for Upload {
     }
 }
 
+impl Upload {
+    /// The upload of a route that takes no earlier calibration (`/board`): each `initial…`
+    /// part sent is named.
+    pub fn without_initial(mut self) -> Upload {
+        super::initial::strays(
+            &self.initial,
+            "applies to /calibrate only: /board finds one image's board",
+            &mut self.problems,
+        );
+        self
+    }
+}
+
 /// The error of images whose boards need more memory than the heavy budget has in all: `what`
 /// (`views need`) `bytes` `why` (`to calibrate`), `total` there is.
 pub fn over_the_budget(

@@ -15,29 +15,6 @@ use crate::camera::{
 /// The fewest views a calibration takes.
 pub const MIN_VIEWS: usize = 3;
 
-/// The fewest views that refit a pair's R and T with its lenses held ([`Start::hold`]): one
-/// board seen by both cameras places each camera, and so the one against the other.
-pub const MIN_VIEWS_HELD: usize = 1;
-
-/// An earlier calibration a new one starts from.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Start {
-    /// The earlier pair. Its T's unit does not matter: R and T are found again from the
-    /// views, the board's unit theirs.
-    pub pair: StereoPair,
-    /// Hold both lenses at the earlier pair's (OpenCV's `CALIB_FIX_INTRINSIC`): only R, T and
-    /// the boards' poses move, from [`MIN_VIEWS_HELD`] view. Otherwise every parameter is
-    /// refined from the earlier ones, over [`MIN_VIEWS`] views.
-    pub hold: bool,
-}
-
-impl Start {
-    /// The fewest views this start takes.
-    pub fn fewest_views(&self) -> usize {
-        if self.hold { MIN_VIEWS_HELD } else { MIN_VIEWS }
-    }
-}
-
 /// A view whose RMS is above this many times the median, and above [`OUTLIER_FLOOR_PX`], is
 /// left out as an outlier.
 pub const OUTLIER_RATIO: f64 = 3.0;
@@ -108,8 +85,8 @@ pub struct Fit {
     pub rms: f64,
     /// Every parameter's covariance, the boards' poses included.
     pub joint: Joint,
-    /// Whether the lenses were held at an earlier calibration's ([`Start::hold`]): their σ
-    /// are zero here, the earlier calibration's own.
+    /// Whether the lenses were held at an earlier calibration's
+    /// ([`super::again::Start::hold`]): their σ are zero here, the earlier calibration's own.
     pub held: bool,
 }
 
@@ -131,8 +108,8 @@ pub struct Joint {
 /// Why a calibration could not be made.
 #[derive(Debug, Clone, PartialEq)]
 pub enum FitFault {
-    /// Fewer than `needed` views ([`MIN_VIEWS`], or [`MIN_VIEWS_HELD`] with the lenses held)
-    /// are usable (board found in every camera, not an outlier).
+    /// Fewer than `needed` views ([`MIN_VIEWS`], or [`super::again::MIN_VIEWS_HELD`] with the
+    /// lenses held) are usable (board found in every camera, not an outlier).
     TooFewViews { usable: usize, needed: usize },
     /// The views' homographies give no camera matrix (the boards are all alike or degenerate).
     NoFirstGuess,
@@ -231,7 +208,7 @@ pub fn calibrate(
 /// Both cameras, R, T and the poses refined together from `state` over the views `kept` (one
 /// pose each), repeated without the views whose error is far above the others' while at
 /// least `fewest` remain. Returns the solution and the views it kept.
-fn together(
+pub(super) fn together(
     mut state: State,
     object: &[Vector3<f64>],
     views: &[Corners],
@@ -262,93 +239,6 @@ fn together(
             state.poses.remove(i);
         }
     }
-}
-
-/// A pair calibrated again from an earlier one (`start`) and new views of the board: each
-/// camera's board pose in every view both cameras saw, placed by the earlier lens; R and T
-/// started from the poses' mean relative motion; then refined together, the lenses held or
-/// not as `start` says. The lens model is the earlier pair's.
-pub fn recalibrate(
-    object: &[Vector3<f64>],
-    size: Size,
-    start: &Start,
-    views: &[Corners],
-) -> Result<Fit, FitFault> {
-    let found: Vec<bool> = views
-        .iter()
-        .map(|v| v.left.is_some() && v.right.is_some())
-        .collect();
-    let fewest = start.fewest_views();
-    let (mut kept, mut poses, mut relative) = (Vec::new(), Vec::new(), Vec::new());
-    for v in (0..views.len()).filter(|&v| found[v]) {
-        let (Some(left), Some(right)) = (&views[v].left, &views[v].right) else {
-            continue;
-        };
-        let (Some(l), Some(r)) = (
-            board_pose(&start.pair.left, object, left),
-            board_pose(&start.pair.right, object, right),
-        ) else {
-            continue;
-        };
-        relative.push(right_from_left(&l, &r));
-        poses.push(l);
-        kept.push(v);
-    }
-    if kept.len() < fewest {
-        return Err(FitFault::TooFewViews {
-            usable: kept.len(),
-            needed: fewest,
-        });
-    }
-    let extrinsics = average(&relative).ok_or(FitFault::Degenerate)?;
-    let lens = |c: &Camera| Lens::new(c.intrinsics(), &c.distortion());
-    let state = State {
-        lenses: vec![lens(&start.pair.left), lens(&start.pair.right)],
-        extrinsics: Some(extrinsics),
-        poses,
-        held: start.hold,
-    };
-    let joint = together(state, object, views, kept, fewest)?;
-    let model = start.pair.left.distortion().model();
-    let mut fit = finish(size, model, views, &found, joint, true)?;
-    fit.held = start.hold;
-    Ok(fit)
-}
-
-/// The board's pose in a calibrated camera from the corners it saw (`seen`, in the order of
-/// `object`): the homography of the undistorted corners gives it, then the reprojection is
-/// refined with the lens held. `None` with fewer than six corners or a degenerate view.
-pub fn board_pose(camera: &Camera, object: &[Vector3<f64>], seen: &Seen) -> Option<Pose> {
-    let (plane, rays): (Vec<[f64; 2]>, Vec<[f64; 2]>) = object
-        .iter()
-        .zip(seen)
-        .filter_map(|(p, c)| Some(([p.x, p.y], camera.normalize((*c)?)?)))
-        .unzip();
-    if plane.len() < 6 {
-        return None;
-    }
-    let unit = crate::camera::Intrinsics {
-        fx: 1.0,
-        fy: 1.0,
-        cx: 0.0,
-        cy: 0.0,
-    };
-    let (rotation, translation) = zhang::pose(&zhang::homography(&plane, &rays)?, &unit)?;
-    let state = State {
-        lenses: vec![Lens::new(camera.intrinsics(), &camera.distortion())],
-        extrinsics: None,
-        poses: vec![Pose {
-            rotation,
-            translation,
-        }],
-        held: true,
-    };
-    let view = ViewCorners {
-        left: Some(seen),
-        right: None,
-    };
-    let solution = refine(state, object, &[view]).ok()?;
-    Some(solution.state.poses[0])
 }
 
 /// The positions (in `rms`) of views whose RMS is far above the median.
@@ -434,7 +324,7 @@ fn single<'a>(
 
 /// The right camera's pose from the left's (X_right = R·X_left + T) from one board's pose in
 /// each.
-fn right_from_left(left: &Pose, right: &Pose) -> Pose {
+pub(super) fn right_from_left(left: &Pose, right: &Pose) -> Pose {
     let rotation = right.rotation * left.rotation.inverse();
     Pose {
         rotation,
@@ -444,7 +334,7 @@ fn right_from_left(left: &Pose, right: &Pose) -> Pose {
 
 /// The mean of several rigid motions: the rotation matrices' mean projected back onto the
 /// rotations, the translations' component-wise median.
-fn average(poses: &[Pose]) -> Option<Pose> {
+pub(super) fn average(poses: &[Pose]) -> Option<Pose> {
     if poses.is_empty() {
         return None;
     }
@@ -467,7 +357,7 @@ fn average(poses: &[Pose]) -> Option<Pose> {
 }
 
 /// The fit from the final solution over the views `kept`.
-fn finish(
+pub(super) fn finish(
     size: Size,
     model: Model,
     views: &[Corners],

@@ -11,6 +11,7 @@
 //! - [`solve`]: Levenberg–Marquardt over lenses, extrinsics and poses, with the covariance.
 //! - [`fit`]: one camera or a pair calibrated, outlier views left out, E, F, the epipolar
 //!   check and the rectified rig's uncertainty.
+//! - [`again`]: a pair calibrated again from an earlier calibration, its lenses held or not.
 //! - [`report`]: the detections per view, coverage, tilt and the warnings a user checks a
 //!   calibration by.
 //! - [`uncertainty`]: the σ of a projection over each image, from the views' own scatter,
@@ -19,6 +20,7 @@
 //!   their σ predict.
 //! - [`synthetic`]: boards rendered through the camera model with exact truth.
 
+pub mod again;
 pub mod board;
 pub mod charuco;
 pub mod corners;
@@ -31,14 +33,14 @@ pub mod target;
 pub mod uncertainty;
 pub mod zhang;
 
+pub use again::{Start, board_pose, recalibrate};
 pub use board::{Board, BoardFault, BoardMember};
 pub use target::{Target, TargetMiss};
 #[cfg(test)]
 mod tests;
 
 pub use fit::{
-    CameraFit, Corners, Extrinsics, Fit, FitFault, Seen, Start, ViewFit, ViewOutcome, board_pose,
-    calibrate, recalibrate, whole,
+    CameraFit, Corners, Extrinsics, Fit, FitFault, Seen, ViewFit, ViewOutcome, calibrate, whole,
 };
 
 /// The most views (pairs, or one camera's images) one calibration takes: 60 holds every board
