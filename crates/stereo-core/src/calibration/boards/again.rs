@@ -72,9 +72,8 @@ pub fn recalibrate(
         });
     }
     let extrinsics = average(&relative).ok_or(FitFault::Degenerate)?;
-    let lens = |c: &Camera| Lens::new(c.intrinsics(), &c.distortion());
     let state = State {
-        lenses: vec![lens(&start.pair.left), lens(&start.pair.right)],
+        lenses: vec![Lens::of(&start.pair.left), Lens::of(&start.pair.right)],
         extrinsics: Some(extrinsics),
         poses,
         held: start.hold,
@@ -106,7 +105,7 @@ pub fn board_pose(camera: &Camera, object: &[Vector3<f64>], seen: &Seen) -> Opti
     };
     let (rotation, translation) = zhang::pose(&zhang::homography(&plane, &rays)?, &unit)?;
     let state = State {
-        lenses: vec![Lens::new(camera.intrinsics(), &camera.distortion())],
+        lenses: vec![Lens::of(camera)],
         extrinsics: None,
         poses: vec![Pose {
             rotation,

@@ -555,10 +555,7 @@ impl Fit {
     pub fn rig_std(&self, options: RectifyOptions) -> Option<[f64; 2]> {
         let pair = self.pair()?;
         let e = self.extrinsics?;
-        let lenses = [
-            Lens::new(pair.left.intrinsics(), &pair.left.distortion()),
-            Lens::new(pair.right.intrinsics(), &pair.right.distortion()),
-        ];
+        let lenses = [Lens::of(&pair.left), Lens::of(&pair.right)];
         let covariance = self.covariance();
         let n = covariance.nrows();
         let outputs = |step: &[f64]| -> Option<[f64; 2]> {

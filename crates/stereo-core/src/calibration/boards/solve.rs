@@ -27,6 +27,11 @@ impl Lens {
         }
     }
 
+    /// A camera's lens as the solver moves it.
+    pub fn of(camera: &Camera) -> Lens {
+        Lens::new(camera.intrinsics(), &camera.distortion())
+    }
+
     /// How many parameters the lens has (4 + the model's coefficients).
     pub fn len(&self) -> usize {
         4 + self.model.coefficient_count()

@@ -104,13 +104,10 @@ struct Model<'a> {
 
 impl<'a> Model<'a> {
     fn of(fit: &'a Fit, right: bool) -> Option<Model<'a>> {
-        let mut lenses = vec![Lens::new(
-            fit.left.camera.intrinsics(),
-            &fit.left.camera.distortion(),
-        )];
+        let mut lenses = vec![Lens::of(&fit.left.camera)];
         let mut extrinsics = None;
         if let (Some(r), Some(e)) = (fit.right.as_ref(), fit.extrinsics) {
-            lenses.push(Lens::new(r.camera.intrinsics(), &r.camera.distortion()));
+            lenses.push(Lens::of(&r.camera));
             extrinsics = Some(Pose {
                 rotation: e.rotation,
                 translation: e.translation,

@@ -314,7 +314,8 @@ fn initial_warnings(fit: &Fit, settings: &Settings, since: Option<&Since>) -> Ve
         warnings.push(
             "the lenses were held at the initial calibration's, which carries no σ: the rig's \
              σ counts only the new views, so it is too small (send the initial calibration's \
-             σ in a `rig` part, or /calibrate's own opencv.yml, which carries it)"
+             σ beside it as `initial_rig`, or start from /calibrate's own opencv.yml, which \
+             carries it)"
                 .to_owned(),
         );
     }
