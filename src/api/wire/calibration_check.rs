@@ -334,12 +334,30 @@ fn rows_verdict(check: &engine::Check) -> String {
     let rows = |r: &engine::Rows| fixed(r.rms_px, 2);
     let shift = check.largest_row_shift;
     let moved = check.largest_disparity_shift;
-    if check.holds {
+    let largest = if shift.value >= moved.value {
+        shift
+    } else {
+        moved
+    };
+    if check.holds && largest.value <= check.tolerance_px {
         return format!(
             "holds: the matches' rows agree to {} px RMS, and the drift found moves no row \
              or disparity more than {} px (the tolerance is {} px)",
             rows(&check.before.whole),
-            fixed(shift.value.max(moved.value), 2),
+            fixed(largest.value, 2),
+            Num(check.tolerance_px)
+        );
+    }
+    if check.holds {
+        // Past the tolerance but within its own 3σ: not told from the matches' noise.
+        return format!(
+            "holds as far as these frames tell: the matches' rows agree to {} px RMS; the \
+             drift found moves a row or disparity up to {} ± {} px, past the {} px tolerance \
+             but within its own 3σ, so it is not told from noise. More pairs, textured over \
+             the whole image, tell it better",
+            rows(&check.before.whole),
+            fixed(largest.value, 2),
+            fixed(largest.std, 2),
             Num(check.tolerance_px)
         );
     }
