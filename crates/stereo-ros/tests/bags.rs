@@ -1,0 +1,153 @@
+//! Recordings written here read back here: MCAP through [`McapOut`] and [`Bag`], ROS 1 bags
+//! through [`ros1::Writer`] and [`Bag`], with a cut-off file named after what it held.
+
+use std::collections::BTreeSet;
+use std::path::PathBuf;
+
+use stereo_ros::msg::{self, CameraInfo, Header, Image, Type};
+use stereo_ros::out::McapOut;
+use stereo_ros::{Bag, Kind, ros1};
+
+fn temp(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("stereo-ros-{}-{name}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn image(i: i64) -> Image {
+    Image {
+        header: Header {
+            stamp_ns: 1_000_000_000 + i * 33_000_000,
+            frame_id: "left".into(),
+        },
+        height: 100,
+        width: 100,
+        encoding: "mono8".into(),
+        step: 100,
+        // Noise, so that the chunks' compression leaves them long.
+        data: (0..10_000u64)
+            .map(|k| {
+                (((k + 1) * (i as u64 + 7)).wrapping_mul(6_364_136_223_846_793_005) >> 56) as u8
+            })
+            .collect(),
+        ..Image::default()
+    }
+}
+
+/// Every message written to an MCAP file reads back, in order, on the topics asked for.
+#[test]
+fn mcap_round_trips() {
+    let path = temp("mcap").join("out.mcap");
+    let mut out = McapOut::create(&path).unwrap();
+    for i in 0..5 {
+        let t = 1_000 + i as u64;
+        out.write(
+            "/left/image_raw",
+            Type::Image,
+            t,
+            &image(i).encode(Kind::Cdr),
+        )
+        .unwrap();
+        out.write(
+            "/left/camera_info",
+            Type::CameraInfo,
+            t,
+            &CameraInfo::default().encode(Kind::Cdr),
+        )
+        .unwrap();
+    }
+    out.finish().unwrap();
+    let bag = Bag::open(&path).unwrap();
+    assert_eq!(bag.kind(), "ROS 2 MCAP");
+    let topics = BTreeSet::from(["/left/image_raw".to_owned()]);
+    let read: Vec<_> = bag
+        .messages(Some(topics), 1 << 20)
+        .collect::<Result<_, _>>()
+        .unwrap();
+    assert_eq!(read.len(), 5);
+    for (i, m) in read.iter().enumerate() {
+        assert_eq!(m.type_name, "sensor_msgs/msg/Image");
+        assert_eq!(m.log_time_ns, 1_000 + i as u64);
+        assert_eq!(Image::decode(&m.data, m.kind).unwrap(), image(i as i64));
+    }
+    assert_eq!(bag.messages(None, 1 << 20).count(), 10);
+}
+
+/// A file cut off mid-chunk gives the messages of its whole chunks, then an error naming the
+/// cut; a record longer than the limit is refused by name.
+#[test]
+fn a_cut_mcap_is_named() {
+    let path = temp("cut").join("whole.mcap");
+    let mut out = McapOut::create(&path).unwrap();
+    for i in 0..6 {
+        out.write(
+            "/left/image_raw",
+            Type::Image,
+            i,
+            &image(i as i64).encode(Kind::Cdr),
+        )
+        .unwrap();
+        if i == 2 {
+            out.flush().unwrap();
+        }
+    }
+    out.finish().unwrap();
+    let bytes = std::fs::read(&path).unwrap();
+    let cut = path.with_file_name("cut.mcap");
+    std::fs::write(&cut, &bytes[..bytes.len() * 2 / 3]).unwrap();
+    let read: Vec<_> = Bag::open(&cut).unwrap().messages(None, 1 << 20).collect();
+    let (ok, errors): (Vec<_>, Vec<_>) = read.into_iter().partition(|r| r.is_ok());
+    assert_eq!(ok.len(), 3, "the first chunk's messages");
+    assert_eq!(errors.len(), 1);
+    let said = errors[0].clone().unwrap_err().0;
+    assert!(
+        said.contains("cut off") && said.contains("after 3 messages"),
+        "{said}"
+    );
+    let small: Vec<_> = Bag::open(&path).unwrap().messages(None, 1000).collect();
+    assert!(
+        small.iter().any(|r| r.is_err()),
+        "a 1000-byte limit refuses the chunks"
+    );
+}
+
+/// A ROS 1 bag written here reads back with its topics, types and times; a file that is
+/// no recording is named as such.
+#[test]
+fn ros1_round_trips() {
+    let path = temp("ros1").join("rig.bag");
+    let mut bag = ros1::Writer::new(std::fs::File::create(&path).unwrap()).unwrap();
+    for i in 0..4 {
+        let id = bag
+            .connection(
+                "/left/image_raw",
+                "sensor_msgs/Image",
+                "060021388200f6f0f447d0fcd9c64743",
+                "",
+            )
+            .unwrap();
+        bag.message(id, 2_000_000_000 + i, &image(i as i64).encode(Kind::Ros1))
+            .unwrap();
+    }
+    bag.finish().unwrap();
+    let read: Vec<_> = Bag::open(&path)
+        .unwrap()
+        .messages(None, 1 << 20)
+        .collect::<Result<_, _>>()
+        .unwrap();
+    assert_eq!(read.len(), 4);
+    assert_eq!(read[3].log_time_ns, 2_000_000_003);
+    assert_eq!(read[3].type_name, "sensor_msgs/Image");
+    assert_eq!(
+        msg::header_of(&read[3].data, Kind::Ros1).unwrap().stamp_ns,
+        image(3).header.stamp_ns
+    );
+    let other = path.with_file_name("notes.txt");
+    std::fs::write(&other, "hello").unwrap();
+    assert!(
+        Bag::open(&other)
+            .unwrap_err()
+            .0
+            .contains("neither an MCAP file")
+    );
+}
