@@ -9,11 +9,13 @@ use clap::{Args, Parser, Subcommand, ValueEnum};
 
 use values::{count, delay, duration, size, timeout};
 
+pub mod depth_map;
 pub mod environment;
 pub mod help;
 pub mod tokens;
 pub mod values;
 
+pub use depth_map::DepthMapArgs;
 pub use tokens::ApiTokens;
 
 /// Default request body limit: 64 KiB. The largest legitimate body (a rig plus a range) is under
@@ -157,76 +159,6 @@ pub enum Command {
     /// without a partner or that cannot be read is named and the rest go on. A progress bar
     /// shows on a terminal.
     DepthMap(Box<DepthMapArgs>),
-}
-
-/// What `stereo-distance depth-map` reads, how, and where it writes.
-#[derive(Debug, Clone, PartialEq, Args)]
-#[command(group(clap::ArgGroup::new("input").required(true).args(["left", "frames"])))]
-pub struct DepthMapArgs {
-    /// The left camera's frames (PNG or JPEG), paired with --right's by name: the same name,
-    /// or the same but for the camera (left/right, l/r, cam0/cam1, im0/im1).
-    #[arg(long, value_name = "DIR", requires = "right")]
-    pub left: Option<PathBuf>,
-    /// The right camera's frames.
-    #[arg(long, value_name = "DIR", requires = "left")]
-    pub right: Option<PathBuf>,
-    /// One folder with both cameras' frames, paired by the camera in their names (left/right,
-    /// l/r, cam0/cam1, im0/im1), as the page pairs them.
-    #[arg(long, value_name = "DIR", conflicts_with_all = ["left", "right"])]
-    pub frames: Option<PathBuf>,
-    /// The rig's calibration file (as /depth-map's `calibration` part: OpenCV, ROS, KITTI,
-    /// Middlebury); raw frames of raw cameras are rectified first. Without it, disparities only.
-    #[arg(long, value_name = "FILE")]
-    pub calibration: Option<PathBuf>,
-    /// The calibration file's length unit, where the file does not say (mm, cm, m, in, ft).
-    #[arg(long, value_name = "UNIT", requires = "calibration")]
-    pub calibration_unit: Option<String>,
-    /// Where the maps go, one file a pair named after its left frame (`0001.depth.npy`).
-    #[arg(long, value_name = "DIR")]
-    pub out: PathBuf,
-    /// What to write for each pair, as /depth-map's `output` (default: depth.npy with a
-    /// calibration, disparity.npy without).
-    #[arg(long, value_name = "OUTPUT", value_parser = clap::builder::PossibleValuesParser::new(
-        std::iter::once("summary").chain(stereo_core::pipeline::Product::ALL.map(|p| p.name()))
-    ))]
-    pub output: Option<String>,
-    /// The matcher's preset: accurate (the default) or fast.
-    #[arg(long, value_name = "PRESET", value_parser = ["accurate", "fast"])]
-    pub preset: Option<String>,
-    /// The smallest disparity searched, or `auto` to find it from each pair (default: auto
-    /// where the end is found, else 0).
-    #[arg(long, value_name = "PX|auto", allow_negative_numbers = true)]
-    pub min_disparity: Option<stereo_core::vision::RangeEnd>,
-    /// The search stops before this disparity, or `auto` to find it from each pair (default:
-    /// the calibration's ndisp, else auto).
-    #[arg(long, value_name = "PX|auto", allow_negative_numbers = true)]
-    pub max_disparity: Option<stereo_core::vision::RangeEnd>,
-    /// Leave out each pixel whose disparity's σ_d exceeds this many pixels (as /depth-map's
-    /// `max_disparity_std`; default 4).
-    #[arg(long, value_name = "PX")]
-    pub max_disparity_std: Option<f64>,
-    /// Send the pairs to the service at this address (http://host:port) instead of matching
-    /// them here: behind a Kubernetes Service, the heavy Deployment's replicas share them.
-    #[arg(long, value_name = "URL")]
-    pub server: Option<String>,
-    /// Pairs in flight at once (default 2: the next is read and decoded while one is matched,
-    /// 20 % more frames a second than one at a time on 2 cores).
-    #[arg(long, value_name = "N", value_parser = count::<1, 64>)]
-    pub jobs: Option<usize>,
-    /// How many times a frame is sent again when the service cannot be reached (refused,
-    /// reset) or answers 502, 503 or 504, waiting 0.5 s, 1 s, 2 s … up to 10 s between tries
-    /// (with jitter), or as its Retry-After says (default 10: about 50 s, through a pod's
-    /// restart or a rolling update); 0 stops at the first.
-    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(0..=100))]
-    pub retries: Option<u32>,
-    /// Count a pair the service warns about as failed, and write nothing for it (the
-    /// warnings are printed either way).
-    #[arg(long)]
-    pub strict: bool,
-    /// The bearer token sent with every frame to a --server that takes tokens.
-    #[arg(long, env = "API_TOKEN", value_name = "TOKEN", hide_env_values = true,
-          value_parser = one_token)]
-    pub token: Option<String>,
 }
 
 /// Log line format.
@@ -492,7 +424,7 @@ fn tokens(text: &str) -> Result<ApiTokens, String> {
 }
 
 /// One token as a header carries it: visible ASCII, no spaces.
-fn one_token(text: &str) -> Result<String, String> {
+pub(crate) fn one_token(text: &str) -> Result<String, String> {
     let text = text.trim();
     if text.is_empty() || !text.chars().all(|c| c.is_ascii_graphic()) {
         return Err("a token is one word of visible ASCII characters".to_owned());

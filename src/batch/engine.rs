@@ -5,19 +5,105 @@
 //! budget, the same sentences naming the same files.
 
 use std::collections::HashMap;
-use std::path::Path;
 use std::sync::atomic::AtomicBool;
 use std::sync::{Arc, Mutex};
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 use crate::api::error::{ApiError, FieldError, FieldErrors};
 use crate::api::images::{job, limits};
 use crate::api::wire::depth_map::{DepthMapOutput, DepthMapSummary};
 use crate::api::wire::rig::CalibratedRig;
 use crate::config::Config;
-use stereo_core::pipeline::{self, Answer, DepthJob, Maps, RigInput};
+use stereo_core::pipeline::{self, Answer, DepthJob, DepthMap, Maps, Product, RigInput};
 use stereo_core::vision::Settings;
-use stereo_core::vision::decode::{self, DecodeLimits};
+use stereo_core::vision::decode::{self, DecodeLimits, Decoded};
+use stereo_core::vision::encode;
+use stereo_core::vision::pixels::{self, Layout};
+
+/// A frame as it came: a PNG or JPEG file (a folder's, a `CompressedImage`'s), or pixels (a
+/// ROS `Image`'s rows).
+pub enum Frame {
+    File(Vec<u8>),
+    Pixels {
+        width: u32,
+        height: u32,
+        layout: Layout,
+        step: usize,
+        data: Vec<u8>,
+    },
+}
+
+impl Frame {
+    /// Its size, from the file's header or the message's.
+    fn size(&self) -> Result<(u32, u32), decode::DecodeError> {
+        match self {
+            Frame::File(bytes) => decode::dimensions(bytes),
+            Frame::Pixels { width, height, .. } => Ok((*width, *height)),
+        }
+    }
+
+    fn decode(&self, limits: DecodeLimits, colour: bool) -> Result<Decoded, decode::DecodeError> {
+        match self {
+            Frame::File(bytes) => decode::decode(bytes, limits, colour),
+            Frame::Pixels {
+                width,
+                height,
+                layout,
+                step,
+                data,
+            } => pixels::read(*width, *height, *layout, *step, data, limits, colour),
+        }
+    }
+}
+
+impl Frame {
+    /// The frame as a file a service reads: a PNG or JPEG as it came, pixels as a PNG (16-bit
+    /// grey for 16-bit frames, else RGB).
+    pub fn into_file(self) -> Result<Vec<u8>, String> {
+        let Frame::Pixels {
+            width,
+            height,
+            layout,
+            step,
+            data,
+        } = self
+        else {
+            let Frame::File(bytes) = self else {
+                return Err("no frame".to_owned());
+            };
+            return Ok(bytes);
+        };
+        // The pixels are in memory already: their count is bounded by their bytes.
+        let limits = DecodeLimits {
+            max_side: u32::MAX,
+            max_pixels: u64::MAX,
+        };
+        let sixteen = matches!(layout, Layout::Mono16 { .. } | Layout::Bayer16 { .. });
+        let read = pixels::read(width, height, layout, step, &data, limits, !sixteen)
+            .map_err(|e| limits::describe(&e, limits))?;
+        let (w, h) = (width as usize, height as usize);
+        Ok(match read.rgb {
+            Some(rgb) => encode::png_rgb(w, h, &rgb),
+            None => encode::png16(w, h, &read.grey.data),
+        })
+    }
+}
+
+/// Faults as `name: sentence`, the parts `left` and `right` named by `names`.
+fn said(names: [&str; 2], faults: &[FieldError]) -> String {
+    faults
+        .iter()
+        .map(|f| {
+            let name = match f.field.as_str() {
+                "left" => names[0],
+                "right" => names[1],
+                other => other,
+            };
+            format!("{name}: {}", f.message)
+        })
+        .collect::<Vec<_>>()
+        .join("; ")
+}
 
 /// A frame size's depth job, or the faults that refuse every frame of it.
 type Resolution = Result<Arc<DepthJob>, Vec<FieldError>>;
@@ -62,29 +148,47 @@ impl Engine {
     }
 
     /// One pair's file (and warnings), or each fault as `file: sentence` (the service's
-    /// sentences, its parts named by the pair's files).
-    pub fn depth_map(
-        &self,
-        (left, right): (&Path, &Path),
-        bytes: [&[u8]; 2],
-    ) -> Result<Made, String> {
-        let name = |field: &str| match field {
-            "left" => left.display().to_string(),
-            "right" => right.display().to_string(),
-            other => other.to_owned(),
-        };
-        self.made(bytes).map_err(|faults| {
-            faults
-                .iter()
-                .map(|f| format!("{}: {}", name(&f.field), f.message))
-                .collect::<Vec<_>>()
-                .join("; ")
-        })
+    /// sentences, its parts named by `names`, the pair's files or frames).
+    pub fn depth_map(&self, names: [&str; 2], frames: [&Frame; 2]) -> Result<Made, String> {
+        self.made(frames).map_err(|faults| said(names, &faults))
     }
 
-    fn made(&self, [left, right]: [&[u8]; 2]) -> Result<Made, Vec<FieldError>> {
-        let size = |name: &str, bytes: &[u8]| {
-            decode::dimensions(bytes)
+    /// One pair's depth map, with the rig's depths and σ and the left image's colours (what
+    /// ROS messages carry), or each fault as [`Engine::depth_map`] names them.
+    pub fn ros_map(&self, names: [&str; 2], frames: [&Frame; 2]) -> Result<DepthMap, String> {
+        let products = [Product::DepthNpy, Product::DepthStdNpy, Product::PointsPly];
+        self.map(frames, &products)
+            .map(|(map, _, _)| map)
+            .map_err(|faults| said(names, &faults))
+    }
+
+    fn made(&self, frames: [&Frame; 2]) -> Result<Made, Vec<FieldError>> {
+        let products: Vec<Product> = self.output.product().into_iter().collect();
+        let (map, planned, decoded) = self.map(frames, &products)?;
+        let bytes = match self.output.product() {
+            Some(product) => product
+                .encode(&map)
+                .map_err(|e| vec![FieldError::new("output", e)])?,
+            None => {
+                let rig = planned.calibrated().map(|c| CalibratedRig::from(&c.rig));
+                let summary = DepthMapSummary::of(&map, planned.params(), rig, decoded);
+                serde_json::to_vec(&summary)
+                    .map_err(|e| vec![FieldError::new("output", e.to_string())])?
+            }
+        };
+        Ok((bytes, map.warnings))
+    }
+
+    /// The pair matched for `products` (its job, and how long decoding took), judged as the
+    /// service judges a request: the limits, the pair's sizes, the memory budget.
+    fn map(
+        &self,
+        [left, right]: [&Frame; 2],
+        products: &[Product],
+    ) -> Result<(DepthMap, Arc<DepthJob>, Duration), Vec<FieldError>> {
+        let size = |name: &str, frame: &Frame| {
+            frame
+                .size()
                 .map_err(|e| FieldError::new(name, limits::describe(&e, self.limits)))
         };
         let (l, r) = match (size("left", left), size("right", right)) {
@@ -101,8 +205,7 @@ impl Engine {
             return Err(problems.prefixed(""));
         }
         let planned = self.resolve(l)?;
-        let products = self.output.product().into_iter().collect();
-        let need = planned.need(l, Answer::Files(products));
+        let need = planned.need(l, Answer::Files(products.to_vec()));
         if need.bytes(need.count) > self.memory_budget {
             return Err(limits::shrink(
                 need.size,
@@ -112,9 +215,10 @@ impl Engine {
             ));
         }
         let started = Instant::now();
-        let colour = self.output.product().is_some_and(|p| p.wants_colour());
-        let decode = |name: &str, bytes: &[u8], colour: bool| {
-            decode::decode(bytes, self.limits, colour)
+        let colour = products.iter().any(|p| p.wants_colour());
+        let decode = |name: &str, frame: &Frame, colour: bool| {
+            frame
+                .decode(self.limits, colour)
                 .map_err(|e| FieldError::new(name, limits::describe(&e, self.limits)))
         };
         let (left, right) = match rayon::join(
@@ -125,25 +229,15 @@ impl Engine {
             (l, r) => return Err([l.err(), r.err()].into_iter().flatten().collect()),
         };
         let decoded = started.elapsed();
-        let request = planned.request(colour, self.output.wants_depth_std());
+        let depth_std = products.is_empty() || products.iter().any(|p| p.wants_depth_std());
+        let request = planned.request(colour, depth_std);
         let map = pipeline::depth_map(left, right, request, &AtomicBool::new(false)).map_err(
             |stopped| match stopped.advice() {
                 Some(advice) => vec![FieldError::new("max_disparity", advice)],
                 None => vec![FieldError::new("left", "was not matched: cancelled")],
             },
         )?;
-        let bytes = match self.output.product() {
-            Some(product) => product
-                .encode(&map)
-                .map_err(|e| vec![FieldError::new("output", e)])?,
-            None => {
-                let rig = planned.calibrated().map(|c| CalibratedRig::from(&c.rig));
-                let summary = DepthMapSummary::of(&map, planned.params(), rig, decoded);
-                serde_json::to_vec(&summary)
-                    .map_err(|e| vec![FieldError::new("output", e.to_string())])?
-            }
-        };
-        Ok((bytes, map.warnings))
+        Ok((map, planned, decoded))
     }
 
     /// The job for frames of `size`, planned once.

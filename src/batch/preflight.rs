@@ -4,7 +4,7 @@
 //! `ndisp`, and an output that needs depths given a calibration. Every fault is named at
 //! once, and the run stops before it starts; what is left to go wrong is the frames' own.
 
-use std::path::Path;
+use axum::body::Bytes;
 
 use crate::api::error::FieldErrors;
 use crate::api::images::{job, rig};
@@ -12,22 +12,26 @@ use crate::api::wire::depth_map::DepthMapOutput;
 use crate::api::wire::images::RigParts;
 use crate::config::DepthMapArgs;
 use stereo_core::pipeline::{RigInput, Sent};
-use stereo_core::vision::decode;
 use stereo_core::vision::{Preset, Settings};
 
-/// Checks the run's settings for frames like `first_left` (the first of the recording's left
-/// frames whose header reads; none when no frame's does): the calibration as the run's engine
-/// takes it, parsed once (read for that size), or `Err` naming every fault.
-pub fn check<'a>(
-    args: &DepthMapArgs,
-    output: &str,
-    calibration: Option<&(String, Vec<u8>)>,
-    left_frames: impl IntoIterator<Item = &'a Path>,
-) -> Result<RigInput, String> {
+/// The rig's parts as the run sends them: `(name, file name, bytes)` (a `--calibration` file
+/// and its unit, or the files a bag's CameraInfo make), the names their faults take (the
+/// `calibration` and `right_calibration` parts'), and the frames' size where known (the first
+/// left frame whose header reads, or the CameraInfo's).
+#[derive(Debug, Clone)]
+pub struct Rig {
+    pub parts: Vec<(String, Option<String>, Vec<u8>)>,
+    pub labels: [String; 2],
+    pub size: Option<(u32, u32)>,
+}
+
+/// Checks the run's settings: the calibration as the run's engine takes it, parsed once
+/// (read for the frames' size), or `Err` naming every fault.
+pub fn check(args: &DepthMapArgs, output: &str, rig: Option<&Rig>) -> Result<RigInput, String> {
     let mut problems = FieldErrors::default();
     let depths = serde_json::from_value::<DepthMapOutput>(output.into())
         .is_ok_and(DepthMapOutput::needs_rig);
-    if calibration.is_none() && depths {
+    if rig.is_none() && depths {
         problems.add(
             "--output",
             format!("{output} is depths: give the rig's --calibration, or write disparities"),
@@ -35,20 +39,21 @@ pub fn check<'a>(
     }
     let (mut given, mut input, mut size) = (None, Some(RigInput::Nothing), None);
     let mut sent = Sent::Nothing;
-    if let Some((_, bytes)) = calibration {
-        size = left_frames.into_iter().find_map(|path| {
-            let bytes = std::fs::read(path).ok()?;
-            decode::dimensions(&bytes).ok()
-        });
-        let parts = RigParts::calibration(bytes, args.calibration_unit.as_deref());
+    if let Some(sent_rig) = rig {
+        size = sent_rig.size;
+        let mut parts = RigParts::default();
+        for (name, _, bytes) in &sent_rig.parts {
+            parts.set(name, Bytes::copy_from_slice(bytes));
+        }
         sent = parts.sent();
         let mut found = FieldErrors::default();
         (input, given) = rig::parsed(&parts, size, true, &mut found);
         for fault in found.iter() {
             let field = match fault.field.as_str() {
-                "calibration" | "right_calibration" => "--calibration".to_owned(),
+                "calibration" => sent_rig.labels[0].clone(),
+                "right_calibration" => sent_rig.labels[1].clone(),
                 "calibration_unit" => "--calibration-unit".to_owned(),
-                other => format!("--calibration ({other})"),
+                other => format!("{} ({other})", sent_rig.labels[0]),
             };
             problems.add(&field, fault.message.clone());
         }

@@ -10,6 +10,7 @@
 //! - [`maps`]: the rectification maps of the raw rigs seen lately, cached within the budget;
 //! - [`job`]: the engine's depth job planned with what a request sent, its refusals named,
 //!   and the memory its work reserves;
+//! - [`ros`]: a depth map as the ROS 2 messages `stereo_image_proc` publishes;
 //! - [`output`]: a file answer with its media type and name, and `Server-Timing`;
 //! - [`limits`]: what the server accepts: image sizes, the matcher's settings mapped onto the
 //!   query's names, and what to shrink when a request cannot fit;
@@ -34,6 +35,7 @@ pub mod output;
 pub mod parts;
 pub mod pools;
 pub mod rig;
+pub mod ros;
 pub mod stream;
 pub mod stream_frames;
 pub mod work;

@@ -42,6 +42,8 @@ impl DecodeLimits {
 pub enum Codec {
     Png,
     Jpeg,
+    /// Pixels as a camera gives them (a ROS `Image`), read by [`super::pixels`].
+    Raw,
 }
 
 /// Why a file could not be read as an image.
@@ -195,7 +197,7 @@ pub fn decode(bytes: &[u8], limits: DecodeLimits, colour: bool) -> Result<Decode
             })?;
             (read.image, read.note)
         }
-        Codec::Png => (DynamicImage::from_decoder(decoder).map_err(refused)?, None),
+        Codec::Png | Codec::Raw => (DynamicImage::from_decoder(decoder).map_err(refused)?, None),
     };
     // As shown: `dimensions` already gave the turned size.
     image.apply_orientation(orientation);
@@ -214,12 +216,14 @@ pub fn decode(bytes: &[u8], limits: DecodeLimits, colour: bool) -> Result<Decode
 /// conversion. That conversion goes through `f32` a channel at a time (three times slower);
 /// the weights here are its own (sRGB's luma, 0.21264784 R + 0.7151792 G + 0.07217304 B),
 /// in 2^-16 steps of a 16-bit level, so the two agree to within one 16-bit level.
-fn grey_levels(image: &DynamicImage) -> Vec<u16> {
+/// An 8-bit RGB pixel's grey level at 16 bits (sRGB's luma, as [`decode`] weighs it).
+pub fn luma(r: u8, g: u8, b: u8) -> u16 {
     const WEIGHTS: [u64; 3] = [3_581_575, 12_045_586, 1_215_593];
-    let luma = |r: u8, g: u8, b: u8| {
-        let sum = WEIGHTS[0] * u64::from(r) + WEIGHTS[1] * u64::from(g) + WEIGHTS[2] * u64::from(b);
-        ((sum + (1 << 15)) >> 16) as u16
-    };
+    let sum = WEIGHTS[0] * u64::from(r) + WEIGHTS[1] * u64::from(g) + WEIGHTS[2] * u64::from(b);
+    ((sum + (1 << 15)) >> 16) as u16
+}
+
+fn grey_levels(image: &DynamicImage) -> Vec<u16> {
     match image {
         DynamicImage::ImageLuma8(grey) => {
             grey.as_raw().iter().map(|&v| u16::from(v) * 257).collect()
@@ -242,7 +246,7 @@ fn reader(bytes: &[u8], format: Codec) -> ImageReader<Cursor<&[u8]>> {
     ImageReader::with_format(
         Cursor::new(bytes),
         match format {
-            Codec::Png => ImageFormat::Png,
+            Codec::Png | Codec::Raw => ImageFormat::Png,
             Codec::Jpeg => ImageFormat::Jpeg,
         },
     )

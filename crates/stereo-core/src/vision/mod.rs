@@ -52,6 +52,7 @@ pub mod huge_pages;
 pub mod jpeg;
 mod matcher;
 mod params;
+pub mod pixels;
 pub mod plane;
 pub mod pyramid;
 pub mod refine;

@@ -1,0 +1,150 @@
+//! A depth map as the ROS 2 messages `stereo_image_proc` and `depth_image_proc` publish:
+//! the disparities as a `stereo_msgs/DisparityImage` (`f` in pixels, `t` the baseline in
+//! metres, so that Z = f·t/d), the depths and their σ as `sensor_msgs/Image` 32FC1 in metres
+//! (REP 118: NaN where there is none), the points as a `sensor_msgs/PointCloud2` (x, y, z,
+//! rgb, depth_std, in metres, the left camera's optical frame), and the rectified left image
+//! with its `CameraInfo`, so that a viewer overlays them. The `depth-map` command writes
+//! them into an MCAP file; the topics are `stereo_image_proc`'s, under a namespace.
+
+use stereo_core::pipeline::DepthMap;
+use stereo_core::pipeline::depth::points;
+use stereo_ros::Kind;
+use stereo_ros::msg::{
+    CameraInfo, DisparityImage, FLOAT32, Header, Image, PointCloud2, PointField, RegionOfInterest,
+    Type,
+};
+
+/// The topics, under the namespace, and their types, in the order [`messages`] gives them.
+pub const TOPICS: [(&str, Type); 6] = [
+    ("disparity", Type::DisparityImage),
+    ("depth/image_rect", Type::Image),
+    ("depth/image_rect_std", Type::Image),
+    ("points2", Type::PointCloud2),
+    ("left/image_rect_color", Type::Image),
+    ("left/camera_info", Type::CameraInfo),
+];
+
+/// A 32FC1 image of `values` scaled by `scale`.
+fn float_image(header: &Header, w: usize, h: usize, values: &[f32], scale: f64) -> Image {
+    let mut data = Vec::with_capacity(values.len() * 4);
+    for &v in values {
+        data.extend_from_slice(&((f64::from(v) * scale) as f32).to_le_bytes());
+    }
+    Image {
+        header: header.clone(),
+        height: h as u32,
+        width: w as u32,
+        encoding: "32FC1".into(),
+        is_bigendian: false,
+        step: (w * 4) as u32,
+        data,
+    }
+}
+
+/// The map's messages on [`TOPICS`], each with `header` (the pair's stamp and the left
+/// camera's frame), serialised as `kind`; `Err` when the map has no rig (no depths).
+pub fn messages(map: &DepthMap, header: &Header, kind: Kind) -> Result<Vec<Vec<u8>>, String> {
+    let (Some(rig), Some(depth)) = (map.rig, map.depth.as_deref()) else {
+        return Err("ROS messages carry depths: give the rig's calibration".to_owned());
+    };
+    let d = &map.disparity;
+    let (w, h) = (d.width, d.height);
+    let metres = rig.unit().metres();
+    let (f, fy) = (rig.focal_px(), rig.focal_y_px());
+    let cx = rig.cx().unwrap_or(w as f64 / 2.0);
+    let cy = rig.cy().unwrap_or(h as f64 / 2.0);
+    let doffs = rig.doffs();
+    // Z = f·t/d holds for the message's d: the pair's doffs is added in.
+    let shifted: Vec<f32> = d.data.iter().map(|&v| v + doffs as f32).collect();
+    let whole = RegionOfInterest {
+        height: h as u32,
+        width: w as u32,
+        ..RegionOfInterest::default()
+    };
+    let disparity = DisparityImage {
+        header: header.clone(),
+        image: float_image(header, w, h, &shifted, 1.0),
+        f: f as f32,
+        t: (rig.baseline() * metres) as f32,
+        valid_window: whole,
+        min_disparity: (f64::from(map.range.min) + doffs) as f32,
+        max_disparity: (f64::from(map.range.max) + doffs) as f32,
+        // The matcher's disparities are continuous: their smallest step is a float's.
+        delta_d: 1.0 / 256.0,
+    };
+    let nan = vec![f32::NAN; w * h];
+    let depth_std = map.depth_std.as_deref().unwrap_or(&nan);
+    let cloud = cloud(map, header, metres);
+    let rgb = map.rgb.clone().unwrap_or_else(|| {
+        d.data
+            .iter()
+            .flat_map(|&v| [if v.is_nan() { 0 } else { 128 }; 3])
+            .collect()
+    });
+    let image = Image {
+        header: header.clone(),
+        height: h as u32,
+        width: w as u32,
+        encoding: "rgb8".into(),
+        is_bigendian: false,
+        step: (w * 3) as u32,
+        data: rgb,
+    };
+    let info = CameraInfo {
+        header: header.clone(),
+        height: h as u32,
+        width: w as u32,
+        distortion_model: "plumb_bob".into(),
+        d: vec![0.0; 5],
+        k: [f, 0.0, cx, 0.0, fy, cy, 0.0, 0.0, 1.0],
+        r: [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
+        p: [f, 0.0, cx, 0.0, 0.0, fy, cy, 0.0, 0.0, 0.0, 1.0, 0.0],
+        ..CameraInfo::default()
+    };
+    Ok(vec![
+        disparity.encode(kind),
+        float_image(header, w, h, depth, metres).encode(kind),
+        float_image(header, w, h, depth_std, metres).encode(kind),
+        cloud.encode(kind),
+        image.encode(kind),
+        info.encode(kind),
+    ])
+}
+
+/// The valid points, in metres, with their colour packed as PCL packs it and their σ_Z.
+fn cloud(map: &DepthMap, header: &Header, metres: f64) -> PointCloud2 {
+    const STEP: usize = 20;
+    let found = points(map);
+    let mut data = Vec::with_capacity(found.len() * STEP);
+    for p in &found {
+        for v in p.xyz {
+            data.extend_from_slice(&((f64::from(v) * metres) as f32).to_le_bytes());
+        }
+        let [r, g, b] = p.rgb.map(u32::from);
+        data.extend_from_slice(&((r << 16) | (g << 8) | b).to_le_bytes());
+        data.extend_from_slice(&((f64::from(p.depth_std) * metres) as f32).to_le_bytes());
+    }
+    let field = |name: &str, offset: u32| PointField {
+        name: name.into(),
+        offset,
+        datatype: FLOAT32,
+        count: 1,
+    };
+    PointCloud2 {
+        header: header.clone(),
+        height: 1,
+        width: found.len() as u32,
+        fields: vec![
+            field("x", 0),
+            field("y", 4),
+            field("z", 8),
+            field("rgb", 12),
+            field("depth_std", 16),
+        ],
+        is_bigendian: false,
+        point_step: STEP as u32,
+        row_step: (found.len() * STEP) as u32,
+        data,
+        is_dense: true,
+    }
+}

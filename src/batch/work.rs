@@ -1,0 +1,43 @@
+//! A pair of the run, and what a worker says about it: the types the run, its sources and
+//! its workers share.
+
+use std::path::PathBuf;
+
+use stereo_ros::msg::Header;
+
+use super::engine::Frame;
+
+/// One pair of the run: its name (its outputs'), its frames' names (as its faults name
+/// them), and where its frames are.
+pub struct Work {
+    pub name: String,
+    pub names: [String; 2],
+    pub input: Input,
+}
+
+/// Where a pair's frames are.
+pub enum Input {
+    /// Two files.
+    Files(PathBuf, PathBuf),
+    /// Two frames read from a bag, and the left one's header.
+    Frames(Box<[Frame; 2]>, Header),
+    /// A pair that could not be read, and why.
+    Broken(String),
+}
+
+/// What a worker tells the run: that it waits to send a frame again, or how a pair ended
+/// (with the service's warnings about it).
+pub enum Event {
+    Waiting(String),
+    Done {
+        name: String,
+        warnings: Vec<String>,
+        result: Result<(), Failure>,
+    },
+}
+
+/// Why a pair made no map: the pair's own fault, or one that stops the run.
+pub enum Failure {
+    Pair(String),
+    Run(String),
+}
