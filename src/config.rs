@@ -152,7 +152,8 @@ pub enum Command {
         #[arg(long, default_value = "2s", value_parser = duration)]
         timeout: Duration,
     },
-    /// Every pair of a recording to depth maps, as /depth-map makes them: in this process
+    /// Every pair of a recording (folders of images, or a ROS 2 or ROS 1 bag) to depth maps,
+    /// as /depth-map makes them, or to an MCAP file of ROS 2 messages: in this process
     /// (under the server's limits, set by its options before or after `depth-map`; its help
     /// shows those a run uses, `serve --help` all of them), or sent to a running service
     /// with --server. Pairs already written are skipped, so a stopped run resumes; a file

@@ -46,7 +46,8 @@
 //!   (`src/web/`).
 //! - [`server`]: the route groups wrapped in their guards, the edge layers, the accept loop
 //!   and graceful shutdown, the health-check probe.
-//! - [`batch`]: the `depth-map` command: a recording's folder of pairs to depth maps, through
+//! - [`batch`]: the `depth-map` command: a recording's folder of pairs, or a ROS bag (through
+//!   the workspace's `stereo-ros` crate), to depth maps or ROS 2 messages, through
 //!   the engine's pipeline in process (`batch::engine`: the calibration resolved once a frame
 //!   size) or over HTTP to a running service, resumable, with a
 //!   progress bar; its settings checked before the first frame, a restarting service waited

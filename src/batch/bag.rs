@@ -139,6 +139,25 @@ fn choose(
     }
 }
 
+/// The recordings of a folder that is not itself one (it has no `metadata.yaml`): its `.mcap`
+/// and `.bag` files and its rosbag2 folders, by name; `None` for a recording.
+pub fn recordings(path: &Path) -> Result<Option<Vec<std::path::PathBuf>>, String> {
+    if !path.is_dir() || path.join("metadata.yaml").is_file() {
+        return Ok(None);
+    }
+    let mut found: Vec<std::path::PathBuf> = std::fs::read_dir(path)
+        .map_err(|e| format!("cannot read the folder {}: {e}", path.display()))?
+        .flatten()
+        .map(|e| e.path())
+        .filter(|p| {
+            p.join("metadata.yaml").is_file()
+                || p.extension().is_some_and(|e| e == "mcap" || e == "bag")
+        })
+        .collect();
+    found.sort();
+    Ok(Some(found))
+}
+
 /// The survey's pass over the bag at `path`.
 pub fn survey(
     path: &Path,

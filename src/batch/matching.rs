@@ -30,29 +30,27 @@ pub async fn one_pair(
     work: Work,
     events: &tokio::sync::mpsc::Sender<Event>,
 ) -> (Vec<String>, Result<(), Failure>) {
-    let (frames, header) = match &work.input {
-        Input::Broken(why) => return (Vec::new(), Err(Failure::Pair(why.clone()))),
-        Input::Files(left, right) => {
+    let (input, work) = (
+        work.input,
+        Work {
+            input: Input::Broken(String::new()),
+            ..work
+        },
+    );
+    let (frames, header) = match input {
+        Input::Broken(why) => return (Vec::new(), Err(Failure::Pair(why))),
+        Input::Files(left, right, header) => {
             let read = |path: PathBuf| async move {
                 tokio::fs::read(&path)
                     .await
                     .map_err(|e| Failure::Pair(format!("cannot read {}: {e}", path.display())))
             };
-            match (read(left.clone()).await, read(right.clone()).await) {
-                (Ok(l), Ok(r)) => ([Frame::File(l), Frame::File(r)], None),
+            match (read(left).await, read(right).await) {
+                (Ok(l), Ok(r)) => ([Frame::File(l), Frame::File(r)], header),
                 (Err(e), _) | (_, Err(e)) => return (Vec::new(), Err(e)),
             }
         }
-        Input::Frames(..) => {
-            let Input::Frames(frames, header) = work.input else {
-                return (Vec::new(), Err(Failure::Pair("no frames".to_owned())));
-            };
-            let work = Work {
-                input: Input::Broken(String::new()),
-                ..work
-            };
-            return matched(transport, form, sink, &work, *frames, Some(header), events).await;
-        }
+        Input::Frames(frames, header) => (*frames, header),
     };
     matched(transport, form, sink, &work, frames, header, events).await
 }
@@ -64,7 +62,7 @@ async fn matched(
     sink: &Arc<Sink>,
     work: &Work,
     frames: [Frame; 2],
-    header: Option<Header>,
+    header: Header,
     events: &tokio::sync::mpsc::Sender<Event>,
 ) -> (Vec<String>, Result<(), Failure>) {
     let engine = match transport {
@@ -87,7 +85,7 @@ async fn matched(
     };
     let names = work.names.clone();
     let ros = matches!(**sink, Sink::Mcap { .. });
-    let (sink_ros, header, strict) = (sink.clone(), header.unwrap_or_default(), form.strict);
+    let (sink_ros, header, strict, seq) = (sink.clone(), header, form.strict, work.seq);
     // A pair that could not be matched is its own fault; a write that failed stops the run.
     let made = tokio::task::spawn_blocking(move || {
         let names = [names[0].as_str(), names[1].as_str()];
@@ -97,7 +95,9 @@ async fn matched(
         }
         let map = engine.ros_map(names, frames).map_err(Failure::Pair)?;
         if !strict || map.warnings.is_empty() {
-            sink_ros.messages(&map, &header).map_err(Failure::Run)?;
+            sink_ros
+                .messages(seq, Some((&map, &header)))
+                .map_err(Failure::Run)?;
         }
         Ok((Vec::new(), map.warnings))
     })

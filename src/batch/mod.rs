@@ -129,9 +129,7 @@ pub async fn depth_maps<W: std::io::Write>(
                 .map_err(|e| format!("cannot make the folder {}: {e}", parent.display()))?;
         }
         Sink::Mcap {
-            file: Mutex::new(Some(Box::new(
-                stereo_ros::out::McapOut::create(&args.out).map_err(|e| e.0)?,
-            ))),
+            file: Mutex::new(sink::Ordered::create(&args.out)?),
             path: args.out.clone(),
             namespace: recording.namespace.clone(),
         }
@@ -225,10 +223,11 @@ pub async fn depth_maps<W: std::io::Write>(
         );
         workers.push(tokio::spawn(async move {
             while let Some(work) = feed.next().await {
-                let name = work.name.clone();
+                let (seq, name) = (work.seq, work.name.clone());
                 let (warnings, result) =
                     one_pair(&mut transport, &form, &sink, work, &sender).await;
                 let done = Event::Done {
+                    seq,
                     name,
                     warnings,
                     result,
@@ -258,10 +257,20 @@ pub async fn depth_maps<W: std::io::Write>(
                 continue;
             }
             Event::Done {
+                seq,
                 name,
                 warnings,
                 result,
-            } => (name, warnings, result),
+            } => {
+                if result.is_err() {
+                    // The MCAP output writes in the run's order: a failed pair is passed.
+                    if let Err(why) = sink.messages(seq, None) {
+                        stopped = Some(why);
+                        break;
+                    }
+                }
+                (name, warnings, result)
+            }
         };
         for line in said.add(&name, &warnings) {
             progress.say(&line);

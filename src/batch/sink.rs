@@ -3,6 +3,7 @@
 //! of ROS 2 messages ([`crate::api::images::ros`]), its chunks closed as the pairs come so
 //! that a run that stops leaves what it wrote readable.
 
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 
@@ -20,10 +21,32 @@ pub enum Sink {
         extension: String,
     },
     Mcap {
-        file: Mutex<Option<Box<McapOut>>>,
+        file: Mutex<Ordered>,
         path: PathBuf,
         namespace: String,
     },
+}
+
+/// An MCAP file written in the run's order: a pair's messages wait here until every pair
+/// before it is written or failed (at most the pairs in flight).
+pub struct Ordered {
+    out: Option<Box<McapOut>>,
+    next: usize,
+    pending: BTreeMap<usize, Option<Encoded>>,
+}
+
+/// A pair's messages, stamped: their header and each topic's CDR bytes.
+type Encoded = (Header, Vec<Vec<u8>>);
+
+impl Ordered {
+    /// The file at `path`, made.
+    pub fn create(path: &Path) -> Result<Ordered, String> {
+        Ok(Ordered {
+            out: Some(Box::new(McapOut::create(path).map_err(|e| e.0)?)),
+            next: 0,
+            pending: BTreeMap::new(),
+        })
+    }
 }
 
 /// Whether `path` names an MCAP file (`.mcap`).
@@ -65,31 +88,42 @@ impl Sink {
             .map_err(|e| format!("cannot write {}: {e}", target.display()))
     }
 
-    /// A pair's ROS messages, stamped with `header`, each on its topic under the namespace.
-    pub fn messages(&self, map: &DepthMap, header: &Header) -> Result<(), String> {
+    /// The pair `seq`'s ROS messages (its map, stamped with `header`; `None` for a pair that
+    /// failed), each on its topic under the namespace, written once every pair before it is
+    /// (nothing for a folder).
+    pub fn messages(&self, seq: usize, map: Option<(&DepthMap, &Header)>) -> Result<(), String> {
         let Sink::Mcap {
             file, namespace, ..
         } = self
         else {
-            return Err("a folder takes files, not ROS messages".to_owned());
+            return Ok(());
         };
-        let messages = ros::messages(map, header, Kind::Cdr)?;
-        let mut file = file.lock().unwrap_or_else(|e| e.into_inner());
-        let Some(out) = file.as_mut() else {
-            return Err("the MCAP file was closed".to_owned());
+        let encoded = match map {
+            Some((map, header)) => Some((header.clone(), ros::messages(map, header, Kind::Cdr)?)),
+            None => None,
         };
-        let time = u64::try_from(header.stamp_ns).unwrap_or(0);
-        for ((topic, t), cdr) in ros::TOPICS.iter().zip(&messages) {
-            let topic = format!("{}/{topic}", namespace.trim_end_matches('/'));
-            out.write(&topic, *t, time, cdr).map_err(|e| e.0)?;
+        let mut guard = file.lock().unwrap_or_else(|e| e.into_inner());
+        let file = &mut *guard;
+        file.pending.insert(seq, encoded);
+        while let Some(ready) = file.pending.remove(&file.next) {
+            file.next += 1;
+            let (Some((header, messages)), Some(out)) = (ready, file.out.as_mut()) else {
+                continue;
+            };
+            let time = u64::try_from(header.stamp_ns).unwrap_or(0);
+            for ((topic, t), cdr) in ros::TOPICS.iter().zip(&messages) {
+                let topic = format!("{}/{topic}", namespace.trim_end_matches('/'));
+                out.write(&topic, *t, time, cdr).map_err(|e| e.0)?;
+            }
+            out.flush().map_err(|e| e.0)?;
         }
-        out.flush().map_err(|e| e.0)
+        Ok(())
     }
 
     /// The MCAP file's summary and end written (nothing for a folder).
     pub fn close(&self) -> Result<(), String> {
         if let Sink::Mcap { file, .. } = self {
-            let taken = file.lock().unwrap_or_else(|e| e.into_inner()).take();
+            let taken = file.lock().unwrap_or_else(|e| e.into_inner()).out.take();
             if let Some(out) = taken {
                 out.finish().map_err(|e| e.0)?;
             }

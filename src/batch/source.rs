@@ -7,6 +7,8 @@ use std::collections::VecDeque;
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 
+use stereo_ros::msg::Header;
+
 use super::pairing::{self, FramePair, file_name};
 use super::work::{Input, Work};
 use super::{bag, preflight};
@@ -86,7 +88,30 @@ pub fn recording(args: &DepthMapArgs) -> Result<Recording, String> {
             .max_skew
             .map(|d| d.as_nanos().min(i64::MAX as u128) as i64);
         let topics = [args.left_topic.as_deref(), args.right_topic.as_deref()];
-        let survey = bag::survey(path, topics, skew, BAG_RECORD_LIMIT)?;
+        let (path, part) = match (args.part, bag::recordings(path)?) {
+            (Some(part), Some(list)) if list.len() == part.count => {
+                (list[part.index].clone(), None)
+            }
+            (Some(part), Some(list)) => {
+                return Err(format!(
+                    "--part {}/{}: {} holds {} recordings; give --part I/{} (one a pod), or \
+                     one recording",
+                    part.index,
+                    part.count,
+                    path.display(),
+                    list.len(),
+                    list.len()
+                ));
+            }
+            (part, _) => (path.clone(), part),
+        };
+        let path = &path;
+        let mut survey = bag::survey(path, topics, skew, BAG_RECORD_LIMIT)?;
+        if let Some(part) = part {
+            let n = survey.pairs.len();
+            let range = part.index * n / part.count..(part.index + 1) * n / part.count;
+            survey.pairs = survey.pairs[range].to_vec();
+        }
         let rig = match calibration {
             Some(rig) => Some(rig),
             None => {
@@ -120,10 +145,14 @@ pub fn recording(args: &DepthMapArgs) -> Result<Recording, String> {
             }
         };
         let about = format!(
-            "{} {}: {} pairs of {} and {} by stamp, within {:.1} ms (--max-skew)",
+            "{} {}: {} pairs{} of {} and {} by stamp, within {:.1} ms (--max-skew)",
             survey.bag.kind(),
             path.display(),
             survey.pairs.len(),
+            part.map_or(String::new(), |p| format!(
+                " (part {}/{})",
+                p.index, p.count
+            )),
             survey.left,
             survey.right,
             survey.max_skew_ns as f64 / 1e6
@@ -194,11 +223,14 @@ pub fn feed(pairs: Pairs, done: &std::collections::HashSet<String>, jobs: usize)
         Pairs::Files(pairs) => Feed::List(Mutex::new(
             pairs
                 .into_iter()
-                .filter(|p| !done.contains(&p.name))
-                .map(|p| Work {
+                .enumerate()
+                .filter(|(_, p)| !done.contains(&p.name))
+                .enumerate()
+                .map(|(seq, (k, p))| Work {
+                    seq,
                     name: p.name,
                     names: [p.left.display().to_string(), p.right.display().to_string()],
-                    input: Input::Files(p.left, p.right),
+                    input: Input::Files(p.left, p.right, folder_header(k)),
                 })
                 .collect(),
         )),
@@ -212,7 +244,7 @@ pub fn feed(pairs: Pairs, done: &std::collections::HashSet<String>, jobs: usize)
                 .collect();
             std::thread::spawn(move || {
                 let mut frames = bag::Frames::new(&survey, BAG_RECORD_LIMIT);
-                for pair in todo {
+                for (seq, pair) in todo.into_iter().enumerate() {
                     let names = [
                         format!("{} at {}", survey.left, pair.name),
                         format!("{} at {}", survey.right, bag::stamp_name(pair.right_stamp)),
@@ -228,6 +260,7 @@ pub fn feed(pairs: Pairs, done: &std::collections::HashSet<String>, jobs: usize)
                         Err(e) => Input::Broken(e),
                     };
                     let work = Work {
+                        seq,
                         name: pair.name.clone(),
                         names,
                         input,
@@ -239,6 +272,17 @@ pub fn feed(pairs: Pairs, done: &std::collections::HashSet<String>, jobs: usize)
             });
             Feed::Bag(tokio::sync::Mutex::new(receiver))
         }
+    }
+}
+
+/// A folder's pairs have no stamps: in an MCAP output they are stamped 0.1 s apart from
+/// the epoch, in their order, in the frame `left_camera`.
+const FOLDER_FRAME_NS: i64 = 100_000_000;
+
+fn folder_header(k: usize) -> Header {
+    Header {
+        stamp_ns: k as i64 * FOLDER_FRAME_NS,
+        frame_id: "left_camera".to_owned(),
     }
 }
 

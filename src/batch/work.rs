@@ -10,6 +10,8 @@ use super::engine::Frame;
 /// One pair of the run: its name (its outputs'), its frames' names (as its faults name
 /// them), and where its frames are.
 pub struct Work {
+    /// Its place in the run's order (an MCAP output writes the pairs in it).
+    pub seq: usize,
     pub name: String,
     pub names: [String; 2],
     pub input: Input,
@@ -17,8 +19,8 @@ pub struct Work {
 
 /// Where a pair's frames are.
 pub enum Input {
-    /// Two files.
-    Files(PathBuf, PathBuf),
+    /// Two files, and the header their messages take in an MCAP output.
+    Files(PathBuf, PathBuf, Header),
     /// Two frames read from a bag, and the left one's header.
     Frames(Box<[Frame; 2]>, Header),
     /// A pair that could not be read, and why.
@@ -30,6 +32,7 @@ pub enum Input {
 pub enum Event {
     Waiting(String),
     Done {
+        seq: usize,
         name: String,
         warnings: Vec<String>,
         result: Result<(), Failure>,

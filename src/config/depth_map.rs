@@ -41,6 +41,12 @@ pub struct DepthMapArgs {
     /// the left camera's median frame interval).
     #[arg(long, value_name = "TIME", requires = "bag", value_parser = humantime::parse_duration)]
     pub max_skew: Option<std::time::Duration>,
+    /// This run's part of the work, I/N (I from 0), as a Kubernetes Indexed Job's pod takes
+    /// it (I from its completion index): of a folder of N recordings (.mcap, .bag, rosbag2
+    /// folders; the folder without a metadata.yaml), the I-th by name; of one recording, the
+    /// I-th of N consecutive time ranges of its pairs.
+    #[arg(long, value_name = "I/N", requires = "bag", value_parser = super::values::part)]
+    pub part: Option<super::values::Part>,
     /// The namespace of an .mcap output's topics (default: the one the bag's camera topics
     /// share, else /stereo): NS/disparity, NS/depth/image_rect, NS/depth/image_rect_std,
     /// NS/points2, NS/left/image_rect_color, NS/left/camera_info.

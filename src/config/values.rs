@@ -14,6 +14,27 @@ pub fn count<const MIN: usize, const MAX: usize>(text: &str) -> Result<usize, St
     }
 }
 
+/// A part of a run, `I/N`: the I-th (from 0) of N.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Part {
+    pub index: usize,
+    pub count: usize,
+}
+
+/// `I/N` with 0 ≤ I < N ≤ 100000.
+pub fn part(text: &str) -> Result<Part, String> {
+    let expected = || "expected I/N, the I-th (from 0) of N parts, such as 0/4".to_owned();
+    let (i, n) = text.trim().split_once('/').ok_or_else(expected)?;
+    let index = usize::from_str(i.trim()).map_err(|_| expected())?;
+    let count = usize::from_str(n.trim()).map_err(|_| expected())?;
+    if count == 0 || count > 100_000 || index >= count {
+        return Err(format!(
+            "{index}/{count}: I must be from 0 to N − 1, N from 1 to 100000"
+        ));
+    }
+    Ok(Part { index, count })
+}
+
 /// A size in bytes from `MIN` to `MAX`: a whole number, or one with a binary unit such as
 /// `64KiB`, `32MiB` or `1GiB`.
 pub fn size<const MIN: usize, const MAX: usize>(text: &str) -> Result<usize, String> {

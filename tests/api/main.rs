@@ -26,6 +26,7 @@ mod operations;
 mod planning;
 mod protection;
 mod recording;
+mod recording_bags;
 mod recording_faults;
 mod rectify;
 mod rigs;
