@@ -10,7 +10,7 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use crate::api::error::{ApiError, FieldError, FieldErrors};
-use crate::api::images::{job, limits};
+use crate::api::images::{job, limits, ros};
 use crate::api::wire::depth_map::{DepthMapOutput, DepthMapSummary};
 use crate::api::wire::rig::CalibratedRig;
 use crate::config::Config;
@@ -166,9 +166,9 @@ impl Engine {
         let products: Vec<Product> = self.output.product().into_iter().collect();
         let (map, planned, decoded) = self.map(frames, &products)?;
         let bytes = match self.output.product() {
-            Some(product) => product
-                .encode(&map)
-                .map_err(|e| vec![FieldError::new("output", e)])?,
+            Some(_) => {
+                ros::file(self.output, &map).map_err(|e| vec![FieldError::new("output", e)])?
+            }
             None => {
                 let rig = planned.calibrated().map(|c| CalibratedRig::from(&c.rig));
                 let summary = DepthMapSummary::of(&map, planned.params(), rig, decoded);

@@ -17,7 +17,7 @@ use tokio_tungstenite::{MaybeTlsStream, WebSocketStream, connect_async};
 use crate::depth_map::{H, W, npy, pair, png, png_claiming, rig};
 use crate::helpers::{PATIENCE, TestApp, fields, spawn_app, spawn_app_with};
 
-type Socket = WebSocketStream<MaybeTlsStream<TcpStream>>;
+pub(crate) type Socket = WebSocketStream<MaybeTlsStream<TcpStream>>;
 
 /// Opens a stream.
 async fn open(app: &TestApp) -> Socket {
@@ -28,7 +28,7 @@ async fn open(app: &TestApp) -> Socket {
 }
 
 /// Opens a stream and sends `settings`, returning the stream and the answer.
-async fn open_with(app: &TestApp, settings: Value) -> (Socket, Value) {
+pub(crate) async fn open_with(app: &TestApp, settings: Value) -> (Socket, Value) {
     let mut socket = open(app).await;
     socket
         .send(Message::text(settings.to_string()))
@@ -47,7 +47,7 @@ async fn next(socket: &mut Socket) -> Option<Message> {
 }
 
 /// The next message, which must be JSON text.
-async fn text(socket: &mut Socket) -> Value {
+pub(crate) async fn text(socket: &mut Socket) -> Value {
     match next(socket).await {
         Some(Message::Text(text)) => serde_json::from_str(text.as_str()).expect("JSON"),
         other => panic!("expected a text message, got {other:?}"),
@@ -55,7 +55,7 @@ async fn text(socket: &mut Socket) -> Value {
 }
 
 /// The next message, which must be binary.
-async fn binary(socket: &mut Socket) -> Vec<u8> {
+pub(crate) async fn binary(socket: &mut Socket) -> Vec<u8> {
     match next(socket).await {
         Some(Message::Binary(bytes)) => bytes.to_vec(),
         other => panic!("expected a binary message, got {other:?}"),
@@ -74,7 +74,7 @@ async fn close_code(socket: &mut Socket) -> u16 {
 }
 
 /// The pair side by side in one PNG, as a USB stereo camera delivers it.
-fn side_by_side(pair: &Pair) -> Vec<u8> {
+pub(crate) fn side_by_side(pair: &Pair) -> Vec<u8> {
     let row = 3 * W;
     let mut rgb = Vec::with_capacity(2 * row * H);
     for y in 0..H {

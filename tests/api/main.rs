@@ -30,6 +30,7 @@ mod recording_bags;
 mod recording_faults;
 mod rectify;
 mod rigs;
+mod ros_answers;
 mod scale;
 mod svg;
 mod table;

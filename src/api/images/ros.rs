@@ -6,6 +6,7 @@
 //! with its `CameraInfo`, so that a viewer overlays them. The `depth-map` command writes
 //! them into an MCAP file; the topics are `stereo_image_proc`'s, under a namespace.
 
+use crate::api::wire::depth_map::{DepthMapOutput, RosOutput};
 use stereo_core::pipeline::DepthMap;
 use stereo_core::pipeline::depth::points;
 use stereo_ros::Kind;
@@ -41,9 +42,41 @@ fn float_image(header: &Header, w: usize, h: usize, values: &[f32], scale: f64) 
     }
 }
 
+/// The answer of `output` for `map`: a CDR output's message (stamped now, in frame
+/// `left_camera`), else the engine's file.
+pub fn file(output: DepthMapOutput, map: &DepthMap) -> Result<Vec<u8>, String> {
+    let Some(which) = output.ros() else {
+        return match output.product() {
+            Some(product) => product.encode(map),
+            None => Err("the summary is not a file".to_owned()),
+        };
+    };
+    let now = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_nanos().min(i64::MAX as u128) as i64);
+    let header = Header {
+        stamp_ns: now,
+        frame_id: "left_camera".to_owned(),
+    };
+    let at = match which {
+        RosOutput::Disparity => 0,
+        RosOutput::Depth => 1,
+        RosOutput::DepthStd => 2,
+        RosOutput::Points => 3,
+    };
+    message(map, &header, Kind::Cdr, at)
+}
+
 /// The map's messages on [`TOPICS`], each with `header` (the pair's stamp and the left
 /// camera's frame), serialised as `kind`; `Err` when the map has no rig (no depths).
 pub fn messages(map: &DepthMap, header: &Header, kind: Kind) -> Result<Vec<Vec<u8>>, String> {
+    (0..TOPICS.len())
+        .map(|at| message(map, header, kind, at))
+        .collect()
+}
+
+/// The message on `TOPICS[at]`.
+fn message(map: &DepthMap, header: &Header, kind: Kind, at: usize) -> Result<Vec<u8>, String> {
     let (Some(rig), Some(depth)) = (map.rig, map.depth.as_deref()) else {
         return Err("ROS messages carry depths: give the rig's calibration".to_owned());
     };
@@ -54,61 +87,65 @@ pub fn messages(map: &DepthMap, header: &Header, kind: Kind) -> Result<Vec<Vec<u
     let cx = rig.cx().unwrap_or(w as f64 / 2.0);
     let cy = rig.cy().unwrap_or(h as f64 / 2.0);
     let doffs = rig.doffs();
-    // Z = f·t/d holds for the message's d: the pair's doffs is added in.
-    let shifted: Vec<f32> = d.data.iter().map(|&v| v + doffs as f32).collect();
-    let whole = RegionOfInterest {
-        height: h as u32,
-        width: w as u32,
-        ..RegionOfInterest::default()
-    };
-    let disparity = DisparityImage {
-        header: header.clone(),
-        image: float_image(header, w, h, &shifted, 1.0),
-        f: f as f32,
-        t: (rig.baseline() * metres) as f32,
-        valid_window: whole,
-        min_disparity: (f64::from(map.range.min) + doffs) as f32,
-        max_disparity: (f64::from(map.range.max) + doffs) as f32,
-        // The matcher's disparities are continuous: their smallest step is a float's.
-        delta_d: 1.0 / 256.0,
-    };
-    let nan = vec![f32::NAN; w * h];
-    let depth_std = map.depth_std.as_deref().unwrap_or(&nan);
-    let cloud = cloud(map, header, metres);
-    let rgb = map.rgb.clone().unwrap_or_else(|| {
-        d.data
-            .iter()
-            .flat_map(|&v| [if v.is_nan() { 0 } else { 128 }; 3])
-            .collect()
-    });
-    let image = Image {
-        header: header.clone(),
-        height: h as u32,
-        width: w as u32,
-        encoding: "rgb8".into(),
-        is_bigendian: false,
-        step: (w * 3) as u32,
-        data: rgb,
-    };
-    let info = CameraInfo {
-        header: header.clone(),
-        height: h as u32,
-        width: w as u32,
-        distortion_model: "plumb_bob".into(),
-        d: vec![0.0; 5],
-        k: [f, 0.0, cx, 0.0, fy, cy, 0.0, 0.0, 1.0],
-        r: [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
-        p: [f, 0.0, cx, 0.0, 0.0, fy, cy, 0.0, 0.0, 0.0, 1.0, 0.0],
-        ..CameraInfo::default()
-    };
-    Ok(vec![
-        disparity.encode(kind),
-        float_image(header, w, h, depth, metres).encode(kind),
-        float_image(header, w, h, depth_std, metres).encode(kind),
-        cloud.encode(kind),
-        image.encode(kind),
-        info.encode(kind),
-    ])
+    Ok(match at {
+        0 => {
+            // Z = f·t/d holds for the message's d: the pair's doffs is added in.
+            let shifted: Vec<f32> = d.data.iter().map(|&v| v + doffs as f32).collect();
+            DisparityImage {
+                header: header.clone(),
+                image: float_image(header, w, h, &shifted, 1.0),
+                f: f as f32,
+                t: (rig.baseline() * metres) as f32,
+                valid_window: RegionOfInterest {
+                    height: h as u32,
+                    width: w as u32,
+                    ..RegionOfInterest::default()
+                },
+                min_disparity: (f64::from(map.range.min) + doffs) as f32,
+                max_disparity: (f64::from(map.range.max) + doffs) as f32,
+                // The matcher's disparities are continuous: their smallest step is a float's.
+                delta_d: 1.0 / 256.0,
+            }
+            .encode(kind)
+        }
+        1 => float_image(header, w, h, depth, metres).encode(kind),
+        2 => {
+            let nan = vec![f32::NAN; w * h];
+            let depth_std = map.depth_std.as_deref().unwrap_or(&nan);
+            float_image(header, w, h, depth_std, metres).encode(kind)
+        }
+        3 => cloud(map, header, metres).encode(kind),
+        4 => {
+            let rgb = map.rgb.clone().unwrap_or_else(|| {
+                d.data
+                    .iter()
+                    .flat_map(|&v| [if v.is_nan() { 0 } else { 128 }; 3])
+                    .collect()
+            });
+            Image {
+                header: header.clone(),
+                height: h as u32,
+                width: w as u32,
+                encoding: "rgb8".into(),
+                is_bigendian: false,
+                step: (w * 3) as u32,
+                data: rgb,
+            }
+            .encode(kind)
+        }
+        _ => CameraInfo {
+            header: header.clone(),
+            height: h as u32,
+            width: w as u32,
+            distortion_model: "plumb_bob".into(),
+            d: vec![0.0; 5],
+            k: [f, 0.0, cx, 0.0, fy, cy, 0.0, 0.0, 1.0],
+            r: [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
+            p: [f, 0.0, cx, 0.0, 0.0, fy, cy, 0.0, 0.0, 0.0, 1.0, 0.0],
+            ..CameraInfo::default()
+        }
+        .encode(kind),
+    })
 }
 
 /// The valid points, in metres, with their colour packed as PCL packs it and their σ_Z.

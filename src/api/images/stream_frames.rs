@@ -16,9 +16,9 @@ pub fn files(
 ) -> Result<Vec<(FileAnswer, Vec<u8>)>, ApiError> {
     outputs
         .iter()
-        .filter_map(|o| o.product().map(|p| (o, p)))
-        .map(|(output, product)| {
-            let bytes = product.encode(map).map_err(ApiError::Internal)?;
+        .filter(|o| o.product().is_some())
+        .map(|&output| {
+            let bytes = super::ros::file(output, map).map_err(ApiError::Internal)?;
             let file = FileAnswer {
                 name: output.name(),
                 media_type: output.media_type(),

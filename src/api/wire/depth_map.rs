@@ -67,24 +67,76 @@ pub enum DepthMapOutput {
     /// same unit).
     #[serde(rename = "points.ply")]
     PointsPly,
+    /// ROS 2's `stereo_msgs/msg/DisparityImage` in CDR, as `stereo_image_proc` publishes it:
+    /// 32FC1 disparities (NaN where none), `f` in pixels and `t` the baseline in metres, so
+    /// that Z = f·t/d. Stamped when made, in frame `left_camera`.
+    #[serde(rename = "disparity.cdr")]
+    DisparityCdr,
+    /// ROS 2's `sensor_msgs/msg/Image` in CDR: the depth, 32FC1 in metres, NaN where none
+    /// (REP 118).
+    #[serde(rename = "depth.cdr")]
+    DepthCdr,
+    /// ROS 2's `sensor_msgs/msg/Image` in CDR: σ_Z of each depth, 32FC1 in metres.
+    #[serde(rename = "depth_std.cdr")]
+    DepthStdCdr,
+    /// ROS 2's `sensor_msgs/msg/PointCloud2` in CDR: x, y, z (m, the left camera's optical
+    /// frame), rgb and depth_std (m) of each pixel with a depth.
+    #[serde(rename = "points.cdr")]
+    PointsCdr,
 }
+
+/// A ROS 2 message a depth map answers in CDR.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum RosOutput {
+    Disparity,
+    Depth,
+    DepthStd,
+    Points,
+}
+
+/// The media type of a CDR answer.
+pub const CDR: &str = "application/x-cdr";
 
 impl DepthMapOutput {
     /// The name, as the query takes it and as the file is called ([`Product::name`]).
     pub fn name(self) -> &'static str {
-        self.product().map_or("summary", Product::name)
+        match self.ros() {
+            Some(RosOutput::Disparity) => "disparity.cdr",
+            Some(RosOutput::Depth) => "depth.cdr",
+            Some(RosOutput::DepthStd) => "depth_std.cdr",
+            Some(RosOutput::Points) => "points.cdr",
+            None => self.product().map_or("summary", Product::name),
+        }
     }
 
     /// The media type of the answer ([`Product::media_type`]).
     pub fn media_type(self) -> &'static str {
+        if self.ros().is_some() {
+            return CDR;
+        }
         self.product()
             .map_or("application/json", Product::media_type)
     }
 
-    /// The file the engine writes, or `None` for the JSON summary.
+    /// The ROS 2 message the answer is, for the CDR outputs.
+    pub fn ros(self) -> Option<RosOutput> {
+        Some(match self {
+            DepthMapOutput::DisparityCdr => RosOutput::Disparity,
+            DepthMapOutput::DepthCdr => RosOutput::Depth,
+            DepthMapOutput::DepthStdCdr => RosOutput::DepthStd,
+            DepthMapOutput::PointsCdr => RosOutput::Points,
+            _ => return None,
+        })
+    }
+
+    /// The file the engine writes (for a CDR output, the file that needs what its message
+    /// needs: the depths, their σ, the colours), or `None` for the JSON summary.
     pub fn product(self) -> Option<Product> {
         Some(match self {
             DepthMapOutput::Summary => return None,
+            DepthMapOutput::DisparityCdr | DepthMapOutput::DepthCdr => Product::DepthNpy,
+            DepthMapOutput::DepthStdCdr => Product::DepthStdNpy,
+            DepthMapOutput::PointsCdr => Product::PointsPly,
             DepthMapOutput::DisparityPfm => Product::DisparityPfm,
             DepthMapOutput::DisparityPng => Product::DisparityPng,
             DepthMapOutput::DisparityNpy => Product::DisparityNpy,
@@ -542,6 +594,7 @@ image_answers! {
         "application/x-npy" => named::<FileBody>(),
         "application/x-ply" => named::<FileBody>(),
         "application/zip" => named::<FileBody>(),
+        "application/x-cdr" => named::<FileBody>(),
     }
 }
 
@@ -549,9 +602,10 @@ image_answers! {
 mod tests {
     use super::*;
 
-    /// The wire's outputs are the engine's catalogue and the summary, no more and no less:
-    /// each file the engine writes is an `output` of its own name that maps back to it, and
-    /// the OpenAPI schema's choices are those names.
+    /// The wire's outputs are the engine's catalogue, the summary and the four ROS 2
+    /// messages, no more and no less: each file the engine writes is an `output` of its own
+    /// name that maps back to it, each CDR output is named by its serde name, and the OpenAPI
+    /// schema's choices are those names.
     #[test]
     fn the_outputs_are_the_engines_catalogue() {
         for product in Product::ALL {
@@ -564,8 +618,15 @@ mod tests {
             .expect("a schema");
         let mut choices: Vec<String> =
             serde_json::from_value(schema["enum"].clone()).expect("the schema's choices");
+        let ros = ["disparity.cdr", "depth.cdr", "depth_std.cdr", "points.cdr"];
+        for name in ros {
+            let output: DepthMapOutput = serde_json::from_value(name.into()).expect("an output");
+            assert_eq!((output.name(), output.media_type()), (name, CDR));
+            assert!(output.ros().is_some() && output.needs_rig());
+        }
         let mut names: Vec<String> = std::iter::once("summary")
             .chain(Product::ALL.map(Product::name))
+            .chain(ros)
             .map(str::to_owned)
             .collect();
         choices.sort();

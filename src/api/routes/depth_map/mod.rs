@@ -19,7 +19,7 @@ use crate::api::error::ApiError;
 use crate::api::extract::QueryParams;
 use crate::api::images::HeavyState;
 use crate::api::images::output::{self, Disposition, set_server_timing};
-use crate::api::images::{ImageForm, ImagePair, Job, job, rig, work};
+use crate::api::images::{ImageForm, ImagePair, Job, job, rig, ros, work};
 use crate::api::respond::Json;
 use crate::api::wire::rig::CalibratedRig;
 use stereo_core::pipeline::{self, Answer, DepthJob, Product};
@@ -139,7 +139,7 @@ fn compute(work: Job, job: DepthJob, output: DepthMapOutput) -> Result<Response,
     let started = Instant::now();
     let mut response = match output.product() {
         Some(product) => {
-            let bytes = product.encode(&map).map_err(ApiError::Internal)?;
+            let bytes = ros::file(output, &map).map_err(ApiError::Internal)?;
             let how = match product {
                 Product::PreviewPng => Disposition::Inline,
                 _ => Disposition::Attachment,
