@@ -14,6 +14,9 @@ use stereo_core::vision::pixels::{Layout, Mosaic};
 use stereo_ros::msg::{self, CameraInfo, CompressedImage, Image, Type};
 use stereo_ros::{Bag, Message};
 
+use stereo_core::numbers::{Num, round_to};
+use stereo_core::physics::{Implausible, LengthUnit};
+
 use super::engine::Frame;
 
 /// A pair found by stamp: its name (the left stamp, `secs.nanosecs`), the left frame's
@@ -69,8 +72,12 @@ pub fn info_topic(image: &str) -> String {
     }
 }
 
+/// The namespace the outputs' topics go under when the cameras' topics share none (and for a
+/// folder of pairs): `stereo_image_proc`'s.
+pub const DEFAULT_NAMESPACE: &str = "/stereo";
+
 /// The namespace two cameras' topics share (`/stereo/left/image_raw`, `/stereo/right/…` →
-/// `/stereo`), or `/stereo` when they share none.
+/// `/stereo`), or [`DEFAULT_NAMESPACE`] when they share none.
 pub fn namespace_of(left: &str, right: &str) -> String {
     let (l, r): (Vec<&str>, Vec<&str>) = (left.split('/').collect(), right.split('/').collect());
     let shared: Vec<&str> = l
@@ -81,7 +88,7 @@ pub fn namespace_of(left: &str, right: &str) -> String {
         .collect();
     let ns = shared.join("/");
     if ns.trim_matches('/').is_empty() {
-        "/stereo".to_owned()
+        DEFAULT_NAMESPACE.to_owned()
     } else {
         ns
     }
@@ -137,25 +144,6 @@ fn choose(
             }
         }
     }
-}
-
-/// The recordings of a folder that is not itself one (it has no `metadata.yaml`): its `.mcap`
-/// and `.bag` files and its rosbag2 folders, by name; `None` for a recording.
-pub fn recordings(path: &Path) -> Result<Option<Vec<std::path::PathBuf>>, String> {
-    if !path.is_dir() || path.join("metadata.yaml").is_file() {
-        return Ok(None);
-    }
-    let mut found: Vec<std::path::PathBuf> = std::fs::read_dir(path)
-        .map_err(|e| format!("cannot read the folder {}: {e}", path.display()))?
-        .flatten()
-        .map(|e| e.path())
-        .filter(|p| {
-            p.join("metadata.yaml").is_file()
-                || p.extension().is_some_and(|e| e == "mcap" || e == "bag")
-        })
-        .collect();
-    found.sort();
-    Ok(Some(found))
 }
 
 /// The survey's pass over the bag at `path`.
@@ -449,12 +437,50 @@ pub fn calibration(
             list(&info.p)
         ));
     }
+    if faults.is_empty()
+        && let [Some((_, left)), Some((topic, right))] = info
+        && let Some(fault) = baseline_fault(left, right, topic)
+    {
+        faults.push(fault);
+    }
     if !faults.is_empty() {
         return Err(faults.join("; "));
     }
     let right = files.pop().unwrap_or_default();
     let left = files.pop().unwrap_or_default();
     Ok([left, right])
+}
+
+/// A baseline no stereo rig has, from the two projections' P[0,3] = −f·B: ROS gives B in
+/// metres, so a P[0,3] written in millimetres reads as a baseline a thousand times too wide,
+/// and every depth would be too. The bag's user cannot name another unit, so this refuses
+/// the rig and says what to fix, where a calibration file would have taken a unit.
+fn baseline_fault(left: &CameraInfo, right: &CameraInfo, topic: &str) -> Option<String> {
+    let tx = |i: &CameraInfo| if i.p[0] != 0.0 { i.p[3] / i.p[0] } else { 0.0 };
+    let baseline = tx(left) - tx(right);
+    let found = Implausible::baseline(baseline, LengthUnit::Metre)?;
+    let likely = match found.likely {
+        Some(u) => format!(
+            " It reads as a plausible {} {} if P[0,3] was written in {}.",
+            Num(round_to(baseline.abs(), 4)),
+            u.symbol(),
+            u.symbol()
+        ),
+        None => String::new(),
+    };
+    Some(format!(
+        "{topic}: its P[0,3] = {} gives a baseline of {} m, {}: no stereo camera has that, and \
+         every depth from it would be off by the same factor. ROS gives P[0,3] = −f·B with B in \
+         metres.{likely} Fix the cameras' CameraInfo, or give --calibration with \
+         --calibration-unit",
+        Num(right.p[3]),
+        Num(round_to(baseline.abs(), 4)),
+        if found.under {
+            "under 1 mm"
+        } else {
+            "over 10 m"
+        },
+    ))
 }
 
 /// The paired frames, read in the recording's order: each pair's left and right messages,
@@ -503,6 +529,41 @@ mod tests {
     use super::*;
 
     const MS: i64 = 1_000_000;
+
+    /// A CameraInfo pair whose right P[0,3] is −f·B with B in millimetres (a baseline of 120
+    /// m read in metres) is refused by its topic, saying ROS's unit and what to fix; the same
+    /// pair in metres gives the two files.
+    #[test]
+    fn a_baseline_in_millimetres_is_refused() {
+        let info = |tx: f64, topic: &str| {
+            let header = msg::Header::default();
+            let i = CameraInfo::pinhole(header, [640, 480], [500.0, 500.0, 320.0, 240.0], tx);
+            Some((topic.to_owned(), i))
+        };
+        let topics = ["/stereo/left/image_raw", "/stereo/right/image_raw"];
+        let mm = [
+            info(0.0, "/stereo/left/camera_info"),
+            info(-500.0 * 120.0, "/stereo/right/camera_info"),
+        ];
+        let said = calibration(&mm, topics).unwrap_err();
+        assert!(
+            said.starts_with("/stereo/right/camera_info: its P[0,3] = -60000 gives a baseline of 120 m, over 10 m"),
+            "{said}"
+        );
+        assert!(said.contains("B in metres"), "{said}");
+        assert!(
+            said.contains("120 mm if P[0,3] was written in mm"),
+            "{said}"
+        );
+        assert!(said.contains("--calibration-unit"), "{said}");
+        let m = [
+            info(0.0, "/stereo/left/camera_info"),
+            info(-500.0 * 0.12, "/stereo/right/camera_info"),
+        ];
+        let [left, right] = calibration(&m, topics).unwrap();
+        assert!(right.contains("p: [500.0, 0.0, 320.0, -60.0,"), "{right}");
+        assert!(left.contains("p: [500.0, 0.0, 320.0, 0.0,"), "{left}");
+    }
 
     /// Frames within the tolerance pair; a dropped frame's partner is an orphan named with
     /// its nearest, never paired with a neighbour's image.

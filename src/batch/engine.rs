@@ -60,18 +60,15 @@ impl Frame {
     /// The frame as a file a service reads: a PNG or JPEG as it came, pixels as a PNG (16-bit
     /// grey for 16-bit frames, else RGB).
     pub fn into_file(self) -> Result<Vec<u8>, String> {
-        let Frame::Pixels {
-            width,
-            height,
-            layout,
-            step,
-            data,
-        } = self
-        else {
-            let Frame::File(bytes) = self else {
-                return Err("no frame".to_owned());
-            };
-            return Ok(bytes);
+        let (width, height, layout, step, data) = match self {
+            Frame::File(bytes) => return Ok(bytes),
+            Frame::Pixels {
+                width,
+                height,
+                layout,
+                step,
+                data,
+            } => (width, height, layout, step, data),
         };
         // The pixels are in memory already: their count is bounded by their bytes.
         let limits = DecodeLimits {
@@ -163,13 +160,11 @@ impl Engine {
     }
 
     fn made(&self, frames: [&Frame; 2]) -> Result<Made, Vec<FieldError>> {
-        let products: Vec<Product> = self.output.product().into_iter().collect();
+        let products: Vec<Product> = self.output.needs().into_iter().collect();
         let (map, planned, decoded) = self.map(frames, &products)?;
-        let bytes = match self.output.product() {
-            Some(_) => {
-                ros::file(self.output, &map).map_err(|e| vec![FieldError::new("output", e)])?
-            }
-            None => {
+        let bytes = match self.output.is_file() {
+            true => ros::file(self.output, &map).map_err(|e| vec![FieldError::new("output", e)])?,
+            false => {
                 let rig = planned.calibrated().map(|c| CalibratedRig::from(&c.rig));
                 let summary = DepthMapSummary::of(&map, planned.params(), rig, decoded);
                 serde_json::to_vec(&summary)

@@ -10,7 +10,7 @@ use super::engine::{Engine, Frame};
 use super::send::{self, Form};
 use super::sink::Sink;
 use super::transport::Server;
-use super::work::{Event, Failure, Input, Work};
+use super::work::{Event, Failure, Input, Pair, Work};
 
 /// Where a run's pairs are matched.
 #[derive(Clone)]
@@ -30,13 +30,7 @@ pub async fn one_pair(
     work: Work,
     events: &tokio::sync::mpsc::Sender<Event>,
 ) -> (Vec<String>, Result<(), Failure>) {
-    let (input, work) = (
-        work.input,
-        Work {
-            input: Input::Broken(String::new()),
-            ..work
-        },
-    );
+    let Work { pair, input } = work;
     let (frames, header) = match input {
         Input::Broken(why) => return (Vec::new(), Err(Failure::Pair(why))),
         Input::Files(left, right, header) => {
@@ -52,7 +46,7 @@ pub async fn one_pair(
         }
         Input::Frames(frames, header) => (*frames, header),
     };
-    matched(transport, form, sink, &work, frames, header, events).await
+    matched(transport, form, sink, &pair, frames, header, events).await
 }
 
 /// A pair's frames matched (here or by the service) and its map written.
@@ -60,7 +54,7 @@ async fn matched(
     transport: &mut Transport,
     form: &Form,
     sink: &Arc<Sink>,
-    work: &Work,
+    work: &Pair,
     frames: [Frame; 2],
     header: Header,
     events: &tokio::sync::mpsc::Sender<Event>,

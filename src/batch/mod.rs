@@ -223,7 +223,7 @@ pub async fn depth_maps<W: std::io::Write>(
         );
         workers.push(tokio::spawn(async move {
             while let Some(work) = feed.next().await {
-                let (seq, name) = (work.seq, work.name.clone());
+                let (seq, name) = (work.pair.seq, work.pair.name.clone());
                 let (warnings, result) =
                     one_pair(&mut transport, &form, &sink, work, &sender).await;
                 let done = Event::Done {

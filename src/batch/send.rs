@@ -5,7 +5,7 @@
 use super::engine::Frame;
 use super::retry::{self, Policy};
 use super::transport::{Answer, Server};
-use super::work::{Event, Failure, Work};
+use super::work::{Event, Failure, Pair};
 
 /// What every request of the run carries besides its pair.
 pub struct Form {
@@ -22,7 +22,7 @@ pub struct Form {
 pub async fn send(
     server: &mut Server,
     form: &Form,
-    work: &Work,
+    work: &Pair,
     frames: [Frame; 2],
     events: &tokio::sync::mpsc::Sender<Event>,
 ) -> Result<Answer, Failure> {
@@ -102,7 +102,7 @@ fn status_words(status: u16) -> String {
 /// read, a frame of another size); so is a 500 or a timeout of this frame's work. A refused
 /// token (401, 403) or a request the service does not take (400, 404, 405, 415) would refuse
 /// every frame alike: they stop the run.
-fn refusal(answer: &Answer, work: &Work) -> Failure {
+fn refusal(answer: &Answer, work: &Pair) -> Failure {
     let problem: serde_json::Value = serde_json::from_slice(&answer.body).unwrap_or_default();
     let detail = problem["detail"].as_str().unwrap_or("").to_owned();
     let mut lines = Vec::new();

@@ -111,9 +111,10 @@ impl Sink {
                 continue;
             };
             let time = u64::try_from(header.stamp_ns).unwrap_or(0);
-            for ((topic, t), cdr) in ros::TOPICS.iter().zip(&messages) {
-                let topic = format!("{}/{topic}", namespace.trim_end_matches('/'));
-                out.write(&topic, *t, time, cdr).map_err(|e| e.0)?;
+            for (topic, cdr) in ros::Topic::ALL.into_iter().zip(&messages) {
+                let name = format!("{}/{}", namespace.trim_end_matches('/'), topic.name());
+                out.write(&name, topic.message_type(), time, cdr)
+                    .map_err(|e| e.0)?;
             }
             out.flush().map_err(|e| e.0)?;
         }

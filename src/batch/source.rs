@@ -10,7 +10,7 @@ use std::sync::Mutex;
 use stereo_ros::msg::Header;
 
 use super::pairing::{self, FramePair, file_name};
-use super::work::{Input, Work};
+use super::work::{Input, Pair, Work};
 use super::{bag, preflight};
 use crate::config::DepthMapArgs;
 
@@ -88,7 +88,10 @@ pub fn recording(args: &DepthMapArgs) -> Result<Recording, String> {
             .max_skew
             .map(|d| d.as_nanos().min(i64::MAX as u128) as i64);
         let topics = [args.left_topic.as_deref(), args.right_topic.as_deref()];
-        let (path, part) = match (args.part, bag::recordings(path)?) {
+        let (path, part) = match (
+            args.part,
+            stereo_ros::bag::recordings(path).map_err(|e| e.to_string())?,
+        ) {
             (Some(part), Some(list)) if list.len() == part.count => {
                 (list[part.index].clone(), None)
             }
@@ -212,7 +215,7 @@ pub fn recording(args: &DepthMapArgs) -> Result<Recording, String> {
         namespace: args
             .out_namespace
             .clone()
-            .unwrap_or_else(|| "/stereo".to_owned()),
+            .unwrap_or_else(|| bag::DEFAULT_NAMESPACE.to_owned()),
     })
 }
 
@@ -227,9 +230,11 @@ pub fn feed(pairs: Pairs, done: &std::collections::HashSet<String>, jobs: usize)
                 .filter(|(_, p)| !done.contains(&p.name))
                 .enumerate()
                 .map(|(seq, (k, p))| Work {
-                    seq,
-                    name: p.name,
-                    names: [p.left.display().to_string(), p.right.display().to_string()],
+                    pair: Pair {
+                        seq,
+                        name: p.name,
+                        names: [p.left.display().to_string(), p.right.display().to_string()],
+                    },
                     input: Input::Files(p.left, p.right, folder_header(k)),
                 })
                 .collect(),
@@ -260,9 +265,11 @@ pub fn feed(pairs: Pairs, done: &std::collections::HashSet<String>, jobs: usize)
                         Err(e) => Input::Broken(e),
                     };
                     let work = Work {
-                        seq,
-                        name: pair.name.clone(),
-                        names,
+                        pair: Pair {
+                            seq,
+                            name: pair.name.clone(),
+                            names,
+                        },
                         input,
                     };
                     if sender.blocking_send(work).is_err() {

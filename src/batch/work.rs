@@ -7,14 +7,20 @@ use stereo_ros::msg::Header;
 
 use super::engine::Frame;
 
-/// One pair of the run: its name (its outputs'), its frames' names (as its faults name
-/// them), and where its frames are.
+/// One pair of the run: what it is called, and where its frames are (the two part ways
+/// when a worker reads the frames).
 pub struct Work {
+    pub pair: Pair,
+    pub input: Input,
+}
+
+/// What a pair is called: its place in the run, its name (its outputs') and its frames'
+/// names (as its faults name them).
+pub struct Pair {
     /// Its place in the run's order (an MCAP output writes the pairs in it).
     pub seq: usize,
     pub name: String,
     pub names: [String; 2],
-    pub input: Input,
 }
 
 /// Where a pair's frames are.

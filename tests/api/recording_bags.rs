@@ -21,20 +21,11 @@ const FRAME: i64 = 33_333_333;
 fn info(right: bool, stamp: i64) -> CameraInfo {
     let (cx, cy) = ((W / 2) as f64, (H / 2) as f64);
     let tx = if right { -F * BASELINE_M } else { 0.0 };
-    CameraInfo {
-        header: Header {
-            stamp_ns: stamp,
-            frame_id: format!("{}_optical", if right { "right" } else { "left" }),
-        },
-        height: H as u32,
-        width: W as u32,
-        distortion_model: "plumb_bob".into(),
-        d: vec![0.0; 5],
-        k: [F, 0.0, cx, 0.0, F, cy, 0.0, 0.0, 1.0],
-        r: [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
-        p: [F, 0.0, cx, tx, 0.0, F, cy, 0.0, 0.0, 0.0, 1.0, 0.0],
-        ..CameraInfo::default()
-    }
+    let header = Header {
+        stamp_ns: stamp,
+        frame_id: format!("{}_optical", if right { "right" } else { "left" }),
+    };
+    CameraInfo::pinhole(header, [W as u32, H as u32], [F, F, cx, cy], tx)
 }
 
 fn image(rgb: &[u8], stamp: i64, right: bool) -> Image {

@@ -141,6 +141,25 @@ impl Bag {
     }
 }
 
+/// The recordings of a folder that is not itself one (it has no `metadata.yaml`): its `.mcap`
+/// and `.bag` files and its rosbag2 folders, by name; `None` for a recording.
+pub fn recordings(path: &Path) -> Result<Option<Vec<PathBuf>>, BagError> {
+    if !path.is_dir() || path.join("metadata.yaml").is_file() {
+        return Ok(None);
+    }
+    let mut found: Vec<PathBuf> = std::fs::read_dir(path)
+        .map_err(|e| BagError(format!("cannot read the folder {}: {e}", path.display())))?
+        .flatten()
+        .map(|e| e.path())
+        .filter(|p| {
+            p.join("metadata.yaml").is_file()
+                || p.extension().is_some_and(|e| e == "mcap" || e == "bag")
+        })
+        .collect();
+    found.sort();
+    Ok(Some(found))
+}
+
 /// The MCAP files of a rosbag2 folder, in the order its `metadata.yaml` lists them (else by
 /// name).
 fn rosbag2_folder(folder: &Path) -> Result<Vec<PathBuf>, BagError> {

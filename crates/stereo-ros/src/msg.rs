@@ -176,6 +176,24 @@ pub struct CameraInfo {
 }
 
 impl CameraInfo {
+    /// A camera without distortion (a rectified one, or a pinhole model): `plumb_bob` with D
+    /// all zeros, K from `[fx, fy, cx, cy]` in pixels, R the identity and P = [K | (tx, 0, 0)]:
+    /// `tx` is −f·B for a pair's right camera (B in metres) and 0 for the left.
+    pub fn pinhole(header: Header, [width, height]: [u32; 2], k: [f64; 4], tx: f64) -> Self {
+        let [fx, fy, cx, cy] = k;
+        CameraInfo {
+            header,
+            height,
+            width,
+            distortion_model: "plumb_bob".into(),
+            d: vec![0.0; 5],
+            k: [fx, 0.0, cx, 0.0, fy, cy, 0.0, 0.0, 1.0],
+            r: [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
+            p: [fx, 0.0, cx, tx, 0.0, fy, cy, 0.0, 0.0, 0.0, 1.0, 0.0],
+            ..CameraInfo::default()
+        }
+    }
+
     pub fn decode(data: &[u8], kind: Kind) -> Result<CameraInfo, Malformed> {
         let mut r = Reader::new(data, kind)?;
         Ok(CameraInfo {

@@ -238,3 +238,31 @@ fn garbled_messages_never_panic() {
         }
     }
 }
+
+/// A folder of recordings lists its `.mcap` and `.bag` files and its rosbag2 folders by name
+/// and nothing else; a rosbag2 folder and a file are each one recording (`None`).
+#[test]
+fn a_folder_of_recordings_is_listed() {
+    let dir = temp("recordings");
+    for f in ["b.bag", "a.mcap", "notes.txt"] {
+        std::fs::write(dir.join(f), b"x").unwrap();
+    }
+    std::fs::create_dir_all(dir.join("c")).unwrap();
+    std::fs::write(
+        dir.join("c/metadata.yaml"),
+        b"rosbag2_bagfile_information:\n",
+    )
+    .unwrap();
+    std::fs::create_dir_all(dir.join("empty")).unwrap();
+    let found = stereo_ros::bag::recordings(&dir).unwrap().unwrap();
+    let names: Vec<_> = found
+        .iter()
+        .map(|p| p.file_name().unwrap().to_string_lossy().into_owned())
+        .collect();
+    assert_eq!(names, ["a.mcap", "b.bag", "c"]);
+    assert_eq!(stereo_ros::bag::recordings(&dir.join("c")).unwrap(), None);
+    assert_eq!(
+        stereo_ros::bag::recordings(&dir.join("a.mcap")).unwrap(),
+        None
+    );
+}

@@ -15,15 +15,62 @@ use stereo_ros::msg::{
     Type,
 };
 
-/// The topics, under the namespace, and their types, in the order [`messages`] gives them.
-pub const TOPICS: [(&str, Type); 6] = [
-    ("disparity", Type::DisparityImage),
-    ("depth/image_rect", Type::Image),
-    ("depth/image_rect_std", Type::Image),
-    ("points2", Type::PointCloud2),
-    ("left/image_rect_color", Type::Image),
-    ("left/camera_info", Type::CameraInfo),
-];
+/// The topics a depth map is published on, under the namespace.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Topic {
+    Disparity,
+    Depth,
+    DepthStd,
+    Points,
+    LeftImage,
+    LeftInfo,
+}
+
+impl Topic {
+    /// Every topic, in the order [`messages`] gives them.
+    pub const ALL: [Topic; 6] = [
+        Topic::Disparity,
+        Topic::Depth,
+        Topic::DepthStd,
+        Topic::Points,
+        Topic::LeftImage,
+        Topic::LeftInfo,
+    ];
+
+    /// Its name under the namespace (`stereo_image_proc`'s).
+    pub fn name(self) -> &'static str {
+        match self {
+            Topic::Disparity => "disparity",
+            Topic::Depth => "depth/image_rect",
+            Topic::DepthStd => "depth/image_rect_std",
+            Topic::Points => "points2",
+            Topic::LeftImage => "left/image_rect_color",
+            Topic::LeftInfo => "left/camera_info",
+        }
+    }
+
+    /// The message type published on it.
+    pub fn message_type(self) -> Type {
+        match self {
+            Topic::Disparity => Type::DisparityImage,
+            Topic::Depth | Topic::DepthStd | Topic::LeftImage => Type::Image,
+            Topic::Points => Type::PointCloud2,
+            Topic::LeftInfo => Type::CameraInfo,
+        }
+    }
+}
+
+impl From<RosOutput> for Topic {
+    /// The topic whose message a CDR answer is.
+    fn from(output: RosOutput) -> Topic {
+        match output {
+            RosOutput::Disparity => Topic::Disparity,
+            RosOutput::Depth => Topic::Depth,
+            RosOutput::DepthStd => Topic::DepthStd,
+            RosOutput::Points => Topic::Points,
+        }
+    }
+}
 
 /// A 32FC1 image of `values` scaled by `scale`.
 fn float_image(header: &Header, w: usize, h: usize, values: &[f32], scale: f64) -> Image {
@@ -58,25 +105,20 @@ pub fn file(output: DepthMapOutput, map: &DepthMap) -> Result<Vec<u8>, String> {
         stamp_ns: now,
         frame_id: "left_camera".to_owned(),
     };
-    let at = match which {
-        RosOutput::Disparity => 0,
-        RosOutput::Depth => 1,
-        RosOutput::DepthStd => 2,
-        RosOutput::Points => 3,
-    };
-    message(map, &header, Kind::Cdr, at)
+    message(map, &header, Kind::Cdr, which.into())
 }
 
-/// The map's messages on [`TOPICS`], each with `header` (the pair's stamp and the left
+/// The map's messages on [`Topic::ALL`], each with `header` (the pair's stamp and the left
 /// camera's frame), serialised as `kind`; `Err` when the map has no rig (no depths).
 pub fn messages(map: &DepthMap, header: &Header, kind: Kind) -> Result<Vec<Vec<u8>>, String> {
-    (0..TOPICS.len())
-        .map(|at| message(map, header, kind, at))
+    Topic::ALL
+        .into_iter()
+        .map(|topic| message(map, header, kind, topic))
         .collect()
 }
 
-/// The message on `TOPICS[at]`.
-fn message(map: &DepthMap, header: &Header, kind: Kind, at: usize) -> Result<Vec<u8>, String> {
+/// The message on `topic`.
+fn message(map: &DepthMap, header: &Header, kind: Kind, topic: Topic) -> Result<Vec<u8>, String> {
     let (Some(rig), Some(depth)) = (map.rig, map.depth.as_deref()) else {
         return Err("ROS messages carry depths: give the rig's calibration".to_owned());
     };
@@ -87,8 +129,8 @@ fn message(map: &DepthMap, header: &Header, kind: Kind, at: usize) -> Result<Vec
     let cx = rig.cx().unwrap_or(w as f64 / 2.0);
     let cy = rig.cy().unwrap_or(h as f64 / 2.0);
     let doffs = rig.doffs();
-    Ok(match at {
-        0 => {
+    Ok(match topic {
+        Topic::Disparity => {
             // Z = f·t/d holds for the message's d: the pair's doffs is added in.
             let shifted: Vec<f32> = d.data.iter().map(|&v| v + doffs as f32).collect();
             DisparityImage {
@@ -108,14 +150,14 @@ fn message(map: &DepthMap, header: &Header, kind: Kind, at: usize) -> Result<Vec
             }
             .encode(kind)
         }
-        1 => float_image(header, w, h, depth, metres).encode(kind),
-        2 => {
+        Topic::Depth => float_image(header, w, h, depth, metres).encode(kind),
+        Topic::DepthStd => {
             let nan = vec![f32::NAN; w * h];
             let depth_std = map.depth_std.as_deref().unwrap_or(&nan);
             float_image(header, w, h, depth_std, metres).encode(kind)
         }
-        3 => cloud(map, header, metres).encode(kind),
-        4 => {
+        Topic::Points => cloud(map, header, metres).encode(kind),
+        Topic::LeftImage => {
             let rgb = map.rgb.clone().unwrap_or_else(|| {
                 d.data
                     .iter()
@@ -133,18 +175,10 @@ fn message(map: &DepthMap, header: &Header, kind: Kind, at: usize) -> Result<Vec
             }
             .encode(kind)
         }
-        _ => CameraInfo {
-            header: header.clone(),
-            height: h as u32,
-            width: w as u32,
-            distortion_model: "plumb_bob".into(),
-            d: vec![0.0; 5],
-            k: [f, 0.0, cx, 0.0, fy, cy, 0.0, 0.0, 1.0],
-            r: [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
-            p: [f, 0.0, cx, 0.0, 0.0, fy, cy, 0.0, 0.0, 0.0, 1.0, 0.0],
-            ..CameraInfo::default()
+        Topic::LeftInfo => {
+            CameraInfo::pinhole(header.clone(), [w as u32, h as u32], [f, fy, cx, cy], 0.0)
+                .encode(kind)
         }
-        .encode(kind),
     })
 }
 

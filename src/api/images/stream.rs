@@ -157,7 +157,7 @@ impl Resolved {
         };
         let colour = outputs
             .iter()
-            .filter_map(|o| o.product())
+            .filter_map(|o| o.needs())
             .any(pipeline::Product::wants_colour);
         let depth_std = outputs.iter().any(|o| o.wants_depth_std());
         let resolved = Resolved {
@@ -507,7 +507,7 @@ impl Engine {
     /// Reserves what matching a frame of `size` holds at its peak (a side-by-side frame's
     /// halves cut out besides).
     fn reserve(&self, at: &AtSize, size: (u32, u32)) -> Result<Reservation, ApiError> {
-        let products = self.resolved.outputs.iter().filter_map(|o| o.product());
+        let products = self.resolved.outputs.iter().filter_map(|o| o.needs());
         let need = at.job.need(size, Answer::Files(products.collect()));
         let split = match self.resolved.layout {
             Layout::SideBySide => (size.0 as usize * size.1 as usize).saturating_mul(4),

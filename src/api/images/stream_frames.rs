@@ -16,7 +16,7 @@ pub fn files(
 ) -> Result<Vec<(FileAnswer, Vec<u8>)>, ApiError> {
     outputs
         .iter()
-        .filter(|o| o.product().is_some())
+        .filter(|o| o.is_file())
         .map(|&output| {
             let bytes = super::ros::file(output, map).map_err(ApiError::Internal)?;
             let file = FileAnswer {

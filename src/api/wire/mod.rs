@@ -6,7 +6,8 @@
 //! the `board` part ([`board`]),
 //! what the image routes share on the wire ([`images`]), and the OpenAPI glue ([`openapi`]).
 //! Then each endpoint's own types, one module a route (its `types`, as the route names it):
-//! [`distance`], [`table`], [`chart`], [`rig_design`], [`file_calibration`], [`depth_map`],
+//! [`distance`], [`table`], [`chart`], [`rig_design`], [`file_calibration`], [`depth_map`] (its
+//! outputs in [`depth_output`]),
 //! [`depth_stream`], [`matching`], [`rectify`], [`board_calibration`] (its summary made in
 //! [`calibration_summary`]), [`calibration_check`]. The command (`batch`) writes the same
 //! `/depth-map` answers from them.
@@ -19,6 +20,7 @@ pub mod calibration_summary;
 pub mod chart;
 pub mod de;
 pub mod depth_map;
+pub mod depth_output;
 pub mod depth_stream;
 pub mod distance;
 pub mod file_calibration;

@@ -113,7 +113,7 @@ pub async fn post_depth_map(
     if !problems.is_empty() {
         return Err(problems.into_error());
     }
-    let products = output.product().into_iter().collect();
+    let products = output.needs().into_iter().collect();
     let need = job::need(planned.need(size, Answer::Files(products)));
     let cache = state.maps.clone();
     pair.run(need, move |work| {
@@ -131,22 +131,22 @@ fn compute(work: Job, job: DepthJob, output: DepthMapOutput) -> Result<Response,
         waited: [read, queue],
     } = work;
     let started = Instant::now();
-    let colour = output.product().is_some_and(Product::wants_colour);
+    let colour = output.needs().is_some_and(Product::wants_colour);
     let (left, right) = work::decode_pair(parts, allowed, [colour, false])?;
     let decode = started.elapsed();
     let request = job.request(colour, output.wants_depth_std());
     let map = pipeline::depth_map(left, right, request, cancel).map_err(ApiError::from)?;
     let started = Instant::now();
-    let mut response = match output.product() {
-        Some(product) => {
+    let mut response = match output.is_file() {
+        true => {
             let bytes = ros::file(output, &map).map_err(ApiError::Internal)?;
-            let how = match product {
-                Product::PreviewPng => Disposition::Inline,
+            let how = match output.product() {
+                Some(Product::PreviewPng) => Disposition::Inline,
                 _ => Disposition::Attachment,
             };
             output::file(bytes, output.media_type(), output.name(), how)
         }
-        None => {
+        false => {
             let rig = job.calibrated().map(|c| CalibratedRig::from(&c.rig));
             Json(DepthMapSummary::of(&map, job.params(), rig, decode)).into_response()
         }
