@@ -29,6 +29,7 @@ mod recording;
 mod recording_bags;
 mod recording_faults;
 mod rectify;
+mod rectify_latlon;
 mod rigs;
 mod ros_answers;
 mod scale;

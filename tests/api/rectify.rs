@@ -14,8 +14,8 @@ use stereo_core::camera::{
 use crate::depth_map::{floats, image_part, npz_entries};
 use crate::helpers::{TestApp, assert_names, message_for, ok_json, problem, spawn_app};
 
-const W: u32 = 320;
-const H: u32 = 240;
+pub(crate) const W: u32 = 320;
+pub(crate) const H: u32 = 240;
 
 /// A raw pair of `model` with a right camera turned by about 1.5° and 60 mm to the right.
 fn raw_pair(model: Model) -> StereoPair {
@@ -102,14 +102,14 @@ fn extrinsics_yml(pair: &StereoPair) -> String {
 }
 
 /// A bare `stereoCalibrate` file in one text.
-fn stereo_calibrate_yml(pair: &StereoPair) -> String {
+pub(crate) fn stereo_calibrate_yml(pair: &StereoPair) -> String {
     intrinsics_yml(pair, true) + &extrinsics_yml(pair)[14..]
 }
 
 /// The rectified scene: smooth texture in rectified left coordinates, with a horizontal
 /// disparity of 8 px for the right camera (a plane), so that the truth of each rectified pixel
 /// is known exactly.
-fn scene(x: f64, y: f64) -> f64 {
+pub(crate) fn scene(x: f64, y: f64) -> f64 {
     128.0 + 60.0 * (x / 7.0).sin() * (y / 9.0).cos() + 40.0 * ((x + 1.7 * y) / 13.0).sin()
 }
 
@@ -170,7 +170,7 @@ fn rendered(model: Model) -> ([Vec<u8>; 2], String) {
 
 /// The form of a raw pair's frames `left` and `right` (grey levels) with the calibration `yml`
 /// in mm.
-fn raw_form(left: &[u8], right: &[u8], yml: &str) -> Form {
+pub(crate) fn raw_form(left: &[u8], right: &[u8], yml: &str) -> Form {
     form(
         grey_png(left),
         grey_png(right),
@@ -181,7 +181,7 @@ fn raw_form(left: &[u8], right: &[u8], yml: &str) -> Form {
     )
 }
 
-async fn rectify(app: &TestApp, query: &str, form: Form) -> reqwest::Response {
+pub(crate) async fn rectify(app: &TestApp, query: &str, form: Form) -> reqwest::Response {
     app.post_form(&format!("/rectify{query}"), form).await
 }
 

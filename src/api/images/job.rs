@@ -7,7 +7,9 @@ use super::rig;
 use super::work::Need;
 use crate::api::error::FieldErrors;
 use crate::api::wire::images::RectifyMode;
-use stereo_core::camera::Alpha;
+use crate::api::wire::rectify::ProjectionChoice;
+use stereo_core::calibration::files::Raw;
+use stereo_core::camera::{Alpha, LatlonFault, LatlonOptions};
 use stereo_core::pipeline::{self, Calibrated, DepthJob, PlanFault, Rectify, RigInput, Sent};
 use stereo_core::vision::Settings;
 
@@ -116,6 +118,56 @@ pub fn raw_rig(
         Err(fault) => {
             problems.add(field(&fault), fault.to_string());
             None
+        }
+    }
+}
+
+/// The raw rig rectified to `projection` (`/rectify`'s query); each option that does not
+/// apply to it, or that the cameras cannot be rectified with, is named.
+pub fn projected(
+    raw: Raw,
+    projection: ProjectionChoice,
+    [az_fov, el_fov, pixels_per_degree]: [Option<f64>; 3],
+    alpha: Option<f64>,
+    problems: &mut FieldErrors,
+) -> Option<Raw> {
+    let latlon_options = [
+        ("az_fov", az_fov),
+        ("el_fov", el_fov),
+        ("pixels_per_degree", pixels_per_degree),
+    ];
+    match projection {
+        ProjectionChoice::Pinhole => {
+            for (name, _) in latlon_options.iter().filter(|(_, v)| v.is_some()) {
+                problems.add(name, "applies only with projection=latlon");
+            }
+            Some(raw)
+        }
+        ProjectionChoice::Latlon => {
+            if alpha.is_some() {
+                problems.add(
+                    "alpha",
+                    "applies only with projection=pinhole (a latlon field is set by az_fov and \
+                     el_fov)",
+                );
+            }
+            let options = LatlonOptions {
+                az_fov_deg: az_fov,
+                el_fov_deg: el_fov,
+                pixels_per_degree,
+            };
+            match raw.with_latlon(options) {
+                Ok(raw) => Some(raw),
+                Err(fault) => {
+                    let field = match &fault {
+                        LatlonFault::Option(name, _) => name,
+                        LatlonFault::TooLarge(..) | LatlonFault::TooSmall => "pixels_per_degree",
+                        _ => "calibration",
+                    };
+                    problems.add(field, fault.to_string());
+                    None
+                }
+            }
         }
     }
 }

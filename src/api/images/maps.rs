@@ -27,6 +27,18 @@ pub fn key(raw: &Raw) -> u64 {
     put(r.r2.as_slice());
     put(r.p1.as_slice());
     put(r.p2.as_slice());
+    if let Some(l) = &raw.latlon {
+        put(l.r1.as_slice());
+        put(l.r2.as_slice());
+        put(&[
+            l.fx,
+            l.fy,
+            l.cx,
+            l.cy,
+            l.size.width.into(),
+            l.size.height.into(),
+        ]);
+    }
     let mut h2 = h.finish();
     for (camera, side) in [(&raw.pair.left, 1u64), (&raw.pair.right, 2)] {
         h2 ^= (camera.distortion().model() as u64 + 1) << (8 * side);

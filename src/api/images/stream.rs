@@ -484,7 +484,7 @@ impl Engine {
             return Err(problems.into_error());
         };
         let matched = planned.raw().map_or(size, |r| {
-            let s = r.rectification.size;
+            let s = r.rectified_size();
             (s.width, s.height)
         });
         let pixels = matched.0 as usize * matched.1 as usize;

@@ -12,6 +12,8 @@ pub use crate::api::wire::images::RectifyMode;
 use crate::api::wire::images::image_form;
 use crate::api::wire::openapi::{image_answers, named};
 use crate::api::wire::rig::CalibratedRig;
+use stereo_core::camera::Latlon;
+use stereo_core::physics::LengthUnit;
 use stereo_core::pipeline::rectify::Interpolation;
 
 /// What `/rectify` answers.
@@ -82,7 +84,21 @@ impl From<InterpolationChoice> for Interpolation {
     }
 }
 
-choice_members!(RectifyOutput, InterpolationChoice);
+/// The rectified images' projection.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize, Serialize, ToSchema)]
+#[serde(rename_all = "lowercase")]
+pub enum ProjectionChoice {
+    /// A pinhole plane, as `cv2.stereoRectify` (Bouguet) makes it (the default): straight
+    /// lines stay straight; it holds well up to about 100° across and never 180°.
+    #[default]
+    Pinhole,
+    /// Latitude-longitude, as mrcal's `rectified_system` makes it: columns are even steps of
+    /// azimuth along the baseline, rows even steps of elevation about it, so epipolar lines
+    /// are rows at every angle, up to 180° across: for wide and fisheye lenses.
+    Latlon,
+}
+
+choice_members!(RectifyOutput, InterpolationChoice, ProjectionChoice);
 
 request! {
     /// The options of `/rectify`, in the query string.
@@ -96,6 +112,20 @@ request! {
         alpha: f64,
         /// How pixels between the raw pixels are read. Default `linear`.
         interpolation: InterpolationChoice,
+        /// The rectified projection: `pinhole` (default) or `latlon` (wide lenses).
+        projection: ProjectionChoice,
+        /// `latlon`: the azimuth field, across the baseline, in degrees (up to 180). Default:
+        /// where both cameras see along the raw images' centre rows.
+        #[schema(exclusive_minimum = 0.0, maximum = 180.0, example = 120)]
+        az_fov: f64,
+        /// `latlon`: the elevation field in degrees (up to 180). Default: where both cameras
+        /// see along the raw images' centre columns.
+        #[schema(exclusive_minimum = 0.0, maximum = 180.0, example = 90)]
+        el_fov: f64,
+        /// `latlon`: the resolution along both axes, in pixels per degree. Default: the left
+        /// camera's at the centre of the field (mrcal's).
+        #[schema(exclusive_minimum = 0.0, example = 8)]
+        pixels_per_degree: f64,
     }
 }
 
@@ -137,10 +167,71 @@ pub struct RectifySummary {
     /// The rectified rig, for `/distance` and for `/depth-map` on the rectified images.
     pub rig: CalibratedRig,
     pub valid_fraction: ValidShare,
+    /// The rectified projection; for `latlon`, its system (the `rig` is then the pinhole
+    /// plane's, for comparison: a latlon disparity is an angle, see `latlon`).
+    pub projection: ProjectionChoice,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub latlon: Option<LatlonSystem>,
     /// Whether the maps came from the cache (a rig seen lately).
     pub maps_cached: bool,
     pub timings_ms: RectifyTimes,
     pub warnings: Vec<String>,
+}
+
+/// A latitude-longitude rectified pair, as mrcal's `rectified_system` gives it: column x
+/// is azimuth (x − cx)/fx and row y elevation (y − cy)/fy, in radians; the ray of
+/// (az, el) is (sin az, cos az·sin el, cos az·cos el) in the rectified frame, whose x runs
+/// along the baseline. A disparity d (pixels) is the angle d/fx, and the range from the left
+/// camera r = baseline·cos(az − d/fx)/sin(d/fx) (mrcal's `stereo_range`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct LatlonSystem {
+    /// The centre of the field (mrcal's `az0_deg`, `el0_deg`) and its extent, in degrees.
+    pub az0_deg: f64,
+    pub el0_deg: f64,
+    pub az_fov_deg: f64,
+    pub el_fov_deg: f64,
+    pub pixels_per_degree_az: f64,
+    pub pixels_per_degree_el: f64,
+    /// Pixels per radian, and the pixel of azimuth 0 and elevation 0.
+    pub fx: f64,
+    pub fy: f64,
+    pub cx: f64,
+    pub cy: f64,
+    /// The distance between the cameras, in `unit`.
+    pub baseline: f64,
+    pub unit: String,
+    /// The rotations from each raw camera's frame to the rectified one (row-major 3 × 3,
+    /// mrcal's `R_rect0_cam0` and `R_rect1_cam1`).
+    pub r1: [f64; 9],
+    pub r2: [f64; 9],
+}
+
+impl LatlonSystem {
+    /// The system as the summary gives it, its baseline in `unit`.
+    pub fn of(l: &Latlon, unit: LengthUnit) -> LatlonSystem {
+        let rows = |m: &nalgebra::Matrix3<f64>| {
+            let t = m.transpose();
+            let s = t.as_slice();
+            std::array::from_fn(|i| s[i])
+        };
+        LatlonSystem {
+            az0_deg: l.az0_deg,
+            el0_deg: l.el0_deg,
+            az_fov_deg: l.az_fov_deg,
+            el_fov_deg: l.el_fov_deg,
+            pixels_per_degree_az: l.fx.to_radians(),
+            pixels_per_degree_el: l.fy.to_radians(),
+            fx: l.fx,
+            fy: l.fy,
+            cx: l.cx,
+            cy: l.cy,
+            baseline: l.baseline,
+            unit: unit.symbol().to_owned(),
+            r1: rows(&l.r1),
+            r2: rows(&l.r2),
+        }
+    }
 }
 
 image_answers! {

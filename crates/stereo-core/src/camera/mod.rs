@@ -9,14 +9,17 @@
 //!   its rig, computed or as a file gives it.
 //! - [`rectify`]: `stereoRectify` (and fisheye's) computing it.
 //! - [`maps`]: `initUndistortRectifyMap`: for each rectified pixel, the raw one it comes from.
+//! - [`latlon`]: mrcal's latitude-longitude rectification, for lenses of any field.
 
 pub mod distortion;
+pub mod latlon;
 pub mod maps;
 pub mod pinhole;
 pub mod rectification;
 pub mod rectify;
 
 pub use distortion::{Distorted, Distortion, DistortionFault, Model};
+pub use latlon::{Latlon, LatlonFault, LatlonOptions};
 pub use maps::{Map, undistort_rectify_map};
 pub use pinhole::{Camera, CameraFault, Intrinsics};
 pub use rectification::{

@@ -5,7 +5,7 @@ use std::fmt;
 
 use nalgebra::{Matrix3, Vector3};
 
-use super::distortion::{Distortion, DistortionFault};
+use super::distortion::{Distortion, DistortionFault, Model};
 
 /// The pinhole intrinsics in pixels, as OpenCV's camera matrix holds them (no skew).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -101,6 +101,71 @@ impl Camera {
         Some(self.pixel_of_normalized([point.x / point.z, point.y / point.z]))
     }
 
+    /// The pixel where a ray (a direction in the camera's frame, any length) is seen. A
+    /// fisheye (`equidistant`) sees every ray but the one straight behind it, past 90° from
+    /// its axis too (θ = atan2(r, z)); the other models only rays in front of the camera.
+    pub fn pixel_of_ray(&self, ray: &Vector3<f64>) -> Option<[f64; 2]> {
+        if self.distortion.model() != Model::Equidistant {
+            return self.project(ray);
+        }
+        let r = ray.x.hypot(ray.y);
+        let theta = r.atan2(ray.z);
+        if !theta.is_finite() || theta >= std::f64::consts::PI - 1e-9 {
+            return None;
+        }
+        let scale = if r == 0.0 {
+            0.0
+        } else {
+            equidistant(self.distortion.coefficients(), theta) / r
+        };
+        let k = self.intrinsics;
+        Some([k.fx * ray.x * scale + k.cx, k.fy * ray.y * scale + k.cy])
+    }
+
+    /// The unit ray seen at a pixel ([`Camera::pixel_of_ray`]'s inverse): for a fisheye,
+    /// past 90° from its axis too. `None` where the distortion cannot be inverted: past the
+    /// fold of a lens model whose distortion turns back (a rational or Brown model whose
+    /// mapping stops rising, a fisheye whose θ_d(θ) does), where a pixel has two rays or none.
+    pub fn ray_of_pixel(&self, pixel: [f64; 2]) -> Option<Vector3<f64>> {
+        let k = self.intrinsics;
+        let (x, y) = ((pixel[0] - k.cx) / k.fx, (pixel[1] - k.cy) / k.fy);
+        if self.distortion.model() != Model::Equidistant {
+            let [x, y] = self.normalize(pixel)?;
+            let [[a, b], [c, d]] = self.distortion.distort_with_derivatives([x, y]).by_point;
+            if a * d - b * c <= 0.0 {
+                return None;
+            }
+            return Some(Vector3::new(x, y, 1.0).normalize());
+        }
+        let theta_d = x.hypot(y);
+        if theta_d < 1e-15 {
+            return Some(Vector3::z());
+        }
+        let c = self.distortion.coefficients();
+        // Newton on θ_d(θ) = θ(1 + k1θ² + k2θ⁴ + k3θ⁶ + k4θ⁸), from θ = θ_d.
+        let mut theta = theta_d;
+        for _ in 0..50 {
+            let (value, slope) = (equidistant(c, theta), equidistant_slope(c, theta));
+            if slope <= 0.0 || !slope.is_finite() {
+                return None;
+            }
+            let step = (value - theta_d) / slope;
+            theta -= step;
+            if step.abs() < 1e-14 {
+                break;
+            }
+        }
+        let converged = (equidistant(c, theta) - theta_d).abs() < 1e-9
+            && theta > 0.0
+            && theta < std::f64::consts::PI
+            && equidistant_slope(c, theta) > 0.0;
+        if !converged {
+            return None;
+        }
+        let (sin, cos) = theta.sin_cos();
+        Some(Vector3::new(sin * x / theta_d, sin * y / theta_d, cos))
+    }
+
     /// The ideal normalized point (X/Z, Y/Z) seen at a pixel, or `None` where the distortion
     /// cannot be inverted.
     pub fn normalize(&self, pixel: [f64; 2]) -> Option<[f64; 2]> {
@@ -133,6 +198,18 @@ impl Camera {
         let p = new_matrix * (ray / ray.z);
         Some([p.x, p.y])
     }
+}
+
+/// The fisheye's θ_d for an angle θ from the axis: θ(1 + k1θ² + k2θ⁴ + k3θ⁶ + k4θ⁸).
+fn equidistant(c: &[f64], theta: f64) -> f64 {
+    let t2 = theta * theta;
+    theta * (1.0 + t2 * (c[0] + t2 * (c[1] + t2 * (c[2] + t2 * c[3]))))
+}
+
+/// dθ_d/dθ.
+fn equidistant_slope(c: &[f64], theta: f64) -> f64 {
+    let t2 = theta * theta;
+    1.0 + t2 * (3.0 * c[0] + t2 * (5.0 * c[1] + t2 * (7.0 * c[2] + t2 * 9.0 * c[3])))
 }
 
 #[cfg(test)]

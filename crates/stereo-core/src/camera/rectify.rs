@@ -207,6 +207,11 @@ pub fn stereo_rectify(
     ))
 }
 
+/// The widest angle from the rectified axis a fisheye's pinhole rectification reaches: the
+/// middles of the image's sides beyond it are taken at it (lenses up to 160° across are
+/// rectified as OpenCV does; latitude-longitude holds the wider ones, [`super::latlon`]).
+pub const PINHOLE_MAX_ANGLE_DEG: f64 = 80.0;
+
 /// The new camera matrix (fx, fy, cx, cy) of one fisheye camera as OpenCV's
 /// `fisheye::estimateNewCameraMatrixForUndistortRectify` makes it (`fov_scale` 1): the
 /// middles of the image's sides undistorted and rotated, and a focal length between the one
@@ -232,7 +237,16 @@ fn fisheye_new_matrix(
         *p = match camera.normalize_as_opencv(*p) {
             Some([x, y]) => {
                 let r = rotation * Vector3::new(x, y, 1.0);
-                [r.x / r.z, r.y / r.z]
+                let (across, limit) = (r.x.hypot(r.y), PINHOLE_MAX_ANGLE_DEG.to_radians().tan());
+                if r.z <= 0.0 || across > limit * r.z {
+                    // A lens that sees this far off the axis (a 180° fisheye) would put the
+                    // point at infinity on the plane, and the new matrix with it (OpenCV's
+                    // own gives a principal point thousands of pixels outside the image): the
+                    // point is taken at the widest angle a pinhole plane holds, along its ray.
+                    [r.x * limit / across, r.y * limit / across]
+                } else {
+                    [r.x / r.z, r.y / r.z]
+                }
             }
             None => [-1e6, -1e6],
         };

@@ -119,6 +119,7 @@ impl Calibrated {
         self.raw = Some(Box::new(Raw {
             rectification,
             computed: true,
+            latlon: None,
             ..raw.clone()
         }));
         self.rig = rig;

@@ -136,7 +136,7 @@ impl DepthJob {
     pub fn need(&self, (width, height): (u32, u32), answer: Answer) -> Need {
         let (size, rectifying) = match self.raw() {
             Some(raw) => {
-                let s = raw.rectification.size;
+                let s = raw.rectified_size();
                 ((s.width as usize, s.height as usize), rectifying_bytes(raw))
             }
             None => ((width as usize, height as usize), 0),

@@ -19,8 +19,12 @@ pub struct Maps {
     pub right: Fixed,
 }
 
-/// Both cameras' float maps, as `initUndistortRectifyMap` makes them.
+/// Both cameras' float maps, as `initUndistortRectifyMap` makes them (or mrcal's
+/// `rectification_maps`, for latitude-longitude).
 pub fn float_maps(raw: &Raw) -> (Map, Map) {
+    if let Some(latlon) = &raw.latlon {
+        return latlon.maps(&raw.pair);
+    }
     let r = &raw.rectification;
     let k = |p: &nalgebra::Matrix3x4<f64>| p.fixed_view::<3, 3>(0, 0).into_owned();
     rayon::join(
@@ -45,7 +49,7 @@ impl Maps {
     /// The most bytes building the maps of `raw` holds at once (both float maps and their
     /// fixed-point forms).
     pub fn bytes_for(raw: &Raw) -> usize {
-        let s = raw.rectification.size;
+        let s = raw.rectified_size();
         (s.width as usize) * (s.height as usize) * 28
     }
 

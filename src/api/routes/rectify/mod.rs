@@ -11,8 +11,8 @@ use axum::response::{IntoResponse, Response};
 use utoipa_axum::{router::OpenApiRouter, routes};
 
 use self::types::{
-    RectifyAnswers, RectifyForm, RectifyOutput, RectifyQuery, RectifySummary, RectifyTimes,
-    ValidShare,
+    LatlonSystem, ProjectionChoice, RectifyAnswers, RectifyForm, RectifyOutput, RectifyQuery,
+    RectifySummary, RectifyTimes, ValidShare,
 };
 use crate::api::error::ApiError;
 use crate::api::extract::QueryParams;
@@ -78,11 +78,14 @@ pub async fn post_rectify(
     let (Some(_), Some(given)) = (pair.size, given) else {
         return Err(problems.into_error());
     };
-    if !problems.is_empty() {
-        return Err(problems.into_error());
-    }
     let raw = given.raw.clone().expect("checked by raw_rig");
-    let rect = raw.rectification.size;
+    let latlon = [query.az_fov, query.el_fov, query.pixels_per_degree];
+    let projection = query.projection.unwrap_or_default();
+    let raw = job::projected(*raw, projection, latlon, query.alpha, &mut problems);
+    let Some(raw) = raw.filter(|_| problems.is_empty()) else {
+        return Err(problems.into_error());
+    };
+    let rect = raw.rectified_size();
     let (rw, rh) = (rect.width as usize, rect.height as usize);
     // The decoded pair, the maps while they are built, both remapped images in colour and
     // grey, and the PNG being written.
@@ -184,6 +187,14 @@ fn summary(
             left: share_left,
             right: share_right,
         },
+        projection: match raw.latlon {
+            Some(_) => ProjectionChoice::Latlon,
+            None => ProjectionChoice::Pinhole,
+        },
+        latlon: raw
+            .latlon
+            .as_ref()
+            .map(|l| LatlonSystem::of(l, given.file_unit)),
         maps_cached: cached,
         timings_ms: RectifyTimes {
             decode: ms(decode),

@@ -9,8 +9,8 @@ use nalgebra::{Matrix3, Matrix3x4, Rotation3, Vector3};
 
 use super::{Calibration, Format, ParseError};
 use crate::camera::{
-    Camera, CameraFault, Distortion, GivenFault, Intrinsics, Model, Rectification, RectifyFault,
-    RectifyOptions, Size, StereoPair, stereo_rectify,
+    Camera, CameraFault, Distortion, GivenFault, Intrinsics, Latlon, LatlonFault, LatlonOptions,
+    Model, Rectification, RectifyFault, RectifyOptions, Size, StereoPair, stereo_rectify,
 };
 use crate::numbers::Num;
 
@@ -33,6 +33,9 @@ pub struct Raw {
     /// Whether the rectification was computed here (`stereoRectify` with the caller's
     /// `alpha`) rather than read from the file.
     pub computed: bool,
+    /// When the frames are rectified to latitude-longitude (mrcal's) instead of the pinhole
+    /// plane of `rectification`: the rectified system.
+    pub latlon: Option<Latlon>,
 }
 
 impl Raw {
@@ -46,9 +49,25 @@ impl Raw {
                 && (p.fixed_view::<3, 3>(0, 0) - camera.matrix()).abs().max() < 1e-9 * k.fx
         };
         let r = &self.rectification;
-        self.size == r.size
+        self.latlon.is_none()
+            && self.size == r.size
             && same(&self.pair.left, &r.r1, &r.p1)
             && same(&self.pair.right, &r.r2, &r.p2)
+    }
+
+    /// The rectified images' size: the latitude-longitude system's, or the pinhole plane's.
+    pub fn rectified_size(&self) -> Size {
+        self.latlon.map_or(self.rectification.size, |l| l.size)
+    }
+
+    /// The same cameras rectified to latitude-longitude, the field and resolution chosen
+    /// as [`Latlon::new`] chooses them where `options` leave them out.
+    pub fn with_latlon(self, options: LatlonOptions) -> Result<Raw, LatlonFault> {
+        let latlon = Latlon::new(&self.pair, self.size, options)?;
+        Ok(Raw {
+            latlon: Some(latlon),
+            ..self
+        })
     }
 }
 
@@ -313,6 +332,7 @@ pub fn pair(parts: RawParts, alpha: Option<Alpha>) -> Result<Raw, ParseError> {
             size,
             rectification,
             computed: false,
+            latlon: None,
         }),
         (_, alpha) => {
             let options = RectifyOptions {
@@ -326,6 +346,7 @@ pub fn pair(parts: RawParts, alpha: Option<Alpha>) -> Result<Raw, ParseError> {
                 size,
                 rectification,
                 computed: true,
+                latlon: None,
             })
         }
     }

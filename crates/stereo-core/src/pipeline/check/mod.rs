@@ -411,6 +411,7 @@ fn corrected(raw: &Raw, drift: &Drift) -> Result<Raw, Fault> {
         size: raw.size,
         rectification,
         computed: true,
+        latlon: None,
     })
 }
 
@@ -438,6 +439,7 @@ mod tests {
             size: SIZE,
             rectification,
             computed: true,
+            latlon: None,
         }));
         c
     }
