@@ -249,6 +249,7 @@ impl Engine {
         let asked = job::Asked {
             rectify: None,
             alpha: None,
+            latlon: None,
             settings: self.settings,
             prefix: "",
         };

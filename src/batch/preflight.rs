@@ -62,6 +62,7 @@ pub fn check(args: &DepthMapArgs, output: &str, rig: Option<&Rig>) -> Result<Rig
     let asked = job::Asked {
         rectify: None,
         alpha: None,
+        latlon: None,
         settings: settings(args),
         prefix: "",
     };

@@ -398,7 +398,8 @@ async fn the_depth_map_parameters_state_the_engines_defaults() {
     assert_eq!(default("preset"), json!("accurate"));
     assert_eq!(default("output"), json!("summary"));
     assert_eq!(default("rectify"), json!("auto"));
-    assert_eq!(parameters.len(), 19);
+    assert_eq!(default("projection"), json!("pinhole"));
+    assert_eq!(parameters.len(), 23);
     let without: Vec<&str> = parameters
         .iter()
         .filter(|p| p["schema"]["default"].is_null())
@@ -406,6 +407,14 @@ async fn the_depth_map_parameters_state_the_engines_defaults() {
         .collect();
     assert_eq!(
         without,
-        ["min_disparity", "max_disparity", "paths", "alpha"]
+        [
+            "min_disparity",
+            "max_disparity",
+            "paths",
+            "alpha",
+            "az_fov",
+            "el_fov",
+            "pixels_per_degree"
+        ]
     );
 }

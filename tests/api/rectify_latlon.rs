@@ -259,3 +259,85 @@ async fn latlon_options_are_named() {
         assert!(message.contains(says), "{query}: {message}");
     }
 }
+
+/// `/depth-map?projection=latlon` on the rendered 180° pair: the map is the latlon system's
+/// size, says `projection: latlon` with the system, its disparities are the scene's 6 px,
+/// and `depth.npy` is each pixel's range from mrcal's formula, B·cos(az − d/fx)/sin(d/fx),
+/// times cos(az)·cos(el), within 0.5 % over the middle of the field.
+#[tokio::test]
+async fn depth_map_in_latlon() {
+    let app = spawn_app().await;
+    let pair = fisheye_180();
+    let system = Latlon::new(&pair, SIZE, LatlonOptions::default()).unwrap();
+    let [left, right] = render(&pair, &system);
+    let yml = stereo_calibrate_yml(&pair);
+    let form = || raw_form(&left, &right, &yml);
+    let post = |query: &'static str| app.post_form(query, form());
+    let summary = ok_json(post("/depth-map?projection=latlon&max_disparity=32").await).await;
+    assert_eq!(summary["projection"], "latlon");
+    assert_eq!(summary["rectified"], true);
+    assert_eq!(summary["width"].as_u64(), Some(system.size.width.into()));
+    assert!((summary["latlon"]["fx"].as_f64().unwrap() / system.fx - 1.0).abs() < 1e-6);
+    let median = summary["disparity_px"]["median"].as_f64().unwrap();
+    assert!((median - DISPARITY).abs() < 0.1, "{summary}");
+
+    let npy = post("/depth-map?projection=latlon&max_disparity=32&output=depth.npy").await;
+    assert_eq!(npy.status(), 200);
+    let bytes = npy.bytes().await.unwrap();
+    let header_end = 10 + usize::from(u16::from_le_bytes([bytes[8], bytes[9]]));
+    let depth = floats(&bytes[header_end..]);
+    let (w, h) = (system.size.width as usize, system.size.height as usize);
+    assert_eq!(depth.len(), w * h);
+    let (mut checked, mut off) = (0, Vec::new());
+    for y in (h / 4..3 * h / 4).step_by(7) {
+        for x in (w / 4..3 * w / 4).step_by(7) {
+            let z = f64::from(depth[y * w + x]);
+            if z.is_nan() {
+                continue;
+            }
+            let az = (x as f64 - system.cx) / system.fx;
+            let el = (y as f64 - system.cy) / system.fy;
+            let angle = DISPARITY / system.fx;
+            let range = system.baseline * (az - angle).cos() / angle.sin();
+            off.push((z / (range * az.cos() * el.cos()) - 1.0).abs());
+            checked += 1;
+        }
+    }
+    off.sort_by(f64::total_cmp);
+    assert!(checked > 200, "{checked}");
+    assert!(off[off.len() / 2] < 0.005, "median {}", off[off.len() / 2]);
+}
+
+/// What latlon cannot do with `/depth-map` is named: the ROS messages (a pinhole
+/// rectification's), a pair matched as sent, `alpha` beside it, its options without it.
+#[tokio::test]
+async fn depth_map_latlon_refusals_are_named() {
+    let app = spawn_app().await;
+    let pair = fisheye_180();
+    let yml = stereo_calibrate_yml(&pair);
+    let grey = vec![128u8; (W * H) as usize];
+    for (query, field, says) in [
+        (
+            "?projection=latlon&output=depth.cdr",
+            "output",
+            "pinhole rectification",
+        ),
+        (
+            "?projection=latlon&rectify=no",
+            "projection",
+            "rectified here",
+        ),
+        ("?projection=latlon&alpha=0", "alpha", "projection=pinhole"),
+        ("?el_fov=90", "el_fov", "projection=latlon"),
+    ] {
+        let body = problem(
+            app.post_form(&format!("/depth-map{query}"), raw_form(&grey, &grey, &yml))
+                .await,
+            422,
+        )
+        .await;
+        assert_names(&body, &[field]);
+        let message = message_for(&body, field);
+        assert!(message.contains(says), "{query}: {message}");
+    }
+}

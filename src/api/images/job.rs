@@ -33,6 +33,9 @@ fn field(fault: &PlanFault) -> &'static str {
         | PlanFault::NotRaw
         | PlanFault::CannotRectify(_)
         | PlanFault::Vertical => "calibration",
+        PlanFault::LatlonUnused => "projection",
+        PlanFault::AlphaWithLatlon => "alpha",
+        PlanFault::Latlon(fault) => latlon_field(fault),
     }
 }
 
@@ -42,6 +45,8 @@ fn field(fault: &PlanFault) -> &'static str {
 pub struct Asked<'a> {
     pub rectify: Option<RectifyMode>,
     pub alpha: Option<f64>,
+    /// Rectify to latitude-longitude with these options (`None`: the pinhole plane).
+    pub latlon: Option<LatlonOptions>,
     pub settings: Settings,
     pub prefix: &'a str,
 }
@@ -58,6 +63,7 @@ pub fn plan(
     let rectify = Rectify {
         mode: asked.rectify.unwrap_or_default().into(),
         alpha: problems.alpha(asked.alpha),
+        latlon: asked.latlon,
     };
     match DepthJob::plan(given, sent, size, rectify, asked.settings) {
         Ok(job) => Some(job),
@@ -122,52 +128,66 @@ pub fn raw_rig(
     }
 }
 
-/// The raw rig rectified to `projection` (`/rectify`'s query); each option that does not
-/// apply to it, or that the cameras cannot be rectified with, is named.
+/// Why a ROS message is not answered for a latitude-longitude map.
+pub const ROS_NOT_LATLON: &str = "ROS messages (DisparityImage, depth images, PointCloud2) \
+     describe a pinhole rectification; with projection=latlon ask for depth.npy, arrays.npz \
+     or points.ply";
+
+/// The latitude-longitude options a query asks for: `Some` with `projection=latlon`; with
+/// the pinhole plane `None`, and each latlon option given is named.
+pub fn latlon_options(
+    projection: Option<ProjectionChoice>,
+    [az_fov, el_fov, pixels_per_degree]: [Option<f64>; 3],
+    problems: &mut FieldErrors,
+) -> Option<LatlonOptions> {
+    match projection.unwrap_or_default() {
+        ProjectionChoice::Pinhole => {
+            let given = [
+                ("az_fov", az_fov),
+                ("el_fov", el_fov),
+                ("pixels_per_degree", pixels_per_degree),
+            ];
+            for (name, _) in given.iter().filter(|(_, v)| v.is_some()) {
+                problems.add(name, "applies only with projection=latlon");
+            }
+            None
+        }
+        ProjectionChoice::Latlon => Some(LatlonOptions {
+            az_fov_deg: az_fov,
+            el_fov_deg: el_fov,
+            pixels_per_degree,
+        }),
+    }
+}
+
+/// The raw rig rectified to `latlon` (`/rectify`'s query), or kept on the pinhole plane;
+/// `alpha` with latlon, and what the cameras cannot be rectified with, are named.
 pub fn projected(
     raw: Raw,
-    projection: ProjectionChoice,
-    [az_fov, el_fov, pixels_per_degree]: [Option<f64>; 3],
+    latlon: Option<LatlonOptions>,
     alpha: Option<f64>,
     problems: &mut FieldErrors,
 ) -> Option<Raw> {
-    let latlon_options = [
-        ("az_fov", az_fov),
-        ("el_fov", el_fov),
-        ("pixels_per_degree", pixels_per_degree),
-    ];
-    match projection {
-        ProjectionChoice::Pinhole => {
-            for (name, _) in latlon_options.iter().filter(|(_, v)| v.is_some()) {
-                problems.add(name, "applies only with projection=latlon");
-            }
-            Some(raw)
+    let Some(options) = latlon else {
+        return Some(raw);
+    };
+    if alpha.is_some() {
+        problems.add("alpha", PlanFault::AlphaWithLatlon.to_string());
+    }
+    match raw.with_latlon(options) {
+        Ok(raw) => Some(raw),
+        Err(fault) => {
+            problems.add(latlon_field(&fault), fault.to_string());
+            None
         }
-        ProjectionChoice::Latlon => {
-            if alpha.is_some() {
-                problems.add(
-                    "alpha",
-                    "applies only with projection=pinhole (a latlon field is set by az_fov and \
-                     el_fov)",
-                );
-            }
-            let options = LatlonOptions {
-                az_fov_deg: az_fov,
-                el_fov_deg: el_fov,
-                pixels_per_degree,
-            };
-            match raw.with_latlon(options) {
-                Ok(raw) => Some(raw),
-                Err(fault) => {
-                    let field = match &fault {
-                        LatlonFault::Option(name, _) => name,
-                        LatlonFault::TooLarge(..) | LatlonFault::TooSmall => "pixels_per_degree",
-                        _ => "calibration",
-                    };
-                    problems.add(field, fault.to_string());
-                    None
-                }
-            }
-        }
+    }
+}
+
+/// The option a latitude-longitude refusal is about.
+fn latlon_field(fault: &LatlonFault) -> &'static str {
+    match fault {
+        LatlonFault::Option(name, _) => name,
+        LatlonFault::TooLarge(..) | LatlonFault::TooSmall => "pixels_per_degree",
+        _ => "calibration",
     }
 }

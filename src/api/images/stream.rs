@@ -184,6 +184,7 @@ fn asked_of(
     job::Asked {
         rectify,
         alpha,
+        latlon: None,
         settings,
         prefix: "options.",
     }

@@ -11,7 +11,7 @@ use crate::api::wire::de::{choice_members, request};
 pub use crate::api::wire::depth_output::{CDR, DepthMapOutput, RosOutput};
 use crate::api::wire::images::FileBody;
 use crate::api::wire::images::image_form;
-pub use crate::api::wire::images::{RectifyMode, StageTimes};
+pub use crate::api::wire::images::{LatlonSystem, ProjectionChoice, RectifyMode, StageTimes};
 use crate::api::wire::openapi::{image_answers, named};
 use crate::api::wire::rig::CalibratedRig;
 use stereo_core::pipeline::{self, DepthMap};
@@ -185,12 +185,31 @@ request! {
         /// (0 only valid pixels, 1 every raw pixel). Default: the file's own, or 0.
         #[schema(minimum = 0.0, maximum = 1.0)]
         alpha: f64,
+        /// With rectification: the rectified projection, `pinhole` (default) or `latlon`
+        /// (wide and fisheye lenses, as `/rectify`'s; the map is then in azimuth and
+        /// elevation, the depths along the rectified axis).
+        #[schema(inline, default = "pinhole")]
+        projection: ProjectionChoice,
+        /// `latlon`: the azimuth field in degrees (up to 180). Default: all both cameras see.
+        #[schema(exclusive_minimum = 0.0, maximum = 180.0)]
+        az_fov: f64,
+        /// `latlon`: the elevation field in degrees (up to 180). Default: all both see.
+        #[schema(exclusive_minimum = 0.0, maximum = 180.0)]
+        el_fov: f64,
+        /// `latlon`: pixels per degree. Default: the left camera's at the field's centre.
+        #[schema(exclusive_minimum = 0.0)]
+        pixels_per_degree: f64,
     }
 }
 
 impl QueryForm for DepthMapQuery {}
 
 impl DepthMapQuery {
+    /// The latitude-longitude options, as given: az_fov, el_fov, pixels_per_degree.
+    pub fn latlon(&self) -> [Option<f64>; 3] {
+        [self.az_fov, self.el_fov, self.pixels_per_degree]
+    }
+
     /// The matcher's settings the query asks for.
     pub fn settings(&self) -> Settings {
         Settings {
@@ -309,6 +328,15 @@ impl DepthMapSummary {
                 rectify: map.rectify.map(ms),
             },
             rectified: map.rectify.is_some(),
+            projection: match map.latlon {
+                Some(_) => ProjectionChoice::Latlon,
+                None => ProjectionChoice::Pinhole,
+            },
+            latlon: map
+                .latlon
+                .as_ref()
+                .zip(map.rig)
+                .map(|(l, r)| LatlonSystem::of(l, r.unit())),
             warnings: map.said(),
         }
     }
@@ -417,6 +445,12 @@ pub struct DepthMapSummary {
     /// Whether the raw pair was rectified here first; the maps and the size are then the
     /// rectified left camera's.
     pub rectified: bool,
+    /// The rectified projection the map is in; for `latlon`, its system (its columns are
+    /// azimuth and rows elevation; `rig` is then the latlon pair's at its centre column).
+    pub projection: ProjectionChoice,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub latlon: Option<LatlonSystem>,
     /// Things to know about the answer (such as a calibration option that did not apply).
     pub warnings: Vec<String>,
 }

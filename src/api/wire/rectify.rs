@@ -8,12 +8,10 @@ use crate::api::extract::QueryForm;
 use crate::api::wire::calibration::RawCameras;
 use crate::api::wire::de::{choice_members, request};
 use crate::api::wire::images::FileBody;
-pub use crate::api::wire::images::RectifyMode;
 use crate::api::wire::images::image_form;
+pub use crate::api::wire::images::{LatlonSystem, ProjectionChoice, RectifyMode};
 use crate::api::wire::openapi::{image_answers, named};
 use crate::api::wire::rig::CalibratedRig;
-use stereo_core::camera::Latlon;
-use stereo_core::physics::LengthUnit;
 use stereo_core::pipeline::rectify::Interpolation;
 
 /// What `/rectify` answers.
@@ -84,21 +82,7 @@ impl From<InterpolationChoice> for Interpolation {
     }
 }
 
-/// The rectified images' projection.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize, Serialize, ToSchema)]
-#[serde(rename_all = "lowercase")]
-pub enum ProjectionChoice {
-    /// A pinhole plane, as `cv2.stereoRectify` (Bouguet) makes it (the default): straight
-    /// lines stay straight; it holds well up to about 100° across and never 180°.
-    #[default]
-    Pinhole,
-    /// Latitude-longitude, as mrcal's `rectified_system` makes it: columns are even steps of
-    /// azimuth along the baseline, rows even steps of elevation about it, so epipolar lines
-    /// are rows at every angle, up to 180° across: for wide and fisheye lenses.
-    Latlon,
-}
-
-choice_members!(RectifyOutput, InterpolationChoice, ProjectionChoice);
+choice_members!(RectifyOutput, InterpolationChoice);
 
 request! {
     /// The options of `/rectify`, in the query string.
@@ -177,61 +161,6 @@ pub struct RectifySummary {
     pub maps_cached: bool,
     pub timings_ms: RectifyTimes,
     pub warnings: Vec<String>,
-}
-
-/// A latitude-longitude rectified pair, as mrcal's `rectified_system` gives it: column x
-/// is azimuth (x − cx)/fx and row y elevation (y − cy)/fy, in radians; the ray of
-/// (az, el) is (sin az, cos az·sin el, cos az·cos el) in the rectified frame, whose x runs
-/// along the baseline. A disparity d (pixels) is the angle d/fx, and the range from the left
-/// camera r = baseline·cos(az − d/fx)/sin(d/fx) (mrcal's `stereo_range`).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
-pub struct LatlonSystem {
-    /// The centre of the field (mrcal's `az0_deg`, `el0_deg`) and its extent, in degrees.
-    pub az0_deg: f64,
-    pub el0_deg: f64,
-    pub az_fov_deg: f64,
-    pub el_fov_deg: f64,
-    pub pixels_per_degree_az: f64,
-    pub pixels_per_degree_el: f64,
-    /// Pixels per radian, and the pixel of azimuth 0 and elevation 0.
-    pub fx: f64,
-    pub fy: f64,
-    pub cx: f64,
-    pub cy: f64,
-    /// The distance between the cameras, in `unit`.
-    pub baseline: f64,
-    pub unit: String,
-    /// The rotations from each raw camera's frame to the rectified one (row-major 3 × 3,
-    /// mrcal's `R_rect0_cam0` and `R_rect1_cam1`).
-    pub r1: [f64; 9],
-    pub r2: [f64; 9],
-}
-
-impl LatlonSystem {
-    /// The system as the summary gives it, its baseline in `unit`.
-    pub fn of(l: &Latlon, unit: LengthUnit) -> LatlonSystem {
-        let rows = |m: &nalgebra::Matrix3<f64>| {
-            let t = m.transpose();
-            let s = t.as_slice();
-            std::array::from_fn(|i| s[i])
-        };
-        LatlonSystem {
-            az0_deg: l.az0_deg,
-            el0_deg: l.el0_deg,
-            az_fov_deg: l.az_fov_deg,
-            el_fov_deg: l.el_fov_deg,
-            pixels_per_degree_az: l.fx.to_radians(),
-            pixels_per_degree_el: l.fy.to_radians(),
-            fx: l.fx,
-            fy: l.fy,
-            cx: l.cx,
-            cy: l.cy,
-            baseline: l.baseline,
-            unit: unit.symbol().to_owned(),
-            r1: rows(&l.r1),
-            r2: rows(&l.r2),
-        }
-    }
 }
 
 image_answers! {

@@ -6,8 +6,8 @@
 use std::fmt;
 
 use crate::calibration::files::{Raw, Read};
-use crate::camera::{Alpha, RectifyOptions, stereo_rectify};
-use crate::physics::{Fault as RigFault, Implausible, LengthUnit, Rig};
+use crate::camera::{Alpha, LatlonFault, LatlonOptions, RectifyOptions, stereo_rectify};
+use crate::physics::{Fault as RigFault, Implausible, LengthUnit, Rig, RigSpec};
 
 /// A rig with what its calibration file adds: the rig of the images (the rectified rig, for a
 /// file of raw cameras), the file's disparity range and warnings, and the raw cameras.
@@ -127,6 +127,44 @@ impl Calibrated {
     }
 }
 
+impl Calibrated {
+    /// The same raw rig rectified to latitude-longitude ([`crate::camera::Latlon`]), the field
+    /// and resolution chosen where `options` leave them out. Its `rig` is the pinhole rig the
+    /// latlon pair is at its centre column (f = pixels per radian, the baseline, the pixel of
+    /// azimuth 0): what the range chosen from the pair and the refusals of a short range
+    /// reason with; the depths themselves are the latlon system's ([`super::depth`]).
+    pub fn with_latlon(mut self, options: LatlonOptions) -> Result<Self, PlanFault> {
+        let Some(raw) = self.raw.as_deref() else {
+            return Err(PlanFault::NotRaw);
+        };
+        let raw = raw
+            .clone()
+            .with_latlon(options)
+            .map_err(PlanFault::Latlon)?;
+        let l = raw.latlon.expect("just made");
+        let mut spec = RigSpec::pixels(l.fx, l.baseline, self.file_unit);
+        // The calibration's σ, as shares of f and B, carry over.
+        spec.focal_std_px = Some(self.rig.focal_std_px() / self.rig.focal_px() * l.fx);
+        spec.baseline_std = Some(self.rig.baseline_std());
+        spec.cx = Some(l.cx);
+        spec.cy = Some(l.cy);
+        spec.camera.image_width = Some(l.size.width);
+        spec.camera.image_height = Some(l.size.height);
+        self.rig = Rig::new(&spec).map_err(|faults| {
+            let said: Vec<String> = faults
+                .iter()
+                .map(|f| format!("{}: {}", f.member.name(), f.message))
+                .collect();
+            PlanFault::CannotRectify(format!(
+                "its latitude-longitude field has no rig at its centre ({})",
+                said.join("; ")
+            ))
+        })?;
+        self.raw = Some(Box::new(raw));
+        Ok(self)
+    }
+}
+
 /// Whether a pair is rectified before it is matched.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum RectifyMode {
@@ -167,6 +205,12 @@ pub enum PlanFault {
     CannotRectify(String),
     /// The rectified cameras are one above the other.
     Vertical,
+    /// `projection=latlon` was asked but the pair is matched as sent.
+    LatlonUnused,
+    /// `alpha` was given with `projection=latlon` (it sets the pinhole plane's field).
+    AlphaWithLatlon,
+    /// The cameras cannot be rectified to latitude-longitude as asked.
+    Latlon(LatlonFault),
 }
 
 /// What a calibration that cannot rectify lacks.
@@ -201,6 +245,15 @@ impl fmt::Display for PlanFault {
                  the cameras deliver, at the calibrated size"
             ),
             PlanFault::CannotRectify(why) => write!(f, "cannot be rectified: {why}"),
+            PlanFault::LatlonUnused => f.write_str(
+                "latlon applies only when the pair is rectified here (rectify=yes, or auto with \
+                 a calibration of raw cameras and frames of their size)",
+            ),
+            PlanFault::AlphaWithLatlon => f.write_str(
+                "applies only with projection=pinhole (a latlon field is set by az_fov and \
+                 el_fov)",
+            ),
+            PlanFault::Latlon(fault) => fault.fmt(f),
             PlanFault::Vertical => f.write_str(
                 "the rectified cameras are one above the other (vertical stereo); this service \
                  measures horizontal disparities",
@@ -243,15 +296,16 @@ pub fn raw_rig(
     }
 }
 
-/// Whether a pair of `size` is rectified before matching (`mode`, with `alpha`): the raw rig
-/// to rectify with (whose `rig` is then the rectified rig, `alpha` applied), or `None` to
-/// match the pair as sent.
+/// Whether a pair of `size` is rectified before matching (`mode`, with `alpha`, or to
+/// latitude-longitude with `latlon`'s options): the raw rig to rectify with (whose `rig` is
+/// then the rectified rig, `alpha` applied), or `None` to match the pair as sent.
 pub fn plan(
     calibrated: Option<&Calibrated>,
     sent: Sent,
     size: Option<(u32, u32)>,
     mode: RectifyMode,
     alpha: Option<Alpha>,
+    latlon: Option<LatlonOptions>,
 ) -> Result<Option<Calibrated>, PlanFault> {
     let wanted = match mode {
         RectifyMode::No => false,
@@ -259,10 +313,17 @@ pub fn plan(
         RectifyMode::Auto => calibrated.is_some_and(|c| c.takes_raw_frames(size)),
     };
     if !wanted {
-        return match alpha {
-            Some(_) => Err(PlanFault::AlphaUnused),
-            None => Ok(None),
+        return match (alpha, latlon) {
+            (Some(_), _) => Err(PlanFault::AlphaUnused),
+            (None, Some(_)) => Err(PlanFault::LatlonUnused),
+            (None, None) => Ok(None),
         };
     }
-    raw_rig(calibrated, sent, size, alpha)
+    if alpha.is_some() && latlon.is_some() {
+        return Err(PlanFault::AlphaWithLatlon);
+    }
+    match (raw_rig(calibrated, sent, size, alpha)?, latlon) {
+        (Some(raw), Some(options)) => raw.with_latlon(options).map(Some),
+        (raw, _) => Ok(raw),
+    }
 }

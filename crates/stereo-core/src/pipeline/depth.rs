@@ -7,8 +7,11 @@ use std::sync::atomic::AtomicBool;
 use std::time::{Duration, Instant};
 
 use super::calibrated::Calibrated;
+use super::latlon::along_axis;
+pub use super::latlon::{latlon_depth_stds, latlon_depths};
 use super::range::{self, RangeUsed, Ranged, Stopped};
 use super::rectify::Maps;
+use crate::camera::Latlon;
 use crate::physics::{LengthUnit, Rig};
 use crate::vision::decode::Decoded;
 use crate::vision::rows::{self, RowOffsets};
@@ -48,7 +51,11 @@ pub struct DepthMap {
     pub disparity: Disparity,
     /// The rig the depths use (the rectified rig, for a raw pair).
     pub rig: Option<Rig>,
-    /// Z = f·B / (d + doffs) in the rig's unit, NaN where the disparity is invalid.
+    /// The latitude-longitude system the pair was rectified to, when it was: then the map's
+    /// pixels are azimuth and elevation, and the depths and points are its ([`super::latlon`]).
+    pub latlon: Option<Latlon>,
+    /// Z = f·B / (d + doffs) in the rig's unit (for latlon, the range's component along the
+    /// rectified axis), NaN where the disparity is invalid.
     pub depth: Option<Vec<f32>>,
     /// σ_Z of each depth, when asked for.
     pub depth_std: Option<Vec<f32>>,
@@ -209,15 +216,27 @@ impl Matched {
         let started = Instant::now();
         let map = self.disparity;
         let rig = request.calibrated.map(|c| c.rig);
-        let depth = rig.map(|rig| depths(&map, rig));
+        // Latitude-longitude only where the pair was rectified to it here.
+        let latlon = request
+            .maps
+            .and(request.calibrated)
+            .and_then(|c| c.raw.as_ref()?.latlon);
+        let depth = rig.map(|rig| match &latlon {
+            Some(l) => latlon_depths(&map, l),
+            None => depths(&map, rig),
+        });
         let depth_std = match (rig, &depth) {
-            (Some(rig), Some(depth)) if request.depth_std => Some(depth_stds(&map, depth, rig)),
+            (Some(rig), Some(depth)) if request.depth_std => Some(match &latlon {
+                Some(l) => latlon_depth_stds(&map, depth, l, rig),
+                None => depth_stds(&map, depth, rig),
+            }),
             _ => None,
         };
         DepthMap {
             valid_fraction: valid_share(&map),
             disparity: map,
             rig,
+            latlon,
             depth,
             depth_std,
             rgb: self.rgb,
@@ -509,6 +528,18 @@ pub fn points(map: &DepthMap) -> Vec<encode::ColouredPoint> {
     let (Some(rig), Some(depth)) = (map.rig, &map.depth) else {
         return Vec::new();
     };
+    // A latlon pixel's point lies along its ray: the depth over cos(az)·cos(el) is its range.
+    let point = |x: f64, y: f64, z: f64| match &map.latlon {
+        Some(l) => {
+            let p = l.ray([x, y]) * (z / along_axis(l, x, y));
+            Some(Ok(crate::physics::Point3 {
+                x: p.x,
+                y: p.y,
+                z: p.z,
+            }))
+        }
+        None => rig.point_at(x, y, z),
+    };
     let width = map.disparity.width;
     let depth_std = map.depth_std.as_deref().unwrap_or_default();
     let rgb = map.rgb.as_deref().unwrap_or_default();
@@ -518,7 +549,7 @@ pub fn points(map: &DepthMap) -> Vec<encode::ColouredPoint> {
             continue;
         }
         let (x, y) = ((i % width) as f64, (i / width) as f64);
-        let Some(Ok(p)) = rig.point_at(x, y, f64::from(z)) else {
+        let Some(Ok(p)) = point(x, y, f64::from(z)) else {
             continue;
         };
         let colour = rgb

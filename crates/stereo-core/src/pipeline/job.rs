@@ -12,7 +12,7 @@ use std::sync::Arc;
 
 use super::{Calibrated, Maps, PlanFault, Product, RectifyMode, Request, Sent};
 use crate::calibration::files::Raw;
-use crate::camera::Alpha;
+use crate::camera::{Alpha, LatlonOptions};
 use crate::vision::{self, ParamFault, Params, Settings};
 
 /// A depth job: what every frame of one size is matched with.
@@ -39,6 +39,8 @@ pub struct JobFaults {
 pub struct Rectify {
     pub mode: RectifyMode,
     pub alpha: Option<Alpha>,
+    /// Rectify to latitude-longitude with these options (`None`: the pinhole plane).
+    pub latlon: Option<LatlonOptions>,
 }
 
 /// What a job's answer holds besides the matcher's work.
@@ -63,7 +65,14 @@ impl DepthJob {
         rectify: Rectify,
         mut settings: Settings,
     ) -> Result<DepthJob, JobFaults> {
-        let planned = super::plan(given.as_ref(), sent, size, rectify.mode, rectify.alpha);
+        let planned = super::plan(
+            given.as_ref(),
+            sent,
+            size,
+            rectify.mode,
+            rectify.alpha,
+            rectify.latlon,
+        );
         let (calibrated, rectifies, plan) = match planned {
             Ok(Some(raw)) => (Some(raw), true, None),
             Ok(None) => (given, false, None),
@@ -284,6 +293,7 @@ mod tests {
         let rectify = Rectify {
             mode: RectifyMode::Yes,
             alpha: None,
+            latlon: None,
         };
         let faults = DepthJob::plan(None, Sent::Nothing, Some((160, 120)), rectify, settings)
             .expect_err("refused");

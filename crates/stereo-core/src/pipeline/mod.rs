@@ -1,7 +1,8 @@
 //! The engine's use cases as plain functions over typed inputs, what the service's routes and
 //! its `depth-map` command call: a calibration resolved once for a size and a rectify mode
 //! ([`calibrated`]), raw frames rectified through maps built once ([`rectify`]), and a depth
-//! map with each pixel's σ and the files it is written as ([`depth`]).
+//! map with each pixel's σ and the files it is written as ([`depth`]; in latitude-longitude,
+//! [`latlon`]).
 //!
 //! A depth map from two images and a calibration file, without the service:
 //!
@@ -39,6 +40,7 @@ pub mod calibrated;
 pub mod check;
 pub mod depth;
 pub mod job;
+pub mod latlon;
 pub mod matches;
 pub mod range;
 pub mod rectify;

@@ -89,9 +89,11 @@ pub async fn post_depth_map(
     mut pair: ImagePair<DepthMapForm>,
 ) -> Result<Response, ApiError> {
     let mut problems = pair.problems(problems);
+    let latlon = job::latlon_options(query.projection, query.latlon(), &mut problems);
     let asked = job::Asked {
         rectify: query.rectify,
         alpha: query.alpha,
+        latlon,
         settings: query.settings(),
         prefix: "",
     };
@@ -106,6 +108,9 @@ pub async fn post_depth_map(
     if output.needs_rig() {
         let why = format!("for output={}", output.name());
         rig::require_rig(pair.sent, &why, &mut problems);
+    }
+    if latlon.is_some() && output.ros().is_some() {
+        problems.add("output", job::ROS_NOT_LATLON);
     }
     let (Some(size), Some(planned)) = (pair.size, planned) else {
         return Err(problems.into_error());

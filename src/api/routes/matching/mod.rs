@@ -103,6 +103,7 @@ pub async fn post_match(
     let asked = job::Asked {
         rectify: query.rectify,
         alpha: query.alpha,
+        latlon: None,
         settings,
         prefix: "",
     };

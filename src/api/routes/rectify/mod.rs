@@ -80,8 +80,8 @@ pub async fn post_rectify(
     };
     let raw = given.raw.clone().expect("checked by raw_rig");
     let latlon = [query.az_fov, query.el_fov, query.pixels_per_degree];
-    let projection = query.projection.unwrap_or_default();
-    let raw = job::projected(*raw, projection, latlon, query.alpha, &mut problems);
+    let latlon = job::latlon_options(query.projection, latlon, &mut problems);
+    let raw = job::projected(*raw, latlon, query.alpha, &mut problems);
     let Some(raw) = raw.filter(|_| problems.is_empty()) else {
         return Err(problems.into_error());
     };
