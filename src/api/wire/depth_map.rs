@@ -390,7 +390,7 @@ pub struct MatcherParameters {
 /// The depth map in numbers.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
 #[schema(example = json!({
-    "width": 741, "height": 500, "min_disparity": 0, "max_disparity": 64, "disparity_range": {"chosen": "given", "why": "given: max_disparity (or the calibration file's ndisp)"}, "rectified": false,
+    "width": 741, "height": 500, "min_disparity": 0, "max_disparity": 64, "disparity_range": {"chosen": "given", "why": "given: max_disparity (or the calibration file's ndisp)"}, "rectified": false, "projection": "pinhole",
     "valid_fraction": 0.859,
     "disparity_px": {"min": 3.21, "median": 28.4, "max": 61.9},
     "distance": {"min": 1196.1, "median": 3215.0, "max": 14987.2},
