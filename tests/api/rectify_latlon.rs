@@ -3,44 +3,14 @@
 //! system rectifying points at every angle onto one row, its maps and images checked against
 //! frames rendered through the lenses, and every option that does not apply named.
 
-use nalgebra::{Rotation3, Vector3};
+use nalgebra::Vector3;
 use serde_json::Value;
-use stereo_core::camera::{
-    Camera, Distortion, Intrinsics, Latlon, LatlonOptions, Model, Size, StereoPair,
-};
+use stereo_core::camera::synthetic::{FISHEYE_180_SIZE as SIZE, fisheye_180};
+use stereo_core::camera::{Latlon, LatlonOptions, StereoPair};
 
-use crate::depth_map::{floats, npz_entries};
+use crate::depth_map::{npy_of, npz_entries};
 use crate::helpers::{assert_names, message_for, ok_json, problem, spawn_app};
 use crate::rectify::{H, W, raw_form, rectify, scene, stereo_calibrate_yml};
-
-/// Two equidistant fisheyes that see 180° across their 320 px (θ = 90° at 160 px from the
-/// centre: f = 320/π), 60 mm apart, the right one turned by about 1.5°.
-fn fisheye_180() -> StereoPair {
-    let camera = |fx: f64, cx: f64, cy: f64, d: &[f64]| {
-        Camera::new(
-            Intrinsics {
-                fx,
-                fy: fx * 1.001,
-                cx,
-                cy,
-            },
-            Distortion::new(Model::Equidistant, d).unwrap(),
-        )
-        .unwrap()
-    };
-    let f = f64::from(W) / std::f64::consts::PI;
-    StereoPair {
-        left: camera(f, 159.5, 120.5, &[0.01, -0.002, 0.0005, -0.0001]),
-        right: camera(f * 1.003, 160.8, 119.4, &[0.008, -0.001, 0.0002, 0.0]),
-        rotation: Rotation3::from_scaled_axis(Vector3::new(0.012, -0.021, 0.009)),
-        translation: Vector3::new(-60.0, 0.8, -0.9),
-    }
-}
-
-const SIZE: Size = Size {
-    width: W,
-    height: H,
-};
 
 /// A constant latlon disparity of the rendered scene, in pixels.
 const DISPARITY: f64 = 6.0;
@@ -164,9 +134,8 @@ async fn latlon_maps_and_images_are_the_scene() {
     let npz = rectify(&app, "?projection=latlon&output=maps.npz", form()).await;
     assert_eq!(npz.status(), 200);
     let entries = npz_entries(&npz.bytes().await.unwrap());
-    let header_end = |b: &[u8]| 10 + usize::from(u16::from_le_bytes([b[8], b[9]]));
-    let mx = floats(&entries[0].1[header_end(&entries[0].1)..]);
-    let my = floats(&entries[1].1[header_end(&entries[1].1)..]);
+    let shape = (h as usize, w as usize);
+    let (mx, my) = (npy_of(&entries[0].1, shape), npy_of(&entries[1].1, shape));
     assert_eq!(mx.len(), (w * h) as usize);
     for (x, y) in [
         (w / 2, h / 2),
@@ -283,10 +252,8 @@ async fn depth_map_in_latlon() {
 
     let npy = post("/depth-map?projection=latlon&max_disparity=32&output=depth.npy").await;
     assert_eq!(npy.status(), 200);
-    let bytes = npy.bytes().await.unwrap();
-    let header_end = 10 + usize::from(u16::from_le_bytes([bytes[8], bytes[9]]));
-    let depth = floats(&bytes[header_end..]);
     let (w, h) = (system.size.width as usize, system.size.height as usize);
+    let depth = npy_of(&npy.bytes().await.unwrap(), (h, w));
     assert_eq!(depth.len(), w * h);
     let (mut checked, mut off) = (0, Vec::new());
     for y in (h / 4..3 * h / 4).step_by(7) {

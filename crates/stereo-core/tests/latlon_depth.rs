@@ -4,44 +4,18 @@
 
 use std::sync::atomic::AtomicBool;
 
-use nalgebra::{Rotation3, Vector3};
+use nalgebra::Vector3;
 use stereo_core::calibration::files::Raw;
-use stereo_core::camera::{
-    Camera, Distortion, Intrinsics, LatlonOptions, Model, RectifyOptions, Size, StereoPair,
-    stereo_rectify,
-};
+use stereo_core::camera::synthetic::{FISHEYE_180_SIZE, fisheye_180};
+use stereo_core::camera::{Camera, LatlonOptions, RectifyOptions, stereo_rectify};
 use stereo_core::physics::LengthUnit;
 use stereo_core::pipeline::{Calibrated, Maps, Request, depth_map};
 use stereo_core::vision::{Params, decode, encode};
 
-const W: u32 = 320;
-const H: u32 = 240;
+const W: u32 = FISHEYE_180_SIZE.width;
+const H: u32 = FISHEYE_180_SIZE.height;
 /// The sphere's radius, mm.
 const RADIUS: f64 = 800.0;
-
-/// Two equidistant fisheyes seeing 180° across their 320 px, 60 mm apart, the right one
-/// turned by about 1.5°.
-fn fisheye_180() -> StereoPair {
-    let camera = |fx: f64, cx: f64, cy: f64, d: &[f64]| {
-        Camera::new(
-            Intrinsics {
-                fx,
-                fy: fx * 1.001,
-                cx,
-                cy,
-            },
-            Distortion::new(Model::Equidistant, d).unwrap(),
-        )
-        .unwrap()
-    };
-    let f = f64::from(W) / std::f64::consts::PI;
-    StereoPair {
-        left: camera(f, 159.5, 120.5, &[0.01, -0.002, 0.0005, -0.0001]),
-        right: camera(f * 1.003, 160.8, 119.4, &[0.008, -0.001, 0.0002, 0.0]),
-        rotation: Rotation3::from_scaled_axis(Vector3::new(0.012, -0.021, 0.009)),
-        translation: Vector3::new(-60.0, 0.8, -0.9),
-    }
-}
 
 /// The sphere's texture at a point on it (left camera frame, mm): smooth 3D waves of 60 to
 /// 160 mm, so that every direction has texture and nothing repeats.
@@ -123,10 +97,7 @@ fn render(
 #[test]
 fn a_fisheye_pair_is_ranged_over_its_whole_field() {
     let pair = fisheye_180();
-    let size = Size {
-        width: W,
-        height: H,
-    };
+    let size = FISHEYE_180_SIZE;
     let rectification = stereo_rectify(&pair, size, RectifyOptions::default()).unwrap();
     let raw = Raw {
         pair,

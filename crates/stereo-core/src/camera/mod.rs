@@ -17,6 +17,7 @@ pub mod maps;
 pub mod pinhole;
 pub mod rectification;
 pub mod rectify;
+pub mod synthetic;
 
 pub use distortion::{Distorted, Distortion, DistortionFault, Model};
 pub use latlon::{Latlon, LatlonFault, LatlonOptions};
