@@ -15,9 +15,8 @@ import cv2
 import numpy as np
 
 from . import scoring
-from .service import multipart
+from .service import RUNS, multipart
 
-RUNS = 5
 GOALS = {"f_%": 0.1, "pp_px": 1.0, "T_%": 0.2, "rot_deg": 0.05}
 COLUMNS = ["f_%", "cx_px", "cy_px", "pp_px", "k1", "T_%", "rot_deg"]
 

@@ -20,12 +20,11 @@ import time
 import cv2
 import numpy as np
 
-from .service import post_once
+from .service import RUNS, post_once
 
 NAMES = ["01", "02", "03", "04", "05", "06", "07", "08", "09", "11", "12", "13", "14"]
 BOARD = {"columns": 9, "rows": 6, "square_size": 1.0, "unit": "mm"}
 ROLL_DEG = 0.2
-RUNS = 5
 
 
 def pairs_parts(files):

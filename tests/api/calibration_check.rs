@@ -374,12 +374,12 @@ async fn known_distances_recover_a_yaw_and_bad_points_are_named() {
     );
 }
 
-/// The goals over draws (release; CI runs it beside `scale`): 10 pairs of walls, each draw
+/// The goals over draws (minutes; CI runs it beside `scale`): 10 pairs of walls, each draw
 /// with fresh sensor noise (σ 1.5 grey levels more). The intact rig holds in 20 of 20
 /// draws; a drift of 0.05° about x, and one about z, is found in every draw, to ±0.01°,
 /// with the rows within 0.1 px RMS after. The time of each check is printed, not asserted.
 #[tokio::test]
-#[ignore = "release: 60 checks of 10 VGA pairs; CI runs it in the release step"]
+#[ignore = "60 checks of 10 VGA pairs: run by .ci/run beside scale"]
 async fn calibration_check_goals_over_twenty_draws() {
     let app = spawn_app().await;
     let rig = sample_rig();

@@ -5,9 +5,9 @@
 //! what the request reserved, and three 1920 × 1080 pairs at 256 disparities run side by side
 //! without a 503.
 //!
-//! Minutes in a debug build, seconds in release: ignored by `cargo test`, run by `.ci/run` as
-//! `cargo test --release --test api scale -- --ignored --test-threads=1` (one at a time, so the
-//! peak RSS is this test's).
+//! Minutes each: ignored by `cargo test`, run by `.ci/run` in the test build (whose engine is
+//! optimised) as `cargo test --test api scale -- --ignored --test-threads=1` (one at a time, so
+//! the peak RSS is this test's).
 
 use reqwest::multipart::Form;
 use stereo_core::pipeline::Product;
@@ -146,7 +146,7 @@ async fn admitted_within_its_reservation(
 
 /// 3000 × 2000 (6 MP) at 400 disparities (planes 60 to 340 px apart) under the default budget.
 #[tokio::test]
-#[ignore = "6 MP at 400 disparities: run in release by .ci/run"]
+#[ignore = "6 MP at 400 disparities: run by .ci/run"]
 async fn six_megapixels_at_400_disparities_are_answered_within_their_reservation() {
     admitted_within_its_reservation((3000, 2000), 400, 10.0, grey_pngs).await;
 }
@@ -156,7 +156,7 @@ async fn six_megapixels_at_400_disparities_are_answered_within_their_reservation
 /// most): admitted at each (no 413 for its pixels, none for its memory), matched within its
 /// reservation, and the reservation never larger at a narrower range.
 #[tokio::test]
-#[ignore = "a phone's 12 MP JPEG pair at six ranges: run in release by .ci/run"]
+#[ignore = "a phone's 12 MP JPEG pair at six ranges: run by .ci/run"]
 async fn a_phones_twelve_megapixel_jpeg_pair_is_answered_at_every_range() {
     let mut reserved = Vec::new();
     for count in [16, 32, 64, 128, 256, 400] {
@@ -172,7 +172,7 @@ async fn a_phones_twelve_megapixel_jpeg_pair_is_answered_at_every_range() {
 /// settings at 64 and 256 disparities: admitted, matched within its reservation, and the
 /// reservation no larger at the narrower range.
 #[tokio::test]
-#[ignore = "a 24 MP JPEG pair at two ranges: run in release by .ci/run"]
+#[ignore = "a 24 MP JPEG pair at two ranges: run by .ci/run"]
 async fn a_twenty_four_megapixel_jpeg_pair_is_answered_at_64_and_256() {
     for count in [64, 256] {
         let k = 0.85 * count as f32 / 34.0;
@@ -185,7 +185,7 @@ async fn a_twenty_four_megapixel_jpeg_pair_is_answered_at_64_and_256() {
 /// Three 1920 × 1080 pairs at 256 disparities sent at once: all three are answered 200, none
 /// refused for memory or concurrency.
 #[tokio::test]
-#[ignore = "three 1080p pairs at 256 disparities: run in release by .ci/run"]
+#[ignore = "three 1080p pairs at 256 disparities: run by .ci/run"]
 async fn three_full_hd_pairs_run_side_by_side() {
     let pair = deep(1920, 1080, 6.0);
     let app = spawn_app().await;
