@@ -17,9 +17,12 @@ import uuid
 
 # How many times each time is taken (medians of RUNS): EVAL_RUNS, 5 unless set. CI takes 2, as it
 # asserts accuracy only; the README's times come from runs at 5.
-RUNS = int(os.environ.get("EVAL_RUNS", "5"))
+try:
+    RUNS = int(os.environ.get("EVAL_RUNS", "5"))
+except ValueError:
+    RUNS = 0
 if RUNS < 1:
-    raise SystemExit(f"EVAL_RUNS must be at least 1, not {RUNS}")
+    raise SystemExit(f"EVAL_RUNS must be a whole number of at least 1, not {os.environ['EVAL_RUNS']!r}")
 
 
 # Rounds of goal 1's timing taken in turns with OpenCV (`taking_turns`).
