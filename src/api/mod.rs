@@ -79,6 +79,7 @@ use self::routes::ops::OpsState;
         wire::rectify::RectifyOutput,
         wire::rectify::InterpolationChoice,
         wire::images::RectifyMode,
+        wire::images::ProjectionAsked,
         // The image routes' answers, which their `IntoResponses` name by reference.
         wire::images::FileBody,
         wire::depth_map::DepthMapSummary,

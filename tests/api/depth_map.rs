@@ -204,6 +204,7 @@ async fn every_output_reads_back() {
         )
         .await;
         assert_eq!(response.status(), 200, "{output}");
+        assert_eq!(response.headers()["stereo-projection"], "pinhole");
         let disposition = response.headers()["content-disposition"].to_str().unwrap();
         assert!(
             disposition.contains(&format!("filename=\"{output}\"")),
@@ -297,9 +298,17 @@ async fn every_output_reads_back() {
             "disparity_std.npy",
             "depth.npy",
             "depth_std.npy",
-            "depth_error.npy"
+            "depth_error.npy",
+            "projection.npy"
         ]
     );
+    // `projection`: a 0-d `<U7` array, UTF-32 code points after its header.
+    let projection = &arrays[5].1;
+    let text: Vec<u8> = projection[projection.len() - 28..]
+        .chunks(4)
+        .map(|c| c[0])
+        .collect();
+    assert_eq!(text, b"pinhole");
     assert_eq!(arrays[0].1, files["disparity.npy"]);
     assert_eq!(arrays[1].1, files["disparity_std.npy"]);
     assert_eq!(arrays[2].1, files["depth.npy"]);
@@ -319,6 +328,7 @@ async fn every_output_reads_back() {
     let at = ply.windows(end.len()).position(|w| w == end).unwrap() + end.len();
     let head = std::str::from_utf8(&ply[..at]).unwrap();
     assert!(head.starts_with("ply\nformat binary_little_endian 1.0\n"));
+    assert!(head.contains("\ncomment projection pinhole\n"), "{head}");
     assert!(
         head.contains(&format!("element vertex {valid}\n")),
         "{head}"
@@ -615,10 +625,18 @@ async fn a_filled_map_marks_what_the_fill_gave() {
     let names = |entries: &[(String, Vec<u8>)]| -> Vec<String> {
         entries.iter().map(|(n, _)| n.clone()).collect()
     };
-    assert_eq!(names(&arrays[0]), ["disparity.npy", "disparity_std.npy"]);
+    assert_eq!(
+        names(&arrays[0]),
+        ["disparity.npy", "disparity_std.npy", "projection.npy"]
+    );
     assert_eq!(
         names(&arrays[1]),
-        ["disparity.npy", "disparity_std.npy", "filled.npy"]
+        [
+            "disparity.npy",
+            "disparity_std.npy",
+            "filled.npy",
+            "projection.npy"
+        ]
     );
     let (holes, filled, std) = (
         npy(&arrays[0][0].1),

@@ -18,7 +18,7 @@ pub(crate) const W: u32 = 320;
 pub(crate) const H: u32 = 240;
 
 /// A raw pair of `model` with a right camera turned by about 1.5° and 60 mm to the right.
-fn raw_pair(model: Model) -> StereoPair {
+pub(crate) fn raw_pair(model: Model) -> StereoPair {
     let (f, d1, d2): (f64, Vec<f64>, Vec<f64>) = match model {
         Model::PlumbBob => (
             300.0,

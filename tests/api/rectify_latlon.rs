@@ -6,11 +6,11 @@
 use nalgebra::Vector3;
 use serde_json::Value;
 use stereo_core::camera::synthetic::{FISHEYE_180_SIZE as SIZE, fisheye_180};
-use stereo_core::camera::{Latlon, LatlonOptions, StereoPair};
+use stereo_core::camera::{Latlon, LatlonOptions, Model, StereoPair};
 
 use crate::depth_map::{npy_of, npz_entries};
 use crate::helpers::{assert_names, message_for, ok_json, problem, spawn_app};
-use crate::rectify::{H, W, raw_form, rectify, scene, stereo_calibrate_yml};
+use crate::rectify::{H, W, raw_form, raw_pair, rectify, scene, stereo_calibrate_yml};
 
 /// A constant latlon disparity of the rendered scene, in pixels.
 const DISPARITY: f64 = 6.0;
@@ -219,13 +219,43 @@ async fn latlon_options_are_named() {
         (
             "?projection=sphere",
             "projection",
-            "must be pinhole or latlon",
+            "must be one of pinhole, latlon, auto",
         ),
     ] {
         let body = problem(rectify(&app, query, form()).await, 422).await;
         assert_names(&body, &[field]);
         let message = message_for(&body, field);
         assert!(message.contains(says), "{query}: {message}");
+    }
+}
+
+/// `projection=auto` rectifies the 180° fisheye to latlon and a 56° plumb-bob rig on the
+/// pinhole plane, each answer saying which; with `alpha` the fisheye stays on the pinhole plane,
+/// as it does for `/depth-map`'s ROS outputs (answered, not refused as with latlon).
+#[tokio::test]
+async fn auto_picks_latlon_for_wide_lenses_only() {
+    let app = spawn_app().await;
+    let grey = vec![128u8; (W * H) as usize];
+    let wide = stereo_calibrate_yml(&fisheye_180());
+    let narrow = stereo_calibrate_yml(&raw_pair(Model::PlumbBob));
+    for (yml, query, want) in [
+        (&wide, "?projection=auto", "latlon"),
+        (&narrow, "?projection=auto", "pinhole"),
+        (&wide, "?projection=auto&alpha=0", "pinhole"),
+    ] {
+        let summary = ok_json(rectify(&app, query, raw_form(&grey, &grey, yml)).await).await;
+        assert_eq!(summary["projection"], want, "{query}: {summary}");
+    }
+    for (query, want) in [
+        ("/depth-map?projection=auto&max_disparity=16", "latlon"),
+        (
+            "/depth-map?projection=auto&max_disparity=16&output=depth.cdr",
+            "pinhole",
+        ),
+    ] {
+        let answer = app.post_form(query, raw_form(&grey, &grey, &wide)).await;
+        assert_eq!(answer.status(), 200, "{query}");
+        assert_eq!(answer.headers()["stereo-projection"], want, "{query}");
     }
 }
 
@@ -252,6 +282,7 @@ async fn depth_map_in_latlon() {
 
     let npy = post("/depth-map?projection=latlon&max_disparity=32&output=depth.npy").await;
     assert_eq!(npy.status(), 200);
+    assert_eq!(npy.headers()["stereo-projection"], "latlon");
     let (w, h) = (system.size.width as usize, system.size.height as usize);
     let depth = npy_of(&npy.bytes().await.unwrap(), (h, w));
     assert_eq!(depth.len(), w * h);
@@ -273,6 +304,37 @@ async fn depth_map_in_latlon() {
     off.sort_by(f64::total_cmp);
     assert!(checked > 200, "{checked}");
     assert!(off[off.len() / 2] < 0.005, "median {}", off[off.len() / 2]);
+
+    // The files that can say their projection say it: the PLY in a comment with the system,
+    // the NPZ in `projection` and `latlon` (f_az, f_el, cx, cy).
+    let ply = post("/depth-map?projection=latlon&max_disparity=32&output=points.ply").await;
+    let ply = ply.bytes().await.unwrap();
+    let head = String::from_utf8_lossy(&ply[..ply.len().min(1024)]).into_owned();
+    assert!(
+        head.contains("comment projection latlon: pixel (x, y) is azimuth (x - "),
+        "{head}"
+    );
+    let npz = post("/depth-map?projection=latlon&max_disparity=32&output=arrays.npz").await;
+    let entries = npz_entries(&npz.bytes().await.unwrap());
+    let entry = |name: &str| &entries.iter().find(|(n, _)| n == name).unwrap().1;
+    let text = entry("projection.npy");
+    let data = &text[text.len() - 24..];
+    let chars: Vec<u8> = data.chunks(4).map(|c| c[0]).collect();
+    assert_eq!(chars, b"latlon");
+    let system_npy = entry("latlon.npy");
+    let values: Vec<f64> = system_npy[system_npy.len() - 32..]
+        .chunks(8)
+        .map(|c| f64::from_le_bytes(c.try_into().unwrap()))
+        .collect();
+    for (got, want) in values
+        .iter()
+        .zip([system.fx, system.fy, system.cx, system.cy])
+    {
+        assert!(
+            (got - want).abs() < 1e-6 * want.abs().max(1.0),
+            "{values:?}"
+        );
+    }
 }
 
 /// What latlon cannot do with `/depth-map` is named: the ROS messages (a pinhole

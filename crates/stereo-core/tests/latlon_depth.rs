@@ -7,7 +7,9 @@ use std::sync::atomic::AtomicBool;
 use nalgebra::Vector3;
 use stereo_core::calibration::files::Raw;
 use stereo_core::camera::synthetic::{FISHEYE_180_SIZE, fisheye_180};
-use stereo_core::camera::{Camera, LatlonOptions, RectifyOptions, stereo_rectify};
+use stereo_core::camera::{
+    Camera, LatlonOptions, RectifyOptions, Size, StereoPair, stereo_rectify,
+};
 use stereo_core::physics::LengthUnit;
 use stereo_core::pipeline::{Calibrated, Maps, Request, depth_map};
 use stereo_core::vision::{Params, decode, encode};
@@ -90,14 +92,8 @@ fn render(
     img
 }
 
-/// Over the field both cameras see, from its centre to 80° off it, at least 80 % of the
-/// latlon map has a depth, the median range is the sphere's radius within 1 %, and the
-/// depths' σ is not optimistic: at least 68 % of them within 1σ of the truth. The points
-/// lie on the sphere.
-#[test]
-fn a_fisheye_pair_is_ranged_over_its_whole_field() {
-    let pair = fisheye_180();
-    let size = FISHEYE_180_SIZE;
+/// The raw rig of `pair` at `size` in mm, rectified on the pinhole plane as OpenCV does.
+fn raw_rig(pair: StereoPair, size: Size) -> Calibrated {
     let rectification = stereo_rectify(&pair, size, RectifyOptions::default()).unwrap();
     let raw = Raw {
         pair,
@@ -106,15 +102,25 @@ fn a_fisheye_pair_is_ranged_over_its_whole_field() {
         computed: true,
         latlon: None,
     };
-    let calibrated = Calibrated {
+    Calibrated {
         rig: rectification.rig(LengthUnit::Millimetre).unwrap(),
         max_disparity: None,
         warnings: Vec::new(),
         raw: Some(Box::new(raw)),
         file_unit: LengthUnit::Millimetre,
     }
-    .with_latlon(LatlonOptions::default())
-    .unwrap();
+}
+
+/// Over the field both cameras see, from its centre to 80° off it, at least 80 % of the
+/// latlon map has a depth, the median range is the sphere's radius within 1 %, and the
+/// depths' σ is not optimistic: at least 68 % of them within 1σ of the truth. The points
+/// lie on the sphere.
+#[test]
+fn a_fisheye_pair_is_ranged_over_its_whole_field() {
+    let pair = fisheye_180();
+    let calibrated = raw_rig(pair, FISHEYE_180_SIZE)
+        .with_latlon(LatlonOptions::default())
+        .unwrap();
     let latlon = calibrated.raw.as_ref().unwrap().latlon.unwrap();
     let maps = Maps::build(calibrated.raw.as_ref().unwrap());
 
@@ -227,4 +233,35 @@ fn a_fisheye_pair_is_ranged_over_its_whole_field() {
         "{}",
         radii[radii.len() / 2]
     );
+}
+
+/// `when_wide` (`projection=auto`): the 180° fisheye sees wide and goes to latitude-longitude;
+/// OpenCV's sample rig (about 55° across) does not, and keeps its pinhole rectification and rig.
+#[test]
+fn only_cameras_that_see_wide_go_latlon_when_wide() {
+    let auto = LatlonOptions {
+        when_wide: true,
+        ..LatlonOptions::default()
+    };
+    for (pair, size, wide) in [
+        (fisheye_180(), FISHEYE_180_SIZE, true),
+        (
+            stereo_core::camera::opencv_pair(),
+            Size {
+                width: 640,
+                height: 480,
+            },
+            false,
+        ),
+    ] {
+        let given = raw_rig(pair, size);
+        assert_eq!(given.raw.as_ref().unwrap().sees_wide(), wide);
+        let rig = given.rig;
+        let calibrated = given.with_latlon(auto).unwrap();
+        let latlon = calibrated.raw.as_ref().unwrap().latlon;
+        assert_eq!(latlon.is_some(), wide);
+        if !wide {
+            assert_eq!(calibrated.rig, rig, "the pinhole rig kept");
+        }
+    }
 }

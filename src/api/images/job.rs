@@ -7,7 +7,7 @@ use super::rig;
 use super::work::Need;
 use crate::api::error::FieldErrors;
 use crate::api::wire::images::RectifyMode;
-use crate::api::wire::rectify::ProjectionChoice;
+use crate::api::wire::rectify::ProjectionAsked;
 use stereo_core::calibration::files::Raw;
 use stereo_core::camera::{Alpha, LatlonFault, LatlonOptions};
 use stereo_core::pipeline::{self, Calibrated, DepthJob, PlanFault, Rectify, RigInput, Sent};
@@ -133,15 +133,16 @@ pub const ROS_NOT_LATLON: &str = "ROS messages (DisparityImage, depth images, Po
      describe a pinhole rectification; with projection=latlon ask for depth.npy, arrays.npz \
      or points.ply";
 
-/// The latitude-longitude options a query asks for: `Some` with `projection=latlon`; with
-/// the pinhole plane `None`, and each latlon option given is named.
+/// The latitude-longitude options a query asks for: `Some` with `projection=latlon` (and
+/// `auto`, then only for cameras that see wide); with the pinhole plane `None`, and each
+/// latlon option given is named.
 pub fn latlon_options(
-    projection: Option<ProjectionChoice>,
+    projection: Option<ProjectionAsked>,
     [az_fov, el_fov, pixels_per_degree]: [Option<f64>; 3],
     problems: &mut FieldErrors,
 ) -> Option<LatlonOptions> {
     match projection.unwrap_or_default() {
-        ProjectionChoice::Pinhole => {
+        ProjectionAsked::Pinhole => {
             let given = [
                 ("az_fov", az_fov),
                 ("el_fov", el_fov),
@@ -152,7 +153,8 @@ pub fn latlon_options(
             }
             None
         }
-        ProjectionChoice::Latlon => Some(LatlonOptions {
+        asked @ (ProjectionAsked::Latlon | ProjectionAsked::Auto) => Some(LatlonOptions {
+            when_wide: asked == ProjectionAsked::Auto,
             az_fov_deg: az_fov,
             el_fov_deg: el_fov,
             pixels_per_degree,
@@ -168,7 +170,7 @@ pub fn projected(
     alpha: Option<f64>,
     problems: &mut FieldErrors,
 ) -> Option<Raw> {
-    let Some(options) = latlon else {
+    let Some(options) = latlon.filter(|l| !(l.when_wide && alpha.is_some())) else {
         return Some(raw);
     };
     if alpha.is_some() {

@@ -1,6 +1,7 @@
 //! How an image route answers: a file with its `Content-Type` and `Content-Disposition`
 //! ([`file`]), documented as binary ([`FileBody`]), the `Server-Timing` header of its
-//! stages ([`set_server_timing`]) and the `Stereo-Warnings` header of its warnings
+//! stages ([`set_server_timing`]), the `Stereo-Projection` header of a depth map's pixels
+//! ([`set_projection`]) and the `Stereo-Warnings` header of its warnings
 //! ([`set_warnings`]), which a file answer has nowhere else to say.
 
 use std::time::Duration;
@@ -71,6 +72,17 @@ pub fn set_warnings(response: &mut Response, warnings: &[String]) {
     if let Ok(v) = HeaderValue::from_str(&text) {
         response.headers_mut().insert(WARNINGS_HEADER, v);
     }
+}
+
+/// The header that names the projection a depth map's pixels are in.
+pub const PROJECTION_HEADER: &str = "stereo-projection";
+
+/// `Stereo-Projection: pinhole` or `latlon`: what a depth map's pixels are, for files (NPY,
+/// PFM, PNG) that cannot say it themselves.
+pub fn set_projection(response: &mut Response, projection: &'static str) {
+    response
+        .headers_mut()
+        .insert(PROJECTION_HEADER, HeaderValue::from_static(projection));
 }
 
 #[cfg(test)]

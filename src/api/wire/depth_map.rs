@@ -11,7 +11,9 @@ use crate::api::wire::de::{choice_members, request};
 pub use crate::api::wire::depth_output::{CDR, DepthMapOutput, RosOutput};
 use crate::api::wire::images::FileBody;
 use crate::api::wire::images::image_form;
-pub use crate::api::wire::images::{LatlonSystem, ProjectionChoice, RectifyMode, StageTimes};
+pub use crate::api::wire::images::{
+    LatlonSystem, ProjectionAsked, ProjectionChoice, RectifyMode, StageTimes,
+};
 use crate::api::wire::openapi::{image_answers, named};
 use crate::api::wire::rig::CalibratedRig;
 use stereo_core::pipeline::{self, DepthMap};
@@ -185,11 +187,12 @@ request! {
         /// (0 only valid pixels, 1 every raw pixel). Default: the file's own, or 0.
         #[schema(minimum = 0.0, maximum = 1.0)]
         alpha: f64,
-        /// With rectification: the rectified projection, `pinhole` (default) or `latlon`
+        /// With rectification: the rectified projection, `pinhole` (default), `latlon`
         /// (wide and fisheye lenses, as `/rectify`'s; the map is then in azimuth and
-        /// elevation, the depths along the rectified axis).
+        /// elevation, the depths along the rectified axis) or `auto` (latlon where the
+        /// cameras see wider than 100°, pinhole for the ROS outputs; the summary says which).
         #[schema(inline, default = "pinhole")]
-        projection: ProjectionChoice,
+        projection: ProjectionAsked,
         /// `latlon`: the azimuth field in degrees (up to 180). Default: all both cameras see.
         #[schema(exclusive_minimum = 0.0, maximum = 180.0)]
         az_fov: f64,

@@ -104,7 +104,23 @@ pub enum RectifyMode {
     No,
 }
 
-choice_members!(RectifyMode, ProjectionChoice);
+choice_members!(RectifyMode, ProjectionChoice, ProjectionAsked);
+
+/// The rectified projection a request asks for: one of [`ProjectionChoice`]'s, or `auto`.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize, Serialize, ToSchema)]
+#[serde(rename_all = "lowercase")]
+pub enum ProjectionAsked {
+    /// The pinhole plane (the default).
+    #[default]
+    Pinhole,
+    /// Latitude-longitude.
+    Latlon,
+    /// Latitude-longitude where the cameras together see wider than 100° (across the baseline
+    /// or about it), where a pinhole plane stretches its edges 2.4 × and more; else the
+    /// pinhole plane. With `alpha`, or an output only a pinhole rectification has (the ROS
+    /// messages), the pinhole plane.
+    Auto,
+}
 
 /// The rectified images' projection.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize, Serialize, ToSchema)]

@@ -9,7 +9,7 @@ use crate::api::wire::calibration::RawCameras;
 use crate::api::wire::de::{choice_members, request};
 use crate::api::wire::images::FileBody;
 use crate::api::wire::images::image_form;
-pub use crate::api::wire::images::{LatlonSystem, ProjectionChoice, RectifyMode};
+pub use crate::api::wire::images::{LatlonSystem, ProjectionAsked, ProjectionChoice, RectifyMode};
 use crate::api::wire::openapi::{image_answers, named};
 use crate::api::wire::rig::CalibratedRig;
 use stereo_core::pipeline::rectify::Interpolation;
@@ -96,8 +96,9 @@ request! {
         alpha: f64,
         /// How pixels between the raw pixels are read. Default `linear`.
         interpolation: InterpolationChoice,
-        /// The rectified projection: `pinhole` (default) or `latlon` (wide lenses).
-        projection: ProjectionChoice,
+        /// The rectified projection: `pinhole` (default), `latlon` (wide lenses) or `auto`
+        /// (latlon where the cameras see wider than 100° and no `alpha` is given).
+        projection: ProjectionAsked,
         /// `latlon`: the azimuth field, across the baseline, in degrees (up to 180). Default:
         /// where both cameras see along the raw images' centre rows.
         #[schema(exclusive_minimum = 0.0, maximum = 180.0, example = 120)]

@@ -151,10 +151,16 @@ export function readNpz(buffer) {
   return arrays;
 }
 
-/** An NPY image: float32 (`<f4`) or boolean (`|b1`, as the stream's `filled`). */
+/** An NPY image: float32 (`<f4`) or boolean (`|b1`, as the stream's `filled`); or the NPZ's
+ * others: a string (`<U`, as `projection`) or a float64 list (`<f8`, as `latlon`). */
 export function readNpy(buffer) {
   const headerLength = new DataView(buffer).getUint16(8, true);
   const header = new TextDecoder().decode(new Uint8Array(buffer, 10, headerLength));
+  if (header.includes("'<U")) {
+    const codes = new Uint32Array(buffer.slice(10 + headerLength));
+    return String.fromCodePoint(...codes.filter((c) => c !== 0));
+  }
+  if (header.includes("'<f8'")) return Array.from(new Float64Array(buffer.slice(10 + headerLength)));
   const shape = /'shape': \((\d+), (\d+)\)/.exec(header);
   const float = header.includes("'<f4'");
   if (!(float || header.includes("'|b1'")) || !shape) throw new Error('an array that is not a float32 or boolean image');

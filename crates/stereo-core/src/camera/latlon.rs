@@ -24,9 +24,17 @@ pub const MAX_AREA_RATIO: f64 = 4.0;
 /// The widest field a latitude-longitude image holds along either axis, in degrees.
 pub const MAX_FOV_DEG: f64 = 180.0;
 
+/// The field (degrees, across the baseline or about it, whichever is wider) past which
+/// `projection=auto` rectifies to latitude-longitude: a pinhole plane stretches its edge by
+/// 1/cos²(fov/2) against its centre, 2.4 × at 100°, 4 × at 120°, without bound towards 180°.
+pub const WIDE_FOV_DEG: f64 = 100.0;
+
 /// What a caller may set; each `None` is chosen from the calibration.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct LatlonOptions {
+    /// Only where the cameras see wider than [`WIDE_FOV_DEG`] (`projection=auto`); narrower
+    /// rigs stay on the pinhole plane.
+    pub when_wide: bool,
     /// The azimuth field (across the baseline), in degrees.
     pub az_fov_deg: Option<f64>,
     /// The elevation field, in degrees.
@@ -459,6 +467,7 @@ mod tests {
     fn bad_options_are_named() {
         let (pair, size) = fisheye_rig();
         let with = |a, e, p| LatlonOptions {
+            when_wide: false,
             az_fov_deg: a,
             el_fov_deg: e,
             pixels_per_degree: p,

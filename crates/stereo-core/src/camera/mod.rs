@@ -20,7 +20,7 @@ pub mod rectify;
 pub mod synthetic;
 
 pub use distortion::{Distorted, Distortion, DistortionFault, Model};
-pub use latlon::{Latlon, LatlonFault, LatlonOptions};
+pub use latlon::{Latlon, LatlonFault, LatlonOptions, WIDE_FOV_DEG};
 pub use maps::{Map, undistort_rectify_map};
 pub use pinhole::{Camera, CameraFault, Intrinsics};
 pub use rectification::{

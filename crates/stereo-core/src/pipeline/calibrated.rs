@@ -132,7 +132,8 @@ impl Calibrated {
     /// and resolution chosen where `options` leave them out. Its `rig` is the pinhole rig the
     /// latlon pair is at its centre column (f = pixels per radian, the baseline, the pixel of
     /// azimuth 0): what the range chosen from the pair and the refusals of a short range
-    /// reason with; the depths themselves are the latlon system's ([`super::depth`]).
+    /// reason with; the depths themselves are the latlon system's ([`super::depth`]). With
+    /// `options.when_wide`, cameras that do not see wide are kept on the pinhole plane.
     pub fn with_latlon(mut self, options: LatlonOptions) -> Result<Self, PlanFault> {
         let Some(raw) = self.raw.as_deref() else {
             return Err(PlanFault::NotRaw);
@@ -141,7 +142,10 @@ impl Calibrated {
             .clone()
             .with_latlon(options)
             .map_err(PlanFault::Latlon)?;
-        let l = raw.latlon.expect("just made");
+        // Narrow cameras asked for latlon only if wide (`when_wide`) stay as they are.
+        let Some(l) = raw.latlon else {
+            return Ok(self);
+        };
         let mut spec = RigSpec::pixels(l.fx, l.baseline, self.file_unit);
         // The calibration's σ, as shares of f and B, carry over.
         spec.focal_std_px = Some(self.rig.focal_std_px() / self.rig.focal_px() * l.fx);
@@ -298,7 +302,9 @@ pub fn raw_rig(
 
 /// Whether a pair of `size` is rectified before matching (`mode`, with `alpha`, or to
 /// latitude-longitude with `latlon`'s options): the raw rig to rectify with (whose `rig` is
-/// then the rectified rig, `alpha` applied), or `None` to match the pair as sent.
+/// then the rectified rig, `alpha` applied), or `None` to match the pair as sent. Latlon
+/// `when_wide` (`projection=auto`) is a choice, never a fault: with `alpha`, or a pair matched
+/// as sent, it is the pinhole plane.
 pub fn plan(
     calibrated: Option<&Calibrated>,
     sent: Sent,
@@ -312,6 +318,7 @@ pub fn plan(
         RectifyMode::Yes => true,
         RectifyMode::Auto => calibrated.is_some_and(|c| c.takes_raw_frames(size)),
     };
+    let latlon = latlon.filter(|l| !(l.when_wide && (alpha.is_some() || !wanted)));
     if !wanted {
         return match (alpha, latlon) {
             (Some(_), _) => Err(PlanFault::AlphaUnused),

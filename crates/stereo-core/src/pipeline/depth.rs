@@ -78,6 +78,26 @@ pub struct DepthMap {
 }
 
 impl DepthMap {
+    /// The projection the map's pixels are in: `latlon` (azimuth and elevation) or `pinhole`.
+    pub fn projection(&self) -> &'static str {
+        match self.latlon {
+            Some(_) => "latlon",
+            None => "pinhole",
+        }
+    }
+
+    /// One line naming the projection for a file's header, for latlon with its system.
+    pub fn projection_note(&self) -> String {
+        match &self.latlon {
+            Some(l) => format!(
+                "projection latlon: pixel (x, y) is azimuth (x - {:.6}) / {:.6} and elevation \
+                 (y - {:.6}) / {:.6} radians about the rectified baseline",
+                l.cx, l.fx, l.cy, l.fy
+            ),
+            None => "projection pinhole".to_owned(),
+        }
+    }
+
     /// The warnings and, for a raw pair, the note that it was rectified first (what was done,
     /// not a fault: a summary says it, a file answer's warnings do not).
     pub fn said(&self) -> Vec<String> {
@@ -150,7 +170,7 @@ pub fn matched(
     timings.cost += surveyed;
     // What the matcher answered, before a range that stops short refuses what lies past it
     // (a low share then is the range's, not a raw pair's).
-    let matched_share = valid_share(&map);
+    let matched_share = matched_share(&map, &left.grey);
     let started = Instant::now();
     let judged = ranged.judge(&mut map, request.calibrated.map(|c| c.rig));
     timings.refine += started.elapsed();
@@ -188,6 +208,16 @@ pub fn matched(
 fn valid_share(map: &Disparity) -> f64 {
     let valid = map.data.iter().filter(|d| !d.is_nan()).count();
     valid as f64 / map.data.len().max(1) as f64
+}
+
+/// [`valid_share`], under [`UNRECTIFIED_SHARE`] of the pixels not blank ([`vision::census::blank`]).
+fn matched_share(map: &Disparity, left: &vision::Gray) -> f64 {
+    let share = valid_share(map);
+    if share >= UNRECTIFIED_SHARE {
+        return share;
+    }
+    let blank = vision::census::blank(left).iter().filter(|&&b| b).count();
+    share * map.data.len() as f64 / map.data.len().saturating_sub(blank).max(1) as f64
 }
 
 impl Matched {
@@ -473,13 +503,14 @@ impl Product {
                 encode::png16(w, h, &encode::millimetres(&mm))
             }
             Product::PreviewPng => encode::png_rgb(w, h, &preview(d)),
-            Product::PointsPly => encode::ply(&points(map)),
+            Product::PointsPly => encode::ply(&points(map), &[map.projection_note()]),
         })
     }
 }
 
 /// The NPZ: the disparity and its σ_d and, with a rig, the depth, its σ_Z, and σ_Z again as
-/// `depth_error` (its earlier name); with `fill`, which pixels the fill gave (`filled`).
+/// `depth_error` (its earlier name); with `fill`, `filled`; the `projection` and, for latlon,
+/// its system (`latlon`: f_az, f_el in pixels a radian, cx, cy).
 fn arrays(map: &DepthMap) -> Result<Vec<u8>, String> {
     let d = &map.disparity;
     let (w, h) = (d.width, d.height);
@@ -495,6 +526,10 @@ fn arrays(map: &DepthMap) -> Result<Vec<u8>, String> {
     }
     if !d.filled.is_empty() {
         entries.push(("filled", encode::npy_bool(w, h, &d.filled)));
+    }
+    entries.push(("projection", encode::npy_text(map.projection())));
+    if let Some(l) = &map.latlon {
+        entries.push(("latlon", encode::npy_f64(&[l.fx, l.fy, l.cx, l.cy])));
     }
     encode::npz(&entries).map_err(|e| format!("the NPZ was not written: {e}"))
 }

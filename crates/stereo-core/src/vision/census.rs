@@ -412,6 +412,61 @@ fn gather(padded: &[u16], starts: &[usize], x0: usize, centre: &[u16; BLOCK]) ->
     bits
 }
 
+/// The most a blank window's grey levels differ (16-bit levels): one level of 255.
+pub const BLANK_LEVELS: u16 = 257;
+
+/// The pixels whose census window tells them from nothing (their match would tie at every
+/// disparity): a clipped sky, a board's square burnt out to white, the black beyond a fisheye's
+/// image circle. A window is blank when every grey level in it (its [`WIDTH`] × [`HEIGHT`]
+/// neighbourhood, the image's border repeated) is within [`BLANK_LEVELS`] of every other; its
+/// signature is the same wherever the other image is as blank, so the costs tie and the
+/// penalties carry a value in that looks sharp. So is a pixel at the floor of its window (none
+/// of it darker, so its signature is zero) whose 3 × 3 and whose row's [`WIDTH`] are blank: the
+/// dark rows beside a black region's edge, whose zero signature every blank pixel along the
+/// other image's row shares. Answered row-major, one a pixel.
+pub fn blank(image: &Gray) -> Vec<bool> {
+    let (w, h) = (image.width, image.height);
+    if w == 0 || h == 0 {
+        return Vec::new();
+    }
+    let (rx, ry) = (WIDTH / 2, HEIGHT / 2);
+    let span = |line: &[u16]| {
+        let least = line.iter().copied().min().unwrap_or(0);
+        (least, line.iter().copied().max().unwrap_or(least))
+    };
+    // Each row's least and greatest level over the window's width and over 3, then down the
+    // window's height and down 3.
+    let mut spans = vec![[(0u16, 0u16); 2]; w * h];
+    spans
+        .par_chunks_mut(w)
+        .zip(image.data.par_chunks(w))
+        .for_each(|(out, row)| {
+            for (x, o) in out.iter_mut().enumerate() {
+                let near = |r: usize| &row[x.saturating_sub(r)..(x + r + 1).min(w)];
+                *o = [span(near(rx)), span(near(1))];
+            }
+        });
+    let mut blank = vec![false; w * h];
+    blank.par_chunks_mut(w).enumerate().for_each(|(y, out)| {
+        let down = |x: usize, r: usize, k: usize| {
+            (y.saturating_sub(r)..(y + r + 1).min(h)).fold((u16::MAX, 0u16), |(l, g), v| {
+                let (a, b) = spans[v * w + x][k];
+                (l.min(a), g.max(b))
+            })
+        };
+        for (x, b) in out.iter_mut().enumerate() {
+            let (least, greatest) = down(x, ry, 0);
+            let centre = image.data[y * w + x];
+            let within = |(l, g): (u16, u16)| g - l <= BLANK_LEVELS;
+            *b = within((least, greatest))
+                || (least + BLANK_LEVELS >= centre
+                    && within(spans[y * w + x][0])
+                    && within(down(x, 1, 1)));
+        }
+    });
+    blank
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -460,6 +515,37 @@ mod tests {
         for v in values {
             assert_eq!(level_of(v), cast(v), "{v}");
         }
+    }
+
+    /// A window within one grey level is blank; one with a single pixel two levels off, or a
+    /// faint noise over it, is not; the window reaches the border repeated, not past it.
+    #[test]
+    fn blank_windows_are_those_within_one_level() {
+        let mut img = image(40, 30, 0.0, |_, _| 100.0);
+        // Levels 100 and 101 (of 255) alike: still blank.
+        img.data[5 * 40 + 5] = 101 * 257;
+        // One pixel two levels down at (30, 15): every window holding it is not blank (their
+        // centres have a darker neighbour).
+        img.data[15 * 40 + 30] = 98 * 257;
+        let b = blank(&img);
+        assert!(b[5 * 40 + 5] && b[0]);
+        assert!(!b[15 * 40 + 30] && !b[(15 + 3) * 40 + 30 + 4] && !b[(15 - 3) * 40 + 30 - 4]);
+        assert!(b[(15 + 4) * 40 + 30] && b[15 * 40 + 30 - 5]);
+        let noisy = image(40, 30, 2.0, |_, _| 100.0);
+        assert!(blank(&noisy).iter().all(|&b| !b));
+        // Texture above black: the black rows two or more below the edge are blank (nothing
+        // darker, their 3 × 3 and row blank), the one beside it and the texture are not; a
+        // dark spot narrower than the window on texture is not blank at its centre.
+        let mut img = image(40, 30, 30.0, |_, _| 120.0);
+        for (i, v) in img.data.iter_mut().enumerate() {
+            let (x, y) = (i % 40, i / 40);
+            if y >= 15 || ((5..10).contains(&x) && (5..10).contains(&y)) {
+                *v = 0;
+            }
+        }
+        let b = blank(&img);
+        assert!(b[17 * 40 + 20] && b[16 * 40 + 20] && !b[15 * 40 + 20] && !b[14 * 40 + 20]);
+        assert!(!b[7 * 40 + 7]);
     }
 
     /// A flat image has no structure: every signature is zero.

@@ -40,10 +40,37 @@ pub fn npy_bool(width: usize, height: usize, data: &[bool]) -> Vec<u8> {
     out
 }
 
+/// NumPy's NPY of a string, a 0-d array of `<U` (UTF-32, `str(np.load(f))` reads it back).
+pub fn npy_text(text: &str) -> Vec<u8> {
+    let chars: Vec<char> = text.chars().collect();
+    let descr = format!("<U{}", chars.len().max(1));
+    let mut out = npy_header_of(&descr, "()", chars.len().max(1) * 4);
+    for c in &chars {
+        out.extend_from_slice(&u32::from(*c).to_le_bytes());
+    }
+    if chars.is_empty() {
+        out.extend_from_slice(&[0; 4]);
+    }
+    out
+}
+
+/// NumPy's NPY of a one-dimensional array of `f64`.
+pub fn npy_f64(values: &[f64]) -> Vec<u8> {
+    let mut out = npy_header_of("<f8", &format!("({},)", values.len()), values.len() * 8);
+    for v in values {
+        out.extend_from_slice(&v.to_le_bytes());
+    }
+    out
+}
+
 /// An NPY header for a `height × width` array of `descr`, with room for `bytes` of data.
 fn npy_header(descr: &str, width: usize, height: usize, bytes: usize) -> Vec<u8> {
-    let dict =
-        format!("{{'descr': '{descr}', 'fortran_order': False, 'shape': ({height}, {width}), }}");
+    npy_header_of(descr, &format!("({height}, {width})"), bytes)
+}
+
+/// An NPY header for an array of `descr` and `shape` (a Python tuple), with room for `bytes`.
+fn npy_header_of(descr: &str, shape: &str, bytes: usize) -> Vec<u8> {
+    let dict = format!("{{'descr': '{descr}', 'fortran_order': False, 'shape': {shape}, }}");
     // Magic (6) + version (2) + length (2) + dict + padding + '\n', a multiple of 64.
     let unpadded = 10 + dict.len() + 1;
     let padding = unpadded.next_multiple_of(64) - unpadded;
@@ -179,11 +206,16 @@ pub const PLY_VERTEX_BYTES: usize = 19;
 
 /// A binary little-endian PLY of coloured points, each with its σ_Z as the float property
 /// `depth_std` (Open3D, CloudCompare, MeshLab read it; Open3D's tensor API and plyfile give
-/// `depth_std` too, and readers that do not know it skip it).
-pub fn ply(points: &[ColouredPoint]) -> Vec<u8> {
+/// `depth_std` too, and readers that do not know it skip it), with a `comment` line for each
+/// of `comments` (one line each; a line break in one ends it).
+pub fn ply(points: &[ColouredPoint], comments: &[String]) -> Vec<u8> {
+    let notes: String = comments
+        .iter()
+        .map(|c| format!("comment {}\n", c.lines().next().unwrap_or_default()))
+        .collect();
     let header = format!(
         "ply\nformat binary_little_endian 1.0\ncomment stereo-distance depth map, left camera frame\n\
-         comment depth_std: the standard deviation of each point's depth, in its unit\n\
+         comment depth_std: the standard deviation of each point's depth, in its unit\n{notes}\
          element vertex {}\nproperty float x\nproperty float y\nproperty float z\n\
          property uchar red\nproperty uchar green\nproperty uchar blue\n\
          property float depth_std\nend_header\n",
@@ -228,6 +260,32 @@ mod tests {
         let header = std::str::from_utf8(&out[10..10 + header_len]).unwrap();
         assert!(header.contains("'descr': '|b1'") && header.contains("'shape': (2, 2)"));
         assert_eq!(&out[10 + header_len..], &[1, 0, 0, 1]);
+    }
+
+    /// A string is a 0-d `<U` array of its UTF-32 code points, an empty one a single NUL;
+    /// floats a 1-d `<f8` array; both headers aligned like every other.
+    #[test]
+    fn text_and_f64_npy() {
+        for (text, n) in [("latlon", 6), ("σ", 1), ("", 1)] {
+            let out = npy_text(text);
+            let header_len = u16::from_le_bytes([out[8], out[9]]) as usize;
+            assert_eq!((10 + header_len) % 64, 0);
+            let header = std::str::from_utf8(&out[10..10 + header_len]).unwrap();
+            assert!(header.contains(&format!("'descr': '<U{n}'")) && header.contains("(),"));
+            let data = &out[10 + header_len..];
+            assert_eq!(data.len(), 4 * n);
+            let back: String = data
+                .chunks(4)
+                .map(|c| char::from_u32(u32::from_le_bytes(c.try_into().unwrap())).unwrap())
+                .filter(|&c| c != '\0')
+                .collect();
+            assert_eq!(back, text);
+        }
+        let out = npy_f64(&[1.5, -2.0]);
+        let header_len = u16::from_le_bytes([out[8], out[9]]) as usize;
+        let header = std::str::from_utf8(&out[10..10 + header_len]).unwrap();
+        assert!(header.contains("'descr': '<f8'") && header.contains("'shape': (2,)"));
+        assert_eq!(&out[10 + header_len + 8..], &(-2.0f64).to_le_bytes());
     }
 
     /// The NPZ is a stored zip: each local header names the entry `….npy`, carries its

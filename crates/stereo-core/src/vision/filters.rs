@@ -1,18 +1,19 @@
 //! The disparity map's filters after the winners are chosen: speckle removal (OpenCV's
 //! `filterSpeckles`, by union-find over runs in bands), the 3 × 3 median that ignores invalid pixels,
 //! and hole filling for the pyramid's coarse levels; and [`finish`], the order they run in
-//! with σ_d, the planes in flat holes and the keep rule.
+//! with the blank windows' refusal, σ_d, the planes in flat holes and the keep rule.
 //!
 //! Invalid pixels are `f32::NAN` throughout.
 
 use rayon::prelude::*;
 
 use super::simd::{greatest as max, least as min};
-use super::{Gray, Params, plane, sigma};
+use super::{Gray, Params, census, plane, sigma};
 
 /// The map's finishing after the winners (`data`, range indices, `width` a row; `variance`,
-/// their winners' variances): speckles, the median, σ_d ([`sigma::map`]), the planes in flat
-/// holes of `left` ([`plane`]), the keep rule ([`sigma::keep`]) and the fill, as `params` ask.
+/// their winners' variances): speckles, the median, the pixels of `left` whose census window is
+/// blank refused ([`census::blank`]), σ_d ([`sigma::map`]), the planes in flat holes of `left`
+/// ([`plane`]), the keep rule ([`sigma::keep`]) and the fill, as `params` ask.
 /// Answers the map, its σ_d, and the fill's mask (empty without `fill`; it also names the
 /// values the planes gave that the keep rule kept).
 pub(super) fn finish(
@@ -25,6 +26,12 @@ pub(super) fn finish(
     speckles(&mut data, width, params.speckle_size, params.speckle_range);
     if params.median {
         data = median(&data, width);
+    }
+    // A blank window matched nothing: its value was carried in. The planes may give it one.
+    for (d, blank) in data.iter_mut().zip(census::blank(left)) {
+        if blank {
+            *d = f32::NAN;
+        }
     }
     let mut std = sigma::map(&data, &variance, width);
     drop(variance);

@@ -10,7 +10,7 @@
 
 use std::sync::atomic::AtomicBool;
 
-use super::{Cancelled, Disparity, Gray, Params, Settings, pyramid};
+use super::{Cancelled, Disparity, Gray, Params, Settings, census, pyramid};
 
 /// The most disparities a found range holds, whatever the image: [`super::MAX_DISPARITIES`].
 pub const CEILING: usize = super::MAX_DISPARITIES;
@@ -41,9 +41,10 @@ pub const SWAPPED_SHARE: f64 = 0.6;
 pub struct Survey {
     /// How many times the pair was halved: a coarse pixel is `2^levels` full-size pixels.
     pub levels: usize,
-    /// The share of the coarse pixels that matched.
+    /// The share of the coarse pixels with something to match (their window reaching no blank
+    /// pixel) that matched.
     pub matched: f64,
-    /// The share that matched the other way round (right as left), when that was tried.
+    /// The same share matched the other way round (right as left), when that was tried.
     pub reversed: Option<f64>,
     /// The [`NEAR_QUANTILE`] of the positive matches, and their greatest.
     pub near: f32,
@@ -107,14 +108,46 @@ pub fn survey(left: &Gray, right: &Gray, cancel: &AtomicBool) -> Result<Option<S
         plane: false,
         ..params
     };
-    let (map, _) = super::disparity(l, r, &params, cancel)?;
-    let mut survey = Survey::of(map, levels);
+    let (mut map, _) = super::disparity(l, r, &params, cancel)?;
+    let seen = seeing(&mut map, l);
+    let mut survey = Survey::of(map, levels, seen);
     if survey.matched < SUSPECT_MATCHED || survey.negative >= 1.0 - SWAPPED_SHARE {
-        let (reversed, _) = super::disparity(r, l, &params, cancel)?;
+        let (mut reversed, _) = super::disparity(r, l, &params, cancel)?;
+        let seen = seeing(&mut reversed, r);
         let valid = reversed.data.iter().filter(|d| !d.is_nan()).count();
-        survey.reversed = Some(valid as f64 / reversed.data.len().max(1) as f64);
+        survey.reversed = Some(valid as f64 / seen.max(1) as f64);
     }
     Ok(Some(survey))
+}
+
+/// Empties the coarse `map`'s pixels whose census window reaches a blank pixel of `left` (its
+/// image, [`census::blank`]): the blank ones matched nothing, and the edge of a blank region is
+/// a straight line along which a window ties (the scene's texture beside a fisheye's black
+/// surround, halved into a ramp). Answers how many pixels are left to speak.
+fn seeing(map: &mut Disparity, left: &Gray) -> usize {
+    let (w, h) = (map.width, map.height);
+    let blank = census::blank(left);
+    let (rx, ry) = (census::WIDTH / 2, census::HEIGHT / 2);
+    // Along the rows, then down the columns.
+    let mut near = vec![false; w * h];
+    for (out, row) in near.chunks_mut(w.max(1)).zip(blank.chunks(w.max(1))) {
+        for (x, o) in out.iter_mut().enumerate() {
+            *o = row[x.saturating_sub(rx)..(x + rx + 1).min(w)].contains(&true);
+        }
+    }
+    let mut seen = 0;
+    for y in 0..h {
+        for x in 0..w {
+            let touches = (y.saturating_sub(ry)..(y + ry + 1).min(h)).any(|v| near[v * w + x]);
+            if touches {
+                map.data[y * w + x] = f32::NAN;
+                map.std[y * w + x] = f32::NAN;
+            } else {
+                seen += 1;
+            }
+        }
+    }
+    seen
 }
 
 /// Below this share of its coarse pixels matched, a pair is matched the other way round too
@@ -123,10 +156,10 @@ pub const SUSPECT_MATCHED: f64 = 0.5;
 
 impl Survey {
     /// What a coarse map matched says.
-    fn of(map: Disparity, levels: usize) -> Survey {
+    fn of(map: Disparity, levels: usize, seen: usize) -> Survey {
         let scale = (1i32 << levels) as f32;
         let valid: Vec<f32> = map.data.iter().copied().filter(|d| !d.is_nan()).collect();
-        let matched = valid.len() as f64 / map.data.len().max(1) as f64;
+        let matched = valid.len() as f64 / seen.max(1) as f64;
 
         let mut positive: Vec<f32> = valid.iter().copied().filter(|&d| d >= 0.0).collect();
         positive.sort_by(f32::total_cmp);
@@ -516,6 +549,69 @@ mod tests {
         enclosed(&map, &mut past);
         assert!(past[2 * w + 2], "the enclosed patch at 12 is past");
         assert!(!past[2 * w + 6], "the far surface at the edge is not");
+    }
+
+    /// Black bands across both images (the dark beyond a fisheye's image circle, a clipped sky),
+    /// above and below a near scene: the full match gives them no disparity, the survey neither
+    /// takes them for matches at zero (its farthest stays near the scene's, no negatives) nor
+    /// for swapped cameras, and a range that stops short of the scene leaves no pixel.
+    #[test]
+    fn blank_bands_are_neither_matched_nor_surveyed() {
+        let (w, h) = (640, 360);
+        let mut pair = synthetic::render(&synthetic::nearer(w, h, 5.0, 0.0));
+        let whole = pair.clone();
+        let band = |y: usize| !(90..270).contains(&y);
+        for image in [&mut pair.left, &mut pair.right] {
+            for (i, v) in image.data.iter_mut().enumerate() {
+                if band(i / w) {
+                    *v = 0;
+                }
+            }
+        }
+        let cancel = AtomicBool::new(false);
+        let params = Params::new(&Settings {
+            max_disparity: Some(super::super::RangeEnd::Px(256)),
+            ..Settings::default()
+        })
+        .unwrap();
+        let (map, _) = super::super::disparity(&pair.left, &pair.right, &params, &cancel).unwrap();
+        // Rows whose whole 9 × 7 window lies in a band carry no disparity.
+        let deep = |y: usize| band(y) && band(y.saturating_sub(3)) && band((y + 3).min(h - 1));
+        let carried = (0..w * h)
+            .filter(|&i| deep(i / w) && !map.data[i].is_nan())
+            .count();
+        assert_eq!(carried, 0, "pixels of the blank bands with a disparity");
+        // The scene's rows clear of the bands match as they do without them.
+        let (unbanded, _) =
+            super::super::disparity(&whole.left, &whole.right, &params, &cancel).unwrap();
+        let clear = |m: &Disparity| (96 * w..264 * w).filter(|&i| !m.data[i].is_nan()).count();
+        let (with, without) = (clear(&map), clear(&unbanded));
+        assert!(
+            with as f64 > 0.97 * without as f64,
+            "{with} pixels of the scene matched with the bands, {without} without"
+        );
+        let s = survey(&pair.left, &pair.right, &cancel).unwrap().unwrap();
+        // The farthest the scene's rows clear of the bands show.
+        let least = (96 * w..264 * w)
+            .filter(|&i| pair.visible[i])
+            .map(|i| pair.truth[i])
+            .fold(f32::MAX, f32::min);
+        assert!(
+            s.far > 0.5 * least && s.far < least + 4.0 && s.negative < 0.01 && !s.swapped(),
+            "farthest {} for a truth from {least}; {:?}",
+            s.far,
+            (s.negative, s.negative_median)
+        );
+        // The share matched is of the pixels with something to match (of all, it would be
+        // under a third): the pair is not suspected.
+        assert!(s.matched > SUSPECT_MATCHED, "{}", s.matched);
+        let mut short = map.clone();
+        refuse(&mut short, Some(&s), (None, 16), true);
+        let kept = short.data.iter().filter(|d| !d.is_nan()).count();
+        assert_eq!(
+            kept, 0,
+            "pixels kept by a range of 16 px on a scene from {least} px"
+        );
     }
 
     /// With a range that stops short of a near scene, the pixels past it are refused: those in

@@ -51,7 +51,9 @@ impl ImageForm for DepthMapForm {
                    matched corners a pixel or more off their rows) gets a warning in the \
                    summary saying how to rectify it. A file answer carries the warnings \
                    in its `Stereo-Warnings` header (a JSON array of strings, absent when there \
-                   are none).\n\n\
+                   are none), and the projection its pixels are in (`pinhole` or `latlon`) in \
+                   `Stereo-Projection`; `points.ply` says it in a comment, `arrays.npz` in \
+                   `projection` (and, for latlon, `latlon`: f_az, f_el, cx, cy).\n\n\
                    A JPEG or PNG cut off before its image ends, or whose data is corrupt, is a \
                    422 naming the part; a JPEG whose scans are whole but whose end-of-image \
                    marker is missing is read, with a warning.\n\n\
@@ -89,7 +91,15 @@ pub async fn post_depth_map(
     mut pair: ImagePair<DepthMapForm>,
 ) -> Result<Response, ApiError> {
     let mut problems = pair.problems(problems);
-    let latlon = job::latlon_options(query.projection, query.latlon(), &mut problems);
+    let output = query.output.unwrap_or_else(|| {
+        headers
+            .get(header::ACCEPT)
+            .and_then(|a| a.to_str().ok())
+            .and_then(DepthMapOutput::from_accept)
+            .unwrap_or_default()
+    });
+    let latlon = job::latlon_options(query.projection, query.latlon(), &mut problems)
+        .filter(|l| !(l.when_wide && output.ros().is_some()));
     let asked = job::Asked {
         rectify: query.rectify,
         alpha: query.alpha,
@@ -98,13 +108,6 @@ pub async fn post_depth_map(
         prefix: "",
     };
     let planned = job::plan_pair(&mut pair, asked, &mut problems);
-    let output = query.output.unwrap_or_else(|| {
-        headers
-            .get(header::ACCEPT)
-            .and_then(|a| a.to_str().ok())
-            .and_then(DepthMapOutput::from_accept)
-            .unwrap_or_default()
-    });
     if output.needs_rig() {
         let why = format!("for output={}", output.name());
         rig::require_rig(pair.sent, &why, &mut problems);
@@ -159,6 +162,7 @@ fn compute(work: Job, job: DepthJob, output: DepthMapOutput) -> Result<Response,
     let encode = started.elapsed() + map.depths;
     let started = Instant::now();
     let (warnings, timings, rectify) = (map.warnings.clone(), map.timings, map.rectify);
+    output::set_projection(&mut response, map.projection());
     drop(map);
     let mut after = Vec::with_capacity(3);
     after.extend(rectify.map(|t| ("rectify", t)));

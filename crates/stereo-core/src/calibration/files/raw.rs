@@ -10,7 +10,8 @@ use nalgebra::{Matrix3, Matrix3x4, Rotation3, Vector3};
 use super::{Calibration, Format, ParseError};
 use crate::camera::{
     Camera, CameraFault, Distortion, GivenFault, Intrinsics, Latlon, LatlonFault, LatlonOptions,
-    Model, Rectification, RectifyFault, RectifyOptions, Size, StereoPair, stereo_rectify,
+    Model, Rectification, RectifyFault, RectifyOptions, Size, StereoPair, WIDE_FOV_DEG,
+    stereo_rectify,
 };
 use crate::numbers::Num;
 
@@ -60,9 +61,20 @@ impl Raw {
         self.latlon.map_or(self.rectification.size, |l| l.size)
     }
 
+    /// Whether the cameras together see wider than [`WIDE_FOV_DEG`] across the baseline or
+    /// about it: the field of the latitude-longitude system that holds what both see.
+    pub fn sees_wide(&self) -> bool {
+        Latlon::new(&self.pair, self.size, LatlonOptions::default())
+            .is_ok_and(|l| l.az_fov_deg.max(l.el_fov_deg) > WIDE_FOV_DEG)
+    }
+
     /// The same cameras rectified to latitude-longitude, the field and resolution chosen
-    /// as [`Latlon::new`] chooses them where `options` leave them out.
+    /// as [`Latlon::new`] chooses them where `options` leave them out; with
+    /// `options.when_wide`, only when they [see wide](Raw::sees_wide) (else as they were).
     pub fn with_latlon(self, options: LatlonOptions) -> Result<Raw, LatlonFault> {
+        if options.when_wide && !self.sees_wide() {
+            return Ok(self);
+        }
         let latlon = Latlon::new(&self.pair, self.size, options)?;
         Ok(Raw {
             latlon: Some(latlon),
