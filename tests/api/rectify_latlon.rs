@@ -262,7 +262,8 @@ async fn auto_picks_latlon_for_wide_lenses_only() {
 /// `/depth-map?projection=latlon` on the rendered 180° pair: the map is the latlon system's
 /// size, says `projection: latlon` with the system, its disparities are the scene's 6 px,
 /// and `depth.npy` is each pixel's range from mrcal's formula, B·cos(az − d/fx)/sin(d/fx),
-/// times cos(az)·cos(el), within 0.5 % over the middle of the field.
+/// times cos(az)·cos(el), within 0.5 % over the middle of the field; the files say latlon; the
+/// pair sent swapped is named so.
 #[tokio::test]
 async fn depth_map_in_latlon() {
     let app = spawn_app().await;
@@ -335,6 +336,16 @@ async fn depth_map_in_latlon() {
             "{values:?}"
         );
     }
+
+    // Sent the other way round, at the defaults, the cameras are named swapped.
+    let swapped = app
+        .post_form(
+            "/depth-map?projection=latlon",
+            raw_form(&right, &left, &yml),
+        )
+        .await;
+    let warnings = ok_json(swapped).await["warnings"].to_string();
+    assert!(warnings.contains("look swapped"), "{warnings}");
 }
 
 /// What latlon cannot do with `/depth-map` is named: the ROS messages (a pinhole

@@ -306,7 +306,7 @@ impl Ranged {
     }
 
     /// For a raw pair rectified through `maps` (its raw grey frames `left` and `right`): where
-    /// its coarse view matched little ([`survey::SUSPECT_MATCHED`]) and does not already look
+    /// its coarse view matched under 1 / [`survey::SWAPPED_GAIN`] and does not already look
     /// swapped, the frames rectified the other way round ([`Maps::swapped_grey`]) are surveyed
     /// too, and a pair that matches at least [`survey::SWAPPED_GAIN`] times as much so is taken
     /// as swapped: a calibration that works only one way round.
@@ -318,7 +318,9 @@ impl Ranged {
         cancel: &AtomicBool,
     ) -> Result<(), Cancelled> {
         let matched = self.survey.as_ref().map_or(0.0, |s| s.matched);
-        if self.swapped() || matched >= survey::SUSPECT_MATCHED {
+        // Past 1 / SWAPPED_GAIN matched as sent, the other way round could never match so much
+        // more.
+        if self.swapped() || matched * survey::SWAPPED_GAIN >= 1.0 {
             return Ok(());
         }
         let (l, r) = maps.swapped_grey(left, right);
