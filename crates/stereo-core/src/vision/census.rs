@@ -459,7 +459,7 @@ pub fn blank(image: &Gray) -> Vec<bool> {
             let centre = image.data[y * w + x];
             let within = |(l, g): (u16, u16)| g - l <= BLANK_LEVELS;
             *b = within((least, greatest))
-                || (least + BLANK_LEVELS >= centre
+                || (least.saturating_add(BLANK_LEVELS) >= centre
                     && within(spans[y * w + x][0])
                     && within(down(x, 1, 1)));
         }
