@@ -14,6 +14,7 @@ use crate::api::images::{job, limits, ros};
 use crate::api::wire::depth_map::{DepthMapOutput, DepthMapSummary};
 use crate::api::wire::rig::CalibratedRig;
 use crate::config::Config;
+use stereo_core::camera::LatlonOptions;
 use stereo_core::pipeline::{self, Answer, DepthJob, DepthMap, Maps, Product, RigInput};
 use stereo_core::vision::Settings;
 use stereo_core::vision::decode::{self, DecodeLimits, Decoded};
@@ -109,6 +110,8 @@ type Resolution = Result<Arc<DepthJob>, Vec<FieldError>>;
 pub struct Engine {
     output: DepthMapOutput,
     settings: Settings,
+    /// Rectified to latitude-longitude with these (`--projection`), or `None`.
+    latlon: Option<LatlonOptions>,
     /// The calibration, parsed once as the service parses it (by the run's preflight).
     calibration: RigInput,
     limits: DecodeLimits,
@@ -122,13 +125,13 @@ pub struct Engine {
 pub type Made = (Vec<u8>, Vec<String>);
 
 impl Engine {
-    /// The engine of a run writing `output` with the matcher's `settings` and the rig's
-    /// `calibration` (parsed by the run's preflight), under `config`'s image limits and memory
-    /// budget.
+    /// The engine of a run writing `output` with the matcher's `settings` (and, with `latlon`,
+    /// rectified to latitude-longitude) and the rig's `calibration` (parsed by the run's
+    /// preflight), under `config`'s image limits and memory budget.
     pub fn new(
         config: &Config,
         output: DepthMapOutput,
-        settings: Settings,
+        (settings, latlon): (Settings, Option<LatlonOptions>),
         calibration: RigInput,
     ) -> Engine {
         // The matcher's buffer pools and glibc's thresholds as the service sets them, so that a
@@ -137,6 +140,7 @@ impl Engine {
         Engine {
             output,
             settings,
+            latlon,
             calibration,
             limits: limits::decode_limits(config.heavy.max_image_pixels),
             memory_budget: config.heavy.memory_budget,
@@ -249,7 +253,7 @@ impl Engine {
         let asked = job::Asked {
             rectify: None,
             alpha: None,
-            latlon: None,
+            latlon: self.latlon,
             settings: self.settings,
             prefix: "",
         };

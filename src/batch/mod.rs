@@ -154,6 +154,7 @@ pub async fn depth_maps<W: std::io::Write>(
             "max_disparity_std",
             args.max_disparity_std.map(|s| s.to_string()),
         ),
+        ("projection", args.projection.clone()),
     ] {
         if let Some(value) = value {
             query.push_str(&format!("&{name}={value}"));
@@ -203,7 +204,7 @@ pub async fn depth_maps<W: std::io::Write>(
             Transport::InProcess(Arc::new(Engine::new(
                 &config,
                 output,
-                preflight::settings(&args),
+                (preflight::settings(&args), preflight::latlon(&args)),
                 rig,
             )))
         }

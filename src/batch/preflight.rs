@@ -11,6 +11,7 @@ use crate::api::images::{job, rig};
 use crate::api::wire::depth_map::DepthMapOutput;
 use crate::api::wire::images::RigParts;
 use crate::config::DepthMapArgs;
+use stereo_core::camera::LatlonOptions;
 use stereo_core::pipeline::{RigInput, Sent};
 use stereo_core::vision::{Preset, Settings};
 
@@ -58,11 +59,21 @@ pub fn check(args: &DepthMapArgs, output: &str, rig: Option<&Rig>) -> Result<Rig
             problems.add(&field, fault.message.clone());
         }
     }
+    let mcap = super::sink::is_mcap(&args.out);
+    if mcap && args.projection.as_deref() == Some("latlon") {
+        problems.add(
+            "--projection",
+            format!(
+                "latlon cannot be written to an .mcap --out: {}",
+                job::ROS_NOT_LATLON
+            ),
+        );
+    }
     let mut range = FieldErrors::default();
     let asked = job::Asked {
         rectify: None,
         alpha: None,
-        latlon: None,
+        latlon: latlon(args),
         settings: settings(args),
         prefix: "",
     };
@@ -84,6 +95,20 @@ pub fn check(args: &DepthMapArgs, output: &str, rig: Option<&Rig>) -> Result<Rig
         "the run's settings are refused, before any frame was sent:\n  {}",
         said.join("\n  ")
     ))
+}
+
+/// The latitude-longitude options `--projection` asks for (`auto` only where the lenses see
+/// wide); `None` for the pinhole plane, which an .mcap `--out` (ROS images) always is.
+pub fn latlon(args: &DepthMapArgs) -> Option<LatlonOptions> {
+    let options = match args.projection.as_deref() {
+        Some("latlon") => LatlonOptions::default(),
+        Some("auto") => LatlonOptions {
+            when_wide: true,
+            ..LatlonOptions::default()
+        },
+        _ => return None,
+    };
+    options.unless_pinhole(super::sink::is_mcap(&args.out))
 }
 
 /// The matcher's settings the run's options ask for, as `/depth-map`'s query gives them.

@@ -86,6 +86,12 @@ pub struct DepthMapArgs {
     /// `max_disparity_std`; default 4).
     #[arg(long, value_name = "PX")]
     pub max_disparity_std: Option<f64>,
+    /// The rectified images' projection, as /depth-map's `projection`: pinhole (the
+    /// default), latlon (latitude-longitude, for wide and fisheye lenses) or auto (latlon
+    /// where the lenses see wider than 100°). An .mcap --out holds ROS images, which are
+    /// pinhole: auto gives way there and latlon is refused.
+    #[arg(long, value_name = "PROJECTION", value_parser = ["pinhole", "latlon", "auto"])]
+    pub projection: Option<String>,
     /// Send the pairs to the service at this address (http://host:port) instead of matching
     /// them here: behind a Kubernetes Service, the heavy Deployment's replicas share them.
     #[arg(long, value_name = "URL")]

@@ -85,7 +85,7 @@ pub(crate) fn side_by_side(pair: &Pair) -> Vec<u8> {
 }
 
 /// A pair-layout frame: the left image's length (4 bytes, little-endian), left, right.
-fn pair_frame(left: &[u8], right: &[u8]) -> Vec<u8> {
+pub(crate) fn pair_frame(left: &[u8], right: &[u8]) -> Vec<u8> {
     let mut frame = (left.len() as u32).to_le_bytes().to_vec();
     frame.extend_from_slice(left);
     frame.extend_from_slice(right);

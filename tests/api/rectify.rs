@@ -142,7 +142,7 @@ fn render_raw(pair: &StereoPair, rect: &stereo_core::camera::Rectification) -> [
     out
 }
 
-fn grey_png(data: &[u8]) -> Vec<u8> {
+pub(crate) fn grey_png(data: &[u8]) -> Vec<u8> {
     stereo_core::vision::encode::png_grey(W as usize, H as usize, data)
 }
 

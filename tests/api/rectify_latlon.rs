@@ -381,3 +381,228 @@ async fn depth_map_latlon_refusals_are_named() {
         assert!(message.contains(says), "{query}: {message}");
     }
 }
+
+/// The median of a map's finite values.
+fn median(values: &[f32]) -> f64 {
+    let mut v: Vec<f32> = values.iter().copied().filter(|d| d.is_finite()).collect();
+    assert!(!v.is_empty(), "no finite value");
+    v.sort_by(f32::total_cmp);
+    f64::from(v[v.len() / 2])
+}
+
+/// `/depth-stream` with `options.projection=latlon` on the rendered 180° pair: each frame is
+/// matched in the latlon system (its size, `projection: latlon`, the scene's 6 px); `auto`
+/// gives way to the pinhole plane for a ROS output, and what latlon cannot do is named under
+/// `options.` or the output's index.
+#[tokio::test]
+async fn a_stream_matches_in_latlon() {
+    use crate::depth_stream::{binary, open_with, pair_frame, text};
+    use crate::helpers::fields;
+    use crate::rectify::grey_png;
+    use futures_util::SinkExt;
+    use tokio_tungstenite::tungstenite::Message;
+    let app = spawn_app().await;
+    let pair = fisheye_180();
+    let system = Latlon::new(&pair, SIZE, LatlonOptions::default()).unwrap();
+    let [left, right] = render(&pair, &system);
+    let yml = stereo_calibrate_yml(&pair);
+    let settings = |options: Value, outputs: Value| {
+        serde_json::json!({"layout": "pair", "calibration": yml, "calibration_unit": "mm",
+            "options": options, "outputs": outputs, "temporal": false})
+    };
+    let options = serde_json::json!({"projection": "latlon", "max_disparity": 32});
+    let (mut socket, resolved) = open_with(
+        &app,
+        settings(options, serde_json::json!(["disparity.npy"])),
+    )
+    .await;
+    assert_eq!(resolved["type"], "settings", "{resolved}");
+    let frame = pair_frame(&grey_png(&left), &grey_png(&right));
+    socket.send(Message::binary(frame)).await.unwrap();
+    let answer = text(&mut socket).await;
+    assert_eq!(answer["type"], "frame", "{answer}");
+    assert_eq!(answer["summary"]["projection"], "latlon", "{answer}");
+    let (w, h) = (system.size.width as usize, system.size.height as usize);
+    assert_eq!(answer["summary"]["width"].as_u64(), Some(w as u64));
+    let disparity = npy_of(&binary(&mut socket).await, (h, w));
+    assert!((median(&disparity) - DISPARITY).abs() < 0.1);
+    socket.close(None).await.unwrap();
+
+    let auto = serde_json::json!({"projection": "auto", "max_disparity": 32});
+    let (_, resolved) = open_with(&app, settings(auto, serde_json::json!(["depth.cdr"]))).await;
+    assert_eq!(resolved["type"], "settings", "{resolved}");
+    for (options, outputs, field) in [
+        (
+            serde_json::json!({"projection": "latlon"}),
+            serde_json::json!(["disparity.npy", "depth.cdr"]),
+            "outputs[1]",
+        ),
+        (
+            serde_json::json!({"projection": "latlon", "rectify": "no"}),
+            serde_json::json!([]),
+            "options.projection",
+        ),
+        (
+            serde_json::json!({"projection": "latlon", "alpha": 0}),
+            serde_json::json!([]),
+            "options.alpha",
+        ),
+        (
+            serde_json::json!({"el_fov": 90}),
+            serde_json::json!([]),
+            "options.el_fov",
+        ),
+    ] {
+        let (_, answer) = open_with(&app, settings(options.clone(), outputs)).await;
+        assert_eq!(answer["type"], "error", "{options}: {answer}");
+        assert_eq!(fields(&answer["problem"]), [field], "{options}: {answer}");
+    }
+}
+
+/// The `depth-map` command with `--projection latlon` writes maps of the latlon system's size
+/// whose disparities are the rendered scene's; `auto` sees the 180° lenses as wide; an .mcap
+/// `--out` (ROS images, pinhole) refuses latlon before a frame is read.
+#[test]
+fn the_command_matches_in_latlon() {
+    use crate::recording::command;
+    let dir = std::path::PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("recording-latlon");
+    let _ = std::fs::remove_dir_all(&dir);
+    let pair = fisheye_180();
+    let system = Latlon::new(&pair, SIZE, LatlonOptions::default()).unwrap();
+    let [left, right] = render(&pair, &system);
+    for (side, image) in [("left", &left), ("right", &right)] {
+        std::fs::create_dir_all(dir.join(side)).unwrap();
+        std::fs::write(
+            dir.join(side).join("0001.png"),
+            crate::rectify::grey_png(image),
+        )
+        .unwrap();
+    }
+    let calibration = dir.join("calib.yml");
+    std::fs::write(&calibration, stereo_calibrate_yml(&pair)).unwrap();
+    let (w, h) = (system.size.width as usize, system.size.height as usize);
+    for projection in ["latlon", "auto"] {
+        let out = format!("out-{projection}");
+        let args = [
+            "--calibration",
+            calibration.to_str().unwrap(),
+            "--calibration-unit",
+            "mm",
+            "--output",
+            "disparity.npy",
+            "--max-disparity",
+            "32",
+            "--projection",
+            projection,
+        ];
+        let run = command(&dir, &out, &args).output().unwrap();
+        let said = String::from_utf8_lossy(&run.stderr).into_owned();
+        assert_eq!(run.status.code(), Some(0), "{said}");
+        let bytes = std::fs::read(dir.join(&out).join("0001.disparity.npy")).unwrap();
+        let disparity = npy_of(&bytes, (h, w));
+        assert!((median(&disparity) - DISPARITY).abs() < 0.1, "{projection}");
+    }
+    let args = [
+        "--calibration",
+        calibration.to_str().unwrap(),
+        "--calibration-unit",
+        "mm",
+        "--projection",
+        "latlon",
+    ];
+    let run = command(&dir, "out.mcap", &args).output().unwrap();
+    let said = String::from_utf8_lossy(&run.stderr).into_owned();
+    assert_ne!(run.status.code(), Some(0), "{said}");
+    assert!(
+        said.contains("--projection: latlon cannot be written to an .mcap --out"),
+        "{said}"
+    );
+    assert!(!dir.join("out.mcap").exists());
+}
+
+/// `/match?projection=latlon` on the rendered 180° pair: points clicked on the raw left frame,
+/// from the centre to 60° off it, land where their rays fall in the latlon system
+/// (`x_rectified`), match the scene's 6 px, and their `range` is mrcal's `stereo_range` along
+/// the ray and `distance` its component along the rectified axis; each match's raw right
+/// pixel is where the right lens sees the matched ray. `auto` matches there too; a range that
+/// stops short of the scene answers every point `out_of_range`.
+#[tokio::test]
+async fn match_in_latlon() {
+    let app = spawn_app().await;
+    let pair = fisheye_180();
+    let system = Latlon::new(&pair, SIZE, LatlonOptions::default()).unwrap();
+    let [left, right] = render(&pair, &system);
+    let yml = stereo_calibrate_yml(&pair);
+    let (w, h) = (f64::from(system.size.width), f64::from(system.size.height));
+    // Latlon pixels from the centre out to 60° of azimuth each way, and up and down.
+    let degrees = system.fx.to_radians();
+    let wanted: Vec<[f64; 2]> = [(0.0, 0.0), (-60.0, 0.0), (45.0, 10.0), (20.0, -30.0)]
+        .iter()
+        .map(|&(az, el)| [system.cx + az * degrees, system.cy + el * degrees])
+        .filter(|&[u, v]| u > 40.0 && u < w - 40.0 && v > 20.0 && v < h - 20.0)
+        .collect();
+    assert_eq!(wanted.len(), 4, "{wanted:?} in {w} × {h}");
+    let raw: Vec<Value> = wanted
+        .iter()
+        .map(|&p| {
+            let ray = system.r1.transpose() * system.ray(p);
+            let [x, y] = pair.left.project(&ray).unwrap();
+            serde_json::json!({"x": x, "y": y})
+        })
+        .collect();
+    let points = serde_json::to_string(&raw).unwrap();
+    // A box of 40 px around the centre's raw pixel.
+    let (cx, cy) = (raw[0]["x"].as_f64().unwrap(), raw[0]["y"].as_f64().unwrap());
+    let boxed = serde_json::json!([{"x": cx - 20.0, "y": cy - 20.0, "width": 40, "height": 40}]);
+    for projection in ["latlon", "auto"] {
+        let form = raw_form(&left, &right, &yml)
+            .text("points", points.clone())
+            .text("regions", boxed.to_string());
+        let query = format!("/match?projection={projection}&max_disparity=32");
+        let answer = ok_json(app.post_form(&query, form).await).await;
+        assert_eq!(answer["projection"], "latlon", "{answer}");
+        assert_eq!(answer["rectified"], true);
+        assert!((answer["latlon"]["fx"].as_f64().unwrap() / system.fx - 1.0).abs() < 1e-6);
+        for (m, &[u, v]) in answer["matches"].as_array().unwrap().iter().zip(&wanted) {
+            assert_eq!(m["status"], "ok", "{m}");
+            let got = |k: &str| m[k].as_f64().unwrap_or_else(|| panic!("{k} in {m}"));
+            assert!((got("x_rectified") - u).abs() < 0.01, "{m}");
+            assert!((got("y_rectified") - v).abs() < 0.01, "{m}");
+            let d = got("disparity_px");
+            assert!((d - DISPARITY).abs() < 0.15, "{m}");
+            let (az, el) = ((u - system.cx) / system.fx, (v - system.cy) / system.fy);
+            let angle = d / system.fx;
+            let range = system.baseline * (az - angle).cos() / angle.sin();
+            assert!((got("range") / range - 1.0).abs() < 1e-3, "{m}: {range}");
+            let depth = range * az.cos() * el.cos();
+            assert!((got("distance") / depth - 1.0).abs() < 1e-3, "{m}: {depth}");
+            assert!(got("distance_std") > 0.0, "{m}");
+            let seen = system.r2.transpose() * system.ray([u - d, v]);
+            let [xr, yr] = pair.right.project(&seen).unwrap();
+            assert!((got("x_right_raw") - xr).abs() < 1e-3, "{m}: {xr}");
+            assert!((got("y_right_raw") - yr).abs() < 1e-3, "{m}: {yr}");
+        }
+        // The box's median is the scene's at its centre: 6 px, at the range mrcal gives.
+        let region = &answer["regions"][0];
+        let d = region["disparity_px"].as_f64().unwrap();
+        assert!((d - DISPARITY).abs() < 0.15, "{region}");
+        let angle = d / system.fx;
+        let [u, v] = wanted[0];
+        let (az, el) = ((u - system.cx) / system.fx, (v - system.cy) / system.fy);
+        let depth = system.baseline * (az - angle).cos() / angle.sin() * az.cos() * el.cos();
+        let distance = region["distance"].as_f64().unwrap();
+        assert!((distance / depth - 1.0).abs() < 0.01, "{region}: {depth}");
+        let [p10, p90] = ["distance_p10", "distance_p90"].map(|k| region[k].as_f64().unwrap());
+        assert!(p10 <= distance && distance <= p90, "{region}");
+    }
+    // A range that stops short of the scene's 6 px answers no point as matched.
+    let form = raw_form(&left, &right, &yml).text("points", points);
+    let answer = ok_json(
+        app.post_form("/match?projection=latlon&max_disparity=4", form)
+            .await,
+    )
+    .await;
+    for m in answer["matches"].as_array().unwrap() {
+        assert_eq!(m["status"], "out_of_range", "{m}");
+    }
+}

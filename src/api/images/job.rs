@@ -60,26 +60,32 @@ pub fn plan(
     asked: Asked<'_>,
     problems: &mut FieldErrors,
 ) -> Option<DepthJob> {
+    let mut said = FieldErrors::default();
     let rectify = Rectify {
         mode: asked.rectify.unwrap_or_default().into(),
-        alpha: problems.alpha(asked.alpha),
+        alpha: said.alpha(asked.alpha),
         latlon: asked.latlon,
     };
-    match DepthJob::plan(given, sent, size, rectify, asked.settings) {
+    let planned = match DepthJob::plan(given, sent, size, rectify, asked.settings) {
         Ok(job) => Some(job),
         Err(faults) => {
             if let Some(fault) = faults.plan {
-                problems.add(field(&fault), fault.to_string());
+                said.add(field(&fault), fault.to_string());
             }
             for fault in faults.settings {
-                problems.add_new(
-                    format!("{}{}", asked.prefix, fault.setting.name()),
-                    fault.message,
-                );
+                said.add_new(fault.setting.name().to_string(), fault.message);
             }
             None
         }
+    };
+    // The options' faults carry the prefix (`options.` in a stream's settings); the rig's
+    // and the images' are named as their parts.
+    for fault in said.prefixed("") {
+        let part = ["rig", "left", "calibration"].contains(&fault.field.as_str());
+        let prefix = if part { "" } else { asked.prefix };
+        problems.add(&format!("{prefix}{}", fault.field), fault.message);
     }
+    planned
 }
 
 /// The depth job for frames of `size` from a rig input parsed once (a stream's settings, the
@@ -170,7 +176,7 @@ pub fn projected(
     alpha: Option<f64>,
     problems: &mut FieldErrors,
 ) -> Option<Raw> {
-    let Some(options) = latlon.filter(|l| !(l.when_wide && alpha.is_some())) else {
+    let Some(options) = latlon.and_then(|l| l.unless_pinhole(alpha.is_some())) else {
         return Some(raw);
     };
     if alpha.is_some() {

@@ -20,7 +20,9 @@ use super::pools::{FramePools, lock};
 use super::stream_frames::{files, in_frame, odd_width, pair_parts};
 use super::{job, rig, work};
 use crate::api::error::{ApiError, FieldError, FieldErrors};
-use crate::api::wire::depth_map::{DepthMapOutput, DepthMapSummary, MatcherParameters};
+use crate::api::wire::depth_map::{
+    DepthMapOutput, DepthMapQuery, DepthMapSummary, MatcherParameters,
+};
 use crate::api::wire::depth_stream::{
     CalibrationWatch, FileAnswer, FrameTimes, Layout, SettingsAnswer, StreamLimitsAnswer,
     StreamSettings, TemporalCounts,
@@ -28,6 +30,7 @@ use crate::api::wire::depth_stream::{
 use crate::api::wire::images::RectifyMode;
 use crate::api::wire::rig::CalibratedRig;
 use crate::budget::{MemoryBudget, Refusal, Reservation, Slots};
+use stereo_core::camera::LatlonOptions;
 use stereo_core::pipeline::check::{self, Watch};
 use stereo_core::pipeline::{
     self, Answer, Chosen, DepthJob, Maps, Matched, RangeUsed, Request, RigInput, Sent,
@@ -82,6 +85,8 @@ pub struct Resolved {
     /// The rig as the settings sent it, parsed once, made the rig of each frame size.
     pub input: RigInput,
     pub rectify: (Option<RectifyMode>, Option<f64>),
+    /// Rectified to latitude-longitude with these (`options.projection`), or `None`.
+    pub latlon: Option<LatlonOptions>,
     pub temporal: Option<temporal::Settings>,
     /// Whether a file asked for needs the left image's colour.
     pub colour: bool,
@@ -104,13 +109,6 @@ impl Resolved {
         let mut asked = settings.options.settings();
         asked.preset = asked.preset.or(Some(Preset::Fast));
         let (input, calibrated) = rig::parsed(&settings.rig, None, true, &mut problems);
-        let planned = job::plan(
-            calibrated,
-            sent,
-            None,
-            asked_of(asked, rectify),
-            &mut problems,
-        );
         let has_rig = sent != Sent::Nothing;
         let outputs = settings.outputs.unwrap_or_else(|| {
             if has_rig {
@@ -122,6 +120,14 @@ impl Resolved {
                 ]
             }
         });
+        let latlon = stream_latlon(&settings.options, &outputs, &mut problems);
+        let planned = job::plan(
+            calibrated,
+            sent,
+            None,
+            asked_of(asked, rectify, latlon),
+            &mut problems,
+        );
         for (i, output) in outputs.iter().enumerate() {
             if output.needs_rig() && !has_rig {
                 problems.add_new(
@@ -167,6 +173,7 @@ impl Resolved {
             outputs,
             input,
             rectify,
+            latlon,
             temporal: settings.temporal,
             colour,
             depth_std,
@@ -180,14 +187,36 @@ impl Resolved {
 fn asked_of(
     settings: Settings,
     (rectify, alpha): (Option<RectifyMode>, Option<f64>),
+    latlon: Option<LatlonOptions>,
 ) -> job::Asked<'static> {
     job::Asked {
         rectify,
         alpha,
-        latlon: None,
+        latlon,
         settings,
         prefix: "options.",
     }
+}
+
+/// The latitude-longitude options of a stream's `options` (as `/depth-map`'s query, each
+/// fault named `options.…`): `projection=auto` gives way to the pinhole plane for a ROS
+/// output, and an explicit `latlon` with one names that output.
+fn stream_latlon(
+    options: &DepthMapQuery,
+    outputs: &[DepthMapOutput],
+    problems: &mut FieldErrors,
+) -> Option<LatlonOptions> {
+    let mut said = FieldErrors::default();
+    let latlon = job::latlon_options(options.projection, options.latlon(), &mut said);
+    for fault in said.prefixed("options.") {
+        problems.add_new(fault.field, fault.message);
+    }
+    let ros = outputs.iter().position(|o| o.ros().is_some());
+    let latlon = latlon.and_then(|l| l.unless_pinhole(ros.is_some()));
+    if let (Some(_), Some(i)) = (latlon, ros) {
+        problems.add_new(format!("outputs[{i}]"), job::ROS_NOT_LATLON);
+    }
+    latlon
 }
 
 /// A frame as it arrived, its bytes held in the budget.
@@ -479,7 +508,7 @@ impl Engine {
     fn resolve(&self, size: (u32, u32)) -> Result<AtSize, ApiError> {
         let resolved = &*self.resolved;
         let mut problems = FieldErrors::default();
-        let asked = asked_of(resolved.settings, resolved.rectify);
+        let asked = asked_of(resolved.settings, resolved.rectify, resolved.latlon);
         let planned = job::plan_at(&resolved.input, size, asked, &mut problems);
         let Some(planned) = planned.filter(|_| problems.is_empty()) else {
             return Err(problems.into_error());

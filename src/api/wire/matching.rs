@@ -6,7 +6,7 @@ use utoipa::ToSchema;
 
 use crate::api::extract::QueryForm;
 use crate::api::wire::de::request;
-use crate::api::wire::images::image_form;
+use crate::api::wire::images::{LatlonSystem, ProjectionChoice, image_form};
 pub use crate::api::wire::images::{RectifyMode, StageTimes};
 use crate::api::wire::measured::Measured;
 use crate::api::wire::measured::{Point, Warning};
@@ -30,6 +30,26 @@ request! {
         /// With rectification: recompute it as `cv2.stereoRectify` does with this `alpha`.
         #[schema(minimum = 0.0, maximum = 1.0)]
         alpha: f64,
+        /// With rectification: the rectified projection, `pinhole` (default), `latlon` or
+        /// `auto`, as `/depth-map`'s.
+        #[schema(inline, default = "pinhole")]
+        projection: crate::api::wire::images::ProjectionAsked,
+        /// `latlon`: the azimuth field in degrees (up to 180). Default: all both cameras see.
+        #[schema(exclusive_minimum = 0.0, maximum = 180.0)]
+        az_fov: f64,
+        /// `latlon`: the elevation field in degrees (up to 180). Default: all both see.
+        #[schema(exclusive_minimum = 0.0, maximum = 180.0)]
+        el_fov: f64,
+        /// `latlon`: pixels per degree. Default: the left camera's at the field's centre.
+        #[schema(exclusive_minimum = 0.0)]
+        pixels_per_degree: f64,
+    }
+}
+
+impl MatchQuery {
+    /// The latitude-longitude options, as given: az_fov, el_fov, pixels_per_degree.
+    pub fn latlon(&self) -> [Option<f64>; 3] {
+        [self.az_fov, self.el_fov, self.pixels_per_degree]
     }
 }
 
@@ -273,7 +293,7 @@ pub struct RegionMatch {
 /// The answer of `/match`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
 #[schema(example = json!({
-    "width": 741, "height": 500, "min_disparity": 0, "max_disparity": 64, "disparity_range": {"chosen": "given", "why": "given: max_disparity (or the calibration file's ndisp)"}, "unit": "mm", "rectified": false,
+    "width": 741, "height": 500, "min_disparity": 0, "max_disparity": 64, "disparity_range": {"chosen": "given", "why": "given: max_disparity (or the calibration file's ndisp)"}, "unit": "mm", "rectified": false, "projection": "pinhole",
     "ok": 1,
     "matches": [{"x": 420, "y": 260, "status": "ok", "confidence": 0.81, "x_right": 391.642,
                  "disparity_px": 28.358, "distance": 3221.3, "range": 3282.9,
@@ -315,6 +335,13 @@ pub struct MatchResponse {
     /// Whether the raw pair was rectified here first (`width` and `height` are then the
     /// rectified size, and `x_rectified`, `x_right_raw`… are given).
     pub rectified: bool,
+    /// The rectified projection the pair was matched in; for `latlon`, its system (points'
+    /// `x_rectified` is then azimuth and `y_rectified` elevation; `distance` is the depth
+    /// along the rectified axis and `range` along the point's ray, mrcal's `stereo_range`).
+    pub projection: ProjectionChoice,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(nullable = false)]
+    pub latlon: Option<LatlonSystem>,
     /// Things to know about the answer (such as a calibration option that did not apply).
     pub warnings: Vec<String>,
 }
@@ -408,6 +435,7 @@ impl MatchResponse {
         let ms = |d: std::time::Duration| (d.as_secs_f64() * 1e4).round() / 10.0;
         let t = &found.timings;
         let points: Vec<PointMatch> = found.points.iter().map(PointMatch::of).collect();
+        let unit = rig.unit();
         let rig = CalibratedRig::from(rig);
         MatchResponse {
             width: found.width,
@@ -432,6 +460,11 @@ impl MatchResponse {
                 rectify: found.rectify.map(ms),
             },
             rectified: found.rectify.is_some(),
+            projection: match found.latlon {
+                Some(_) => ProjectionChoice::Latlon,
+                None => ProjectionChoice::Pinhole,
+            },
+            latlon: found.latlon.map(|l| LatlonSystem::of(&l, unit)),
             warnings: found.warnings.clone(),
         }
     }

@@ -43,6 +43,20 @@ pub struct LatlonOptions {
     pub pixels_per_degree: Option<f64>,
 }
 
+impl LatlonOptions {
+    /// These options where the request needs the pinhole plane (`alpha` given, an output that
+    /// holds only pinhole images, a pair matched as sent): `projection=auto` gives way to it,
+    /// as a choice; an explicit `latlon` stays, to be refused by what needs the plane.
+    pub fn unless_pinhole(self, pinhole: bool) -> Option<LatlonOptions> {
+        (!(self.when_wide && pinhole)).then_some(self)
+    }
+
+    /// Whether the field and resolution are all left to the calibration.
+    pub fn chosen(&self) -> bool {
+        self.az_fov_deg.is_none() && self.el_fov_deg.is_none() && self.pixels_per_degree.is_none()
+    }
+}
+
 /// Why a pair cannot be rectified to latitude-longitude.
 #[derive(Debug, Clone, PartialEq)]
 pub enum LatlonFault {

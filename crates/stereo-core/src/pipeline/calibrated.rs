@@ -316,9 +316,13 @@ pub fn plan(
     let wanted = match mode {
         RectifyMode::No => false,
         RectifyMode::Yes => true,
-        RectifyMode::Auto => calibrated.is_some_and(|c| c.takes_raw_frames(size)),
+        // Before the frames' size is known (a stream's settings), raw cameras will be.
+        RectifyMode::Auto => calibrated.is_some_and(|c| match size {
+            Some(_) => c.takes_raw_frames(size),
+            None => c.raw.as_ref().is_some_and(|raw| !raw.is_identity()),
+        }),
     };
-    let latlon = latlon.filter(|l| !(l.when_wide && (alpha.is_some() || !wanted)));
+    let latlon = latlon.and_then(|l| l.unless_pinhole(alpha.is_some() || !wanted));
     if !wanted {
         return match (alpha, latlon) {
             (Some(_), _) => Err(PlanFault::AlphaUnused),

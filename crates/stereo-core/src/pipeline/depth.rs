@@ -170,7 +170,7 @@ pub fn matched(
     timings.cost += surveyed;
     // What the matcher answered, before a range that stops short refuses what lies past it
     // (a low share then is the range's, not a raw pair's).
-    let matched_share = matched_share(&map, &left.grey);
+    let matched_share = matched_share(&map);
     let started = Instant::now();
     let judged = ranged.judge(&mut map, request.calibrated.map(|c| c.rig));
     timings.refine += started.elapsed();
@@ -210,13 +210,13 @@ fn valid_share(map: &Disparity) -> f64 {
     valid as f64 / map.data.len().max(1) as f64
 }
 
-/// [`valid_share`], under [`UNRECTIFIED_SHARE`] of the pixels not blank ([`vision::census::blank`]).
-fn matched_share(map: &Disparity, left: &vision::Gray) -> f64 {
+/// [`valid_share`], under [`UNRECTIFIED_SHARE`] of the pixels not blank ([`Disparity::blank`]).
+fn matched_share(map: &Disparity) -> f64 {
     let share = valid_share(map);
     if share >= UNRECTIFIED_SHARE {
         return share;
     }
-    let blank = vision::census::blank(left).iter().filter(|&&b| b).count();
+    let blank = map.blank.iter().filter(|&&b| b).count();
     share * map.data.len() as f64 / map.data.len().saturating_sub(blank).max(1) as f64
 }
 

@@ -8,9 +8,11 @@ use std::time::Duration;
 
 use super::calibrated::Calibrated;
 use super::depth::{decode_notes, row_check, unrectified_warning};
+use super::latlon::latlon_measure;
 use super::range::{self, RangeUsed, Stopped};
 use super::rectify::Maps;
 use crate::calibration::files::Raw;
+use crate::camera::Latlon;
 use crate::numbers::round_to;
 use crate::physics::{self, Correspondence, Measurement, PhysicsError, Rig};
 use crate::vision::correspond::{self, Correspondences};
@@ -86,6 +88,8 @@ pub struct Matches {
     pub warnings: Vec<String>,
     /// The range matched over, and why.
     pub range: RangeUsed,
+    /// The latitude-longitude system the pair was rectified to and matched in, if it was.
+    pub latlon: Option<Latlon>,
 }
 
 /// The matches of `points` and `regions` (`[x, y, width, height]`) in the decoded pair.
@@ -139,23 +143,36 @@ pub fn matches(
     } = correspond::correspond(&left.grey, &right.grey, params, &rectified, &wanted, cancel)?;
     timings.cost += surveyed;
     // A point the coarse view puts past the range's end is out of range, whatever its best
-    // cost inside it.
-    for (f, &(x, y)) in found.iter_mut().zip(&rectified) {
-        if let Some(pixel) = correspond::pixel(x, y, w, h)
+    // cost inside it; so is one whose pixel the range's judgement refuses (a given range
+    // that stops short refuses the coarse view's holes among what runs past it too).
+    let pixels: Vec<Option<(usize, usize)>> = rectified
+        .iter()
+        .map(|&(x, y)| correspond::pixel(x, y, w, h))
+        .collect();
+    let valid = |map: &Disparity, (x, y): (usize, usize)| !map.data[y * w + x].is_nan();
+    let before: Vec<bool> = pixels
+        .iter()
+        .map(|p| p.is_some_and(|p| valid(&map, p)))
+        .collect();
+    let judged = ranged.judge(&mut map, Some(request.calibrated.rig));
+    for ((f, pixel), before) in found.iter_mut().zip(pixels).zip(before) {
+        if let Some(pixel) = pixel
             && f.disparity.is_some()
-            && ranged.past(pixel)
+            && (ranged.past(pixel) || (before && !valid(&map, pixel)))
         {
             f.status = MatchOutcome::OutOfRange;
         }
     }
-    let judged = ranged.judge(&mut map, Some(request.calibrated.rig));
-    let rig = &request.calibrated.rig;
+    let at = Measuring {
+        rig: &request.calibrated.rig,
+        latlon: raw.and_then(|r| r.latlon.as_ref()),
+    };
     let points = points
         .iter()
         .zip(&rectified)
         .zip(found)
         .map(|((&(x, y), &(xr, yr)), found)| {
-            let mut answer = point_match(rig, (xr, yr), found);
+            let mut answer = point_match(at, (xr, yr), found);
             if let Some(raw) = raw {
                 answer.rectified = xr.is_finite().then_some((xr, yr));
                 answer.right_raw = answer.x_right.and_then(|xm| to_raw_right(raw, xm, yr));
@@ -167,7 +184,7 @@ pub fn matches(
     let regions = regions
         .iter()
         .zip(boxes)
-        .map(|(&b, r)| region_match(rig, &map, b, r))
+        .map(|(&b, r)| region_match(at, &map, b, r))
         .collect();
     // A pair sent as rectified: do its corners lie on their rows?
     let rows = raw.is_none().then(|| row_check(&left, &right, &ranged));
@@ -188,12 +205,18 @@ pub fn matches(
         rectify,
         warnings,
         range: ranged.used,
+        latlon: at.latlon.copied(),
     })
 }
 
 /// Where a raw left pixel lands in the rectified left image (`None` where the lens model
 /// cannot take it there).
 pub fn to_rectified(raw: &Raw, (x, y): (f64, f64)) -> Option<(f64, f64)> {
+    if let Some(l) = &raw.latlon {
+        let ray = raw.pair.left.ray_of_pixel([x, y])?;
+        let [u, v] = l.pixel(&(l.r1 * ray));
+        return Some((u, v));
+    }
     let r = &raw.rectification;
     let k = r.p1.fixed_view::<3, 3>(0, 0).into_owned();
     raw.pair
@@ -204,6 +227,9 @@ pub fn to_rectified(raw: &Raw, (x, y): (f64, f64)) -> Option<(f64, f64)> {
 
 /// Where a rectified right pixel was seen in the raw right frame.
 pub fn to_raw_right(raw: &Raw, x: f64, y: f64) -> Option<[f64; 2]> {
+    if let Some(l) = &raw.latlon {
+        return raw.pair.right.project(&(l.r2.transpose() * l.ray([x, y])));
+    }
     let r = &raw.rectification;
     let k = r.p2.fixed_view::<3, 3>(0, 0).into_owned().try_inverse()?;
     let ray = r.r2.transpose() * (k * nalgebra::Vector3::new(x, y, 1.0));
@@ -247,11 +273,39 @@ pub fn rect(b: [f64; 4], w: usize, h: usize) -> Option<Rect> {
     Some(Rect { x0, y0, x1, y1 })
 }
 
+/// How a match's distance is measured: as `/distance` does with the rig, or in the latlon
+/// system the pair was rectified to ([`latlon_measure`]).
+#[derive(Clone, Copy)]
+struct Measuring<'a> {
+    rig: &'a Rig,
+    latlon: Option<&'a Latlon>,
+}
+
+impl Measuring<'_> {
+    /// The measurement of disparity `d` at `(x, y)` with `rig` (its Δd the σ_d).
+    fn measure(&self, rig: &Rig, (x, y): (f64, f64), d: f64) -> Result<Measurement, PhysicsError> {
+        match self.latlon {
+            Some(l) => latlon_measure(l, rig, (x, y), d),
+            None => physics::measure(rig, Correspondence::at(x, y, d)),
+        }
+    }
+
+    /// The distance of disparity `d` at `(x, y)`, without its σ.
+    fn distance(&self, (x, y): (f64, f64), d: f64) -> Option<f64> {
+        match self.latlon {
+            Some(l) => latlon_measure(l, self.rig, (x, y), d)
+                .ok()
+                .map(|m| m.distance),
+            None => self.rig.distance_at(d).ok(),
+        }
+    }
+}
+
 /// A point's match at `(x, y)` (where it was matched): with a disparity (to 1/1000 px, the
 /// value the distance is computed from), its match and its `/distance` measurement, which a
 /// status that says the disparity is not the point's match withholds
 /// ([`MatchOutcome::withheld`]).
-fn point_match(rig: &Rig, (x, y): (f64, f64), found: Found) -> PointMatch {
+fn point_match(at: Measuring, (x, y): (f64, f64), found: Found) -> PointMatch {
     let mut answer = PointMatch {
         x,
         y,
@@ -267,10 +321,10 @@ fn point_match(rig: &Rig, (x, y): (f64, f64), found: Found) -> PointMatch {
         let d = round_to(f64::from(d), 3);
         answer.disparity = Some(d);
         answer.x_right = Some(round_to(x - d, 3));
-        let (rig, sigma) = with_sigma(rig, found.disparity_std);
+        let (rig, sigma) = with_sigma(at.rig, found.disparity_std);
         answer.disparity_std = sigma;
         if found.status.withheld().is_none() {
-            answer.measured = Some(physics::measure(&rig, Correspondence::at(x, y, d)));
+            answer.measured = Some(at.measure(&rig, (x, y), d));
         }
     }
     answer
@@ -288,8 +342,10 @@ fn with_sigma(rig: &Rig, sigma_d: Option<f32>) -> (Rig, Option<f64>) {
 }
 
 /// A region's answer: the median, 10th and 90th percentile depths of its valid pixels, and the
-/// measurement at its centre for the median.
-fn region_match(rig: &Rig, map: &Disparity, b: [f64; 4], r: Option<Rect>) -> RegionMatch {
+/// measurement at its centre for the median (in latlon, each percentile's depth at the centre
+/// too: a depth there changes with the column as well as the disparity).
+fn region_match(at: Measuring, map: &Disparity, b: [f64; 4], r: Option<Rect>) -> RegionMatch {
+    let rig = at.rig;
     let mut answer = RegionMatch {
         region: b,
         pixels: r,
@@ -315,8 +371,8 @@ fn region_match(rig: &Rig, map: &Disparity, b: [f64; 4], r: Option<Rect>) -> Reg
         return answer;
     }
     // Nearest rank on the disparities, largest first: depth falls as disparity grows.
-    let at = |q: f64| values[((1.0 - q) * (values.len() - 1) as f64).round() as usize];
-    let median = round_to(at(0.5), 3);
+    let nearest = |q: f64| values[((1.0 - q) * (values.len() - 1) as f64).round() as usize];
+    let median = round_to(nearest(0.5), 3);
     let centre = (
         (r.x0 + r.x1 - 1) as f64 / 2.0,
         (r.y0 + r.y1 - 1) as f64 / 2.0,
@@ -324,12 +380,12 @@ fn region_match(rig: &Rig, map: &Disparity, b: [f64; 4], r: Option<Rect>) -> Reg
     let mid = stds.len() / 2;
     let (_, &mut typical, _) = stds.select_nth_unstable_by(mid, f32::total_cmp);
     let (sigma_rig, sigma) = with_sigma(rig, Some(correspond::median_std(typical, values.len())));
-    let Ok(m) = physics::measure(&sigma_rig, Correspondence::at(centre.0, centre.1, median)) else {
+    let Ok(m) = at.measure(&sigma_rig, centre, median) else {
         return answer;
     };
     answer.measured = Some(m);
     answer.disparity_std = sigma;
-    answer.distance_p10 = rig.distance_at(at(0.1)).ok();
-    answer.distance_p90 = rig.distance_at(at(0.9)).ok();
+    answer.distance_p10 = at.distance(centre, nearest(0.1));
+    answer.distance_p90 = at.distance(centre, nearest(0.9));
     answer
 }

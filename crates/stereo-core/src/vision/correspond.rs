@@ -219,6 +219,7 @@ pub fn correspond(
         data: map,
         std,
         filled: Vec::new(),
+        blank: Vec::new(),
     };
     // Each row's probes, taken in the order the points were pushed.
     let mut next = vec![0usize; h];
@@ -519,6 +520,7 @@ mod tests {
             ],
             std: vec![0.2; 12],
             filled: Vec::new(),
+            blank: Vec::new(),
         };
         let (values, pixels) = in_box(
             &map,

@@ -14,21 +14,22 @@ use super::{Gray, Params, census, plane, sigma};
 /// their winners' variances): speckles, the median, the pixels of `left` whose census window is
 /// blank refused ([`census::blank`]), σ_d ([`sigma::map`]), the planes in flat holes of `left`
 /// ([`plane`]), the keep rule ([`sigma::keep`]) and the fill, as `params` ask.
-/// Answers the map, its σ_d, and the fill's mask (empty without `fill`; it also names the
-/// values the planes gave that the keep rule kept).
+/// Answers the map, its σ_d, the fill's mask (empty without `fill`; it also names the
+/// values the planes gave that the keep rule kept) and the blank pixels.
 pub(super) fn finish(
     mut data: Vec<f32>,
     variance: Vec<f32>,
     width: usize,
     left: &Gray,
     params: &Params,
-) -> (Vec<f32>, Vec<f32>, Vec<bool>) {
+) -> (Vec<f32>, Vec<f32>, Vec<bool>, Vec<bool>) {
     speckles(&mut data, width, params.speckle_size, params.speckle_range);
     if params.median {
         data = median(&data, width);
     }
     // A blank window matched nothing: its value was carried in. The planes may give it one.
-    for (d, blank) in data.iter_mut().zip(census::blank(left)) {
+    let blank = census::blank(left);
+    for (d, &blank) in data.iter_mut().zip(&blank) {
         if blank {
             *d = f32::NAN;
         }
@@ -47,7 +48,7 @@ pub(super) fn finish(
     for (f, (&p, d)) in filled.iter_mut().zip(planes.iter().zip(&data)) {
         *f |= p && !d.is_nan();
     }
-    (data, std, filled)
+    (data, std, filled, blank)
 }
 
 /// Invalidates the connected regions of fewer than `max_size` pixels whose neighbours differ by

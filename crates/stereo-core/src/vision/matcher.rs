@@ -247,7 +247,7 @@ fn level(
     checkpoint()?;
 
     let started = Instant::now();
-    let (mut data, std, filled) = filters::finish(data, variance, w, left, params);
+    let (mut data, std, filled, blank) = filters::finish(data, variance, w, left, params);
     let min = params.min_disparity as f32;
     data.iter_mut().for_each(|d| *d += min);
     timings.refine += started.elapsed();
@@ -259,6 +259,7 @@ fn level(
             data,
             std,
             filled,
+            blank,
         },
         timings,
         probes,

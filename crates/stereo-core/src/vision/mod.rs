@@ -122,6 +122,9 @@ pub struct Disparity {
     pub std: Vec<f32>,
     /// Which values the fill gave (`fill` asked for): empty when it was not.
     pub filled: Vec<bool>,
+    /// Which pixels' census window was blank ([`census::blank`]): they matched nothing, and
+    /// only a plane may have given them a value. Empty where the map's maker did not judge.
+    pub blank: Vec<bool>,
 }
 
 pub use matcher::{PairNoise, Probe, Timings, disparity, disparity_probed, disparity_probed_in};

@@ -262,6 +262,7 @@ mod tests {
                 height: ch,
                 std: vec![0.2; cw * ch],
                 filled: Vec::new(),
+                blank: Vec::new(),
                 data,
             },
             0,
@@ -299,6 +300,7 @@ mod tests {
             height: ch,
             std: vec![0.2; cw * ch],
             filled: Vec::new(),
+            blank: Vec::new(),
             data,
         };
         for (min, count) in [(0, 128), (-7, 100), (3, 40), (0, 16)] {

@@ -109,24 +109,27 @@ pub fn survey(left: &Gray, right: &Gray, cancel: &AtomicBool) -> Result<Option<S
         ..params
     };
     let (mut map, _) = super::disparity(l, r, &params, cancel)?;
-    let seen = seeing(&mut map, l);
+    let seen = seeing(&mut map);
     let mut survey = Survey::of(map, levels, seen);
     if survey.matched < SUSPECT_MATCHED || survey.negative >= 1.0 - SWAPPED_SHARE {
         let (mut reversed, _) = super::disparity(r, l, &params, cancel)?;
-        let seen = seeing(&mut reversed, r);
+        let seen = seeing(&mut reversed);
         let valid = reversed.data.iter().filter(|d| !d.is_nan()).count();
         survey.reversed = Some(valid as f64 / seen.max(1) as f64);
     }
     Ok(Some(survey))
 }
 
-/// Empties the coarse `map`'s pixels whose census window reaches a blank pixel of `left` (its
-/// image, [`census::blank`]): the blank ones matched nothing, and the edge of a blank region is
-/// a straight line along which a window ties (the scene's texture beside a fisheye's black
-/// surround, halved into a ramp). Answers how many pixels are left to speak.
-fn seeing(map: &mut Disparity, left: &Gray) -> usize {
+/// Empties the coarse `map`'s pixels whose census window reaches one of its blank pixels (as
+/// the matcher judged them, [`census::blank`]): the blank ones matched nothing, and the edge of
+/// a blank region is a straight line along which a window ties (the scene's texture beside a
+/// fisheye's black surround, halved into a ramp). Answers how many pixels are left to speak.
+fn seeing(map: &mut Disparity) -> usize {
     let (w, h) = (map.width, map.height);
-    let blank = census::blank(left);
+    if map.blank.len() != w * h {
+        return w * h;
+    }
+    let blank = std::mem::take(&mut map.blank);
     let (rx, ry) = (census::WIDTH / 2, census::HEIGHT / 2);
     // Along the rows, then down the columns.
     let mut near = vec![false; w * h];
@@ -544,6 +547,7 @@ mod tests {
             data,
             std: vec![0.5; w * h],
             filled: Vec::new(),
+            blank: Vec::new(),
         };
         let mut past: Vec<bool> = map.data.iter().map(|&d| d >= 21.0).collect();
         enclosed(&map, &mut past);
@@ -581,6 +585,9 @@ mod tests {
             .filter(|&i| deep(i / w) && !map.data[i].is_nan())
             .count();
         assert_eq!(carried, 0, "pixels of the blank bands with a disparity");
+        // The map says which pixels were blank: the bands' deep rows, and none of the scene's.
+        assert!((0..w * h).filter(|&i| deep(i / w)).all(|i| map.blank[i]));
+        assert!((96 * w..264 * w).all(|i| !map.blank[i]));
         // The scene's rows clear of the bands match as they do without them.
         let (unbanded, _) =
             super::super::disparity(&whole.left, &whole.right, &params, &cancel).unwrap();
@@ -624,6 +631,7 @@ mod tests {
             data: vec![10.0, 79.2, 40.0, f32::NAN],
             std: vec![0.5; 4],
             filled: Vec::new(),
+            blank: Vec::new(),
         };
         assert_eq!(refuse(&mut map, None, (None, 80), false), 1);
         assert!(map.data[1].is_nan() && map.std[1].is_nan());
@@ -635,6 +643,7 @@ mod tests {
             data: vec![32.4, 50.0, 33.5],
             std: vec![0.5; 3],
             filled: Vec::new(),
+            blank: Vec::new(),
         };
         assert_eq!(refuse(&mut map, None, (Some(32), 80), false), 0);
         assert!(map.data[0].is_nan() && map.std[0].is_nan());

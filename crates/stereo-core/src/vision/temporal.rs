@@ -330,6 +330,7 @@ mod tests {
             data: values.to_vec(),
             std: stds.to_vec(),
             filled: Vec::new(),
+            blank: Vec::new(),
         }
     }
 

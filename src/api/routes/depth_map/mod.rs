@@ -99,7 +99,7 @@ pub async fn post_depth_map(
             .unwrap_or_default()
     });
     let latlon = job::latlon_options(query.projection, query.latlon(), &mut problems)
-        .filter(|l| !(l.when_wide && output.ros().is_some()));
+        .and_then(|l| l.unless_pinhole(output.ros().is_some()));
     let asked = job::Asked {
         rectify: query.rectify,
         alpha: query.alpha,

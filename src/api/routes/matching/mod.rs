@@ -100,10 +100,11 @@ pub async fn post_match(
         max_disparity: query.max_disparity,
         ..Settings::default()
     };
+    let latlon = job::latlon_options(query.projection, query.latlon(), &mut problems);
     let asked = job::Asked {
         rectify: query.rectify,
         alpha: query.alpha,
-        latlon: None,
+        latlon,
         settings,
         prefix: "",
     };

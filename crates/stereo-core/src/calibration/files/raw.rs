@@ -64,23 +64,39 @@ impl Raw {
     /// Whether the cameras together see wider than [`WIDE_FOV_DEG`] across the baseline or
     /// about it: the field of the latitude-longitude system that holds what both see.
     pub fn sees_wide(&self) -> bool {
+        self.chosen_latlon().is_ok_and(|l| wide(&l))
+    }
+
+    /// The latitude-longitude system with the field and resolution the calibration gives.
+    fn chosen_latlon(&self) -> Result<Latlon, LatlonFault> {
         Latlon::new(&self.pair, self.size, LatlonOptions::default())
-            .is_ok_and(|l| l.az_fov_deg.max(l.el_fov_deg) > WIDE_FOV_DEG)
     }
 
     /// The same cameras rectified to latitude-longitude, the field and resolution chosen
     /// as [`Latlon::new`] chooses them where `options` leave them out; with
     /// `options.when_wide`, only when they [see wide](Raw::sees_wide) (else as they were).
     pub fn with_latlon(self, options: LatlonOptions) -> Result<Raw, LatlonFault> {
-        if options.when_wide && !self.sees_wide() {
-            return Ok(self);
+        let chosen = options.chosen().then(|| self.chosen_latlon());
+        if options.when_wide {
+            let sees_wide = match &chosen {
+                Some(chosen) => chosen.as_ref().is_ok_and(wide),
+                None => self.sees_wide(),
+            };
+            if !sees_wide {
+                return Ok(self);
+            }
         }
-        let latlon = Latlon::new(&self.pair, self.size, options)?;
+        let latlon = chosen.unwrap_or_else(|| Latlon::new(&self.pair, self.size, options))?;
         Ok(Raw {
             latlon: Some(latlon),
             ..self
         })
     }
+}
+
+/// Whether a latitude-longitude field is wider than [`WIDE_FOV_DEG`] along either axis.
+fn wide(latlon: &Latlon) -> bool {
+    latlon.az_fov_deg.max(latlon.el_fov_deg) > WIDE_FOV_DEG
 }
 
 /// One camera as a file states it: K (row-major 3 × 3), D and the model the file names, if
