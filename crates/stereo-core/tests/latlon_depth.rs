@@ -215,7 +215,7 @@ fn a_fisheye_pair_is_ranged_over_its_whole_field() {
     // times the matcher's true error.
     assert!(in_sigma >= 0.68, "{in_sigma}");
 
-    let points = stereo_core::pipeline::depth::points(&map);
+    let points = stereo_core::pipeline::files::points(&map);
     let mut radii: Vec<f64> = points
         .iter()
         .map(|p| {

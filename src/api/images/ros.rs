@@ -8,7 +8,7 @@
 
 use crate::api::wire::depth_map::{DepthMapOutput, RosOutput};
 use stereo_core::pipeline::DepthMap;
-use stereo_core::pipeline::depth::points;
+use stereo_core::pipeline::files::points;
 use stereo_ros::Kind;
 use stereo_ros::msg::{
     CameraInfo, DisparityImage, FLOAT32, Header, Image, PointCloud2, PointField, RegionOfInterest,

@@ -6,7 +6,7 @@ use utoipa::ToSchema;
 
 use crate::api::wire::de::choice_members;
 use stereo_core::pipeline::Product;
-use stereo_core::pipeline::depth::{NPZ, PFM, PLY};
+use stereo_core::pipeline::files::{NPZ, PFM, PLY};
 
 /// What `/depth-map` answers.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize, Serialize, ToSchema)]
@@ -57,6 +57,11 @@ pub enum DepthMapOutput {
     /// same unit).
     #[serde(rename = "points.ply")]
     PointsPly,
+    /// NumPy float32 depths (the rig's unit, invalid = NaN) at the raw left frame's pixels,
+    /// along the left camera's own optical axis: a raw pair's map in the left camera's own
+    /// pixels (of the frame's size), whatever the projection it was matched in.
+    #[serde(rename = "left_depth.npy")]
+    LeftDepthNpy,
     /// ROS 2's `stereo_msgs/msg/DisparityImage` in CDR, as `stereo_image_proc` publishes it:
     /// 32FC1 disparities (NaN where none), `f` in pixels and `t` the baseline in metres, so
     /// that Z = f·t/d. Stamped when made, in frame `left_camera`.
@@ -157,6 +162,7 @@ impl DepthMapOutput {
             DepthMapOutput::DepthPng => Product::DepthPng,
             DepthMapOutput::PreviewPng => Product::PreviewPng,
             DepthMapOutput::PointsPly => Product::PointsPly,
+            DepthMapOutput::LeftDepthNpy => Product::LeftDepthNpy,
         })
     }
 

@@ -1,8 +1,8 @@
 //! The engine's use cases as plain functions over typed inputs, what the service's routes and
 //! its `depth-map` command call: a calibration resolved once for a size and a rectify mode
 //! ([`calibrated`]), raw frames rectified through maps built once ([`rectify`]), and a depth
-//! map with each pixel's σ and the files it is written as ([`depth`]; in latitude-longitude,
-//! [`latlon`]).
+//! map with each pixel's σ ([`depth`]; in latitude-longitude, [`latlon`]; in the raw left
+//! frame, [`left_frame`]) and the files it is written as ([`files`]).
 //!
 //! A depth map from two images and a calibration file, without the service:
 //!
@@ -39,8 +39,10 @@ pub mod calibrate;
 pub mod calibrated;
 pub mod check;
 pub mod depth;
+pub mod files;
 pub mod job;
 pub mod latlon;
+pub mod left_frame;
 pub mod matches;
 pub mod range;
 pub mod rectify;
@@ -49,7 +51,8 @@ pub mod spread;
 
 pub use crate::vision::sgm::Paths;
 pub use calibrated::{Calibrated, PlanFault, RectifyMode, Sent, SizeFault, plan, raw_rig};
-pub use depth::{DepthMap, Matched, Product, Request, depth_map, matched};
+pub use depth::{DepthMap, Matched, Request, depth_map, matched};
+pub use files::Product;
 pub use job::{Answer, DepthJob, JobFaults, Need, Rectify};
 pub use range::{Chosen, RangeUsed, Stopped};
 pub use rectify::Maps;

@@ -73,7 +73,9 @@ impl ImageForm for DepthMapForm {
                    `depth.png` (16-bit millimetres, 0 = invalid), `preview.png` (Turbo \
                    colours, near = warm) and `points.ply` (binary PLY, x y z in the rig's \
                    unit in the left camera's frame, coloured, each point's σ_Z as the float \
-                   property `depth_std`). Every answer \
+                   property `depth_std`), and `left_depth.npy` (float32 depths at the raw left \
+                   frame's own pixels, along the left camera's axis, whatever the projection). \
+                   Every answer \
                    carries `Server-Timing` with the stages decode, cost, aggregate, refine, \
                    encode and, for raw pairs, rectify.\n\n\
                    Limits: images up to 8192 px a side and the server's `--max-image-pixels` (34 megapixels by default), at most 512 \
