@@ -40,6 +40,16 @@ fn render(pair: &StereoPair, system: &Latlon) -> [Vec<u8>; 2] {
     })
 }
 
+/// The 180° fisheye pair, its latlon system at the defaults, its raw frames rendered seeing
+/// [`scene`] there ([`render`]), and its calibration file.
+fn rendered() -> (StereoPair, Latlon, [Vec<u8>; 2], String) {
+    let pair = fisheye_180();
+    let system = Latlon::new(&pair, SIZE, LatlonOptions::default()).unwrap();
+    let frames = render(&pair, &system);
+    let yml = stereo_calibrate_yml(&pair);
+    (pair, system, frames, yml)
+}
+
 fn matrix(v: &Value) -> nalgebra::Matrix3<f64> {
     let r: Vec<f64> = v
         .as_array()
@@ -115,10 +125,7 @@ async fn a_180_degree_fisheye_rectifies_to_latlon_rows() {
 #[tokio::test]
 async fn latlon_maps_and_images_are_the_scene() {
     let app = spawn_app().await;
-    let pair = fisheye_180();
-    let system = Latlon::new(&pair, SIZE, LatlonOptions::default()).unwrap();
-    let [left, right] = render(&pair, &system);
-    let yml = stereo_calibrate_yml(&pair);
+    let (pair, system, [left, right], yml) = rendered();
     let form = || raw_form(&left, &right, &yml);
     let summary = ok_json(rectify(&app, "?projection=latlon", form()).await).await;
     let (w, h) = (system.size.width, system.size.height);
@@ -267,10 +274,7 @@ async fn auto_picks_latlon_for_wide_lenses_only() {
 #[tokio::test]
 async fn depth_map_in_latlon() {
     let app = spawn_app().await;
-    let pair = fisheye_180();
-    let system = Latlon::new(&pair, SIZE, LatlonOptions::default()).unwrap();
-    let [left, right] = render(&pair, &system);
-    let yml = stereo_calibrate_yml(&pair);
+    let (_, system, [left, right], yml) = rendered();
     let form = || raw_form(&left, &right, &yml);
     let post = |query: &'static str| app.post_form(query, form());
     let summary = ok_json(post("/depth-map?projection=latlon&max_disparity=32").await).await;
@@ -402,10 +406,7 @@ async fn a_stream_matches_in_latlon() {
     use futures_util::SinkExt;
     use tokio_tungstenite::tungstenite::Message;
     let app = spawn_app().await;
-    let pair = fisheye_180();
-    let system = Latlon::new(&pair, SIZE, LatlonOptions::default()).unwrap();
-    let [left, right] = render(&pair, &system);
-    let yml = stereo_calibrate_yml(&pair);
+    let (_, system, [left, right], yml) = rendered();
     let settings = |options: Value, outputs: Value| {
         serde_json::json!({"layout": "pair", "calibration": yml, "calibration_unit": "mm",
             "options": options, "outputs": outputs, "temporal": false})
@@ -467,9 +468,7 @@ fn the_command_matches_in_latlon() {
     use crate::recording::command;
     let dir = std::path::PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("recording-latlon");
     let _ = std::fs::remove_dir_all(&dir);
-    let pair = fisheye_180();
-    let system = Latlon::new(&pair, SIZE, LatlonOptions::default()).unwrap();
-    let [left, right] = render(&pair, &system);
+    let (pair, system, [left, right], _) = rendered();
     for (side, image) in [("left", &left), ("right", &right)] {
         std::fs::create_dir_all(dir.join(side)).unwrap();
         std::fs::write(
@@ -529,10 +528,7 @@ fn the_command_matches_in_latlon() {
 #[tokio::test]
 async fn match_in_latlon() {
     let app = spawn_app().await;
-    let pair = fisheye_180();
-    let system = Latlon::new(&pair, SIZE, LatlonOptions::default()).unwrap();
-    let [left, right] = render(&pair, &system);
-    let yml = stereo_calibrate_yml(&pair);
+    let (pair, system, [left, right], yml) = rendered();
     let (w, h) = (f64::from(system.size.width), f64::from(system.size.height));
     // Latlon pixels from the centre out to 60° of azimuth each way, and up and down.
     let degrees = system.fx.to_radians();
@@ -614,10 +610,7 @@ async fn match_in_latlon() {
 #[tokio::test]
 async fn depth_in_the_left_cameras_own_pixels() {
     let app = spawn_app().await;
-    let pair = fisheye_180();
-    let system = Latlon::new(&pair, SIZE, LatlonOptions::default()).unwrap();
-    let [left, right] = render(&pair, &system);
-    let yml = stereo_calibrate_yml(&pair);
+    let (pair, system, [left, right], yml) = rendered();
     let response = app
         .post_form(
             "/depth-map?projection=latlon&max_disparity=32&output=left_depth.npy",
