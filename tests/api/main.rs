@@ -25,6 +25,7 @@ mod openapi;
 mod operations;
 mod planning;
 mod protection;
+mod raw_files;
 mod recording;
 mod recording_bags;
 mod recording_faults;

@@ -13,9 +13,9 @@ use stereo_core::camera::{
 
 use crate::depth_map::{floats, image_part, npz_entries};
 use crate::helpers::{TestApp, assert_names, message_for, ok_json, problem, spawn_app};
-
-pub(crate) const W: u32 = 320;
-pub(crate) const H: u32 = 240;
+use crate::raw_files::{
+    H, W, extrinsics_yml, intrinsics_yml, rows, scene, stereo_calibrate_yml, yaml_matrix,
+};
 
 /// A raw pair of `model` with a right camera turned by about 1.5° and 60 mm to the right.
 pub(crate) fn raw_pair(model: Model) -> StereoPair {
@@ -54,63 +54,6 @@ pub(crate) fn raw_pair(model: Model) -> StereoPair {
         rotation: Rotation3::from_scaled_axis(Vector3::new(0.012, -0.021, 0.009)),
         translation: Vector3::new(-60.0, 0.8, -0.9),
     }
-}
-
-fn rows(m: &Matrix3<f64>) -> Vec<f64> {
-    m.transpose().iter().copied().collect()
-}
-
-fn yaml_matrix(name: &str, rows: usize, cols: usize, data: &[f64]) -> String {
-    let data: Vec<String> = data.iter().map(|v| format!("{v:?}")).collect();
-    format!(
-        "{name}: !!opencv-matrix\n   rows: {rows}\n   cols: {cols}\n   dt: d\n   data: [ {} ]\n",
-        data.join(", ")
-    )
-}
-
-/// The intrinsics part of a `stereoCalibrate` FileStorage (M1 D1 M2 D2), as
-/// `stereo_calib.cpp`'s `intrinsics.yml`.
-fn intrinsics_yml(pair: &StereoPair, with_size: bool) -> String {
-    let mut out = String::from("%YAML:1.0\n---\n");
-    if with_size {
-        out += &format!("imageSize: [ {W}, {H} ]\n");
-    }
-    if pair.left.distortion().model() == Model::Equidistant {
-        out += "distortionModel: equidistant\n";
-    }
-    for (k, camera) in [(1, &pair.left), (2, &pair.right)] {
-        out += &yaml_matrix(&format!("M{k}"), 3, 3, &rows(&camera.matrix()));
-        let d = camera.distortion();
-        out += &yaml_matrix(
-            &format!("D{k}"),
-            1,
-            d.coefficients().len(),
-            d.coefficients(),
-        );
-    }
-    out
-}
-
-/// The extrinsics part (R T), as `extrinsics.yml` without R1 R2 P1 P2 Q.
-fn extrinsics_yml(pair: &StereoPair) -> String {
-    let t = pair.translation;
-    format!(
-        "%YAML:1.0\n---\n{}{}",
-        yaml_matrix("R", 3, 3, &rows(pair.rotation.matrix())),
-        yaml_matrix("T", 3, 1, &[t.x, t.y, t.z])
-    )
-}
-
-/// A bare `stereoCalibrate` file in one text.
-pub(crate) fn stereo_calibrate_yml(pair: &StereoPair) -> String {
-    intrinsics_yml(pair, true) + &extrinsics_yml(pair)[14..]
-}
-
-/// The rectified scene: smooth texture in rectified left coordinates, with a horizontal
-/// disparity of 8 px for the right camera (a plane), so that the truth of each rectified pixel
-/// is known exactly.
-pub(crate) fn scene(x: f64, y: f64) -> f64 {
-    128.0 + 60.0 * (x / 7.0).sin() * (y / 9.0).cos() + 40.0 * ((x + 1.7 * y) / 13.0).sin()
 }
 
 const DISPARITY: f64 = 8.0;

@@ -5,50 +5,13 @@
 
 use nalgebra::Vector3;
 use serde_json::Value;
-use stereo_core::camera::synthetic::{FISHEYE_180_SIZE as SIZE, fisheye_180};
-use stereo_core::camera::{Latlon, LatlonOptions, Model, StereoPair};
+use stereo_core::camera::Model;
+use stereo_core::camera::synthetic::fisheye_180;
 
 use crate::depth_map::{npy_of, npz_entries};
 use crate::helpers::{assert_names, message_for, ok_json, problem, spawn_app};
-use crate::rectify::{H, W, raw_form, raw_pair, rectify, scene, stereo_calibrate_yml};
-
-/// A constant latlon disparity of the rendered scene, in pixels.
-const DISPARITY: f64 = 6.0;
-
-/// The raw frames of `pair` seeing [`scene`] laid over the latlon rectified images (the right
-/// one shifted by [`DISPARITY`]): each raw pixel takes the scene's value where its ray lands
-/// in the rectified image.
-fn render(pair: &StereoPair, system: &Latlon) -> [Vec<u8>; 2] {
-    [
-        (&pair.left, &system.r1, 0.0),
-        (&pair.right, &system.r2, -DISPARITY),
-    ]
-    .map(|(camera, rotation, shift)| {
-        let mut img = vec![0u8; (W * H) as usize];
-        for y in 0..H {
-            for x in 0..W {
-                let v = camera
-                    .ray_of_pixel([f64::from(x), f64::from(y)])
-                    .map_or(0.0, |ray| {
-                        let [u, v] = system.pixel(&(rotation * ray));
-                        scene(u - shift, v)
-                    });
-                img[(y * W + x) as usize] = v.round().clamp(0.0, 255.0) as u8;
-            }
-        }
-        img
-    })
-}
-
-/// The 180° fisheye pair, its latlon system at the defaults, its raw frames rendered seeing
-/// [`scene`] there ([`render`]), and its calibration file.
-fn rendered() -> (StereoPair, Latlon, [Vec<u8>; 2], String) {
-    let pair = fisheye_180();
-    let system = Latlon::new(&pair, SIZE, LatlonOptions::default()).unwrap();
-    let frames = render(&pair, &system);
-    let yml = stereo_calibrate_yml(&pair);
-    (pair, system, frames, yml)
-}
+use crate::raw_files::{DISPARITY, H, W, rendered, scene, stereo_calibrate_yml};
+use crate::rectify::{raw_form, raw_pair, rectify};
 
 fn matrix(v: &Value) -> nalgebra::Matrix3<f64> {
     let r: Vec<f64> = v

@@ -12,7 +12,11 @@ mod harness;
 mod images;
 mod live;
 mod photographs;
+#[path = "../api/raw_files.rs"]
+#[allow(dead_code)]
+mod raw_files;
 mod tokens;
+mod wide;
 
 use fantoccini::{Locator, key::Key};
 use serde_json::json;

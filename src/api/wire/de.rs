@@ -509,6 +509,42 @@ macro_rules! range_request {
     };
 }
 
+/// Declares a request type whose own members (ending with its `projection`) are followed by
+/// the latitude-longitude members `az_fov`, `el_fov` and `pixels_per_degree`, with `latlon()`.
+macro_rules! latlon_request {
+    (
+        $(#[$meta:meta])*
+        pub struct $name:ident { $($body:tt)* }
+    ) => {
+        $crate::api::wire::de::request! {
+            $(#[$meta])*
+            pub struct $name {
+                $($body)*
+                /// `latlon`: the azimuth field, across the baseline, in degrees (up to 180).
+                /// Default: where both cameras see along the raw images' centre rows.
+                #[schema(exclusive_minimum = 0.0, maximum = 180.0, example = 120)]
+                az_fov: f64,
+                /// `latlon`: the elevation field in degrees (up to 180). Default: where both
+                /// cameras see along the raw images' centre columns.
+                #[schema(exclusive_minimum = 0.0, maximum = 180.0, example = 90)]
+                el_fov: f64,
+                /// `latlon`: the resolution along both axes, in pixels per degree. Default:
+                /// the left camera's at the centre of the field (mrcal's).
+                #[schema(exclusive_minimum = 0.0, example = 8)]
+                pixels_per_degree: f64,
+            }
+        }
+
+        impl $name {
+            /// The latitude-longitude options, as given: az_fov, el_fov, pixels_per_degree.
+            pub fn latlon(&self) -> [Option<f64>; 3] {
+                [self.az_fov, self.el_fov, self.pixels_per_degree]
+            }
+        }
+    };
+}
+
 pub(crate) use {
-    camera_request, choice_members, plain_members, range_request, request, rig_request,
+    camera_request, choice_members, latlon_request, plain_members, range_request, request,
+    rig_request,
 };

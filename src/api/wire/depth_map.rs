@@ -7,7 +7,7 @@ use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
 use crate::api::extract::QueryForm;
-use crate::api::wire::de::{choice_members, request};
+use crate::api::wire::de::{choice_members, latlon_request};
 pub use crate::api::wire::depth_output::{CDR, DepthMapOutput, RosOutput};
 use crate::api::wire::images::FileBody;
 use crate::api::wire::images::image_form;
@@ -106,7 +106,7 @@ pub fn range_start() -> utoipa::openapi::schema::Schema {
     super::de::min_disparity_schema(RANGE_START)
 }
 
-request! {
+latlon_request! {
     /// The options of `/depth-map`, in the query string.
     pub struct DepthMapQuery {
         /// The smallest disparity searched ([`RANGE_START`]).
@@ -193,26 +193,12 @@ request! {
         /// cameras see wider than 100°, pinhole for the ROS outputs; the summary says which).
         #[schema(inline, default = "pinhole")]
         projection: ProjectionAsked,
-        /// `latlon`: the azimuth field in degrees (up to 180). Default: all both cameras see.
-        #[schema(exclusive_minimum = 0.0, maximum = 180.0)]
-        az_fov: f64,
-        /// `latlon`: the elevation field in degrees (up to 180). Default: all both see.
-        #[schema(exclusive_minimum = 0.0, maximum = 180.0)]
-        el_fov: f64,
-        /// `latlon`: pixels per degree. Default: the left camera's at the field's centre.
-        #[schema(exclusive_minimum = 0.0)]
-        pixels_per_degree: f64,
     }
 }
 
 impl QueryForm for DepthMapQuery {}
 
 impl DepthMapQuery {
-    /// The latitude-longitude options, as given: az_fov, el_fov, pixels_per_degree.
-    pub fn latlon(&self) -> [Option<f64>; 3] {
-        [self.az_fov, self.el_fov, self.pixels_per_degree]
-    }
-
     /// The matcher's settings the query asks for.
     pub fn settings(&self) -> Settings {
         Settings {

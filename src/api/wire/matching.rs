@@ -5,7 +5,7 @@ use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
 use crate::api::extract::QueryForm;
-use crate::api::wire::de::request;
+use crate::api::wire::de::{latlon_request, request};
 use crate::api::wire::images::{LatlonSystem, ProjectionChoice, image_form};
 pub use crate::api::wire::images::{RectifyMode, StageTimes};
 use crate::api::wire::measured::Measured;
@@ -14,7 +14,7 @@ use crate::api::wire::params::Unit;
 use crate::api::wire::rig::CalibratedRig;
 use stereo_core::pipeline::matches::{self, MatchOutcome};
 
-request! {
+latlon_request! {
     /// The disparity range of `/match`, in the query string.
     pub struct MatchQuery {
         /// The smallest disparity searched ([`super::depth_map::RANGE_START`]).
@@ -34,22 +34,6 @@ request! {
         /// `auto`, as `/depth-map`'s.
         #[schema(inline, default = "pinhole")]
         projection: crate::api::wire::images::ProjectionAsked,
-        /// `latlon`: the azimuth field in degrees (up to 180). Default: all both cameras see.
-        #[schema(exclusive_minimum = 0.0, maximum = 180.0)]
-        az_fov: f64,
-        /// `latlon`: the elevation field in degrees (up to 180). Default: all both see.
-        #[schema(exclusive_minimum = 0.0, maximum = 180.0)]
-        el_fov: f64,
-        /// `latlon`: pixels per degree. Default: the left camera's at the field's centre.
-        #[schema(exclusive_minimum = 0.0)]
-        pixels_per_degree: f64,
-    }
-}
-
-impl MatchQuery {
-    /// The latitude-longitude options, as given: az_fov, el_fov, pixels_per_degree.
-    pub fn latlon(&self) -> [Option<f64>; 3] {
-        [self.az_fov, self.el_fov, self.pixels_per_degree]
     }
 }
 

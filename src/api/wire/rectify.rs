@@ -6,7 +6,7 @@ use utoipa::ToSchema;
 
 use crate::api::extract::QueryForm;
 use crate::api::wire::calibration::RawCameras;
-use crate::api::wire::de::{choice_members, request};
+use crate::api::wire::de::{choice_members, latlon_request};
 use crate::api::wire::images::FileBody;
 use crate::api::wire::images::image_form;
 pub use crate::api::wire::images::{LatlonSystem, ProjectionAsked, ProjectionChoice, RectifyMode};
@@ -84,7 +84,7 @@ impl From<InterpolationChoice> for Interpolation {
 
 choice_members!(RectifyOutput, InterpolationChoice);
 
-request! {
+latlon_request! {
     /// The options of `/rectify`, in the query string.
     pub struct RectifyQuery {
         /// What to answer. Default `summary`.
@@ -99,18 +99,6 @@ request! {
         /// The rectified projection: `pinhole` (default), `latlon` (wide lenses) or `auto`
         /// (latlon where the cameras see wider than 100° and no `alpha` is given).
         projection: ProjectionAsked,
-        /// `latlon`: the azimuth field, across the baseline, in degrees (up to 180). Default:
-        /// where both cameras see along the raw images' centre rows.
-        #[schema(exclusive_minimum = 0.0, maximum = 180.0, example = 120)]
-        az_fov: f64,
-        /// `latlon`: the elevation field in degrees (up to 180). Default: where both cameras
-        /// see along the raw images' centre columns.
-        #[schema(exclusive_minimum = 0.0, maximum = 180.0, example = 90)]
-        el_fov: f64,
-        /// `latlon`: the resolution along both axes, in pixels per degree. Default: the left
-        /// camera's at the centre of the field (mrcal's).
-        #[schema(exclusive_minimum = 0.0, example = 8)]
-        pixels_per_degree: f64,
     }
 }
 

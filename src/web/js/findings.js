@@ -11,12 +11,30 @@ import { $, fmt, percent } from './util.js';
 
 const status = $('status');
 
-/** The image pixel under a pointer event in `frame`. */
+/** The image pixel under a pointer event in `frame`: the raw left image's on its raw view,
+ * else the map's (the rectified frame's, which a latitude-longitude one does not share with
+ * the raw images). */
 export function pixelAt(event, frame) {
+  const raw = frame.id === 'left-frame' && frameShown() === 'raw' && pair.bitmaps.left;
+  const [width, height] = raw ? [pair.bitmaps.left.width, pair.bitmaps.left.height] : [pair.width, pair.height];
   const rect = frame.getBoundingClientRect();
-  const x = Math.floor(((event.clientX - rect.left) * pair.width) / rect.width);
-  const y = Math.floor(((event.clientY - rect.top) * pair.height) / rect.height);
-  return { x: Math.min(pair.width - 1, Math.max(0, x)), y: Math.min(pair.height - 1, Math.max(0, y)) };
+  const x = Math.floor(((event.clientX - rect.left) * width) / rect.width);
+  const y = Math.floor(((event.clientY - rect.top) * height) / rect.height);
+  return { x: Math.min(width - 1, Math.max(0, x)), y: Math.min(height - 1, Math.max(0, y)) };
+}
+
+/** A latitude-longitude map: its pixels are angles, which /match's rectified pair (sent with
+ * a pinhole rig) and the calculator's formula do not read. */
+function latlonShown() {
+  return pair.arrays !== null && pair.arrays.projection === 'latlon';
+}
+
+/** On a latitude-longitude map, a click on the rectified view is not sent: say where to click. */
+function rawOnly() {
+  if (!latlonShown() || frameShown() !== 'rectified') return false;
+  status.textContent = 'The pair is rectified to latitude-longitude: click or box the raw view for a '
+    + 'distance (hovering here reads the depth map).';
+  return true;
 }
 
 /** The distance under the pointer, from the arrays fetched once. */
@@ -147,6 +165,11 @@ export function showMatch(m) {
   $('match-summary').textContent = m.x_right !== undefined
     ? `(${m.x}, ${m.y}) in the ${where} is at x = ${fmt(m.x_right, 7)} px in the ${m.frame === 'plain' || !m.frame ? 'right image' : 'rectified right image'}: ${m.status}, ${meaning}.${raw}${m.error ? ` ${m.error}.` : ''}`
     : `(${m.x}, ${m.y}): no match, ${m.status}: ${meaning}.`;
+  if (m.projection === 'latlon' && m.distance !== undefined) {
+    // The calculator is not given a latitude-longitude match: its distance is said here.
+    $('match-summary').textContent += ` In latitude-longitude: distance ${fmt(m.distance, 5)} ${m.unit} `
+      + `± ${fmt(m.distance_std, 3)} ${m.unit}, range ${fmt(m.range, 5)} ${m.unit}.`;
+  }
   $('match-left').textContent = `(${m.x}, ${m.y}) px`;
   $('match-x-right').textContent = m.x_right !== undefined ? `${fmt(m.x_right, 7)} px` : '–';
   $('match-disparity').textContent = m.disparity_px !== undefined ? `${fmt(m.disparity_px, 6)} px` : '–';
@@ -242,14 +265,23 @@ export async function matchAt(x, y) {
     askForRig();
     return;
   }
+  if (rawOnly()) return;
   $('match-summary').textContent = `Matching (${x}, ${y})…`;
   const frame = frameShown();
   const found = await find({ points: [{ x, y }] }, 'match', frame);
   if (!found) return;
-  const m = { ...found.answer.matches[0], frame };
+  const m = { ...found.answer.matches[0], frame, projection: found.answer.projection, unit: found.answer.unit };
   pair.match = m;
   showMatch(m);
   drawMarkers();
+  if (m.projection === 'latlon') {
+    // Its distance is measured along its ray in latitude-longitude; the calculator's
+    // pinhole formula would read the angles as pixels, so it is not given them.
+    status.textContent = m.distance !== undefined
+      ? `Matched (${x}, ${y}) in latitude-longitude: distance ${fmt(m.distance, 5)} ${m.unit}, range ${fmt(m.range, 5)} ${m.unit}.`
+      : `Matched (${x}, ${y}) in latitude-longitude: ${m.status}, no distance.`;
+    return;
+  }
   // A match the service gives no distance (out_of_range, occluded: its disparity is not the
   // point's match) is not sent on to /distance; the match panel says why.
   const withheld = m.x_right !== undefined && m.distance === undefined;
@@ -273,6 +305,7 @@ export async function measureRegion(a, b) {
     askForRig();
     return;
   }
+  if (rawOnly()) return;
   drawMarkers();
   $('region-summary').textContent = `Measuring the box at (${box.x}, ${box.y}), ${box.width} × ${box.height} px…`;
   const frame = frameShown();

@@ -51,7 +51,9 @@ async function requestRectified(state) {
   if (!rawPair()) return;
   // Both images at once: /rectify answers one image a request, from maps it caches.
   await Promise.all(['left', 'right'].map(async (side) => {
-    const { response, errors } = await post('/rectify', new URLSearchParams({ output: `${side}.png` }), pairForm(state, 'raw'));
+    const query = new URLSearchParams({ output: `${side}.png` });
+    if (state.projection !== 'pinhole') query.set('projection', state.projection);
+    const { response, errors } = await post('/rectify', query, pairForm(state, 'raw'));
     if (errors) return;
     const blob = await response.blob();
     pair.rectifiedFiles[side] = new File([blob], `rectified-${side}.png`, { type: 'image/png' });
@@ -71,9 +73,10 @@ export function showFrames() {
 function captionDepth() {
   const a = pair.arrays;
   const shown = !$('show-sigma').checked ? 'Depth map' : 'σ of each disparity';
-  $('depth-caption').textContent = rawPair()
-    ? `${shown}, over the rectified left image (the service rectified the raw pair)`
-    : shown;
+  const over = a && a.projection === 'latlon'
+    ? 'the latitude-longitude rectified left image (azimuth across, elevation down; the service rectified the raw pair)'
+    : 'the rectified left image (the service rectified the raw pair)';
+  $('depth-caption').textContent = rawPair() ? `${shown}, over ${over}` : shown;
 }
 
 /** Shows the raw or the rectified pair (`view`), with the markers where each frame has them. */
@@ -93,6 +96,8 @@ export function rangeQuery(state, output = null) {
   const query = new URLSearchParams();
   if (output) query.set('output', output);
   for (const name of ['min_disparity', 'max_disparity']) if (state[name] !== '') query.set(name, state[name]);
+  // The projection is the raw pair's rectification; a rectified pair has none to choose.
+  if (rawPair() && state.projection !== 'pinhole') query.set('projection', state.projection);
   return query;
 }
 
@@ -109,7 +114,7 @@ function depthQuery(state, output) {
  * names, or in the list under the inputs. */
 export const IMAGE_INPUTS = {
   left: 'left_image', right: 'right_image', min_disparity: 'min_disparity', max_disparity: 'max_disparity', preset: 'preset',
-  max_disparity_std: 'max_disparity_std',
+  max_disparity_std: 'max_disparity_std', projection: 'projection',
 };
 
 export function clearImageErrors() {
@@ -182,7 +187,8 @@ export function drawImage(side) {
   $(`${side}-caption`).textContent = bitmap
     ? `${side === 'left' ? 'Left' : 'Right'} image${which}, ${width} × ${height}`
     : `${side === 'left' ? 'Left' : 'Right'} image`;
-  if (side === 'left') {
+  if (side === 'left' && !pair.arrays) {
+    // Until there is a map (which has the rectified frame's size), the left image's size.
     sizeCanvas($('depth-canvas'), width, height);
     sizeCanvas($('blend-canvas'), width, height);
     $('depth-overlay').setAttribute('viewBox', `0 0 ${width} ${height}`);
@@ -236,6 +242,8 @@ export async function requestDepth() {
       depth: arrays.depth ? arrays.depth.data : null,
       disparity_std: arrays.disparity_std.data,
       depth_std: arrays.depth_std ? arrays.depth_std.data : null,
+      // `pinhole` or `latlon`: what the raw pair was rectified to (`auto` chooses one).
+      projection: typeof arrays.projection === 'string' ? arrays.projection : 'pinhole',
     };
     const elapsed = performance.now() - started;
     const server = serverTime(response);
@@ -256,7 +264,7 @@ export async function requestDepth() {
     $('depth-status').textContent =
       `Depth map ${width} × ${height}: ${percent(fraction)} of the pixels matched, in ${fmt(elapsed, 3)} ms ` +
       `(${fmt(server, 3)} ms of it on the server).` +
-      (rawPair() ? ' The service rectified the raw pair first: the depth map is drawn in the rectified left image\'s frame.' : '') +
+      (rawPair() ? ` The service rectified the raw pair first${pair.arrays.projection === 'latlon' ? ' to latitude-longitude' : ''}: the depth map is drawn in the rectified left image's frame.` : '') +
       (warnings.length > 0 ? ` Warnings: ${warnings.join('; ')}.` : '');
   } catch (error) {
     if (error.name === 'AbortError' || token !== depthToken) return;
@@ -303,6 +311,10 @@ export function drawDepth() {
   // The view's tools (blend, σ) once there is a map to use them on.
   $('view-tools').hidden = false;
   const sigma = $('show-sigma').checked;
+  // The map has the rectified frame's size, which a latitude-longitude one does not share
+  // with the raw images.
+  for (const id of ['depth-canvas', 'blend-canvas']) sizeCanvas($(id), a.width, a.height);
+  $('depth-overlay').setAttribute('viewBox', `0 0 ${a.width} ${a.height}`);
   const depthImage = new ImageData(a.width, a.height);
   const blendImage = new ImageData(a.width, a.height);
   const paint = (i, t) => {
@@ -448,11 +460,13 @@ export function wireImages() {
       emit(EVENTS.schedule);
     });
   }
-  $('preset').addEventListener('change', (event) => {
-    forgetUnknown(event.target);
-    scheduleDepth();
-    emit(EVENTS.schedule);
-  });
+  for (const name of ['preset', 'projection']) {
+    $(name).addEventListener('change', (event) => {
+      forgetUnknown(event.target);
+      scheduleDepth();
+      emit(EVENTS.schedule);
+    });
+  }
   for (const view of ['raw', 'rectified']) {
     $(`frames-${view}`).addEventListener('change', () => showView(view));
   }

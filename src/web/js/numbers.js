@@ -27,6 +27,7 @@ export function permalink(state) {
   params.set('rows', state.rows);
   params.set('scale', state.scale);
   if (page.mode === 'images' && state.preset !== 'accurate') params.set('preset', state.preset);
+  if (page.mode === 'images' && state.projection !== 'pinhole') params.set('projection', state.projection);
   return `${location.pathname}?${params}`;
 }
 

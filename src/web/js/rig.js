@@ -49,7 +49,7 @@ export const OPTIONAL_FIELDS = ['y', 'disparity_error_px', 'doffs', 'cx', 'cy', 
 
 /** Images mode's matcher options, folded away under their summary until one is given, so
  * that the first screen holds the pair and its depth map. */
-const MATCHER_FIELDS = ['min_disparity', 'max_disparity', 'max_disparity_std', 'preset'];
+const MATCHER_FIELDS = ['min_disparity', 'max_disparity', 'max_disparity_std', 'preset', 'projection'];
 
 /** The original calculator's first example, with its focal length read as pixels. */
 export const DEFAULTS = Object.freeze({
@@ -76,6 +76,7 @@ export const DEFAULTS = Object.freeze({
   rows: '10',
   scale: 'log',
   preset: 'accurate',
+  projection: 'pinhole',
 });
 const UNITS = ['mm', 'cm', 'm', 'in', 'ft'];
 const ROWS = ['5', '10', '20', '50'];
@@ -104,6 +105,7 @@ export function forgetUnknownScale() {
 export function readForm() {
   const state = {
     focal_mode: $('focal_mode').value, unit: $('unit').value, rows: $('rows').value, preset: $('preset').value,
+    projection: $('projection').value,
   };
   for (const name of TEXT_FIELDS) state[name] = $(name).value.trim();
   state.scale = unknownScale ?? ($('log').checked ? 'log' : 'linear');
@@ -132,7 +134,7 @@ export function forgetUnknown(select) {
 }
 
 export function writeForm(state) {
-  for (const name of ['focal_mode', 'unit', 'rows', 'preset']) choose($(name), state[name]);
+  for (const name of ['focal_mode', 'unit', 'rows', 'preset', 'projection']) choose($(name), state[name]);
   unknownScale = CHOICES.scale.includes(state.scale) ? null : state.scale;
   $('log').checked = state.scale === 'log';
   for (const name of TEXT_FIELDS) $(name).value = state[name];
@@ -146,7 +148,7 @@ export function writeForm(state) {
 /** The state a query string describes; the defaults when it describes none. */
 export function stateFromQuery(search) {
   const query = new URLSearchParams(search);
-  const known = ['focal_mode', ...FOCAL_MEMBERS, ...COMPANIONS, ...TEXT_FIELDS, 'unit', 'rows', 'scale', 'preset'];
+  const known = ['focal_mode', ...FOCAL_MEMBERS, ...COMPANIONS, ...TEXT_FIELDS, 'unit', 'rows', 'scale', 'preset', 'projection'];
   if (![...query.keys()].some((key) => known.includes(key))) return { ...DEFAULTS };
   const state = { ...DEFAULTS };
   for (const name of TEXT_FIELDS) state[name] = '';
@@ -166,7 +168,7 @@ export function stateFromQuery(search) {
   state.focal = query.get(FOCAL_MODES[shown].member) ?? '';
   // Each choice is taken as given, even one the page does not offer: it is refused, with
   // its error, rather than replaced by a default nobody chose.
-  for (const name of ['unit', 'rows', 'scale', 'preset']) if (query.has(name)) state[name] = query.get(name);
+  for (const name of ['unit', 'rows', 'scale', 'preset', 'projection']) if (query.has(name)) state[name] = query.get(name);
   return state;
 }
 

@@ -19,12 +19,15 @@ pub fn latlon_depths(map: &Disparity, latlon: &Latlon) -> Vec<f32> {
         .enumerate()
         .map(|(i, &d)| {
             let (x, y) = ((i % width) as f64, (i / width) as f64);
-            match latlon.range(x, f64::from(d)) {
-                Some(r) => (r * along_axis(latlon, x, y)) as f32,
-                None => f32::NAN,
-            }
+            latlon_depth(latlon, (x, y), f64::from(d)).map_or(f32::NAN, |z| z as f32)
         })
         .collect()
+}
+
+/// The depth of disparity `d` at latitude-longitude pixel `(x, y)`: the range along its ray
+/// ([`Latlon::range`]) times cos(az)·cos(el); `None` where the disparity is not positive.
+pub fn latlon_depth(latlon: &Latlon, (x, y): (f64, f64), d: f64) -> Option<f64> {
+    latlon.range(x, d).map(|r| r * along_axis(latlon, x, y))
 }
 
 /// cos(az)·cos(el) of a latitude-longitude pixel: a range's share along the rectified axis.
@@ -91,7 +94,7 @@ pub fn latlon_measure(
 ) -> Result<Measurement, PhysicsError> {
     let range = latlon.range(x, d).ok_or(PhysicsError::AtInfinity)?;
     let ray = latlon.ray([x, y]);
-    let distance = finite(range * ray.z)?;
+    let distance = finite(latlon_depth(latlon, (x, y), d).ok_or(PhysicsError::AtInfinity)?)?;
     let depth_error_terms =
         depth_error_terms(latlon, rig, (x, y), (d, rig.disparity_error_px()), distance);
     let depth_error = finite(depth_error_terms.total())?;

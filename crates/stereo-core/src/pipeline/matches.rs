@@ -8,7 +8,7 @@ use std::time::Duration;
 
 use super::calibrated::Calibrated;
 use super::depth::{decode_notes, row_check, unrectified_warning};
-use super::latlon::latlon_measure;
+use super::latlon::{latlon_depth, latlon_measure};
 use super::range::{self, RangeUsed, Stopped};
 use super::rectify::Maps;
 use crate::calibration::files::Raw;
@@ -293,9 +293,7 @@ impl Measuring<'_> {
     /// The distance of disparity `d` at `(x, y)`, without its σ.
     fn distance(&self, (x, y): (f64, f64), d: f64) -> Option<f64> {
         match self.latlon {
-            Some(l) => latlon_measure(l, self.rig, (x, y), d)
-                .ok()
-                .map(|m| m.distance),
+            Some(l) => latlon_depth(l, (x, y), d),
             None => self.rig.distance_at(d).ok(),
         }
     }

@@ -79,7 +79,7 @@ pub async fn post_rectify(
         return Err(problems.into_error());
     };
     let raw = given.raw.clone().expect("checked by raw_rig");
-    let latlon = [query.az_fov, query.el_fov, query.pixels_per_degree];
+    let latlon = query.latlon();
     let latlon = job::latlon_options(query.projection, latlon, &mut problems);
     let raw = job::projected(*raw, latlon, query.alpha, &mut problems);
     let Some(raw) = raw.filter(|_| problems.is_empty()) else {
