@@ -26,12 +26,12 @@ use stereo_core::calibration::boards::charuco::{
     CharucoBoard, CharucoSpec, Dictionary, find_charuco,
 };
 use stereo_core::calibration::boards::corners::{self, Luma};
-use stereo_core::calibration::boards::synthetic::{Style, poses, stereo_views};
+use stereo_core::calibration::boards::synthetic::{Style, poses, poses_across, stereo_views};
 use stereo_core::camera::{Camera, Distortion, Intrinsics, Model, Size, StereoPair};
 use stereo_core::physics::LengthUnit;
 use stereo_core::vision::synthetic::Rng;
 
-const USAGE: &str = "usage: boards render DIR [SEED] [VIEWS] [MODEL] | boards refine DIR | boards calibrate DIR \
+const USAGE: &str = "usage: boards render DIR [SEED] [VIEWS] [MODEL] [FOV_DEG] | boards refine DIR | boards calibrate DIR \
      | boards charuco DIR";
 
 fn main() {
@@ -135,6 +135,9 @@ fn render(mut args: impl Iterator<Item = String>) {
     let model = args
         .next()
         .map_or(Model::PlumbBob, |s| Model::from_name(&s).expect("MODEL"));
+    // A field of view across (equidistant only): the lens's f is the width over that angle,
+    // and the boards are held out to its edges.
+    let fov: Option<f64> = args.next().map(|s| s.parse().expect("FOV_DEG"));
     std::fs::create_dir_all(&out).expect("create OUT_DIR");
 
     let mut rng = Rng::new(seed ^ 0xC0FFEE);
@@ -164,10 +167,10 @@ fn render(mut args: impl Iterator<Item = String>) {
             ],
             Model::Equidistant => vec![-0.02 + jitter(0.01), 0.005, 0.0, 0.0],
         };
-        let f = if model == Model::Equidistant {
-            f * 0.55
-        } else {
-            f
+        let f = match (model, fov) {
+            (Model::Equidistant, Some(fov)) => 320.0 / (fov / 2.0).to_radians(),
+            (Model::Equidistant, None) => f * 0.55,
+            _ => f,
         };
         Camera::new(
             Intrinsics {
@@ -193,7 +196,10 @@ fn render(mut args: impl Iterator<Item = String>) {
         translation: Vector3::new(-120.0 + jitter(5.0), jitter(2.0), jitter(2.0)),
     };
     let board = Board::new(9, 6, 25.0, LengthUnit::Millimetre).expect("board");
-    let found = poses(&pair, size, &board, views, 40.0, seed);
+    let found = match fov {
+        Some(fov) => poses_across(&pair, size, &board, (views, 40.0, seed), 0.8 * fov / 2.0),
+        None => poses(&pair, size, &board, views, 40.0, seed),
+    };
     let style = Style {
         seed,
         ..Style::default()

@@ -24,7 +24,7 @@ fn knocked_views(count: usize, seed: u64) -> Vec<(Vec<u8>, Vec<u8>)> {
     rendered_views(&knocked(), count, seed)
 }
 
-fn views_form(views: &[(Vec<u8>, Vec<u8>)], board: &str) -> Form {
+pub(crate) fn views_form(views: &[(Vec<u8>, Vec<u8>)], board: &str) -> Form {
     let mut form = Form::new();
     for (i, (l, r)) in views.iter().enumerate() {
         form = form

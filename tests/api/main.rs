@@ -5,6 +5,7 @@ mod batch;
 mod board;
 mod calibrate;
 mod calibrate_initial;
+mod calibrate_wide;
 mod calibration;
 mod calibration_check;
 mod chart;

@@ -251,6 +251,38 @@ pub fn poses(
     max_tilt_deg: f64,
     seed: u64,
 ) -> Vec<Isometry3<f64>> {
+    poses_aimed(pair, size, board, (count, max_tilt_deg, seed), None)
+}
+
+/// [`poses`] for a wide lens, out to its field's edges: each board's centre is aimed at an
+/// azimuth within `reach_deg` of the axis (an elevation within the image's aspect of it),
+/// and the board is turned to face the camera there before its tilt, as a person holding a
+/// board at the edge of a fisheye's view does. (A pinhole's aim, in tangents, cannot reach
+/// 90°.)
+pub fn poses_across(
+    pair: &StereoPair,
+    size: Size,
+    board: &Board,
+    (count, max_tilt_deg, seed): (usize, f64, u64),
+    reach_deg: f64,
+) -> Vec<Isometry3<f64>> {
+    poses_aimed(
+        pair,
+        size,
+        board,
+        (count, max_tilt_deg, seed),
+        Some(reach_deg.to_radians()),
+    )
+}
+
+/// [`poses`] and [`poses_across`]: aimed in tangents (`reach` None) or in angles.
+fn poses_aimed(
+    pair: &StereoPair,
+    size: Size,
+    board: &Board,
+    (count, max_tilt_deg, seed): (usize, f64, u64),
+    reach: Option<f64>,
+) -> Vec<Isometry3<f64>> {
     let mut rng = Rng::new(seed);
     let mut unit = || f64::from(rng.unit());
     let s = board.square_size();
@@ -292,8 +324,22 @@ pub fn poses(
             (unit() - 0.5) * 0.7 * f64::from(size.width) / f,
             (unit() - 0.5) * 0.7 * f64::from(size.height) / f,
         ];
-        // Put the board's centre on the ray `aim` at `distance`.
-        let target = Vector3::new(aim[0], aim[1], 1.0) * distance;
+        // Put the board's centre on the ray `aim` at `distance` (in angles: on the ray at
+        // azimuth and elevation, the board turned to face along it).
+        let (target, rotation) = match reach {
+            None => (Vector3::new(aim[0], aim[1], 1.0) * distance, rotation),
+            Some(reach) => {
+                let aspect = f64::from(size.height) / f64::from(size.width);
+                let (az, el) = (
+                    (aim[0] / (0.35 * f64::from(size.width) / f)) * reach,
+                    (aim[1] / (0.35 * f64::from(size.height) / f)) * reach * aspect,
+                );
+                let ray = Vector3::new(az.sin() * el.cos(), el.sin(), az.cos() * el.cos());
+                let face = Rotation3::rotation_between(&Vector3::z(), &ray)
+                    .unwrap_or_else(Rotation3::identity);
+                (ray * distance, face * rotation)
+            }
+        };
         let translation = target - rotation * centre;
         let pose = Isometry3::from_parts(Translation3::from(translation), rotation.into());
         if fits(&pair.left, &pose) && fits(&pair.right, &right_pose(pair, &pose)) {
