@@ -16,7 +16,7 @@ scripts/evaluate/matcher sets it) compute(). Rounds taken in turns (OpenCV's seq
 preset's), medians over the rounds. The first frame's time (the rig's maps built) and the rest's
 are taken apart, one request at a time, before the rounds.
 
-    PYTHONPATH=scripts python3 -m evaluations.stream --url URL [--rounds 2] [--frames 100] [--json FILE]
+    PYTHONPATH=scripts python3 -m evaluations.stream --url URL [--rounds 2] [--frames 100] [--stride 1] [--json FILE]
 
 Accuracy over every pixel and over the pixels both cameras see (`nonocc`); over every pixel,
 bad-2.0 is set by the holes of the pillar's occlusion shadow, which Middlebury's fill takes from
@@ -99,13 +99,14 @@ def frame(t, textures, rng):
     return noisy[0], noisy[1], truth, visible
 
 
-def sequence(count):
-    """The raw JPEG pairs, the truths, and the calibration file's text."""
+def sequence(count, stride=1):
+    """The raw JPEG pairs of every `stride`-th of `count` frames, their truths, and the
+    calibration file's text."""
     textures = atlases()
     left_map, right_map, calibration = raw_pair.rig_maps(W, H, F, CX, CY, DOFFS, BASELINE, 0)
     rng = np.random.default_rng(55)
     pairs, truths = [], []
-    for t in range(count):
+    for t in range(0, count, stride):
         left, right, truth, visible = frame(t, textures, rng)
         jpeg = [cv2.imencode(".jpg", raw_pair.to_raw(img, m), [cv2.IMWRITE_JPEG_QUALITY, 95])[1]
                 .tobytes() for img, m in ((left, left_map), (right, right_map))]
@@ -266,11 +267,16 @@ def main():
     parser.add_argument("--url", required=True)
     parser.add_argument("--frames", type=int, default=100)
     parser.add_argument("--rounds", type=int, default=2)
+    # Every n-th frame only: the same path in fewer frames (CI takes 2, for time).
+    parser.add_argument("--stride", type=int, default=1)
     parser.add_argument("--json")
     args = parser.parse_args()
+    if args.stride < 1:
+        parser.error("--stride must be at least 1")
     started = time.perf_counter()
-    pairs, truths, calibration = sequence(args.frames)
-    print(f"Stream: {args.frames} raw frames of {W} x {H} (JPEG, {sum(len(a) + len(b) for a, b in pairs) / len(pairs) / 1e3:.0f} kB a pair), "
+    pairs, truths, calibration = sequence(args.frames, args.stride)
+    every = f" (one in {args.stride} of {args.frames})" if args.stride > 1 else ""
+    print(f"Stream: {len(pairs)} raw frames{every} of {W} x {H} (JPEG, {sum(len(a) + len(b) for a, b in pairs) / len(pairs) / 1e3:.0f} kB a pair), "
           f"{DISPARITIES} disparities, a camera moving past three surfaces through a distorted "
           f"rig (rendered in {time.perf_counter() - started:.1f} s)")
 

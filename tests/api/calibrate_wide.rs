@@ -11,7 +11,7 @@ use stereo_core::physics::LengthUnit;
 
 use crate::calibrate::gray_png;
 use crate::calibrate_initial::views_form;
-use crate::helpers::{ok_json, spawn_app};
+use crate::helpers::{numbers, ok_json, spawn_app};
 
 const SIZE: Size = Size {
     width: 640,
@@ -41,13 +41,7 @@ fn wide_rig() -> StereoPair {
 }
 
 fn matrix(v: &Value) -> Matrix3<f64> {
-    let rows: Vec<f64> = v
-        .as_array()
-        .unwrap()
-        .iter()
-        .flat_map(|r| r.as_array().unwrap().iter().map(|x| x.as_f64().unwrap()))
-        .collect();
-    Matrix3::from_row_slice(&rows)
+    Matrix3::from_row_slice(&numbers(v))
 }
 
 /// Fifteen views of a 9 × 6 board held out to 72° off the axis of a 180° fisheye pair:
@@ -117,13 +111,7 @@ async fn a_180_degree_fisheye_rig_calibrates_from_boards_at_its_edges() {
         let pp = (k[(0, 2)] - t.cx).hypot(k[(1, 2)] - t.cy);
         assert!(pp < 0.5, "{side} principal point {pp} px off");
     }
-    let t: Vec<f64> = summary["translation"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|x| x.as_f64().unwrap())
-        .collect();
-    let b = Vector3::new(t[0], t[1], t[2]).norm();
+    let b = Vector3::from_row_slice(&numbers(&summary["translation"])).norm();
     assert!((b / pair.translation.norm() - 1.0).abs() < 2e-3, "|T| {b}");
     let r = Rotation3::from_matrix_unchecked(matrix(&summary["rotation"]));
     let off = (r * pair.rotation.inverse()).angle().to_degrees();

@@ -327,3 +327,15 @@ pub fn number_at(body: &Value, path: &str) -> f64 {
         .as_f64()
         .unwrap_or_else(|| panic!("{path} is not a number in {body}"))
 }
+
+/// The numbers of a JSON array, nested arrays (a matrix's rows) read in order.
+pub fn numbers(v: &Value) -> Vec<f64> {
+    match v {
+        Value::Array(items) => items.iter().flat_map(numbers).collect(),
+        other => vec![
+            other
+                .as_f64()
+                .unwrap_or_else(|| panic!("{other} is not a number")),
+        ],
+    }
+}

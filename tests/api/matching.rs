@@ -653,3 +653,65 @@ async fn exif_orientation_is_applied() {
     }
     assert!(compared >= 2, "{body} {stored}");
 }
+
+/// A pair sent swapped (the right camera's image as left) has its scene at negative
+/// disparities, below any range searched: no point is answered `ok` with a distance (each is
+/// `out_of_range`, which withholds it, or keeps `ambiguous`), no box gets a median, and the
+/// warnings name the swap; the same points and box the right way round are answered.
+#[tokio::test]
+async fn a_swapped_pair_answers_no_distance_and_says_why() {
+    let app = spawn_app().await;
+    let sent = pair();
+    let points: Vec<Value> = grid()
+        .into_iter()
+        .step_by(7)
+        .map(|(x, y)| json!({"x": x, "y": y}))
+        .collect();
+    let parts = |left: &[u8], right: &[u8]| {
+        Form::new()
+            .part("left", image_part(png(left, W, H)))
+            .part("right", image_part(png(right, W, H)))
+            .text("rig", rig().to_string())
+            .text("points", Value::from(points.clone()).to_string())
+            .text(
+                "regions",
+                json!([{"x": 40, "y": 30, "width": 80, "height": 60}]).to_string(),
+            )
+    };
+
+    let right_way =
+        ok_json(post_match(&app, "", parts(&sent.left_rgb, &sent.right_rgb)).await).await;
+    let swapped = ok_json(post_match(&app, "", parts(&sent.right_rgb, &sent.left_rgb)).await).await;
+
+    let ok = |body: &Value| {
+        body["matches"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .filter(|m| status(m) == "ok" && m.get("distance").is_some())
+            .count()
+    };
+    assert!(ok(&right_way) * 2 > points.len(), "{right_way}");
+    assert!(
+        right_way["regions"][0].get("distance").is_some(),
+        "{right_way}"
+    );
+    assert!(!right_way["warnings"].to_string().contains("swapped"));
+    assert!(
+        swapped["warnings"]
+            .to_string()
+            .contains("left and right look swapped"),
+        "{swapped}"
+    );
+    assert_eq!(ok(&swapped), 0, "{swapped}");
+    for m in swapped["matches"].as_array().unwrap() {
+        match status(m) {
+            "ambiguous" => assert!(m["confidence"].as_f64() < Some(0.5), "{m}"),
+            other => {
+                assert!(["out_of_range", "outside_image"].contains(&other), "{m}");
+                assert!(m.get("distance").is_none(), "{m}");
+            }
+        }
+    }
+    assert!(swapped["regions"][0].get("distance").is_none(), "{swapped}");
+}

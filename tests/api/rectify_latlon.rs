@@ -9,18 +9,12 @@ use stereo_core::camera::Model;
 use stereo_core::camera::synthetic::fisheye_180;
 
 use crate::depth_map::{npy_of, npz_entries};
-use crate::helpers::{assert_names, message_for, ok_json, problem, spawn_app};
+use crate::helpers::{assert_names, message_for, numbers, ok_json, problem, spawn_app};
 use crate::raw_files::{DISPARITY, H, W, rendered, scene, stereo_calibrate_yml};
 use crate::rectify::{raw_form, raw_pair, rectify};
 
 fn matrix(v: &Value) -> nalgebra::Matrix3<f64> {
-    let r: Vec<f64> = v
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|x| x.as_f64().unwrap())
-        .collect();
-    nalgebra::Matrix3::from_row_slice(&r)
+    nalgebra::Matrix3::from_row_slice(&numbers(v))
 }
 
 /// A 180° fisheye pair's calibration is read and rectified to latlon: the field chosen is

@@ -62,12 +62,7 @@ async fn a_fisheye_pair_is_matched_in_latlon_on_the_page() {
     let [left, right] = wide_pair(&frames);
     let browser = Browser::start(1280, 1600).await;
     browser.open("/?mode=images").await;
-    browser
-        .find("import")
-        .await
-        .click()
-        .await
-        .expect("open the import box");
+    browser.press("import").await;
     browser
         .script(&format!(
             "document.getElementById('calibration_text').value = {};",
@@ -75,12 +70,7 @@ async fn a_fisheye_pair_is_matched_in_latlon_on_the_page() {
         ))
         .await;
     browser.choose("calibration_unit", "mm").await;
-    browser
-        .find("import-button")
-        .await
-        .click()
-        .await
-        .expect("import");
+    browser.press("import-button").await;
     let imported = browser
         .until("the import", || async {
             let text = browser.text("import-status").await;
@@ -120,12 +110,7 @@ async fn a_fisheye_pair_is_matched_in_latlon_on_the_page() {
     );
 
     // Act and assert: the rectified view is the latlon pair, its rows drawn.
-    browser
-        .find("frames-rectified")
-        .await
-        .click()
-        .await
-        .expect("rectified view");
+    browser.press("frames-rectified").await;
     let shown = browser
         .script(
             "const c = document.getElementById('left-canvas'); \
@@ -148,12 +133,7 @@ async fn a_fisheye_pair_is_matched_in_latlon_on_the_page() {
     contains(&browser, "status", "click or box the raw view").await;
 
     // Act: a click on the raw view, about 55° off the axis.
-    browser
-        .find("frames-raw")
-        .await
-        .click()
-        .await
-        .expect("raw view");
+    browser.press("frames-raw").await;
     browser.click_pixel("left-frame", 60.0, 120.0).await;
     let summary = contains(&browser, "match-summary", "In latitude-longitude").await;
 

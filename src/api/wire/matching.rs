@@ -101,7 +101,9 @@ pub enum MatchStatus {
     /// one level of 255): its disparity was carried in from around it.
     Textureless,
     /// No right pixel lies in the disparity range, or the best match is at the end of what
-    /// the range and the right image allow: the true one may lie beyond.
+    /// the range and the right image allow: the true one may lie beyond. Every point of a
+    /// pair that looks swapped (its scene at negative disparities, below any range; the
+    /// warnings say so) is out of range too, but one already `ambiguous`.
     OutOfRange,
     /// Its neighbourhood disagrees: a depth edge, the border of an occlusion, or an isolated
     /// patch the speckle filter removed.

@@ -155,13 +155,23 @@ pub fn matches(
         .map(|p| p.is_some_and(|p| valid(&map, p)))
         .collect();
     let judged = ranged.judge(&mut map, Some(request.calibrated.rig));
+    // A pair that looks swapped has its scene at negative disparities, outside any range
+    // searched: what was matched inside it is not the scene, so no point or box is measured
+    // on it (the warning says why), rather than answered with a confident wrong distance. A
+    // point already `ambiguous` keeps that word (a repeating texture can look swapped too).
+    let swapped = ranged.swapped();
     for ((f, pixel), before) in found.iter_mut().zip(pixels).zip(before) {
         if let Some(pixel) = pixel
             && f.disparity.is_some()
-            && (ranged.past(pixel) || (before && !valid(&map, pixel)))
+            && ((swapped && f.status != MatchOutcome::Ambiguous)
+                || ranged.past(pixel)
+                || (before && !valid(&map, pixel)))
         {
             f.status = MatchOutcome::OutOfRange;
         }
+    }
+    if swapped {
+        map.data.fill(f32::NAN);
     }
     let at = Measuring {
         rig: &request.calibrated.rig,
@@ -190,7 +200,6 @@ pub fn matches(
     let rows = raw.is_none().then(|| row_check(&left, &right, &ranged));
     let mut warnings = request.calibrated.warnings.clone();
     warnings.extend(decode_notes(&left, &right));
-    let swapped = ranged.swapped();
     warnings.extend(judged);
     if !swapped {
         warnings.extend(rows.and_then(|r| unrectified_warning(None, r)));
