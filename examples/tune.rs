@@ -7,7 +7,8 @@
 //! ```
 //! `TRUTH.f32` is the ground truth as raw little-endian float32, row-major, +inf where unknown.
 //! Keys: p1, p2, edge, uniq, lr, speckle, median (0/1), sub (off/parabola/equiangular),
-//! paths (5/8/auto). `TUNE_RUNS=N` times each setting N times and reports the median run.
+//! paths (5/8/auto), preset (accurate/fast), and the pyramid's narrow, whole, window (cells) and align.
+//! `TUNE_RUNS=N` times each setting N times and reports the median run.
 //! `TUNE_SIMD=portable` runs the portable build of the hot loops, `TUNE_SIMD=avx2` the AVX2
 //! build where the CPU has AVX-512 too.
 
@@ -32,18 +33,32 @@ fn main() {
         .map(|c| f32::from_le_bytes(c.try_into().unwrap()))
         .collect();
     let count: i32 = args.get(3).map_or(64, |c| c.parse().unwrap());
-    let mut grid: Vec<Settings> = vec![Settings {
-        max_disparity: Some(stereo_core::vision::RangeEnd::Px(count)),
-        ..Settings::default()
-    }];
+    // Each setting with its pyramid's `narrow` and `window` when asked (else the preset's).
+    let mut grid: Vec<(Settings, [Option<usize>; 4])> = vec![(
+        Settings {
+            max_disparity: Some(stereo_core::vision::RangeEnd::Px(count)),
+            ..Settings::default()
+        },
+        [None; 4],
+    )];
     for spec in args.iter().skip(4) {
         let (key, values) = spec.split_once('=').unwrap();
         grid = grid
             .into_iter()
             .flat_map(|p| {
                 values.split(',').map(move |v| {
-                    let mut p = p;
+                    let (mut p, mut shape) = p;
                     match key {
+                        "preset" => {
+                            p.preset = Some(match v {
+                                "fast" => vision::Preset::Fast,
+                                _ => vision::Preset::Accurate,
+                            })
+                        }
+                        "narrow" => shape[0] = v.parse().ok(),
+                        "window" => shape[1] = v.parse().ok(),
+                        "align" => shape[2] = v.parse().ok(),
+                        "whole" => shape[3] = v.parse().ok(),
                         "p1" => p.p1 = v.parse().ok(),
                         "p2" => p.p2 = v.parse().ok(),
                         "edge" => p.p2_edge = v.parse().ok(),
@@ -67,7 +82,7 @@ fn main() {
                         }
                         other => panic!("unknown key {other}"),
                     }
-                    p
+                    (p, shape)
                 })
             })
             .collect();
@@ -87,8 +102,15 @@ fn main() {
         .and_then(|r| r.parse().ok())
         .unwrap_or(1)
         .max(1);
-    for settings in grid {
+    for (settings, [narrow, window, align, whole]) in grid {
         let params = Params::new(&settings).expect("the grid's settings are within bounds");
+        let shape = params.shape();
+        let params = params.with_shape(vision::pyramid::Shape {
+            narrow: narrow.unwrap_or(shape.narrow),
+            whole: whole.unwrap_or(shape.whole),
+            window: window.unwrap_or(shape.window),
+            align: align.unwrap_or(shape.align),
+        });
         let mut runs: Vec<_> = (0..runs)
             .map(|_| {
                 let started = Instant::now();
@@ -121,8 +143,9 @@ fn main() {
         }
         let pct = |b: usize| 100.0 * b as f64 / n as f64;
         println!(
-            "{:?} p1 {:3} p2 {:3} edge {:3} uniq {:2} lr {:?} speckle {:3} median {} sub {:?}: \
-             bad0.5 {:5.2} bad1 {:5.2} bad2 {:5.2} dens {:5.1}  {:4.0} ms (cost {:.0} agg {:.0} refine {:.0})",
+            "{:?} {:?} p1 {:3} p2 {:3} edge {:3} uniq {:2} lr {:?} speckle {:3} median {} sub {:?}: \
+             bad0.5 {:5.2} bad1 {:5.2} bad2 {:5.2} dens {:5.1}  {:4.0} ms (cost {:.0} agg {:.0} refine {:.0}) cells {:.1}/px",
+            params.shape(),
             params.paths(),
             params.penalties().p1,
             params.penalties().p2,
@@ -140,6 +163,7 @@ fn main() {
             t.cost.as_secs_f64() * 1e3,
             t.aggregate.as_secs_f64() * 1e3,
             t.refine.as_secs_f64() * 1e3,
+            t.cells as f64 / (w * left.grey.height) as f64,
         );
     }
 }

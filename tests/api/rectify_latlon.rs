@@ -590,9 +590,10 @@ async fn depth_in_the_left_cameras_own_pixels() {
                 .ray_of_pixel([x as f64, y as f64])
                 .unwrap()
                 .normalize();
+            // mrcal's stereo_range (checked against mrcal itself in the rectification
+            // evaluation) at the raw pixel's latlon column.
             let [u, _] = system.pixel(&(system.r1 * ray));
-            let (az, angle) = ((u - system.cx) / system.fx, DISPARITY / system.fx);
-            let range = system.baseline * (az - angle).cos() / angle.sin();
+            let range = system.range(u, DISPARITY).unwrap();
             off.push((z / (range * ray.z) - 1.0).abs());
             checked += 1;
         }

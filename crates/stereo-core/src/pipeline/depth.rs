@@ -170,9 +170,10 @@ pub fn matched(
         Vec::new()
     };
     timings.cost += surveyed;
-    // What the matcher answered, before a range that stops short refuses what lies past it
-    // (a low share then is the range's, not a raw pair's).
-    let matched_share = matched_share(&map);
+    // What the matcher answered, before a range that stops short refuses what lies past it,
+    // over the pixels its coarse view puts inside the range (a low share then is the range's,
+    // not a raw pair's).
+    let matched_share = matched_share(&map, ranged.past_share());
     let started = Instant::now();
     let judged = ranged.judge(&mut map, request.calibrated.map(|c| c.rig));
     timings.refine += started.elapsed();
@@ -212,14 +213,19 @@ fn valid_share(map: &Disparity) -> f64 {
     valid as f64 / map.data.len().max(1) as f64
 }
 
-/// [`valid_share`], under [`UNRECTIFIED_SHARE`] of the pixels not blank ([`Disparity::blank`]).
-fn matched_share(map: &Disparity) -> f64 {
+/// [`valid_share`], under [`UNRECTIFIED_SHARE`] of the pixels neither blank
+/// ([`Disparity::blank`]) nor past the range's end (`past`, the share of the image the pair's
+/// coarse view puts there, [`Ranged::past_share`]): a range that stops short leaves those
+/// unmatched, which says nothing of the pair's rectification.
+fn matched_share(map: &Disparity, past: f64) -> f64 {
     let share = valid_share(map);
     if share >= UNRECTIFIED_SHARE {
         return share;
     }
-    let blank = map.blank.iter().filter(|&&b| b).count();
-    share * map.data.len() as f64 / map.data.len().saturating_sub(blank).max(1) as f64
+    let n = map.data.len() as f64;
+    let blank = map.blank.iter().filter(|&&b| b).count() as f64;
+    let judged = (n - blank - past.clamp(0.0, 1.0) * n).max(1.0);
+    (share * n / judged).min(1.0)
 }
 
 impl Matched {
@@ -364,4 +370,44 @@ pub fn depth_stds(map: &Disparity, depth: &[f32], rig: Rig) -> Vec<f32> {
             }
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A map with `valid` of its 1000 pixels matched and `blank` of them blank.
+    fn map(valid: usize, blank: usize) -> Disparity {
+        Disparity {
+            width: 100,
+            height: 10,
+            data: (0..1000)
+                .map(|i| if i < valid { 5.0 } else { f32::NAN })
+                .collect(),
+            std: vec![0.2; 1000],
+            filled: Vec::new(),
+            blank: (0..1000).map(|i| i >= 1000 - blank).collect(),
+        }
+    }
+
+    /// The share of a pair matched is judged over the pixels inside the range: 14.5 % matched
+    /// with 35.6 % of the image past a range that stops short (OpenCV's photograph 05 at
+    /// 96 disparities) is 22.5 % of the rest, no sign of a raw pair; with nothing past the
+    /// range it is one, and blank pixels are left out as before.
+    #[test]
+    fn a_short_ranges_refusals_are_not_a_raw_sign() {
+        let short = matched_share(&map(145, 0), 0.356);
+        assert!((short - 0.145 / 0.644).abs() < 1e-9, "{short}");
+        assert!(unrectified_warning(Some(short), None).is_none());
+        let whole = matched_share(&map(145, 0), 0.0);
+        assert!((whole - 0.145).abs() < 1e-12, "{whole}");
+        assert!(
+            unrectified_warning(Some(whole), None)
+                .is_some_and(|w| w.starts_with("only 14.5 % of the pixels matched"))
+        );
+        assert!((matched_share(&map(145, 275), 0.0) - 0.2).abs() < 1e-9);
+        // Above the threshold the share is the map's own; never above 1.
+        assert_eq!(matched_share(&map(300, 0), 0.9), 0.3);
+        assert_eq!(matched_share(&map(150, 500), 1.0), 1.0);
+    }
 }

@@ -94,7 +94,7 @@ pub fn latlon_measure(
 ) -> Result<Measurement, PhysicsError> {
     let range = latlon.range(x, d).ok_or(PhysicsError::AtInfinity)?;
     let ray = latlon.ray([x, y]);
-    let distance = finite(latlon_depth(latlon, (x, y), d).ok_or(PhysicsError::AtInfinity)?)?;
+    let distance = finite(range * along_axis(latlon, x, y))?;
     let depth_error_terms =
         depth_error_terms(latlon, rig, (x, y), (d, rig.disparity_error_px()), distance);
     let depth_error = finite(depth_error_terms.total())?;

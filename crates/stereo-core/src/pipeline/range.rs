@@ -299,6 +299,15 @@ impl Ranged {
         said
     }
 
+    /// The share of the image the pair's coarse view puts at or past the range's end
+    /// ([`Survey::beyond`]): what a range that stops short leaves unmatched. 0 without a
+    /// survey.
+    pub fn past_share(&self) -> f64 {
+        self.survey
+            .as_ref()
+            .map_or(0.0, |s| s.beyond(self.used.max))
+    }
+
     /// Whether the pair's coarse view says the cameras look swapped (the warning
     /// [`Ranged::judge`] then writes).
     pub fn swapped(&self) -> bool {

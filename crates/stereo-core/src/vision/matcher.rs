@@ -153,7 +153,8 @@ pub fn disparity_probed_in(
     cancel: &AtomicBool,
     wanted: &[Vec<usize>],
 ) -> Result<(Disparity, Timings, Vec<Vec<Probe>>), Cancelled> {
-    let levels = pyramid::levels(left.width, left.height, params.count, seen.faint);
+    let shape = params.shape();
+    let levels = pyramid::levels_shaped(left.width, left.height, params.count, seen.faint, shape);
     // The paths are the whole pair's, at every level.
     let params = &Params {
         paths: params.paths.for_pair(seen.clarity, seen.stride),
@@ -198,14 +199,14 @@ fn level(
         let (map, t, _) = level((&l2, &r2), seen.halved(), &coarse, above - 1, cancel, &[])?;
         timings.add(t);
         let started = Instant::now();
-        let prior = pyramid::Prior::new(&map, min);
+        let prior = pyramid::Prior::shaped(&map, min, params.shape());
         timings.refine += started.elapsed();
         Some(prior)
     } else {
         None
     };
     let window = match prior {
-        Some(_) => pyramid::MAX_WINDOW.min(cost::stride(params.count)),
+        Some(_) => params.shape().window.min(cost::stride(params.count)),
         None => cost::stride(params.count),
     };
     let stripes = stripes::stripes(h, stripes::rows(w, window, prior.is_some()));

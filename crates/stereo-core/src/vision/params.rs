@@ -3,7 +3,7 @@
 //! [`ParamFault`]s, each naming the [`Setting`] at fault, which the routes map onto their field
 //! names.
 
-use super::{Subpixel, cost, sgm};
+use super::{Subpixel, cost, pyramid, sgm};
 use crate::numbers::Num;
 
 /// The end of the disparity search (exclusive) when neither the caller nor a calibration file
@@ -208,6 +208,8 @@ pub struct Params {
     /// With `found`: the least end of range to search, whatever the pair's own needs (a
     /// stream's range kept from its earlier frames, [`Params::at_least`]); 0 for none.
     pub(super) at_least: i32,
+    /// The pyramid's shape: [`pyramid::Shape::DEFAULT`] but in the tune build's grid.
+    pub(super) shape: pyramid::Shape,
 }
 
 impl Default for Params {
@@ -236,6 +238,7 @@ impl Default for Params {
             found: true,
             min_found: true,
             at_least: 0,
+            shape: pyramid::Shape::DEFAULT,
         }
     }
 }
@@ -414,6 +417,7 @@ impl Params {
                     None => s.max_disparity.and_then(RangeEnd::px).is_none(),
                 },
                 at_least: 0,
+                shape: pyramid::Shape::DEFAULT,
             }),
             _ => Err(faults.0),
         }
@@ -456,14 +460,8 @@ impl Params {
     /// [`MAX_DISPARITIES`]) whatever the pair's own needs: a stream's range kept from its
     /// earlier frames. Parameters with a range given are returned as they are.
     pub fn at_least(&self, max: i32) -> Params {
-        Params {
-            at_least: if self.found {
-                max.clamp(0, MAX_DISPARITIES as i32)
-            } else {
-                0
-            },
-            ..*self
-        }
+        let at_least = max.clamp(0, MAX_DISPARITIES as i32) * i32::from(self.found);
+        Params { at_least, ..*self }
     }
 
     /// The least end of range [`Params::at_least`] set (0 for none).
@@ -473,7 +471,7 @@ impl Params {
 
     /// The most disparities these parameters may search, what a request is charged for: the
     /// range's own, or for a range to be found, [`MAX_DISPARITIES`] (the matcher's peak
-    /// memory stops growing past [`super::pyramid::NARROW`], so this costs little more).
+    /// memory stops growing past [`super::pyramid::WHOLE`], so this costs little more).
     pub fn most_searched(&self) -> usize {
         if self.found {
             MAX_DISPARITIES

@@ -14,10 +14,26 @@ use std::ops::Range;
 use super::cost::{self, LANES, Windows};
 use super::{Disparity, Gray, filters};
 
-/// Coarser levels are added while the range holds more than this many disparities: up to it,
-/// the whole range is searched at every pixel (narrowing it there cost accuracy on Motorcycle:
-/// bad-1.0 7.94 → 8.6 at 64 disparities).
+/// Coarser levels are added while the range holds more than this many disparities: the
+/// coarsest level searches at most this many (narrowing the range below 64 cost accuracy:
+/// Motorcycle's bad-1.0 7.94 → 8.6 at 64 disparities).
 pub const NARROW: usize = 64;
+/// Up to this many disparities a pair is searched whole at full size, with no coarser level,
+/// while that search holds at most [`WHOLE_CELLS`] cells (else up to [`NARROW`]). A window costs more a cell
+/// than the whole range does (each pixel reads its neighbours' path costs at its own
+/// disparities, and steps in registers of [`LANES`] where the whole range takes 64 lanes at
+/// once), and the coarse level's fixed costs weigh most on a small pair. Measured (`tune`,
+/// defaults, 2 cores with AVX-512; docs/matcher.md), the whole range against coarse to fine:
+/// Motorcycle at quarter size (0.37 MP) searching 80, 32 against 49 ms, bad-1.0 7.85 against
+/// 8.34 %; at 1280 × 720 (0.92 MP), 96 in 95 against 104 ms, 128 in 108 against 104 ms
+/// (bad-1.0 12.35 against 13.12 %); at 1920 × 1080 (2.07 MP), 96 in 343 against 299 ms, 128
+/// in 424 against 296. Past it, the coarsest level stays at [`NARROW`]: coarsest levels of up
+/// to 128 answered less of the photographed boards right (their median 68.8 → 66.2 %).
+pub const WHOLE: usize = 128;
+/// The most cells (pixels × disparities, the range in whole registers) a range up to
+/// [`WHOLE`] may hold to be searched whole: where the two ways cost the same, between 1280 ×
+/// 720 at 96 (88 M cells, whole 9 % faster) and at 128 (118 M, whole 4 % slower).
+pub const WHOLE_CELLS: usize = 96 << 20;
 /// How narrow the coarsest level's range is for a pair whose texture is faint (far weaker than
 /// its noise at one pixel's scale, [`super::census::Texture::faint`]): each level averages four
 /// pixels, halving the noise, while a texture of lower frequencies keeps most of its contrast.
@@ -35,11 +51,79 @@ const RADIUS: usize = 2;
 /// The smallest coarse level: narrower or shorter images are not halved again.
 const MIN_SIDE: (usize, usize) = (48, 24);
 
-/// How many times to halve a `width × height` pair searching `count` disparities: until the
-/// range holds at most [`NARROW`] disparities, or [`FAINT_NARROW`] when the pair's texture is
+/// How the pyramid is shaped: the widest range searched whole, how narrow the coarsest
+/// level's range is, and the windows below it. The tune build's grid tries others
+/// ([`super::Params::with_shape`]); every request takes [`Shape::DEFAULT`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Shape {
+    /// Coarser levels are added while the range holds more than this many disparities.
+    pub narrow: usize,
+    /// Up to this many, a pair whose search holds at most [`WHOLE_CELLS`] is searched
+    /// whole.
+    pub whole: usize,
+    /// The most cells a pixel's window holds below the coarsest level (a multiple of
+    /// [`LANES`]).
+    pub window: usize,
+    /// What a window's first index is a multiple of: 1 puts it where the neighbourhood
+    /// starts; [`LANES`] lines neighbouring windows up, so that a path goes from one pixel to
+    /// the next without shifting its costs ([`super::sgm`]).
+    pub align: usize,
+}
+
+impl Shape {
+    /// Every preset's: the whole range at full size up to [`WHOLE`] (or [`NARROW`]), windows
+    /// of up to [`MAX_WINDOW`] starting where their neighbourhood starts.
+    pub const DEFAULT: Shape = Shape {
+        narrow: NARROW,
+        whole: WHOLE,
+        window: MAX_WINDOW,
+        align: 1,
+    };
+}
+
+impl super::Params {
+    /// The pyramid matched through ([`Shape::DEFAULT`] unless [`super::Params::with_shape`]
+    /// gave another).
+    pub fn shape(&self) -> Shape {
+        self.shape
+    }
+
+    /// These settings matched through another pyramid: the tune build's grid, which measured
+    /// the shapes `docs/matcher.md` compares.
+    pub fn with_shape(self, shape: Shape) -> super::Params {
+        super::Params { shape, ..self }
+    }
+}
+
+/// How many times to halve a `width × height` pair searching `count` disparities: none up to
+/// [`WHOLE`] disparities while the search holds at most [`WHOLE_CELLS`]; else until the range
+/// holds at most [`NARROW`] disparities, or [`FAINT_NARROW`] when the pair's texture is
 /// `faint`.
 pub fn levels(width: usize, height: usize, count: usize, faint: bool) -> usize {
-    let narrow = if faint { FAINT_NARROW } else { NARROW };
+    levels_shaped(width, height, count, faint, Shape::DEFAULT)
+}
+
+/// [`levels`] for a pyramid of `shape`: none up to `shape.whole` disparities while the search
+/// holds at most [`WHOLE_CELLS`] (unless `faint`); else until the range holds at most `shape.narrow`
+/// disparities (or [`FAINT_NARROW`], when that is narrower and the texture `faint`).
+pub fn levels_shaped(
+    width: usize,
+    height: usize,
+    count: usize,
+    faint: bool,
+    shape: Shape,
+) -> usize {
+    let cells = width
+        .saturating_mul(height)
+        .saturating_mul(cost::stride(count));
+    if !faint && count <= shape.whole && cells <= WHOLE_CELLS {
+        return 0;
+    }
+    let narrow = if faint {
+        FAINT_NARROW.min(shape.narrow)
+    } else {
+        shape.narrow
+    };
     let (mut w, mut h, mut c, mut n) = (width, height, count, 0);
     while c > narrow && w / 2 >= MIN_SIDE.0 && h / 2 >= MIN_SIDE.1 {
         (w, h, c, n) = (w.div_ceil(2), h.div_ceil(2), halve_range(0, c).1, n + 1);
@@ -82,13 +166,23 @@ pub struct Prior {
     own: Vec<f32>,
     least: Vec<f32>,
     greatest: Vec<f32>,
+    /// The most cells a window holds, and what its first index is a multiple of
+    /// ([`Shape`]).
+    cap: usize,
+    align: usize,
 }
 
 impl Prior {
     /// The prior of a coarse map: holes filled from the row's background (a row with no valid
     /// pixel takes the range's smallest disparity, `min`), then the least and greatest over
-    /// the [`RADIUS`] neighbourhood.
+    /// the [`RADIUS`] neighbourhood; its windows hold at most [`MAX_WINDOW`] cells.
     pub fn new(map: &Disparity, min: i32) -> Prior {
+        Prior::shaped(map, min, Shape::DEFAULT)
+    }
+
+    /// [`Prior::new`], its windows holding at most `shape.window` cells and starting at a
+    /// multiple of `shape.align`.
+    pub fn shaped(map: &Disparity, min: i32, shape: Shape) -> Prior {
         let (w, h) = (map.width, map.height);
         let mut own = map.data.clone();
         filters::fill(&mut own, w);
@@ -105,6 +199,8 @@ impl Prior {
             own,
             least,
             greatest,
+            cap: shape.window.max(LANES),
+            align: shape.align.max(1),
         }
     }
 
@@ -154,17 +250,18 @@ impl Prior {
         ceil: impl Fn(f32) -> usize,
     ) -> (u16, u16) {
         let full = cost::stride(count);
-        let cap = MAX_WINDOW.min(full);
+        let cap = self.cap.min(full);
         let last = count as f32 - 1.0;
         let lo = (2.0 * self.least[c] - MARGIN - min as f32).clamp(0.0, last);
         let hi = (2.0 * self.greatest[c] + MARGIN - min as f32).clamp(lo, last);
         let (lo, hi) = (floor(lo), ceil(hi));
+        let lo = lo / self.align * self.align;
         let mut len = (hi - lo + 1).div_ceil(LANES) * LANES;
         let mut start = lo;
         if len > cap {
             len = cap;
             let centre = (2.0 * self.own[c] - min as f32).clamp(0.0, last) as usize;
-            start = centre.saturating_sub(cap / 2);
+            start = centre.saturating_sub(cap / 2) / self.align * self.align;
         }
         // Use the whole window inside the padded range.
         start = start.min(full - len);
@@ -205,11 +302,21 @@ fn box_extreme(
 mod tests {
     use super::*;
 
-    /// The range is halved until it holds at most NARROW disparities, or the image gets small.
+    /// Up to WHOLE disparities a pair whose search holds at most WHOLE_CELLS is not halved;
+    /// else the range is halved until it holds at most NARROW disparities, or the image gets
+    /// small.
     #[test]
     fn levels_follow_the_range_and_the_size() {
         assert_eq!(levels(741, 500, 64, false), 0);
-        assert_eq!(levels(741, 500, 128, false), 1);
+        // The whole range up to 128 while it holds at most 96 Mi cells; past it, down to 64
+        // as before.
+        assert_eq!(levels(741, 500, 128, false), 0);
+        assert_eq!(levels(741, 500, 129, false), 2);
+        assert_eq!(levels(640, 480, 192, false), 2);
+        assert_eq!(levels(1280, 720, 96, false), 0);
+        assert_eq!(levels(1280, 720, 128, false), 1);
+        assert_eq!(levels(1092, 720, 128, false), 0);
+        assert_eq!(levels(1920, 1080, 80, false), 1);
         assert_eq!(levels(1920, 1080, 256, false), 2);
         assert_eq!(levels(3000, 2000, 400, false), 3);
         assert_eq!(levels(90, 40, 400, false), 0);

@@ -159,9 +159,10 @@ fn peak(width: usize, height: usize, range: usize) -> usize {
 
 /// The bytes a `width × height` pair searching `count` disparities is charged: the most the
 /// matcher holds at its peak ([`peak`]) over this range and every narrower one, so that what
-/// a request needs never grows when its range narrows. (A range just wider than
-/// [`pyramid::NARROW`] is matched coarse to fine and holds less than one just narrower,
-/// searched whole at full size; such a range is charged the narrower one's peak.)
+/// a request needs never grows when its range narrows. (A range just wider than the widest
+/// searched whole, [`pyramid::WHOLE`] or [`pyramid::NARROW`] past [`pyramid::WHOLE_CELLS`],
+/// is matched coarse to fine and holds less than one just narrower, searched whole at full
+/// size; such a range is charged the narrower one's peak.)
 pub fn bytes_needed(width: usize, height: usize, count: usize) -> usize {
     (1..=count.max(1))
         .map(|c| peak(width, height, c))
@@ -214,8 +215,8 @@ mod tests {
     }
 
     /// What a pair is charged never grows as its range narrows, at every size from a
-    /// quarter-size Middlebury pair to 24 MP, though the peak itself does (64 disparities
-    /// searched whole against 65 coarse to fine).
+    /// quarter-size Middlebury pair to 24 MP, though the peak itself does (128 disparities
+    /// searched whole against 129 coarse to fine).
     #[test]
     fn the_charge_never_grows_as_the_range_narrows() {
         for (w, h) in [(741, 500), (1280, 720), (4032, 3024), (6000, 4000)] {
@@ -231,6 +232,8 @@ mod tests {
                 before = now;
             }
         }
-        assert!(peak(741, 500, 64) > peak(741, 500, 65));
+        assert!(peak(741, 500, 128) > peak(741, 500, 129));
+        assert!(peak(4032, 3024, 64) > peak(4032, 3024, 65));
+        assert!(peak(741, 500, 64) < peak(741, 500, 128));
     }
 }
