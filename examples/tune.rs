@@ -7,7 +7,7 @@
 //! ```
 //! `TRUTH.f32` is the ground truth as raw little-endian float32, row-major, +inf where unknown.
 //! Keys: p1, p2, edge, uniq, lr, speckle, median (0/1), sub (off/parabola/equiangular),
-//! paths (5/8/auto), preset (accurate/fast), and the pyramid's narrow, whole, window (cells) and align.
+//! paths (5/8/auto), preset (accurate/fast), and the pyramid's narrow, whole and window (cells).
 //! `TUNE_RUNS=N` times each setting N times and reports the median run.
 //! `TUNE_SIMD=portable` runs the portable build of the hot loops, `TUNE_SIMD=avx2` the AVX2
 //! build where the CPU has AVX-512 too.
@@ -34,12 +34,12 @@ fn main() {
         .collect();
     let count: i32 = args.get(3).map_or(64, |c| c.parse().unwrap());
     // Each setting with its pyramid's `narrow` and `window` when asked (else the preset's).
-    let mut grid: Vec<(Settings, [Option<usize>; 4])> = vec![(
+    let mut grid: Vec<(Settings, [Option<usize>; 3])> = vec![(
         Settings {
             max_disparity: Some(stereo_core::vision::RangeEnd::Px(count)),
             ..Settings::default()
         },
-        [None; 4],
+        [None; 3],
     )];
     for spec in args.iter().skip(4) {
         let (key, values) = spec.split_once('=').unwrap();
@@ -57,8 +57,7 @@ fn main() {
                         }
                         "narrow" => shape[0] = v.parse().ok(),
                         "window" => shape[1] = v.parse().ok(),
-                        "align" => shape[2] = v.parse().ok(),
-                        "whole" => shape[3] = v.parse().ok(),
+                        "whole" => shape[2] = v.parse().ok(),
                         "p1" => p.p1 = v.parse().ok(),
                         "p2" => p.p2 = v.parse().ok(),
                         "edge" => p.p2_edge = v.parse().ok(),
@@ -102,14 +101,13 @@ fn main() {
         .and_then(|r| r.parse().ok())
         .unwrap_or(1)
         .max(1);
-    for (settings, [narrow, window, align, whole]) in grid {
+    for (settings, [narrow, window, whole]) in grid {
         let params = Params::new(&settings).expect("the grid's settings are within bounds");
         let shape = params.shape();
         let params = params.with_shape(vision::pyramid::Shape {
             narrow: narrow.unwrap_or(shape.narrow),
             whole: whole.unwrap_or(shape.whole),
             window: window.unwrap_or(shape.window),
-            align: align.unwrap_or(shape.align),
         });
         let mut runs: Vec<_> = (0..runs)
             .map(|_| {

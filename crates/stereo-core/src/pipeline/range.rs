@@ -220,12 +220,9 @@ impl Ranged {
     /// swapped.
     pub fn judge(&self, map: &mut Disparity, rig: Option<Rig>) -> Vec<String> {
         let max = self.used.max;
+        let past = self.past_share();
         // The coarse view's holes are grown into only where a given range does stop short.
-        let grow = self.used.chosen == Chosen::Given
-            && self
-                .survey
-                .as_ref()
-                .is_some_and(|s| s.beyond(max) >= SHORT_SHARE);
+        let grow = self.used.chosen == Chosen::Given && past >= SHORT_SHARE;
         // A start found past 0: the few pixels short of it are refused too (not counted in
         // the share below: they say nothing of the range's end).
         let start = (self.used.start.is_some() && self.used.min > 0).then_some(self.used.min);
@@ -233,8 +230,7 @@ impl Ranged {
         let mut said = Vec::new();
         // The share refused, or where only bands of the map were matched (`/match`), the
         // share the coarse view puts past the range.
-        let share = (refused as f64 / map.data.len().max(1) as f64)
-            .max(self.survey.as_ref().map_or(0.0, |s| s.beyond(max)));
+        let share = (refused as f64 / map.data.len().max(1) as f64).max(past);
         let trusted = self.survey.as_ref().is_some_and(|s| s.usable());
         if self.used.chosen == Chosen::Given && trusted && share >= SHORT_SHARE {
             let reach = self

@@ -64,20 +64,15 @@ pub struct Shape {
     /// The most cells a pixel's window holds below the coarsest level (a multiple of
     /// [`LANES`]).
     pub window: usize,
-    /// What a window's first index is a multiple of: 1 puts it where the neighbourhood
-    /// starts; [`LANES`] lines neighbouring windows up, so that a path goes from one pixel to
-    /// the next without shifting its costs ([`super::sgm`]).
-    pub align: usize,
 }
 
 impl Shape {
     /// Every preset's: the whole range at full size up to [`WHOLE`] (or [`NARROW`]), windows
-    /// of up to [`MAX_WINDOW`] starting where their neighbourhood starts.
+    /// of up to [`MAX_WINDOW`].
     pub const DEFAULT: Shape = Shape {
         narrow: NARROW,
         whole: WHOLE,
         window: MAX_WINDOW,
-        align: 1,
     };
 }
 
@@ -166,10 +161,8 @@ pub struct Prior {
     own: Vec<f32>,
     least: Vec<f32>,
     greatest: Vec<f32>,
-    /// The most cells a window holds, and what its first index is a multiple of
-    /// ([`Shape`]).
+    /// The most cells a window holds ([`Shape::window`]).
     cap: usize,
-    align: usize,
 }
 
 impl Prior {
@@ -180,8 +173,7 @@ impl Prior {
         Prior::shaped(map, min, Shape::DEFAULT)
     }
 
-    /// [`Prior::new`], its windows holding at most `shape.window` cells and starting at a
-    /// multiple of `shape.align`.
+    /// [`Prior::new`], its windows holding at most `shape.window` cells.
     pub fn shaped(map: &Disparity, min: i32, shape: Shape) -> Prior {
         let (w, h) = (map.width, map.height);
         let mut own = map.data.clone();
@@ -200,7 +192,6 @@ impl Prior {
             least,
             greatest,
             cap: shape.window.max(LANES),
-            align: shape.align.max(1),
         }
     }
 
@@ -255,13 +246,12 @@ impl Prior {
         let lo = (2.0 * self.least[c] - MARGIN - min as f32).clamp(0.0, last);
         let hi = (2.0 * self.greatest[c] + MARGIN - min as f32).clamp(lo, last);
         let (lo, hi) = (floor(lo), ceil(hi));
-        let lo = lo / self.align * self.align;
         let mut len = (hi - lo + 1).div_ceil(LANES) * LANES;
         let mut start = lo;
         if len > cap {
             len = cap;
             let centre = (2.0 * self.own[c] - min as f32).clamp(0.0, last) as usize;
-            start = centre.saturating_sub(cap / 2) / self.align * self.align;
+            start = centre.saturating_sub(cap / 2);
         }
         // Use the whole window inside the padded range.
         start = start.min(full - len);
